@@ -1,0 +1,128 @@
+// `ncd chamfer`: the constant-width chamfer generator from the command line.
+#include <chrono>
+#include <iostream>
+#include <memory>
+
+#include "app/chamfer_report.hpp"
+#include "app/commands.hpp"
+#include "app/output.hpp"
+#include "core/error.hpp"
+
+namespace ncd::app {
+namespace {
+
+struct ChamferArgs {
+  toolpath::ChamferSpec spec;
+  std::string edge = "inner", side = "upper", format = "json", point = "tip";
+  std::optional<double> rod_radius_mm, non_knife_angle_deg, safe_z_mm;
+  bool no_avoid = false, quiet = false;
+  double feed_mm_per_min = 300.0, spindle_rpm = 3000.0;
+  std::string output, plot;
+};
+
+int run_chamfer(const ChamferArgs& a) {
+  toolpath::ChamferSpec spec = a.spec;
+  spec.edge = a.edge == "inner" ? toolpath::Edge::Inner : toolpath::Edge::Outer;
+  spec.side = a.side == "upper" ? toolpath::Side::Upper : toolpath::Side::Lower;
+  spec.rod_radius_mm = a.rod_radius_mm;
+  if (a.non_knife_angle_deg) {
+    require_finite("non-knife angle (--non-knife-angle, deg)", *a.non_knife_angle_deg);
+    spec.non_knife_angle_rad = deg_to_rad(*a.non_knife_angle_deg);
+  }
+  spec.avoid = !a.no_avoid;
+  toolpath::NgcOptions ngc;
+  ngc.feed_mm_per_min = a.feed_mm_per_min;
+  ngc.spindle_rpm = a.spindle_rpm;
+  ngc.point = a.point == "tip" ? toolpath::ProgramPoint::Tip : toolpath::ProgramPoint::Centre;
+  ngc.safe_z_mm = a.safe_z_mm.value_or(toolpath::default_safe_z_mm(spec));
+  require_positive("feed (--feed, mm/min)", ngc.feed_mm_per_min);
+  require_positive("spindle speed (--spindle, rpm)", ngc.spindle_rpm);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const toolpath::ChamferPath path = toolpath::generate_chamfer(spec);
+  const double elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+
+  const auto& ck = path.checks;
+  const bool interferes = !ck.local_ok || !ck.global_ok || !ck.rod_ok;
+  std::string text;
+  if (a.format == "json") {
+    text = chamfer_json(path, ngc, a.non_knife_angle_deg, elapsed_ms).dump(1) + "\n";
+  } else if (a.format == "csv") {
+    text = chamfer_csv(path);
+  } else {
+    if (interferes && spec.avoid) {
+      throw InputError("the path interferes with the part (local " +
+                       std::string(ck.local_ok ? "ok" : "fails") + ", global " +
+                       (ck.global_ok ? "ok" : "fails") + ", rod " + (ck.rod_ok ? "ok" : "fails") +
+                       "); no NC program written. Use a smaller --ball-radius, or --no-avoid to "
+                       "write it anyway for a deliberate test cut");
+    }
+    text = toolpath::chamfer_program(path, ngc);
+  }
+  if (!a.plot.empty()) write_output(a.plot, render_svg(chamfer_figure(path)));
+  write_output(a.output, text);
+  if (!a.quiet) {
+    std::cerr << chamfer_summary(path, elapsed_ms);
+    if (interferes) std::cerr << "warning: the path interferes with the part (see the checks)\n";
+    if (!a.output.empty() && a.output != "-")
+      std::cerr << "  wrote             " << a.output << "\n";
+    if (!a.plot.empty()) std::cerr << "  wrote             " << a.plot << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+void register_chamfer(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<ChamferArgs>();
+  CLI::App* c = app.add_subcommand(
+      "chamfer",
+      "Tool path for a constant-width chamfer of a drilled hole in a pipe (paper 000). "
+      "Frame: drill axis = Z, pipe axis = Y, origin where they cross; lengths in mm.");
+  c->add_option("--pipe-radius", a->spec.pipe_radius_mm,
+                "radius of the pipe surface carrying the edge (R outside, R_I inside), mm")
+      ->required();
+  c->add_option("--drill-radius", a->spec.drill_radius_mm, "drill (hole) radius r, mm")->required();
+  c->add_option("--ball-radius", a->spec.ball_radius_mm, "ball-end cutter radius R_B, mm")
+      ->required();
+  c->add_option("--width", a->spec.width_mm, "chamfer width W = |AB|, mm")->required();
+  c->add_option("--tolerance", a->spec.tolerance_mm, "chordal tolerance ε, mm")
+      ->capture_default_str();
+  c->add_option("--edge", a->edge, "edge on the inner or outer pipe surface")
+      ->check(CLI::IsMember({"inner", "outer"}))
+      ->capture_default_str();
+  c->add_option("--side", a->side,
+                "upper (drill entry side) or lower edge; lower edges are "
+                "written for the part turned over")
+      ->check(CLI::IsMember({"upper", "lower"}))
+      ->capture_default_str();
+  c->add_option("--rod-radius", a->rod_radius_mm, "cutter rod radius R_od, mm (rod check)");
+  c->add_option("--non-knife-angle", a->non_knife_angle_deg,
+                "non-cutting cap angle 2β of the ball, degrees (rod check)");
+  c->add_flag("--no-avoid", a->no_avoid,
+              "keep α = 1 and report interference instead of avoiding it (Algorithm 1 off)");
+  c->add_option("--initial-segments", a->spec.initial_segments,
+                "N equal-arc-length pieces before chordal refinement")
+      ->capture_default_str();
+  c->add_option("--format", a->format, "output format")
+      ->check(CLI::IsMember({"json", "csv", "ngc"}))
+      ->capture_default_str();
+  c->add_option("-o,--output", a->output, "output file (default: standard output)");
+  c->add_option("--plot", a->plot, "also write the checks of Fig. 14 as an SVG plot");
+  c->add_option("--feed", a->feed_mm_per_min, "feed for the NC program, mm/min")
+      ->capture_default_str();
+  c->add_option("--spindle", a->spindle_rpm, "spindle speed for the NC program, rpm")
+      ->capture_default_str();
+  c->add_option("--program-point", a->point,
+                "what the NC program drives: the ball tip (tool length to the tip) or centre")
+      ->check(CLI::IsMember({"tip", "centre"}))
+      ->capture_default_str();
+  c->add_option("--safe-z", a->safe_z_mm,
+                "clearance height of the NC program, mm (default: pipe radius + 4 R_B; for an "
+                "inner edge it must clear the outer surface too)");
+  c->add_flag("-q,--quiet", a->quiet, "no summary on standard error");
+  c->callback([a, &run] { run = [a] { return run_chamfer(*a); }; });
+}
+
+}  // namespace ncd::app

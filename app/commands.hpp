@@ -1,0 +1,14 @@
+// The ncd subcommands. Each registers its flags on the CLI and, when chosen, sets `run`, which
+// main() calls after parsing: 0 on success; InputError → exit 2; other exceptions → exit 1.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace ncd::app {
+
+using Runner = std::function<int()>;
+
+void register_chamfer(CLI::App& app, Runner& run);
+
+}  // namespace ncd::app

@@ -1,0 +1,32 @@
+// ncd: a PC-NC service for deburring and chamfering drilled holes. One subcommand per use.
+// Exit status: 0 success, 2 invalid input (the message says what and how to fix it),
+// 1 internal failure.
+#include <exception>
+#include <iostream>
+
+#include "app/commands.hpp"
+#include "core/error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "ncd: toolpaths for deburring and chamfering drilled holes, walked in a 4 ms cycle at a "
+      "roughness-bounded feed and streamed to a CNC over RS-232 DNC"};
+  app.require_subcommand(1);
+  ncd::app::Runner run;
+  ncd::app::register_chamfer(app, run);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+  try {
+    return run ? run() : 2;
+  } catch (const ncd::InputError& e) {
+    std::cerr << "ncd: error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "ncd: internal error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,40 @@
+// Gauss–Legendre quadrature on [a, b]: the arc-length integrals of paper 000 eq. (28)–(31) and
+// the reference arc lengths of the interpolator tests. Nodes and weights of the 10-point rule
+// (exact for polynomials of degree 19), from the roots of P10.
+#pragma once
+
+#include <array>
+
+namespace ncd {
+
+struct GaussLegendre10 {
+  static constexpr std::array<double, 5> kNode = {
+      0.1488743389816312108848260, 0.4333953941292471907992659, 0.6794095682990244062343274,
+      0.8650633666889845107320967, 0.9739065285171717200779640};
+  static constexpr std::array<double, 5> kWeight = {
+      0.2955242247147528701738930, 0.2692667193099963550912269, 0.2190863625159820439955349,
+      0.1494513491505805931457763, 0.0666713443086881375935688};
+
+  // Integral of f over [a, b] with one 10-point panel.
+  template <class F>
+  static double integrate(F&& f, double a, double b) {
+    const double half = 0.5 * (b - a);
+    const double mid = 0.5 * (a + b);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < kNode.size(); ++i) {
+      sum += kWeight[i] * (f(mid - half * kNode[i]) + f(mid + half * kNode[i]));
+    }
+    return sum * half;
+  }
+
+  // Integral of f over [a, b] with `panels` equal 10-point panels (composite rule).
+  template <class F>
+  static double integrate(F&& f, double a, double b, int panels) {
+    const double h = (b - a) / panels;
+    double sum = 0.0;
+    for (int k = 0; k < panels; ++k) sum += integrate(f, a + k * h, a + (k + 1) * h);
+    return sum;
+  }
+};
+
+}  // namespace ncd

@@ -1,0 +1,483 @@
+// Constant-width chamfer of a drilled hole in a pipe: paper 000 (Sato, Sato, Maekawa, CAD 2016)
+// sections 2–4, with the conventions and corrections of spec/chamfer.md.
+//
+// Geometry. The drill (radius r) runs along z, the pipe along y. The edge carried by the pipe
+// surface of radius R_s (R outside, R_I inside) is, with σ = +1 upper and −1 lower,
+//
+//     C(θ) = (r cos θ, r sin θ, σ h(θ)),   h = sqrt(R_s² − r² cos² θ)          eqs. (4), (5)
+//
+// Its Frenet data (eqs. 6–10) give t and the curvature vector k = κ n. In the normal plane T
+// at x_p = C(θ) two unit tangents span the wedge to be chamfered:
+//
+//     t1 = s1 (N_H × t)   along the hole surface, into the wall                 eq. (14)
+//     t2 = s2 (t × N_p)   along the pipe surface, away from the hole            eq. (15)
+//
+//           t1 ▲
+//              │      wall
+//              │   A
+//              │  ╱ ╲  ← chamfer of width W = |AB|
+//   hole       │ ╱   ╲
+//              x_p ───B──────► t2        the ball (centre CL, radius R_B) sits on −e,
+//            ╱                           δ deep past x_p:  CL = x_p − (R_B − δ) e   eq. (19)
+//        −e ↙  CL
+//
+// with e = (t1 + α t2)/|t1 + α t2| (eq. 18); α = 1 bisects the wedge. A and B are where the
+// sphere |x − CL| = R_B meets the lines x_p + ζ t1 and x_p + η t2 (eqs. 22–25, the + roots).
+// δ solves G(δ) = |ζ t1 − η t2|² − W² = 0 (eq. 27) by Newton from δ = W/4, safeguarded by the
+// bracket δ ∈ (0, 2 R_B) on which G(0) = −W² < 0; no root means W is wider than the wedge and
+// the ball allow. The width exists only for e·t1 > 0 and e·t2 > 0, i.e. α ∈ (−c, −1/c) with
+// c = t1·t2.
+//
+// Interference (section 4). Local: R_B ≤ 1/|k_e|, k_e = (k·e) e (eqs. 36, 37). Global: the
+// cutter vector −e must not point into the hole surface: −e_z ≤ 0 on inner/upper, ≥ 0 on
+// outer/upper, opposite on lower edges (eq. 40, with the typo r < R_I corrected), which bounds
+// α as eq. (41) does. Rod: on an inner edge the rod passes through the hole, so the CL must
+// stay within the cylinder of radius R_R = min(r − R_B sin β, r − R_od) about the drill axis
+// (eq. 42). Algorithm 1 finds the smallest α ≥ 1 for which it does. The paper's F(α) of
+// eq. (46) compares |x_p − x_R| with R_B − δ, x_R being where the line x_p + u e meets that
+// cylinder; since CL lies on the same line, F has the sign of F̃(α) = |CL_xy|² − R_R², which
+// we use instead: it is exact (no line–ellipse Newton, no degenerate planes c = 0 at
+// θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is checked on.
+// δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved with
+// Illinois regula falsi instead of plain bisection (same bracket, fewer δ solves); the safe
+// end of the final bracket is returned. A θ where no admissible α clears the rod is
+// reported, never hidden.
+//
+// Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length (composite
+// Gauss–Legendre, Newton on eq. 31 to machine precision), each split at its parametric midpoint
+// while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
+// we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
+// midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
+// evaluated at those θ.
+#include "toolpath/chamfer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/quadrature.hpp"
+
+namespace ncd::toolpath {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kMaxNewton = 100;
+constexpr int kMaxAlphaIterations = 200;
+constexpr double kAlphaTolerance = 1e-13;  // relative width of the final α bracket
+constexpr double kAlphaMargin = 1e-9;      // keep α strictly inside the admissible range
+constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c = 0)
+constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π]
+constexpr double kMinSplitTheta = 1e-9;    // a split below this cannot reach ε
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+std::string fmt_deg(double rad) {
+  return fmt(rad_to_deg(rad)) + "°";
+}
+
+// Positive root of ζ² + 2 q a ζ + δ² − 2 δ R_B = 0 (eqs. 23, 25), q = R_B − δ.
+double plus_root(double q, double a, double delta, double ball) {
+  const double disc = q * q * a * a - (delta * delta - 2.0 * delta * ball);
+  return -q * a + std::sqrt(std::max(disc, 0.0));
+}
+
+}  // namespace
+
+std::string to_string(Edge edge) {
+  return edge == Edge::Inner ? "inner" : "outer";
+}
+std::string to_string(Side side) {
+  return side == Side::Upper ? "upper" : "lower";
+}
+
+void validate(const ChamferSpec& s) {
+  require_positive("pipe radius (--pipe-radius) " + fmt(s.pipe_radius_mm) + " mm",
+                   s.pipe_radius_mm);
+  require_positive("drill radius (--drill-radius)", s.drill_radius_mm);
+  require_positive("ball radius R_B (--ball-radius)", s.ball_radius_mm);
+  require_positive("chamfer width W (--width)", s.width_mm);
+  require_positive("tolerance ε (--tolerance)", s.tolerance_mm);
+  if (s.drill_radius_mm >= s.pipe_radius_mm) {
+    throw InputError("drill radius r = " + fmt(s.drill_radius_mm) +
+                     " mm must be smaller than the pipe radius " + fmt(s.pipe_radius_mm) +
+                     " mm (a drill as wide as the pipe cuts it in two, and the edge is not a "
+                     "closed curve); use a smaller --drill-radius or the right --pipe-radius");
+  }
+  if (s.tolerance_mm < ChamferLimits::kMinToleranceMm ||
+      s.tolerance_mm > ChamferLimits::kMaxToleranceMm) {
+    throw InputError("tolerance ε = " + fmt(s.tolerance_mm) + " mm is outside [" +
+                     fmt(ChamferLimits::kMinToleranceMm) + ", " +
+                     fmt(ChamferLimits::kMaxToleranceMm) +
+                     "] mm; 0.01 mm is typical (--tolerance)");
+  }
+  if (s.initial_segments < ChamferLimits::kMinInitialSegments ||
+      s.initial_segments > ChamferLimits::kMaxInitialSegments) {
+    throw InputError("initial segments N = " + std::to_string(s.initial_segments) +
+                     " is outside [" + std::to_string(ChamferLimits::kMinInitialSegments) + ", " +
+                     std::to_string(ChamferLimits::kMaxInitialSegments) + "]; the paper uses 60");
+  }
+  if (s.edge == Edge::Inner && s.ball_radius_mm >= s.drill_radius_mm) {
+    throw InputError("ball radius R_B = " + fmt(s.ball_radius_mm) +
+                     " mm must be smaller than the drill radius r = " + fmt(s.drill_radius_mm) +
+                     " mm to reach an inner edge through the hole; use a smaller --ball-radius");
+  }
+  if (s.rod_radius_mm) {
+    require_positive("rod radius R_od (--rod-radius)", *s.rod_radius_mm);
+    if (*s.rod_radius_mm >= s.drill_radius_mm) {
+      throw InputError("rod radius R_od = " + fmt(*s.rod_radius_mm) +
+                       " mm must be smaller than the drill radius r = " + fmt(s.drill_radius_mm) +
+                       " mm, or the rod cannot enter the hole");
+    }
+  }
+  if (s.non_knife_angle_rad) {
+    const double two_beta = *s.non_knife_angle_rad;
+    if (!std::isfinite(two_beta) || two_beta <= 0.0 || two_beta >= kPi) {
+      throw InputError("non-knife angle 2β = " + fmt_deg(two_beta) +
+                       " must lie in (0°, 180°) (--non-knife-angle, degrees)");
+    }
+    if (s.ball_radius_mm * std::sin(0.5 * two_beta) >= s.drill_radius_mm) {
+      throw InputError(
+          "non-knife cap radius R_B sin β = " + fmt(s.ball_radius_mm * std::sin(0.5 * two_beta)) +
+          " mm reaches the drill radius r = " + fmt(s.drill_radius_mm) + " mm");
+    }
+  }
+}
+
+ChamferModel::ChamferModel(const ChamferSpec& spec) : spec_(spec) {
+  validate(spec_);
+  const bool upper = spec_.side == Side::Upper;
+  const bool inner = spec_.edge == Edge::Inner;
+  sign_z_ = upper ? 1.0 : -1.0;
+  sign_t1_ = (inner == upper) ? 1.0 : -1.0;
+  sign_t2_ = upper ? 1.0 : -1.0;
+}
+
+Vec3 ChamferModel::point(double theta) const {
+  const double r = spec_.drill_radius_mm, rs = spec_.pipe_radius_mm;
+  const double c = std::cos(theta), s = std::sin(theta);
+  return {r * c, r * s, sign_z_ * std::sqrt(rs * rs - r * r * c * c)};
+}
+
+Vec3 ChamferModel::derivative(double theta) const {
+  const double r = spec_.drill_radius_mm, rs = spec_.pipe_radius_mm;
+  const double c = std::cos(theta), s = std::sin(theta);
+  const double h = std::sqrt(rs * rs - r * r * c * c);
+  return {-r * s, r * c, sign_z_ * r * r * c * s / h};
+}
+
+Vec3 ChamferModel::second_derivative(double theta) const {
+  const double r = spec_.drill_radius_mm, rs = spec_.pipe_radius_mm;
+  const double c = std::cos(theta), s = std::sin(theta);
+  const double h = std::sqrt(rs * rs - r * r * c * c);
+  const double h1 = r * r * c * s / h;                        // dh/dθ
+  const double h2 = (r * r * (c * c - s * s) - h1 * h1) / h;  // d²h/dθ², from (h h')' = r² cos 2θ
+  return {-r * c, -r * s, sign_z_ * h2};
+}
+
+double ChamferModel::speed(double theta) const {
+  return derivative(theta).norm();
+}
+
+EdgeFrame ChamferModel::frame(double theta) const {
+  const double c = std::cos(theta), s = std::sin(theta);
+  const Vec3 d1 = derivative(theta), d2 = second_derivative(theta);
+  EdgeFrame f;
+  f.theta_rad = theta;
+  f.xp = point(theta);
+  const double v = d1.norm();
+  f.t = d1 / v;
+  f.k = d1.cross(d2).cross(d1) / (v * v * v * v);  // κ n = (C' × C'') × C' / |C'|⁴
+  const Vec3 n_hole(c, s, 0.0);                    // eq. (12)
+  const Vec3 n_pipe =
+      Vec3(f.xp.x(), 0.0, f.xp.z()) / spec_.pipe_radius_mm;  // eq. (16), away from the pipe axis
+  f.t1 = sign_t1_ * n_hole.cross(f.t);
+  f.t2 = sign_t2_ * f.t.cross(n_pipe);
+  f.c = f.t1.dot(f.t2);
+  return f;
+}
+
+AlphaRange ChamferModel::alpha_range(const EdgeFrame& f) const {
+  // Width exists: e·t1 ∝ 1 + α c > 0 and e·t2 ∝ c + α > 0.
+  AlphaRange range{std::max(0.0, -f.c), f.c < 0.0 ? -1.0 / f.c : kInf};
+  // Global check: s1 (t1 + α t2)_z ≥ 0 keeps −e_z on the safe side (eq. 40, 41).
+  const double g1 = sign_t1_ * f.t1.z(), g2 = sign_t1_ * f.t2.z();
+  if (g2 < 0.0) range.hi = std::min(range.hi, g1 / -g2);
+  return range;
+}
+
+double ChamferModel::max_width(const EdgeFrame& f, double alpha) const {
+  const Vec3 e = (f.t1 + alpha * f.t2).normalized();
+  const double a = e.dot(f.t1), b = e.dot(f.t2);
+  // At δ = 2 R_B: ζ = 2 R_B a, η = 2 R_B b.
+  return 2.0 * spec_.ball_radius_mm * std::sqrt(std::max(0.0, a * a + b * b - 2.0 * a * b * f.c));
+}
+
+std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha) const {
+  const double rb = spec_.ball_radius_mm, w = spec_.width_mm;
+  const Vec3 e = (f.t1 + alpha * f.t2).normalized();
+  const double a = e.dot(f.t1), b = e.dot(f.t2), c = f.c;
+  if (!(a > 0.0 && b > 0.0) || max_width(f, alpha) <= w) return std::nullopt;
+  // G(δ) and G'(δ) from eqs. (23), (25), (27); ζ' = (aζ + q)/(ζ + q a), q = R_B − δ.
+  auto g_and_slope = [&](double delta, double& slope) {
+    const double q = rb - delta;
+    const double zeta = plus_root(q, a, delta, rb), eta = plus_root(q, b, delta, rb);
+    const double dzeta = (a * zeta + q) / (zeta + q * a);
+    const double deta = (b * eta + q) / (eta + q * b);
+    slope = 2.0 * (zeta * dzeta + eta * deta - c * (dzeta * eta + zeta * deta));
+    return zeta * zeta + eta * eta - 2.0 * c * zeta * eta - w * w;
+  };
+  double lo = 0.0, hi = 2.0 * rb, delta = 0.25 * w;
+  for (int i = 0; i < kMaxNewton; ++i) {
+    double slope = 0.0;
+    const double g = g_and_slope(delta, slope);
+    if (g == 0.0) return delta;
+    (g < 0.0 ? lo : hi) = delta;
+    double next = delta - g / slope;
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // Newton left the bracket
+    if (std::abs(next - delta) <= 4.0 * std::numeric_limits<double>::epsilon() * next) {
+      return next;
+    }
+    delta = next;
+  }
+  return delta;  // the bracket has shrunk to rounding level by now
+}
+
+CutterPose ChamferModel::pose(const EdgeFrame& f, double alpha, double delta) const {
+  const double rb = spec_.ball_radius_mm, q = rb - delta;
+  CutterPose p;
+  p.theta_rad = f.theta_rad;
+  p.alpha = alpha;
+  p.delta_mm = delta;
+  p.xp = f.xp;
+  p.e = (f.t1 + alpha * f.t2).normalized();
+  p.cl = f.xp - q * p.e;
+  p.a = f.xp + plus_root(q, p.e.dot(f.t1), delta, rb) * f.t1;
+  p.b = f.xp + plus_root(q, p.e.dot(f.t2), delta, rb) * f.t2;
+  const Vec3 ab = p.b - p.a;
+  p.width_mm = ab.norm();
+  p.projected_width_mm = std::hypot(ab.x(), ab.y());
+  const double ke = std::abs(f.k.dot(p.e));
+  p.inv_ke_mm = ke > 0.0 ? 1.0 / ke : kInf;
+  p.minus_ez = -p.e.z();
+  p.cl_radius_mm = std::hypot(p.cl.x(), p.cl.y());
+  return p;
+}
+
+CutterPose ChamferModel::pose_at(double theta, double alpha) const {
+  const EdgeFrame f = frame(theta);
+  const auto delta = solve_delta(f, alpha);
+  if (!delta) {
+    const AlphaRange range = alpha_range(f);
+    throw InputError("no chamfer of width W = " + fmt(spec_.width_mm) + " mm at θ = " +
+                     fmt_deg(theta) + " with α = " + fmt(alpha) + ": the widest the wedge and a " +
+                     "ball of R_B = " + fmt(spec_.ball_radius_mm) + " mm allow there is " +
+                     fmt(max_width(f, alpha)) + " mm (α must also lie in (" + fmt(range.lo) + ", " +
+                     fmt(range.hi) + ")); use a smaller --width or a larger --ball-radius");
+  }
+  return pose(f, alpha, *delta);
+}
+
+std::optional<double> ChamferModel::rod_limit_radius_mm() const {
+  if (spec_.edge != Edge::Inner) return std::nullopt;
+  std::optional<double> limit;
+  const double r = spec_.drill_radius_mm;
+  if (spec_.rod_radius_mm) limit = r - *spec_.rod_radius_mm;
+  if (spec_.non_knife_angle_rad) {
+    const double cap = r - spec_.ball_radius_mm * std::sin(0.5 * *spec_.non_knife_angle_rad);
+    limit = limit ? std::min(*limit, cap) : cap;
+  }
+  return limit;
+}
+
+double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double delta) const {
+  const double rr = *rod_limit_radius_mm();
+  const Vec3 cl = pose(f, alpha, delta).cl;
+  return cl.x() * cl.x() + cl.y() * cl.y() - rr * rr;
+}
+
+RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
+  const auto delta_at = [&](double alpha) {
+    const auto d = solve_delta(f, alpha);
+    if (!d) (void)pose_at(f.theta_rad, alpha);  // throws the width error with its numbers
+    return *d;
+  };
+  const auto big_f = [&](double alpha) { return rod_interference(f, alpha, delta_at(alpha)); };
+  double f_lo = big_f(1.0);
+  if (f_lo <= 0.0) return {1.0, false, true};
+  // Bracket [1, hi] with F(hi) ≤ 0; hi is inside the admissible and global bounds.
+  const AlphaRange range = alpha_range(f);
+  double lo = 1.0, hi = 0.0, f_hi = 0.0;
+  if (std::isfinite(range.hi)) {
+    hi = range.hi * (1.0 - kAlphaMargin);
+    if (hi <= lo || (f_hi = big_f(hi)) > 0.0) return {1.0, false, false};
+  } else {
+    for (hi = 2.0; hi <= kMaxAlphaSearch; hi *= 2.0) {
+      if ((f_hi = big_f(hi)) <= 0.0) break;
+      lo = hi;
+      f_lo = f_hi;
+    }
+    if (f_hi > 0.0) return {1.0, false, false};
+  }
+  // Illinois regula falsi: the bracket always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
+  int side = 0;
+  for (int i = 0; i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi; ++i) {
+    double mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+    if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
+    const double f_mid = big_f(mid);
+    if (f_mid > 0.0) {
+      lo = mid;
+      f_lo = f_mid;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      hi = mid;
+      f_hi = f_mid;
+      if (side == 1) f_lo *= 0.5;
+      side = 1;
+    }
+  }
+  return {hi, true, true};
+}
+
+double ChamferModel::arc_length(double theta0, double theta1) const {
+  const auto v = [this](double th) { return speed(th); };
+  const int panels = std::max(
+      1, static_cast<int>(std::ceil(std::abs(theta1 - theta0) / (2.0 * kPi / kArcLengthPanels))));
+  return GaussLegendre10::integrate(v, theta0, theta1, panels);
+}
+
+double ChamferModel::chord_deviation(double theta0, double theta1) const {
+  const Vec3 p0 = point(theta0), p1 = point(theta1);
+  const Vec3 chord = p1 - p0;
+  const double len = chord.norm();
+  const auto distance = [&](double th) {
+    const Vec3 w = point(th) - p0;
+    return len > 0.0 ? w.cross(chord).norm() / len : w.norm();
+  };
+  const double mid = 0.5 * (theta0 + theta1);
+  double best = distance(mid);  // eq. (34)
+  if (len == 0.0) return best;
+  // The maximum is where C' ⟂ w⊥ (w⊥ = part of C − p0 normal to the chord): Newton on
+  // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint, kept inside the piece.
+  const Vec3 u = chord / len;
+  double th = mid;
+  for (int i = 0; i < 8; ++i) {
+    const Vec3 d1 = derivative(th);
+    const Vec3 d2 = second_derivative(th);
+    const Vec3 w = point(th) - p0;
+    const Vec3 w_perp = w - w.dot(u) * u;
+    const Vec3 d1_perp = d1 - d1.dot(u) * u;
+    const double phi = d1.dot(w_perp);
+    const double slope = d2.dot(w_perp) + d1_perp.squaredNorm();
+    if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
+    const double next = th - phi / slope;
+    if (!(next > theta0 && next < theta1)) break;
+    th = next;
+    best = std::max(best, distance(th));
+  }
+  return best;
+}
+
+std::vector<double> ChamferModel::segment() const {
+  const int n = spec_.initial_segments;
+  const double total = arc_length(0.0, 2.0 * kPi);
+  const double ds = total / n;
+  // Equal arcs (eqs. 29–33): θ_k from θ_{k−1} by Newton on ∫ v dθ − Δs, v = |C'|.
+  std::vector<double> start(static_cast<std::size_t>(n) + 1);
+  start[0] = 0.0;
+  double prev = 0.0;
+  for (int k = 1; k < n; ++k) {
+    double th = prev + ds / speed(prev);
+    for (int i = 0; i < kMaxNewton; ++i) {
+      const double step =
+          (GaussLegendre10::integrate([this](double x) { return speed(x); }, prev, th) - ds) /
+          speed(th);
+      th -= step;
+      if (std::abs(step) <= 4.0 * std::numeric_limits<double>::epsilon() * th) break;
+    }
+    start[static_cast<std::size_t>(k)] = th;
+    prev = th;
+  }
+  start[static_cast<std::size_t>(n)] = 2.0 * kPi;
+
+  // Midpoint splits (eq. 34), depth first so the output stays in θ order.
+  std::vector<double> out;
+  std::vector<std::pair<double, double>> stack;
+  for (int k = 0; k < n; ++k) {
+    stack.emplace_back(start[static_cast<std::size_t>(k)], start[static_cast<std::size_t>(k) + 1]);
+    while (!stack.empty()) {
+      const auto [a, b] = stack.back();
+      stack.pop_back();
+      if (chord_deviation(a, b) > spec_.tolerance_mm) {
+        if (b - a < kMinSplitTheta || out.size() + stack.size() > ChamferLimits::kMaxPoints) {
+          throw InputError("tolerance ε = " + fmt(spec_.tolerance_mm) + " mm needs more than " +
+                           std::to_string(ChamferLimits::kMaxPoints) +
+                           " points; use a larger --tolerance");
+        }
+        const double m = 0.5 * (a + b);
+        stack.emplace_back(m, b);
+        stack.emplace_back(a, m);
+      } else {
+        out.push_back(a);
+      }
+    }
+  }
+  return out;
+}
+
+ChamferPath generate_chamfer(const ChamferSpec& spec) {
+  const ChamferModel model(spec);
+  ChamferPath path;
+  path.spec = spec;
+  const std::vector<double> thetas = model.segment();
+  path.points.reserve(thetas.size());
+  ChamferChecks& ck = path.checks;
+  ck.limit_radius_mm = model.rod_limit_radius_mm();
+  ck.rod_applies = spec.edge == Edge::Inner;
+  ck.min_inv_ke_mm = kInf;
+  ck.max_minus_ez = -kInf;
+  ck.min_minus_ez = kInf;
+  for (const double theta : thetas) {
+    const EdgeFrame f = model.frame(theta);
+    double alpha = 1.0;
+    if (ck.limit_radius_mm && spec.avoid) {
+      const RodAvoidance rod = model.avoid_rod(f);
+      if (!rod.cleared) ck.uncleared_theta_rad.push_back(theta);
+      alpha = rod.alpha;
+      if (rod.adjusted) ++ck.adjusted_points;
+    }
+    CutterPose p = model.pose_at(theta, alpha);
+    ck.min_inv_ke_mm = std::min(ck.min_inv_ke_mm, p.inv_ke_mm);
+    ck.max_minus_ez = std::max(ck.max_minus_ez, p.minus_ez);
+    ck.min_minus_ez = std::min(ck.min_minus_ez, p.minus_ez);
+    ck.max_cl_radius_mm = std::max(ck.max_cl_radius_mm, p.cl_radius_mm);
+    path.points.push_back(p);
+  }
+  ck.local_ok = ck.min_inv_ke_mm >= spec.ball_radius_mm;
+  // −e_z ≤ 0 on inner/upper and outer/lower, ≥ 0 on outer/upper and inner/lower.
+  const bool ez_nonpositive = (spec.edge == Edge::Inner) == (spec.side == Side::Upper);
+  ck.global_ok = ez_nonpositive ? ck.max_minus_ez <= 0.0 : ck.min_minus_ez >= 0.0;
+  ck.rod_ok = !ck.limit_radius_mm || ck.max_cl_radius_mm <= *ck.limit_radius_mm;
+  if (spec.avoid && !ck.uncleared_theta_rad.empty()) {
+    const double th = ck.uncleared_theta_rad.front();
+    const EdgeFrame f = model.frame(th);
+    const AlphaRange range = model.alpha_range(f);
+    throw InputError("the rod limit R_R = " + fmt(*ck.limit_radius_mm) +
+                     " mm cannot be met at θ = " + fmt_deg(th) + " (and " +
+                     std::to_string(ck.uncleared_theta_rad.size() - 1) +
+                     " more points): no admissible α in [1, " + fmt(range.hi) +
+                     ") keeps the cutter location that close to the drill axis; use a thinner rod "
+                     "(--rod-radius), a smaller non-knife angle, a smaller ball, or --no-avoid to "
+                     "report the interference instead");
+  }
+  return path;
+}
+
+}  // namespace ncd::toolpath

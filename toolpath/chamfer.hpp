@@ -1,0 +1,153 @@
+// Constant-width chamfer of a drilled hole in a pipe (paper 000, Sato, Sato, Maekawa 2016, with
+// the conventions of spec/chamfer.md). The algorithm is explained once, in chamfer.cpp.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/geometry.hpp"
+
+namespace ncd::toolpath {
+
+enum class Edge { Inner, Outer };
+enum class Side { Upper, Lower };
+
+std::string to_string(Edge edge);
+std::string to_string(Side side);
+
+// Everything that defines one chamfer job. Lengths in mm, angles in rad.
+struct ChamferSpec {
+  double pipe_radius_mm = 18.0;   // radius of the pipe surface carrying the edge (R or R_I)
+  double drill_radius_mm = 13.0;  // r, drill axis = z, pipe axis = y
+  double ball_radius_mm = 3.0;    // R_B
+  double width_mm = 0.7;          // W = |AB|
+  double tolerance_mm = 0.01;     // chordal tolerance ε of the segmentation
+  Edge edge = Edge::Inner;
+  Side side = Side::Upper;
+  std::optional<double> rod_radius_mm;        // R_od of the cutter rod
+  std::optional<double> non_knife_angle_rad;  // 2β, the non-cutting cap of the ball
+  bool avoid = true;                          // false: keep α = 1 and only report interference
+  int initial_segments = 60;                  // N of the equal-arc-length start (eq. 29)
+};
+
+// Limits that make a ChamferSpec valid, shared by validation and its error messages.
+struct ChamferLimits {
+  static constexpr double kMinToleranceMm = 1e-5;  // below any machine's resolution
+  static constexpr double kMaxToleranceMm = 1.0;
+  static constexpr int kMinInitialSegments = 4;
+  static constexpr int kMaxInitialSegments = 100000;
+  static constexpr std::size_t kMaxPoints = 2000000;
+};
+
+// Throws InputError naming the offending value, the limit and a way out.
+void validate(const ChamferSpec& spec);
+
+// The local geometry at θ: reference point, Frenet data and the two tangent lines of the
+// normal plane T (eqs. 6–17).
+struct EdgeFrame {
+  double theta_rad = 0.0;
+  Vec3 xp;         // x_p = C(θ)
+  Vec3 t;          // unit tangent (eq. 6)
+  Vec3 k;          // curvature vector κ n (eq. 10), 1/mm
+  Vec3 t1;         // along the hole surface into the wall (eq. 14, signed)
+  Vec3 t2;         // along the pipe surface away from the hole (eq. 15, signed)
+  double c = 0.0;  // t1 · t2
+};
+
+// The cutter at θ for a given α and its feed δ (eqs. 18–26, 37).
+struct CutterPose {
+  double theta_rad = 0.0;
+  double alpha = 1.0;
+  double delta_mm = 0.0;
+  Vec3 xp;                          // reference point on the edge
+  Vec3 e;                           // unit vector from the ball centre to the contact point
+  Vec3 cl;                          // cutter location = ball centre (eq. 19)
+  Vec3 a;                           // point A on r1 (eq. 21)
+  Vec3 b;                           // point B on r2 (eq. 24)
+  double width_mm = 0.0;            // |AB|
+  double projected_width_mm = 0.0;  // |AB| seen from +z
+  double inv_ke_mm = 0.0;           // 1/|k_e| (eq. 36); +inf where k ⟂ e
+  double minus_ez = 0.0;            // −e_z (global check)
+  double cl_radius_mm = 0.0;        // distance of CL from the drill axis
+};
+
+// Open interval of α for which a chamfer of width W exists (e·t1 > 0 and e·t2 > 0) intersected
+// with the global-interference bound (eq. 41 generalised to every edge); hi may be +inf.
+struct AlphaRange {
+  double lo = 0.0;
+  double hi = 0.0;
+};
+
+// Outcome of Algorithm 1 at one θ.
+struct RodAvoidance {
+  double alpha = 1.0;
+  bool adjusted = false;  // α moved away from 1
+  bool cleared = true;    // the CL radius is within the rod limit
+};
+
+// The edge curve and every per-θ quantity of the paper for one ChamferSpec.
+class ChamferModel {
+ public:
+  explicit ChamferModel(const ChamferSpec& spec);  // validates; throws InputError
+
+  const ChamferSpec& spec() const { return spec_; }
+  Vec3 point(double theta) const;              // C(θ), eqs. (4)/(5)
+  Vec3 derivative(double theta) const;         // dC/dθ
+  Vec3 second_derivative(double theta) const;  // d²C/dθ²
+  double speed(double theta) const;            // |dC/dθ| = ds/dθ
+  EdgeFrame frame(double theta) const;         // eqs. (6)–(17)
+  AlphaRange alpha_range(const EdgeFrame& f) const;
+  // Solves G(δ) = 0 (eq. 27) by bracketed Newton; nullopt when W does not fit at this α.
+  std::optional<double> solve_delta(const EdgeFrame& f, double alpha) const;
+  // Largest width the wedge can take at this α (δ → 2 R_B).
+  double max_width(const EdgeFrame& f, double alpha) const;
+  CutterPose pose(const EdgeFrame& f, double alpha, double delta) const;
+  // pose() with δ solved; throws InputError naming θ when no chamfer of width W exists.
+  CutterPose pose_at(double theta, double alpha) const;
+  // R_R = min(r − R_B sin β, r − R_od) over the limits given; nullopt if none applies.
+  std::optional<double> rod_limit_radius_mm() const;
+  // |CL_xy|² − R_R², of the sign of F(α) in eq. (46): > 0 means the rod (or cap) interferes.
+  double rod_interference(const EdgeFrame& f, double alpha, double delta) const;
+  // Algorithm 1: the smallest α ≥ 1 that keeps the CL within R_R.
+  RodAvoidance avoid_rod(const EdgeFrame& f) const;
+  // Arc length of C over [theta0, theta1] by Gauss–Legendre (eq. 28).
+  double arc_length(double theta0, double theta1) const;
+  // Reference parameters: N equal arcs refined by midpoint splits until every chordal
+  // deviation is ≤ ε (eqs. 29–34). Starts at 0, excludes 2π (the loop closes on θ = 0).
+  std::vector<double> segment() const;
+  // Largest distance between C on [theta0, theta1] and the chord joining its ends.
+  double chord_deviation(double theta0, double theta1) const;
+
+ private:
+  ChamferSpec spec_;
+  double sign_z_;   // +1 upper, −1 lower
+  double sign_t1_;  // s1 of the spec
+  double sign_t2_;  // s2 of the spec
+};
+
+struct ChamferChecks {
+  bool local_ok = true;
+  double min_inv_ke_mm = 0.0;
+  bool global_ok = true;
+  double max_minus_ez = 0.0;
+  double min_minus_ez = 0.0;
+  bool rod_applies = false;  // inner edges only: the rod passes through the hole
+  bool rod_ok = true;
+  std::optional<double> limit_radius_mm;
+  double max_cl_radius_mm = 0.0;
+  int adjusted_points = 0;
+  std::vector<double> uncleared_theta_rad;  // θ where no admissible α clears the rod
+};
+
+struct ChamferPath {
+  ChamferSpec spec;
+  std::vector<CutterPose> points;  // closed loop; the first point is not repeated
+  ChamferChecks checks;
+};
+
+// The whole pipeline: segmentation, δ, Algorithm 1, checks. Throws InputError when the
+// geometry cannot be chamfered (the message names θ, the value and the limit).
+ChamferPath generate_chamfer(const ChamferSpec& spec);
+
+}  // namespace ncd::toolpath
