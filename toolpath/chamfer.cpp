@@ -35,7 +35,7 @@
 // stay within the cylinder of radius R_R = min(r − R_B sin β, r − R_od) about the drill axis
 // (eq. 42). Algorithm 1 finds the smallest α ≥ 1 for which it does. The paper's F(α) of
 // eq. (46) compares |x_p − x_R| with R_B − δ, x_R being where the line x_p + u e meets that
-// cylinder; since CL lies on the same line, F has the sign of F̃(α) = |CL_xy|² − R_R², which
+// cylinder; since CL lies on the same line, F has the sign of F̃(α) = |CL_xy| − R_R, which
 // we use instead: it is exact (no line–ellipse Newton, no degenerate planes c = 0 at
 // θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is checked on.
 // δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved with
@@ -297,9 +297,7 @@ std::optional<double> ChamferModel::rod_limit_radius_mm() const {
 }
 
 double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double delta) const {
-  const double rr = *rod_limit_radius_mm();
-  const Vec3 cl = pose(f, alpha, delta).cl;
-  return cl.x() * cl.x() + cl.y() * cl.y() - rr * rr;
+  return pose(f, alpha, delta).cl_radius_mm - *rod_limit_radius_mm();
 }
 
 RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {

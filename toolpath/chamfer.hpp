@@ -107,7 +107,7 @@ class ChamferModel {
   CutterPose pose_at(double theta, double alpha) const;
   // R_R = min(r − R_B sin β, r − R_od) over the limits given; nullopt if none applies.
   std::optional<double> rod_limit_radius_mm() const;
-  // |CL_xy|² − R_R², of the sign of F(α) in eq. (46): > 0 means the rod (or cap) interferes.
+  // |CL_xy| − R_R, of the sign of F(α) in eq. (46): > 0 means the rod (or cap) interferes.
   double rod_interference(const EdgeFrame& f, double alpha, double delta) const;
   // Algorithm 1: the smallest α ≥ 1 that keeps the CL within R_R.
   RodAvoidance avoid_rod(const EdgeFrame& f) const;

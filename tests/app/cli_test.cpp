@@ -1,0 +1,247 @@
+// The `ncd` executable as a user meets it: exit codes, messages, files written or not, and the
+// JSON contract and NC program of `ncd chamfer`.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CmdResult {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("ncd_cli_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Runs `ncd ARGS` through the shell (arguments are passed as written here).
+  CmdResult ncd(const std::string& args) {
+    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
+    const std::string cmd =
+        std::string(NCD_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
+    const int raw = std::system(cmd.c_str());
+    CmdResult r;
+    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+
+  fs::path dir_;
+};
+
+const std::string kExp3 =
+    "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01 "
+    "--rod-radius 1.8 --non-knife-angle 93";
+
+TEST_F(Cli, HelpOnEverySubcommandExitsZero) {
+  EXPECT_EQ(ncd("--help").status, 0);
+  const CmdResult r = ncd("chamfer --help");
+  EXPECT_EQ(r.status, 0);
+  for (const char* flag : {"--pipe-radius", "--drill-radius", "--ball-radius", "--width",
+                           "--tolerance", "--edge", "--side", "--rod-radius", "--non-knife-angle",
+                           "--no-avoid", "--format", "--feed", "--spindle"}) {
+    EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
+  }
+}
+
+TEST_F(Cli, NoSubcommandOrUnknownFlagIsInvalidInput) {
+  EXPECT_EQ(ncd("").status, 2);
+  EXPECT_EQ(ncd("chamfer --frobnicate 3").status, 2);
+}
+
+TEST_F(Cli, JsonContractOfExperiment3) {
+  const CmdResult r = ncd(kExp3 + " -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"pipe_radius_mm", "drill_radius_mm", "ball_radius_mm", "width_mm",
+                          "tolerance_mm", "edge", "side", "rod_radius_mm", "non_knife_angle_deg",
+                          "avoid", "feed_mm_per_min", "spindle_rpm"}) {
+    EXPECT_TRUE(j["input"].contains(key)) << key;
+  }
+  EXPECT_EQ(j["input"]["non_knife_angle_deg"].get<double>(), 93.0);
+  ASSERT_EQ(j["segments"].get<std::size_t>(), j["points"].size());
+  for (const auto& p : j["points"]) {
+    for (const char* key : {"theta", "xp", "cl", "e", "alpha", "delta", "width", "projected_width",
+                            "inv_ke", "minus_ez", "cl_radius"}) {
+      ASSERT_TRUE(p.contains(key)) << key;
+    }
+    EXPECT_NEAR(p["width"].get<double>(), 0.7, 1e-9);
+    const auto cl = p["cl"].get<std::vector<double>>();
+    EXPECT_NEAR(std::hypot(cl[0], cl[1]), p["cl_radius"].get<double>(), 1e-12);
+  }
+  const auto& ck = j["checks"];
+  EXPECT_TRUE(ck["local"]["ok"].get<bool>());
+  EXPECT_TRUE(ck["global"]["ok"].get<bool>());
+  EXPECT_TRUE(ck["rod"]["ok"].get<bool>());
+  EXPECT_LE(ck["rod"]["max_cl_radius"].get<double>(), ck["rod"]["limit_radius"].get<double>());
+  EXPECT_GT(ck["rod"]["adjusted_points"].get<int>(), 0);
+  EXPECT_GE(j["elapsed_ms"].get<double>(), 0.0);
+}
+
+TEST_F(Cli, SameInputsGiveTheSameOutputBesidesTheClock) {
+  auto a = nlohmann::json::parse(ncd(kExp3 + " -q").out);
+  auto b = nlohmann::json::parse(ncd(kExp3 + " -q").out);
+  a.erase("elapsed_ms");
+  b.erase("elapsed_ms");
+  EXPECT_EQ(a.dump(), b.dump());
+  EXPECT_EQ(ncd(kExp3 + " -q --format ngc").out, ncd(kExp3 + " -q --format ngc").out);
+}
+
+TEST_F(Cli, CsvHasOneRowPerPoint) {
+  const CmdResult r = ncd(kExp3 + " -q --format csv");
+  ASSERT_EQ(r.status, 0);
+  const auto j = nlohmann::json::parse(ncd(kExp3 + " -q").out);
+  std::istringstream in(r.out);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line.rfind("theta_rad,", 0), 0u);
+  std::size_t rows = 0;
+  while (std::getline(in, line)) ++rows;
+  EXPECT_EQ(rows, j["points"].size());
+}
+
+// The G1 targets with X, Y and Z of an NC program, in order (not the moves to the drill axis).
+std::vector<std::array<double, 3>> g1_points(const std::string& program) {
+  std::vector<std::array<double, 3>> pts;
+  std::istringstream in(program);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("G1 X", 0) != 0) continue;
+    std::array<double, 3> p{};
+    if (std::sscanf(line.c_str(), "G1 X%lf Y%lf Z%lf", &p[0], &p[1], &p[2]) == 3) pts.push_back(p);
+  }
+  return pts;
+}
+
+TEST_F(Cli, NcProgramIsAClosedLoopOfTheBallTip) {
+  const CmdResult r = ncd(kExp3 + " -q --format ngc --feed 1800 --spindle 3000");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string& g = r.out;
+  EXPECT_EQ(g.rfind("%\n", 0), 0u);
+  for (const char* word : {"G21", "G90", "F1800", "S3000 M3", "M5", "M2", "TIP", "width 0.7000"}) {
+    EXPECT_NE(g.find(word), std::string::npos) << word;
+  }
+  const auto j = nlohmann::json::parse(ncd(kExp3 + " -q").out);
+  const auto pts = g1_points(g);
+  // Approach point, the loop, then the point closing it.
+  ASSERT_EQ(pts.size(), j["points"].size() + 1);
+  for (std::size_t i = 0; i < j["points"].size(); ++i) {
+    const auto cl = j["points"][i]["cl"].get<std::vector<double>>();
+    EXPECT_NEAR(pts[i][0], cl[0], 5e-5);
+    EXPECT_NEAR(pts[i][1], cl[1], 5e-5);
+    EXPECT_NEAR(pts[i][2], cl[2] - 3.0, 5e-5);  // the tip is R_B below the centre
+  }
+  EXPECT_EQ(pts.front(), pts.back());
+}
+
+TEST_F(Cli, LowerEdgeProgramIsForThePartTurnedOver) {
+  const std::string lower = kExp3 + " --side lower -q";
+  const auto j = nlohmann::json::parse(ncd(lower).out);
+  const CmdResult r = ncd(lower + " --format ngc --program-point centre");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("TURNED OVER"), std::string::npos);
+  const auto pts = g1_points(r.out);
+  const auto cl = j["points"][5]["cl"].get<std::vector<double>>();
+  EXPECT_LT(cl[2], 0.0);  // the model keeps the lower edge below the pipe axis
+  EXPECT_NEAR(pts[5][0], -cl[0], 5e-5);
+  EXPECT_NEAR(pts[5][1], cl[1], 5e-5);
+  EXPECT_NEAR(pts[5][2], -cl[2], 5e-5);
+}
+
+TEST_F(Cli, OutputFileAndPlotAreWritten) {
+  const fs::path out = dir_ / "exp3.ngc", plot = dir_ / "exp3.svg";
+  const CmdResult r = ncd(kExp3 + " --format ngc -o " + out.string() + " --plot " + plot.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(r.out.empty());
+  EXPECT_NE(r.err.find("rod check         ok"), std::string::npos) << r.err;
+  EXPECT_NE(slurp(out).find("G1 X"), std::string::npos);
+  const std::string svg = slurp(plot);
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
+  EXPECT_NE(svg.find("R_R (must stay below)"), std::string::npos);
+  EXPECT_EQ(std::count(svg.begin(), svg.end(), '\n') > 50, true);
+}
+
+struct BadCase {
+  std::string args, message;
+};
+
+TEST_F(Cli, BadInputExitsTwoNamesTheValueAndLeavesNoFile) {
+  const std::string geo = "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 ";
+  const std::vector<BadCase> cases = {
+      {"chamfer --pipe-radius 18 --drill-radius 18 --ball-radius 3 --width 0.7",
+       "drill radius r = 18 mm must be smaller than the pipe radius 18 mm"},
+      {geo + "--width 0", "--width"},
+      {geo + "--width -0.5", "--width"},
+      {"chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 0 --width 0.7", "--ball-radius"},
+      {geo + "--width nan", "nan"},
+      {geo + "--width abc", "--width"},
+      {geo + "--width 5", "widest the wedge"},
+      {geo + "--width 0.7 --rod-radius 4", "R_R = 9 mm cannot be met"},
+      {geo + "--width 0.7 --edge sideways", "--edge"},
+      {geo + "--width 0.7 --feed 0 --format ngc", "--feed"},
+      {geo + "--width 0.7 --safe-z 5 --format ngc", "safe Z"},
+      {"chamfer --pipe-radius 10 --drill-radius 2 --ball-radius 5 --width 0.5 --edge outer "
+       "--format ngc",
+       "interferes"},
+  };
+  for (const auto& c : cases) {
+    const fs::path out = dir_ / "out.json";
+    const CmdResult r =
+        ncd(c.args + " -o " + out.string() + " --plot " + (dir_ / "p.svg").string());
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(out)) << c.args;
+    EXPECT_FALSE(fs::exists(dir_ / "p.svg")) << c.args;
+    for (const auto& entry : fs::directory_iterator(dir_)) {
+      const std::string name = entry.path().filename().string();
+      EXPECT_TRUE(name == "stdout" || name == "stderr") << "left behind: " << name;
+    }
+  }
+}
+
+TEST_F(Cli, NoAvoidReportsTheInterferenceOfExperiment2) {
+  const CmdResult r = ncd(kExp3 + " --no-avoid -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(j["checks"]["rod"]["ok"].get<bool>());
+  EXPECT_EQ(j["checks"]["rod"]["adjusted_points"].get<int>(), 0);
+  EXPECT_NEAR(j["checks"]["rod"]["max_cl_radius"].get<double>(), 11.141, 5e-4);
+  // A deliberate test cut may still be written as a program, with the header saying so.
+  const CmdResult g = ncd(kExp3 + " --no-avoid -q --format ngc");
+  EXPECT_EQ(g.status, 0);
+  EXPECT_NE(g.out.find("rod INTERFERES"), std::string::npos);
+}
+
+TEST_F(Cli, UnwritableOutputIsInvalidInput) {
+  const CmdResult r = ncd(kExp3 + " -q -o " + (dir_ / "missing" / "out.json").string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("cannot create"), std::string::npos) << r.err;
+}
+
+}  // namespace
