@@ -1,0 +1,52 @@
+// Non-uniform rational B-spline curve of degree 1–7 with a clamped knot vector: the curve the
+// interpolator walks (paper 004) and the geometry of LinuxCNC's G5.2/G5.3 blocks. The
+// evaluation algorithm is explained once, in nurbs.cpp.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "toolpath/curve.hpp"
+
+namespace ncd::toolpath {
+
+class NurbsCurve final : public ParametricCurve {
+ public:
+  static constexpr int kMinDegree = 1;
+  static constexpr int kMaxDegree = 7;  // fixes the size of the scratch arrays of eval()
+
+  // Validates and stores the curve; throws InputError naming the offending value, the limit and
+  // a way out. knots: clamped (degree + 1 equal knots at each end), non-decreasing, interior
+  // multiplicity ≤ degree, size = points + degree + 1. weights: empty (non-rational) or one
+  // finite weight > 0 per point. Points in mm.
+  NurbsCurve(int degree, std::vector<double> knots, std::vector<Vec3> points,
+             std::vector<double> weights = {});
+
+  int degree() const { return degree_; }
+  const std::vector<double>& knots() const { return knots_; }
+  const std::vector<Vec3>& points() const { return points_; }
+  // One weight per point; all 1 when the curve was given without weights.
+  const std::vector<double>& weights() const { return weights_; }
+  bool rational() const { return rational_; }
+
+  double u_begin() const override { return knots_.front(); }
+  double u_end() const override { return knots_.back(); }
+  // P, P', P'' at u (clamped to [u_begin, u_end]); at an interior knot, the derivatives of the
+  // span that starts there. Does not allocate.
+  CurvePoint eval(double u) const override;
+  // Distinct knot values, ascending, u_begin and u_end included.
+  std::vector<double> breakpoints() const override;
+
+ private:
+  std::size_t find_span(double u) const;  // i with knots[i] ≤ u < knots[i+1] (A2.1)
+
+  int degree_;
+  std::vector<double> knots_;
+  std::vector<Vec3> points_;
+  std::vector<double> weights_;
+  std::vector<Vec3> weighted_points_;  // w_i P_i, the homogeneous numerators
+  bool rational_;
+};
+
+}  // namespace ncd::toolpath
