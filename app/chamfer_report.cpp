@@ -162,11 +162,12 @@ Figure chamfer_figure(const ChamferPath& path) {
   fig.panels.push_back({"local interference check",
                         "1/|k_e| (mm)",
                         {inv_ke},
-                        {{s.ball_radius_mm, "R_B (must stay below)"}},
+                        {{s.ball_radius_mm, "R_B (must stay below 1/|k_e|)"}},
                         {}});
-  fig.panels.push_back({"global interference check", "-e_z", {ez}, {{0.0, "0"}}, {}});
+  fig.panels.push_back(
+      {"global interference check", "-e_z", {ez}, {{0.0, "0 (sign must not change)"}}, {}});
   Panel rod{"cutter location distance from the drill axis", "CL radius (mm)", {clr}, {}, {}};
-  if (ck.limit_radius_mm) rod.lines.push_back({*ck.limit_radius_mm, "R_R (must stay below)"});
+  if (ck.limit_radius_mm) rod.lines.push_back({*ck.limit_radius_mm, "R_R (CL must stay below)"});
   fig.panels.push_back(rod);
   fig.panels.push_back({"projected (top-view) chamfer width", "width (mm)", {pw}, {}, {}});
   return fig;

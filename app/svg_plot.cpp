@@ -75,7 +75,7 @@ std::string num(double v) {
 }  // namespace
 
 std::string render_svg(const Figure& fig) {
-  const int left = 80, right = 190, top = 40, gap = 50, bottom = 50;
+  const int left = 80, right = 210, top = 64, gap = 50, bottom = 50;
   const int plot_w = fig.width_px - left - right;
   const int n = static_cast<int>(fig.panels.size());
   const int height = top + n * fig.panel_height_px + (n - 1) * gap + bottom;

@@ -66,6 +66,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kMaxNewton = 100;
 constexpr int kMaxAlphaIterations = 200;
 constexpr double kAlphaTolerance = 1e-13;  // relative width of the final α bracket
+constexpr double kRodToleranceMm = 1e-12;  // ε_α of Algorithm 1, on |CL_xy| − R_R
 constexpr double kAlphaMargin = 1e-9;      // keep α strictly inside the admissible range
 constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c = 0)
 constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π]
@@ -219,7 +220,8 @@ double ChamferModel::max_width(const EdgeFrame& f, double alpha) const {
   return 2.0 * spec_.ball_radius_mm * std::sqrt(std::max(0.0, a * a + b * b - 2.0 * a * b * f.c));
 }
 
-std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha) const {
+std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha,
+                                                std::optional<double> guess_mm) const {
   const double rb = spec_.ball_radius_mm, w = spec_.width_mm;
   const Vec3 e = (f.t1 + alpha * f.t2).normalized();
   const double a = e.dot(f.t1), b = e.dot(f.t2), c = f.c;
@@ -233,7 +235,8 @@ std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha
     slope = 2.0 * (zeta * dzeta + eta * deta - c * (dzeta * eta + zeta * deta));
     return zeta * zeta + eta * eta - 2.0 * c * zeta * eta - w * w;
   };
-  double lo = 0.0, hi = 2.0 * rb, delta = 0.25 * w;
+  double lo = 0.0, hi = 2.0 * rb;
+  double delta = guess_mm && *guess_mm > lo && *guess_mm < hi ? *guess_mm : 0.25 * w;
   for (int i = 0; i < kMaxNewton; ++i) {
     double slope = 0.0;
     const double g = g_and_slope(delta, slope);
@@ -301,10 +304,11 @@ double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double d
 }
 
 RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
+  std::optional<double> last_delta;  // warm start: δ moves little between neighbouring α
   const auto delta_at = [&](double alpha) {
-    const auto d = solve_delta(f, alpha);
-    if (!d) (void)pose_at(f.theta_rad, alpha);  // throws the width error with its numbers
-    return *d;
+    last_delta = solve_delta(f, alpha, last_delta);
+    if (!last_delta) (void)pose_at(f.theta_rad, alpha);  // throws the width error, with numbers
+    return *last_delta;
   };
   const auto big_f = [&](double alpha) { return rod_interference(f, alpha, delta_at(alpha)); };
   double f_lo = big_f(1.0);
@@ -325,7 +329,8 @@ RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
   }
   // Illinois regula falsi: the bracket always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
   int side = 0;
-  for (int i = 0; i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi; ++i) {
+  for (int i = 0;
+       i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi && f_hi < -kRodToleranceMm; ++i) {
     double mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
     if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
     const double f_mid = big_f(mid);
@@ -377,8 +382,10 @@ double ChamferModel::chord_deviation(double theta0, double theta1) const {
     if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
     const double next = th - phi / slope;
     if (!(next > theta0 && next < theta1)) break;
+    const bool converged = std::abs(next - th) <= 1e-13 * (theta1 - theta0);
     th = next;
     best = std::max(best, distance(th));
+    if (converged) break;
   }
   return best;
 }

@@ -98,8 +98,10 @@ class ChamferModel {
   double speed(double theta) const;            // |dC/dθ| = ds/dθ
   EdgeFrame frame(double theta) const;         // eqs. (6)–(17)
   AlphaRange alpha_range(const EdgeFrame& f) const;
-  // Solves G(δ) = 0 (eq. 27) by bracketed Newton; nullopt when W does not fit at this α.
-  std::optional<double> solve_delta(const EdgeFrame& f, double alpha) const;
+  // Solves G(δ) = 0 (eq. 27) by bracketed Newton from guess (default W/4, the paper's start);
+  // nullopt when W does not fit at this α.
+  std::optional<double> solve_delta(const EdgeFrame& f, double alpha,
+                                    std::optional<double> guess_mm = std::nullopt) const;
   // Largest width the wedge can take at this α (δ → 2 R_B).
   double max_width(const EdgeFrame& f, double alpha) const;
   CutterPose pose(const EdgeFrame& f, double alpha, double delta) const;

@@ -183,7 +183,7 @@ TEST_F(Cli, OutputFileAndPlotAreWritten) {
   EXPECT_NE(slurp(out).find("G1 X"), std::string::npos);
   const std::string svg = slurp(plot);
   EXPECT_NE(svg.find("<svg"), std::string::npos);
-  EXPECT_NE(svg.find("R_R (must stay below)"), std::string::npos);
+  EXPECT_NE(svg.find("R_R (CL must stay below)"), std::string::npos);
   EXPECT_EQ(std::count(svg.begin(), svg.end(), '\n') > 50, true);
 }
 
