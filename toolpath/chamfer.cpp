@@ -312,22 +312,23 @@ RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
   };
   const auto big_f = [&](double alpha) { return rod_interference(f, alpha, delta_at(alpha)); };
   double f_lo = big_f(1.0);
-  if (f_lo <= 0.0) return {1.0, false, true};
+  if (f_lo <= 0.0) return {1.0, *last_delta, false, true};
   // Bracket [1, hi] with F(hi) ≤ 0; hi is inside the admissible and global bounds.
   const AlphaRange range = alpha_range(f);
   double lo = 1.0, hi = 0.0, f_hi = 0.0;
   if (std::isfinite(range.hi)) {
     hi = range.hi * (1.0 - kAlphaMargin);
-    if (hi <= lo || (f_hi = big_f(hi)) > 0.0) return {1.0, false, false};
+    if (hi <= lo || (f_hi = big_f(hi)) > 0.0) return {1.0, 0.0, false, false};
   } else {
     for (hi = 2.0; hi <= kMaxAlphaSearch; hi *= 2.0) {
       if ((f_hi = big_f(hi)) <= 0.0) break;
       lo = hi;
       f_lo = f_hi;
     }
-    if (f_hi > 0.0) return {1.0, false, false};
+    if (f_hi > 0.0) return {1.0, 0.0, false, false};
   }
   // Illinois regula falsi: the bracket always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
+  double delta_hi = *last_delta;
   int side = 0;
   for (int i = 0;
        i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi && f_hi < -kRodToleranceMm; ++i) {
@@ -342,11 +343,12 @@ RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
     } else {
       hi = mid;
       f_hi = f_mid;
+      delta_hi = *last_delta;
       if (side == 1) f_lo *= 0.5;
       side = 1;
     }
   }
-  return {hi, true, true};
+  return {hi, delta_hi, true, true};
 }
 
 double ChamferModel::arc_length(double theta0, double theta1) const {
@@ -451,14 +453,14 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
   ck.min_minus_ez = kInf;
   for (const double theta : thetas) {
     const EdgeFrame f = model.frame(theta);
-    double alpha = 1.0;
+    std::optional<CutterPose> pose;
     if (ck.limit_radius_mm && spec.avoid) {
       const RodAvoidance rod = model.avoid_rod(f);
       if (!rod.cleared) ck.uncleared_theta_rad.push_back(theta);
-      alpha = rod.alpha;
       if (rod.adjusted) ++ck.adjusted_points;
+      if (rod.cleared) pose = model.pose(f, rod.alpha, rod.delta_mm);
     }
-    CutterPose p = model.pose_at(theta, alpha);
+    const CutterPose p = pose ? *pose : model.pose_at(theta, 1.0);
     ck.min_inv_ke_mm = std::min(ck.min_inv_ke_mm, p.inv_ke_mm);
     ck.max_minus_ez = std::max(ck.max_minus_ez, p.minus_ez);
     ck.min_minus_ez = std::min(ck.min_minus_ez, p.minus_ez);

@@ -82,6 +82,7 @@ struct AlphaRange {
 // Outcome of Algorithm 1 at one θ.
 struct RodAvoidance {
   double alpha = 1.0;
+  double delta_mm = 0.0;  // δ at that α, the one the CL radius was checked with
   bool adjusted = false;  // α moved away from 1
   bool cleared = true;    // the CL radius is within the rod limit
 };
