@@ -20,7 +20,10 @@
 // with L integrated by 10-point Gauss–Legendre on every piece of [u_i, u] between breakpoints
 // (the curve's interior knots, where P'' may jump and the integrand is not smooth; repeated
 // knots give empty pieces, which are skipped). From the Taylor start Newton converges
-// quadratically: 1e-4 → ~1e-8 → ~1e-16, i.e. two updates for the default 1e-10. The iterate
+// quadratically: 1e-4 → ~1e-8 → ~1e-16, i.e. one or two updates for the default 1e-10. An
+// update that moves u by less than 1 % of the step does not re-integrate from u_i: L gains the
+// integral over [u_old, u_new] by 3-point Gauss–Legendre, whose error there (∝ h⁷) is far below
+// the rounding of L, so each such iteration costs 4 evaluations instead of 11. The iterate
 // is kept inside a bracket [lo, hi] on which g changes sign (g(u_i) = −Δs < 0); an update that
 // leaves it bisects instead, so a zero speed or a bad predictor cannot throw the walk off the
 // curve. The tolerance is floored at the parameter's own resolution, so tiny Δs at the ends
@@ -35,8 +38,8 @@
 // the shorter arc; otherwise u_end becomes the upper bracket. In TaylorOnly mode the predictor
 // is clamped to u_end.
 //
-// Cost per corrected step: 1 evaluation for the predictor, then per iteration 10 per piece
-// for L and 1 for |P'(u)|. Nothing is allocated: CurvePoint is fixed-size.
+// Cost per corrected step: 1 evaluation for the predictor, 10 per piece for L at u*, then per
+// iteration 1 for |P'(u)| and 3 per piece for the update of L. Nothing is allocated.
 #include "interpolator/curve_walker.hpp"
 
 #include <algorithm>
@@ -54,6 +57,15 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kResolutionUlps = 16.0;  // arc-length noise of L in units of ε·|u|·|P'|
+constexpr double kSmallUpdate = 1e-2;     // Newton update / step below which L is updated
+
+// 3-point Gauss–Legendre on [a, b] (exact to degree 5), for the short updates of L.
+template <class F>
+double gauss_legendre3(const F& f, double a, double b) {
+  const double half = 0.5 * (b - a), mid = 0.5 * (a + b);
+  const double x = half * 0.7745966692414833770358531;  // sqrt(3/5)
+  return half * (5.0 / 9.0 * (f(mid - x) + f(mid + x)) + 8.0 / 9.0 * f(mid));
+}
 
 std::string fmt(double v) {
   std::ostringstream s;
@@ -105,20 +117,32 @@ void CurveWalker::reset(double u) {
   u_ = std::clamp(u, u_begin_, u_end_);
 }
 
-double CurveWalker::arc_length_mm(double u0, double u1) const {
-  if (u1 < u0) return -arc_length_mm(u1, u0);
+template <class Rule>
+double CurveWalker::integrate_speed(double u0, double u1, Rule&& rule) const {
+  if (u1 < u0) return -integrate_speed(u1, u0, rule);
   const auto speed = [this](double u) { return curve_.eval(u).d1.norm(); };
   double sum = 0.0;
   double a = u0;
   for (auto it = std::upper_bound(breakpoints_.begin(), breakpoints_.end(), u0);
        it != breakpoints_.end() && *it < u1; ++it) {
     if (*it > a) {
-      sum += GaussLegendre10::integrate(speed, a, *it);
+      sum += rule(speed, a, *it);
       a = *it;
     }
   }
-  if (u1 > a) sum += GaussLegendre10::integrate(speed, a, u1);
+  if (u1 > a) sum += rule(speed, a, u1);
   return sum;
+}
+
+double CurveWalker::arc_length_mm(double u0, double u1) const {
+  return integrate_speed(u0, u1, [](const auto& f, double a, double b) {
+    return GaussLegendre10::integrate(f, a, b);
+  });
+}
+
+double CurveWalker::arc_increment_mm(double u0, double u1) const {
+  return integrate_speed(
+      u0, u1, [](const auto& f, double a, double b) { return gauss_legendre3(f, a, b); });
 }
 
 StepResult CurveWalker::step(double delta_s_mm) {
@@ -169,8 +193,8 @@ StepResult CurveWalker::correct(double delta_s_mm, double u_predicted, double sp
   const double tol_mm = std::max(config_.tolerance_rel * delta_s_mm, floor_mm);
 
   StepResult r;
+  double arc_mm = arc_length_mm(u_, u);
   for (int it = 0;; ++it) {
-    const double arc_mm = arc_length_mm(u_, u);
     const double g = arc_mm - delta_s_mm;
     r = {u, arc_mm, it, StepStatus::Ok};
     if (u >= u_end_ && g <= tol_mm) {
@@ -197,6 +221,8 @@ StepResult CurveWalker::correct(double delta_s_mm, double u_predicted, double sp
       }
     }
     if (next == u) break;  // bracket down to adjacent doubles: u is as close as it gets
+    arc_mm = std::abs(next - u) <= kSmallUpdate * (u - u_) ? arc_mm + arc_increment_mm(u, next)
+                                                           : arc_length_mm(u_, next);
     u = next;
   }
   u_ = r.u;

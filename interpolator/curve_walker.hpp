@@ -70,6 +70,11 @@ class CurveWalker {
  private:
   StepResult taylor_only(double u_predicted);
   StepResult correct(double delta_s_mm, double u_predicted, double speed_i);
+  // ∫ |P'| over [u0, u1] with `rule` applied on each piece between breakpoints (signed).
+  template <class Rule>
+  double integrate_speed(double u0, double u1, Rule&& rule) const;
+  // Arc length of a short Newton update, 3-point Gauss–Legendre per piece.
+  double arc_increment_mm(double u0, double u1) const;
 
   const toolpath::ParametricCurve& curve_;
   WalkerConfig config_;
