@@ -1,0 +1,264 @@
+// G-code reader: the accepted dialect, LinuxCNC's G5.2 knot vector, the chamfer program that
+// `ncd chamfer --format ngc` writes, and an error with line number for each rejected input.
+#include "toolpath/gcode_reader.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <sstream>
+#include <string>
+
+#include "core/error.hpp"
+#include "toolpath/chamfer.hpp"
+#include "toolpath/chamfer_ngc.hpp"
+
+namespace ncd::toolpath {
+namespace {
+
+Path read(const std::string& text) {
+  std::istringstream in(text);
+  return read_gcode(in, "test.ngc");
+}
+
+const Polyline& polyline(const Path& p, std::size_t i) {
+  return std::get<Polyline>(p.segments.at(i).geometry);
+}
+
+TEST(GcodeReader, CommentsPercentLineNumbersAndModalMoves) {
+  const Path p = read(
+      "%\n"
+      "(header comment)\n"
+      "\n"
+      "N10 G21 G90 G94 G17 G40 G49 ; setup\n"
+      "N20 G64 P0.01\n"
+      "n30 s1200 m3\n"
+      "N40 G0 X1 Y2 Z3 (rapid to start)\n"
+      "N50 G1 X 4 Y2 F600\n"
+      "N60 Y6 (modal G1)\n"
+      "N70 x4.0 y6.0 z+3.000 ; same point: adds nothing\n"
+      "N80 Z-1.5\n"
+      "N90 G0 Z10\n"
+      "M5\n"
+      "M2\n"
+      "%\n"
+      "G1 X99 (after the end: ignored)\n");
+  EXPECT_EQ(p.source, "test.ngc");
+  ASSERT_EQ(p.segments.size(), 2u);
+  const PathSegment& cut = p.segments[0];
+  EXPECT_FALSE(cut.rapid);
+  EXPECT_EQ(cut.feed_mm_per_min, 600.0);
+  EXPECT_EQ(cut.spindle_rpm, 1200.0);
+  EXPECT_EQ(cut.source_line, 8);
+  EXPECT_EQ(polyline(p, 0).points,
+            (std::vector<Vec3>{{1, 2, 3}, {4, 2, 3}, {4, 6, 3}, {4, 6, -1.5}}));
+  EXPECT_TRUE(polyline(p, 0).normals.empty());
+  const PathSegment& up = p.segments[1];
+  EXPECT_TRUE(up.rapid);
+  EXPECT_FALSE(up.feed_mm_per_min);
+  EXPECT_EQ(up.spindle_rpm, 1200.0);
+  EXPECT_EQ(polyline(p, 1).points, (std::vector<Vec3>{{4, 6, -1.5}, {4, 6, 10}}));
+}
+
+TEST(GcodeReader, MovesBeforeThePositionIsKnownAddNoSegment) {
+  const Path p = read("G0 Z40\nG0 X0 Y0\nG0 X5\nG1 X6 F100\nM2\n");
+  ASSERT_EQ(p.segments.size(), 2u);  // G0 X5 is the first move from a known point
+  EXPECT_EQ(polyline(p, 0).points, (std::vector<Vec3>{{0, 0, 40}, {5, 0, 40}}));
+  EXPECT_TRUE(p.segments[0].rapid);
+  EXPECT_FALSE(p.segments[0].spindle_rpm);  // never started
+  EXPECT_EQ(polyline(p, 1).points, (std::vector<Vec3>{{5, 0, 40}, {6, 0, 40}}));
+}
+
+TEST(GcodeReader, SplitsWhereFeedSpindleOrRapidStateChange) {
+  const Path p = read(
+      "G0 X0 Y0 Z0\n"
+      "G1 X1 F100\n"
+      "X2\n"
+      "X3 F200\n"  // feed change
+      "S500 M3\n"  // spindle starts
+      "X4\n"       //
+      "S800\n"     // speed change
+      "X5\n"       //
+      "G0 X6\n"    // rapid
+      "X7\n"       // still rapid, same segment
+      "G1 X8\n"    // feed again (F200 is modal)
+      "M5\n"       // spindle stops
+      "X9\n");
+  ASSERT_EQ(p.segments.size(), 7u);
+  const std::vector<std::vector<double>> xs = {{0, 1, 2}, {2, 3}, {3, 4}, {4, 5},
+                                               {5, 6, 7}, {7, 8}, {8, 9}};
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    const auto& pts = polyline(p, i).points;
+    ASSERT_EQ(pts.size(), xs[i].size()) << "segment " << i;
+    for (std::size_t k = 0; k < pts.size(); ++k) EXPECT_EQ(pts[k].x(), xs[i][k]);
+  }
+  EXPECT_EQ(p.segments[0].feed_mm_per_min, 100.0);
+  EXPECT_EQ(p.segments[1].feed_mm_per_min, 200.0);
+  EXPECT_FALSE(p.segments[1].spindle_rpm);
+  EXPECT_EQ(p.segments[2].spindle_rpm, 500.0);
+  EXPECT_EQ(p.segments[3].spindle_rpm, 800.0);
+  EXPECT_TRUE(p.segments[4].rapid);
+  EXPECT_EQ(p.segments[5].feed_mm_per_min, 200.0);
+  EXPECT_FALSE(p.segments[6].spindle_rpm);
+  EXPECT_EQ(p.segments[6].source_line, 13);
+}
+
+TEST(GcodeReader, LinuxCncNurbsBlockOfTheManual) {
+  // The example of the LinuxCNC manual (G-codes, G5.2 G5.3), at Z = 1.
+  const Path p = read(
+      "G0 X0 Y0 Z1 (rapid move)\n"
+      "F10 (set feed rate)\n"
+      "G5.2 P1 L3\n"
+      "     X0 Y1 P1\n"
+      "     X2 Y2 P1\n"
+      "     X2 Y0 P1\n"
+      "     X0 Y0 P2\n"
+      "G5.3\n"
+      "G1 X5\n"
+      "M2\n");
+  ASSERT_EQ(p.segments.size(), 2u);
+  const auto& c = std::get<NurbsCurve>(p.segments[0].geometry);
+  EXPECT_EQ(p.segments[0].source_line, 3);
+  EXPECT_EQ(p.segments[0].feed_mm_per_min, 10.0);
+  EXPECT_FALSE(p.segments[0].rapid);
+  EXPECT_EQ(c.degree(), 2);  // order L = 3
+  // knot_vector_creator(n = 4, k = 3): 0 0 0 1 2 3 3 3.
+  EXPECT_EQ(c.knots(), (std::vector<double>{0, 0, 0, 1, 2, 3, 3, 3}));
+  EXPECT_EQ(c.points(), (std::vector<Vec3>{{0, 0, 1}, {0, 1, 1}, {2, 2, 1}, {2, 0, 1}, {0, 0, 1}}));
+  EXPECT_EQ(c.weights(), (std::vector<double>{1, 1, 1, 1, 2}));
+  // The G1 after the block starts where the curve ends.
+  EXPECT_EQ(polyline(p, 1).points, (std::vector<Vec3>{{0, 0, 1}, {5, 0, 1}}));
+}
+
+TEST(GcodeReader, NurbsOrderFirstWeightAndKnotsForHigherOrder) {
+  const Path p = read(
+      "G0 X1 Y1 Z-2\n"
+      "G1 F300\n"
+      "G5.2 P0.5\n"  // weight of the start point only
+      "X2 Y3 P1 L4\n"
+      "G5.2 X4 Y3 P3\n"  // G5.2 again continues the same block
+      "X5 Y1 P1\n"
+      "X6 Y0 P1\n"
+      "G5.3\n");
+  ASSERT_EQ(p.segments.size(), 1u);
+  const auto& c = std::get<NurbsCurve>(p.segments[0].geometry);
+  EXPECT_EQ(c.degree(), 3);
+  // n = 4, k = 4: 0 0 0 0 1 2 2 2 2.
+  EXPECT_EQ(c.knots(), (std::vector<double>{0, 0, 0, 0, 1, 2, 2, 2, 2}));
+  EXPECT_EQ(c.weights(), (std::vector<double>{0.5, 1, 3, 1, 1}));
+  EXPECT_EQ(c.eval(c.u_begin()).p, Vec3(1, 1, -2));
+  EXPECT_LE((c.eval(c.u_end()).p - Vec3(6, 0, -2)).norm(), 1e-14);
+}
+
+TEST(GcodeReader, ReadsBackTheChamferProgram) {
+  // The exact text `ncd chamfer --format ngc` writes (app/chamfer_cmd.cpp calls
+  // chamfer_program), for an inner upper and an outer lower edge.
+  for (const auto& [edge, side] :
+       {std::pair{Edge::Inner, Side::Upper}, {Edge::Outer, Side::Lower}}) {
+    ChamferSpec spec;
+    spec.edge = edge;
+    spec.side = side;
+    if (edge == Edge::Outer) spec.pipe_radius_mm = 21.0;
+    const ChamferPath chamfer = generate_chamfer(spec);
+    NgcOptions o;
+    o.safe_z_mm = default_safe_z_mm(spec);
+    const Path p = read(chamfer_program(chamfer, o));
+    const std::size_t n = chamfer.points.size();
+    const Vec3 first = program_point(spec, chamfer.points.front(), o.point);
+    ASSERT_EQ(p.segments.size(), 2u);
+    const PathSegment& cut = p.segments[0];
+    EXPECT_EQ(cut.feed_mm_per_min, o.feed_mm_per_min);
+    EXPECT_EQ(cut.spindle_rpm, o.spindle_rpm);
+    EXPECT_FALSE(cut.rapid);
+    const auto& pts = polyline(p, 0).points;
+    // Inner: (0,0,safe) ↓ (0,0,z1) → loop (n + 1 points, closed) → (0,0,z1). Outer: above the
+    // first point ↓ loop.
+    const std::size_t lead = edge == Edge::Inner ? 2 : 1;
+    ASSERT_EQ(pts.size(), lead + n + 1 + (edge == Edge::Inner ? 1 : 0));
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 want = program_point(spec, chamfer.points[i], o.point);
+      EXPECT_LE((pts[lead + i] - want).cwiseAbs().maxCoeff(), 0.5e-4 + 1e-12) << "point " << i;
+    }
+    EXPECT_EQ(pts[lead + n], pts[lead]);  // loop closed
+    EXPECT_LE((pts[lead] - first).cwiseAbs().maxCoeff(), 0.5e-4 + 1e-12);
+    EXPECT_NEAR(pts.front().z(), o.safe_z_mm, 0.5e-4);
+    const PathSegment& retract = p.segments[1];
+    EXPECT_TRUE(retract.rapid);
+    EXPECT_NEAR(polyline(p, 1).points.back().z(), o.safe_z_mm, 0.5e-4);
+  }
+}
+
+// Every rejected input names the line and the reason.
+void expect_error(const std::string& program, const std::string& line_tag,
+                  const std::string& needle) {
+  try {
+    read(program);
+    ADD_FAILURE() << "no InputError for:\n" << program;
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find(line_tag), std::string::npos) << m;
+    EXPECT_NE(m.find(needle), std::string::npos) << m;
+  }
+}
+
+TEST(GcodeReader, RejectsUnsupportedAndMalformedInputWithLineNumbers) {
+  const std::string start = "G21 G90\nG0 X0 Y0 Z0\nF100\n";  // lines 1-3
+  expect_error(start + "G2 X1 Y1 I1\n", "test.ngc:4:", "G2 (circular arc) is not supported");
+  expect_error(start + "G3 X1 Y1 R1\n", "test.ngc:4:", "G3");
+  expect_error("G20\n", "test.ngc:1:", "G20 (inch units) is not supported");
+  expect_error(start + "G91 G1 X1\n", "test.ngc:4:", "G91 (incremental");
+  expect_error(start + "G4 P1\n", "test.ngc:4:", "G4 is not supported");
+  expect_error(start + "G54\n", "test.ngc:4:", "G54 is not supported");
+  expect_error(start + "G18\n", "test.ngc:4:", "G18");
+  expect_error(start + "T1 M6\n", "test.ngc:4:", "word T1 is not supported");
+  expect_error(start + "M6\n", "test.ngc:4:", "M6 is not supported");
+  expect_error(start + "G1 X1 X2\n", "test.ngc:4:", "appears twice (X1 and X2)");
+  expect_error(start + "G0 G1 X1\n", "test.ngc:4:", "same modal group");
+  expect_error(start + "G1 X1.2.3\n", "test.ngc:4:", "malformed number");
+  expect_error(start + "G1 X-\n", "test.ngc:4:", "malformed number in word 'X-'");
+  expect_error(start + "G1 X#1\n", "test.ngc:4:", "malformed number");
+  expect_error(start + "G1 X[1+2]\n", "test.ngc:4:", "malformed");
+  expect_error(start + "#1 = 5\n", "test.ngc:4:", "parameters and expressions");
+  expect_error(start + "G1 X1 (open comment\n", "test.ngc:4:", "not closed");
+  expect_error(start + "G1.5 X1\n", "test.ngc:4:", "G1.5 is not supported");
+  expect_error(start + "/G1 X1\n", "test.ngc:4:", "block delete");
+  expect_error(start + "G1 X1 N5\n", "test.ngc:4:", "must come first");
+  expect_error(start + "G1 X1 F0\n", "test.ngc:4:", "F0 must be greater than 0");
+  expect_error("X1\n", "test.ngc:1:", "no motion mode");
+  expect_error(start + "G80\nX1\n", "test.ngc:5:", "no motion mode");
+  expect_error(start + "G64 L3\n", "test.ngc:4:", "L is only read in a G5.2 block");
+  expect_error("G1 X1 Y1 Z1 F100\n", "test.ngc:1:", "unknown position");
+  expect_error("G0 X0 Y0 Z0\nG1 X1\n", "test.ngc:2:", "no feed programmed");
+  expect_error("%\nG0 X0 Y0 Z0\nG0 X1\n", "test.ngc: ", "neither a closing % line");
+  expect_error("(nothing)\n", "test.ngc: ", "contains no move");
+  // G5.2 blocks.
+  expect_error(start + "G5.2 X1 Y1 P1\nX2 Y0 P1\n", "test.ngc: ", "opened at line 4 is not closed");
+  expect_error(start + "G5.3\n", "test.ngc:4:", "G5.3 without an open G5.2 block");
+  expect_error(start + "G5.2 X1 Y1\n", "test.ngc:4:", "without a weight; add P");
+  expect_error(start + "G5.2 X1 Y1 P0\n", "test.ngc:4:", "weight P0 must be greater than 0");
+  expect_error(start + "G5.2 X1 Y1 Z2 P1\n", "test.ngc:4:", "Z in a G5.2 block");
+  expect_error(start + "G5.2 X1 P1\n", "test.ngc:4:", "needs both X and Y");
+  expect_error(start + "G5.2 L2\n", "test.ngc:4:", "order L2 is out of range");
+  expect_error(start + "G5.2 L9\n", "test.ngc:4:", "order L9 is out of range");
+  expect_error(start + "G5.2 X1 Y1 P1\nP2\n", "test.ngc:5:", "P without X and Y");
+  expect_error(start + "G5.2 X1 Y1 P1\nG1 X3\n", "test.ngc:5:", "G1 inside the G5.2 block");
+  expect_error(start + "G5.2 X1 Y1 P1\nS100\n", "test.ngc:5:", "inside the G5.2 block opened");
+  expect_error(start + "G5.2 X1 Y1 P1\nG5.3\n", "test.ngc:5:", "2 control points");
+  expect_error(start + "G5.2 L4 X1 Y1 P1\nX2 Y2 P1\nG5.3\n", "test.ngc:6:", "order L = 4");
+  expect_error(start + "G5.2 X1 Y1 P1\nX2 Y2 P1\nG5.3 X3\n", "test.ngc:6:", "G5.3 closes");
+  expect_error("G0 X0 Y0 Z0\nG5.2 X1 Y1 P1\n", "test.ngc:2:", "no feed programmed");
+}
+
+TEST(GcodeReader, ErrorQuotesTheLineText) {
+  try {
+    read("G0 X0 Y0 Z0\nF100\nG1 X1 Q7 (bad)\n");
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("test.ngc:3: Q is only read with G64"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("(line: \"G1 X1 Q7 (bad)\")"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ncd::toolpath
