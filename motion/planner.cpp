@@ -1,0 +1,633 @@
+// Look-ahead feed planner: a jerk-limited online trajectory in one dimension (arc length s).
+//
+// Input: a feed-limit curve v_lim(s), piecewise constant between pushed samples (the minimum
+// of the two ends); limits a_max, j_max; period T. Output: s(t) with a constant jerk inside
+// each period, so s is a cubic per period; v <= v_lim(s) at every instant, |a| <= a_max,
+// |j| <= j_max, v >= 0, at rest at s = 0 and at rest exactly at s = L.
+//
+//   v_lim ─────────┐              ┌──────────────        window: samples from s to
+//                  │              │                      s + H(v), H = S-curve braking
+//   v(s)   ╭───────╮╲             │    ╭──────────       distance from a bound on the
+//         ╱         ╲╲____________│___╱                  speed reachable soon, plus margin
+//        ╱           ╲ certificate: brake & settle
+//   ────●──────────────●──────────●───────────────●──── s
+//       s(t)   s(t+T)   block      block          s + H    (or L: land exactly there)
+//
+// 1. Certificate. A state X = (s, v, a) is safe if the BRAKE POLICY π, run forward in discrete
+//    time (one constant jerk per period, exactly as executed), keeps every constraint and comes
+//    to rest before the end of what is known (the last sample, L, or s + H). π is a fixed,
+//    deterministic rule: look at the blocks ahead (runs of samples; blocks shorter than 1/48 of
+//    the window are merged, keeping the minimum); a block r "demands" when the time-optimal
+//    S-curve from (v, a) to (v_r, a = 0) needs at least the distance to r minus a margin of
+//    2vT; then π tracks the lowest demanding v_r (settling there at a = 0, so the motion meets
+//    a drop of the limit at the new level, without a dip); if nothing demands, π brakes to rest
+//    as fast as the limits allow. Tracking uses the jerk averaged over the period of the
+//    continuous time-optimal velocity profile (so a(t+T) is exact), and a two-period dead-beat
+//    (j1, j2 solve v and a exactly) once it fits in ±j_max: that makes rest exact (v = a = 0).
+// 2. Exact checks. Each simulated period is checked exactly: |j| <= j_max, |a(t+T)| <= a_max (a
+//    is linear inside), the quadratic v(τ) has its extremes at the ends or at τ = −a/j, and its
+//    maximum must not exceed the minimum limit over [s(t), s(t+T)] (conservative: at every
+//    instant, not only at samples); v >= 0; s(t+T) <= the stop point.
+// 3. Follower. Each period the planner takes the largest jerk whose next state is safe:
+//    j_top = min(j_max, (a_max − a)/T) first, else the dead-beat onto the local limit (this is
+//    how it cruises exactly at a flat limit), else a bisection between j_top and the jerk of the
+//    plan it committed to last period (its tail is still a valid certificate, since samples are
+//    only appended beyond its stop point). So safety holds by induction from rest, whatever the
+//    policy's quality; the policy only decides how early slowdowns start.
+// 4. Landing. Near L, the committed plan (which stops at or before L) plus the minimum-norm
+//    jerk correction that puts the end state exactly at (L, 0, 0), or a minimum-norm landing of
+//    n periods from the current state, is checked as above and then executed as it stands.
+// Override scales the limits; lowering it runs π towards the new limits while checking
+// against the old ones until the new ones hold. Hold makes π's target 0 from now on.
+//
+// Work per step: at most 2 + kBisection rollouts of at most rollout_cap_ periods, each period
+// O(1) plus the blocks within its braking distance; no allocation (buffers are sized in push).
+#include "motion/planner.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "core/error.hpp"
+
+namespace ncd::motion {
+namespace {
+
+constexpr int kBisection = 10;       // bisection steps for the largest safe jerk
+constexpr double kRelSlack = 1e-12;  // rounding slack on v and a checks (relative)
+constexpr double kBlocksPerWindow = 48.0;
+
+double clampj(double j, double j_max) {
+  return std::clamp(j, -j_max, j_max);
+}
+
+// Acceleration at time t of the time-optimal profile from (v0, a0) to (w, a = 0).
+double profile_accel(double v0, double a0, double w, double t, double a_max, double j_max) {
+  const double vs = v0 + a0 * std::abs(a0) / (2.0 * j_max);
+  if (vs == w) return a0 > 0.0 ? std::max(a0 - j_max * t, 0.0) : std::min(a0 + j_max * t, 0.0);
+  const double sg = vs > w ? 1.0 : -1.0;  // mirror an increase into a decrease
+  v0 *= sg;
+  a0 *= sg;
+  w *= sg;
+  double ap = -std::sqrt(std::max(j_max * (v0 - w) + 0.5 * a0 * a0, 0.0));
+  double t2 = 0.0;
+  if (ap < -a_max) {
+    ap = -a_max;
+    t2 = std::max((v0 - w + a0 * a0 / (2.0 * j_max) - a_max * a_max / j_max) / a_max, 0.0);
+  }
+  const double t1 = std::max((a0 - ap) / j_max, 0.0);
+  const double t3 = -ap / j_max;
+  double a = 0.0;
+  if (t < t1) {
+    a = a0 - j_max * t;
+  } else if (t < t1 + t2) {
+    a = ap;
+  } else if (t < t1 + t2 + t3) {
+    a = ap + j_max * (t - t1 - t2);
+  }
+  return sg * a;
+}
+
+// Distance of the time-optimal profile from (v0, a0) down to (w, 0); 0 if no decrease needed.
+double profile_distance(double v0, double a0, double w, double a_max, double j_max) {
+  const double vs = v0 + a0 * std::abs(a0) / (2.0 * j_max);
+  if (vs <= w) return 0.0;
+  double ap = -std::sqrt(std::max(j_max * (v0 - w) + 0.5 * a0 * a0, 0.0));
+  double t2 = 0.0;
+  if (ap < -a_max) {
+    ap = -a_max;
+    t2 = std::max((v0 - w + a0 * a0 / (2.0 * j_max) - a_max * a_max / j_max) / a_max, 0.0);
+  }
+  const double t1 = std::max((a0 - ap) / j_max, 0.0);
+  const double t3 = -ap / j_max;
+  const double d1 = v0 * t1 + 0.5 * a0 * t1 * t1 - j_max * t1 * t1 * t1 / 6.0;
+  const double v1 = v0 + a0 * t1 - 0.5 * j_max * t1 * t1;
+  const double d2 = v1 * t2 + 0.5 * ap * t2 * t2;
+  const double v2 = v1 + ap * t2;
+  const double d3 = v2 * t3 + 0.5 * ap * t3 * t3 + j_max * t3 * t3 * t3 / 6.0;
+  return d1 + d2 + d3;
+}
+
+}  // namespace
+
+double braking_distance_mm(double v, double v_t, double a_max, double j_max) {
+  const double dv = std::max(v - v_t, 0.0);
+  const double t =
+      dv >= a_max * a_max / j_max ? dv / a_max + a_max / j_max : 2.0 * std::sqrt(dv / j_max);
+  return 0.5 * (v + v_t) * t;
+}
+
+void validate(const PlannerLimits& limits) {
+  require_positive("a_max_mm_per_s2", limits.a_max_mm_per_s2);
+  require_positive("j_max_mm_per_s3", limits.j_max_mm_per_s3);
+  require_positive("period_s", limits.period_s);
+  if (limits.window_capacity < 2) {
+    throw InputError("window_capacity = " + std::to_string(limits.window_capacity) +
+                     " is invalid: the look-ahead needs at least 2 samples");
+  }
+}
+
+Planner::Planner(const PlannerLimits& limits, double length_mm)
+    : a_max_(limits.a_max_mm_per_s2),
+      j_max_(limits.j_max_mm_per_s3),
+      period_s_(limits.period_s),
+      length_mm_(length_mm) {
+  validate(limits);
+  require_finite("length_mm", length_mm);
+  if (length_mm < 0.0) {
+    throw InputError("length_mm = " + std::to_string(length_mm) +
+                     " is invalid: a path length must be >= 0");
+  }
+  v_eps_ = 1e-9 * j_max_ * period_s_ * period_s_;
+  a_eps_ = 1e-9 * j_max_ * period_s_;
+  ring_.resize(limits.window_capacity);
+  blocks_.resize(limits.window_capacity);
+  last_.done = false;
+}
+
+const LimitSample& Planner::sample(std::size_t i) const {
+  return ring_[(head_ + i) % ring_.size()];
+}
+
+// Look-ahead distance wanted at (v, a): braking from a bound on the speed soon reachable.
+double Planner::horizon_mm(double v, double a) const {
+  const double T = period_s_;
+  const double v_hi = v + (std::max(a, 0.0) + a_max_) * 2.0 * T + a_max_ * a_max_ / (2.0 * j_max_);
+  return braking_distance_mm(v_hi, 0.0, a_max_, j_max_) + 4.0 * v_hi * T + 8.0 * j_max_ * T * T * T;
+}
+
+double Planner::lookahead_bound_mm() const {
+  return horizon_mm(2.0 * v_top_pushed_, a_max_);
+}
+
+bool Planner::wants_samples() const {
+  if (saw_end_ || count_ >= ring_.size()) return false;
+  if (count_ < 2) return true;
+  return sample(count_ - 1).s_mm < x_.s_mm + horizon_mm(x_.v_mm_per_s, x_.a_mm_per_s2);
+}
+
+void Planner::push(const LimitSample& in) {
+  if (saw_end_) return;  // past L: nothing more is needed
+  require_finite("s_mm", in.s_mm);
+  if (!std::isfinite(in.v_max_mm_per_s) || in.v_max_mm_per_s <= 0.0) {
+    throw InputError("v_max_mm_per_s = " + std::to_string(in.v_max_mm_per_s) +
+                     " at s_mm = " + std::to_string(in.s_mm) +
+                     " is invalid: a feed limit must be finite and > 0; where the machine must "
+                     "stop, end the path there and start a new one");
+  }
+  if (in.limit_id >= kLimitIdReserved) {
+    throw InputError("limit_id = " + std::to_string(in.limit_id) + " is reserved (>= " +
+                     std::to_string(kLimitIdReserved) + "); use a smaller id");
+  }
+  if (count_ == 0 && periods_ == 0 && in.s_mm != 0.0) {
+    throw InputError("s_mm = " + std::to_string(in.s_mm) +
+                     " is invalid for the first limit sample: the curve must start at s = 0");
+  }
+  if (count_ > 0 && !(in.s_mm > sample(count_ - 1).s_mm)) {
+    throw InputError("s_mm = " + std::to_string(in.s_mm) +
+                     " is invalid: samples must have "
+                     "strictly increasing s (previous " +
+                     std::to_string(sample(count_ - 1).s_mm) + ")");
+  }
+  if (count_ >= ring_.size()) {
+    throw InputError("window_capacity = " + std::to_string(ring_.size()) +
+                     " samples is full: push only while wants_samples(), or raise the capacity");
+  }
+  ring_[(head_ + count_) % ring_.size()] = in;
+  ++count_;
+  count_high_water_ = std::max(count_high_water_, count_);
+  ahead_high_water_mm_ = std::max(ahead_high_water_mm_, in.s_mm - x_.s_mm);
+  if (in.s_mm >= length_mm_) saw_end_ = true;
+  if (in.v_max_mm_per_s > v_top_pushed_) {
+    v_top_pushed_ = in.v_max_mm_per_s;
+    // Longest rollout: a stop from 2 v_top (override 200 %) with settling phases, tripled.
+    const double v_cap = 2.0 * v_top_pushed_ + a_max_ * a_max_ / j_max_;
+    const double t_stop = v_cap / a_max_ + 2.0 * a_max_ / j_max_;
+    const auto cap = static_cast<std::size_t>(std::ceil(3.0 * t_stop / period_s_)) + 64;
+    if (cap > rollout_cap_) {
+      rollout_cap_ = cap;
+      plan_.resize(cap);
+      trial_.resize(cap);
+      best_.resize(cap);
+      land_j_.resize(cap);
+      land_base_.resize(cap);
+    }
+  }
+}
+
+void Planner::drop_passed_samples() {
+  while (count_ >= 3 && sample(1).s_mm <= x_.s_mm) {
+    head_ = (head_ + 1) % ring_.size();
+    --count_;
+  }
+}
+
+// One period of constant jerk j from x (exact cubic); rest is snapped to exact zeros.
+Planner::Kin Planner::advance(const Kin& x, double j) const {
+  const double T = period_s_;
+  Kin y{x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
+        x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T, x.a_mm_per_s2 + j * T};
+  if (std::abs(y.v_mm_per_s) <= v_eps_ && std::abs(y.a_mm_per_s2) <= a_eps_) {
+    y.v_mm_per_s = 0.0;
+    y.a_mm_per_s2 = 0.0;
+  }
+  y.s_mm = std::max(y.s_mm, x.s_mm);
+  return y;
+}
+
+// Exact check of one period: jerk, acceleration, v(τ) within [0, min limit over the span].
+bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm) const {
+  const double T = period_s_;
+  if (!(std::abs(j) <= j_max_)) return false;
+  const double a1 = x.a_mm_per_s2 + j * T;
+  if (std::abs(a1) > a_max_ * (1.0 + kRelSlack)) return false;
+  const double v1 = x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T;
+  double v_hi = std::max(x.v_mm_per_s, v1);
+  double v_lo = std::min(x.v_mm_per_s, v1);
+  if (j != 0.0) {
+    const double tau = -x.a_mm_per_s2 / j;
+    if (tau > 0.0 && tau < T) {
+      const double vt = x.v_mm_per_s + x.a_mm_per_s2 * tau + 0.5 * j * tau * tau;
+      v_hi = std::max(v_hi, vt);
+      v_lo = std::min(v_lo, vt);
+    }
+  }
+  if (v_lo < -v_eps_) return false;
+  const double s1 = x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0;
+  if (s1 > stop_mm + 1e-12 * std::max(1.0, length_mm_)) return false;
+  if (v_hi <= 0.0) return true;
+  if (count_ < 2) return false;
+  while (c.segment + 2 < count_ && sample(c.segment + 1).s_mm <= x.s_mm) ++c.segment;
+  for (std::size_t k = c.segment; k + 1 < count_; ++k) {
+    const double lim = std::min(sample(k).v_max_mm_per_s, sample(k + 1).v_max_mm_per_s) * scale;
+    if (v_hi > lim * (1.0 + kRelSlack)) return false;
+    if (sample(k + 1).s_mm >= s1) return true;
+  }
+  return false;  // beyond the last sample
+}
+
+double Planner::v_settle(const Kin& x) const {
+  return x.v_mm_per_s + x.a_mm_per_s2 * std::abs(x.a_mm_per_s2) / (2.0 * j_max_);
+}
+
+double Planner::need_mm(const Kin& x, double w) const {
+  return profile_distance(x.v_mm_per_s, x.a_mm_per_s2, w, a_max_, j_max_);
+}
+
+// Two-period dead-beat onto (w, a = 0): the first jerk; ok if both fit and v stays >= 0.
+double Planner::deadbeat_jerk(const Kin& x, double w, bool* ok) const {
+  const double T = period_s_;
+  const double dv = x.v_mm_per_s - w;
+  const double j1 = -dv / (T * T) - 1.5 * x.a_mm_per_s2 / T;
+  const double j2 = dv / (T * T) + 0.5 * x.a_mm_per_s2 / T;
+  *ok = std::abs(j1) <= j_max_ && std::abs(j2) <= j_max_ &&
+        std::abs(x.a_mm_per_s2 + j1 * T) <= a_max_;
+  if (*ok) {  // v stays >= 0 over both periods (ends and interior extremes)
+    Kin y = x;
+    for (double j : {j1, j2}) {
+      const double v1 = y.v_mm_per_s + y.a_mm_per_s2 * T + 0.5 * j * T * T;
+      double lo = std::min(y.v_mm_per_s, v1);
+      if (j != 0.0) {
+        const double tau = -y.a_mm_per_s2 / j;
+        if (tau > 0.0 && tau < T) lo = std::min(lo, y.v_mm_per_s + 0.5 * y.a_mm_per_s2 * tau);
+      }
+      if (lo < -v_eps_) *ok = false;
+      y = Kin{0.0, v1, y.a_mm_per_s2 + j * T};
+    }
+  }
+  return j1;
+}
+
+// Jerk of one period towards speed w at a = 0: dead-beat if it fits, else the period average
+// of the continuous time-optimal profile.
+double Planner::track(const Kin& x, double w) const {
+  bool ok = false;
+  const double j1 = deadbeat_jerk(x, w, &ok);
+  if (ok) return j1;
+  const double a_end = profile_accel(x.v_mm_per_s, x.a_mm_per_s2, w, period_s_, a_max_, j_max_);
+  return clampj((a_end - x.a_mm_per_s2) / period_s_, j_max_);
+}
+
+// The brake policy π (see top): settle on the lowest demanding block, else brake to rest.
+double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const {
+  if (policy_hold_) return track(x, 0.0);
+  while (c.block + 1 < block_count_ && blocks_[c.block].end_mm <= x.s_mm) ++c.block;
+  const double vs = v_settle(x);
+  const double margin = 2.0 * x.v_mm_per_s * period_s_ + j_max_ * period_s_ * period_s_ * period_s_;
+  const double reach = need_mm(x, 0.0) + margin;
+  double w = std::numeric_limits<double>::infinity();
+  for (std::size_t b = c.block; b < block_count_; ++b) {
+    const Block& bl = blocks_[b];
+    const double dist = bl.begin_mm - x.s_mm;
+    if (dist > reach) break;
+    if (bl.v_max_mm_per_s < vs && bl.v_max_mm_per_s < w &&
+        (dist <= 0.0 || need_mm(x, bl.v_max_mm_per_s) + margin >= dist)) {
+      w = bl.v_max_mm_per_s;
+      if (binding_id) *binding_id = bl.limit_id;
+    }
+  }
+  return track(x, std::isfinite(w) ? w : 0.0);
+}
+
+// Blocks of the window from s to stop_mm, limits scaled; short blocks merged (minimum kept).
+void Planner::build_blocks(double scale, double stop_mm) {
+  block_count_ = 0;
+  if (count_ < 2) return;
+  const double len_min = (stop_mm - x_.s_mm) / kBlocksPerWindow;
+  for (std::size_t i = 0; i + 1 < count_; ++i) {
+    const LimitSample& p = sample(i);
+    const LimitSample& q = sample(i + 1);
+    const double b0 = std::max(p.s_mm, x_.s_mm);
+    const double b1 = std::min(q.s_mm, stop_mm);
+    if (b1 > b0) {
+      const double v = std::min(p.v_max_mm_per_s, q.v_max_mm_per_s) * scale;
+      const std::uint8_t id = p.v_max_mm_per_s <= q.v_max_mm_per_s ? p.limit_id : q.limit_id;
+      if (block_count_ > 0) {
+        Block& last = blocks_[block_count_ - 1];
+        if (last.v_max_mm_per_s == v || last.end_mm - last.begin_mm < len_min) {
+          last.end_mm = b1;
+          if (v < last.v_max_mm_per_s) {
+            last.v_max_mm_per_s = v;
+            last.limit_id = id;
+          }
+          if (q.s_mm >= stop_mm) break;
+          continue;
+        }
+      }
+      blocks_[block_count_++] = Block{b0, b1, v, id};
+    }
+    if (q.s_mm >= stop_mm) break;
+  }
+}
+
+// Simulates j0 then π until rest, checking every period; the jerks go to out[0, out_n).
+bool Planner::rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
+                      std::size_t& out_n) {
+  ++last_rollouts_;
+  Cursor c;
+  Kin x = x_;
+  double j = j0;
+  for (std::size_t n = 0; n < rollout_cap_; ++n) {
+    if (!check_period(x, j, c, scale_check, stop_mm)) return false;
+    out[n] = j;
+    x = advance(x, j);
+    if (x.v_mm_per_s == 0.0 && x.a_mm_per_s2 == 0.0) {
+      out_n = n + 1;
+      return true;
+    }
+    j = policy(x, c, nullptr);
+  }
+  return false;
+}
+
+// Landing on (L, 0, 0) in n periods: base jerks (plan tail or 0) plus the minimum-norm
+// correction; checked exactly; on success it becomes the plan (landing_ set).
+bool Planner::land_with(std::size_t n, bool use_plan) {
+  if (n < 3 || n > rollout_cap_) return false;
+  const double T = period_s_;
+  for (std::size_t i = 0; i < n; ++i) land_j_[i] = use_plan ? plan_[plan_pos_ + i] : 0.0;
+  const auto end_state = [&](Kin& y) {  // forward without snapping, from x_
+    y = x_;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double j = land_j_[i];
+      y = Kin{y.s_mm + y.v_mm_per_s * T + 0.5 * y.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
+              y.v_mm_per_s + y.a_mm_per_s2 * T + 0.5 * j * T * T, y.a_mm_per_s2 + j * T};
+    }
+  };
+  // Gram system in the basis 1, u, u² with u = (k − (n−1)/2)/n, k = periods after this one;
+  // rows scaled by T, T², T³ (a, v, s).
+  Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+  const double half = 0.5 * static_cast<double>(n - 1);
+  const double nn = static_cast<double>(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double k = static_cast<double>(n - 1 - i);
+    const double u = (k - half) / nn;
+    const double rows[3] = {1.0, 0.5 * (2.0 * k + 1.0), (3.0 * k * k + 3.0 * k + 1.0) / 6.0};
+    const double basis[3] = {1.0, u, u * u};
+    for (int r = 0; r < 3; ++r)
+      for (int p = 0; p < 3; ++p) g(r, p) += rows[r] * basis[p];
+  }
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(g);
+  if (!lu.isInvertible()) return false;
+  for (int pass = 0; pass < 2; ++pass) {
+    Kin y{};
+    end_state(y);
+    const Eigen::Vector3d r(-y.a_mm_per_s2 / T, -y.v_mm_per_s / (T * T),
+                            (length_mm_ - y.s_mm) / (T * T * T));
+    const Eigen::Vector3d c = lu.solve(r);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double u = (static_cast<double>(n - 1 - i) - half) / nn;
+      land_j_[i] += c(0) + c(1) * u + c(2) * u * u;
+    }
+  }
+  Cursor cur;
+  Kin y = x_;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!check_period(y, land_j_[i], cur, override_applied_, length_mm_)) return false;
+    y = advance(y, land_j_[i]);
+  }
+  const double tol_s = 1e-9 * std::max(1.0, length_mm_);
+  if (std::abs(y.s_mm - length_mm_) > tol_s || std::abs(y.v_mm_per_s) > 1e3 * v_eps_ ||
+      std::abs(y.a_mm_per_s2) > 1e3 * a_eps_) {
+    return false;
+  }
+  std::swap(plan_, land_j_);
+  plan_n_ = n;
+  plan_pos_ = 0;
+  landing_ = true;
+  return true;
+}
+
+// Tries to land on L from here: the committed plan corrected, then minimum-norm landings.
+bool Planner::try_landing() {
+  const double T = period_s_;
+  const double slack = 4.0 * x_.v_mm_per_s * T + 64.0 * j_max_ * T * T * T;
+  if (length_mm_ - x_.s_mm > need_mm(x_, 0.0) + slack) return false;
+  const std::size_t tail = plan_n_ - plan_pos_;
+  if (tail >= 3 && land_with(tail, true)) return true;
+  if (tail >= 2 && land_with(tail + 1, false)) return true;
+  std::size_t n = std::max<std::size_t>(3, tail);
+  for (int k = 0; k < 12 && n <= rollout_cap_; ++k) {
+    if (land_with(n, false)) return true;
+    n = n + std::max<std::size_t>(1, n / 4);
+  }
+  return false;
+}
+
+// Executes jerk j for one period and records the output sample.
+void Planner::commit(double j, std::uint8_t limit_id) {
+  x_ = advance(x_, j);
+  ++periods_;
+  t_s_ = static_cast<double>(periods_) * period_s_;
+  last_ = MotionSample{t_s_, x_.s_mm, x_.v_mm_per_s, x_.a_mm_per_s2, j, limit_id, false};
+}
+
+MotionSample Planner::step() {
+  if (done_) return last_;
+  last_rollouts_ = 0;
+  if (length_mm_ == 0.0) {
+    done_ = true;
+    last_ = MotionSample{0.0, 0.0, 0.0, 0.0, 0.0, kLimitIdPathEnd, true};
+    return last_;
+  }
+  drop_passed_samples();
+  if (landing_) {
+    const double j = plan_[plan_pos_++];
+    commit(j, kLimitIdPathEnd);
+    if (plan_pos_ == plan_n_) {
+      x_ = Kin{length_mm_, 0.0, 0.0};
+      last_.s_mm = length_mm_;
+      last_.v_mm_per_s = 0.0;
+      last_.a_mm_per_s2 = 0.0;
+      last_.done = true;
+      done_ = true;
+    }
+    return last_;
+  }
+  if (override_target_ >= override_applied_) override_applied_ = override_target_;
+  const double last_s = count_ > 0 ? sample(count_ - 1).s_mm : x_.s_mm;
+  const double real_stop = std::min(length_mm_, last_s);
+  const double stop = std::min(real_stop, x_.s_mm + horizon_mm(x_.v_mm_per_s, x_.a_mm_per_s2));
+  const bool at_rest = x_.v_mm_per_s == 0.0 && x_.a_mm_per_s2 == 0.0;
+  const double j_fallback = plan_pos_ < plan_n_ ? plan_[plan_pos_] : 0.0;
+  const auto use_fallback = [&](std::uint8_t id) {
+    if (plan_pos_ < plan_n_) ++plan_pos_;
+    commit(j_fallback, id);
+  };
+  const auto use_best = [&](double j, std::uint8_t id) {
+    std::swap(plan_, best_);
+    plan_n_ = best_n_;
+    plan_pos_ = 1;
+    commit(j, id);
+  };
+  std::size_t n = 0;
+
+  // Feed hold (or override 0 %): π brakes to rest; stays there until resume().
+  if (hold_ || override_target_ == 0.0) {
+    policy_hold_ = true;
+    Cursor c;
+    const double j = at_rest ? 0.0 : policy(x_, c, nullptr);
+    if (rollout(j, override_applied_, real_stop, best_, best_n_)) {
+      use_best(j, kLimitIdHold);
+    } else {
+      use_fallback(kLimitIdHold);
+    }
+    policy_hold_ = false;
+    if (x_.v_mm_per_s == 0.0 && x_.a_mm_per_s2 == 0.0) override_applied_ = override_target_;
+    return last_;
+  }
+
+  // Override lowered: brake towards the new limits, checked against the old ones until the
+  // new ones hold.
+  if (override_target_ < override_applied_) {
+    build_blocks(override_target_, stop);
+    Cursor c;
+    std::uint8_t id = kLimitIdLookahead;
+    const double j = at_rest ? 0.0 : policy(x_, c, &id);
+    if (rollout(j, override_target_, real_stop, best_, best_n_)) {
+      override_applied_ = override_target_;
+      use_best(j, id);
+    } else if (rollout(j, override_applied_, real_stop, best_, best_n_)) {
+      use_best(j, id);
+    } else {
+      use_fallback(id);
+    }
+    return last_;
+  }
+
+  build_blocks(override_applied_, stop);
+  const double T = period_s_;
+  const double j_top = clampj(std::min(j_max_, (a_max_ - x_.a_mm_per_s2) / T), j_max_);
+  if (rollout(j_top, override_applied_, real_stop, best_, best_n_)) {
+    const double a1 = x_.a_mm_per_s2 + j_top * T;
+    use_best(j_top, a1 >= a_max_ * (1.0 - 1e-9) ? kLimitIdAcceleration : kLimitIdJerk);
+    return last_;
+  }
+  if (stop == length_mm_ && try_landing()) {
+    const double j = plan_[plan_pos_++];
+    commit(j, kLimitIdPathEnd);
+    return last_;
+  }
+  // The binding limit: the current block if we sit on it, else what π brakes for.
+  const auto binding = [&]() {
+    const double cur = block_count_ > 0 ? blocks_[0].v_max_mm_per_s : 0.0;
+    if (block_count_ > 0 && x_.v_mm_per_s >= cur * (1.0 - 1e-9)) return blocks_[0].limit_id;
+    std::uint8_t id = stop == length_mm_ ? kLimitIdPathEnd : kLimitIdLookahead;
+    Cursor c;
+    (void)policy(x_, c, &id);
+    return id;
+  };
+  double lo = j_fallback;
+  bool have = false;
+  if (block_count_ > 0) {
+    bool ok = false;
+    const double jd = deadbeat_jerk(x_, blocks_[0].v_max_mm_per_s, &ok);
+    if (ok && jd > lo && jd < j_top && rollout(jd, override_applied_, real_stop, trial_, n)) {
+      std::swap(trial_, best_);
+      best_n_ = n;
+      use_best(jd, binding());
+      return last_;
+    }
+  }
+  double hi = j_top;
+  double j_best = lo;
+  for (int k = 0; k < kBisection; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    if (rollout(mid, override_applied_, real_stop, trial_, n)) {
+      std::swap(trial_, best_);
+      best_n_ = n;
+      lo = j_best = mid;
+      have = true;
+    } else {
+      hi = mid;
+    }
+  }
+  if (have) {
+    use_best(j_best, 0);
+  } else {
+    use_fallback(0);
+  }
+  last_.limit_id = binding();
+  return last_;
+}
+
+void Planner::set_override(double fraction) {
+  if (!std::isfinite(fraction) || fraction < 0.0 || fraction > 2.0) {
+    throw InputError("feed override = " + std::to_string(fraction) +
+                     " is invalid: it must be between 0 (0 %) and 2 (200 %)");
+  }
+  override_target_ = fraction;
+}
+
+void Planner::hold() {
+  hold_ = true;
+}
+
+void Planner::resume() {
+  hold_ = false;
+}
+
+void push_available(Planner& planner, std::span<const LimitSample> curve, std::size_t& next) {
+  while (next < curve.size() && planner.wants_samples()) planner.push(curve[next++]);
+}
+
+std::vector<MotionSample> plan_all(const PlannerLimits& limits, double length_mm,
+                                   std::span<const LimitSample> curve, std::size_t max_periods) {
+  Planner planner(limits, length_mm);
+  std::vector<MotionSample> out;
+  out.push_back(MotionSample{});
+  std::size_t next = 0;
+  while (out.size() <= max_periods) {
+    push_available(planner, curve, next);
+    out.push_back(planner.step());
+    if (out.back().done) return out;
+  }
+  throw InputError("the motion did not finish within " + std::to_string(max_periods) +
+                   " periods: check that the limit curve reaches L = " + std::to_string(length_mm) +
+                   " mm");
+}
+
+}  // namespace ncd::motion

@@ -1,0 +1,160 @@
+// Look-ahead feed planner: a feed-limit curve along the path in, a jerk-limited motion s(t)
+// sampled every period out. Plain data in, plain data out; the algorithm is explained once at
+// the top of planner.cpp.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace ncd::motion {
+
+// One point of the feed-limit curve. Between two samples the limit is the MINIMUM of the two
+// (conservative, piecewise constant), so an upstream that samples densely is respected.
+struct LimitSample {
+  double s_mm = 0.0;            // arc length along the path, strictly increasing, first at 0
+  double v_max_mm_per_s = 0.0;  // > 0; a point where the machine must stop ends the path
+  std::uint8_t limit_id = 0;    // which feed law set it (< kLimitIdReserved)
+};
+
+// limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
+inline constexpr std::uint8_t kLimitIdReserved = 0xF0;
+inline constexpr std::uint8_t kLimitIdHold = 0xFA;          // feed hold or override 0 %
+inline constexpr std::uint8_t kLimitIdLookahead = 0xFB;     // no samples far enough ahead
+inline constexpr std::uint8_t kLimitIdPathEnd = 0xFC;       // braking to land on L
+inline constexpr std::uint8_t kLimitIdJerk = 0xFD;          // |j| = j_max binds
+inline constexpr std::uint8_t kLimitIdAcceleration = 0xFE;  // |a| = a_max binds
+
+struct PlannerLimits {
+  double a_max_mm_per_s2 = 1000.0;     // tangential acceleration limit
+  double j_max_mm_per_s3 = 20000.0;    // tangential jerk limit
+  double period_s = 0.004;             // interpolation period T
+  std::size_t window_capacity = 4096;  // samples the look-ahead ring can hold (fixed memory)
+};
+
+// Throws InputError naming the value unless every limit is finite and > 0 (capacity >= 2).
+void validate(const PlannerLimits& limits);
+
+// The motion at the end of one period. The jerk is the constant jerk applied during the period
+// that ends here, so (s, v, a) of the previous sample and j of this one give the cubic between.
+struct MotionSample {
+  double t_s = 0.0;
+  double s_mm = 0.0;
+  double v_mm_per_s = 0.0;
+  double a_mm_per_s2 = 0.0;
+  double j_mm_per_s3 = 0.0;
+  std::uint8_t limit_id = 0;  // binding feed limit, or kLimitId* when the planner's own binds
+  bool done = false;          // at rest exactly at L; further steps repeat this sample
+};
+
+class Planner {
+ public:
+  // Starts at rest at s = 0; ends at rest at s = length_mm. Throws InputError on bad input.
+  Planner(const PlannerLimits& limits, double length_mm);
+
+  // True while the look-ahead window wants more samples (not full, not past L, and not yet
+  // covering the braking horizon from the current speed); push while it says so.
+  bool wants_samples() const;
+  // Appends one limit sample (s strictly increasing, first at 0, 0 < v finite). May allocate.
+  void push(const LimitSample& sample);
+  // Advances one period; no allocation, bounded work.
+  MotionSample step();
+
+  // Feed override as a fraction (0..2, 1 = 100 %): scales the limit curve; lowering it brakes
+  // under the acceleration and jerk limits, so v may exceed the new curve while it does.
+  void set_override(double fraction);
+  // Feed hold: a jerk-limited stop on the path; resume() goes on from there.
+  void hold();
+  void resume();
+
+  bool done() const { return done_; }
+  double length_mm() const { return length_mm_; }
+  // Look-ahead window, now and at its high-water mark, in samples and in mm past s.
+  std::size_t window_samples() const { return count_; }
+  std::size_t window_samples_high_water() const { return count_high_water_; }
+  double window_ahead_mm_high_water() const { return ahead_high_water_mm_; }
+  // The bound the window respects: it asks for samples only up to this far past s (a sample
+  // spacing more at most), where v_cap = 2 x the highest limit pushed (200 % override).
+  double lookahead_bound_mm() const;
+  // Rollouts evaluated in the last step (work per step, for benchmarks).
+  std::size_t last_step_rollouts() const { return last_rollouts_; }
+
+  struct Kin {
+    double s_mm, v_mm_per_s, a_mm_per_s2;
+  };
+
+ private:
+  struct Block {
+    double begin_mm, end_mm, v_max_mm_per_s;
+    std::uint8_t limit_id;
+  };
+  struct Cursor {
+    std::size_t segment = 0;  // index into the ring (segment between sample i and i+1)
+    std::size_t block = 0;
+  };
+
+  const LimitSample& sample(std::size_t i) const;
+  double horizon_mm(double v_mm_per_s, double a_mm_per_s2) const;
+  void drop_passed_samples();
+  void build_blocks(double scale, double stop_mm);
+  bool check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm) const;
+  double policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const;
+  bool rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
+               std::size_t& out_n);
+  bool try_landing();
+  bool land_with(std::size_t n, bool use_plan);
+  double v_settle(const Kin& x) const;
+  double deadbeat_jerk(const Kin& x, double w, bool* ok) const;
+  double track(const Kin& x, double w) const;
+  double need_mm(const Kin& x, double w) const;
+  Kin advance(const Kin& x, double j) const;
+  void commit(double j, std::uint8_t limit_id);
+
+  // limits
+  double a_max_, j_max_, period_s_, length_mm_;
+  double v_eps_, a_eps_;
+  // ring of samples
+  std::vector<LimitSample> ring_;
+  std::size_t head_ = 0, count_ = 0, count_high_water_ = 0;
+  double ahead_high_water_mm_ = 0.0;
+  double v_top_pushed_ = 0.0;
+  bool saw_end_ = false;
+  // blocks (policy targets) of the current step
+  std::vector<Block> blocks_;
+  std::size_t block_count_ = 0;
+  // state
+  Kin x_{0.0, 0.0, 0.0};
+  double t_s_ = 0.0;
+  std::int64_t periods_ = 0;
+  bool done_ = false;
+  MotionSample last_{};
+  // plans: the committed plan (a validated rollout, tail from plan_pos_), and scratch
+  std::vector<double> plan_, trial_, best_;
+  std::size_t plan_n_ = 0, plan_pos_ = 0, best_n_ = 0;
+  std::size_t rollout_cap_ = 0;
+  bool landing_ = false;
+  // landing scratch
+  std::vector<double> land_j_, land_base_;
+  // override and hold
+  double override_applied_ = 1.0, override_target_ = 1.0;
+  bool hold_ = false;
+  double policy_scale_ = 1.0;
+  double policy_stop_mm_ = 0.0;
+  bool policy_hold_ = false;
+  std::size_t last_rollouts_ = 0;
+};
+
+// Pushes samples from curve[next...] while the planner wants them; advances next.
+void push_available(Planner& planner, std::span<const LimitSample> curve, std::size_t& next);
+
+// The whole motion for a limit curve given at once (tests, replay): step() until done.
+// Throws InputError if the motion does not finish within max_periods.
+std::vector<MotionSample> plan_all(const PlannerLimits& limits, double length_mm,
+                                   std::span<const LimitSample> curve,
+                                   std::size_t max_periods = 50'000'000);
+
+// S-curve braking distance from v to v_t (v >= v_t), starting and ending at a = 0.
+double braking_distance_mm(double v_mm_per_s, double v_target_mm_per_s, double a_max, double j_max);
+
+}  // namespace ncd::motion

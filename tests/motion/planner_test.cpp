@@ -1,0 +1,457 @@
+// Look-ahead feed planner: every motion is checked against an independent, slow reference of
+// the constraints (exact crossing times of every sample inside every period), random limit
+// curves in bulk (seed printed; NCD_TEST_SEED overrides), closed-form S-curve durations, the
+// memory bound over an hour of periods, override and hold.
+#include "motion/planner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+
+namespace ncd::motion {
+namespace {
+
+constexpr double kTol = 1e-9;  // relative tolerance of the checks (rounding only)
+
+std::uint64_t test_seed() {
+  if (const char* env = std::getenv("NCD_TEST_SEED")) return std::strtoull(env, nullptr, 10);
+  return std::random_device{}();
+}
+
+// The limit the curve sets at s: min of the two ends of the segment holding s (both adjacent
+// segments at a sample point); 0 outside the curve.
+double limit_at(const std::vector<LimitSample>& curve, double s) {
+  auto it = std::upper_bound(curve.begin(), curve.end(), s,
+                             [](double x, const LimitSample& p) { return x < p.s_mm; });
+  if (it == curve.begin() || it == curve.end()) {
+    if (it == curve.end() && !curve.empty() && curve.back().s_mm == s) {
+      return std::min(curve.back().v_max_mm_per_s, curve[curve.size() - 2].v_max_mm_per_s);
+    }
+    return 0.0;
+  }
+  const auto i = static_cast<std::size_t>(it - curve.begin());  // curve[i-1].s <= s < curve[i].s
+  double v = std::min(curve[i - 1].v_max_mm_per_s, curve[i].v_max_mm_per_s);
+  if (curve[i - 1].s_mm == s && i >= 2) v = std::min(v, curve[i - 2].v_max_mm_per_s);
+  return v;
+}
+
+struct Cubic {
+  double s, v, a, j;
+  double pos(double t) const { return s + v * t + 0.5 * a * t * t + j * t * t * t / 6.0; }
+  double vel(double t) const { return v + a * t + 0.5 * j * t * t; }
+  // Max of v over [t0, t1]: ends and the stationary point.
+  double vmax(double t0, double t1) const {
+    double m = std::max(vel(t0), vel(t1));
+    if (j != 0.0) {
+      const double ts = -a / j;
+      if (ts > t0 && ts < t1) m = std::max(m, vel(ts));
+    }
+    return m;
+  }
+  double vmin(double t0, double t1) const {
+    double m = std::min(vel(t0), vel(t1));
+    if (j != 0.0) {
+      const double ts = -a / j;
+      if (ts > t0 && ts < t1) m = std::min(m, vel(ts));
+    }
+    return m;
+  }
+};
+
+struct Report {
+  double duration_s = 0.0;
+  double v_peak = 0.0;
+  int failures = 0;
+};
+
+// Checks a whole motion against the limits and the curve (scaled by limit_scale); returns the
+// number of violations (each reported once with its period).
+Report check_motion(const std::vector<MotionSample>& m, const std::vector<LimitSample>& curve,
+                    const PlannerLimits& lim, double length_mm, double limit_scale = 1.0,
+                    bool expect_done = true) {
+  Report r;
+  const double T = lim.period_s;
+  auto fail = [&](const std::string& what, std::size_t i) {
+    if (r.failures++ < 5) ADD_FAILURE() << what << " at period " << i << " t=" << m[i].t_s;
+  };
+  if (m.empty()) {
+    fail("empty motion", 0);
+    return r;
+  }
+  if (m[0].s_mm != 0.0 || m[0].v_mm_per_s != 0.0 || m[0].a_mm_per_s2 != 0.0)
+    fail("not at rest at 0", 0);
+  const double v_scale = lim.a_max_mm_per_s2 * T + lim.j_max_mm_per_s3 * T * T;
+  for (std::size_t i = 1; i < m.size(); ++i) {
+    const MotionSample& p = m[i - 1];
+    const MotionSample& q = m[i];
+    const Cubic c{p.s_mm, p.v_mm_per_s, p.a_mm_per_s2, q.j_mm_per_s3};
+    if (std::abs(q.t_s - p.t_s - T) > 1e-9 * T) fail("period not T", i);
+    if (std::abs(q.j_mm_per_s3) > lim.j_max_mm_per_s3 * (1 + kTol)) fail("jerk over j_max", i);
+    if (std::abs(q.a_mm_per_s2) > lim.a_max_mm_per_s2 * (1 + kTol)) fail("accel over a_max", i);
+    // The samples are the cubic's values at the period end (rest snapped to exact zeros).
+    if (std::abs(c.pos(T) - q.s_mm) > 1e-9 * std::max(1.0, length_mm)) fail("s off cubic", i);
+    if (std::abs(c.vel(T) - q.v_mm_per_s) > 1e-9 * v_scale) fail("v off cubic", i);
+    if (std::abs(p.a_mm_per_s2 + q.j_mm_per_s3 * T - q.a_mm_per_s2) > 1e-9 * v_scale / T)
+      fail("a off cubic", i);
+    if (q.s_mm < p.s_mm) fail("s decreased", i);
+    if (q.s_mm > length_mm) fail("overshoot of L", i);
+    if (c.vmin(0, T) < -1e-9 * v_scale) fail("negative speed", i);
+    r.v_peak = std::max(r.v_peak, c.vmax(0, T));
+    // Exact: split the period where s crosses a sample, then v max on each piece.
+    double t0 = 0.0;
+    double s_end = c.pos(T);
+    auto it = std::upper_bound(curve.begin(), curve.end(), c.pos(0),
+                               [](double x, const LimitSample& e) { return x < e.s_mm; });
+    while (true) {
+      double t1 = T;
+      const bool crosses = it != curve.end() && it->s_mm < s_end;
+      if (crosses) {  // bisection on the monotone cubic, to the last bit
+        double lo = t0, hi = T;
+        for (int k = 0; k < 200 && lo < hi; ++k) {
+          const double mid = 0.5 * (lo + hi);
+          if (mid <= lo || mid >= hi) break;
+          (c.pos(mid) < it->s_mm ? lo : hi) = mid;
+        }
+        t1 = hi;
+      }
+      const double s_mid = c.pos(0.5 * (t0 + t1));
+      const double lim_v = limit_at(curve, std::clamp(s_mid, c.pos(t0), c.pos(t1))) * limit_scale;
+      const double v_hi = c.vmax(t0, t1);
+      if (v_hi > lim_v * (1 + kTol) + 1e-12) {
+        fail("speed " + std::to_string(v_hi) + " over limit " + std::to_string(lim_v) +
+                 " at s=" + std::to_string(s_mid),
+             i);
+        break;
+      }
+      if (!crosses) break;
+      t0 = t1;
+      ++it;
+    }
+  }
+  const MotionSample& e = m.back();
+  if (expect_done) {
+    if (!e.done) fail("not done", m.size() - 1);
+    if (e.s_mm != length_mm || e.v_mm_per_s != 0.0 || e.a_mm_per_s2 != 0.0)
+      fail("does not end at rest exactly at L: s=" + std::to_string(e.s_mm), m.size() - 1);
+  }
+  r.duration_s = e.t_s;
+  return r;
+}
+
+PlannerLimits limits(double a, double j, double T) {
+  PlannerLimits l;
+  l.a_max_mm_per_s2 = a;
+  l.j_max_mm_per_s3 = j;
+  l.period_s = T;
+  return l;
+}
+
+std::vector<LimitSample> flat(double length_mm, double v, double spacing_mm) {
+  std::vector<LimitSample> c;
+  for (double s = 0.0;; s += spacing_mm) {
+    c.push_back({std::min(s, length_mm), v, 1});
+    if (s >= length_mm) break;
+  }
+  return c;
+}
+
+// Time-optimal rest-to-rest duration on a flat limit (7- or 5-phase S-curve); a bisection on
+// the peak speed when the path is too short to reach v.
+double scurve_duration(double length_mm, double v, double a, double j) {
+  const auto t_acc = [&](double vp) {
+    return vp >= a * a / j ? vp / a + a / j : 2.0 * std::sqrt(vp / j);
+  };
+  if (v * t_acc(v) <= length_mm) return 2.0 * t_acc(v) + (length_mm - v * t_acc(v)) / v;
+  double lo = 0.0, hi = v;
+  for (int k = 0; k < 200; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (mid * t_acc(mid) < length_mm ? lo : hi) = mid;
+  }
+  return 2.0 * t_acc(lo);
+}
+
+TEST(PlannerLimits, RejectsDegenerateLimitsNamingTheValue) {
+  const auto msg = [](PlannerLimits l) {
+    try {
+      Planner p(l, 10.0);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(msg(limits(0.0, 2e4, 0.004)).find("a_max_mm_per_s2"), std::string::npos);
+  EXPECT_NE(msg(limits(-5.0, 2e4, 0.004)).find("a_max_mm_per_s2"), std::string::npos);
+  EXPECT_NE(msg(limits(1e3, 0.0, 0.004)).find("j_max_mm_per_s3"), std::string::npos);
+  EXPECT_NE(msg(limits(1e3, 2e4, 0.0)).find("period_s"), std::string::npos);
+  EXPECT_NE(msg(limits(1e3, NAN, 0.004)).find("j_max_mm_per_s3"), std::string::npos);
+  EXPECT_THROW(Planner(limits(1e3, 2e4, 0.004), -1.0), InputError);
+  EXPECT_EQ(msg(limits(1e3, 2e4, 0.004)), "");
+}
+
+TEST(Planner, RejectsBadSamples) {
+  Planner p(limits(1e3, 2e4, 0.004), 10.0);
+  EXPECT_THROW(p.push({1.0, 10.0, 1}), InputError);  // must start at 0
+  p.push({0.0, 10.0, 1});
+  EXPECT_THROW(p.push({0.0, 10.0, 1}), InputError);  // not increasing
+  EXPECT_THROW(p.push({1.0, -1.0, 1}), InputError);  // negative limit
+  EXPECT_THROW(p.push({1.0, NAN, 1}), InputError);
+  EXPECT_THROW(p.push({1.0, 10.0, kLimitIdJerk}), InputError);  // reserved id
+  try {
+    p.push({2.0, 0.0, 1});
+    ADD_FAILURE() << "a zero limit was accepted";
+  } catch (const InputError& e) {  // decided: a stop inside the path must end the path there
+    EXPECT_NE(std::string(e.what()).find("end the path there"), std::string::npos);
+  }
+  Planner q(limits(1e3, 2e4, 0.004), 10.0);
+  EXPECT_THROW(q.set_override(2.5), InputError);
+  EXPECT_THROW(q.set_override(-0.1), InputError);
+}
+
+TEST(Planner, ZeroLengthIsDoneAtOnce) {
+  const std::vector<LimitSample> c = {{0.0, 10.0, 1}, {1.0, 10.0, 1}};
+  const auto m = plan_all(limits(1e3, 2e4, 0.004), 0.0, c);
+  ASSERT_EQ(m.size(), 2u);
+  EXPECT_TRUE(m[1].done);
+  EXPECT_EQ(m[1].t_s, 0.0);
+  EXPECT_EQ(m[1].s_mm, 0.0);
+}
+
+TEST(Planner, CruisesExactlyAtAFlatLimit) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  const auto c = flat(300.0, 50.0, 0.5);
+  const auto m = plan_all(l, 300.0, c);
+  const Report r = check_motion(m, c, l, 300.0);
+  EXPECT_EQ(r.failures, 0);
+  std::size_t at_limit = 0;
+  for (const auto& s : m) at_limit += std::abs(s.v_mm_per_s - 50.0) <= 1e-9;
+  // 300 mm at 50 mm/s is 6 s; braking and accelerating take 0.1 s each.
+  EXPECT_GT(static_cast<double>(at_limit) * l.period_s, 5.6) << at_limit;
+  EXPECT_LE(r.v_peak, 50.0 * (1 + kTol));
+}
+
+TEST(Planner, RestToRestMatchesClosedFormSCurveWithinOnePeriod) {
+  struct Case {
+    double L, v, a, j, T;
+  };
+  const Case cases[] = {
+      {100.0, 50.0, 1000.0, 20000.0, 0.004},  // 7 phases
+      {100.0, 10.0, 1000.0, 20000.0, 0.004},  // 5 phases (v < a²/j: a_max not reached)
+      {40.0, 120.0, 3000.0, 60000.0, 0.002},  // 7 phases
+      {2.0, 100.0, 1000.0, 20000.0, 0.004},   // v not reached: peak found by bisection
+      {0.3, 100.0, 500.0, 5000.0, 0.001},     // short, soft
+  };
+  for (const Case& k : cases) {
+    const PlannerLimits l = limits(k.a, k.j, k.T);
+    const auto c = flat(k.L, k.v, k.L / 7.0);
+    const auto m = plan_all(l, k.L, c);
+    const Report r = check_motion(m, c, l, k.L);
+    EXPECT_EQ(r.failures, 0);
+    const double want = scurve_duration(k.L, k.v, k.a, k.j);
+    EXPECT_GE(r.duration_s, want - 1e-9) << "faster than time-optimal?";
+    EXPECT_LE(r.duration_s, want + k.T) << "L=" << k.L << " v=" << k.v << " want " << want;
+  }
+}
+
+TEST(Planner, SuddenDropIsMetAtTheNewLevelWithoutDip) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  std::vector<LimitSample> c;
+  for (double s = 0.0; s <= 60.0; s += 0.1) c.push_back({s, s < 30.0 - 1e-9 ? 80.0 : 10.0, 2});
+  const auto m = plan_all(l, 60.0, c);
+  EXPECT_EQ(check_motion(m, c, l, 60.0).failures, 0);
+  // The slowdown started early enough (checked above) and not needlessly early: the speed at
+  // the drop is the new level, reached settled (a ≈ 0), with no dip below it after.
+  double v_at_drop = -1.0, v_min_after = 1e9;
+  for (const auto& s : m) {
+    if (s.s_mm <= 30.0) v_at_drop = s.v_mm_per_s;
+    if (s.s_mm > 30.0 && s.s_mm < 55.0) v_min_after = std::min(v_min_after, s.v_mm_per_s);
+  }
+  EXPECT_GT(v_at_drop, 9.0);
+  EXPECT_GT(v_min_after, 9.0);
+}
+
+TEST(Planner, PathShorterThanBrakingDistance) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  // Braking from 200 mm/s needs 20 mm; the path has 0.05 mm.
+  const std::vector<LimitSample> c = {{0.0, 200.0, 1}, {0.05, 200.0, 1}};
+  const auto m = plan_all(l, 0.05, c);
+  EXPECT_EQ(check_motion(m, c, l, 0.05).failures, 0);
+  EXPECT_LE(m.back().t_s, scurve_duration(0.05, 200.0, 1000.0, 20000.0) + l.period_s);
+}
+
+// A random limit curve: flat runs, steps, dense smooth stretches, occasionally very low.
+std::vector<LimitSample> random_curve(std::mt19937_64& rng, double length_mm) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<LimitSample> c;
+  double s = 0.0;
+  while (true) {
+    const double kind = u(rng);
+    const double run = length_mm * (0.02 + 0.3 * u(rng));
+    const double level = 2.0 + 150.0 * u(rng) * u(rng);
+    const double spacing = kind < 0.4 ? run : (0.02 + 0.5 * u(rng)) * std::min(run, 5.0);
+    const double amp = kind < 0.7 ? 0.0 : 0.6 * level * u(rng);
+    const double wave = 0.5 + 10.0 * u(rng);
+    const auto id = static_cast<std::uint8_t>(kind * 4.0);
+    const double end = s + run;
+    for (; s < end && s < length_mm; s += spacing) {
+      c.push_back({s, std::max(0.5, level + amp * std::sin(s / wave)), id});
+    }
+    if (s >= length_mm) break;
+  }
+  c.push_back({std::max(length_mm, c.back().s_mm + 1e-3), 5.0 + 100.0 * u(rng), 9});
+  return c;
+}
+
+TEST(Planner, RandomLimitCurvesKeepEveryConstraint) {
+  const std::uint64_t seed = test_seed();
+  std::printf("Planner random curves: NCD_TEST_SEED=%llu\n", static_cast<unsigned long long>(seed));
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double periods[] = {0.001, 0.002, 0.004};
+  int cases = 0, total_failures = 0;
+  for (; cases < 300; ++cases) {
+    const PlannerLimits l = limits(200.0 + 2800.0 * u(rng), 2000.0 + 58000.0 * u(rng),
+                                   periods[static_cast<std::size_t>(u(rng) * 2.999)]);
+    const double length_mm = u(rng) < 0.1 ? 0.01 + u(rng) : 1.0 + 60.0 * u(rng);
+    const auto c = random_curve(rng, length_mm);
+    std::vector<MotionSample> m;
+    ASSERT_NO_THROW(m = plan_all(l, length_mm, c, 2'000'000)) << "case " << cases;
+    const Report r = check_motion(m, c, l, length_mm);
+    total_failures += r.failures;
+    if (r.failures > 0) {
+      ADD_FAILURE() << "case " << cases << " seed " << seed << " L=" << length_mm
+                    << " a=" << l.a_max_mm_per_s2 << " j=" << l.j_max_mm_per_s3
+                    << " T=" << l.period_s;
+      break;
+    }
+  }
+  EXPECT_EQ(total_failures, 0);
+}
+
+TEST(Planner, WindowStaysBoundedOverAnHourOfPeriods) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  const double length_mm = 1e6;
+  const double spacing = 0.25;
+  // Repetitive 20 mm pattern: 60 mm/s, a drop to 15, a stretch at 40 with a ripple.
+  const auto limit = [](double s) {
+    const double x = std::fmod(s, 20.0);
+    if (x < 12.0) return 60.0;
+    if (x < 14.0) return 15.0;
+    return 40.0 + 5.0 * std::sin(x);
+  };
+  Planner p(l, length_mm);
+  double next_s = 0.0;
+  std::size_t hw_at_10pct = 0;
+  double prev_s = 0.0;
+  const std::size_t periods = 900'000;
+  for (std::size_t i = 0; i < periods; ++i) {
+    while (p.wants_samples()) {
+      p.push({next_s, limit(next_s), 3});
+      next_s += spacing;
+    }
+    const MotionSample m = p.step();
+    ASSERT_GE(m.s_mm, prev_s);
+    ASSERT_LE(std::abs(m.a_mm_per_s2), l.a_max_mm_per_s2 * (1 + kTol));
+    ASSERT_LE(m.v_mm_per_s, limit(m.s_mm) * (1 + kTol) + 1e-9);
+    prev_s = m.s_mm;
+    if (i == periods / 10) hw_at_10pct = p.window_samples_high_water();
+  }
+  const double bound_mm = p.lookahead_bound_mm();
+  EXPECT_GT(prev_s, 100'000.0);  // it moved: ~36 mm/s on average for an hour
+  EXPECT_LE(p.window_ahead_mm_high_water(), bound_mm + spacing);
+  EXPECT_LE(p.window_samples_high_water(),
+            static_cast<std::size_t>(std::ceil(bound_mm / spacing)) + 3);
+  EXPECT_EQ(p.window_samples_high_water(), hw_at_10pct);  // no growth with path length
+  std::printf("window high water: %zu samples, %.3f mm ahead (bound %.3f mm)\n",
+              p.window_samples_high_water(), p.window_ahead_mm_high_water(), bound_mm);
+}
+
+TEST(Planner, FullWindowCapacityOnlySlowsDown) {
+  PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  l.window_capacity = 8;  // far fewer samples than the braking distance needs
+  const auto c = flat(30.0, 80.0, 0.1);
+  const auto m = plan_all(l, 30.0, c);
+  EXPECT_EQ(check_motion(m, c, l, 30.0).failures, 0);
+}
+
+// Streaming with override changes or a hold in the middle; returns the motion.
+std::vector<MotionSample> run_with(const PlannerLimits& l, double length_mm,
+                                   const std::vector<LimitSample>& c,
+                                   const std::function<void(Planner&, std::size_t)>& event) {
+  Planner p(l, length_mm);
+  std::vector<MotionSample> out{MotionSample{}};
+  std::size_t next = 0;
+  for (std::size_t i = 0; i < 1'000'000 && !out.back().done; ++i) {
+    event(p, i);
+    push_available(p, c, next);
+    out.push_back(p.step());
+  }
+  return out;
+}
+
+TEST(Planner, OverrideRaisesAndLowersTheFeedWithinAccelerationAndJerk) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  const auto c = flat(200.0, 50.0, 0.5);
+  const auto m = run_with(l, 200.0, c, [](Planner& p, std::size_t i) {
+    if (i == 250) p.set_override(1.5);  // 1 s in: 75 mm/s
+    if (i == 750) p.set_override(0.4);  // 3 s in: 20 mm/s
+  });
+  // Everything holds against the highest scale; a and j always.
+  EXPECT_EQ(check_motion(m, c, l, 200.0, 1.5).failures, 0);
+  double v_high = 0.0, v_late = 0.0;
+  for (const auto& s : m) {
+    if (s.t_s > 2.0 && s.t_s < 3.0) v_high = std::max(v_high, s.v_mm_per_s);
+    if (s.t_s > 3.2 && !s.done && s.s_mm < 190.0) v_late = std::max(v_late, s.v_mm_per_s);
+  }
+  EXPECT_NEAR(v_high, 75.0, 1e-9);
+  EXPECT_LE(v_late, 20.0 * (1 + kTol));  // braked to the new limit within 0.2 s
+  EXPECT_GE(v_late, 20.0 - 1e-9);
+}
+
+TEST(Planner, HoldStopsOnThePathAndResumes) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  const auto c = flat(100.0, 50.0, 0.5);
+  double s_held = -1.0;
+  const auto m = run_with(l, 100.0, c, [&](Planner& p, std::size_t i) {
+    if (i == 200) p.hold();
+    if (i == 400) s_held = p.done() ? -1.0 : 0.0, p.resume();
+  });
+  EXPECT_EQ(check_motion(m, c, l, 100.0).failures, 0);
+  // Stopped within the S-curve stop time from 50 mm/s (0.1 s) plus two periods, then still.
+  const double t_stop = 50.0 / 1000.0 + 1000.0 / 20000.0 + 2 * l.period_s;
+  bool stopped = false;
+  for (const auto& s : m) {
+    if (s.t_s > 0.8 + t_stop && s.t_s <= 1.6) {
+      EXPECT_EQ(s.v_mm_per_s, 0.0) << s.t_s;
+      EXPECT_EQ(s.limit_id, kLimitIdHold);
+      stopped = true;
+    }
+  }
+  EXPECT_TRUE(stopped);
+  EXPECT_EQ(s_held, 0.0);
+  EXPECT_TRUE(m.back().done);
+}
+
+TEST(Planner, ReplayIsDeterministic) {
+  std::mt19937_64 rng(7);
+  const auto c = random_curve(rng, 40.0);
+  const PlannerLimits l = limits(1500.0, 30000.0, 0.002);
+  const auto a = plan_all(l, 40.0, c);
+  const auto b = plan_all(l, 40.0, c);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].s_mm, b[i].s_mm);
+    ASSERT_EQ(a[i].j_mm_per_s3, b[i].j_mm_per_s3);
+  }
+}
+
+}  // namespace
+}  // namespace ncd::motion
