@@ -22,7 +22,7 @@ class JsonReader {
   explicit JsonReader(const std::string& file) : file_(file) {}
 
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
-    throw InputError(file_ + ": " + (key.empty() ? "" : "\"" + key + "\" ") + what);
+    throw InputError(file_ + ": " + (key.empty() ? "the document " : "\"" + key + "\" ") + what);
   }
 
   const json& member(const json& obj, const std::string& key, const std::string& path) const {
@@ -52,7 +52,7 @@ class JsonReader {
 
   double positive(const json& j, const std::string& path) const {
     const double v = number(j, path);
-    if (!(v > 0.0)) fail(path, "= " + j.dump() + " must be greater than 0");
+    if (!(v > 0.0)) fail(path, "= " + j.dump() + " must be greater than 0; give a positive number");
     return v;
   }
 
@@ -92,7 +92,9 @@ class JsonReader {
     Polyline pl;
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const std::string key = "points[" + std::to_string(i) + "]";
-      if (!pts[i].is_object()) fail(key, "is not an object with \"cl\" and \"e\"");
+      if (!pts[i].is_object()) {
+        fail(key, "is not an object; write {\"cl\": [x, y, z], \"e\": [x, y, z]}");
+      }
       pl.points.push_back(vec3(member(pts[i], "cl", key + ".cl"), key + ".cl"));
       const Vec3 e = vec3(member(pts[i], "e", key + ".e"), key + ".e");
       pl.normals.push_back(-e);
@@ -105,7 +107,9 @@ class JsonReader {
     pl.normals.push_back(pl.normals.front());
     PathSegment seg;
     if (const auto in = doc.find("input"); in != doc.end()) {
-      if (!in->is_object()) fail("input", "is not an object");
+      if (!in->is_object()) {
+        fail("input", "is not an object; write {\"feed_mm_per_min\": F, \"spindle_rpm\": S}");
+      }
       if (const auto f = in->find("feed_mm_per_min"); f != in->end() && !f->is_null()) {
         seg.feed_mm_per_min = positive(*f, "input.feed_mm_per_min");
       }
@@ -136,7 +140,10 @@ class JsonReader {
     }
     if (has_nurbs) {
       const json& n = doc["nurbs"];
-      if (!n.is_object()) fail("nurbs", "is not an object with degree, knots, points");
+      if (!n.is_object()) {
+        fail("nurbs",
+             "is not an object; write {\"degree\": p, \"knots\": [...], \"points\": [...]}");
+      }
       only_keys(n, "nurbs", {"degree", "knots", "points", "weights"});
       const double d = number(member(n, "degree", "nurbs.degree"), "nurbs.degree");
       if (d != std::floor(d) || d < NurbsCurve::kMinDegree || d > NurbsCurve::kMaxDegree) {
@@ -156,7 +163,8 @@ class JsonReader {
       }
     } else {
       const json& p = doc["polyline"];
-      if (!p.is_object()) fail("polyline", "is not an object with points");
+      if (!p.is_object())
+        fail("polyline", "is not an object; write {\"points\": [[x, y, z], ...]}");
       only_keys(p, "polyline", {"points", "normals"});
       Polyline pl;
       pl.points = vec3s(member(p, "points", "polyline.points"), "polyline.points");
@@ -191,7 +199,7 @@ Path read_path_text(const std::string& text, const std::string& name) {
                        "with '{'");
     }
     const JsonReader r(name);
-    if (!doc.is_object()) r.fail("", "is not a JSON object");
+    if (!doc.is_object()) r.fail("", "is not a JSON object; write { ... }");
     if (doc.contains("nurbs") || doc.contains("polyline")) {
       path = r.path_file(doc);
     } else if (doc.contains("points")) {
