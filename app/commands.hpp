@@ -10,5 +10,6 @@ namespace ncd::app {
 using Runner = std::function<int()>;
 
 void register_chamfer(CLI::App& app, Runner& run);
+void register_replay(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   ncd::app::Runner run;
   ncd::app::register_chamfer(app, run);
+  ncd::app::register_replay(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

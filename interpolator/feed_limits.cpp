@@ -55,18 +55,22 @@ FeedLimitResult with_curvature(const MachineLimits& limits, double roughness_mm_
 
 }  // namespace
 
-std::string to_string(FeedLimit limit) {
+const char* to_string(FeedLimit limit) {
   switch (limit) {
     case FeedLimit::Roughness:
       return "roughness";
     case FeedLimit::Chord:
       return "chord";
     case FeedLimit::CentripetalAccel:
-      return "accel";
+      return "centripetal_accel";
     case FeedLimit::CentripetalJerk:
-      return "jerk";
+      return "centripetal_jerk";
     case FeedLimit::MaxFeed:
       return "max_feed";
+    case FeedLimit::Program:
+      return "program";
+    case FeedLimit::Corner:
+      return "corner";
   }
   return "unknown";
 }

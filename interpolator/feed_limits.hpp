@@ -12,11 +12,23 @@
 
 namespace ncd::interpolator {
 
-// Which limit binds; on a tie the first in this order is reported.
-enum class FeedLimit { Roughness, Chord, CentripetalAccel, CentripetalJerk, MaxFeed };
+// Which limit binds; on a tie the first in this order is reported. Program (the F word of the
+// program) and Corner (a polyline vertex or a joint between segments) are applied by the
+// limit sampler along a path (limit_sampler.hpp), not by feed_limit().
+enum class FeedLimit {
+  Roughness,
+  Chord,
+  CentripetalAccel,
+  CentripetalJerk,
+  MaxFeed,
+  Program,
+  Corner
+};
+inline constexpr int kFeedLimitCount = 7;
 
-// "roughness", "chord", "accel", "jerk", "max_feed" (short enough to stay in SSO storage).
-std::string to_string(FeedLimit limit);
+// "roughness", "chord", "centripetal_accel", "centripetal_jerk", "max_feed", "program",
+// "corner".
+const char* to_string(FeedLimit limit);
 
 // The machine and interpolation limits. Defaults are literature values (spec §3): a_max in
 // 500–3000 mm/s², j_max in 2e4–6e4 mm/s³, a 1 µm chord tolerance, a 4 ms period.

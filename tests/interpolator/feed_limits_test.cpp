@@ -36,11 +36,13 @@ double roughness_reference_mm_per_s(const CuttingParams& c, double alpha) {
 }
 
 TEST(FeedLimits, NamesForReports) {
-  EXPECT_EQ(to_string(FeedLimit::Roughness), "roughness");
-  EXPECT_EQ(to_string(FeedLimit::Chord), "chord");
-  EXPECT_EQ(to_string(FeedLimit::CentripetalAccel), "accel");
-  EXPECT_EQ(to_string(FeedLimit::CentripetalJerk), "jerk");
-  EXPECT_EQ(to_string(FeedLimit::MaxFeed), "max_feed");
+  EXPECT_STREQ(to_string(FeedLimit::Roughness), "roughness");
+  EXPECT_STREQ(to_string(FeedLimit::Chord), "chord");
+  EXPECT_STREQ(to_string(FeedLimit::CentripetalAccel), "centripetal_accel");
+  EXPECT_STREQ(to_string(FeedLimit::CentripetalJerk), "centripetal_jerk");
+  EXPECT_STREQ(to_string(FeedLimit::MaxFeed), "max_feed");
+  EXPECT_STREQ(to_string(FeedLimit::Program), "program");
+  EXPECT_STREQ(to_string(FeedLimit::Corner), "corner");
 }
 
 TEST(FeedLimits, RoughnessBindsOnAFlatStraightPassAtTheDeadCentre) {

@@ -1,0 +1,266 @@
+// The feed-limit curve along a Path, streamed for the planner.
+//
+// Contract with the planner: between two consecutive nodes the planner holds the feed below
+// the smaller of their two values. So each node carries the minimum of the true limit over
+// BOTH intervals it bounds; then min(v_k, v_k+1) is never above the true limit anywhere on
+// [s_k, s_k+1], and a curvature peak cannot slip between two samples:
+//
+//     true limit  ‾‾‾\_/‾‾‾‾‾‾‾‾\___/‾‾‾
+//     intervals   |  m0 | m1 | m2 | m3 |        m_i = min of the limit over interval i
+//     nodes       v0    v1   v2   v3   v4       v_k = min(m_k-1, m_k)
+//
+// Intervals are at most `spacing_mm` long (0.05 mm: 8 per period at 100 mm/s and 4 ms), with
+// a node on every knot and vertex. The minimum over a curve interval is the smaller end value,
+// or, where the midpoint is lower than both ends, a golden-section search inside.
+//
+// What is limited: on curves, feed_limit() at each point (roughness law with α = asin(t_z),
+// chord error, centripetal acceleration and jerk, machine maximum); on polyline pieces the
+// roughness law with α from the contact normals at both ends (or the piece's direction) and
+// the machine maximum (a straight line has no curvature); everywhere the program's F word.
+// Rapids (G0) are limited by the machine maximum only. At a corner (a polyline vertex, or a
+// joint where the tangent turns by φ) the speed is bounded by
+//
+//     chord:     the chord of one period across the corner deviates (Δs/2) sin(φ/2) ≤ ε_c
+//                → v ≤ 2 ε_c / (T sin(φ/2))
+//     junction:  the machine rounds the corner within ε_c at a_max (grbl's junction deviation)
+//                → v² ≤ a_max ε_c cos(φ/2) / (1 − cos(φ/2))
+//
+// over a zone of one period's travel, v_c T, on each side, so that every period whose chord
+// crosses the corner runs at the corner speed.
+#include "interpolator/limit_sampler.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/quadrature.hpp"
+
+namespace ncd::interpolator {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kMinTurnRad = 1e-9;  // below this a joint is straight
+
+FeedLimitResult min_of(FeedLimitResult a, FeedLimitResult b) {
+  return b.feed_mm_per_s < a.feed_mm_per_s ? b : a;
+}
+
+Vec3 unit_or_zero(const Vec3& v) {
+  const double n = v.norm();
+  return n > 0.0 ? Vec3(v / n) : Vec3::Zero();
+}
+
+}  // namespace
+
+LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segment_starts_mm,
+                           const MachineLimits& limits, const CuttingParams& cutting,
+                           const SamplerConfig& config)
+    : path_(path),
+      starts_mm_(std::move(segment_starts_mm)),
+      limits_(limits),
+      cutting_(cutting),
+      config_(config) {
+  const std::size_t n = path.segments.size();
+  joint_corner_.assign(n + 1, FeedLimitResult{kInf, FeedLimit::Corner});
+  const auto direction = [&](std::size_t k, bool at_end) -> Vec3 {
+    const auto& g = path.segments[k].geometry;
+    if (const auto* line = std::get_if<toolpath::Polyline>(&g)) {
+      const auto& p = line->points;
+      return unit_or_zero(at_end ? Vec3(p[p.size() - 1] - p[p.size() - 2]) : Vec3(p[1] - p[0]));
+    }
+    const auto& c = std::get<toolpath::NurbsCurve>(g);
+    return unit_or_zero(c.eval(at_end ? c.u_end() : c.u_begin()).d1);
+  };
+  for (std::size_t k = 1; k < n; ++k) {
+    joint_corner_[k] = corner_speed(direction(k - 1, true), direction(k, false));
+  }
+}
+
+FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out) const {
+  const double cos_phi = std::clamp(d_in.dot(d_out), -1.0, 1.0);
+  const double phi = std::acos(cos_phi);
+  if (d_in.isZero() || d_out.isZero() || phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
+  const double eps = limits_.chord_tolerance_mm, t = limits_.period_s;
+  const double chord = 2.0 * eps / (t * std::sin(0.5 * phi));
+  const double c = std::cos(0.5 * phi);
+  const double junction =
+      c < 1.0 ? std::sqrt(limits_.max_accel_mm_per_s2 * eps * c / (1.0 - c)) : kInf;
+  return {std::min(chord, junction), FeedLimit::Corner};
+}
+
+FeedLimitResult LimitSampler::segment_cap(std::size_t segment) const {
+  const auto& seg = path_.segments[segment];
+  FeedLimitResult cap{limits_.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed};
+  if (!seg.rapid && seg.feed_mm_per_min) {
+    cap = min_of(cap, {*seg.feed_mm_per_min / 60.0, FeedLimit::Program});
+  }
+  return cap;
+}
+
+FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) const {
+  const auto& seg = path_.segments[segment];
+  if (seg.rapid) return segment_cap(segment);
+  const auto& c = std::get<toolpath::NurbsCurve>(seg.geometry);
+  return min_of(feed_limit_at(limits_, cutting_, c.eval(u)), segment_cap(segment));
+}
+
+FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t piece) const {
+  const auto& seg = path_.segments[segment];
+  if (seg.rapid) return segment_cap(segment);
+  const auto& line = std::get<toolpath::Polyline>(seg.geometry);
+  const Vec3 dir = unit_or_zero(line.points[piece + 1] - line.points[piece]);
+  FeedLimitResult r = segment_cap(segment);
+  for (const std::size_t v : {piece, piece + 1}) {
+    const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
+                                              : inclination_from_normal_rad(line.normals[v], dir);
+    r = min_of(r, feed_limit(limits_, cutting_, 0.0, alpha));
+  }
+  return r;
+}
+
+FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  if (vertex == 0) return joint_corner_[segment];
+  if (vertex + 1 == line.points.size()) return joint_corner_[segment + 1];
+  return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
+                      unit_or_zero(line.points[vertex + 1] - line.points[vertex]));
+}
+
+FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0,
+                                                    double u1) const {
+  const FeedLimitResult a = limit_on_curve(segment, u0), b = limit_on_curve(segment, u1);
+  const FeedLimitResult m = limit_on_curve(segment, 0.5 * (u0 + u1));
+  FeedLimitResult best = min_of(a, b);
+  if (m.feed_mm_per_s >= best.feed_mm_per_s) return best;
+  // An interior minimum: golden-section search on [u0, u1].
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double lo = u0, hi = u1;
+  for (int i = 0; i < 60 && hi - lo > 1e-15 * std::max(1.0, std::abs(hi)); ++i) {
+    const double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
+    const FeedLimitResult f1 = limit_on_curve(segment, x1), f2 = limit_on_curve(segment, x2);
+    best = min_of(best, min_of(f1, f2));
+    if (f1.feed_mm_per_s < f2.feed_mm_per_s) {
+      hi = x2;
+    } else {
+      lo = x1;
+    }
+  }
+  return min_of(best, m);
+}
+
+void LimitSampler::apply_zones(Interval& iv) const {
+  const auto zone = [&](double center_mm, FeedLimitResult corner) {
+    if (!std::isfinite(corner.feed_mm_per_s)) return;
+    const double half = corner.feed_mm_per_s * limits_.period_s;
+    if (iv.a_mm <= center_mm + half && iv.b_mm >= center_mm - half &&
+        corner.feed_mm_per_s < iv.v_mm_per_s) {
+      iv.v_mm_per_s = corner.feed_mm_per_s;
+      iv.limit = corner.limit;
+    }
+  };
+  const auto& g = path_.segments[segment_].geometry;
+  if (const auto* line = std::get_if<toolpath::Polyline>(&g)) {
+    // The two vertices of this piece, and the neighbours' (their zones may reach across).
+    const std::size_t lo = piece_ > 0 ? piece_ - 1 : 0;
+    const std::size_t hi = std::min(piece_ + 2, line->points.size() - 1);
+    double s = piece_s_;
+    for (std::size_t v = piece_; v > lo; --v) s -= (line->points[v] - line->points[v - 1]).norm();
+    for (std::size_t v = lo; v <= hi; ++v) {
+      zone(s, corner_limit(segment_, v));
+      if (v + 1 < line->points.size()) s += (line->points[v + 1] - line->points[v]).norm();
+    }
+  } else {
+    zone(starts_mm_[segment_], joint_corner_[segment_]);
+    zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1]);
+  }
+}
+
+bool LimitSampler::next_interval(Interval& iv) {
+  while (segment_ < path_.segments.size()) {
+    const auto& g = path_.segments[segment_].geometry;
+    if (const auto* line = std::get_if<toolpath::Polyline>(&g)) {
+      if (piece_ + 1 >= line->points.size()) {
+        ++segment_, piece_ = 0, sub_ = 0;
+        if (segment_ < path_.segments.size()) enter_segment();
+        continue;
+      }
+      const double len = (line->points[piece_ + 1] - line->points[piece_]).norm();
+      const bool last_piece = piece_ + 2 == line->points.size();
+      const double end = last_piece ? starts_mm_[segment_ + 1] : piece_s_ + len;
+      const auto subs =
+          static_cast<std::size_t>(std::max(1.0, std::ceil(len / config_.spacing_mm)));
+      const FeedLimitResult v = limit_on_piece(segment_, piece_);
+      iv.a_mm = s_;
+      iv.b_mm = sub_ + 1 == subs
+                    ? end
+                    : piece_s_ + len * static_cast<double>(sub_ + 1) / static_cast<double>(subs);
+      iv.v_mm_per_s = v.feed_mm_per_s;
+      iv.limit = v.limit;
+      apply_zones(iv);
+      s_ = iv.b_mm;
+      if (++sub_ == subs) {
+        ++piece_, sub_ = 0;
+        piece_s_ = end;
+      }
+      return true;
+    }
+    const auto& c = std::get<toolpath::NurbsCurve>(g);
+    if (u_ >= c.u_end()) {
+      ++segment_, piece_ = 0, sub_ = 0;
+      if (segment_ < path_.segments.size()) enter_segment();
+      continue;
+    }
+    const double speed = c.eval(u_).d1.norm();
+    double u1 = speed > 0.0 ? u_ + config_.spacing_mm / speed : c.u_end();
+    while (knot_ < breakpoints_.size() && breakpoints_[knot_] <= u_) ++knot_;
+    if (knot_ < breakpoints_.size()) u1 = std::min(u1, breakpoints_[knot_]);
+    u1 = std::min(u1, c.u_end());
+    const double arc =
+        GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
+    const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1);
+    iv.a_mm = s_;
+    iv.b_mm = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + arc;
+    iv.v_mm_per_s = v.feed_mm_per_s;
+    iv.limit = v.limit;
+    apply_zones(iv);
+    s_ = iv.b_mm;
+    u_ = u1;
+    return true;
+  }
+  return false;
+}
+
+void LimitSampler::enter_segment() {
+  s_ = starts_mm_[segment_];
+  piece_s_ = s_;
+  knot_ = 0;
+  if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path_.segments[segment_].geometry)) {
+    u_ = c->u_begin();
+    breakpoints_ = c->breakpoints();
+  }
+}
+
+bool LimitSampler::next(LimitNode& out) {
+  if (finished_) return false;
+  if (!started_) {
+    started_ = true;
+    enter_segment();
+    pending_ = {0.0, kInf, FeedLimit::MaxFeed};
+  }
+  Interval iv{};
+  while (next_interval(iv)) {
+    if (iv.b_mm <= iv.a_mm) continue;  // nothing to limit on a zero-length piece
+    if (iv.v_mm_per_s < pending_.feed_mm_per_s) {
+      pending_.feed_mm_per_s = iv.v_mm_per_s;
+      pending_.limit = iv.limit;
+    }
+    out = pending_;
+    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit};
+    return true;
+  }
+  out = pending_;
+  finished_ = true;
+  return true;
+}
+
+}  // namespace ncd::interpolator

@@ -1,0 +1,74 @@
+// The feed-limit curve along a whole Path, streamed as nodes (s, v_max) for the look-ahead
+// planner. The algorithm is explained in limit_sampler.cpp.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "interpolator/feed_limits.hpp"
+#include "interpolator/roughness.hpp"
+#include "toolpath/path.hpp"
+
+namespace ncd::interpolator {
+
+struct LimitNode {
+  double s_mm = 0.0;           // arc length from the path start
+  double feed_mm_per_s = 0.0;  // v_max at the node, see the contract in limit_sampler.cpp
+  FeedLimit limit = FeedLimit::MaxFeed;
+};
+
+struct SamplerConfig {
+  double spacing_mm = 0.05;  // longest interval between nodes on a curve or a line
+};
+
+class LimitSampler {
+ public:
+  // Keeps a reference to the path and the limits; computes the corner speeds at joints (one
+  // per segment, the only allocation). segment_starts_mm are the cumulative segment lengths
+  // (PathWalker::segment_start_mm), so that walker and sampler share one arc length.
+  LimitSampler(const toolpath::Path& path, std::vector<double> segment_starts_mm,
+               const MachineLimits& limits, const CuttingParams& cutting,
+               const SamplerConfig& config = {});
+
+  // The next node in increasing s; false once the node at the path end has been given.
+  bool next(LimitNode& out);
+
+  // The feed limit at a point of segment `segment` (curve parameter u, or polyline piece and
+  // fraction), without corners: what a setpoint there is checked against.
+  FeedLimitResult limit_on_curve(std::size_t segment, double u) const;
+  FeedLimitResult limit_on_piece(std::size_t segment, std::size_t piece) const;
+  // The corner speed at vertex v of a polyline segment (v = 0 and the last: the joints).
+  FeedLimitResult corner_limit(std::size_t segment, std::size_t vertex) const;
+
+ private:
+  struct Interval {
+    double a_mm, b_mm, v_mm_per_s;
+    FeedLimit limit;
+  };
+  bool next_interval(Interval& out);
+  void enter_segment();
+  FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1) const;
+  FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
+  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out) const;
+  void apply_zones(Interval& iv) const;
+
+  const toolpath::Path& path_;
+  std::vector<double> starts_mm_;
+  MachineLimits limits_;
+  CuttingParams cutting_;
+  SamplerConfig config_;
+  std::vector<FeedLimitResult> joint_corner_;  // at the start of each segment (index 0: none)
+  // Cursor.
+  std::size_t segment_ = 0;
+  std::size_t piece_ = 0;            // polyline piece
+  std::size_t sub_ = 0;              // interval within the piece
+  double piece_s_ = 0.0;             // arc length at the start of the piece
+  double u_ = 0.0;                   // curve parameter
+  std::size_t knot_ = 0;             // next breakpoint of the curve
+  std::vector<double> breakpoints_;  // of the current curve segment
+  double s_ = 0.0;                   // arc length reached
+  bool started_ = false, finished_ = false;
+  LimitNode pending_;  // the node whose right-hand interval is not known yet
+};
+
+}  // namespace ncd::interpolator

@@ -1,0 +1,131 @@
+// The job loop of one period: limit sampler → planner → path walker (see job.hpp).
+#include "motion/job.hpp"
+
+#include <cmath>
+
+#include "core/error.hpp"
+
+namespace ncd::motion {
+namespace {
+
+PlannerLimits planner_limits(const JobConfig& c) {
+  PlannerLimits p;
+  p.a_max_mm_per_s2 = c.limits.max_accel_mm_per_s2;
+  p.j_max_mm_per_s3 = c.limits.max_jerk_mm_per_s3;
+  p.period_s = c.limits.period_s;
+  p.window_capacity = c.window_capacity;
+  return p;
+}
+
+interpolator::WalkerConfig walker_config(const JobConfig& c) {
+  interpolator::WalkerConfig w;
+  w.tolerance_rel = c.limits.feed_tolerance_rel;
+  return w;
+}
+
+std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_t segments) {
+  std::vector<double> s;
+  for (std::size_t k = 0; k <= segments; ++k) s.push_back(w.segment_start_mm(k));
+  return s;
+}
+
+}  // namespace
+
+const char* limit_name(std::uint8_t id) {
+  switch (id) {
+    case kLimitIdAcceleration:
+      return "tangential_accel";
+    case kLimitIdJerk:
+      return "tangential_jerk";
+    case kLimitIdPathEnd:
+      return "path_end";
+    case kLimitIdLookahead:
+      return "lookahead";
+    case kLimitIdHold:
+      return "hold";
+    default:
+      break;
+  }
+  if (id < interpolator::kFeedLimitCount) {
+    return interpolator::to_string(static_cast<interpolator::FeedLimit>(id));
+  }
+  return "unknown";
+}
+
+Job::Job(const toolpath::Path& path, const JobConfig& config)
+    : path_(path),
+      config_(config),
+      walker_(path, walker_config(config)),
+      sampler_(path, segment_starts(walker_, path.segments.size()), config.limits, config.cutting,
+               config.sampler),
+      planner_(planner_limits(config), walker_.length_mm()) {
+  interpolator::validate(config.limits);
+  interpolator::validate(config.cutting);
+}
+
+void Job::feed_planner() {
+  interpolator::LimitNode node;
+  while (!sampler_done_ && planner_.wants_samples()) {
+    if (!sampler_.next(node)) {
+      sampler_done_ = true;
+      break;
+    }
+    if (!(node.feed_mm_per_s > 0.0)) {
+      throw InputError("the path needs a full stop at s = " + std::to_string(node.s_mm) + " mm (" +
+                       interpolator::to_string(node.limit) +
+                       " limit is 0 there: a cusp or a reversal); split the path there");
+    }
+    planner_.push({node.s_mm, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit)});
+  }
+}
+
+Setpoint Job::step() {
+  feed_planner();
+  const MotionSample m = planner_.step();
+  Setpoint sp;
+  sp.t_s = m.t_s;
+  sp.s_mm = m.s_mm;
+  sp.v_mm_per_s = m.v_mm_per_s;
+  sp.a_mm_per_s2 = m.a_mm_per_s2;
+  sp.j_mm_per_s3 = m.j_mm_per_s3;
+  sp.limit_id = m.limit_id;
+  sp.planned_ds_mm = m.s_mm - last_s_mm_;
+  last_s_mm_ = m.s_mm;
+  const interpolator::WalkStep w = walker_.advance(sp.planned_ds_mm);
+  sp.p = w.p;
+  sp.travelled_mm = w.travelled_mm;
+  sp.chord_error_mm = w.chord_error_mm;
+  sp.iterations = w.iterations;
+  sp.converged = w.converged;
+  sp.done = m.done;
+  return sp;
+}
+
+interpolator::FeedLimitResult Job::limit_here() const {
+  const std::size_t seg = walker_.segment();
+  if (std::holds_alternative<toolpath::NurbsCurve>(path_.segments[seg].geometry)) {
+    return sampler_.limit_on_curve(seg, walker_.curve_u());
+  }
+  return sampler_.limit_on_piece(seg, walker_.piece());
+}
+
+double Job::roughness_here_um(double v_mm_per_s) const {
+  const auto& k = config_.cutting;
+  const double ft_mm = v_mm_per_s * 60.0 / (k.teeth * k.spindle_rpm);
+  const auto r_um = [&](double alpha) {
+    return 1000.0 * interpolator::roughness_mm(k.ball_radius_mm, k.pick_feed_mm, ft_mm, alpha);
+  };
+  const auto& g = path_.segments[walker_.segment()].geometry;
+  if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
+    return r_um(
+        interpolator::inclination_from_tangent_rad(c->eval(walker_.curve_u()).d1.normalized()));
+  }
+  const auto& line = std::get<toolpath::Polyline>(g);
+  const std::size_t i = walker_.piece();
+  const Vec3 dir = (line.points[i + 1] - line.points[i]).normalized();
+  if (line.normals.empty()) return r_um(interpolator::inclination_from_tangent_rad(dir));
+  return std::max(r_um(interpolator::inclination_from_normal_rad(line.normals[i], dir)),
+                  r_um(interpolator::inclination_from_normal_rad(line.normals[i + 1], dir)));
+}
+
+}  // namespace ncd::motion

@@ -1,0 +1,75 @@
+// One motion job: a Path walked period by period. Each step() feeds the look-ahead planner
+// from the limit sampler as far as it wants, takes one period of planned motion, and walks the
+// path by the planned arc length. The same object runs against the simulated clock of replay
+// and the wall clock of the service; it knows no clock itself.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "interpolator/limit_sampler.hpp"
+#include "interpolator/path_walker.hpp"
+#include "motion/planner.hpp"
+
+namespace ncd::motion {
+
+struct JobConfig {
+  interpolator::MachineLimits limits;
+  interpolator::CuttingParams cutting;
+  interpolator::SamplerConfig sampler;
+  std::size_t window_capacity = 4096;  // planner look-ahead samples
+};
+
+// The setpoint of one period and what it took to make it.
+struct Setpoint {
+  double t_s = 0.0;
+  Vec3 p;                       // position, mm
+  double s_mm = 0.0;            // planned arc length from the start
+  double v_mm_per_s = 0.0;      // planned feed at the end of the period
+  double a_mm_per_s2 = 0.0;     // tangential acceleration at the end of the period
+  double j_mm_per_s3 = 0.0;     // jerk during the period
+  std::uint8_t limit_id = 0;    // interpolator::FeedLimit, or the planner's kLimitId*
+  double planned_ds_mm = 0.0;   // s(t+T) − s(t)
+  double travelled_mm = 0.0;    // true arc length walked
+  double chord_error_mm = 0.0;  // path against the chord of this period
+  int iterations = 0;           // walker corrections
+  bool converged = true;
+  bool done = false;  // at rest at the end of the path
+};
+
+// "roughness", …, "corner" for feed laws; "tangential_accel", "tangential_jerk", "path_end",
+// "lookahead", "hold" for the planner's own.
+const char* limit_name(std::uint8_t limit_id);
+
+class Job {
+ public:
+  // Keeps a reference to path (it must outlive the job). Throws InputError on bad limits.
+  Job(const toolpath::Path& path, const JobConfig& config);
+
+  // One period. Throws InputError if the path needs a stop the planner cannot take (a cusp).
+  Setpoint step();
+  bool done() const { return planner_.done(); }
+  double length_mm() const { return walker_.length_mm(); }
+  const JobConfig& config() const { return config_; }
+  Planner& planner() { return planner_; }
+  const Planner& planner() const { return planner_; }
+  const interpolator::PathWalker& walker() const { return walker_; }
+  // The feed limit of the continuous laws at the current position (no corners), mm/s.
+  interpolator::FeedLimitResult limit_here() const;
+  // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;
+  // on a polyline piece the worse of its two ends.
+  double roughness_here_um(double v_mm_per_s) const;
+
+ private:
+  void feed_planner();
+
+  const toolpath::Path& path_;
+  JobConfig config_;
+  interpolator::PathWalker walker_;
+  interpolator::LimitSampler sampler_;
+  Planner planner_;
+  bool sampler_done_ = false;
+  double last_s_mm_ = 0.0;
+};
+
+}  // namespace ncd::motion

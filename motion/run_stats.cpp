@@ -1,0 +1,47 @@
+// Run statistics: feed error against the true arc length, chord error, tangential
+// acceleration and jerk, limit violations beyond kViolationRel, roughness, binding limits.
+#include "motion/run_stats.hpp"
+
+#include <cmath>
+
+namespace ncd::motion {
+
+double RunStats::feed_error_rms_rel() const {
+  return feed_error_steps > 0 ? std::sqrt(feed_error_sum_sq / static_cast<double>(feed_error_steps))
+                              : 0.0;
+}
+
+std::int64_t RunStats::limit_violations() const {
+  return violations_feed + violations_accel + violations_jerk + violations_chord;
+}
+
+void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double limit_mm_per_s,
+            double roughness_um, double step_time_ns) {
+  const auto& l = config.limits;
+  ++st.cycles;
+  st.duration_s = sp.t_s;
+  st.travelled_mm += sp.travelled_mm;
+  const double abs_err = std::abs(sp.travelled_mm - sp.planned_ds_mm);
+  st.feed_error_max_abs_mm = std::max(st.feed_error_max_abs_mm, abs_err);
+  if (sp.planned_ds_mm >= kFeedErrorMinStepMm) {
+    const double e = abs_err / sp.planned_ds_mm;
+    st.feed_error_max_rel = std::max(st.feed_error_max_rel, e);
+    st.feed_error_sum_sq += e * e;
+    ++st.feed_error_steps;
+  }
+  st.chord_error_max_mm = std::max(st.chord_error_max_mm, sp.chord_error_mm);
+  st.accel_max_mm_per_s2 = std::max(st.accel_max_mm_per_s2, std::abs(sp.a_mm_per_s2));
+  st.jerk_max_mm_per_s3 = std::max(st.jerk_max_mm_per_s3, std::abs(sp.j_mm_per_s3));
+  st.feed_max_mm_per_s = std::max(st.feed_max_mm_per_s, sp.v_mm_per_s);
+  st.roughness_max_um = std::max(st.roughness_max_um, roughness_um);
+  const double k = 1.0 + kViolationRel;
+  if (sp.v_mm_per_s > limit_mm_per_s * k) ++st.violations_feed;
+  if (std::abs(sp.a_mm_per_s2) > l.max_accel_mm_per_s2 * k) ++st.violations_accel;
+  if (std::abs(sp.j_mm_per_s3) > l.max_jerk_mm_per_s3 * k) ++st.violations_jerk;
+  if (sp.chord_error_mm > l.chord_tolerance_mm * k) ++st.violations_chord;
+  if (!sp.converged) ++st.not_converged;
+  ++st.cycles_by_limit[sp.limit_id];
+  st.step_time_ns.add(step_time_ns);
+}
+
+}  // namespace ncd::motion

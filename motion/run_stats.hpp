@@ -1,0 +1,47 @@
+// What a run did, in numbers, accumulated setpoint by setpoint in fixed memory.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "core/histogram.hpp"
+#include "motion/job.hpp"
+
+namespace ncd::motion {
+
+inline constexpr double kViolationRel = 1e-6;  // a limit is violated beyond this relative excess
+// Relative feed error is taken over steps of at least 1 µm: below that (the first and last
+// periods of a ramp from or to rest) the ratio measures the rounding of the path length
+// (≈1e-13 mm), not the interpolator; those steps count in the absolute maximum.
+inline constexpr double kFeedErrorMinStepMm = 1e-3;
+
+struct RunStats {
+  std::int64_t cycles = 0;
+  double duration_s = 0.0;
+  double path_length_mm = 0.0;
+  double travelled_mm = 0.0;
+  double feed_error_max_rel = 0.0;     // |true arc − planned Δs| / Δs, worst step ≥ 1 µm
+  double feed_error_max_abs_mm = 0.0;  // |true arc − planned Δs|, worst step of all
+  double feed_error_sum_sq = 0.0;      // for the RMS
+  std::int64_t feed_error_steps = 0;
+  double chord_error_max_mm = 0.0;
+  double accel_max_mm_per_s2 = 0.0;  // tangential
+  double jerk_max_mm_per_s3 = 0.0;
+  double feed_max_mm_per_s = 0.0;
+  double roughness_max_um = 0.0;
+  std::int64_t violations_feed = 0, violations_accel = 0, violations_jerk = 0, violations_chord = 0;
+  std::int64_t not_converged = 0;
+  std::array<std::int64_t, 256> cycles_by_limit{};
+  LogHistogram step_time_ns;
+
+  double feed_error_rms_rel() const;
+  std::int64_t limit_violations() const;
+  double drift_mm() const { return travelled_mm - path_length_mm; }
+};
+
+// Adds one period: the setpoint, the continuous feed limit and the predicted roughness at its
+// position, and the wall time the step took.
+void record(RunStats& stats, const JobConfig& config, const Setpoint& sp, double limit_mm_per_s,
+            double roughness_um, double step_time_ns);
+
+}  // namespace ncd::motion
