@@ -64,51 +64,64 @@ double clampj(double j, double j_max) {
   return std::clamp(j, -j_max, j_max);
 }
 
-// Acceleration at time t of the time-optimal profile from (v0, a0) to (w, a = 0).
-double profile_accel(double v0, double a0, double w, double t, double a_max, double j_max) {
-  const double vs = v0 + a0 * std::abs(a0) / (2.0 * j_max);
-  if (vs == w) return a0 > 0.0 ? std::max(a0 - j_max * t, 0.0) : std::min(a0 + j_max * t, 0.0);
-  const double sg = vs > w ? 1.0 : -1.0;  // mirror an increase into a decrease
-  v0 *= sg;
-  a0 *= sg;
-  w *= sg;
-  double ap = -std::sqrt(std::max(j_max * (v0 - w) + 0.5 * a0 * a0, 0.0));
+constexpr double kFinalJerk = 0.9;  // final ramp at 0.9 j_max: the slack absorbs sampling
+
+// Time-optimal velocity change from (v0, a0) to (w, a = 0) in the decreasing direction: a ramp
+// at −j1 to a_p, a hold at a_p (>= −a_max), a final ramp at +j3 to a = 0.
+struct Profile {
+  double t1, t2, t3, ap;
+};
+Profile decrease_profile(double v0, double a0, double w, double a_max, double j1, double j3) {
+  const double k = 0.5 / j1 + 0.5 / j3;
+  const double excess = v0 - w + 0.5 * a0 * a0 / j1;
+  double ap = -std::sqrt(std::max(excess / k, 0.0));
   double t2 = 0.0;
   if (ap < -a_max) {
     ap = -a_max;
-    t2 = std::max((v0 - w + a0 * a0 / (2.0 * j_max) - a_max * a_max / j_max) / a_max, 0.0);
+    t2 = std::max((excess - a_max * a_max * k) / a_max, 0.0);
   }
-  const double t1 = std::max((a0 - ap) / j_max, 0.0);
-  const double t3 = -ap / j_max;
-  double a = 0.0;
-  if (t < t1) {
-    a = a0 - j_max * t;
-  } else if (t < t1 + t2) {
-    a = ap;
-  } else if (t < t1 + t2 + t3) {
-    a = ap + j_max * (t - t1 - t2);
+  if (ap > a0) {  // already braking harder than needed: hold a0, then the final ramp
+    return Profile{0.0, std::max((v0 - w - 0.5 * a0 * a0 / j3) / -a0, 0.0), -a0 / j3, a0};
   }
-  return sg * a;
+  return Profile{(a0 - ap) / j1, t2, -ap / j3, ap};
 }
 
-// Distance of the time-optimal profile from (v0, a0) down to (w, 0); 0 if no decrease needed.
+// True when (v0, a0) must decrease its speed to settle on w.
+bool decreasing(double v0, double a0, double w, double j1, double j3) {
+  return (a0 > 0.0 ? v0 + 0.5 * a0 * a0 / j1 : v0 - 0.5 * a0 * a0 / j3) > w;
+}
+
+// Distance of the decreasing profile from (v0, a0) down to (w, 0); 0 if none is needed.
 double profile_distance(double v0, double a0, double w, double a_max, double j_max) {
-  const double vs = v0 + a0 * std::abs(a0) / (2.0 * j_max);
-  if (vs <= w) return 0.0;
-  double ap = -std::sqrt(std::max(j_max * (v0 - w) + 0.5 * a0 * a0, 0.0));
-  double t2 = 0.0;
-  if (ap < -a_max) {
-    ap = -a_max;
-    t2 = std::max((v0 - w + a0 * a0 / (2.0 * j_max) - a_max * a_max / j_max) / a_max, 0.0);
-  }
-  const double t1 = std::max((a0 - ap) / j_max, 0.0);
-  const double t3 = -ap / j_max;
+  const double j3 = kFinalJerk * j_max;
+  if (!decreasing(v0, a0, w, j_max, j3)) return 0.0;
+  const Profile p = decrease_profile(v0, a0, w, a_max, j_max, j3);
+  const double t1 = p.t1, t2 = p.t2, t3 = p.t3, ap = p.ap;
   const double d1 = v0 * t1 + 0.5 * a0 * t1 * t1 - j_max * t1 * t1 * t1 / 6.0;
   const double v1 = v0 + a0 * t1 - 0.5 * j_max * t1 * t1;
   const double d2 = v1 * t2 + 0.5 * ap * t2 * t2;
   const double v2 = v1 + ap * t2;
-  const double d3 = v2 * t3 + 0.5 * ap * t3 * t3 + j_max * t3 * t3 * t3 / 6.0;
+  const double d3 = v2 * t3 + 0.5 * ap * t3 * t3 + j3 * t3 * t3 * t3 / 6.0;
   return d1 + d2 + d3;
+}
+
+// One period's jerk towards (w, 0) in the decreasing direction: the period average of the
+// profile, or, once its final ramp starts within the period, the jerk that lands exactly on
+// the final-ramp parabola v − w = a² / (2 j3) at the period end.
+double decrease_jerk(double v0, double a0, double w, double T, double a_max, double j_max) {
+  const double j3 = kFinalJerk * j_max;
+  const Profile p = decrease_profile(v0, a0, w, a_max, j_max, j3);
+  if (p.t1 + p.t2 < T) {
+    const double disc = j3 * j3 * T * T + 4.0 * j3 * a0 * T + 8.0 * j3 * (v0 - w);
+    if (disc >= j3 * j3 * T * T) {
+      const double a1 = 0.5 * (j3 * T - std::sqrt(disc));
+      return std::clamp((a1 - a0) / T, -j_max, j_max);
+    }
+    return j_max;
+  }
+  double a1 = p.ap;
+  if (T < p.t1) a1 = a0 - j_max * T;
+  return std::clamp((a1 - a0) / T, -j_max, j_max);
 }
 
 }  // namespace
@@ -301,14 +314,19 @@ double Planner::deadbeat_jerk(const Kin& x, double w, bool* ok) const {
   return j1;
 }
 
-// Jerk of one period towards speed w at a = 0: dead-beat if it fits, else the period average
-// of the continuous time-optimal profile.
+// Jerk of one period towards speed w at a = 0: dead-beat if it fits, else the decreasing (or
+// mirrored increasing) profile.
 double Planner::track(const Kin& x, double w) const {
   bool ok = false;
   const double j1 = deadbeat_jerk(x, w, &ok);
   if (ok) return j1;
-  const double a_end = profile_accel(x.v_mm_per_s, x.a_mm_per_s2, w, period_s_, a_max_, j_max_);
-  return clampj((a_end - x.a_mm_per_s2) / period_s_, j_max_);
+  const double v = x.v_mm_per_s, a = x.a_mm_per_s2, j3 = kFinalJerk * j_max_;
+  const bool down = decreasing(v, a, w, j_max_, j3);
+  const bool up = decreasing(-v, -a, -w, j_max_, j3);
+  // Neither: on a final-ramp parabola (to rounding); the ramp's landing jerk follows it.
+  if (down || (!up && a < 0.0)) return decrease_jerk(v, a, w, period_s_, a_max_, j_max_);
+  if (up || a > 0.0) return -decrease_jerk(-v, -a, -w, period_s_, a_max_, j_max_);
+  return 0.0;
 }
 
 // The brake policy π (see top): settle on the lowest demanding block, else brake to rest.
@@ -323,9 +341,13 @@ double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const 
     const Block& bl = blocks_[b];
     const double dist = bl.begin_mm - x.s_mm;
     if (dist > reach) break;
-    if (bl.v_max_mm_per_s < vs && bl.v_max_mm_per_s < w &&
-        (dist <= 0.0 || need_mm(x, bl.v_max_mm_per_s) + margin >= dist)) {
-      w = bl.v_max_mm_per_s;
+    // Demands: above its level, and either in it, committed to go below it, or due to brake.
+    const double lim = bl.v_max_mm_per_s;
+    if (lim < std::max(vs, x.v_mm_per_s) && lim < w &&
+        (dist <= 0.0 ||
+         !decreasing(x.v_mm_per_s, x.a_mm_per_s2, lim, j_max_, kFinalJerk * j_max_) ||
+         need_mm(x, lim) + margin >= dist)) {
+      w = lim;
       if (binding_id) *binding_id = bl.limit_id;
     }
   }

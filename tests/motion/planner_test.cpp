@@ -264,7 +264,7 @@ TEST(Planner, RestToRestMatchesClosedFormSCurveWithinOnePeriod) {
 TEST(Planner, SuddenDropIsMetAtTheNewLevelWithoutDip) {
   const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
   std::vector<LimitSample> c;
-  for (double s = 0.0; s <= 60.0; s += 0.1) c.push_back({s, s < 30.0 - 1e-9 ? 80.0 : 10.0, 2});
+  for (int i = 0; i <= 600; ++i) c.push_back({0.1 * i, i < 300 ? 80.0 : 10.0, 2});
   const auto m = plan_all(l, 60.0, c);
   EXPECT_EQ(check_motion(m, c, l, 60.0).failures, 0);
   // The slowdown started early enough (checked above) and not needlessly early: the speed at
