@@ -587,10 +587,12 @@ MotionSample Planner::step() {
   if (block_count_ > 0) {
     bool ok = false;
     const double jd = deadbeat_jerk(x_, blocks_[0].v_max_mm_per_s, &ok);
-    if (ok && jd > lo && jd < j_top && rollout(jd, override_applied_, real_stop, trial_, n)) {
+    // Else the policy's own discrete approach onto the local limit (parabola, dead-beat).
+    const double jt = ok ? jd : track(x_, blocks_[0].v_max_mm_per_s);
+    if (jt > lo && jt < j_top && rollout(jt, override_applied_, real_stop, trial_, n)) {
       std::swap(trial_, best_);
       best_n_ = n;
-      use_best(jd, binding());
+      use_best(jt, binding());
       return last_;
     }
   }
