@@ -115,6 +115,7 @@ class Reader {
  public:
   explicit Reader(std::string name) { path_.source = std::move(name); }
 
+  // Whole program: % lines, blank lines, then one block per line until M2/M30 or %.
   Path read(std::istream& in) {
     std::string line;
     bool seen_content = false;
@@ -149,6 +150,7 @@ class Reader {
   }
 
  private:
+  // InputError with the file, the line number and the line text.
   [[noreturn]] void fail(const std::string& what) const {
     throw InputError(path_.source + ":" + std::to_string(line_no_) + ": " + what + " (line: \"" +
                      text_ + "\")");
@@ -157,6 +159,7 @@ class Reader {
     throw InputError(path_.source + ": " + what);
   }
 
+  // Step 1 of the top of this file: comments and whitespace out, words in.
   Block lex(const std::string& line) const {
     std::string s;  // without comments and whitespace, upper case
     for (std::size_t i = 0; i < line.size(); ++i) {
@@ -219,6 +222,7 @@ class Reader {
     return b;
   }
 
+  // Steps 2 and 3: checks, then F, S, M3/M5, motion, M2/M30.
   void execute(const Block& b) {
     std::vector<int> gs, ms;
     std::map<char, const Word*> other;
@@ -363,12 +367,14 @@ class Reader {
     finish_line(ms);
   }
 
+  // M2 and M30 end the program after the rest of the line.
   void finish_line(const std::vector<int>& ms) {
     for (int m : ms) {
       if (m == 2 || m == 30) finish_program();
     }
   }
 
+  // The named errors for G20, G91, G2/G3, G18/G19 and any other unsupported G code.
   void check_g_supported(int c, const std::string& text) const {
     if (c == 200) {
       fail(
@@ -395,6 +401,7 @@ class Reader {
     }
   }
 
+  // G0/G1 to target: extends the open polyline, or starts a segment where a property changes.
   void move(const Vec3& target, const std::array<bool, 3>& known_after) {
     const bool start_known = pos_[0] && pos_[1] && pos_[2];
     const bool rapid = motion_ == Motion::Rapid;
@@ -433,10 +440,12 @@ class Reader {
     open_ = true;
   }
 
+  // The speed a segment carries: S while M3 is in effect, none after M5 or before M3.
   std::optional<double> spindle_rpm() const {
     return spindle_on_ ? std::optional<double>(spindle_s_) : std::nullopt;
   }
 
+  // G5.2 outside a block: the current position becomes the first control point.
   void open_nurbs(const Word* p, bool has_xy) {
     if (!(pos_[0] && pos_[1] && pos_[2])) {
       fail(
@@ -459,6 +468,7 @@ class Reader {
     open_ = false;
   }
 
+  // One line inside a G5.2 block: order L, and a control point X Y with weight P.
   void nurbs_point(const Word* x, const Word* y, const Word* z, const Word* p, const Word* l,
                    bool opening_line) {
     const bool first_line = nurbs_.first_line && opening_line;
@@ -494,6 +504,7 @@ class Reader {
     nurbs_.weights.push_back(p->value);
   }
 
+  // G5.3: LinuxCNC's knot vector and one NurbsCurve segment.
   void close_nurbs() {
     const std::size_t k = static_cast<std::size_t>(nurbs_.order);
     const std::size_t count = nurbs_.points.size();
@@ -529,6 +540,7 @@ class Reader {
     open_ = false;
   }
 
+  // End of program: no open G5.2 block, every polyline valid.
   void finish_program() {
     if (motion_ == Motion::Nurbs) {
       fail_at_end("the G5.2 block opened at line " + std::to_string(nurbs_.line) +
