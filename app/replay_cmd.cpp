@@ -164,7 +164,8 @@ Figure replay_figure(const PlotBuckets& plot, const MachineConfig& m, const std:
 }
 
 nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConfig& m,
-                                   const std::string& source, const motion::Job& job) {
+                                   const std::string& source, const motion::Job& job,
+                                   double lookahead_ns) {
   nlohmann::ordered_json j;
   j["path"] = source;
   j["machine"] = to_json(m);
@@ -197,9 +198,12 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["walker_not_converged"] = st.not_converged;
   j["lookahead_window_high_water"] = {{"samples", job.planner().window_samples_high_water()},
                                       {"mm", job.planner().window_ahead_mm_high_water()}};
+  // The cycle's work per period (planner step + path walk); sampling the limit curve ahead
+  // is the planner thread's, reported as a total.
   j["step_time_ns"] = {{"median", st.step_time_ns.quantile(0.5)},
                        {"p99", st.step_time_ns.quantile(0.99)},
                        {"max", st.step_time_ns.max()}};
+  j["lookahead_sampling_ms"] = lookahead_ns * 1e-6;
   return j;
 }
 
@@ -215,12 +219,16 @@ int run_replay(const ReplayArgs& a) {
   PlotBuckets plot;
   motion::RunStats st;
   st.path_length_mm = job.length_mm();
+  double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
   const auto wall0 = std::chrono::steady_clock::now();
   auto next_progress = wall0 + std::chrono::seconds(2);
   for (;;) {
+    const auto tp = std::chrono::steady_clock::now();
+    job.prepare();
     const auto t0 = std::chrono::steady_clock::now();
     const motion::Setpoint sp = job.step();
     const auto t1 = std::chrono::steady_clock::now();
+    lookahead_ns += static_cast<double>(std::chrono::nanoseconds(t0 - tp).count());
     const double limit = job.limit_here().feed_mm_per_s;
     const double rough = job.roughness_here_um(sp.v_mm_per_s);
     motion::record(st, cfg, sp, limit, rough,
@@ -241,7 +249,7 @@ int run_replay(const ReplayArgs& a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const std::string source = path.source;
   if (!a.report.empty())
-    write_output(a.report, report_json(st, machine, source, job).dump(1) + "\n");
+    write_output(a.report, report_json(st, machine, source, job, lookahead_ns).dump(1) + "\n");
   if (!a.plot.empty()) write_output(a.plot, render_svg(replay_figure(plot, machine, source)));
   sink.commit();
   if (!a.quiet) {

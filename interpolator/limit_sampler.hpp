@@ -18,7 +18,7 @@ struct LimitNode {
 };
 
 struct SamplerConfig {
-  double spacing_mm = 0.05;  // longest interval between nodes on a curve or a line
+  double spacing_mm = 0.2;  // longest interval between nodes on a curve or a line
 };
 
 class LimitSampler {

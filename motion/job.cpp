@@ -63,7 +63,7 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
   interpolator::validate(config.cutting);
 }
 
-void Job::feed_planner() {
+void Job::prepare() {
   interpolator::LimitNode node;
   while (!sampler_done_ && planner_.wants_samples()) {
     if (!sampler_.next(node)) {
@@ -80,7 +80,6 @@ void Job::feed_planner() {
 }
 
 Setpoint Job::step() {
-  feed_planner();
   const MotionSample m = planner_.step();
   Setpoint sp;
   sp.t_s = m.t_s;

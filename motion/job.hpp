@@ -46,7 +46,10 @@ class Job {
   // Keeps a reference to path (it must outlive the job). Throws InputError on bad limits.
   Job(const toolpath::Path& path, const JobConfig& config);
 
-  // One period. Throws InputError if the path needs a stop the planner cannot take (a cusp).
+  // Look-ahead: feeds the planner from the limit sampler as far as it wants (the planner
+  // thread's work). Throws InputError if the path needs a stop the planner cannot take.
+  void prepare();
+  // One period of the cycle: planner step and path walk; call prepare() before each.
   Setpoint step();
   bool done() const { return planner_.done(); }
   double length_mm() const { return walker_.length_mm(); }
@@ -61,8 +64,6 @@ class Job {
   double roughness_here_um(double v_mm_per_s) const;
 
  private:
-  void feed_planner();
-
   const toolpath::Path& path_;
   JobConfig config_;
   interpolator::PathWalker walker_;
