@@ -321,7 +321,12 @@ TEST(Planner, RandomLimitCurvesKeepEveryConstraint) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const double periods[] = {0.001, 0.002, 0.004};
   int cases = 0, total_failures = 0;
-  for (; cases < 300; ++cases) {
+#ifdef NDEBUG
+  constexpr int kCases = 400;
+#else
+  constexpr int kCases = 150;  // Debug + sanitizers: about 20 s
+#endif
+  for (; cases < kCases; ++cases) {
     const PlannerLimits l = limits(200.0 + 2800.0 * u(rng), 2000.0 + 58000.0 * u(rng),
                                    periods[static_cast<std::size_t>(u(rng) * 2.999)]);
     const double length_mm = u(rng) < 0.1 ? 0.01 + u(rng) : 1.0 + 60.0 * u(rng);
