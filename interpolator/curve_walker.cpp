@@ -56,8 +56,8 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kEps = std::numeric_limits<double>::epsilon();
-constexpr double kResolutionUlps = 16.0;  // arc-length noise of L in units of ε·|u|·|P'|
-constexpr double kSmallUpdate = 1e-2;     // Newton update / step below which L is updated
+constexpr double kResolutionUlps = 4.0;  // arc-length noise of L in units of ε·|u|·|P'|
+constexpr double kSmallUpdate = 1e-2;    // Newton update / step below which L is updated
 
 // 3-point Gauss–Legendre on [a, b] (exact to degree 5), for the short updates of L.
 template <class F>
@@ -187,9 +187,9 @@ StepResult CurveWalker::correct(double delta_s_mm, double u_predicted, double sp
   double u = std::isfinite(u_predicted) ? std::min(u_predicted, u_end_) : u_end_;
   if (u == u_end_) end_tried = true;
 
-  // Arc-length resolution of a parameter step near u_i: below it no u does better.
-  const double floor_mm =
-      kResolutionUlps * kEps * std::max(std::abs(u_), std::abs(u_end_)) * speed_i;
+  // Arc-length resolution of a parameter step near u_i (doubles are spaced ε|u| there, not
+  // ε|u_end|): below it no u does better.
+  const double floor_mm = kResolutionUlps * kEps * std::max(std::abs(u_), std::abs(u)) * speed_i;
   const double tol_mm = std::max(config_.tolerance_rel * delta_s_mm, floor_mm);
 
   StepResult r;

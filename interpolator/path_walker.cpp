@@ -1,9 +1,10 @@
 // Walking a Path by planned arc length.
 //
-// The planner hands one arc length per period, Δs = s(t+T) − s(t). The walker keeps the planned
-// total S = Σ Δs and the truly travelled total S̃, and asks each period for S − S̃ rather than
-// Δs, so the per-step residual of the curve walker (≤ its tolerance) never accumulates: the
-// drift at the end is one step's residual, not the sum of all of them.
+// The planner hands one arc length per period, Δs = s(t+T) − s(t). The walker keeps the debt
+// D = Σ Δs − Σ (true arc travelled), itself a small number updated by small numbers (never the
+// difference of two long totals, whose rounding would swamp a 1 µm step after 300 m), and asks
+// each period for D + Δs, so the per-step residual of the curve walker (≤ its tolerance) never
+// accumulates: the drift at the end is one step's residual, not the sum of all of them.
 //
 //   segment k (NURBS)          segment k+1 (polyline)
 //   ─────────────●════════════════●─────●─────●────
@@ -35,14 +36,16 @@ double distance_to_chord(const Vec3& q, const Vec3& a, const Vec3& b) {
   return len > 0.0 ? (q - a).cross(chord).norm() / len : (q - a).norm();
 }
 
-// Adaptive Gauss–Legendre on [a, b]: one panel against two halves, down to rounding level.
+// Adaptive Gauss–Legendre on [a, b]: one panel against two halves until they agree to 1e-12
+// (relative), at most 8 halvings deep. Tighter is noise: a span of Δu = 3e-4 near u = 0.05
+// resolves u only to 2e-14 of its width, so |P'| itself carries ~1e-14 relative rounding.
 double adaptive_length(const toolpath::ParametricCurve& c, double a, double b, double whole,
                        int depth) {
   const auto speed = [&c](double u) { return c.eval(u).d1.norm(); };
   const double m = 0.5 * (a + b);
   const double left = GaussLegendre10::integrate(speed, a, m);
   const double right = GaussLegendre10::integrate(speed, m, b);
-  if (depth >= 30 || std::abs(left + right - whole) <= 1e-15 * std::max(1.0, std::abs(whole))) {
+  if (depth >= 8 || std::abs(left + right - whole) <= 1e-12 * std::abs(left + right)) {
     return left + right;
   }
   return adaptive_length(c, a, m, left, depth + 1) + adaptive_length(c, m, b, right, depth + 1);
@@ -54,10 +57,16 @@ double curve_length_mm(const toolpath::ParametricCurve& curve) {
   const auto speed = [&curve](double u) { return curve.eval(u).d1.norm(); };
   const std::vector<double> knots = curve.breakpoints();
   double total = 0.0;
+  // Four panels per span before the adaptive check: the path length is what the last period
+  // lands on, so its error would show up there as a feed error.
+  constexpr int kPanels = 4;
   for (std::size_t i = 0; i + 1 < knots.size(); ++i) {
     if (knots[i + 1] <= knots[i]) continue;
-    const double whole = GaussLegendre10::integrate(speed, knots[i], knots[i + 1]);
-    total += adaptive_length(curve, knots[i], knots[i + 1], whole, 0);
+    const double h = (knots[i + 1] - knots[i]) / kPanels;
+    for (int k = 0; k < kPanels; ++k) {
+      const double a = knots[i] + k * h, b = k + 1 == kPanels ? knots[i + 1] : a + h;
+      total += adaptive_length(curve, a, b, GaussLegendre10::integrate(speed, a, b), 0);
+    }
   }
   return total;
 }
@@ -132,8 +141,8 @@ WalkStep PathWalker::advance(double delta_s_mm) {
   const Vec3 start = position_;
   const std::size_t seg0 = segment_, vertex0 = vertex_;
   const double u0 = curves_[segment_] ? curves_[segment_]->u() : 0.0;
-  planned_mm_ += delta_s_mm;
-  double remaining = planned_mm_ - travelled_mm_;
+  debt_mm_ += delta_s_mm;
+  double remaining = debt_mm_;
   double moved_total = 0.0;
   while (remaining > 0.0) {
     const double before = s_in_segment_mm_;
@@ -157,7 +166,7 @@ WalkStep PathWalker::advance(double delta_s_mm) {
           std::get<toolpath::NurbsCurve>(path_.segments[segment_].geometry).u_begin());
     }
   }
-  travelled_mm_ += moved_total;
+  debt_mm_ -= moved_total;
   out.p = position_;
   out.travelled_mm = moved_total;
   out.segment = segment_;

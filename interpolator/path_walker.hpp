@@ -32,7 +32,7 @@ class PathWalker {
   WalkStep advance(double delta_s_mm);
   Vec3 position() const { return position_; }
   // Σ true arc length moved minus Σ Δs asked, mm: the accumulated drift.
-  double drift_mm() const { return travelled_mm_ - planned_mm_; }
+  double drift_mm() const { return -debt_mm_; }
   std::size_t segment() const { return segment_; }
   std::size_t piece() const { return vertex_; }  // polyline piece holding the position
   double curve_u() const;                        // curve parameter, if the segment is NURBS
@@ -50,8 +50,7 @@ class PathWalker {
   std::size_t segment_ = 0;
   double s_in_segment_mm_ = 0.0;  // arc length walked within the current segment
   std::size_t vertex_ = 0;        // current polyline piece
-  double planned_mm_ = 0.0;       // Σ Δs asked by the planner
-  double travelled_mm_ = 0.0;     // Σ true arc length moved
+  double debt_mm_ = 0.0;          // Σ Δs asked − Σ true arc moved
   Vec3 position_;
 };
 

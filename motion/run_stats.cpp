@@ -20,7 +20,11 @@ void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double li
   const auto& l = config.limits;
   ++st.cycles;
   st.duration_s = sp.t_s;
-  st.travelled_mm += sp.travelled_mm;
+  const double sum = st.travelled_mm + sp.travelled_mm;  // Neumaier summation
+  st.travelled_carry_mm += std::abs(st.travelled_mm) >= std::abs(sp.travelled_mm)
+                               ? (st.travelled_mm - sum) + sp.travelled_mm
+                               : (sp.travelled_mm - sum) + st.travelled_mm;
+  st.travelled_mm = sum;
   const double abs_err = std::abs(sp.travelled_mm - sp.planned_ds_mm);
   st.feed_error_max_abs_mm = std::max(st.feed_error_max_abs_mm, abs_err);
   if (sp.planned_ds_mm >= kFeedErrorMinStepMm) {

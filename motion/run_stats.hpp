@@ -20,6 +20,7 @@ struct RunStats {
   double duration_s = 0.0;
   double path_length_mm = 0.0;
   double travelled_mm = 0.0;
+  double travelled_carry_mm = 0.0;     // Neumaier compensation: Σ over 1e6 periods stays exact
   double feed_error_max_rel = 0.0;     // |true arc − planned Δs| / Δs, worst step ≥ 1 µm
   double feed_error_max_abs_mm = 0.0;  // |true arc − planned Δs|, worst step of all
   double feed_error_sum_sq = 0.0;      // for the RMS
@@ -36,7 +37,7 @@ struct RunStats {
 
   double feed_error_rms_rel() const;
   std::int64_t limit_violations() const;
-  double drift_mm() const { return travelled_mm - path_length_mm; }
+  double drift_mm() const { return (travelled_mm - path_length_mm) + travelled_carry_mm; }
 };
 
 // Adds one period: the setpoint, the continuous feed limit and the predicted roughness at its
