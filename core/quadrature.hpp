@@ -1,6 +1,7 @@
-// Gauss–Legendre quadrature on [a, b]: the arc-length integrals of paper 000 eq. (28)–(31) and
-// the reference arc lengths of the interpolator tests. Nodes and weights of the 10-point rule
-// (exact for polynomials of degree 19), from the roots of P10.
+// Gauss–Legendre quadrature on [a, b]: the arc-length integrals of paper 000 eq. (28)–(31), the
+// per-period arc length of the curve walker, and the reference arc lengths of the tests. The
+// 10-point rule (exact for polynomials of degree 19) and the 5-point rule (degree 9), from the
+// roots of P10 and P5.
 #pragma once
 
 #include <array>
@@ -34,6 +35,26 @@ struct GaussLegendre10 {
     double sum = 0.0;
     for (int k = 0; k < panels; ++k) sum += integrate(f, a + k * h, a + (k + 1) * h);
     return sum;
+  }
+};
+
+struct GaussLegendre5 {
+  static constexpr std::array<double, 2> kNode = {0.5384693101056830910363144,
+                                                  0.9061798459386639927976269};
+  static constexpr std::array<double, 2> kWeight = {0.4786286704993664680412915,
+                                                    0.2369268850561890875142640};
+  static constexpr double kCentreWeight = 0.5688888888888888888888889;
+
+  // Integral of f over [a, b] with one 5-point panel.
+  template <class F>
+  static double integrate(F&& f, double a, double b) {
+    const double half = 0.5 * (b - a);
+    const double mid = 0.5 * (a + b);
+    double sum = kCentreWeight * f(mid);
+    for (std::size_t i = 0; i < kNode.size(); ++i) {
+      sum += kWeight[i] * (f(mid - half * kNode[i]) + f(mid + half * kNode[i]));
+    }
+    return sum * half;
   }
 };
 

@@ -63,7 +63,7 @@ class CurveWalker {
   bool at_end() const { return u_ >= u_end_; }
   // Restarts at u (clamped to the curve's range).
   void reset(double u);
-  // True arc length over [u0, u1] within one span piece per breakpoint (one 10-point
+  // True arc length over [u0, u1] within one span piece per breakpoint (one 5-point
   // Gauss–Legendre panel each), mm; meant for the short interval of one step.
   double arc_length_mm(double u0, double u1) const;
 

@@ -17,6 +17,19 @@ TEST(GaussLegendre10, IntegratesMonomialsUpToDegree19Exactly) {
   }
 }
 
+TEST(GaussLegendre5, IntegratesMonomialsUpToDegree9ExactlyButNot10) {
+  for (int d = 0; d <= 10; ++d) {
+    const double got =
+        GaussLegendre5::integrate([d](double x) { return std::pow(x, d); }, -1.0, 2.0);
+    const double want = (std::pow(2.0, d + 1) - std::pow(-1.0, d + 1)) / (d + 1);
+    if (d <= 9) {
+      EXPECT_NEAR(got, want, 1e-13 * std::max(1.0, std::abs(want))) << "degree " << d;
+    } else {
+      EXPECT_GT(std::abs(got - want), 1e-6) << "degree " << d;
+    }
+  }
+}
+
 TEST(GaussLegendre10, DegreeTwentyIsNotExact) {
   // The rule has 10 nodes: x^20 is the first monomial it cannot integrate exactly.
   const double got =
