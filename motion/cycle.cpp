@@ -1,0 +1,228 @@
+// The cycle thread (DESIGN.md, "Threads of the service", thread 2).
+//
+//   deadline d_k = d_0 + k T (absolute CLOCK_MONOTONIC)
+//
+//   ──┬──────────┬──────────┬──────────┬───────────────┬──────────┬──► wall time
+//    d_1        d_2        d_3        d_4             d_5        d_6
+//     ▲ wake     ▲ wake     ▲ wake       ▲ late wake    ▲ wake
+//     step       step       step         step d_4, d_5  step d_6     (catch up: back to back)
+//
+// Each wake-up sleeps with clock_nanosleep(TIMER_ABSTIME) until the next deadline, measures how
+// late it woke (the lateness histogram), and runs every period that is due by then, one job
+// step each. A late wake-up therefore runs the periods it missed back to back: the time base
+// never stretches and no setpoint is skipped (each period is one setpoint, its t_s = k T). On
+// the simulated clock there is no sleeping at all; otherwise the code is the same.
+//
+// Inside a period: read the command flags (hold, resume, override, stop: atomics written by the
+// I/O thread), step the job (look-ahead sampling incrementally, planner, walker), push the
+// setpoint into the lock-free ring, publish the status through a seqlock. No locks, no I/O;
+// the planner's first look-ahead window is filled before the thread starts, so the sampling
+// inside the cycle is a few intervals per period. Stop is a feed hold followed by the end of
+// the job once the motion is at rest.
+#include "motion/cycle.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+namespace ncd::motion {
+namespace {
+
+std::int64_t now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void sleep_until_ns(std::int64_t deadline_ns) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+}  // namespace
+
+Cycle::Cycle(std::unique_ptr<Job> job, const CycleOptions& options)
+    : job_(std::move(job)), options_(options), ring_(options.ring_capacity) {
+  job_->prepare();  // the first look-ahead window, outside the cycle
+}
+
+Cycle::~Cycle() {
+  stop_req_.store(true, std::memory_order_release);
+  abort_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+RealtimeGrant Cycle::start() {
+  RealtimeGrant g;
+  std::string why;
+  if (options_.realtime && options_.clock == ClockKind::Wall) {
+    if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+      g.memory_locked = true;
+    } else {
+      why += std::string(" mlockall: ") + std::strerror(errno) + ";";
+    }
+  }
+  thread_ = std::thread(&Cycle::run, this);
+  if (options_.realtime && options_.clock == ClockKind::Wall) {
+    sched_param p{};
+    p.sched_priority = options_.fifo_priority;
+    const int rc = pthread_setschedparam(thread_.native_handle(), SCHED_FIFO, &p);
+    if (rc == 0) {
+      g.fifo = true;
+    } else {
+      why += std::string(" SCHED_FIFO: ") + std::strerror(rc) + ";";
+    }
+  }
+  if (options_.clock == ClockKind::Simulated) {
+    g.message = "cycle on the simulated clock (no sleeping, no real-time scheduling needed)";
+  } else if (!options_.realtime) {
+    g.message = "cycle on the wall clock, real-time scheduling not requested";
+  } else {
+    g.message =
+        std::string("cycle on the wall clock: SCHED_FIFO ") +
+        (g.fifo ? "granted (priority " + std::to_string(options_.fifo_priority) + ")" : "refused") +
+        ", memory " + (g.memory_locked ? "locked" : "not locked") +
+        (why.empty() ? ""
+                     : " (" + why.substr(1) +
+                           " run as root or give the process "
+                           "CAP_SYS_NICE and CAP_IPC_LOCK)");
+  }
+  grant_ = g;
+  return g;
+}
+
+void Cycle::hold() {
+  hold_req_.store(true, std::memory_order_release);
+}
+void Cycle::resume() {
+  resume_req_.store(true, std::memory_order_release);
+}
+void Cycle::stop() {
+  stop_req_.store(true, std::memory_order_release);
+}
+void Cycle::set_override(double fraction) {
+  override_req_.store(fraction, std::memory_order_release);
+}
+
+void Cycle::join() {
+  if (thread_.joinable()) thread_.join();
+}
+
+void Cycle::publish(const Setpoint& sp, CycleState state) {
+  const std::uint64_t s = seq_.load(std::memory_order_relaxed);
+  seq_.store(s + 1, std::memory_order_relaxed);
+  std::atomic_thread_fence(std::memory_order_release);
+  st_t_.store(sp.t_s, std::memory_order_relaxed);
+  st_s_.store(sp.s_mm, std::memory_order_relaxed);
+  st_v_.store(sp.v_mm_per_s, std::memory_order_relaxed);
+  st_x_.store(sp.p.x(), std::memory_order_relaxed);
+  st_y_.store(sp.p.y(), std::memory_order_relaxed);
+  st_z_.store(sp.p.z(), std::memory_order_relaxed);
+  st_ovr_.store(override_applied_, std::memory_order_relaxed);
+  st_state_.store(static_cast<int>(state), std::memory_order_relaxed);
+  st_periods_.store(stats_.periods, std::memory_order_relaxed);
+  st_overruns_.store(stats_.overruns, std::memory_order_relaxed);
+  st_late_.store(stats_.late_wakeups, std::memory_order_relaxed);
+  seq_.store(s + 2, std::memory_order_release);
+}
+
+CycleStatus Cycle::status() const {
+  CycleStatus c;
+  for (;;) {
+    const std::uint64_t s0 = seq_.load(std::memory_order_acquire);
+    if (s0 & 1U) continue;
+    c.t_s = st_t_.load(std::memory_order_relaxed);
+    c.s_mm = st_s_.load(std::memory_order_relaxed);
+    c.v_mm_per_s = st_v_.load(std::memory_order_relaxed);
+    c.x_mm = st_x_.load(std::memory_order_relaxed);
+    c.y_mm = st_y_.load(std::memory_order_relaxed);
+    c.z_mm = st_z_.load(std::memory_order_relaxed);
+    c.override_fraction = st_ovr_.load(std::memory_order_relaxed);
+    c.state = static_cast<CycleState>(st_state_.load(std::memory_order_relaxed));
+    c.periods = st_periods_.load(std::memory_order_relaxed);
+    c.overruns = st_overruns_.load(std::memory_order_relaxed);
+    c.late_wakeups = st_late_.load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (seq_.load(std::memory_order_relaxed) == s0) return c;
+  }
+}
+
+bool Cycle::run_period(CycleState& state) {
+  Planner& planner = job_->planner();
+  if (stop_req_.exchange(false, std::memory_order_acq_rel) && !stopping_) {
+    planner.hold();
+    stopping_ = true;
+  }
+  if (hold_req_.exchange(false, std::memory_order_acq_rel) && !stopping_) {
+    planner.hold();
+    state = CycleState::Holding;
+  }
+  if (resume_req_.exchange(false, std::memory_order_acq_rel) && !stopping_) {
+    planner.resume();
+    state = CycleState::Running;
+  }
+  const double ovr = override_req_.exchange(-1.0, std::memory_order_acq_rel);
+  if (ovr >= 0.0) {
+    planner.set_override(ovr);
+    override_applied_ = ovr;
+  }
+  job_->prepare();
+  const Setpoint sp = job_->step();
+  ++stats_.periods;
+  if (options_.clock == ClockKind::Simulated && options_.block_when_full) {
+    while (!ring_.push(sp)) {
+      if (abort_.load(std::memory_order_acquire)) return false;
+      std::this_thread::yield();  // the consumer is behind: simulated time can wait
+    }
+  } else if (!ring_.push(sp)) {
+    ++stats_.setpoints_lost;
+  }
+  const bool at_rest = sp.v_mm_per_s == 0.0 && sp.a_mm_per_s2 == 0.0;
+  if (sp.done) state = CycleState::Done;
+  if (stopping_ && at_rest) state = CycleState::Stopped;
+  publish(sp, state);
+  return state != CycleState::Done && state != CycleState::Stopped;
+}
+
+void Cycle::run() {
+  CycleState state = CycleState::Running;
+  try {
+    const bool wall = options_.clock == ClockKind::Wall;
+    const auto period_ns =
+        static_cast<std::int64_t>(std::llround(job_->config().limits.period_s * 1e9));
+    std::int64_t deadline = now_ns() + period_ns;
+    bool running = true;
+    while (running && !abort_.load(std::memory_order_acquire)) {
+      if (wall) sleep_until_ns(deadline);
+      const std::int64_t woke = wall ? now_ns() : deadline;
+      const std::int64_t late = std::max<std::int64_t>(0, woke - deadline);
+      stats_.lateness_ns.add(static_cast<double>(late));
+      const std::int64_t due = 1 + late / period_ns;
+      if (due > 1) {
+        ++stats_.late_wakeups;
+        stats_.caught_up += due - 1;
+      }
+      const std::int64_t t0 = now_ns();
+      for (std::int64_t k = 0; k < due && running; ++k) running = run_period(state);
+      const std::int64_t work = now_ns() - t0;
+      stats_.compute_ns.add(static_cast<double>(work) / static_cast<double>(due));
+      if (work > due * period_ns) ++stats_.overruns;
+      deadline += due * period_ns;
+    }
+  } catch (const std::exception& e) {
+    error_ = e.what();
+    state = CycleState::Error;
+    st_state_.store(static_cast<int>(state), std::memory_order_release);
+  }
+  finished_.store(true, std::memory_order_release);
+}
+
+}  // namespace ncd::motion

@@ -1,0 +1,112 @@
+// The cycle: one thread per running job that wakes every period and runs one period of the
+// job, against the wall clock (the service) or a simulated clock (replay, tests). The
+// algorithm is explained in cycle.cpp.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "core/histogram.hpp"
+#include "core/spsc_ring.hpp"
+#include "motion/job.hpp"
+
+namespace ncd::motion {
+
+enum class ClockKind { Wall, Simulated };
+
+struct CycleOptions {
+  ClockKind clock = ClockKind::Wall;
+  bool realtime = true;              // ask for SCHED_FIFO and locked memory (logged if refused)
+  int fifo_priority = 80;            // SCHED_FIFO priority when granted
+  std::size_t ring_capacity = 8192;  // setpoints the consumer may lag behind (32 s at 4 ms)
+  bool block_when_full = true;       // simulated clock only: wait for the consumer, never drop
+};
+
+// What the cycle measured; read it after the thread has stopped, or as a snapshot.
+struct CycleStats {
+  LogHistogram lateness_ns;         // wake-up time minus its deadline, every wake-up
+  LogHistogram compute_ns;          // work per period
+  std::int64_t periods = 0;         // periods run (each gives one setpoint)
+  std::int64_t late_wakeups = 0;    // wake-ups more than one period late
+  std::int64_t caught_up = 0;       // periods run back to back to catch up
+  std::int64_t overruns = 0;        // periods whose work alone took longer than a period
+  std::int64_t setpoints_lost = 0;  // setpoint ring full on the wall clock (must stay 0)
+};
+
+// What the cycle got from the operating system when it started.
+struct RealtimeGrant {
+  bool fifo = false;
+  bool memory_locked = false;
+  std::string message;  // one line for the log: what was asked, what was granted, and why not
+};
+
+enum class CycleState : int { Running, Holding, Done, Stopped, Error };
+
+// Published by the cycle once per period for status readers (lock-free snapshot).
+struct CycleStatus {
+  CycleState state = CycleState::Running;
+  double t_s = 0.0, s_mm = 0.0, v_mm_per_s = 0.0;
+  double x_mm = 0.0, y_mm = 0.0, z_mm = 0.0;
+  double override_fraction = 1.0;
+  std::int64_t periods = 0, overruns = 0, late_wakeups = 0;
+};
+
+class Cycle {
+ public:
+  // Takes the job (already constructed); fills the planner's first look-ahead window here,
+  // outside the cycle. Does not start the thread.
+  Cycle(std::unique_ptr<Job> job, const CycleOptions& options);
+  ~Cycle();  // requests stop and joins
+  Cycle(const Cycle&) = delete;
+  Cycle& operator=(const Cycle&) = delete;
+
+  // Starts the cycle thread; returns what real-time scheduling it got.
+  RealtimeGrant start();
+  // Commands, read by the cycle at its next period (atomic flags, no locks).
+  void hold();
+  void resume();
+  void set_override(double fraction);  // 0..2, applied through the planner
+  void stop();                         // a jerk-limited stop on the path, then the end
+  // Blocks until the job is done or stopped (the thread has ended).
+  void join();
+  bool finished() const { return finished_.load(std::memory_order_acquire); }
+
+  // The consumer side of the setpoint ring (one consumer thread only).
+  bool pop(Setpoint& out) { return ring_.pop(out); }
+  CycleStatus status() const;
+  // Valid after join().
+  const CycleStats& stats() const { return stats_; }
+  const std::string& error() const { return error_; }
+  double length_mm() const { return job_->length_mm(); }
+  const Job& job() const { return *job_; }
+
+ private:
+  void run();
+  void publish(const Setpoint& sp, CycleState state);
+  bool run_period(CycleState& state);
+
+  std::unique_ptr<Job> job_;
+  CycleOptions options_;
+  SpscRing<Setpoint> ring_;
+  std::thread thread_;
+  CycleStats stats_;
+  std::string error_;
+  RealtimeGrant grant_;
+  // Commands.
+  std::atomic<bool> hold_req_{false}, resume_req_{false}, stop_req_{false};
+  std::atomic<double> override_req_{-1.0};
+  std::atomic<bool> finished_{false};
+  std::atomic<bool> abort_{false};  // the destructor: leave at once, even mid-hold
+  bool stopping_ = false;
+  double override_applied_ = 1.0;
+  // Status snapshot (seqlock: odd while written).
+  mutable std::atomic<std::uint64_t> seq_{0};
+  std::atomic<double> st_t_{0}, st_s_{0}, st_v_{0}, st_x_{0}, st_y_{0}, st_z_{0}, st_ovr_{1};
+  std::atomic<int> st_state_{0};
+  std::atomic<std::int64_t> st_periods_{0}, st_overruns_{0}, st_late_{0};
+};
+
+}  // namespace ncd::motion
