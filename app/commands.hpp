@@ -11,5 +11,6 @@ using Runner = std::function<int()>;
 
 void register_chamfer(CLI::App& app, Runner& run);
 void register_replay(CLI::App& app, Runner& run);
+void register_serve(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app

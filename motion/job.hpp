@@ -23,7 +23,7 @@ struct JobConfig {
 // The setpoint of one period and what it took to make it.
 struct Setpoint {
   double t_s = 0.0;
-  Vec3 p;                       // position, mm
+  Vec3 p = Vec3::Zero();        // position, mm
   double s_mm = 0.0;            // planned arc length from the start
   double v_mm_per_s = 0.0;      // planned feed at the end of the period
   double a_mm_per_s2 = 0.0;     // tangential acceleration at the end of the period

@@ -1,0 +1,67 @@
+// `ncd serve`: the service next to a machine. One io_context runs the control socket, the
+// job state machine and signal handling; each running job has its cycle thread. SIGTERM or
+// SIGINT brings any motion to a jerk-limited stop, ends the job cleanly and exits 0.
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <csignal>
+#include <iostream>
+#include <memory>
+
+#include "app/commands.hpp"
+#include "app/service.hpp"
+#include "comms/control_server.hpp"
+
+namespace ncd::app {
+namespace {
+
+struct ServeArgs {
+  std::string config, listen;
+};
+
+int run_serve(const ServeArgs& a) {
+  ServiceConfig cfg;
+  if (!a.config.empty()) cfg = load_service_config(a.config);
+  if (!a.listen.empty()) cfg.listen = a.listen;
+  boost::asio::io_context io;
+  Service service(io, cfg);
+  comms::ServerOptions options;
+  options.token = cfg.token;
+  comms::ListenAddress address = comms::ListenAddress::parse(cfg.listen);
+  comms::ControlServer server(io, address, service, options);
+  if (address.kind == comms::ListenAddress::Kind::Tcp) address.port = server.port();
+  std::cerr << "ncd serve: listening on " << address.to_string()
+            << " (machine: " << cfg.machine.source
+            << ", clock: " << (cfg.clock == motion::ClockKind::Wall ? "wall" : "simulated") << ")"
+            << std::endl;
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  signals.async_wait([&](const boost::system::error_code& ec, int signal) {
+    if (ec) return;
+    std::cerr << "ncd serve: " << (signal == SIGTERM ? "SIGTERM" : "SIGINT") << ", shutting down"
+              << std::endl;
+    service.shutdown([&] {
+      server.close();
+      io.stop();
+    });
+  });
+  io.run();
+  std::cerr << "ncd serve: stopped" << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+void register_serve(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<ServeArgs>();
+  CLI::App* c = app.add_subcommand(
+      "serve",
+      "Run as a service: newline-delimited JSON requests on a control socket (see README). "
+      "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
+  c->add_option("--config", a->config,
+                "service config (TOML): listen, token, machine, clock, realtime; see "
+                "config/serve.example.toml");
+  c->add_option("--listen", a->listen,
+                "tcp:HOST:PORT or unix:PATH (overrides the config; default tcp:127.0.0.1:7878)");
+  c->callback([a, &run] { run = [a] { return run_serve(*a); }; });
+}
+
+}  // namespace ncd::app

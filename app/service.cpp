@@ -1,0 +1,360 @@
+// The service's job state machine, run entirely on the I/O thread (the io_context): requests
+// from the control socket, the 1 ms drain of the setpoint ring and signals all arrive there, so
+// the service's own state needs no lock. The cycle thread is reached only through its atomic
+// command flags, its setpoint ring and its seqlocked status.
+//
+//   idle ──submit──► ready ──start──► running ◄──resume── holding
+//     ▲                │                 │  └───hold───────►  │
+//     │                │                 ▼                    ▼
+//     └──── submit ◄── done / error ◄── (job ends, or stop: a jerk-limited stop on the path)
+//
+// A submitted job is either {"path": FILE} in any format `ncd replay` reads, or a chamfer
+// specification with the parameter names of `ncd chamfer` ("pipe_radius" or "pipe-radius", …).
+// "setpoints": FILE in the submit request records the job's setpoints in the replay CSV format.
+#include "app/service.hpp"
+
+#include <chrono>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <toml.hpp>
+
+#include "app/chamfer_report.hpp"
+#include "core/error.hpp"
+#include "toolpath/chamfer.hpp"
+#include "toolpath/path_io.hpp"
+
+namespace ncd::app {
+namespace {
+
+using nlohmann::json;
+
+// A request's field as a number, with the key named in the error.
+double number(const json& obj, const std::string& key) {
+  if (!obj.contains(key)) throw InputError("\"" + key + "\" is missing");
+  if (!obj[key].is_number()) throw InputError("\"" + key + "\" must be a number");
+  return obj[key].get<double>();
+}
+
+// The chamfer job: the flags of `ncd chamfer` as JSON keys ('-' or '_').
+toolpath::Path chamfer_path(const json& spec) {
+  json j;
+  for (const auto& [k, v] : spec.items()) {
+    std::string key = k;
+    for (char& c : key) c = c == '-' ? '_' : c;
+    j[key] = v;
+  }
+  static const char* kKeys[] = {"pipe_radius",     "drill_radius", "ball_radius", "width",
+                                "tolerance",       "edge",         "side",        "rod_radius",
+                                "non_knife_angle", "no_avoid",     "feed",        "spindle",
+                                "initial_segments"};
+  for (const auto& [k, v] : j.items()) {
+    if (std::find(std::begin(kKeys), std::end(kKeys), k) == std::end(kKeys)) {
+      throw InputError("unknown chamfer parameter \"" + k +
+                       "\"; the names are those of `ncd chamfer --help`");
+    }
+  }
+  toolpath::ChamferSpec s;
+  s.pipe_radius_mm = number(j, "pipe_radius");
+  s.drill_radius_mm = number(j, "drill_radius");
+  s.ball_radius_mm = number(j, "ball_radius");
+  s.width_mm = number(j, "width");
+  if (j.contains("tolerance")) s.tolerance_mm = number(j, "tolerance");
+  const auto word = [&](const char* key, const char* a, const char* b) {
+    if (!j.contains(key)) return true;
+    if (!j[key].is_string() || (j[key] != a && j[key] != b)) {
+      throw InputError(std::string("\"") + key + "\" must be \"" + a + "\" or \"" + b + "\"");
+    }
+    return j[key] == a;
+  };
+  s.edge = word("edge", "inner", "outer") ? toolpath::Edge::Inner : toolpath::Edge::Outer;
+  s.side = word("side", "upper", "lower") ? toolpath::Side::Upper : toolpath::Side::Lower;
+  if (j.contains("rod_radius")) s.rod_radius_mm = number(j, "rod_radius");
+  std::optional<double> nka_deg;
+  if (j.contains("non_knife_angle")) {
+    nka_deg = number(j, "non_knife_angle");
+    s.non_knife_angle_rad = deg_to_rad(*nka_deg);
+  }
+  if (j.contains("no_avoid")) {
+    if (!j["no_avoid"].is_boolean()) throw InputError("\"no_avoid\" must be true or false");
+    s.avoid = !j["no_avoid"].get<bool>();
+  }
+  if (j.contains("initial_segments")) {
+    s.initial_segments = static_cast<int>(number(j, "initial_segments"));
+  }
+  toolpath::NgcOptions ngc;
+  if (j.contains("feed")) ngc.feed_mm_per_min = number(j, "feed");
+  if (j.contains("spindle")) ngc.spindle_rpm = number(j, "spindle");
+  require_positive("feed", ngc.feed_mm_per_min);
+  const toolpath::ChamferPath path = toolpath::generate_chamfer(s);
+  if (!path.checks.local_ok || !path.checks.global_ok || !path.checks.rod_ok) {
+    throw InputError(
+        "the chamfer interferes with the part (see `ncd chamfer` with the same "
+        "parameters); not submitted");
+  }
+  return toolpath::read_path_text(chamfer_json(path, ngc, nka_deg, 0.0).dump(), "chamfer job");
+}
+
+}  // namespace
+
+ServiceConfig load_service_config(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError("cannot open service config " + path + " (--config)");
+  std::stringstream text;
+  text << in.rdbuf();
+  toml::value root;
+  try {
+    std::istringstream s(text.str());
+    root = toml::parse(s, path);
+  } catch (const std::exception& e) {
+    throw InputError("cannot read service config " + path + ": " + e.what());
+  }
+  ServiceConfig c;
+  c.source = path;
+  for (const auto& [key, v] : root.as_table()) {
+    const std::string where = path + ": " + key;
+    if (key == "listen" && v.is_string()) {
+      c.listen = v.as_string();
+    } else if (key == "token" && v.is_string()) {
+      c.token = v.as_string().str;
+    } else if (key == "machine" && v.is_string()) {
+      c.machine_file = v.as_string();
+    } else if (key == "clock" && v.is_string() &&
+               (v.as_string() == "wall" || v.as_string() == "simulated")) {
+      c.clock = v.as_string() == "wall" ? motion::ClockKind::Wall : motion::ClockKind::Simulated;
+    } else if (key == "realtime" && v.is_boolean()) {
+      c.realtime = v.as_boolean();
+    } else if (key == "listen" || key == "token" || key == "machine" || key == "clock" ||
+               key == "realtime") {
+      throw InputError(where + " has the wrong type or value: " + toml::format(v) +
+                       " (listen, token, machine: strings; clock: \"wall\" or \"simulated\"; "
+                       "realtime: true or false)");
+    } else {
+      throw InputError("unknown key " + where +
+                       "; the service config takes listen, token, machine, clock, realtime");
+    }
+  }
+  if (!c.machine_file.empty()) c.machine = load_machine_config(c.machine_file);
+  return c;
+}
+
+const char* Service::name(State s) {
+  switch (s) {
+    case State::Idle:
+      return "idle";
+    case State::Ready:
+      return "ready";
+    case State::Running:
+      return "running";
+    case State::Holding:
+      return "holding";
+    case State::Done:
+      return "done";
+    case State::Error:
+      return "error";
+  }
+  return "error";
+}
+
+Service::Service(boost::asio::io_context& io, const ServiceConfig& config)
+    : io_(io), config_(config), timer_(io) {}
+
+Service::~Service() {
+  timer_.cancel();
+  if (cycle_) {
+    cycle_->stop();
+    cycle_.reset();  // joins
+  }
+}
+
+motion::JobConfig Service::job_config() const {
+  motion::JobConfig j;
+  j.limits = config_.machine.limits;
+  j.cutting = config_.machine.cutting;
+  return j;
+}
+
+void Service::require_active(const char* cmd) const {
+  if (state_ != State::Running && state_ != State::Holding) {
+    throw InputError(std::string(cmd) + ": no job is running (state " + name(state_) + ")");
+  }
+}
+
+json Service::submit(const json& req) {
+  if (state_ == State::Running || state_ == State::Holding) {
+    throw InputError("submit: a job is running; stop it first");
+  }
+  if (!req.contains("job") || !req["job"].is_object()) {
+    throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
+  }
+  const json& job = req["job"];
+  std::unique_ptr<toolpath::Path> path;
+  if (job.contains("path")) {
+    if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
+    path = std::make_unique<toolpath::Path>(toolpath::read_path_file(job["path"]));
+    job_name_ = job["path"].get<std::string>();
+  } else {
+    path = std::make_unique<toolpath::Path>(chamfer_path(job));
+    job_name_ = "chamfer";
+  }
+  // Build the job once now, so that a path the machine cannot run is refused at submit.
+  (void)motion::Job(*path, job_config());
+  setpoints_file_.clear();
+  if (req.contains("setpoints")) {
+    if (!req["setpoints"].is_string()) throw InputError("\"setpoints\" must be a file name");
+    setpoints_file_ = req["setpoints"];
+  }
+  path_ = std::move(path);
+  state_ = State::Ready;
+  error_.clear();
+  return {{"ok", true}, {"state", name(state_)}, {"job", job_name_}};
+}
+
+json Service::start() {
+  if (state_ != State::Ready) {
+    throw InputError(std::string("start: nothing to start (state ") + name(state_) +
+                     "); submit a job first");
+  }
+  auto job = std::make_unique<motion::Job>(*path_, job_config());
+  motion::CycleOptions o;
+  o.clock = config_.clock;
+  o.realtime = config_.realtime;
+  sink_ = std::make_unique<SetpointSink>(setpoints_file_);
+  cycle_ = std::make_unique<motion::Cycle>(std::move(job), o);
+  setpoints_ = 0;
+  accel_max_ = jerk_max_ = feed_max_ = 0.0;
+  override_percent_ = 100.0;
+  last_ = {};
+  realtime_ = cycle_->start().message;
+  std::cerr << "ncd serve: job " << job_name_ << " started; " << realtime_ << "\n";
+  state_ = State::Running;
+  drain();
+  return {{"ok", true}, {"state", name(state_)}, {"realtime", realtime_}};
+}
+
+void Service::drain() {
+  if (!cycle_) return;
+  motion::Setpoint sp;
+  while (cycle_->pop(sp)) {
+    ++setpoints_;
+    last_ = sp;
+    accel_max_ = std::max(accel_max_, std::abs(sp.a_mm_per_s2));
+    jerk_max_ = std::max(jerk_max_, std::abs(sp.j_mm_per_s3));
+    feed_max_ = std::max(feed_max_, sp.v_mm_per_s);
+    sink_->write(sp);
+  }
+  if (cycle_->finished()) {
+    while (cycle_->pop(sp)) ++setpoints_, last_ = sp, sink_->write(sp);
+    finish_job();
+    return;
+  }
+  timer_.expires_after(std::chrono::milliseconds(1));
+  timer_.async_wait([this](const boost::system::error_code& ec) {
+    if (!ec) drain();
+  });
+}
+
+void Service::finish_job() {
+  cycle_->join();
+  const motion::CycleState end = cycle_->status().state;
+  if (end == motion::CycleState::Error) {
+    state_ = State::Error;
+    error_ = cycle_->error();
+  } else {
+    state_ = State::Done;
+  }
+  try {
+    sink_->commit();
+  } catch (const std::exception& e) {
+    state_ = State::Error;
+    error_ = e.what();
+  }
+  const motion::CycleStats& st = cycle_->stats();
+  std::cerr << "ncd serve: job " << job_name_ << " " << name(state_) << " after " << setpoints_
+            << " setpoints; " << st.late_wakeups << " late wake-ups, " << st.overruns
+            << " overruns, " << st.setpoints_lost << " setpoints lost\n";
+  if (on_idle_) io_.post(on_idle_);
+}
+
+json Service::handle(const json& req) {
+  const std::string cmd = req["cmd"];
+  if (cmd == "submit") return submit(req);
+  if (cmd == "start") return start();
+  if (cmd == "status") return status();
+  if (cmd == "hold") {
+    require_active("hold");
+    cycle_->hold();
+    state_ = State::Holding;
+  } else if (cmd == "resume") {
+    require_active("resume");
+    cycle_->resume();
+    state_ = State::Running;
+  } else if (cmd == "stop") {
+    require_active("stop");
+    cycle_->stop();
+  } else if (cmd == "override") {
+    require_active("override");
+    const double pct = number(req, "percent");
+    if (!(pct >= 0.0 && pct <= 200.0)) {
+      throw InputError("override: \"percent\" = " + std::to_string(pct) + " is outside 0..200 %");
+    }
+    cycle_->set_override(pct / 100.0);
+    override_percent_ = pct;
+  } else {
+    throw InputError("unknown command \"" + cmd +
+                     "\"; commands: submit, start, hold, resume, stop, override, status, "
+                     "subscribe");
+  }
+  return {{"ok", true}, {"state", name(state_)}};
+}
+
+json Service::status() {
+  json s;
+  s["ok"] = true;
+  s["state"] = name(state_);
+  s["job"] = job_name_.empty() ? json() : json(job_name_);
+  double length = 0.0;
+  if (cycle_) {
+    const motion::CycleStatus c = cycle_->status();
+    length = cycle_->length_mm();
+    s["position"] = {c.x_mm, c.y_mm, c.z_mm};
+    s["feed_mm_per_min"] = c.v_mm_per_s * 60.0;
+    s["progress"] = length > 0.0 ? c.s_mm / length : 1.0;
+    const double avg = c.t_s > 0.0 ? c.s_mm / c.t_s : 0.0;  // mean feed so far, mm/s
+    json left;  // null until the job has moved: the mean feed so far is the estimate
+    if (state_ == State::Done) {
+      left = 0.0;
+    } else if (avg > 0.0) {
+      left = (length - c.s_mm) / avg;
+    }
+    s["time_left_s"] = left;
+    s["t_s"] = c.t_s;
+    s["overruns"] = c.overruns;
+    s["late_wakeups"] = c.late_wakeups;
+  } else {
+    s["position"] = json();
+    s["feed_mm_per_min"] = 0.0;
+    s["progress"] = 0.0;
+    s["time_left_s"] = json();
+    s["overruns"] = 0;
+  }
+  s["override_percent"] = override_percent_;
+  s["setpoints"] = setpoints_;
+  s["accel_max"] = accel_max_;
+  s["jerk_max"] = jerk_max_;
+  s["feed_max_mm_per_min"] = feed_max_ * 60.0;
+  if (!error_.empty()) s["job_error"] = error_;
+  return s;
+}
+
+void Service::shutdown(std::function<void()> done) {
+  if (cycle_ && !cycle_->finished()) {
+    std::cerr << "ncd serve: stopping the running job (a jerk-limited stop on the path)\n";
+    on_idle_ = std::move(done);
+    cycle_->stop();
+    return;
+  }
+  io_.post(std::move(done));
+}
+
+}  // namespace ncd::app
