@@ -111,6 +111,7 @@ TEST(Cycle, HoldThenResumeReachesTheSameEndWithinLimits) {
   const std::vector<Setpoint> want = direct(path);
   CycleOptions o;
   o.clock = ClockKind::Simulated;
+  o.ring_capacity = 2;  // the cycle stays within two periods of the consumer's commands
   Cycle cycle(std::make_unique<Job>(path, machine()), o);
   (void)cycle.start();
   std::size_t held_from = 0, resumed_at = 0;
@@ -140,6 +141,7 @@ TEST(Cycle, OverrideChangesNeverBreakTheLimits) {
   const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
   CycleOptions o;
   o.clock = ClockKind::Simulated;
+  o.ring_capacity = 2;  // the cycle stays within two periods of the consumer's commands
   Cycle cycle(std::make_unique<Job>(path, machine()), o);
   (void)cycle.start();
   const std::vector<Setpoint> got = drain(cycle, [&](Cycle& c, std::size_t i) {
@@ -160,6 +162,7 @@ TEST(Cycle, StopComesToRestOnThePathBeforeItsEnd) {
   const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
   CycleOptions o;
   o.clock = ClockKind::Simulated;
+  o.ring_capacity = 2;  // the cycle stays within two periods of the consumer's commands
   Cycle cycle(std::make_unique<Job>(path, machine()), o);
   (void)cycle.start();
   const std::vector<Setpoint> got = drain(cycle, [&](Cycle& c, std::size_t i) {
