@@ -399,6 +399,28 @@ TEST(ControlServerTest, ManyConcurrentClients) {
   EXPECT_EQ(server.handler.handled, 200);
 }
 
+TEST(ControlServerTest, ClientThatDoesNotReadIsThrottledNotBuffered) {
+  TempDir dir;
+  const std::string path = dir.file("control.sock");
+  Running server("unix:" + path);
+  Client client = Client::unix_socket(path);
+  constexpr int kRequests = 200;  // 10 MB of requests, each echoed back in full
+  const std::string pad(50 * 1000, 'p');
+  std::thread sender([&] {
+    for (int n = 0; n < kRequests; ++n) {
+      client.send(Json{{"cmd", "echo"}, {"n", n}, {"pad", pad}}.dump() + "\n");
+    }
+  });
+  std::this_thread::sleep_for(500ms);
+  // Unbounded queueing would have answered all 200; the server stops reading once ~1 MB of
+  // replies wait, and the Unix socket buffers hold little more.
+  const int answered_unread = server.handler.handled;
+  EXPECT_LT(answered_unread, kRequests / 2);
+  for (int n = 0; n < kRequests; ++n) expect_echo(client.json(), n);
+  sender.join();
+  EXPECT_EQ(server.handler.handled, kRequests);
+}
+
 TEST(ControlServerTest, TokenIsRequiredAndChecked) {
   ServerOptions options;
   options.token = "s3cret";
