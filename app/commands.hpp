@@ -11,6 +11,7 @@ using Runner = std::function<int()>;
 
 void register_chamfer(CLI::App& app, Runner& run);
 void register_replay(CLI::App& app, Runner& run);
+void register_bench(CLI::App& app, Runner& run);
 void register_serve(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   ncd::app::Runner run;
   ncd::app::register_chamfer(app, run);
   ncd::app::register_replay(app, run);
+  ncd::app::register_bench(app, run);
   ncd::app::register_serve(app, run);
   try {
     app.parse(argc, argv);

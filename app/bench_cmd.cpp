@@ -1,0 +1,375 @@
+// `ncd bench latency`: how late the real cycle wakes on this machine, beside cyclictest.
+//
+//   ncd run (N s)                                   cyclictest run (N s, after ncd)
+//   ┌──────────────┐  ring  ┌──────────┐            ┌──────────────────────────────┐
+//   │ Cycle thread │ ─────► │ consumer │ pop+count  │ cyclictest -m -q -t1 -p… -i… │
+//   │ SCHED_FIFO   │        └──────────┘            └──────────────────────────────┘
+//   │ planner+walk │   [--stress: a busy thread pinned to the highest-numbered CPU, both runs]
+//   └──────────────┘
+//
+// The job is a long spiral NURBS (as bench/replay_bench.cpp) under the default machine limits,
+// sized not to end within N s; should it end anyway, a new job starts (a new Cycle) and the
+// statistics add up. After N s: Cycle::stop (a jerk-limited stop on the path) and join. There
+// are no output sinks: setpoints are popped and counted, and none may be lost. cyclictest runs
+// after ncd, not beside it, so the two do not compete for the CPU; its p99 is the floor this
+// machine allows, and ncd's p99 should stay within 1.5x of it.
+//
+// Cycle has no CPU affinity option, so the cycle thread is not pinned (nor is cyclictest, to
+// keep the two runs alike): --stress pins its busy thread to the highest-numbered CPU and the
+// scheduler places the measuring threads.
+#include <sched.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <future>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "app/commands.hpp"
+#include "app/cyclictest.hpp"
+#include "app/latency_report.hpp"
+#include "app/output.hpp"
+#include "core/error.hpp"
+#include "motion/cycle.hpp"
+
+namespace ncd::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr double kP99RatioLimit = 1.5;
+constexpr int kMaxSpiralTurns = 900;  // r from 100 mm down to 10 mm at 0.1 mm pitch
+
+struct BenchLatencyArgs {
+  int seconds = 0;
+  double period_ms = 4.0;
+  std::string json;
+  bool stress = false, no_cyclictest = false;
+};
+
+// Archimedean spiral of `turns` turns from r = 100 mm inwards at 0.1 mm pitch, 16 control points
+// per turn, cubic B-spline with integer knots (the path of bench/replay_bench.cpp).
+toolpath::Path spiral(int turns) {
+  const int per_turn = 16, n = turns * per_turn + 1, degree = 3;
+  std::vector<Vec3> pts;
+  for (int i = 0; i < n; ++i) {
+    const double th = 2.0 * kPi * i / per_turn, r = 100.0 - 0.1 * i / per_turn;
+    pts.emplace_back(r * std::cos(th), r * std::sin(th), 2.0 * std::sin(0.05 * th));
+  }
+  std::vector<double> knots(degree + 1, 0.0);
+  const int inner = n - degree - 1;
+  for (int i = 1; i <= inner; ++i) knots.push_back(i);
+  knots.insert(knots.end(), degree + 1, inner + 1.0);
+  toolpath::Path path;
+  path.segments.push_back(
+      {toolpath::NurbsCurve(degree, knots, pts), std::nullopt, std::nullopt, false, 0});
+  path.source = "spiral";
+  return path;
+}
+
+// Turns whose length (about 2π (100 k − 0.05 k²) mm for k turns) covers `seconds` at the
+// machine's maximum feed with half again as margin; at most kMaxSpiralTurns.
+int spiral_turns_for(double seconds, double max_feed_mm_per_s) {
+  const double needed_mm = 1.5 * seconds * max_feed_mm_per_s + 1000.0;
+  for (int k = 1; k < kMaxSpiralTurns; ++k) {
+    if (2.0 * kPi * (100.0 * k - 0.05 * k * k) >= needed_mm) return k;
+  }
+  return kMaxSpiralTurns;
+}
+
+// A busy thread pinned to the highest-numbered CPU this process may use.
+class CpuStress {
+ public:
+  CpuStress() {
+    cpu_set_t allowed;
+    CPU_ZERO(&allowed);
+    if (sched_getaffinity(0, sizeof allowed, &allowed) == 0) {
+      for (int c = CPU_SETSIZE - 1; c >= 0; --c) {
+        if (CPU_ISSET(c, &allowed)) {
+          cpu_ = c;
+          break;
+        }
+      }
+      allowed_cpus_ = CPU_COUNT(&allowed);
+    }
+    std::promise<int> pinned;
+    std::future<int> pinned_rc = pinned.get_future();
+    thread_ = std::thread([this, &pinned] { spin(pinned); });
+    const int rc = pinned_rc.get();
+    note_ =
+        "stress: a busy thread on CPU " + std::to_string(cpu_) +
+        (rc == 0
+             ? " (pinned, the highest-numbered of " + std::to_string(allowed_cpus_) + " allowed)"
+             : " (not pinned: sched_setaffinity failed, errno " + std::to_string(rc) + ")") +
+        "; the cycle thread and cyclictest are not pinned (Cycle has no affinity option)" +
+        (allowed_cpus_ <= 1 ? "; only one CPU: the stress shares it with the cycle" : "");
+  }
+  ~CpuStress() {
+    stop_.store(true, std::memory_order_relaxed);
+    thread_.join();
+  }
+  CpuStress(const CpuStress&) = delete;
+  CpuStress& operator=(const CpuStress&) = delete;
+  int cpu() const { return cpu_; }
+  const std::string& note() const { return note_; }
+
+ private:
+  void spin(std::promise<int>& pinned) {
+    cpu_set_t one;
+    CPU_ZERO(&one);
+    CPU_SET(cpu_, &one);
+    pinned.set_value(sched_setaffinity(0, sizeof one, &one) == 0 ? 0 : errno);
+    std::uint64_t x = 0x9E3779B97F4A7C15ULL;  // xorshift: arithmetic the compiler keeps
+    while (!stop_.load(std::memory_order_relaxed)) {
+      for (int i = 0; i < 4096; ++i) {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+      }
+    }
+    sink_.store(x, std::memory_order_relaxed);
+  }
+  int cpu_ = 0, allowed_cpus_ = 1;
+  std::atomic<bool> stop_{false};
+  std::atomic<std::uint64_t> sink_{0};
+  std::thread thread_;
+  std::string note_;
+};
+
+// What ncd's cycle did over all its jobs.
+struct NcdRun {
+  motion::CycleStats stats;
+  std::int64_t setpoints = 0;          // popped by the consumer
+  std::int64_t periods_in_window = 0;  // run before the stop was asked (the rest: the stop ramp)
+  int jobs = 0;
+  motion::RealtimeGrant grant;
+  double wall_s = 0.0;
+};
+
+// Adds one Cycle's statistics to the sum of the run.
+void add_stats(motion::CycleStats& sum, const motion::CycleStats& s) {
+  merge_into(sum.lateness_ns, s.lateness_ns);
+  merge_into(sum.compute_ns, s.compute_ns);
+  sum.periods += s.periods;
+  sum.late_wakeups += s.late_wakeups;
+  sum.caught_up += s.caught_up;
+  sum.overruns += s.overruns;
+  sum.setpoints_lost += s.setpoints_lost;
+}
+
+// One Cycle after another on the wall clock until `seconds` have passed, setpoints discarded.
+NcdRun run_ncd(const toolpath::Path& path, const motion::JobConfig& cfg, int seconds) {
+  NcdRun run;
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(cfg.limits.period_s));
+  const auto t0 = Clock::now();
+  const auto deadline = t0 + std::chrono::seconds(seconds);
+  do {
+    motion::CycleOptions opt;
+    opt.clock = motion::ClockKind::Wall;
+    opt.realtime = true;
+    auto cycle = std::make_unique<motion::Cycle>(std::make_unique<motion::Job>(path, cfg), opt);
+    std::atomic<bool> cycle_ended{false};
+    std::int64_t popped = 0;
+    const motion::RealtimeGrant grant = cycle->start();
+    std::thread consumer([&] {  // the ring holds 8192 periods: a late start is harmless
+      motion::Setpoint sp;
+      for (;;) {
+        const bool ended = cycle_ended.load(std::memory_order_acquire);
+        while (cycle->pop(sp)) ++popped;
+        if (ended) return;
+        std::this_thread::sleep_for(period / 4);
+      }
+    });
+    if (run.jobs++ == 0) {
+      run.grant = grant;
+      std::printf("  realtime: %s\n", grant.message.c_str());
+      std::fflush(stdout);
+    }
+    while (!cycle->finished() && Clock::now() < deadline) {
+      std::this_thread::sleep_until(
+          std::min(deadline, Clock::now() + std::chrono::milliseconds(20)));
+    }
+    std::int64_t periods_at_stop = -1;  // -1: the job ended by itself
+    if (!cycle->finished()) {
+      periods_at_stop = cycle->status().periods;
+      cycle->stop();
+    }
+    cycle->join();
+    cycle_ended.store(true, std::memory_order_release);
+    consumer.join();
+    if (!cycle->error().empty()) throw std::runtime_error("the cycle failed: " + cycle->error());
+    const motion::CycleStats& s = cycle->stats();
+    if (popped + s.setpoints_lost != s.periods) {
+      throw std::runtime_error("setpoints popped (" + std::to_string(popped) + ") + lost (" +
+                               std::to_string(s.setpoints_lost) + ") != periods (" +
+                               std::to_string(s.periods) + ")");
+    }
+    run.periods_in_window += periods_at_stop >= 0 ? periods_at_stop : s.periods;
+    add_stats(run.stats, s);
+    run.setpoints += popped;
+  } while (Clock::now() < deadline);
+  run.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return run;
+}
+
+// {p50, p99, p999, max} in µs, the shape of every lateness in the JSON.
+nlohmann::ordered_json percentiles_json(const LatencyPercentiles& p) {
+  return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}};
+}
+
+// The whole subcommand: ncd's run, then cyclictest's, the report on stdout and in --json.
+int run_bench_latency(const BenchLatencyArgs& a) {
+  if (a.seconds <= 0) throw InputError("--seconds must be > 0, got " + std::to_string(a.seconds));
+  const double period_us = a.period_ms * 1e3;
+  if (!(std::isfinite(period_us) && period_us >= 10.0 && period_us <= 1e6)) {
+    throw InputError("--period-ms " + std::to_string(a.period_ms) +
+                     " is outside 0.01..1000 ms; give the cycle's period in milliseconds");
+  }
+  motion::JobConfig cfg;  // default machine limits and cutting parameters
+  cfg.limits.period_s = a.period_ms * 1e-3;
+  const int turns = spiral_turns_for(a.seconds, cfg.limits.max_feed_mm_per_min / 60.0);
+  const toolpath::Path path = spiral(turns);
+  std::printf(
+      "ncd bench latency: %d s at a %s ms period, spiral NURBS of %d turns, default "
+      "machine limits%s\n",
+      a.seconds, format_us(a.period_ms).c_str(), turns, a.stress ? ", under --stress" : "");
+  std::unique_ptr<CpuStress> stress;
+  if (a.stress) {
+    stress = std::make_unique<CpuStress>();
+    std::printf("  %s\n", stress->note().c_str());
+  }
+  std::fflush(stdout);
+
+  const NcdRun ncd = run_ncd(path, cfg, a.seconds);
+  const motion::CycleStats& st = ncd.stats;
+  const LatencyPercentiles late = percentiles_us_from_ns(st.lateness_ns);
+  std::printf(
+      "ncd cycle: %lld periods in %.2f s (%lld before the stop, %d job%s), %lld setpoints popped, "
+      "%lld lost\n"
+      "  lateness (us)       p50 %s, p99 %s, p99.9 %s, max %s\n"
+      "  late wake-ups %lld, catch-up periods %lld, overruns %lld\n"
+      "  compute per period  median %s us, p99 %s us, max %s us\n"
+      "  lateness histogram (wake-ups; bars linear in the count):\n%s",
+      static_cast<long long>(st.periods), ncd.wall_s, static_cast<long long>(ncd.periods_in_window),
+      ncd.jobs, ncd.jobs == 1 ? "" : "s", static_cast<long long>(ncd.setpoints),
+      static_cast<long long>(st.setpoints_lost), format_us(late.p50_us).c_str(),
+      format_us(late.p99_us).c_str(), format_us(late.p999_us).c_str(),
+      format_us(late.max_us).c_str(), static_cast<long long>(st.late_wakeups),
+      static_cast<long long>(st.caught_up), static_cast<long long>(st.overruns),
+      format_us(st.compute_ns.quantile(0.5) * 1e-3).c_str(),
+      format_us(st.compute_ns.quantile(0.99) * 1e-3).c_str(),
+      format_us(st.compute_ns.max() * 1e-3).c_str(), format_histogram_us(st.lateness_ns).c_str());
+  std::fflush(stdout);
+
+  std::vector<LatencyRow> rows = {{"ncd", late}};
+  CyclictestRun ct;
+  std::string ct_reason = "--no-cyclictest";
+  if (!a.no_cyclictest) {
+    CyclictestOptions o;
+    o.interval_us = static_cast<int>(std::lround(period_us));
+    o.seconds = a.seconds;
+    o.priority = motion::CycleOptions{}.fifo_priority;
+    o.histogram_max_us = std::min(100000, std::max(1000, 4 * o.interval_us));
+    ct = run_cyclictest(o);
+    std::printf("cyclictest: %s\n", ct.command.c_str());
+    for (const std::string& n : ct.notes) std::printf("  note: %s\n", n.c_str());
+    if (ct.ok) {
+      rows.push_back({"cyclictest", ct.percentiles.us});
+    } else {
+      ct_reason = ct.reason;
+      std::printf("  no result: %s\n", ct.reason.c_str());
+    }
+  }
+  std::printf("\n%s", format_latency_table(rows).c_str());
+  P99Verdict verdict;
+  if (ct.ok) {
+    verdict = p99_verdict(late.p99_us, ct.percentiles.us.p99_us, kP99RatioLimit);
+    std::printf("%s\n", verdict.line.c_str());
+  }
+  std::printf("setpoints lost: %lld\n", static_cast<long long>(st.setpoints_lost));
+  std::fflush(stdout);
+
+  if (!a.json.empty()) {
+    nlohmann::ordered_json j;
+    j["seconds"] = a.seconds;
+    j["period_ms"] = a.period_ms;
+    j["stress"] = a.stress;
+    j["stress_note"] = stress ? nlohmann::ordered_json(stress->note()) : nullptr;
+    j["realtime"] = {{"fifo", ncd.grant.fifo},
+                     {"memory_locked", ncd.grant.memory_locked},
+                     {"message", ncd.grant.message}};
+    j["path"] = {{"kind", "spiral NURBS"}, {"turns", turns}};
+    j["jobs"] = ncd.jobs;
+    j["wall_s"] = ncd.wall_s;
+    j["periods"] = st.periods;
+    j["periods_before_stop"] = ncd.periods_in_window;
+    j["setpoints"] = ncd.setpoints;
+    j["setpoints_lost"] = st.setpoints_lost;
+    j["lateness_us"] = percentiles_json(late);
+    nlohmann::ordered_json bins = nlohmann::ordered_json::array();
+    for (const HistogramBin& b : histogram_bins_us(st.lateness_ns)) {
+      bins.push_back({{"from_us", b.from_us}, {"to_us", b.to_us}, {"count", b.count}});
+    }
+    j["lateness_histogram"] = bins;
+    j["late_wakeups"] = st.late_wakeups;
+    j["caught_up_periods"] = st.caught_up;
+    j["overruns"] = st.overruns;
+    j["compute_us"] = {{"median", st.compute_ns.quantile(0.5) * 1e-3},
+                       {"p99", st.compute_ns.quantile(0.99) * 1e-3},
+                       {"max", st.compute_ns.max() * 1e-3}};
+    if (ct.ok) {
+      j["cyclictest"] = {{"lateness_us", percentiles_json(ct.percentiles.us)},
+                         {"samples", ct.histogram.samples()},
+                         {"overflows", ct.histogram.overflows},
+                         {"command", ct.command},
+                         {"notes", ct.notes}};
+      j["cyclictest_reason"] = nullptr;
+      j["p99_ratio"] = verdict.ratio ? nlohmann::ordered_json(*verdict.ratio) : nullptr;
+      j["p99_ratio_limit"] = kP99RatioLimit;
+      j["p99_within_limit"] = verdict.ratio ? nlohmann::ordered_json(verdict.within) : nullptr;
+    } else {
+      j["cyclictest"] = nullptr;
+      j["cyclictest_reason"] = ct_reason;
+      j["p99_ratio"] = nullptr;
+      j["p99_ratio_limit"] = kP99RatioLimit;
+      j["p99_within_limit"] = nullptr;
+    }
+    write_output(a.json, j.dump(1) + "\n");
+  }
+  if (st.setpoints_lost != 0) {
+    std::fprintf(stderr, "ncd: %lld setpoints lost: the consumer fell behind the cycle\n",
+                 static_cast<long long>(st.setpoints_lost));
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+void register_bench(CLI::App& app, Runner& run) {
+  CLI::App* bench = app.add_subcommand("bench", "Measurements of this machine");
+  bench->require_subcommand(1);
+  auto a = std::make_shared<BenchLatencyArgs>();
+  CLI::App* c = bench->add_subcommand(
+      "latency",
+      "Run the real cycle (planner and walker, no output sinks) on a long spiral for N seconds "
+      "and report wake-up lateness percentiles, a histogram, overruns and compute time per "
+      "period; then cyclictest with the same period, and both in one table");
+  c->add_option("--seconds", a->seconds, "how long each run lasts, s")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  c->add_option("--period-ms", a->period_ms, "cycle period, ms")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  c->add_option("--json", a->json, "write the results as JSON to this file");
+  c->add_flag("--stress", a->stress, "a busy thread on the highest-numbered CPU during both runs");
+  c->add_flag("--no-cyclictest", a->no_cyclictest, "do not run cyclictest");
+  c->callback([a, &run] { run = [a] { return run_bench_latency(*a); }; });
+}
+
+}  // namespace ncd::app
