@@ -116,41 +116,45 @@ void Cycle::join() {
   if (thread_.joinable()) thread_.join();
 }
 
+// Seqlock without fences: the fields are atomics stored with release and loaded with acquire,
+// so a reader that sees any field of a newer write also sees the odd sequence number of that
+// write when it reads seq_ again, and retries (Boehm, "Can seqlocks get along with programming
+// language memory models?", 2012). On x86 these are plain moves.
 void Cycle::publish(const Setpoint& sp, CycleState state) {
+  constexpr auto rel = std::memory_order_release;
   const std::uint64_t s = seq_.load(std::memory_order_relaxed);
   seq_.store(s + 1, std::memory_order_relaxed);
-  std::atomic_thread_fence(std::memory_order_release);
-  st_t_.store(sp.t_s, std::memory_order_relaxed);
-  st_s_.store(sp.s_mm, std::memory_order_relaxed);
-  st_v_.store(sp.v_mm_per_s, std::memory_order_relaxed);
-  st_x_.store(sp.p.x(), std::memory_order_relaxed);
-  st_y_.store(sp.p.y(), std::memory_order_relaxed);
-  st_z_.store(sp.p.z(), std::memory_order_relaxed);
-  st_ovr_.store(override_applied_, std::memory_order_relaxed);
-  st_state_.store(static_cast<int>(state), std::memory_order_relaxed);
-  st_periods_.store(stats_.periods, std::memory_order_relaxed);
-  st_overruns_.store(stats_.overruns, std::memory_order_relaxed);
-  st_late_.store(stats_.late_wakeups, std::memory_order_relaxed);
-  seq_.store(s + 2, std::memory_order_release);
+  st_t_.store(sp.t_s, rel);
+  st_s_.store(sp.s_mm, rel);
+  st_v_.store(sp.v_mm_per_s, rel);
+  st_x_.store(sp.p.x(), rel);
+  st_y_.store(sp.p.y(), rel);
+  st_z_.store(sp.p.z(), rel);
+  st_ovr_.store(override_applied_, rel);
+  st_state_.store(static_cast<int>(state), rel);
+  st_periods_.store(stats_.periods, rel);
+  st_overruns_.store(stats_.overruns, rel);
+  st_late_.store(stats_.late_wakeups, rel);
+  seq_.store(s + 2, rel);
 }
 
 CycleStatus Cycle::status() const {
+  constexpr auto acq = std::memory_order_acquire;
   CycleStatus c;
   for (;;) {
-    const std::uint64_t s0 = seq_.load(std::memory_order_acquire);
+    const std::uint64_t s0 = seq_.load(acq);
     if (s0 & 1U) continue;
-    c.t_s = st_t_.load(std::memory_order_relaxed);
-    c.s_mm = st_s_.load(std::memory_order_relaxed);
-    c.v_mm_per_s = st_v_.load(std::memory_order_relaxed);
-    c.x_mm = st_x_.load(std::memory_order_relaxed);
-    c.y_mm = st_y_.load(std::memory_order_relaxed);
-    c.z_mm = st_z_.load(std::memory_order_relaxed);
-    c.override_fraction = st_ovr_.load(std::memory_order_relaxed);
-    c.state = static_cast<CycleState>(st_state_.load(std::memory_order_relaxed));
-    c.periods = st_periods_.load(std::memory_order_relaxed);
-    c.overruns = st_overruns_.load(std::memory_order_relaxed);
-    c.late_wakeups = st_late_.load(std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_acquire);
+    c.t_s = st_t_.load(acq);
+    c.s_mm = st_s_.load(acq);
+    c.v_mm_per_s = st_v_.load(acq);
+    c.x_mm = st_x_.load(acq);
+    c.y_mm = st_y_.load(acq);
+    c.z_mm = st_z_.load(acq);
+    c.override_fraction = st_ovr_.load(acq);
+    c.state = static_cast<CycleState>(st_state_.load(acq));
+    c.periods = st_periods_.load(acq);
+    c.overruns = st_overruns_.load(acq);
+    c.late_wakeups = st_late_.load(acq);
     if (seq_.load(std::memory_order_relaxed) == s0) return c;
   }
 }
