@@ -75,6 +75,12 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   for (std::size_t k = 1; k < n; ++k) {
     joint_corner_[k] = corner_speed(direction(k - 1, true), direction(k, false));
   }
+  breakpoints_.resize(n);  // here, so that walking the segments later allocates nothing
+  for (std::size_t k = 0; k < n; ++k) {
+    if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
+      breakpoints_[k] = c->breakpoints();
+    }
+  }
 }
 
 FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out) const {
@@ -249,8 +255,9 @@ bool LimitSampler::next_interval(Interval& iv) {
     }
     const double speed = c.eval(u_).d1.norm();
     double u1 = speed > 0.0 ? u_ + config_.spacing_mm / speed : c.u_end();
-    while (knot_ < breakpoints_.size() && breakpoints_[knot_] <= u_) ++knot_;
-    if (knot_ < breakpoints_.size()) u1 = std::min(u1, breakpoints_[knot_]);
+    const std::vector<double>& knots = breakpoints_[segment_];
+    while (knot_ < knots.size() && knots[knot_] <= u_) ++knot_;
+    if (knot_ < knots.size()) u1 = std::min(u1, knots[knot_]);
     u1 = std::min(u1, c.u_end());
     const double arc =
         GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
@@ -273,7 +280,6 @@ void LimitSampler::enter_segment() {
   knot_ = 0;
   if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path_.segments[segment_].geometry)) {
     u_ = c->u_begin();
-    breakpoints_ = c->breakpoints();
   }
 }
 

@@ -24,8 +24,9 @@ struct SamplerConfig {
 class LimitSampler {
  public:
   // Keeps a reference to the path and the limits; computes the corner speeds at joints (one
-  // per segment, the only allocation). segment_starts_mm are the cumulative segment lengths
-  // (PathWalker::segment_start_mm), so that walker and sampler share one arc length.
+  // per segment) and the breakpoints of every curve: the only allocations. segment_starts_mm are
+  // the cumulative segment lengths (PathWalker::segment_start_mm), so that walker and sampler share
+  // one arc length.
   LimitSampler(const toolpath::Path& path, std::vector<double> segment_starts_mm,
                const MachineLimits& limits, const CuttingParams& cutting,
                const SamplerConfig& config = {});
@@ -60,13 +61,13 @@ class LimitSampler {
   std::vector<FeedLimitResult> joint_corner_;  // at the start of each segment (index 0: none)
   // Cursor.
   std::size_t segment_ = 0;
-  std::size_t piece_ = 0;            // polyline piece
-  std::size_t sub_ = 0;              // interval within the piece
-  double piece_s_ = 0.0;             // arc length at the start of the piece
-  double u_ = 0.0;                   // curve parameter
-  std::size_t knot_ = 0;             // next breakpoint of the curve
-  std::vector<double> breakpoints_;  // of the current curve segment
-  double s_ = 0.0;                   // arc length reached
+  std::size_t piece_ = 0;                         // polyline piece
+  std::size_t sub_ = 0;                           // interval within the piece
+  double piece_s_ = 0.0;                          // arc length at the start of the piece
+  double u_ = 0.0;                                // curve parameter
+  std::size_t knot_ = 0;                          // next breakpoint of the curve
+  std::vector<std::vector<double>> breakpoints_;  // per segment (empty for polylines)
+  double s_ = 0.0;                                // arc length reached
   bool started_ = false, finished_ = false;
   LimitNode pending_;  // the node whose right-hand interval is not known yet
 };

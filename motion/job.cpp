@@ -61,6 +61,9 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
       planner_(planner_limits(config), walker_.length_mm()) {
   interpolator::validate(config.limits);
   interpolator::validate(config.cutting);
+  // Every limit is capped by the machine's maximum feed: size the planner for it now, so
+  // that nothing allocates once the cycle runs.
+  planner_.reserve_for_speed(config.limits.max_feed_mm_per_min / 60.0);
 }
 
 void Job::prepare() {

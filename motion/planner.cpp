@@ -216,18 +216,22 @@ void Planner::push(const LimitSample& in) {
   if (in.s_mm >= length_mm_) saw_end_ = true;
   if (in.v_max_mm_per_s > v_top_pushed_) {
     v_top_pushed_ = in.v_max_mm_per_s;
-    // Longest rollout: a stop from 2 v_top (override 200 %) with settling phases, tripled.
-    const double v_cap = 2.0 * v_top_pushed_ + a_max_ * a_max_ / j_max_;
-    const double t_stop = v_cap / a_max_ + 2.0 * a_max_ / j_max_;
-    const auto cap = static_cast<std::size_t>(std::ceil(3.0 * t_stop / period_s_)) + 64;
-    if (cap > rollout_cap_) {
-      rollout_cap_ = cap;
-      plan_.resize(cap);
-      trial_.resize(cap);
-      best_.resize(cap);
-      land_j_.resize(cap);
-      land_base_.resize(cap);
-    }
+    reserve_for_speed(v_top_pushed_);
+  }
+}
+
+void Planner::reserve_for_speed(double v_mm_per_s) {
+  // Longest rollout: a stop from 2 v (override 200 %) with settling phases, tripled.
+  const double v_cap = 2.0 * v_mm_per_s + a_max_ * a_max_ / j_max_;
+  const double t_stop = v_cap / a_max_ + 2.0 * a_max_ / j_max_;
+  const auto cap = static_cast<std::size_t>(std::ceil(3.0 * t_stop / period_s_)) + 64;
+  if (cap > rollout_cap_) {
+    rollout_cap_ = cap;
+    plan_.resize(cap);
+    trial_.resize(cap);
+    best_.resize(cap);
+    land_j_.resize(cap);
+    land_base_.resize(cap);
   }
 }
 

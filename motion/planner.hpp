@@ -56,8 +56,12 @@ class Planner {
   // True while the look-ahead window wants more samples (not full, not past L, and not yet
   // covering the braking horizon from the current speed); push while it says so.
   bool wants_samples() const;
-  // Appends one limit sample (s strictly increasing, first at 0, 0 < v finite). May allocate.
+  // Appends one limit sample (s strictly increasing, first at 0, 0 < v finite). Allocates
+  // only when v is above every speed pushed or reserved before.
   void push(const LimitSample& sample);
+  // Sizes the plan buffers for samples up to v (the machine's maximum feed), so that push()
+  // and step() never allocate afterwards: call it before handing the planner to the cycle.
+  void reserve_for_speed(double v_mm_per_s);
   // Advances one period; no allocation, bounded work.
   MotionSample step();
 

@@ -1,0 +1,59 @@
+// Nothing allocates in the cycle's period once the job is built: every operator new in this
+// test binary is counted, and periods of a job with curves, polylines and joints must not move
+// the count.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "motion/job.hpp"
+#include "toolpath/path_io.hpp"
+
+namespace {
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
+
+namespace ncd::motion {
+namespace {
+
+TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
+  // A G-code program: lines, a G5.2 NURBS block, more lines: segment changes and joints, and a
+  // slow start, so that higher limits reach the planner only after the first window.
+  const toolpath::Path path = toolpath::read_path_text(
+      "G21 G90\nG0 X0 Y0 Z0\nG1 X20 Y0 F300\nG1 X20 Y10 F3000\n"
+      "G5.2 X30 Y20 P1 L4\nX40 Y0 P2\nX50 Y15 P1\nX60 Y5 P1\nG5.3\n"
+      "G1 X70 Y5\nG1 X70 Y-20 F1200\nM2\n",
+      "mixed.ngc");
+  ASSERT_GE(path.segments.size(), 3u);
+  JobConfig cfg;
+  cfg.cutting.teeth = 4;
+  cfg.cutting.spindle_rpm = 12000.0;
+  Job job(path, cfg);
+  job.prepare();  // the first look-ahead window is filled before the cycle starts
+  const long before = g_allocations.load();
+  int periods = 0;
+  for (;;) {
+    job.prepare();
+    const Setpoint sp = job.step();
+    ++periods;
+    if (sp.done) break;
+  }
+  EXPECT_GT(periods, 100);
+  EXPECT_EQ(g_allocations.load() - before, 0) << "allocations during " << periods << " periods";
+}
+
+}  // namespace
+}  // namespace ncd::motion
