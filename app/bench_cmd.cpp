@@ -302,6 +302,7 @@ int run_bench_latency(const BenchLatencyArgs& a) {
     j["stress_note"] = stress ? nlohmann::ordered_json(stress->note()) : nullptr;
     j["realtime"] = {{"fifo", ncd.grant.fifo},
                      {"memory_locked", ncd.grant.memory_locked},
+                     {"cpu_latency_held", ncd.grant.cpu_latency_held},
                      {"message", ncd.grant.message}};
     j["path"] = {{"kind", "spiral NURBS"}, {"turns", turns}};
     j["jobs"] = ncd.jobs;

@@ -249,8 +249,8 @@ CyclictestRun run_cyclictest(const CyclictestOptions& o) {
     }
     if (child.out.find("/dev/cpu_dma_latency set to 0us") != std::string::npos) {
       run.notes.push_back(
-          "cyclictest held /dev/cpu_dma_latency at 0 us (no deep C-states) during its run; "
-          "ncd's cycle does not");
+          "cyclictest held /dev/cpu_dma_latency at 0 us (no deep C-states) during its run, as "
+          "ncd's cycle does when it may (see the realtime line)");
     }
     run.percentiles = cyclictest_percentiles(run.histogram);
     if (run.percentiles.overflowed) {

@@ -21,10 +21,12 @@
 // the job once the motion is at rest.
 #include "motion/cycle.hpp"
 
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cmath>
@@ -58,6 +60,7 @@ Cycle::~Cycle() {
   stop_req_.store(true, std::memory_order_release);
   abort_.store(true, std::memory_order_release);
   if (thread_.joinable()) thread_.join();
+  if (cpu_latency_fd_ >= 0) close(cpu_latency_fd_);  // ends the PM QoS request
 }
 
 RealtimeGrant Cycle::start() {
@@ -68,6 +71,16 @@ RealtimeGrant Cycle::start() {
       g.memory_locked = true;
     } else {
       why += std::string(" mlockall: ") + std::strerror(errno) + ";";
+    }
+    // Keep the CPUs out of deep idle states while the cycle lives, as cyclictest does: a
+    // wake-up from C6 costs tens of microseconds (the kernel's PM QoS interface).
+    cpu_latency_fd_ = open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+    const std::int32_t zero_us = 0;
+    if (cpu_latency_fd_ >= 0 &&
+        write(cpu_latency_fd_, &zero_us, sizeof zero_us) == sizeof zero_us) {
+      g.cpu_latency_held = true;
+    } else {
+      why += std::string(" /dev/cpu_dma_latency: ") + std::strerror(errno) + ";";
     }
   }
   thread_ = std::thread(&Cycle::run, this);
@@ -89,7 +102,8 @@ RealtimeGrant Cycle::start() {
     g.message =
         std::string("cycle on the wall clock: SCHED_FIFO ") +
         (g.fifo ? "granted (priority " + std::to_string(options_.fifo_priority) + ")" : "refused") +
-        ", memory " + (g.memory_locked ? "locked" : "not locked") +
+        ", memory " + (g.memory_locked ? "locked" : "not locked") + ", CPU idle latency " +
+        (g.cpu_latency_held ? "held at 0 us" : "not held") +
         (why.empty() ? ""
                      : " (" + why.substr(1) +
                            " run as root or give the process "

@@ -40,6 +40,7 @@ struct CycleStats {
 struct RealtimeGrant {
   bool fifo = false;
   bool memory_locked = false;
+  bool cpu_latency_held = false;  // /dev/cpu_dma_latency held at 0 µs (no deep C-states)
   std::string message;  // one line for the log: what was asked, what was granted, and why not
 };
 
@@ -100,6 +101,7 @@ class Cycle {
   std::atomic<double> override_req_{-1.0};
   std::atomic<bool> finished_{false};
   std::atomic<bool> abort_{false};  // the destructor: leave at once, even mid-hold
+  int cpu_latency_fd_ = -1;         // held open while the cycle lives (PM QoS request)
   bool stopping_ = false;
   double override_applied_ = 1.0;
   // Status snapshot (seqlock: odd while written).
