@@ -35,6 +35,7 @@
 #include "app/output.hpp"
 #include "core/error.hpp"
 #include "motion/cycle.hpp"
+#include "toolpath/spiral.hpp"
 
 namespace ncd::app {
 namespace {
@@ -51,32 +52,12 @@ struct BenchLatencyArgs {
   bool stress = false, no_cyclictest = false;
 };
 
-// Archimedean spiral of `turns` turns from r = 100 mm inwards at 0.1 mm pitch, 16 control points
-// per turn, cubic B-spline with integer knots (the path of bench/replay_bench.cpp).
-toolpath::Path spiral(int turns) {
-  const int per_turn = 16, n = turns * per_turn + 1, degree = 3;
-  std::vector<Vec3> pts;
-  for (int i = 0; i < n; ++i) {
-    const double th = 2.0 * kPi * i / per_turn, r = 100.0 - 0.1 * i / per_turn;
-    pts.emplace_back(r * std::cos(th), r * std::sin(th), 2.0 * std::sin(0.05 * th));
-  }
-  std::vector<double> knots(degree + 1, 0.0);
-  const int inner = n - degree - 1;
-  for (int i = 1; i <= inner; ++i) knots.push_back(i);
-  knots.insert(knots.end(), degree + 1, inner + 1.0);
-  toolpath::Path path;
-  path.segments.push_back(
-      {toolpath::NurbsCurve(degree, knots, pts), std::nullopt, std::nullopt, false, 0});
-  path.source = "spiral";
-  return path;
-}
-
 // Turns whose length (about 2π (100 k − 0.05 k²) mm for k turns) covers `seconds` at the
 // machine's maximum feed with half again as margin; at most kMaxSpiralTurns.
 int spiral_turns_for(double seconds, double max_feed_mm_per_s) {
   const double needed_mm = 1.5 * seconds * max_feed_mm_per_s + 1000.0;
   for (int k = 1; k < kMaxSpiralTurns; ++k) {
-    if (2.0 * kPi * (100.0 * k - 0.05 * k * k) >= needed_mm) return k;
+    if (toolpath::spiral_length_mm(k) >= needed_mm) return k;
   }
   return kMaxSpiralTurns;
 }
@@ -233,7 +214,7 @@ int run_bench_latency(const BenchLatencyArgs& a) {
   motion::JobConfig cfg;  // default machine limits and cutting parameters
   cfg.limits.period_s = a.period_ms * 1e-3;
   const int turns = spiral_turns_for(a.seconds, cfg.limits.max_feed_mm_per_min / 60.0);
-  const toolpath::Path path = spiral(turns);
+  const toolpath::Path path = toolpath::spiral_path(turns);
   std::printf(
       "ncd bench latency: %d s at a %s ms period, spiral NURBS of %d turns, default "
       "machine limits%s\n",
