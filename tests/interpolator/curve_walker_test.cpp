@@ -18,6 +18,7 @@
 #include "core/error.hpp"
 #include "core/quadrature.hpp"
 #include "interpolator/feed_limits.hpp"
+#include "tests/common/seed.hpp"
 
 // Counts every heap allocation of this test binary, to prove step() makes none.
 namespace {
@@ -41,13 +42,6 @@ namespace {
 
 using toolpath::CurvePoint;
 using toolpath::ParametricCurve;
-
-std::uint64_t test_seed() {
-  std::uint64_t seed = 20240611;
-  if (const char* env = std::getenv("NCD_TEST_SEED")) seed = std::strtoull(env, nullptr, 10);
-  std::cout << "[ seed     ] NCD_TEST_SEED=" << seed << "\n";
-  return seed;
-}
 
 // H(φ) = (a cos φ, a sin φ, b φ) with φ(u) = u + k u²: |P'| = c φ'(u), c = sqrt(a² + b²), grows
 // along the curve; the arc length from 0 is c φ(u).
@@ -267,7 +261,7 @@ TEST(CurveWalker, RampsWithDeltaSChangingEveryStep) {
     EXPECT_LE(st.max_drift_mm, 1e-6);
   }
   // Random Δs in [1e-4, 0.8] mm, a feed jumping between periods.
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed(20240611));
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const auto jumpy = [&](int) { return 1e-4 + 0.8 * unit(rng); };
   for (const WalkStats& st : {walk(helix, corrected(), jumpy), walk(s, corrected(), jumpy)}) {

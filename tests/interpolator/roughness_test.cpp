@@ -11,6 +11,7 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "tests/common/seed.hpp"
 
 namespace ncd::interpolator {
 namespace {
@@ -18,13 +19,6 @@ namespace {
 constexpr double kR = 5.0;   // ball radius, mm
 constexpr double kFp = 0.5;  // pick feed, mm
 constexpr double kFt = 0.5;  // feed per tooth, mm
-
-std::uint64_t test_seed() {
-  std::uint64_t seed = 20240611;
-  if (const char* env = std::getenv("NCD_TEST_SEED")) seed = std::strtoull(env, nullptr, 10);
-  std::cout << "[ seed     ] NCD_TEST_SEED=" << seed << "\n";
-  return seed;
-}
 
 std::string message_of(const CuttingParams& p) {
   try {
@@ -108,7 +102,7 @@ TEST(ChoiModel, FeedIsFeedPerToothTimesTeethTimesSpeed) {
 // --- the inverse ------------------------------------------------------------------------------
 
 TEST(ChoiInverse, RoundTripsTheForwardLawOverRandomInputs) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed(20240611));
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (int i = 0; i < 20000; ++i) {
     const double r = 0.5 + 9.5 * unit(rng);
@@ -236,7 +230,7 @@ TEST(Inclination, FromTheTangentIsTheSlopeSignedUphill) {
 }
 
 TEST(Inclination, FromANormalAgreesWithTheTangentInTheFeedPlane) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed(20240611));
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (int i = 0; i < 1000; ++i) {
     const double slope = (unit(rng) - 0.5) * 0.98 * kPi;

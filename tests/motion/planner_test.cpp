@@ -16,16 +16,12 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/common/seed.hpp"
 
 namespace ncd::motion {
 namespace {
 
 constexpr double kTol = 1e-9;  // relative tolerance of the checks (rounding only)
-
-std::uint64_t test_seed() {
-  if (const char* env = std::getenv("NCD_TEST_SEED")) return std::strtoull(env, nullptr, 10);
-  return std::random_device{}();
-}
 
 // The limit the curve sets at s: min of the two ends of the segment holding s (both adjacent
 // segments at a sample point); 0 outside the curve.
@@ -315,7 +311,7 @@ std::vector<LimitSample> random_curve(std::mt19937_64& rng, double length_mm) {
 }
 
 TEST(Planner, RandomLimitCurvesKeepEveryConstraint) {
-  const std::uint64_t seed = test_seed();
+  const std::uint64_t seed = ncd::test::seed();
   std::printf("Planner random curves: NCD_TEST_SEED=%llu\n", static_cast<unsigned long long>(seed));
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "tests/common/seed.hpp"
 
 namespace ncd::toolpath {
 namespace {
@@ -34,14 +35,6 @@ ChamferSpec experiment(int n) {
   s.tolerance_mm = n == 1 ? 0.02 : 0.01;
   s.avoid = n == 3;
   return s;
-}
-
-std::uint64_t test_seed() {
-  const char* env = std::getenv("NCD_TEST_SEED");
-  const std::uint64_t seed = env ? std::strtoull(env, nullptr, 10) : std::random_device{}();
-  std::cout << "[ seed     ] NCD_TEST_SEED=" << seed << "\n";
-  ::testing::Test::RecordProperty("seed", std::to_string(seed));
-  return seed;
 }
 
 // A random but valid chamfer set-up: edge, side, radii, and a width that fits everywhere.
@@ -194,7 +187,7 @@ TEST(ChamferPaper, Eq41IsTheGlobalBoundOnTheInnerUpperEdge) {
 // ---------------------------------------------------------------- identities, random sweeps
 
 TEST(ChamferIdentity, WidthIsExactlyWOverRandomGeometries) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 300; ++trial) {
     const ChamferSpec s = random_spec(rng);
@@ -226,7 +219,7 @@ TEST(ChamferIdentity, WidthIsExactlyWOverRandomGeometries) {
 }
 
 TEST(ChamferIdentity, AlphaOneCutsEqualArcsAndMatchesTheClosedForm) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 300; ++trial) {
     const ChamferSpec s = random_spec(rng);
@@ -246,7 +239,7 @@ TEST(ChamferIdentity, AlphaOneCutsEqualArcsAndMatchesTheClosedForm) {
 }
 
 TEST(ChamferIdentity, FrameIsOrthonormalWhereItShouldBe) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 200; ++trial) {
     const ChamferModel m(random_spec(rng));
@@ -328,7 +321,7 @@ double brute_deviation(const ChamferModel& m, double a, double b) {
 }
 
 TEST(ChamferSegmentation, EveryPieceIsWithinTolerance) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 20; ++trial) {
     ChamferSpec s = random_spec(rng);
@@ -345,7 +338,7 @@ TEST(ChamferSegmentation, EveryPieceIsWithinTolerance) {
 }
 
 TEST(ChamferSegmentation, CountsAreMultiplesOfFourOnSymmetricSetups) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 40; ++trial) {
     ChamferSpec s = random_spec(rng);
@@ -398,7 +391,7 @@ TEST(ChamferSegmentation, InitialPiecesHaveEqualArcLength) {
 // ---------------------------------------------------------------- Algorithm 1
 
 TEST(ChamferAlgorithm1, ClearsTheRodWithTheSmallestAlphaOverRandomGeometries) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   int adjusted_total = 0;
   for (int trial = 0; trial < 60; ++trial) {

@@ -21,6 +21,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "tests/common/seed.hpp"
 
 // Counts heap allocations of this test executable, to check that eval() makes none.
 namespace {
@@ -128,14 +129,6 @@ Reference reference(const NurbsCurve& c, double u) {
   return out;
 }
 
-std::uint64_t test_seed() {
-  std::uint64_t seed = std::random_device{}();
-  if (const char* env = std::getenv("NCD_TEST_SEED")) seed = std::stoull(env);
-  ::testing::Test::RecordProperty("seed", std::to_string(seed));
-  std::cout << "seed " << seed << " (set NCD_TEST_SEED to repeat)\n";
-  return seed;
-}
-
 // A random clamped NURBS on [0, L] with interior knots repeated up to the degree.
 NurbsCurve random_curve(std::mt19937_64& rng, int degree, bool rational) {
   std::uniform_int_distribution<int> extra(0, 12);
@@ -172,7 +165,7 @@ void expect_close(const Vec3& got, const Vec3& want, double scale, double tol,
 }
 
 TEST(NurbsCurve, MatchesCoxDeBoorJetReferenceInRandomSweeps) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   int checked = 0;
   for (int degree = 1; degree <= 7; ++degree) {
@@ -256,7 +249,7 @@ TEST(NurbsCurve, RationalFullCircleIsExact) {
 }
 
 TEST(NurbsCurve, DegreeOneIsThePolyline) {
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> coord(-50.0, 50.0), unit(0.0, 1.0);
   for (int trial = 0; trial < 50; ++trial) {
     const std::size_t n = 2 + static_cast<std::size_t>(trial % 9);
@@ -288,7 +281,7 @@ TEST(NurbsCurve, DegreeOneIsThePolyline) {
 TEST(NurbsCurve, PartitionOfUnityReproducesAConstant) {
   // Σ N_i = 1 and Σ N_i' = Σ N_i'' = 0: with every control point at q the curve is q, whatever
   // the weights, and both derivatives vanish.
-  std::mt19937_64 rng(test_seed());
+  std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const Vec3 q(12.5, -3.25, 7.0);
   for (int degree = 1; degree <= 7; ++degree) {
