@@ -18,24 +18,8 @@
 #include "core/error.hpp"
 #include "core/quadrature.hpp"
 #include "interpolator/feed_limits.hpp"
+#include "tests/common/count_allocations.hpp"
 #include "tests/common/seed.hpp"
-
-// Counts every heap allocation of this test binary, to prove step() makes none.
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
 
 namespace ncd::interpolator {
 namespace {
@@ -337,13 +321,13 @@ TEST(CurveWalker, StepsAndFeedLimitsDoNotAllocate) {
   const MachineLimits limits;
   const CuttingParams cutting;
   double sink = 0.0;
-  const long before = g_allocations.load();
+  const long before = ncd::test::g_allocations.load();
   for (int k = 0; k < 100 && !walker.at_end(); ++k) {
     const StepResult r = walker.step(0.3);
     const StepResult t = taylor.step(0.3);
     sink += r.u + t.u + feed_limit_at(limits, cutting, s.eval(r.u)).feed_mm_per_s;
   }
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(ncd::test::g_allocations.load() - before, 0);
   EXPECT_GT(sink, 0.0);
 }
 

@@ -8,23 +8,8 @@
 #include <new>
 
 #include "motion/job.hpp"
+#include "tests/common/count_allocations.hpp"
 #include "toolpath/path_io.hpp"
-
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
 
 namespace ncd::motion {
 namespace {
@@ -43,7 +28,7 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
   cfg.cutting.spindle_rpm = 12000.0;
   Job job(path, cfg);
   job.prepare();  // the first look-ahead window is filled before the cycle starts
-  const long before = g_allocations.load();
+  const long before = ncd::test::g_allocations.load();
   int periods = 0;
   for (;;) {
     job.prepare();
@@ -52,7 +37,8 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
     if (sp.done) break;
   }
   EXPECT_GT(periods, 100);
-  EXPECT_EQ(g_allocations.load() - before, 0) << "allocations during " << periods << " periods";
+  EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
+      << "allocations during " << periods << " periods";
 }
 
 }  // namespace

@@ -21,28 +21,8 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "tests/common/count_allocations.hpp"
 #include "tests/common/seed.hpp"
-
-// Counts heap allocations of this test executable, to check that eval() makes none.
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// The replaced new and delete are a malloc/free pair; GCC cannot see that through inlining.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-#pragma GCC diagnostic pop
 
 namespace ncd::toolpath {
 namespace {
@@ -194,14 +174,14 @@ TEST(NurbsCurve, MatchesCoxDeBoorJetReferenceInRandomSweeps) {
 TEST(NurbsCurve, EvalDoesNotAllocate) {
   std::mt19937_64 rng(7);
   const NurbsCurve c = random_curve(rng, 7, true);
-  const long before = g_allocations.load();
+  const long before = ncd::test::g_allocations.load();
   double sink = 0.0;
   for (int i = 0; i <= 1000; ++i) sink += c.eval(c.u_end() * i / 1000.0).d2.norm();
-  EXPECT_EQ(g_allocations.load(), before);
+  EXPECT_EQ(ncd::test::g_allocations.load(), before);
   EXPECT_TRUE(std::isfinite(sink));
   // The counter works: a vector allocates.
   std::vector<double> v(10);
-  EXPECT_GT(g_allocations.load(), before);
+  EXPECT_GT(ncd::test::g_allocations.load(), before);
 }
 
 // Quarter circle of radius r: P0 = (r, 0), P1 = (r, r), P2 = (0, r), weights 1, c, 1 with
