@@ -1,0 +1,41 @@
+// Line flags: one definition for every subcommand that opens a DNC link.
+#include "app/link_options.hpp"
+
+#include "core/error.hpp"
+
+namespace ncd::app {
+
+void add_link_flags(CLI::App& sub, LinkFlags& flags) {
+  sub.add_option("--baud", flags.baud, "line speed in baud (300 … 115200)")->capture_default_str();
+  sub.add_option("--frame", flags.frame, "data bits, parity, stop bits: 7E2, 8N1, 8E1, …")
+      ->capture_default_str();
+  sub.add_option("--flow", flags.flow, "flow control: none | xonxoff | rtscts")
+      ->capture_default_str();
+  sub.add_option("--protocol", flags.protocol,
+                 "drip (DC1/DC3 or CTS pacing) | ack (grbl-type ok / error:N per line)")
+      ->capture_default_str();
+  sub.add_option("--eob", flags.eob, "end of block: lf | crlf")->capture_default_str();
+  sub.add_flag("--no-percent", flags.no_percent, "do not frame the program with % lines");
+  sub.add_option("--nul-leader", flags.nul_leader, "NUL characters sent before the program")
+      ->capture_default_str();
+}
+
+comms::LineSettings line_settings(const LinkFlags& flags, const std::string& device) {
+  comms::LineSettings line;
+  line.device = device;
+  comms::check_baud(flags.baud);
+  line.baud = flags.baud;
+  comms::parse_frame(flags.frame, line);
+  line.flow = comms::parse_flow(flags.flow);
+  line.protocol = comms::parse_protocol(flags.protocol);
+  line.eob = comms::parse_eob(flags.eob);
+  line.percent_framing = !flags.no_percent;
+  if (flags.nul_leader < 0 || flags.nul_leader > 1000) {
+    throw InputError("--nul-leader " + std::to_string(flags.nul_leader) +
+                     " is out of range: use 0 to 1000 characters");
+  }
+  line.nul_leader = flags.nul_leader;
+  return line;
+}
+
+}  // namespace ncd::app

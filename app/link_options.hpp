@@ -1,0 +1,27 @@
+// The line flags shared by `ncd stream` and `ncd sim-controller`: --baud, --frame, --flow,
+// --protocol, --eob, --no-percent, --nul-leader.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "comms/line_settings.hpp"
+
+namespace ncd::app {
+
+struct LinkFlags {
+  int baud = 19200;
+  std::string frame = "7E2";
+  std::string flow = "xonxoff";
+  std::string protocol = "drip";
+  std::string eob = "lf";
+  bool no_percent = false;
+  int nul_leader = 0;
+};
+
+// Adds the line flags to a subcommand, with the defaults above.
+void add_link_flags(CLI::App& sub, LinkFlags& flags);
+// Checks the flags and turns them into line settings for `device`; throws InputError.
+comms::LineSettings line_settings(const LinkFlags& flags, const std::string& device);
+
+}  // namespace ncd::app
