@@ -1,0 +1,105 @@
+// Transfer journal: header line, then `confirmed NNNNNNNNNNNN complete N\n` at a fixed offset.
+#include "comms/transfer_journal.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "core/error.hpp"
+
+namespace ncd::comms {
+namespace {
+
+constexpr const char* kMagic = "ncd-transfer-journal-1";
+
+std::string record_text(std::int64_t confirmed, bool complete) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "confirmed %012lld complete %d\n",
+                static_cast<long long>(confirmed), complete ? 1 : 0);
+  return buf;
+}
+
+}  // namespace
+
+TransferJournal::TransferJournal(const std::string& path, const JournalState& start)
+    : path_(path), state_(start) {
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) {
+    throw std::runtime_error("cannot create the transfer journal " + path + ": " +
+                             std::strerror(errno));
+  }
+  const nlohmann::json header{{"journal", kMagic},
+                              {"program_sha256", start.program_sha256},
+                              {"settings", start.settings},
+                              {"blocks", start.blocks}};
+  const std::string head = header.dump() + "\n";
+  if (::write(fd_, head.data(), head.size()) != static_cast<ssize_t>(head.size())) {
+    throw std::runtime_error("cannot write the transfer journal " + path + ": " +
+                             std::strerror(errno));
+  }
+  record_offset_ = static_cast<long>(head.size());
+  write_record();
+}
+
+TransferJournal::~TransferJournal() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void TransferJournal::confirm(std::int64_t confirmed) {
+  if (confirmed <= state_.confirmed) return;
+  state_.confirmed = confirmed;
+  write_record();
+}
+
+void TransferJournal::complete() {
+  state_.complete = true;
+  state_.confirmed = state_.blocks;
+  write_record();
+}
+
+void TransferJournal::write_record() {
+  const std::string rec = record_text(state_.confirmed, state_.complete);
+  if (::pwrite(fd_, rec.data(), rec.size(), record_offset_) != static_cast<ssize_t>(rec.size()) ||
+      ::fdatasync(fd_) != 0) {
+    throw std::runtime_error("cannot update the transfer journal " + path_ + ": " +
+                             std::strerror(errno));
+  }
+}
+
+std::optional<JournalState> TransferJournal::read(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return std::nullopt;
+  const auto bad = [&](const std::string& why) {
+    return InputError("the transfer journal " + path + " is not usable (" + why +
+                      "): remove it, or pass --restart to send the program from the start");
+  };
+  std::string head, rec;
+  if (!std::getline(in, head) || !std::getline(in, rec)) throw bad("truncated");
+  JournalState s;
+  try {
+    const auto j = nlohmann::json::parse(head);
+    if (j.at("journal").get<std::string>() != kMagic) throw bad("unknown format");
+    s.program_sha256 = j.at("program_sha256").get<std::string>();
+    s.settings = j.at("settings").get<std::string>();
+    s.blocks = j.at("blocks").get<std::int64_t>();
+  } catch (const nlohmann::json::exception& e) {
+    throw bad(e.what());
+  }
+  long long confirmed = -1;
+  int complete = -1;
+  if (std::sscanf(rec.c_str(), "confirmed %lld complete %d", &confirmed, &complete) != 2 ||
+      confirmed < 0 || confirmed > s.blocks || (complete != 0 && complete != 1)) {
+    throw bad("bad record '" + rec + "'");
+  }
+  s.confirmed = confirmed;
+  s.complete = complete == 1;
+  return s;
+}
+
+}  // namespace ncd::comms
