@@ -1,0 +1,185 @@
+// The sender's parts against independent expectations: line arithmetic from the spec, the
+// journal on disk, program files, and the drip-feed stop distance measured on a real
+// pseudo-terminal with a peer written here (no simulated controller involved).
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "comms/dnc_sender.hpp"
+#include "comms/live_blocks.hpp"
+#include "comms/program_file.hpp"
+#include "comms/sha256.hpp"
+#include "comms/transfer_journal.hpp"
+#include "core/error.hpp"
+
+namespace ncd::comms {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(LineSettings, CharacterCostFromTheSpec) {
+  LineSettings l;
+  parse_frame("7E2", l);
+  EXPECT_EQ(bits_per_char(l), 11);
+  EXPECT_NEAR(chars_per_s(l), 1745.45, 0.01);  // spec: about 1 745 characters per second
+  parse_frame("8N1", l);
+  EXPECT_EQ(bits_per_char(l), 10);
+  parse_frame("8o2", l);
+  EXPECT_EQ(l.parity, Parity::Odd);
+  EXPECT_EQ(bits_per_char(l), 12);
+  for (const char* bad : {"", "9N1", "8X1", "8N3", "7E22", "E72"}) {
+    EXPECT_THROW(parse_frame(bad, l), InputError) << bad;
+  }
+  EXPECT_THROW(check_baud(12345), InputError);
+  EXPECT_NO_THROW(check_baud(19200));
+  EXPECT_THROW(parse_flow("hw"), InputError);
+  EXPECT_THROW(parse_protocol("zmodem"), InputError);
+}
+
+TEST(Sha256, KnownDigests) {
+  EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  Sha256 h;
+  h.update("a");
+  h.update("bc");
+  EXPECT_EQ(h.hex(), sha256_hex("abc"));
+}
+
+fs::path temp(const std::string& name) {
+  return fs::temp_directory_path() / ("ncd_sender_" + std::to_string(getpid()) + "_" + name);
+}
+
+TEST(TransferJournal, RecordsTheResumePointInPlace) {
+  const fs::path p = temp("journal");
+  JournalState s;
+  s.program_sha256 = "ab";
+  s.settings = "19200 7E2 xonxoff drip LF";
+  s.blocks = 1000;
+  {
+    TransferJournal j(p.string(), s);
+    const auto size0 = fs::file_size(p);
+    for (std::int64_t k = 1; k <= 999; ++k) j.confirm(k);
+    j.confirm(10);                       // never backwards
+    EXPECT_EQ(fs::file_size(p), size0);  // the record is overwritten, the file does not grow
+    const auto r = TransferJournal::read(p.string());
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->confirmed, 999);
+    EXPECT_FALSE(r->complete);
+    EXPECT_EQ(r->settings, s.settings);
+    j.complete();
+  }
+  EXPECT_TRUE(TransferJournal::read(p.string())->complete);
+  std::ofstream(p) << "not a journal\n";
+  EXPECT_THROW(TransferJournal::read(p.string()), InputError);
+  fs::remove(p);
+  EXPECT_FALSE(TransferJournal::read(p.string()));
+}
+
+TEST(ProgramFile, FramingIsNotABlock) {
+  EXPECT_EQ(block_of_line("%"), "");
+  EXPECT_EQ(block_of_line(std::string("\0\0%\r", 4)), "");
+  EXPECT_EQ(block_of_line("  N1G1X1\r"), "N1G1X1");
+  const fs::path p = temp("prog.ngc");
+  std::ofstream(p) << std::string("\0\0", 2) << "%\r\nN1G1X1\r\n\r\nN2G1X2\r\n%\r\n";
+  const ProgramSummary s = scan_program(p.string(), 7, 256);
+  EXPECT_EQ(s.blocks, 2);
+  EXPECT_EQ(s.sha256, sha256_hex("N1G1X1\nN2G1X2\n"));
+  EXPECT_TRUE(s.numbered);
+  EXPECT_THROW(scan_program(p.string(), 7, 5), InputError);  // block longer than allowed
+  std::ofstream(p) << "%\n%\n";
+  EXPECT_THROW(scan_program(p.string(), 7, 256), InputError);  // no blocks
+  fs::remove(p);
+}
+
+// A pseudo-terminal whose master side the test plays as the controller.
+struct Pty {
+  Pty() {
+    master = posix_openpt(O_RDWR | O_NOCTTY);
+    EXPECT_GE(master, 0);
+    grantpt(master);
+    unlockpt(master);
+    slave_name = ptsname(master);
+    const int s = ::open(slave_name.c_str(), O_RDWR | O_NOCTTY);
+    termios t{};
+    tcgetattr(s, &t);
+    cfmakeraw(&t);
+    tcsetattr(s, TCSANOW, &t);
+    ::close(s);
+  }
+  ~Pty() { ::close(master); }
+  int master = -1;
+  std::string slave_name;
+};
+
+// Drip feed: after the controller's DC3 the sender stops within max_queued_chars characters,
+// and the program still arrives whole once DC1 comes.
+TEST(DncSender, DripStopsWithinTheQueueLimitAfterXoff) {
+  Pty pty;
+  LiveBlocks blocks;
+  std::string expect;
+  for (int i = 1; i <= 250; ++i) {
+    const std::string b = "N" + std::to_string(i) + "G1X" + std::to_string(i) + ".5Y-1.25";
+    blocks.push(b);
+    expect += b + "\n";
+  }
+  blocks.close();
+  SenderSettings s;
+  s.line.device = pty.slave_name;
+  s.line.baud = 38400;
+  s.line.percent_framing = false;
+  s.max_queued_chars = 16;
+  DncSender sender(s, blocks);
+  std::atomic<bool> stop{false};
+  SenderReport report;
+  std::thread t([&] { report = sender.run(stop); });
+
+  std::string got;
+  std::size_t after_xoff_max = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  int cycle = 0;
+  while (got.size() < expect.size() &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(20)) {
+    // Read freely for 30 ms, then DC3, then count what still arrives for 50 ms, then DC1.
+    const auto read_for = [&](int ms) {
+      std::size_t n = 0;
+      const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+      while (std::chrono::steady_clock::now() < end) {
+        pollfd p{pty.master, POLLIN, 0};
+        if (::poll(&p, 1, 1) > 0) {
+          char buf[256];
+          const ssize_t r = ::read(pty.master, buf, sizeof buf);
+          if (r > 0) {
+            got.append(buf, static_cast<std::size_t>(r));
+            n += static_cast<std::size_t>(r);
+          }
+        }
+      }
+      return n;
+    };
+    read_for(30);
+    const char xoff = kXoff, xon = kXon;
+    ASSERT_EQ(::write(pty.master, &xoff, 1), 1);
+    after_xoff_max = std::max(after_xoff_max, read_for(50));
+    ASSERT_EQ(::write(pty.master, &xon, 1), 1);
+    ++cycle;
+  }
+  t.join();
+  EXPECT_TRUE(report.completed) << report.failure;
+  EXPECT_EQ(got, expect);
+  EXPECT_GT(cycle, 5);
+  EXPECT_LE(after_xoff_max, 16U);
+  EXPECT_GT(report.xoff_count, 5);
+  EXPECT_EQ(report.program_sha256, sha256_hex(expect));
+}
+
+}  // namespace
+}  // namespace ncd::comms
