@@ -1,8 +1,12 @@
 // Machine file reader on toml11. Integers are accepted where a real number is expected
 // (`period_s = 1` is 1.0 s); anything else of the wrong type, an unknown key or table, and a
-// value out of range are InputErrors naming the file and the key.
+// value out of range are InputErrors naming the file and the key. The [link] spellings are
+// those of the line flags (comms/line_settings.hpp); [encoder] is checked by the encoder's own
+// validate().
 #include "app/machine_config.hpp"
 
+#include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <sstream>
 #include <toml.hpp>
@@ -23,6 +27,123 @@ int as_int(const toml::value& v, const std::string& where) {
     throw InputError(where + " must be a whole number from 1 to 1000, not " + toml::format(v));
   }
   return static_cast<int>(v.as_integer());
+}
+
+std::int64_t as_int_in(const toml::value& v, const std::string& where, std::int64_t lo,
+                       std::int64_t hi) {
+  if (!v.is_integer() || v.as_integer() < lo || v.as_integer() > hi) {
+    throw InputError(where + " must be a whole number from " + std::to_string(lo) + " to " +
+                     std::to_string(hi) + ", not " + toml::format(v));
+  }
+  return v.as_integer();
+}
+
+double as_positive(const toml::value& v, const std::string& where) {
+  const double x = as_real(v, where);
+  if (!std::isfinite(x) || x <= 0.0) {
+    throw InputError(where + " = " + toml::format(v) + " must be a number greater than 0");
+  }
+  return x;
+}
+
+std::string as_text(const toml::value& v, const std::string& where) {
+  if (!v.is_string()) throw InputError(where + " must be a string, not " + toml::format(v));
+  return v.as_string().str;
+}
+
+bool as_bool(const toml::value& v, const std::string& where) {
+  if (!v.is_boolean()) throw InputError(where + " must be true or false, not " + toml::format(v));
+  return v.as_boolean();
+}
+
+// Runs a parser of comms/line_settings.hpp, its message prefixed with the file and key.
+template <typename F>
+auto with_where(const std::string& where, F&& parse) {
+  try {
+    return parse();
+  } catch (const InputError& e) {
+    throw InputError(where + ": " + e.what());
+  }
+}
+
+void parse_link(const toml::value& table, const std::string& name, LinkConfig& l) {
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": link." + key;
+    comms::LineSettings& line = l.line;
+    if (key == "device") {
+      line.device = as_text(v, where);
+    } else if (key == "baud") {
+      line.baud = static_cast<int>(as_int_in(v, where, 1, 10000000));
+      with_where(where, [&] {
+        comms::check_baud(line.baud);
+        return 0;
+      });
+    } else if (key == "frame") {
+      const std::string text = as_text(v, where);
+      with_where(where, [&] {
+        comms::parse_frame(text, line);
+        return 0;
+      });
+    } else if (key == "flow") {
+      const std::string text = as_text(v, where);
+      line.flow = with_where(where, [&] { return comms::parse_flow(text); });
+    } else if (key == "protocol") {
+      const std::string text = as_text(v, where);
+      line.protocol = with_where(where, [&] { return comms::parse_protocol(text); });
+    } else if (key == "eob") {
+      const std::string text = as_text(v, where);
+      line.eob = with_where(where, [&] { return comms::parse_eob(text); });
+    } else if (key == "percent") {
+      line.percent_framing = as_bool(v, where);
+    } else if (key == "nul_leader") {
+      line.nul_leader = static_cast<int>(as_int_in(v, where, 0, 1000));
+    } else if (key == "rx_buffer_bytes") {
+      l.rx_buffer_bytes = static_cast<int>(as_int_in(v, where, 1, 1 << 20));
+    } else if (key == "max_queued_chars") {
+      l.max_queued_chars = static_cast<int>(as_int_in(v, where, 1, 65536));
+    } else if (key == "xoff_timeout_s") {
+      l.xoff_timeout_s = as_positive(v, where);
+    } else if (key == "reconnect_max_s") {
+      l.reconnect_max_s = as_positive(v, where);
+    } else if (key == "journal") {
+      l.journal = as_text(v, where);
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [link] takes device, baud, frame, flow, protocol, eob, percent, "
+                       "nul_leader, rx_buffer_bytes, max_queued_chars, xoff_timeout_s, "
+                       "reconnect_max_s, journal");
+    }
+  }
+}
+
+void parse_encoder(const toml::value& table, const std::string& name, comms::EncoderSettings& e) {
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": encoder." + key;
+    if (key == "chord_tolerance_mm") {
+      e.chord_tolerance_mm = as_real(v, where);
+    } else if (key == "feed_band") {
+      e.feed_band = as_real(v, where);
+    } else if (key == "link_margin") {
+      e.link_margin = as_real(v, where);
+    } else if (key == "decimals") {
+      e.decimals = static_cast<int>(as_int_in(v, where, 0, 6));
+    } else if (key == "feed_decimals") {
+      e.feed_decimals = static_cast<int>(as_int_in(v, where, 0, 3));
+    } else if (key == "time_tolerance_s") {
+      e.time_tolerance_s = as_real(v, where);
+    } else if (key == "number_start") {
+      e.number_start = static_cast<long>(as_int_in(v, where, 0, 99999999));
+    } else if (key == "number_step") {
+      e.number_step = static_cast<long>(as_int_in(v, where, 1, 1000));
+    } else if (key == "max_setpoints_per_block") {
+      e.max_setpoints_per_block = static_cast<std::size_t>(as_int_in(v, where, 2, 1 << 20));
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [encoder] takes chord_tolerance_mm, feed_band, link_margin, decimals, "
+                       "feed_decimals, time_tolerance_s, number_start, number_step, "
+                       "max_setpoints_per_block");
+    }
+  }
 }
 
 }  // namespace
@@ -73,16 +194,25 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
                            "roughness_target_um");
         }
       }
+    } else if (key == "link") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [link]");
+      parse_link(value, name, c.link);
+    } else if (key == "encoder") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [encoder]");
+      parse_encoder(value, name, c.encoder);
     } else {
       throw InputError("unknown key " + where +
                        "; the machine file takes period_s, max_feed_mm_per_min, "
                        "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
-                       "feed_tolerance_rel and a [cutting] table");
+                       "feed_tolerance_rel and the tables [cutting], [link], [encoder]");
     }
   }
+  c.encoder.line = c.link.line;
+  c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
   try {
     interpolator::validate(c.limits);
     interpolator::validate(c.cutting);
+    comms::validate(c.encoder);
   } catch (const InputError& e) {
     throw InputError(name + ": " + e.what());
   }
@@ -111,6 +241,30 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                   {"teeth", c.cutting.teeth},
                   {"spindle_rpm", c.cutting.spindle_rpm},
                   {"roughness_target_um", c.cutting.roughness_target_um}};
+  const comms::LineSettings& line = c.link.line;
+  j["link"] = {{"device", line.device},
+               {"baud", line.baud},
+               {"frame", comms::frame_text(line)},
+               {"flow", comms::to_string(line.flow)},
+               {"protocol", comms::to_string(line.protocol)},
+               {"eob", line.eob == comms::EndOfBlock::CrLf ? "crlf" : "lf"},
+               {"percent", line.percent_framing},
+               {"nul_leader", line.nul_leader},
+               {"rx_buffer_bytes", c.link.rx_buffer_bytes},
+               {"max_queued_chars", c.link.max_queued_chars},
+               {"xoff_timeout_s", c.link.xoff_timeout_s},
+               {"reconnect_max_s", c.link.reconnect_max_s},
+               {"journal", c.link.journal}};
+  const comms::EncoderSettings& e = c.encoder;
+  j["encoder"] = {{"chord_tolerance_mm", e.chord_tolerance_mm},
+                  {"feed_band", e.feed_band},
+                  {"link_margin", e.link_margin},
+                  {"decimals", e.decimals},
+                  {"feed_decimals", e.feed_decimals},
+                  {"time_tolerance_s", e.time_tolerance_s},
+                  {"number_start", e.number_start},
+                  {"number_step", e.number_step},
+                  {"max_setpoints_per_block", e.max_setpoints_per_block}};
   return j;
 }
 

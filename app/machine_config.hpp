@@ -1,19 +1,35 @@
-// The machine file of `ncd replay` and `ncd serve` (TOML): period, limits, tolerances and the
-// cutting parameters. Every key has a default and a unit in its name; an unknown key is an
-// error that names it. config/machine.example.toml lists them all.
+// The machine file of `ncd replay` and `ncd serve` (TOML): period, limits, tolerances, the
+// cutting parameters, the DNC link ([link]) and the block encoder ([encoder]). Every key has a
+// default and a unit in its name; an unknown key is an error that names it.
+// config/machine.example.toml lists them all.
 #pragma once
 
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "comms/block_encoder.hpp"
+#include "comms/line_settings.hpp"
 #include "interpolator/feed_limits.hpp"
 #include "interpolator/roughness.hpp"
 
 namespace ncd::app {
 
+// [link]: the machine's DNC port and how the sender treats it.
+struct LinkConfig {
+  comms::LineSettings line;       // device, baud, frame, flow, protocol, eob, percent, nul_leader
+  int rx_buffer_bytes = 256;      // the controller's receive buffer
+  int max_queued_chars = 16;      // at most this many bytes in the kernel's output queue
+  double xoff_timeout_s = 5.0;    // XOFF longer than this holds the motion and is reported
+  double reconnect_max_s = 30.0;  // longest backoff between attempts to reopen a lost port
+  std::string journal;            // transfer journal file; empty: none
+};
+
 struct MachineConfig {
   interpolator::MachineLimits limits;
   interpolator::CuttingParams cutting;
+  LinkConfig link;
+  // [encoder]; its line and rx_buffer_bytes are copies of [link]'s, set by the parser.
+  comms::EncoderSettings encoder;
   std::string source = "defaults";  // the file it was read from
 };
 

@@ -1,9 +1,11 @@
 // `ncd replay`: walk a path against a simulated clock (no sleeping) and report what the machine
-// would do: setpoints per period, a report in numbers, and a plot of the feed.
+// would do: setpoints per period, a report in numbers, and a plot of the feed. With --blocks,
+// every setpoint also goes through the block encoder (comms/block_encoder.hpp), which writes
+// the NC program a DNC link would carry, within the budget of the machine file's [link].
 //
-// Memory does not grow with the run: setpoints stream to their file, statistics are running
-// sums and a fixed histogram, and the plot keeps at most kPlotBuckets time buckets, merging
-// neighbours pairwise when they fill up.
+// Memory does not grow with the run: setpoints and blocks stream to their files, statistics
+// are running sums and fixed histograms, and the plot keeps at most kPlotBuckets time buckets,
+// merging neighbours pairwise when they fill up.
 #include <charconv>
 #include <chrono>
 #include <cstdio>
@@ -11,12 +13,15 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
 
 #include "app/commands.hpp"
 #include "app/machine_config.hpp"
 #include "app/output.hpp"
 #include "app/setpoint_sink.hpp"
 #include "app/svg_plot.hpp"
+#include "comms/block_encoder.hpp"
 #include "core/error.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
@@ -29,8 +34,49 @@ constexpr std::size_t kPlotBuckets = 1500;
 constexpr double kMaxSimulatedS = 100.0 * 3600.0;  // a runaway guard: 100 h of motion
 
 struct ReplayArgs {
-  std::string path, machine, setpoints, report, plot;
+  std::string path, machine, setpoints, report, plot, blocks;
+  std::optional<double> chord_tolerance_mm;  // overrides [encoder] chord_tolerance_mm
   bool quiet = false;
+};
+
+// The NC program of --blocks: one block a line, LF, no `%` (the streamer frames it), written
+// as it comes into a temporary file renamed when the run succeeds.
+class ProgramFile {
+ public:
+  explicit ProgramFile(const std::string& path) : path_(path) {
+    const std::filesystem::path target(path_);
+    tmp_ = (target.parent_path() / ("." + target.filename().string() + ".tmp")).string();
+    file_ = std::fopen(tmp_.c_str(), "wb");
+    if (!file_) {
+      throw InputError("cannot create " + tmp_ + "; check that the folder of --blocks exists");
+    }
+    std::setvbuf(file_, nullptr, _IOFBF, 1 << 16);
+  }
+  ~ProgramFile() {
+    if (file_) {
+      std::fclose(file_);
+      std::remove(tmp_.c_str());
+    }
+  }
+  ProgramFile(const ProgramFile&) = delete;
+  ProgramFile& operator=(const ProgramFile&) = delete;
+  void write(const std::string& block) {
+    std::fwrite(block.data(), 1, block.size(), file_);
+    std::fputc('\n', file_);
+  }
+  void commit() {
+    const bool ok = std::fflush(file_) == 0 && std::ferror(file_) == 0;
+    std::fclose(file_);
+    file_ = nullptr;
+    if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
+      std::remove(tmp_.c_str());
+      throw std::runtime_error("cannot write " + path_);
+    }
+  }
+
+ private:
+  std::string path_, tmp_;
+  std::FILE* file_ = nullptr;
 };
 
 // Fixed-size time buckets for the plot; pairs merge when they fill up.
@@ -76,7 +122,8 @@ class PlotBuckets {
   std::int64_t per_bucket_ = 1;
 };
 
-Figure replay_figure(const PlotBuckets& plot, const MachineConfig& m, const std::string& source) {
+Figure replay_figure(const PlotBuckets& plot, const PlotBuckets* blocks, const MachineConfig& m,
+                     const std::string& source) {
   Series feed{"feed (max/min per bucket)", {}, {}, "#1f77b4"};
   Series limit{"feed limit at the position", {}, {}, "#d62728", true};
   Series rough{"predicted R_max", {}, {}, "#9467bd"};
@@ -92,9 +139,18 @@ Figure replay_figure(const PlotBuckets& plot, const MachineConfig& m, const std:
   Figure fig;
   fig.title = "ncd replay: " + source;
   fig.x_label = "time (s)";
+  std::vector<Series> feeds{feed, limit};
+  if (blocks) {
+    Series written{"feed written in the blocks (F)", {}, {}, "#ff7f0e"};
+    for (const auto& b : blocks->buckets()) {
+      written.x.insert(written.x.end(), {b.t0_s, b.t1_s});
+      written.y.insert(written.y.end(), {b.feed_max, b.feed_min});
+    }
+    feeds.push_back(std::move(written));
+  }
   Panel p1{"feed against time",
            "feed (mm/min)",
-           {feed, limit},
+           feeds,
            {{m.limits.max_feed_mm_per_min, "machine maximum feed"}},
            {}};
   Panel p2{"roughness predicted by the ball-end model (Choi)",
@@ -150,9 +206,48 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   return j;
 }
 
+// The encoder's lines of the summary.
+void print_blocks(const comms::EncoderStats& b, const std::string& file) {
+  std::fprintf(stderr,
+               "  blocks            %lld (N%ld-N%ld), %lld chars, in %s; length min %.4f, "
+               "median %.4f, max %.4f mm\n"
+               "  link              %s, %.0f chars/s: use mean %.1f %%, peak %.1f %% (N%ld), "
+               "overall %.1f %% (margin %.0f %%)\n"
+               "  block chord error max %.5f mm (N%ld; tolerance %.5f mm, rounding %.5f mm)\n"
+               "  controller model  %lld underruns (%.3f s), %lld waits at rest, buffer max "
+               "%d of %d bytes\n",
+               static_cast<long long>(b.blocks), b.first_number, b.last_number,
+               static_cast<long long>(b.chars), file.c_str(), b.length_min_mm, b.length_median_mm(),
+               b.length_max_mm, b.line.c_str(), b.chars_per_s, 100.0 * b.link_use_mean(),
+               100.0 * b.link_use_peak, b.link_use_peak_block, 100.0 * b.link_use_overall(),
+               100.0 * b.link_margin, b.chord_error_max_mm, b.chord_error_max_block,
+               b.chord_tolerance_mm, b.rounding_error_mm, static_cast<long long>(b.queue.underruns),
+               b.queue.underrun_time_s, static_cast<long long>(b.queue.waits_at_rest),
+               b.queue.max_buffer_fill_bytes, b.rx_buffer_bytes);
+  if (b.lowered_ranges == 0) {
+    std::fprintf(stderr, "  feed lowered      nowhere: the link carries every block\n");
+    return;
+  }
+  std::fprintf(stderr,
+               "  feed lowered      in %lld blocks, %lld ranges (time %.3f s instead of %.3f s)\n",
+               static_cast<long long>(b.lowered_blocks), static_cast<long long>(b.lowered_ranges),
+               b.duration_s, b.planned_duration_s);
+  constexpr std::size_t kShown = 5;
+  for (std::size_t i = 0; i < std::min(kShown, b.lowered.size()); ++i) {
+    const comms::LoweredRange& r = b.lowered[i];
+    std::fprintf(stderr, "    N%ld-N%ld, s %.3f-%.3f mm: %.1f -> %.1f mm/min: %s\n", r.first_block,
+                 r.last_block, r.s_from_mm, r.s_to_mm, r.planned_feed_mm_per_min,
+                 r.lowered_feed_min_mm_per_min, r.reason.c_str());
+  }
+  if (b.lowered_ranges > static_cast<std::int64_t>(kShown)) {
+    std::fprintf(stderr, "    ... (all of them in the report)\n");
+  }
+}
+
 int run_replay(const ReplayArgs& a) {
-  const MachineConfig machine =
-      a.machine.empty() ? MachineConfig{} : load_machine_config(a.machine);
+  MachineConfig machine;  // the documented defaults unless --machine
+  if (!a.machine.empty()) machine = load_machine_config(a.machine);
+  if (a.chord_tolerance_mm) machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
   const toolpath::Path path = toolpath::read_path_file(a.path);
   motion::JobConfig cfg;
   cfg.limits = machine.limits;
@@ -160,6 +255,30 @@ int run_replay(const ReplayArgs& a) {
   motion::Job job(path, cfg);
   SetpointSink sink(a.setpoints);
   PlotBuckets plot;
+  // The block encoder, when a program is asked for: checked before the walk starts.
+  std::unique_ptr<ProgramFile> program;
+  std::unique_ptr<comms::BlockEncoder> encoder;
+  PlotBuckets block_plot;
+  if (!a.blocks.empty()) {
+    try {
+      comms::validate(machine.encoder);
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) +
+                       " (--chord-tolerance or the machine file's [encoder])");
+    }
+    program = std::make_unique<ProgramFile>(a.blocks);
+    encoder = std::make_unique<comms::BlockEncoder>(
+        machine.encoder, [&program, &block_plot](const comms::EncodedBlock& b) {
+          program->write(b.text);
+          if (b.positioning) return;
+          block_plot.add(b.start_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
+          block_plot.add(b.end_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
+        });
+    // The start of the path, where the machine stands at rest before the first period.
+    motion::Setpoint start;
+    start.p = job.walker().position();
+    encoder->push(start);
+  }
   motion::RunStats st;
   st.path_length_mm = job.length_mm();
   double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
@@ -177,6 +296,7 @@ int run_replay(const ReplayArgs& a) {
     motion::record(st, cfg, sp, limit, rough,
                    static_cast<double>(std::chrono::nanoseconds(t1 - t0).count()));
     sink.write(sp);
+    if (encoder) encoder->push(sp);
     plot.add(sp.t_s, sp.v_mm_per_s * 60.0, limit * 60.0, rough);
     if (sp.done) break;
     if (sp.t_s > kMaxSimulatedS) {
@@ -191,10 +311,22 @@ int run_replay(const ReplayArgs& a) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const std::string source = path.source;
-  if (!a.report.empty())
-    write_output(a.report, report_json(st, machine, source, job, lookahead_ns).dump(1) + "\n");
-  if (!a.plot.empty()) write_output(a.plot, render_svg(replay_figure(plot, machine, source)));
+  if (encoder) encoder->finish();
+  if (!a.report.empty()) {
+    nlohmann::ordered_json report = report_json(st, machine, source, job, lookahead_ns);
+    if (encoder) {
+      nlohmann::ordered_json blocks = {{"file", a.blocks}};
+      blocks.update(comms::to_json(encoder->stats()));
+      report["blocks"] = std::move(blocks);
+    }
+    write_output(a.report, report.dump(1) + "\n");
+  }
+  if (!a.plot.empty()) {
+    write_output(a.plot,
+                 render_svg(replay_figure(plot, encoder ? &block_plot : nullptr, machine, source)));
+  }
   sink.commit();
+  if (program) program->commit();
   if (!a.quiet) {
     std::fprintf(stderr,
                  "replay: %s\n  path length       %.4f mm in %lld periods of %.4g s = %.3f s\n"
@@ -213,6 +345,7 @@ int run_replay(const ReplayArgs& a) {
                  st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
                  st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                  static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
+    if (encoder) print_blocks(encoder->stats(), a.blocks);
   }
   return 0;
 }
@@ -233,7 +366,16 @@ void register_replay(CLI::App& app, Runner& run) {
   c->add_option("--setpoints", a->setpoints,
                 "CSV of one row per period: t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit");
   c->add_option("--report", a->report, "JSON report of the run");
-  c->add_option("--plot", a->plot, "SVG plot of feed and predicted roughness against time");
+  c->add_option("--plot", a->plot,
+                "SVG plot of feed and predicted roughness against time (with --blocks, also the "
+                "feed written in the blocks)");
+  c->add_option("--blocks", a->blocks,
+                "NC program of the motion as a DNC link carries it: G1 blocks merged within the "
+                "encoder's chord tolerance, fed within the [link] budget (one block a line, LF, "
+                "no %); the report gains \"blocks\"");
+  c->add_option("--chord-tolerance", a->chord_tolerance_mm,
+                "block encoder chord tolerance, mm (default: the machine file's [encoder] "
+                "chord_tolerance_mm, 0.002)");
   c->add_flag("-q,--quiet", a->quiet, "no progress or summary on standard error");
   c->callback([a, &run] { run = [a] { return run_replay(*a); }; });
 }
