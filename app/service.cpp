@@ -11,15 +11,29 @@
 // A submitted job is either {"path": FILE} in any format `ncd replay` reads, or a chamfer
 // specification with the parameter names of `ncd chamfer` ("pipe_radius" or "pipe-radius", …).
 // "setpoints": FILE in the submit request records the job's setpoints in the replay CSV format.
+//
+// Live DNC streaming: when the machine file's [link] names a device (or the submit request
+// gives "port": DEV; "port": "" turns it off), every setpoint drained from the cycle also goes
+// through the block encoder, whose blocks queue for a sender thread that drip-feeds (or
+// streams with acknowledgements) the controller. A hold on the link (XOFF or CTS longer than
+// xoff_timeout_s, a lost port) holds the motion: the cycle brings it to a jerk-limited stop,
+// and it resumes when the link does. The job is done when the motion has ended and the
+// controller has every block.
 #include "app/service.hpp"
 
+#include <atomic>
 #include <chrono>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <sstream>
+#include <thread>
 #include <toml.hpp>
 
 #include "app/chamfer_report.hpp"
+#include "comms/block_encoder.hpp"
+#include "comms/live_blocks.hpp"
+#include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
 #include "toolpath/chamfer.hpp"
 #include "toolpath/path_io.hpp"
@@ -138,6 +152,27 @@ ServiceConfig load_service_config(const std::string& path) {
   return c;
 }
 
+// The encoder, the queue and the sender thread of a streamed job.
+struct Service::LiveStream {
+  comms::LiveBlocks blocks;
+  std::unique_ptr<comms::BlockEncoder> encoder;
+  std::unique_ptr<comms::TransferJournal> journal;
+  std::unique_ptr<comms::DncSender> sender;
+  std::thread thread;
+  std::atomic<bool> stop{false};
+  std::atomic<bool> done{false};
+  std::atomic<std::int64_t> blocks_encoded{0};
+  std::atomic<std::int64_t> chars_encoded{0};
+  comms::SenderReport report;  // written by the thread before done
+  comms::LineSettings line;
+  mutable std::mutex mutex;
+  std::string last_event;  // guarded by mutex
+  ~LiveStream() {
+    stop = true;
+    if (thread.joinable()) thread.join();
+  }
+};
+
 const char* Service::name(State s) {
   switch (s) {
     case State::Idle:
@@ -146,6 +181,8 @@ const char* Service::name(State s) {
       return "ready";
     case State::Running:
       return "running";
+    case State::Streaming:
+      return "streaming";
     case State::Holding:
       return "holding";
     case State::Done:
@@ -181,7 +218,7 @@ void Service::require_active(const char* cmd) const {
 }
 
 json Service::submit(const json& req) {
-  if (state_ == State::Running || state_ == State::Holding) {
+  if (state_ == State::Running || state_ == State::Holding || state_ == State::Streaming) {
     throw InputError("submit: a job is running; stop it first");
   }
   if (!req.contains("job") || !req["job"].is_object()) {
@@ -199,6 +236,13 @@ json Service::submit(const json& req) {
   }
   // Build the job once now, so that a path the machine cannot run is refused at submit.
   (void)motion::Job(*path, job_config());
+  port_ = config_.machine.link.line.device;
+  if (req.contains("port")) {
+    if (!req["port"].is_string()) {
+      throw InputError("\"port\" must be a device name, or \"\" for no streaming");
+    }
+    port_ = req["port"];
+  }
   setpoints_file_.clear();
   if (req.contains("setpoints")) {
     if (!req["setpoints"].is_string()) throw InputError("\"setpoints\" must be a file name");
@@ -216,6 +260,9 @@ json Service::start() {
                      "); submit a job first");
   }
   auto job = std::make_unique<motion::Job>(*path_, job_config());
+  stream_.reset();
+  held_by_link_ = false;
+  if (!port_.empty()) start_stream(*path_, job->walker().position());
   motion::CycleOptions o;
   o.clock = config_.clock;
   o.realtime = config_.realtime;
@@ -242,9 +289,13 @@ void Service::drain() {
     jerk_max_ = std::max(jerk_max_, std::abs(sp.j_mm_per_s3));
     feed_max_ = std::max(feed_max_, sp.v_mm_per_s);
     sink_->write(sp);
+    if (stream_) stream_->encoder->push(sp);
   }
   if (cycle_->finished()) {
-    while (cycle_->pop(sp)) ++setpoints_, last_ = sp, sink_->write(sp);
+    while (cycle_->pop(sp)) {
+      ++setpoints_, last_ = sp, sink_->write(sp);
+      if (stream_) stream_->encoder->push(sp);
+    }
     finish_job();
     return;
   }
@@ -270,10 +321,136 @@ void Service::finish_job() {
     error_ = e.what();
   }
   const motion::CycleStats& st = cycle_->stats();
-  std::cerr << "ncd serve: job " << job_name_ << " " << name(state_) << " after " << setpoints_
+  std::cerr << "ncd serve: job " << job_name_ << " motion ended after " << setpoints_
             << " setpoints; " << st.late_wakeups << " late wake-ups, " << st.overruns
             << " overruns, " << st.setpoints_lost << " setpoints lost\n";
+  if (stream_) {
+    stream_->encoder->finish();
+    stream_->blocks.close();
+    final_state_ = state_;
+    state_ = State::Streaming;
+    await_stream();
+    return;
+  }
+  end_job();
+}
+
+void Service::end_job() {
+  std::cerr << "ncd serve: job " << job_name_ << " " << name(state_) << "\n";
   if (on_idle_) io_.post(on_idle_);
+}
+
+void Service::start_stream(const toolpath::Path& path, const Vec3& start_mm) {
+  (void)path;
+  const LinkConfig& link = config_.machine.link;
+  auto ls = std::make_unique<LiveStream>();
+  LiveStream* raw = ls.get();
+  ls->line = link.line;
+  ls->line.device = port_;
+  comms::EncoderSettings enc = config_.machine.encoder;
+  enc.line = ls->line;
+  ls->encoder = std::make_unique<comms::BlockEncoder>(enc, [raw](const comms::EncodedBlock& b) {
+    raw->blocks_encoded.fetch_add(1, std::memory_order_relaxed);
+    raw->chars_encoded.fetch_add(b.chars, std::memory_order_relaxed);
+    raw->blocks.push(b.text);
+  });
+  motion::Setpoint start;
+  start.p = start_mm;
+  ls->encoder->push(start);
+  if (!link.journal.empty()) {
+    comms::JournalState js;
+    js.program_sha256 = "live job " + job_name_;
+    js.settings = comms::describe(ls->line);
+    ls->journal = std::make_unique<comms::TransferJournal>(link.journal, js);
+  }
+  comms::SenderSettings ss;
+  ss.line = ls->line;
+  ss.max_queued_chars = link.max_queued_chars;
+  ss.rx_buffer_bytes = link.rx_buffer_bytes;
+  ss.xoff_timeout_s = link.xoff_timeout_s;
+  ss.reconnect_max_s = link.reconnect_max_s;
+  ls->sender =
+      std::make_unique<comms::DncSender>(ss, ls->blocks, [raw](const comms::SenderEvent& e) {
+        if (e.kind != comms::SenderEvent::Kind::Progress) {
+          std::cerr << "ncd serve: link: " << e.text << std::endl;
+        }
+        std::lock_guard lock(raw->mutex);
+        raw->last_event = e.text;
+      });
+  ls->sender->set_journal(ls->journal.get());
+  ls->sender->on_hold([this](bool hold) { io_.post([this, hold] { link_hold(hold); }); });
+  ls->thread = std::thread([raw] {
+    raw->report = raw->sender->run(raw->stop);
+    raw->done.store(true, std::memory_order_release);
+  });
+  std::cerr << "ncd serve: streaming job " << job_name_ << " to " << port_ << " at "
+            << comms::describe(ls->line) << "\n";
+  stream_ = std::move(ls);
+}
+
+void Service::link_hold(bool hold) {
+  if (!cycle_ || cycle_->finished()) return;
+  if (hold && state_ == State::Running) {
+    std::cerr << "ncd serve: the link holds: bringing the motion to a stop\n";
+    cycle_->hold();
+    state_ = State::Holding;
+    held_by_link_ = true;
+  } else if (!hold && held_by_link_ && state_ == State::Holding) {
+    std::cerr << "ncd serve: the link is free again: resuming the motion\n";
+    cycle_->resume();
+    state_ = State::Running;
+    held_by_link_ = false;
+  }
+}
+
+void Service::await_stream() {
+  if (!stream_->done.load(std::memory_order_acquire)) {
+    timer_.expires_after(std::chrono::milliseconds(20));
+    timer_.async_wait([this](const boost::system::error_code& ec) {
+      if (!ec) await_stream();
+    });
+    return;
+  }
+  stream_->thread.join();
+  const comms::SenderReport& r = stream_->report;
+  state_ = final_state_;
+  if (!r.completed && state_ != State::Error) {
+    state_ = State::Error;
+    error_ = "the transfer to " + port_ +
+             " did not complete: " + (r.stopped ? std::string("stopped") : r.failure);
+  }
+  std::cerr << "ncd serve: sent " << r.blocks << " blocks (" << r.bytes_written << " bytes) to "
+            << port_ << " in " << r.duration_s << " s, " << 100.0 * r.link_use
+            << " % of the line; sha256 " << r.program_sha256 << "\n";
+  end_job();
+}
+
+json Service::stream_status() const {
+  if (!stream_) return json();
+  json s{{"port", port_},
+         {"settings", comms::describe(stream_->line)},
+         {"blocks_encoded", stream_->blocks_encoded.load()},
+         {"chars_encoded", stream_->chars_encoded.load()},
+         {"blocks_waiting", stream_->blocks.waiting()},
+         {"held_by_link", held_by_link_}};
+  {
+    std::lock_guard lock(stream_->mutex);
+    s["last_event"] = stream_->last_event;
+  }
+  if (stream_->done.load(std::memory_order_acquire)) {
+    const comms::SenderReport& r = stream_->report;
+    s["completed"] = r.completed;
+    s["failure"] = r.failure;
+    s["blocks_sent"] = r.blocks;
+    s["bytes_written"] = r.bytes_written;
+    s["link_use"] = r.link_use;
+    s["xoff_count"] = r.xoff_count;
+    s["xoff_timeouts"] = r.xoff_timeouts;
+    s["reconnects"] = r.reconnects;
+    s["blocks_resent"] = r.blocks_resent;
+    s["program_sha256"] = r.program_sha256;
+  }
+  return s;
 }
 
 json Service::handle(const json& req) {
@@ -344,10 +521,17 @@ json Service::status() {
   s["jerk_max"] = jerk_max_;
   s["feed_max_mm_per_min"] = feed_max_ * 60.0;
   if (!error_.empty()) s["job_error"] = error_;
+  s["stream"] = stream_status();
   return s;
 }
 
 void Service::shutdown(std::function<void()> done) {
+  if (state_ == State::Streaming) {
+    std::cerr << "ncd serve: stopping the transfer (the journal keeps where it stopped)\n";
+    on_idle_ = std::move(done);
+    stream_->stop = true;
+    return;
+  }
   if (cycle_ && !cycle_->finished()) {
     std::cerr << "ncd serve: stopping the running job (a jerk-limited stop on the path)\n";
     on_idle_ = std::move(done);

@@ -13,6 +13,8 @@
 #include "app/machine_config.hpp"
 #include "app/setpoint_sink.hpp"
 #include "comms/control_server.hpp"
+#include "comms/dnc_sender.hpp"
+#include "core/geometry.hpp"
 #include "motion/cycle.hpp"
 #include "toolpath/path.hpp"
 
@@ -44,13 +46,19 @@ class Service : public comms::ControlHandler {
   void shutdown(std::function<void()> done);
 
  private:
-  enum class State { Idle, Ready, Running, Holding, Done, Error };
+  // Streaming: the motion has ended; the controller is still receiving its blocks.
+  enum class State { Idle, Ready, Running, Holding, Streaming, Done, Error };
   static const char* name(State s);
 
   nlohmann::json submit(const nlohmann::json& req);
   nlohmann::json start();
   void drain();       // pops setpoints on a 1 ms timer while a job runs
   void finish_job();  // the cycle has ended: close the setpoints file, set the state
+  void start_stream(const toolpath::Path& path, const Vec3& start_mm);
+  void link_hold(bool hold);  // the sender's hold callback, on the I/O thread
+  void await_stream();        // after the cycle: wait (on a timer) for the sender to finish
+  void end_job();             // the job is over, motion and transfer
+  nlohmann::json stream_status() const;
   void require_active(const char* cmd) const;
   motion::JobConfig job_config() const;
 
@@ -60,6 +68,11 @@ class Service : public comms::ControlHandler {
   std::string job_name_, error_;
   std::unique_ptr<toolpath::Path> path_;
   std::string setpoints_file_;
+  std::string port_;  // the DNC port of the submitted job; empty: no streaming
+  struct LiveStream;  // encoder → queue → sender thread (service.cpp)
+  std::unique_ptr<LiveStream> stream_;
+  bool held_by_link_ = false;
+  State final_state_ = State::Done;  // what the job ends as once the stream is done
   std::unique_ptr<SetpointSink> sink_;
   std::unique_ptr<motion::Cycle> cycle_;
   boost::asio::steady_timer timer_;
