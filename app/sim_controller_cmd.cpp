@@ -1,0 +1,167 @@
+// `ncd sim-controller`: a simulated CNC controller on a pseudo-terminal linked at --link PATH,
+// for `ncd stream` to send to. Runs until SIGTERM or SIGINT (or, with --exit-at-end, until the
+// program end has been executed), then writes --log FILE.json and exits 0.
+#include <signal.h>
+
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <random>
+
+#include "app/commands.hpp"
+#include "app/link_options.hpp"
+#include "app/output.hpp"
+#include "comms/sim_controller.hpp"
+#include "core/error.hpp"
+
+namespace ncd::app {
+namespace {
+
+struct SimArgs {
+  std::string link, log;
+  LinkFlags flags;
+  int buffer = 256;
+  int xoff_at = 0;  // 0: default
+  int xon_at = -1;  // -1: default
+  int planner_blocks = 16;
+  double rapid = 5000.0;
+  bool exit_at_end = false;
+  long long seed = -1;  // -1: random
+  comms::SimFaults faults;
+};
+
+// The controller a signal stops; set while run() runs.
+std::atomic<comms::SimController*> g_running{nullptr};
+
+extern "C" void sim_controller_on_signal(int) {
+  if (comms::SimController* c = g_running.load()) c->request_stop();
+}
+
+// SIGINT and SIGTERM stop the controller while this lives; the old handlers come back after.
+class StopSignals {
+ public:
+  explicit StopSignals(comms::SimController& c) {
+    g_running.store(&c);
+    struct sigaction sa {};
+    sa.sa_handler = sim_controller_on_signal;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(SIGINT, &sa, &old_int_);
+    ::sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~StopSignals() {
+    ::sigaction(SIGINT, &old_int_, nullptr);
+    ::sigaction(SIGTERM, &old_term_, nullptr);
+    g_running.store(nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+std::string fixed(double v, int decimals) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+int run_sim_controller(const SimArgs& a) {
+  comms::SimControllerConfig cfg;
+  cfg.line = line_settings(a.flags, a.link);
+  cfg.buffer_bytes = a.buffer;
+  if (a.xoff_at != 0) cfg.xoff_at = a.xoff_at;
+  if (a.xon_at != -1) cfg.xon_at = a.xon_at;
+  cfg.planner_blocks = a.planner_blocks;
+  cfg.rapid_mm_per_min = a.rapid;
+  cfg.exit_at_end = a.exit_at_end;
+  if (a.seed < -1) {
+    throw InputError("--seed " + std::to_string(a.seed) + " is invalid: use 0 or more");
+  }
+  cfg.seed = a.seed >= 0 ? static_cast<std::uint64_t>(a.seed) : std::random_device{}();
+  cfg.faults = a.faults;
+  cfg.on_event = [](const std::string& text) {
+    std::cerr << "ncd sim-controller: " << text << std::endl;
+  };
+  if (!a.log.empty() && a.log != "-") {
+    const std::filesystem::path dir = std::filesystem::path(a.log).parent_path();
+    if (!dir.empty() && !std::filesystem::is_directory(dir)) {
+      throw InputError("--log " + a.log + ": the folder " + dir.string() +
+                       " does not exist; create it or choose another path");
+    }
+  }
+
+  comms::SimController sim(cfg);
+  const comms::SimControllerConfig& c = sim.config();
+  std::cout << "ncd sim-controller: " << c.line.device << " -> " << sim.device() << ", "
+            << describe(c.line) << " (" << fixed(comms::chars_per_s(c.line), 1)
+            << " chars/s), buffer " << c.buffer_bytes << " B";
+  if (c.line.protocol == comms::Protocol::Drip) {
+    std::cout << ", XOFF at " << *c.xoff_at << ", XON at " << *c.xon_at;
+  } else {
+    std::cout << ", planner " << c.planner_blocks << " blocks";
+  }
+  std::cout << ", seed " << c.seed << std::endl;
+  {
+    StopSignals signals(sim);
+    sim.run();
+  }
+  const comms::SimLog& log = sim.log();
+  std::cout << "ncd sim-controller: " << log.stop_reason << " after " << fixed(log.duration_s, 2)
+            << " s: " << log.blocks_received << " blocks (" << log.bytes_received << " bytes at "
+            << fixed(log.bytes_per_s, 0) << " B/s, link use " << fixed(log.link_use, 3)
+            << "), underruns " << log.underruns << ", alarms " << log.alarms.size() << ", sha256 "
+            << log.program_sha256 << std::endl;
+  if (!a.log.empty()) write_output(a.log, comms::to_json(log).dump(2) + "\n");
+  return 0;
+}
+
+}  // namespace
+
+void register_sim_controller(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<SimArgs>();
+  CLI::App* c = app.add_subcommand(
+      "sim-controller",
+      "A simulated CNC controller on a pseudo-terminal linked at --link PATH: paces reception at "
+      "the line's speed, DC1/DC3 (drip) or ok/error:N (ack), executes the blocks in real time. "
+      "Runs until SIGTERM/SIGINT (or --exit-at-end), then writes --log.");
+  c->add_option("--link", a->link, "path of the symbolic link to the pty's slave, e.g. /tmp/cnc0")
+      ->required();
+  add_link_flags(*c, a->flags);
+  c->add_option("--buffer", a->buffer, "receive buffer, bytes (64 … 1048576)")
+      ->capture_default_str();
+  c->add_option("--xoff-at", a->xoff_at,
+                "high-water mark: DC3 when the fill reaches it (default buffer − min(64, "
+                "buffer/4))");
+  c->add_option("--xon-at", a->xon_at,
+                "low-water mark: DC1 when the fill falls to it (default xoff-at / 2)");
+  c->add_option("--planner-blocks", a->planner_blocks,
+                "ack: planner queue, blocks (the executing one included)")
+      ->capture_default_str();
+  c->add_option("--rapid", a->rapid, "G0 rate, mm/min")->capture_default_str();
+  c->add_option("--log", a->log, "write the run's log here (JSON, atomically) on exit");
+  c->add_flag("--exit-at-end", a->exit_at_end,
+              "exit once the program end has been executed (or 1 s after an alarm)");
+  c->add_option("--seed", a->seed, "seed of the storm and noise faults (default: random)");
+  comms::SimFaults& f = a->faults;
+  c->add_option("--drop-link-after-blocks", f.drop_link_after_blocks,
+                "fault: after N blocks close the pty, remove the link, relink a new pty "
+                "after --down-s");
+  c->add_option("--down-s", f.down_s, "fault: how long the link stays down, s")
+      ->capture_default_str();
+  c->add_flag("--xoff-storm", f.xoff_storm,
+              "fault: random DC3, held 20–300 ms, then DC1, while receiving");
+  c->add_option("--hold-after-blocks", f.hold_after_blocks,
+                "fault: after N blocks hold the sender with DC3 for --hold-s");
+  c->add_option("--hold-s", f.hold_s, "fault: length of the hold, s")->capture_default_str();
+  c->add_option("--noise-bytes-per-s", f.noise_bytes_per_s,
+                "fault: random bytes (drip) or garbage lines (ack) to the sender, bytes/s");
+  c->add_option("--alarm-after-blocks", f.alarm_after_blocks,
+                "fault: after N blocks raise an alarm (drip: DC3 NAK; ack: ALARM:9) and stop");
+  c->callback([a, &run] { run = [a] { return run_sim_controller(*a); }; });
+}
+
+}  // namespace ncd::app

@@ -1,0 +1,1216 @@
+// The simulated controller: a CNC's DNC port on a pseudo-terminal, one thread, one loop, on the
+// wall clock.
+//
+//   sender ─► pty slave ═ kernel ═► master ─► wire ─► receive buffer ─► (ack: planner) ─► executor
+//                                  ≤ chars_per_s    buffer_bytes        planner_blocks   real time
+//          ◄─ DC1 / DC3, NAK (drip)      ◄─ ok / error:N / ALARM:N (ack)
+//
+// 1. The wire. A pty has no baud rate, so the master is read no faster than the line would
+//    deliver: chars_per_s(line) characters a second, each taken at the end of its frame. A
+//    credit grows at chars_per_s while characters wait and drops to zero when the line goes
+//    idle, so an idle line banks nothing and the first character after a pause costs a whole
+//    character time; while the line is busy the credit is not capped, so a late wake-up of this
+//    loop catches up as a UART's FIFO would, and never exceeds the line's rate overall. A pty
+//    carries no framing, no parity and no CTS: parity and stop bits only lengthen the character
+//    time, 7-bit frames are emulated by masking the 8th bit, and --flow rtscts cannot stop the
+//    sender (there is no CTS line), so it behaves as --flow none and the buffer can overflow.
+// 2. The receive buffer holds the line being received and the complete lines not yet taken out,
+//    CR and LF included; NULs (leader) are dropped on arrival, as a tape reader skips them. A
+//    character that finds the buffer full is an overflow: alarm. A line longer than
+//    max_block_chars is an error (ack: error:14) or an alarm (drip).
+// 3. Drip: DC3 when the fill reaches xoff_at, DC1 when it falls to xon_at; a sender that
+//    connects gets the current state first (DC1, ready, at the start); XOFF storms, holds and
+//    alarms also assert DC3.
+//    Ack (grbl): a line is answered when it leaves the receive buffer: `ok` when it enters the
+//    planner queue (whose count includes the executing block, as grbl's does), at once for a
+//    line that is no block, `error:N` when it does not parse. A sender counting characters never
+//    overflows the buffer; one that does broke the rule: alarm. No DC1/DC3 in ack mode.
+// 4. Lines. LF ends a line; CR and NUL are removed, spaces and tabs trimmed at both ends. Empty
+//    lines and `%` lines are framing: a `%` after a block on the current connection ends the
+//    program; any other `%` opens it (again, from a sender that reconnected).
+//    Every other line is a block, comments included. A block whose N is not above the last
+//    accepted N is a duplicate from a sender resuming after a lost link: discarded (ack: still
+//    answered ok). Accepted blocks are hashed (SHA-256, each with one LF); M2/M30 end the
+//    program too. Lines after the end are counted and ignored (ack: answered ok).
+// 5. Execution starts when the buffer is primed: the fill reaches xoff_at (ack: or the planner
+//    is full), the program end has arrived, or prime_idle_s passed without a character while a
+//    block waits. Then each block runs for its time (distance / F for G1, the rapid rate for G0,
+//    P seconds for G4, none for the rest) back to back on exact times, so the jitter of this
+//    loop does not accumulate. A block's characters leave the buffer when it starts (drip).
+//    When the executor is free and the next block arrives later, before the program end has,
+//    the tool dwells: an underrun, counted once per dry spell longer than underrun_grace_s.
+//    Dry spells before the first move are not counted: the tool is not on the path yet, the
+//    controller is reading the program's header (comment lines execute in no time).
+//    Once started, execution never waits to be primed again.
+// 6. Connections. The slave is watched with inotify. When the last sender closes it, what it
+//    wrote is still read at line speed, then its unfinished line is discarded and replies owed
+//    to it are dropped; a sender that connects gets a clean input queue and the flow state
+//    first. A link drop (fault injection) does the same at once, and the bytes in flight are
+//    lost with the old pty.
+#include "comms/sim_controller.hpp"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cctype>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <random>
+
+#include "comms/pty.hpp"
+#include "comms/sha256.hpp"
+#include "core/error.hpp"
+
+namespace ncd::comms {
+
+using Json = nlohmann::json;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr int kMaxBlockChars = 255;
+constexpr double kLoopPeriodS = 0.001;      // longest wait of the loop
+constexpr std::size_t kMaxOutQueue = 4096;  // beyond this, noise is not generated
+constexpr double kReceivingS = 0.1;         // "while receiving": a byte within this long
+
+// "12.5" for messages.
+std::string num(double v) {
+  std::array<char, 32> buf{};
+  std::snprintf(buf.data(), buf.size(), "%g", v);
+  return buf.data();
+}
+
+// Throws the InputError for a setting out of range.
+[[noreturn]] void bad(const std::string& what, const std::string& way_out) {
+  throw InputError(what + ": " + way_out);
+}
+
+// Reads a number at text[i] ([+-] digits [. digits] or . digits); advances i. False if none.
+bool read_number(std::string_view text, std::size_t& i, double& value) {
+  std::size_t j = i;
+  bool negative = false;
+  if (j < text.size() && (text[j] == '+' || text[j] == '-')) negative = text[j++] == '-';
+  const std::size_t start = j;
+  bool digits = false;
+  while (j < text.size() && std::isdigit(static_cast<unsigned char>(text[j]))) {
+    ++j;
+    digits = true;
+  }
+  if (j < text.size() && text[j] == '.') {
+    ++j;
+    while (j < text.size() && std::isdigit(static_cast<unsigned char>(text[j]))) {
+      ++j;
+      digits = true;
+    }
+  }
+  if (!digits) return false;
+  double v = 0.0;
+  const auto r = std::from_chars(text.data() + start, text.data() + j, v);
+  if (r.ec != std::errc() || !std::isfinite(v)) return false;
+  value = negative ? -v : v;
+  i = j;
+  return true;
+}
+
+// The text of a line as a block: CR and NUL removed, spaces and tabs trimmed at both ends.
+std::string block_text(std::string_view raw) {
+  std::string s;
+  s.reserve(raw.size());
+  for (char c : raw) {
+    if (c != '\r' && c != '\0' && c != '\n') s += c;
+  }
+  const auto first = s.find_first_not_of(" \t");
+  if (first == std::string::npos) return {};
+  const auto last = s.find_last_not_of(" \t");
+  return s.substr(first, last - first + 1);
+}
+
+double distance(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+}
+
+}  // namespace
+
+// ---- Config ----
+
+SimControllerConfig checked(SimControllerConfig c) {
+  check_baud(c.line.baud);
+  if (c.line.device.empty()) bad("no link path", "give --link PATH, e.g. /tmp/cnc0");
+  if (c.buffer_bytes < 64 || c.buffer_bytes > (1 << 20)) {
+    bad("--buffer " + std::to_string(c.buffer_bytes) + " is out of range",
+        "use 64 to 1048576 bytes (grbl has 128, grblHAL 1024, a Fanuc some 256)");
+  }
+  if (!c.xoff_at) c.xoff_at = c.buffer_bytes - std::min(64, c.buffer_bytes / 4);
+  if (!c.xon_at) c.xon_at = *c.xoff_at / 2;
+  if (*c.xoff_at < 2 || *c.xoff_at > c.buffer_bytes) {
+    bad("--xoff-at " + std::to_string(*c.xoff_at) + " is out of range",
+        "use 2 to the buffer size " + std::to_string(c.buffer_bytes) +
+            ", leaving room for the characters a sender sends after DC3 (default buffer − 64)");
+  }
+  if (*c.xon_at < 0 || *c.xon_at >= *c.xoff_at) {
+    bad("--xon-at " + std::to_string(*c.xon_at) + " is out of range",
+        "use 0 to " + std::to_string(*c.xoff_at - 1) + ", below --xoff-at " +
+            std::to_string(*c.xoff_at));
+  }
+  if (c.planner_blocks < 1 || c.planner_blocks > 1000) {
+    bad("--planner-blocks " + std::to_string(c.planner_blocks) + " is out of range",
+        "use 1 to 1000 (grbl has 16)");
+  }
+  if (!std::isfinite(c.rapid_mm_per_min) || c.rapid_mm_per_min <= 0.0) {
+    bad("--rapid " + num(c.rapid_mm_per_min) + " mm/min is invalid", "use a rate above 0");
+  }
+  if (!(c.prime_idle_s > 0.0) || !(c.underrun_grace_s >= 0.0) || !(c.exit_quiet_s >= 0.0) ||
+      !(c.alarm_linger_s >= 0.0)) {
+    bad("a controller timing is negative or not a number", "use finite times of 0 s or more");
+  }
+  SimFaults& f = c.faults;
+  const bool xon_xoff = c.line.protocol == Protocol::Drip && c.line.flow == Flow::XonXoff;
+  if (f.drop_link_after_blocks < 0 || f.hold_after_blocks < 0 || f.alarm_after_blocks < 0) {
+    bad("a fault's block count is negative", "use a count of 1 or more, or 0 for none");
+  }
+  if (!std::isfinite(f.down_s) || f.down_s < 0.0 || f.down_s > 3600.0) {
+    bad("--down-s " + num(f.down_s) + " is out of range", "use 0 to 3600 s");
+  }
+  if (f.hold_after_blocks > 0 && (!std::isfinite(f.hold_s) || f.hold_s <= 0.0)) {
+    bad("--hold-s " + num(f.hold_s) + " is invalid", "use a hold longer than 0 s");
+  }
+  if ((f.xoff_storm || f.hold_after_blocks > 0) && !xon_xoff) {
+    bad(std::string(f.xoff_storm ? "--xoff-storm" : "--hold-after-blocks") +
+            " needs DC1/DC3 flow control",
+        "use --protocol drip --flow xonxoff");
+  }
+  const double cps = chars_per_s(c.line);
+  if (!std::isfinite(f.noise_bytes_per_s) || f.noise_bytes_per_s < 0.0 ||
+      f.noise_bytes_per_s > cps) {
+    bad("--noise-bytes-per-s " + num(f.noise_bytes_per_s) + " is out of range",
+        "use 0 to the line's " + num(std::floor(cps)) + " characters per second");
+  }
+  return c;
+}
+
+int max_block_chars(const SimControllerConfig& c) {
+  const bool xon_xoff = c.line.protocol == Protocol::Drip && c.line.flow == Flow::XonXoff;
+  const int room = xon_xoff ? c.xoff_at.value_or(c.buffer_bytes) : c.buffer_bytes;
+  return std::max(1, std::min(kMaxBlockChars, room - 2));
+}
+
+// ---- Block parsing ----
+
+SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm_per_min) {
+  SimParse r;
+  const auto fail = [&r](int code, std::string message) {
+    r.error = code;
+    r.message = std::move(message);
+    r.block = SimBlock{};
+    return r;
+  };
+  struct Word {
+    char letter;
+    double value;
+  };
+  std::vector<Word> words;
+  for (std::size_t i = 0; i < text.size();) {
+    const char c = text[i];
+    if (c == ' ' || c == '\t') {
+      ++i;
+    } else if (c == '(') {
+      const auto close = text.find(')', i);
+      if (close == std::string_view::npos) break;  // an unclosed comment runs to the end
+      i = close + 1;
+    } else if (c == ';') {
+      break;
+    } else if (std::isalpha(static_cast<unsigned char>(c))) {
+      const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      ++i;
+      while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
+      double v = 0.0;
+      if (!read_number(text, i, v)) {
+        return fail(kErrBadNumber, std::string("the word ") + letter + " has no valid number");
+      }
+      words.push_back({letter, v});
+    } else {
+      return fail(kErrExpectedLetter, std::string("'") + c + "' is not a word letter");
+    }
+  }
+
+  SimModal next = modal;
+  SimBlock b;
+  std::array<std::optional<double>, 3> axis;
+  std::optional<double> p_word;
+  std::optional<int> motion;  // 0, 1 or 80 given in this block
+  bool dwell = false, g64 = false;
+  std::string seen;  // letters that may not repeat
+  for (const Word& w : words) {
+    const bool integer = w.value == std::floor(w.value);
+    if (w.letter != 'G' && w.letter != 'M') {
+      if (seen.find(w.letter) != std::string::npos) {
+        return fail(kErrRepeatedWord, std::string("the word ") + w.letter + " appears twice");
+      }
+      seen += w.letter;
+    }
+    switch (w.letter) {
+      case 'N':
+        if (!integer) return fail(kErrNotInteger, "N " + num(w.value) + " is not an integer");
+        if (w.value < 0.0 || w.value > 99999999.0) {
+          return fail(kErrBadLineNumber, "N " + num(w.value) + " is outside 0 … 99999999");
+        }
+        b.n = static_cast<long>(w.value);
+        break;
+      case 'G': {
+        const long code10 = std::lround(w.value * 10.0);
+        if (std::abs(w.value * 10.0 - static_cast<double>(code10)) > 1e-6) {
+          return fail(kErrUnsupported, "G" + num(w.value) + " is not a G code");
+        }
+        if (code10 == 0 || code10 == 10 || code10 == 800) {
+          if (motion) return fail(kErrModalGroup, "two motion codes in one block");
+          motion = static_cast<int>(code10 / 10);
+        } else if (code10 == 40) {
+          dwell = true;
+        } else if (code10 == 640) {
+          g64 = true;
+        } else if (code10 == 910) {
+          return fail(kErrUnsupported,
+                      "G91 (incremental) is not supported: send absolute coordinates (G90)");
+        } else if (code10 == 200) {
+          return fail(kErrUnsupported, "G20 (inch) is not supported: send mm (G21)");
+        } else if (code10 == 20 || code10 == 30) {
+          return fail(kErrUnsupported, "G2/G3 arcs are not supported: send G1 segments");
+        } else if (code10 != 170 && code10 != 210 && code10 != 400 && code10 != 490 &&
+                   code10 != 540 && code10 != 610 && code10 != 611 && code10 != 800 &&
+                   code10 != 900 && code10 != 940) {
+          return fail(kErrUnsupported, "G" + num(w.value) +
+                                           " is not supported: use G0 G1 G4, or the setup codes "
+                                           "G17 G21 G40 G49 G54 G61 G61.1 G64 G80 G90 G94");
+        }
+        break;
+      }
+      case 'M': {
+        if (!integer) return fail(kErrNotInteger, "M" + num(w.value) + " is not an integer");
+        const int m = static_cast<int>(w.value);
+        if (m == 2 || m == 30) {
+          b.program_end = true;
+        } else if (m != 3 && m != 4 && m != 5 && m != 6 && m != 8 && m != 9) {
+          return fail(kErrUnsupported,
+                      "M" + std::to_string(m) + " is not supported: use M2 M3 M4 M5 M6 M8 M9 M30");
+        }
+        break;
+      }
+      case 'X':
+      case 'Y':
+      case 'Z':
+        axis[static_cast<std::size_t>(w.letter - 'X')] = w.value;
+        break;
+      case 'F':
+        if (w.value < 0.0) return fail(kErrNegative, "F " + num(w.value) + " is negative");
+        next.feed_mm_per_min = w.value;
+        break;
+      case 'S':
+        if (w.value < 0.0) return fail(kErrNegative, "S " + num(w.value) + " is negative");
+        break;
+      case 'T':
+        if (!integer) return fail(kErrNotInteger, "T " + num(w.value) + " is not an integer");
+        if (w.value < 0.0) return fail(kErrNegative, "T " + num(w.value) + " is negative");
+        break;
+      case 'P':
+        if (w.value < 0.0) return fail(kErrNegative, "P " + num(w.value) + " is negative");
+        p_word = w.value;
+        break;
+      default:
+        return fail(kErrUnsupported, std::string("the word ") + w.letter +
+                                         " is not supported: use N G X Y Z F S M T P");
+    }
+  }
+  if (p_word && !dwell && !g64) {
+    return fail(kErrUnsupported, "a P word needs G4 (dwell) or G64 (blending tolerance)");
+  }
+  if (motion) next.motion = *motion;
+  const bool has_axis = axis[0] || axis[1] || axis[2];
+  if (dwell) {
+    if (motion || has_axis) return fail(kErrModalGroup, "G4 with a motion in the same block");
+    if (!p_word) return fail(kErrMissingValue, "G4 needs P, the dwell in seconds");
+    b.duration_s = *p_word;
+  } else if (has_axis) {
+    if (next.motion == 80) return fail(kErrUnsupported, "axis words after G80 (no motion mode)");
+    for (std::size_t k = 0; k < 3; ++k) b.to[k] = axis[k].value_or(modal.position[k]);
+    b.move = true;
+    b.g = next.motion;
+    if (b.g == 1) {
+      if (next.feed_mm_per_min <= 0.0) {
+        return fail(kErrUndefinedFeed, "G1 without a feed: give F in mm/min");
+      }
+      b.feed_mm_per_min = next.feed_mm_per_min;
+    } else {
+      b.feed_mm_per_min = rapid_mm_per_min;
+    }
+    b.duration_s = distance(modal.position, b.to) / (b.feed_mm_per_min / 60.0);
+    next.position = b.to;
+  }
+  modal = next;
+  r.block = b;
+  return r;
+}
+
+// ---- The controller ----
+
+struct SimController::Impl {
+  enum class Kind { Block, End, Framing, Duplicate, AfterEnd, Error };
+  struct Line {
+    Kind kind = Kind::Block;
+    int size = 0;             // characters it holds in the receive buffer
+    std::uint64_t epoch = 0;  // the connection it came on
+    double ready_t = 0.0;     // when the executor may have it
+    SimBlock block;
+    int error = 0;
+  };
+
+  explicit Impl(SimControllerConfig c)
+      : cfg(checked(std::move(c))),
+        drip(cfg.line.protocol == Protocol::Drip),
+        xon_xoff(drip && cfg.line.flow == Flow::XonXoff),
+        cps(chars_per_s(cfg.line)),
+        xoff_at(*cfg.xoff_at),
+        xon_at(*cfg.xon_at),
+        max_block(max_block_chars(cfg)),
+        rng(cfg.seed),
+        pty(cfg.line.device) {
+    if (::pipe2(wake.data(), O_NONBLOCK | O_CLOEXEC) != 0) {
+      throw std::system_error(errno, std::generic_category(), "pipe2");
+    }
+    log.config = cfg;
+  }
+
+  ~Impl() {
+    ::close(wake[0]);
+    ::close(wake[1]);
+  }
+
+  // ---- time and output ----
+
+  double now_s() const { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+  void event(const std::string& text) {
+    if (cfg.on_event) cfg.on_event(text);
+  }
+
+  void link_event(double t, const std::string& what) {
+    log.link_events.push_back({t, what, pty.device()});
+  }
+
+  // Queues bytes for the sender (dropped while the link is down).
+  void send(std::string_view bytes) {
+    if (pty.is_open()) out.append(bytes);
+  }
+
+  void send_flow(bool xoff) {
+    send(std::string(1, xoff ? kXoff : kXon));
+    ++(xoff ? log.xoff_sent : log.xon_sent);
+    told_xoff = xoff;
+  }
+
+  // A reply to `line`, unless it came on a connection that has since gone.
+  void reply(const Line& line, std::string_view text) {
+    if (line.epoch == reply_epoch) send(text);
+  }
+
+  void flush_out() {
+    if (out.empty() || !pty.is_open()) return;
+    const ssize_t n = ::write(pty.master(), out.data(), out.size());
+    if (n > 0) {
+      out.erase(0, static_cast<std::size_t>(n));
+    } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
+      out.clear();
+    }
+  }
+
+  // ---- connections ----
+
+  void on_slave_events(double t) {
+    for (const Pty::SlaveEvent ev : pty.take_slave_events()) {
+      if (ev == Pty::SlaveEvent::Opened) {
+        if (open_count++ == 0) sender_connected(t);
+      } else if (open_count > 0 && --open_count == 0) {
+        sender_disconnected(t);
+      }
+    }
+  }
+
+  void sender_connected(double t) {
+    ++log.sender_connects;
+    link_event(t, "sender_connected");
+    ::tcflush(pty.held_slave(), TCIFLUSH);  // nothing stale for the new sender
+    out.clear();
+    if (xon_xoff) send_flow(told_xoff);
+  }
+
+  void sender_disconnected(double t) {
+    ++log.sender_disconnects;
+    link_event(t, "sender_disconnected");
+    ::tcflush(pty.held_slave(), TCIFLUSH);
+    out.clear();
+    ++reply_epoch;
+    // What it wrote is in the kernel; read it all now (a read, unlike FIONREAD, also waits for
+    // the pty's flip buffer), so that the new sender's bytes, which follow, are told apart.
+    for (;;) {
+      const ssize_t n = ::read(pty.master(), buf.data(), buf.size());
+      if (n <= 0) break;
+      backlog.append(buf.data(), static_cast<std::size_t>(n));
+    }
+    marker = taken + backlog.size();
+    if (backlog.empty()) apply_marker();
+  }
+
+  // The bytes of a sender that went away have all been read: forget its unfinished line.
+  void apply_marker() {
+    discard_partial();
+    rx_epoch = reply_epoch;
+    blocks_in_epoch = 0;
+    marker.reset();
+  }
+
+  void discard_partial() {
+    if (!partial.empty()) ++log.partial_lines_discarded;
+    fill -= static_cast<int>(partial.size());
+    partial.clear();
+    discarding_long = false;
+  }
+
+  void drop_link(double t) {
+    drop_pending = false;
+    pty.close();
+    ++log.link_drops;
+    link_event(t, "down");
+    event("link down after " + std::to_string(log.blocks_received) + " blocks (fault injection); " +
+          cfg.line.device + " back in " + num(cfg.faults.down_s) + " s");
+    down_until = t + cfg.faults.down_s;
+    out.clear();
+    backlog.clear();  // in flight when the line went down
+    ++reply_epoch;
+    open_count = 0;
+    rx_idle = true;
+    credit = 0.0;
+    apply_marker();
+  }
+
+  void restore_link(double t) {
+    down_until.reset();
+    pty.open();
+    link_event(t, "up");
+    event(cfg.line.device + " -> " + pty.device() + " again");
+  }
+
+  // ---- reception ----
+
+  void receive(double t, bool readable) {
+    if (!pty.is_open()) return;
+    if (marker && taken >= *marker) apply_marker();
+    if (rx_idle) {
+      if (!readable && backlog.empty()) return;
+      rx_idle = false;  // the first character's frame starts now
+      credit = 0.0;
+      credit_t = t;
+      if (log.bytes_received == 0) log.first_byte_t_s = t;
+      return;
+    }
+    credit += (t - credit_t) * cps;
+    credit_t = t;
+    if (credit < 1.0) return;
+    std::size_t want = std::min(buf.size(), static_cast<std::size_t>(credit));
+    if (marker) want = std::min<std::size_t>(want, *marker - taken);
+    if (want == 0) {
+      apply_marker();
+      return;
+    }
+    std::size_t got = std::min(want, backlog.size());
+    if (got > 0) {
+      std::copy_n(backlog.begin(), got, buf.begin());
+      backlog.erase(0, got);
+    }
+    if (got < want) {
+      const ssize_t n = ::read(pty.master(), buf.data() + got, want - got);
+      got += n > 0 ? static_cast<std::size_t>(n) : 0;
+    }
+    credit -= static_cast<double>(got);
+    taken += got;
+    for (std::size_t i = 0; i < got && !drop_pending; ++i) on_byte(buf[i], t);
+    if (drop_pending) {
+      drop_link(t);
+      return;
+    }
+    if (marker && taken >= *marker) apply_marker();
+    if (got < want) {  // drained: the line is idle until the next character
+      rx_idle = true;
+      credit = 0.0;
+    }
+  }
+
+  void on_byte(char c, double t) {
+    ++log.bytes_received;
+    log.last_byte_t_s = t;
+    if (cfg.line.data_bits == 7) c = static_cast<char>(c & 0x7F);
+    if (alarmed) {
+      ++log.bytes_after_alarm;
+      if (!drip && c == '\n') {  // grbl: locked out until the alarm is cleared
+        send("error:" + std::to_string(kErrAlarmLock) + "\r\n");
+      }
+      return;
+    }
+    if (c == '\0') {
+      ++log.nul_received;
+      return;
+    }
+    if (discarding_long) {
+      if (c == '\n') {
+        discarding_long = false;
+        ++log.lines_received;
+        Line line;
+        line.kind = Kind::Error;
+        line.error = kErrLineTooLong;
+        line.epoch = rx_epoch;
+        line.ready_t = t;
+        log.errors.push_back({t, log.lines_received, kErrLineTooLong, "",
+                              "more than " + std::to_string(max_block) + " characters"});
+        ++log.blocks_rejected;
+        queue_line(std::move(line), t);
+      }
+      return;
+    }
+    if (fill >= cfg.buffer_bytes) {
+      raise_alarm(t, "overflow",
+                  "a character arrived with the " + std::to_string(cfg.buffer_bytes) +
+                      "-byte receive buffer full");
+      return;
+    }
+    partial += c;
+    ++fill;
+    log.max_buffer_fill = std::max(log.max_buffer_fill, fill);
+    if (c == '\n') {
+      complete_line(t);
+      return;
+    }
+    if (c != '\r' && ++partial_chars > max_block) {
+      if (drip) {
+        raise_alarm(t, "block_too_long",
+                    "a block longer than " + std::to_string(max_block) + " characters");
+      } else {
+        fill -= static_cast<int>(partial.size());
+        partial.clear();
+        partial_chars = 0;
+        discarding_long = true;
+      }
+    }
+  }
+
+  void complete_line(double t) {
+    ++log.lines_received;
+    Line line;
+    line.size = static_cast<int>(partial.size());
+    line.epoch = rx_epoch;
+    line.ready_t = t;
+    const std::string text = block_text(partial);
+    partial.clear();
+    partial_chars = 0;
+    if (text.empty() || text == "%") {
+      ++log.framing_lines;
+      line.kind = Kind::Framing;
+      if (text == "%" && !end_received && blocks_in_epoch > 0) {  // else it opens
+        line.kind = Kind::End;
+        receive_end(t);
+      }
+      queue_line(std::move(line), t);
+      return;
+    }
+    SimModal modal_after = modal;
+    SimParse p = parse_sim_block(text, modal_after, cfg.rapid_mm_per_min);
+    if (p.error != 0) {
+      ++log.blocks_rejected;
+      if (drip) {
+        raise_alarm(t, "bad_block", "'" + text + "': " + p.message);
+        return;
+      }
+      line.kind = Kind::Error;
+      line.error = p.error;
+      log.errors.push_back({t, log.lines_received, p.error, text, p.message});
+      queue_line(std::move(line), t);
+      return;
+    }
+    if (p.block.n && log.last_n && *p.block.n <= *log.last_n) {
+      ++log.duplicates_discarded;
+      ++blocks_in_epoch;
+      line.kind = Kind::Duplicate;
+    } else if (end_received) {
+      ++log.lines_after_end;
+      line.kind = Kind::AfterEnd;
+    } else {
+      modal = modal_after;
+      line.block = p.block;
+      accept(text, p.block, t);
+    }
+    queue_line(std::move(line), t);
+  }
+
+  void accept(const std::string& text, const SimBlock& b, double t) {
+    ++log.blocks_received;
+    ++blocks_in_epoch;
+    if (b.n) {
+      if (!log.first_n) log.first_n = b.n;
+      log.last_n = b.n;
+    }
+    sha.update(text);
+    sha.update("\n");
+    if (b.program_end) receive_end(t);
+    const SimFaults& f = cfg.faults;
+    const long k = log.blocks_received;
+    if (f.drop_link_after_blocks == k && log.link_drops == 0) drop_pending = true;
+    if (f.hold_after_blocks == k && log.holds == 0) {
+      ++log.holds;
+      hold_until = t + f.hold_s;
+      event("holding the sender with DC3 for " + num(f.hold_s) + " s (fault injection)");
+    }
+    if (f.alarm_after_blocks == k) {
+      alarm_pending = true;  // after the line is queued
+    }
+  }
+
+  void receive_end(double t) {
+    end_received = true;
+    end_received_t = t;
+    log.program_end_received = true;
+  }
+
+  void queue_line(Line line, double t) {
+    rx.push_back(std::move(line));
+    if (!drip) pump_planner(t);
+    if (alarm_pending) {
+      alarm_pending = false;
+      raise_alarm(
+          t, "injected",
+          "alarm after " + std::to_string(log.blocks_received) + " blocks (fault injection)");
+    }
+  }
+
+  // Ack: answers the lines at the head of the receive buffer, moving blocks into the planner.
+  void pump_planner(double t) {
+    while (!rx.empty()) {
+      Line& line = rx.front();
+      if (line.kind == Kind::Block || line.kind == Kind::End) {
+        const std::size_t held = planner.size() + (busy ? 1 : 0);
+        if (held >= static_cast<std::size_t>(cfg.planner_blocks)) return;
+        line.ready_t = t;
+        reply(line, "ok\r\n");
+        fill -= line.size;
+        planner.push_back(std::move(line));
+        log.max_planner_blocks =
+            std::max(log.max_planner_blocks, static_cast<long>(planner.size() + (busy ? 1 : 0)));
+      } else {
+        reply(line, line.kind == Kind::Error ? "error:" + std::to_string(line.error) + "\r\n"
+                                             : std::string("ok\r\n"));
+        fill -= line.size;
+      }
+      rx.pop_front();
+    }
+  }
+
+  // ---- alarms ----
+
+  void raise_alarm(double t, const std::string& code, const std::string& detail) {
+    if (alarmed) return;
+    alarmed = true;
+    alarm_t = t;
+    log.alarms.push_back({t, code, log.blocks_received, log.last_n, detail});
+    if (drip) {
+      send_flow(true);
+      send(std::string(1, kNak));
+    } else {
+      send(std::string("ALARM:") + (code == "injected" ? "9" : "1") + "\r\n");
+    }
+    event("alarm (" + code + "): " + detail + "; stopped");
+    busy = false;
+    rx.clear();
+    planner.clear();
+    partial.clear();
+    partial_chars = 0;
+    discarding_long = false;
+    fill = 0;
+  }
+
+  // ---- execution ----
+
+  bool primed(double t) const {
+    const auto& q = drip ? rx : planner;
+    const bool has_block = std::any_of(q.begin(), q.end(), [](const Line& l) {
+      return l.kind == Kind::Block || l.kind == Kind::End;
+    });
+    if (!has_block) return false;
+    if (end_received || fill >= xoff_at) return true;
+    if (!drip && planner.size() >= static_cast<std::size_t>(cfg.planner_blocks)) return true;
+    return t - log.last_byte_t_s >= cfg.prime_idle_s;
+  }
+
+  void execute(double t) {
+    if (alarmed) return;
+    if (!started) {
+      if (!primed(t)) return;
+      started = true;
+      free_at = t;
+      log.execution_start_t_s = t;
+    }
+    for (;;) {
+      if (busy) {
+        if (busy_end > t) return;
+        finish(busy_end);
+        if (!drip) pump_planner(busy_end);
+      }
+      auto& q = drip ? rx : planner;
+      if (q.empty()) return;
+      Line line = std::move(q.front());
+      q.pop_front();
+      if (drip) fill -= line.size;
+      const double start = std::max(free_at, line.ready_t);
+      if (moved && start - free_at > cfg.underrun_grace_s &&
+          (!end_received || free_at < end_received_t)) {
+        add_underrun(free_at, start);
+      }
+      free_at = start;
+      if (line.kind == Kind::Block) {
+        busy = true;
+        moved = moved || line.block.move;
+        busy_end = start + line.block.duration_s;
+        current = line.block;
+      } else if (line.kind == Kind::End) {
+        end_executed(start);
+      }
+    }
+  }
+
+  void finish(double t) {
+    busy = false;
+    free_at = t;
+    ++log.blocks_executed;
+    if (current.n) last_exec_n = current.n;
+    if (current.move) {
+      log.path_length_mm += distance(position, current.to);
+      position = current.to;
+      log.moves.push_back({current.to, current.feed_mm_per_min, current.g, current.n, t});
+    }
+    if (current.program_end) end_executed(t);
+  }
+
+  void end_executed(double t) {
+    if (log.program_end_executed) return;
+    log.program_end_executed = true;
+    log.execution_end_t_s = t;
+    event("program end executed");
+  }
+
+  void add_underrun(double from, double to) {
+    ++log.underruns;
+    log.dwell_s += to - from;
+    log.underrun_events.push_back({from, log.blocks_executed, last_exec_n, to - from});
+  }
+
+  // ---- faults ----
+
+  double uniform(double lo, double hi) { return std::uniform_real_distribution<>(lo, hi)(rng); }
+
+  void faults(double t) {
+    const SimFaults& f = cfg.faults;
+    if (hold_until && t >= *hold_until) hold_until.reset();
+    if (f.xoff_storm && pty.is_open()) {
+      if (storm_until && t >= *storm_until) {
+        storm_until.reset();
+        next_storm = t + uniform(0.05, 0.5);
+      }
+      if (!storm_until && t >= next_storm) {
+        const bool receiving = log.bytes_received > 0 && t - log.last_byte_t_s < kReceivingS;
+        if (receiving && !end_received && !alarmed) {
+          storm_until = t + uniform(0.02, 0.3);
+          ++log.xoff_storms;
+        } else {
+          next_storm = t + uniform(0.05, 0.5);
+        }
+      }
+    }
+    if (f.noise_bytes_per_s > 0.0 && open_count > 0 && t >= next_noise) {
+      const std::size_t n = drip ? static_cast<std::size_t>(uniform(1.0, 5.0))
+                                 : static_cast<std::size_t>(uniform(4.0, 25.0));
+      if (out.size() < kMaxOutQueue) {
+        const std::string noise = drip ? noise_bytes(n) : noise_line(n);
+        send(noise);
+        log.noise_bytes_sent += noise.size();
+      }
+      next_noise = t + std::exponential_distribution<>(
+                           f.noise_bytes_per_s / static_cast<double>(n + (drip ? 0 : 2)))(rng);
+    }
+  }
+
+  // Random bytes that are none of DC1, DC3, NAK, SYN, LF, CR (7 bits on a 7-bit line).
+  std::string noise_bytes(std::size_t n) {
+    std::string s;
+    const int top = cfg.line.data_bits == 7 ? 0x7F : 0xFF;
+    while (s.size() < n) {
+      const char c = static_cast<char>(std::uniform_int_distribution<>(0, top)(rng));
+      if (c != kXon && c != kXoff && c != kNak && c != kSyn && c != '\n' && c != '\r') s += c;
+    }
+    return s;
+  }
+
+  // A printable garbage line (with CR LF) that is no ok, error or ALARM line.
+  std::string noise_line(std::size_t n) {
+    static constexpr char kChars[] =
+        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789 :<>|.,=[]-";
+    for (;;) {
+      std::string s;
+      while (s.size() < n) {
+        s += kChars[std::uniform_int_distribution<std::size_t>(0, sizeof kChars - 2)(rng)];
+      }
+      std::string lower = s;
+      for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      if (lower.rfind("ok", 0) != 0 && lower.rfind("error", 0) != 0 &&
+          lower.rfind("alarm", 0) != 0) {
+        return s + "\r\n";
+      }
+    }
+  }
+
+  void flow() {
+    if (!xon_xoff || !pty.is_open() || alarmed) return;
+    if (!fill_xoff && fill >= xoff_at) fill_xoff = true;
+    if (fill_xoff && fill <= xon_at) fill_xoff = false;
+    const bool want = fill_xoff || storm_until.has_value() || hold_until.has_value();
+    if (want != told_xoff) send_flow(want);
+  }
+
+  // ---- the loop ----
+
+  // Seconds until something is due, at most kLoopPeriodS.
+  double timeout(double t) const {
+    double due = t + kLoopPeriodS;
+    if (pty.is_open() && !rx_idle) due = std::min(due, credit_t + (1.0 - credit) / cps);
+    if (pty.is_open() && rx_idle && !backlog.empty()) due = t;
+    if (busy) due = std::min(due, busy_end);
+    const double prime_t = log.last_byte_t_s + cfg.prime_idle_s;
+    if (!started && prime_t > t) due = std::min(due, prime_t);
+    if (down_until) due = std::min(due, *down_until);
+    return std::max(0.0, due - t);
+  }
+
+  bool should_exit(double t) const {
+    if (stop.load()) return true;
+    if (!cfg.exit_at_end) return false;
+    if (alarmed) return t - alarm_t >= cfg.alarm_linger_s;
+    return log.program_end_executed && t - log.last_byte_t_s >= cfg.exit_quiet_s && out.empty();
+  }
+
+  void run() {
+    t0 = Clock::now();
+    link_event(0.0, "created");  // DC1 (ready) goes to each sender as it connects
+    next_storm = uniform(0.05, 0.5);
+    if (cfg.faults.noise_bytes_per_s > 0.0) {
+      next_noise = std::exponential_distribution<>(cfg.faults.noise_bytes_per_s)(rng);
+    }
+    bool readable = false;
+    for (;;) {
+      double t = now_s();
+      if (should_exit(t)) break;
+      if (down_until && t >= *down_until) restore_link(t);
+      if (pty.is_open()) on_slave_events(t);
+      receive(t, readable);
+      execute(t);
+      faults(t);
+      flow();
+      publish();  // before the bytes go out, so a sender reading them sees this state
+      flush_out();
+
+      std::array<pollfd, 3> fds{};
+      fds[0] = {wake[0], POLLIN, 0};
+      nfds_t nfds = 1;
+      if (pty.is_open()) {
+        short ev = 0;
+        if (rx_idle) ev |= POLLIN;
+        if (!out.empty()) ev |= POLLOUT;
+        fds[1] = {pty.watch_fd(), POLLIN, 0};
+        fds[2] = {pty.master(), ev, 0};
+        nfds = 3;
+      }
+      t = now_s();
+      const double wait = timeout(t);
+      timespec ts{};
+      ts.tv_sec = static_cast<time_t>(wait);
+      ts.tv_nsec = static_cast<long>((wait - static_cast<double>(ts.tv_sec)) * 1e9);
+      readable = false;
+      if (::ppoll(fds.data(), nfds, &ts, nullptr) > 0) {
+        if (fds[0].revents & POLLIN) {
+          std::array<char, 64> drain{};
+          while (::read(wake[0], drain.data(), drain.size()) > 0) {
+          }
+        }
+        readable = nfds == 3 && (fds[2].revents & POLLIN) != 0;
+      }
+    }
+    finalize(now_s());
+  }
+
+  void finalize(double t) {
+    if (stop.load()) {
+      log.stop_reason = "stop_requested";
+    } else {
+      log.stop_reason = alarmed ? "alarm" : "program_end";
+    }
+    const auto& q = drip ? rx : planner;
+    if (moved && !alarmed && !busy && q.empty() && !end_received &&
+        t - free_at > cfg.underrun_grace_s) {
+      add_underrun(free_at, t);  // still dry when stopped
+    }
+    log.duration_s = t;
+    log.program_sha256 = sha.hex();
+    if (log.bytes_received > 0) {
+      log.reception_s = log.last_byte_t_s - log.first_byte_t_s;
+      log.bytes_per_s = static_cast<double>(log.bytes_received) / log.reception_s;
+      log.link_use = log.bytes_per_s / cps;
+    }
+    pty.close();
+    publish();
+  }
+
+  void publish() {
+    live_bytes.store(log.bytes_received, std::memory_order_relaxed);
+    live_blocks.store(log.blocks_received, std::memory_order_relaxed);
+    live_executed.store(log.blocks_executed, std::memory_order_relaxed);
+    live_drops.store(log.link_drops, std::memory_order_relaxed);
+    live_alarms.store(static_cast<long>(log.alarms.size()), std::memory_order_relaxed);
+    live_fill.store(fill, std::memory_order_relaxed);
+    live_end_received.store(end_received, std::memory_order_relaxed);
+    live_end_executed.store(log.program_end_executed, std::memory_order_release);
+  }
+
+  const SimControllerConfig cfg;
+  const bool drip, xon_xoff;
+  const double cps;
+  const int xoff_at, xon_at, max_block;
+  std::mt19937_64 rng;
+  Pty pty;
+  std::array<int, 2> wake{-1, -1};
+  std::atomic<bool> stop{false};
+  Clock::time_point t0 = Clock::now();
+  SimLog log;
+  Sha256 sha;
+  std::string out;
+
+  // connection
+  int open_count = 0;
+  std::uint64_t rx_epoch = 0, reply_epoch = 0;
+  std::optional<std::uint64_t> marker;  // bytes taken when the last sender's bytes are all read
+  std::optional<double> down_until;
+  bool drop_pending = false, alarm_pending = false;
+
+  // wire
+  std::array<char, 4096> buf{};
+  bool rx_idle = true;
+  double credit = 0.0, credit_t = 0.0;
+  std::uint64_t taken = 0;
+  std::string backlog;  // read off the pty ahead of the wire (a sender that left), taken first
+
+  // receive buffer and parser
+  std::string partial;
+  int partial_chars = 0;  // without CR
+  bool discarding_long = false;
+  int fill = 0;
+  std::deque<Line> rx, planner;
+  SimModal modal;
+  bool end_received = false;
+  double end_received_t = 0.0;
+  long blocks_in_epoch = 0;
+
+  // flow and faults
+  bool fill_xoff = false, told_xoff = false;
+  std::optional<double> storm_until, hold_until;
+  double next_storm = 0.0, next_noise = 0.0;
+  bool alarmed = false;
+  double alarm_t = 0.0;
+
+  // executor
+  bool started = false, busy = false, moved = false;  // moved: a move has started
+  double busy_end = 0.0, free_at = 0.0;
+  SimBlock current;
+  std::array<double, 3> position{0.0, 0.0, 0.0};
+  std::optional<long> last_exec_n;
+
+  // live view
+  std::atomic<std::uint64_t> live_bytes{0};
+  std::atomic<long> live_blocks{0}, live_executed{0}, live_drops{0}, live_alarms{0};
+  std::atomic<int> live_fill{0};
+  std::atomic<bool> live_end_received{false}, live_end_executed{false};
+};
+
+SimController::SimController(SimControllerConfig config)
+    : impl_(std::make_unique<Impl>(std::move(config))) {}
+
+SimController::~SimController() = default;
+
+const SimControllerConfig& SimController::config() const {
+  return impl_->cfg;
+}
+
+std::string SimController::device() const {
+  return impl_->pty.device();
+}
+
+void SimController::run() {
+  impl_->run();
+}
+
+void SimController::request_stop() noexcept {
+  impl_->stop.store(true);
+  const char c = 's';
+  [[maybe_unused]] const ssize_t n = ::write(impl_->wake[1], &c, 1);
+}
+
+SimProgress SimController::progress() const noexcept {
+  SimProgress p;
+  p.program_end_executed = impl_->live_end_executed.load(std::memory_order_acquire);
+  p.bytes_received = impl_->live_bytes.load(std::memory_order_relaxed);
+  p.blocks_received = impl_->live_blocks.load(std::memory_order_relaxed);
+  p.blocks_executed = impl_->live_executed.load(std::memory_order_relaxed);
+  p.link_drops = impl_->live_drops.load(std::memory_order_relaxed);
+  p.alarms = impl_->live_alarms.load(std::memory_order_relaxed);
+  p.buffer_fill = impl_->live_fill.load(std::memory_order_relaxed);
+  p.program_end_received = impl_->live_end_received.load(std::memory_order_relaxed);
+  return p;
+}
+
+const SimLog& SimController::log() const {
+  return impl_->log;
+}
+
+// ---- JSON ----
+
+namespace {
+
+Json optional_json(const std::optional<long>& v) {
+  return v ? Json(*v) : Json(nullptr);
+}
+
+}  // namespace
+
+Json settings_json(const SimControllerConfig& c) {
+  const SimFaults& f = c.faults;
+  return Json{{"link", c.line.device},
+              {"baud", c.line.baud},
+              {"frame", frame_text(c.line)},
+              {"bits_per_char", bits_per_char(c.line)},
+              {"chars_per_s", chars_per_s(c.line)},
+              {"flow", to_string(c.line.flow)},
+              {"protocol", to_string(c.line.protocol)},
+              {"eob", c.line.eob == EndOfBlock::CrLf ? "crlf" : "lf"},
+              {"buffer_bytes", c.buffer_bytes},
+              {"xoff_at", c.xoff_at.value_or(0)},
+              {"xon_at", c.xon_at.value_or(0)},
+              {"max_block_chars", max_block_chars(c)},
+              {"planner_blocks", c.planner_blocks},
+              {"rapid_mm_per_min", c.rapid_mm_per_min},
+              {"prime_idle_s", c.prime_idle_s},
+              {"underrun_grace_s", c.underrun_grace_s},
+              {"exit_at_end", c.exit_at_end},
+              {"seed", c.seed},
+              {"faults",
+               {{"drop_link_after_blocks", f.drop_link_after_blocks},
+                {"down_s", f.down_s},
+                {"xoff_storm", f.xoff_storm},
+                {"hold_after_blocks", f.hold_after_blocks},
+                {"hold_s", f.hold_s},
+                {"noise_bytes_per_s", f.noise_bytes_per_s},
+                {"alarm_after_blocks", f.alarm_after_blocks}}}};
+}
+
+Json to_json(const SimLog& l) {
+  Json moves = Json::array();
+  for (const SimMove& m : l.moves) {
+    moves.push_back({{"p", {m.p[0], m.p[1], m.p[2]}},
+                     {"feed_mm_per_min", m.feed_mm_per_min},
+                     {"g", m.g},
+                     {"n", optional_json(m.n)},
+                     {"t_s", m.t_s}});
+  }
+  Json underruns = Json::array();
+  for (const SimUnderrun& u : l.underrun_events) {
+    underruns.push_back(
+        {{"t_s", u.t_s}, {"block", u.block}, {"n", optional_json(u.n)}, {"dwell_s", u.dwell_s}});
+  }
+  Json alarms = Json::array();
+  for (const SimAlarm& a : l.alarms) {
+    alarms.push_back({{"t_s", a.t_s},
+                      {"code", a.code},
+                      {"block", a.block},
+                      {"n", optional_json(a.n)},
+                      {"detail", a.detail}});
+  }
+  Json errors = Json::array();
+  for (const SimErrorReply& e : l.errors) {
+    errors.push_back({{"t_s", e.t_s},
+                      {"line", e.line},
+                      {"code", e.code},
+                      {"text", e.text},
+                      {"message", e.message}});
+  }
+  Json links = Json::array();
+  for (const SimLinkEvent& e : l.link_events) {
+    links.push_back({{"t_s", e.t_s}, {"event", e.event}, {"device", e.device}});
+  }
+  return Json{{"settings", settings_json(l.config)},
+              {"stop_reason", l.stop_reason},
+              {"duration_s", l.duration_s},
+              {"lines_received", l.lines_received},
+              {"blocks_received", l.blocks_received},
+              {"blocks_executed", l.blocks_executed},
+              {"framing_lines", l.framing_lines},
+              {"duplicates_discarded", l.duplicates_discarded},
+              {"blocks_rejected", l.blocks_rejected},
+              {"lines_after_end", l.lines_after_end},
+              {"partial_lines_discarded", l.partial_lines_discarded},
+              {"program_sha256", l.program_sha256},
+              {"program_end_received", l.program_end_received},
+              {"program_end_executed", l.program_end_executed},
+              {"first_n", optional_json(l.first_n)},
+              {"last_n", optional_json(l.last_n)},
+              {"bytes_received", l.bytes_received},
+              {"nul_received", l.nul_received},
+              {"bytes_after_alarm", l.bytes_after_alarm},
+              {"first_byte_t_s", l.first_byte_t_s},
+              {"last_byte_t_s", l.last_byte_t_s},
+              {"reception_s", l.reception_s},
+              {"bytes_per_s", l.bytes_per_s},
+              {"chars_per_s", chars_per_s(l.config.line)},
+              {"link_use", l.link_use},
+              {"buffer_bytes", l.config.buffer_bytes},
+              {"max_buffer_fill", l.max_buffer_fill},
+              {"max_planner_blocks", l.max_planner_blocks},
+              {"execution_start_t_s", l.execution_start_t_s},
+              {"execution_end_t_s", l.execution_end_t_s},
+              {"underruns", l.underruns},
+              {"underrun_events", underruns},
+              {"dwell_s", l.dwell_s},
+              {"alarms", alarms},
+              {"errors", errors},
+              {"xoff_sent", l.xoff_sent},
+              {"xon_sent", l.xon_sent},
+              {"xoff_storms", l.xoff_storms},
+              {"holds", l.holds},
+              {"noise_bytes_sent", l.noise_bytes_sent},
+              {"link_drops", l.link_drops},
+              {"sender_connects", l.sender_connects},
+              {"sender_disconnects", l.sender_disconnects},
+              {"link_events", links},
+              {"path_length_mm", l.path_length_mm},
+              {"moves", moves}};
+}
+
+}  // namespace ncd::comms

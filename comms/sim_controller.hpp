@@ -1,0 +1,226 @@
+// A simulated CNC controller on a pseudo-terminal: the other end of `ncd stream`. It paces
+// reception at the line's baud and frame, holds a receive buffer with DC1/DC3 flow control (or
+// answers grbl-type ok / error:N), parses the blocks, executes them in real time at their feed
+// and records what it did. Faults (link drops, XOFF storms and holds, noise, alarms) can be
+// injected for the sender's tests. The model is explained at the top of sim_controller.cpp.
+//
+//   SimController sim(config);   // creates the pty and links it at config.line.device
+//   std::thread t([&] { sim.run(); });
+//   ... a sender opens config.line.device and streams ...
+//   sim.request_stop(); t.join();
+//   nlohmann::json log = to_json(sim.log());
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "comms/line_settings.hpp"
+
+namespace ncd::comms {
+
+// Faults injected into the link, for the sender's tests. Block counts are accepted blocks
+// (`blocks_received`); 0 turns a fault off. Each count-triggered fault happens once.
+struct SimFaults {
+  long drop_link_after_blocks = 0;  // then close the pty, unlink the path, relink a new pty
+  double down_s = 1.0;              // ... after this long
+  bool xoff_storm = false;          // random DC3, held 20–300 ms, DC1, while receiving
+  long hold_after_blocks = 0;       // then assert DC3 once for hold_s
+  double hold_s = 10.0;
+  double noise_bytes_per_s = 0.0;  // random bytes (drip) or garbage lines (ack) to the sender
+  long alarm_after_blocks = 0;     // then raise an alarm and stop executing
+};
+
+struct SimControllerConfig {
+  LineSettings line;  // line.device is the path of the link to create (a symbolic link)
+  int buffer_bytes = 256;
+  // High-water mark (DC3 when the fill reaches it); default buffer − min(64, buffer/4), which
+  // leaves room for a sender that stops within 16 characters.
+  std::optional<int> xoff_at;
+  // Low-water mark (DC1 when the fill falls to it); default xoff_at / 2.
+  std::optional<int> xon_at;
+  int planner_blocks = 16;           // ack protocol: grbl-like planner queue
+  double rapid_mm_per_min = 5000.0;  // G0
+  double prime_idle_s = 0.5;         // execution starts after this long without a character
+  double underrun_grace_s = 0.002;   // dry spells shorter than this are timer jitter, not counted
+  bool exit_at_end = false;          // run() returns once the program end has been executed
+  double exit_quiet_s = 0.2;         // ... and the line has been quiet this long
+  double alarm_linger_s = 1.0;       // with exit_at_end: run() returns this long after an alarm
+  std::uint64_t seed = 0;            // for the storm and noise faults
+  SimFaults faults;
+  // Told of link events and alarms as they happen (on the thread of run()); may be empty.
+  std::function<void(const std::string&)> on_event;
+};
+
+// Fills in the defaults and checks the ranges; throws InputError naming the value, the limit
+// and the way out.
+SimControllerConfig checked(SimControllerConfig config);
+// The longest block (characters before CR/LF) the controller takes: 255, or less when the
+// buffer could not otherwise hold a whole block below its high-water mark.
+int max_block_chars(const SimControllerConfig& config);
+
+// ---- Block parsing (one pure function, also used by the tests) ----
+
+// grbl 1.1 error codes used in `error:N` replies.
+enum SimError : int {
+  kErrExpectedLetter = 1,  // a character that is not a word letter
+  kErrBadNumber = 2,       // a letter without a number, or a malformed number
+  kErrNegative = 4,        // negative F, S, T or P
+  kErrAlarmLock = 9,       // a line received while in alarm
+  kErrLineTooLong = 14,    // more than max_block_chars characters
+  kErrUnsupported = 20,    // G91, G20, G2/G3, unknown G or M codes, unsupported letters
+  kErrModalGroup = 21,     // two motion codes in one block
+  kErrUndefinedFeed = 22,  // G1 with no F so far
+  kErrNotInteger = 23,     // N, M or T with a fraction
+  kErrRepeatedWord = 25,   // the same letter twice (G and M may repeat)
+  kErrBadLineNumber = 27,  // N out of 0 … 99 999 999
+  kErrMissingValue = 28,   // G4 without P
+};
+
+// Modal state a block is read against: G90 absolute mm only.
+struct SimModal {
+  std::array<double, 3> position{0.0, 0.0, 0.0};  // mm
+  int motion = 0;                                 // 0 (G0), 1 (G1) or 80 (G80: none)
+  double feed_mm_per_min = 0.0;                   // 0: not yet set
+};
+
+struct SimBlock {
+  std::optional<long> n;         // the sequence number, when the block has one
+  bool move = false;             // G0/G1 with an axis word
+  int g = 0;                     // 0 or 1, for a move
+  std::array<double, 3> to{};    // end point, mm
+  double feed_mm_per_min = 0.0;  // feed of the move (the rapid rate for G0)
+  double duration_s = 0.0;       // move or dwell (G4) time
+  bool program_end = false;      // M2 or M30
+};
+
+struct SimParse {
+  int error = 0;        // 0, or a SimError code
+  std::string message;  // what was wrong, for the log
+  SimBlock block;
+};
+
+// Reads one block (a line without its end of block; CR and NUL already removed) against
+// `modal`, which is updated only when the block parses. Comments in parentheses and after `;`
+// are ignored; letters may be lower case.
+SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm_per_min);
+
+// ---- What a run did ----
+
+struct SimMove {
+  std::array<double, 3> p{};  // end point, mm
+  double feed_mm_per_min = 0.0;
+  int g = 1;
+  std::optional<long> n;
+  double t_s = 0.0;  // when the move ended, seconds since the controller started
+};
+
+struct SimAlarm {
+  double t_s = 0.0;
+  std::string code;       // overflow | injected | bad_block | block_too_long
+  long block = 0;         // blocks received when it was raised
+  std::optional<long> n;  // the last accepted sequence number
+  std::string detail;
+};
+
+struct SimUnderrun {
+  double t_s = 0.0;       // when the executor ran dry
+  long block = 0;         // blocks executed by then
+  std::optional<long> n;  // the sequence number of the last executed block
+  double dwell_s = 0.0;
+};
+
+struct SimErrorReply {  // ack protocol: a line answered error:N
+  double t_s = 0.0;
+  long line = 0;  // lines received, this one included
+  int code = 0;
+  std::string text, message;
+};
+
+struct SimLinkEvent {
+  double t_s = 0.0;
+  std::string event;  // created | sender_connected | sender_disconnected | down | up
+  std::string device;
+};
+
+struct SimLog {
+  SimControllerConfig config;  // as checked, defaults filled in
+  std::string stop_reason;     // stop_requested | program_end | alarm
+  double duration_s = 0.0;
+  long lines_received = 0, blocks_received = 0, blocks_executed = 0, framing_lines = 0;
+  long duplicates_discarded = 0, blocks_rejected = 0, lines_after_end = 0;
+  long partial_lines_discarded = 0;
+  std::string program_sha256;
+  bool program_end_received = false, program_end_executed = false;
+  std::optional<long> first_n, last_n;
+  std::uint64_t bytes_received = 0, nul_received = 0, bytes_after_alarm = 0;
+  double first_byte_t_s = 0.0;  // when the first character started on the line
+  double last_byte_t_s = 0.0;   // when the last one was taken (the end of its frame)
+  double reception_s = 0.0;     // last_byte_t_s − first_byte_t_s
+  double bytes_per_s = 0.0, link_use = 0.0;
+  int max_buffer_fill = 0;
+  long max_planner_blocks = 0;
+  double execution_start_t_s = -1.0, execution_end_t_s = -1.0;
+  long underruns = 0;
+  double dwell_s = 0.0;
+  std::vector<SimUnderrun> underrun_events;
+  std::vector<SimAlarm> alarms;
+  std::vector<SimErrorReply> errors;
+  long xoff_sent = 0, xon_sent = 0, xoff_storms = 0, holds = 0;
+  std::uint64_t noise_bytes_sent = 0;
+  long link_drops = 0, sender_connects = 0, sender_disconnects = 0;
+  std::vector<SimLinkEvent> link_events;
+  std::vector<SimMove> moves;
+  double path_length_mm = 0.0;
+};
+
+// The log as the JSON `--log` writes (field names in README, `ncd sim-controller`).
+nlohmann::json to_json(const SimLog& log);
+// The settings part of it.
+nlohmann::json settings_json(const SimControllerConfig& config);
+
+// A live view of a run, readable from any thread.
+struct SimProgress {
+  std::uint64_t bytes_received = 0;
+  long blocks_received = 0, blocks_executed = 0, link_drops = 0, alarms = 0;
+  int buffer_fill = 0;
+  bool program_end_received = false, program_end_executed = false;
+};
+
+class SimController {
+ public:
+  // Checks the config (InputError), creates the pty and links it at config.line.device.
+  explicit SimController(SimControllerConfig config);
+  ~SimController();
+  SimController(const SimController&) = delete;
+  SimController& operator=(const SimController&) = delete;
+
+  // The checked config (defaults filled in).
+  const SimControllerConfig& config() const;
+  // The slave the link points at now. Call before run() or after it returns.
+  std::string device() const;
+
+  // Runs until request_stop(), or with exit_at_end until the program end has been executed (or
+  // an alarm stopped the controller). Closes the pty and removes the link before returning.
+  // Call once.
+  void run();
+  // Makes run() return soon. Async-signal-safe; callable from any thread.
+  void request_stop() noexcept;
+  SimProgress progress() const noexcept;
+  // What the run did; complete once run() has returned.
+  const SimLog& log() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ncd::comms

@@ -1,0 +1,909 @@
+// The simulated controller over real pseudo-terminals. The controller runs in-process on a
+// thread; the sender is written here with plain POSIX open/read/write on the linked path (no
+// sender library), and pairs DC1/DC3 with the controller's own count of bytes taken off the wire,
+// as a UART with a 16-character FIFO would. Checksums are computed here from the program text.
+#include "comms/sim_controller.hpp"
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <sys/stat.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <thread>
+#include <vector>
+
+#include "comms/pty.hpp"
+#include "comms/sha256.hpp"
+#include "core/error.hpp"
+
+namespace ncd::comms {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+double since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// A fresh folder per test, removed after.
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("ncd_sim_" + std::to_string(getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  fs::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  fs::path path_;
+};
+
+// A program of `count` numbered 1 mm G1 moves at `feed`, framed by % and ended by M30. blocks()
+// is what the controller must hash; text(eob) what goes on the wire.
+struct Program {
+  std::vector<std::string> blocks;
+  Program(int count, double feed, bool percent = true) : percent_(percent) {
+    blocks.push_back("(sim test program)");
+    blocks.push_back("G21 G90 G94");
+    char buf[96];
+    for (int i = 1; i <= count; ++i) {
+      std::snprintf(buf, sizeof buf, "N%d G1 X%d Y%.3f F%.0f", i * 10, i, 0.5 * (i % 2), feed);
+      blocks.push_back(buf);
+    }
+    blocks.push_back("N" + std::to_string(count * 10 + 10) + " M30");
+  }
+  std::string text(const std::string& eob) const {
+    std::string s = percent_ ? "%" + eob : "";
+    for (const auto& b : blocks) s += b + eob;
+    if (percent_) s += "%" + eob;
+    return s;
+  }
+  std::string sha() const {
+    std::string s;
+    for (const auto& b : blocks) s += b + "\n";
+    return sha256_hex(s);
+  }
+  int moves() const { return static_cast<int>(blocks.size()) - 3; }
+
+ private:
+  bool percent_;
+};
+
+SimControllerConfig config(const fs::path& link, Protocol protocol = Protocol::Drip,
+                           int baud = 115200, const std::string& frame = "8N1") {
+  SimControllerConfig c;
+  c.line.device = link.string();
+  c.line.baud = baud;
+  parse_frame(frame, c.line);
+  c.line.protocol = protocol;
+  c.seed = 1;
+  return c;
+}
+
+// The controller on its own thread.
+class Running {
+ public:
+  explicit Running(SimControllerConfig cfg)
+      : sim(std::move(cfg)), thread_([this] {
+          sim.run();
+          done_ = true;
+        }) {}
+  ~Running() { stop(); }
+  Running(const Running&) = delete;
+  Running& operator=(const Running&) = delete;
+
+  const SimLog& stop() {
+    if (thread_.joinable()) {
+      sim.request_stop();
+      thread_.join();
+    }
+    return sim.log();
+  }
+  // Waits for a condition on the live progress; false after timeout_s.
+  template <class Pred>
+  bool wait(Pred pred, double timeout_s = 10.0) {
+    const auto t0 = Clock::now();
+    while (since(t0) < timeout_s) {
+      if (pred(sim.progress())) return true;
+      std::this_thread::sleep_for(1ms);
+    }
+    return false;
+  }
+  bool wait_end(double timeout_s = 10.0) {
+    return wait([](const SimProgress& p) { return p.program_end_executed; }, timeout_s);
+  }
+
+  // run() has returned.
+  bool done() const { return done_; }
+
+  SimController sim;
+
+ private:
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
+
+// The sender's end: the linked path opened raw and non-blocking.
+class Peer {
+ public:
+  Peer(const std::string& path, SimController& sim) : sim_(sim) {
+    fd_ = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
+    EXPECT_GE(fd_, 0) << "cannot open " << path;
+    termios t{};
+    if (fd_ >= 0 && ::tcgetattr(fd_, &t) == 0) {
+      ::cfmakeraw(&t);
+      ::tcsetattr(fd_, TCSANOW, &t);
+    }
+    base_ = sim.progress().bytes_received;
+  }
+  ~Peer() { close(); }
+  Peer(const Peer&) = delete;
+  Peer& operator=(const Peer&) = delete;
+  void close() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+  bool ok() const { return fd_ >= 0; }
+
+  // Reads what the controller sent; false once the controller's side has hung up.
+  bool pump() {
+    char buf[512];
+    for (;;) {
+      const ssize_t n = ::read(fd_, buf, sizeof buf);
+      if (n > 0) {
+        for (ssize_t i = 0; i < n; ++i) on_byte(buf[i]);
+        continue;
+      }
+      if (n == 0 || (errno != EAGAIN && errno != EINTR)) return false;
+      return true;
+    }
+  }
+  // Pumps for a while.
+  void listen(double seconds) {
+    const auto t0 = Clock::now();
+    while (since(t0) < seconds && pump()) std::this_thread::sleep_for(1ms);
+  }
+  // Characters written and not yet taken off the wire by the controller.
+  long ahead() const {
+    return static_cast<long>(written_) - static_cast<long>(sim_.progress().bytes_received - base_);
+  }
+  void write_all(const std::string& bytes) {
+    std::size_t off = 0;
+    while (off < bytes.size()) {
+      const ssize_t n = ::write(fd_, bytes.data() + off, bytes.size() - off);
+      if (n > 0) {
+        off += static_cast<std::size_t>(n);
+      } else {
+        std::this_thread::sleep_for(1ms);
+      }
+    }
+    written_ += bytes.size();
+  }
+  // Drip: sends bytes obeying DC1/DC3 (when `obey`), at most `fifo` characters ahead of the
+  // wire. False when the controller hung up or alarmed (NAK) or timeout_s passed.
+  bool send_drip(const std::string& bytes, bool obey = true, int fifo = 16,
+                 double timeout_s = 20.0) {
+    const auto t0 = Clock::now();
+    std::size_t off = 0;
+    while (off < bytes.size()) {
+      if (!pump() || nak_ || since(t0) > timeout_s) return false;
+      if ((!obey || xon_) && ahead() < fifo) {
+        const std::size_t room = obey ? static_cast<std::size_t>(fifo - ahead()) : bytes.size();
+        const std::size_t take = std::min(room, bytes.size() - off);
+        const ssize_t n = ::write(fd_, bytes.data() + off, take);
+        if (n > 0) {
+          off += static_cast<std::size_t>(n);
+          written_ += static_cast<std::size_t>(n);
+          max_ahead_ = std::max(max_ahead_, ahead());
+          continue;
+        }
+        if (n < 0 && errno != EAGAIN) return false;
+      }
+      pollfd p{fd_, POLLIN, 0};
+      ::poll(&p, 1, 1);
+    }
+    return true;
+  }
+  // Ack: sends lines (each with its end of block) counting characters within `buffer`; collects
+  // the replies. False on an ALARM line, a hang-up or timeout_s.
+  bool send_ack(const std::vector<std::string>& lines, int buffer, double timeout_s = 20.0) {
+    const auto t0 = Clock::now();
+    std::size_t next = 0;
+    while (next < lines.size() || !unanswered_.empty()) {
+      if (!pump() || since(t0) > timeout_s) return false;
+      for (const auto& r : replies) {
+        if (r.rfind("ALARM", 0) == 0) return false;
+      }
+      while (next < lines.size() && used_ + static_cast<int>(lines[next].size()) <= buffer) {
+        write_all(lines[next]);
+        used_ += static_cast<int>(lines[next].size());
+        unanswered_.push_back(static_cast<int>(lines[next].size()));
+        ++next;
+      }
+      pollfd p{fd_, POLLIN, 0};
+      ::poll(&p, 1, 1);
+    }
+    return true;
+  }
+
+  std::string received;                        // every byte from the controller
+  std::vector<std::string> replies;            // ack: complete lines from the controller
+  std::vector<int> fill_at_xoff, fill_at_xon;  // the controller's fill when DC3/DC1 arrived
+  bool nak() const { return nak_; }
+  long max_ahead() const { return max_ahead_; }
+
+ private:
+  void on_byte(char c) {
+    received += c;
+    if (c == kXoff) {
+      xon_ = false;
+      fill_at_xoff.push_back(sim_.progress().buffer_fill);
+    } else if (c == kXon) {
+      xon_ = true;
+      fill_at_xon.push_back(sim_.progress().buffer_fill);
+    } else if (c == kNak) {
+      nak_ = true;
+    }
+    if (c == '\n') {
+      std::string line = line_;
+      line_.clear();
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      replies.push_back(line);
+      if ((line == "ok" || line.rfind("error:", 0) == 0) && !unanswered_.empty()) {
+        used_ -= unanswered_.front();
+        unanswered_.pop_front();
+      }
+    } else {
+      line_ += c;
+    }
+  }
+
+  SimController& sim_;
+  int fd_ = -1;
+  std::uint64_t base_ = 0;
+  std::size_t written_ = 0;
+  bool xon_ = true, nak_ = false;
+  long max_ahead_ = 0;
+  std::string line_;
+  std::deque<int> unanswered_;
+  int used_ = 0;
+};
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (start < text.size()) {
+    const auto nl = text.find('\n', start);
+    out.push_back(text.substr(start, nl - start + 1));
+    start = nl + 1;
+  }
+  return out;
+}
+
+// ---- parsing ----
+
+TEST(SimBlockParse, WordsModalStateAndTimes) {
+  SimModal m;
+  SimParse p = parse_sim_block("n10 g1 x30 (thirty) f600 ; the rest is a comment", m, 5000);
+  ASSERT_EQ(p.error, 0) << p.message;
+  EXPECT_EQ(p.block.n, 10);
+  EXPECT_TRUE(p.block.move);
+  EXPECT_EQ(p.block.g, 1);
+  EXPECT_DOUBLE_EQ(p.block.duration_s, 3.0);  // 30 mm at 10 mm/s
+  EXPECT_DOUBLE_EQ(m.position[0], 30.0);
+  p = parse_sim_block("Y40", m, 5000);  // modal G1 and F600
+  ASSERT_EQ(p.error, 0);
+  EXPECT_DOUBLE_EQ(p.block.duration_s, 4.0);
+  EXPECT_EQ(p.block.to, (std::array<double, 3>{30.0, 40.0, 0.0}));
+  p = parse_sim_block("G0 X0 Y0", m, 5000);  // 50 mm at the rapid rate
+  EXPECT_DOUBLE_EQ(p.block.duration_s, 50.0 / (5000.0 / 60.0));
+  EXPECT_DOUBLE_EQ(p.block.feed_mm_per_min, 5000.0);
+  p = parse_sim_block("G4 P0.25", m, 5000);
+  EXPECT_FALSE(p.block.move);
+  EXPECT_DOUBLE_EQ(p.block.duration_s, 0.25);
+  p = parse_sim_block("M30", m, 5000);
+  EXPECT_TRUE(p.block.program_end);
+  p = parse_sim_block("G64 P0.01 G17 G40 G49 S3000 M3 T1", m, 5000);
+  EXPECT_EQ(p.error, 0) << p.message;
+  EXPECT_EQ(parse_sim_block("(only a comment)", m, 5000).error, 0);
+}
+
+TEST(SimBlockParse, GrblErrorCodes) {
+  const std::vector<std::pair<std::string, int>> cases = {{"G1 X1", kErrUndefinedFeed},
+                                                          {"G91 X1", kErrUnsupported},
+                                                          {"G20", kErrUnsupported},
+                                                          {"G2 X1 Y1 I1", kErrUnsupported},
+                                                          {"G1 Xabc F10", kErrBadNumber},
+                                                          {"G1 X F10", kErrBadNumber},
+                                                          {"G1 X1 X2 F10", kErrRepeatedWord},
+                                                          {"G0 G1 X1", kErrModalGroup},
+                                                          {"N1.5 G0 X1", kErrNotInteger},
+                                                          {"M99", kErrUnsupported},
+                                                          {"G1 X1 F-5", kErrNegative},
+                                                          {"#1=2", kErrExpectedLetter},
+                                                          {"G4", kErrMissingValue},
+                                                          {"N123456789 G0 X1", kErrBadLineNumber},
+                                                          {"G0 A1", kErrUnsupported},
+                                                          {"G5.2 X1", kErrUnsupported},
+                                                          {"P5", kErrUnsupported}};
+  for (const auto& [text, code] : cases) {
+    SimModal m;
+    m.position = {1.0, 2.0, 3.0};
+    const SimParse p = parse_sim_block(text, m, 5000);
+    EXPECT_EQ(p.error, code) << text << ": " << p.message;
+    EXPECT_FALSE(p.message.empty()) << text;
+    EXPECT_EQ(m.position, (std::array<double, 3>{1.0, 2.0, 3.0})) << "modal changed by " << text;
+    EXPECT_EQ(m.feed_mm_per_min, 0.0) << text;
+  }
+}
+
+TEST(SimControllerConfig, DefaultsAndRanges) {
+  SimControllerConfig c;
+  c.line.device = "/tmp/x";
+  SimControllerConfig d = checked(c);
+  EXPECT_EQ(*d.xoff_at, 192);  // 256 − 64: room for a sender that stops within 16 characters
+  EXPECT_EQ(*d.xon_at, 96);
+  EXPECT_EQ(max_block_chars(d), 190);
+  c.buffer_bytes = 128;  // grbl
+  d = checked(c);
+  EXPECT_EQ(*d.xoff_at, 96);
+  EXPECT_EQ(*d.xon_at, 48);
+  c.buffer_bytes = 1024;
+  EXPECT_EQ(*checked(c).xoff_at, 960);
+  c.buffer_bytes = 32;
+  EXPECT_THROW(checked(c), InputError);
+  c.buffer_bytes = 256;
+  c.xoff_at = 300;
+  EXPECT_THROW(checked(c), InputError);
+  c.xoff_at = 100;
+  c.xon_at = 100;
+  EXPECT_THROW(checked(c), InputError);
+  c.xon_at.reset();
+  c.xoff_at.reset();
+  c.line.flow = Flow::None;
+  c.faults.xoff_storm = true;
+  EXPECT_THROW(checked(c), InputError);  // a storm needs DC1/DC3
+  c.faults.xoff_storm = false;
+  c.faults.noise_bytes_per_s = 1e6;
+  EXPECT_THROW(checked(c), InputError);
+  c.faults.noise_bytes_per_s = 0.0;
+  c.line.device.clear();
+  EXPECT_THROW(checked(c), InputError);
+}
+
+// ---- the pty ----
+
+TEST(Pty, LinksRawSlaveAndCleansUp) {
+  TempDir dir;
+  const std::string link = (dir / "cnc").string();
+  {
+    Pty pty(link);
+    EXPECT_EQ(fs::read_symlink(link).string(), pty.device());
+    const int fd = ::open(link.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(::write(fd, "G1\r\n", 4), 4);
+    std::this_thread::sleep_for(20ms);
+    char buf[16];
+    EXPECT_EQ(::read(pty.master(), buf, sizeof buf), 4);  // CR LF untranslated
+    EXPECT_EQ(std::string(buf, 4), "G1\r\n");
+    EXPECT_LT(::read(fd, buf, sizeof buf), 0);  // nothing echoed
+    ::close(fd);
+    std::this_thread::sleep_for(5ms);
+    const auto ev = pty.take_slave_events();
+    ASSERT_EQ(ev.size(), 2U);
+    EXPECT_EQ(ev[0], Pty::SlaveEvent::Opened);
+    EXPECT_EQ(ev[1], Pty::SlaveEvent::Closed);
+    pty.close();
+    EXPECT_FALSE(fs::is_symlink(link));
+    pty.open();  // recreate
+    EXPECT_TRUE(fs::is_symlink(link));
+  }
+  EXPECT_FALSE(fs::is_symlink(link));
+}
+
+TEST(Pty, ReplacesALinkRefusesAnythingElse) {
+  TempDir dir;
+  const std::string link = (dir / "cnc").string();
+  fs::create_symlink("/nonexistent/old", link);
+  {
+    Pty pty(link);
+    EXPECT_EQ(fs::read_symlink(link).string(), pty.device());
+  }
+  std::ofstream(dir / "file") << "keep me";
+  EXPECT_THROW(Pty((dir / "file").string()), InputError);
+  EXPECT_EQ(fs::file_size(dir / "file"), 7U);
+  EXPECT_THROW(Pty((dir / "missing" / "cnc").string()), InputError);
+}
+
+// ---- byte-exact transfer ----
+
+struct ExactCase {
+  Protocol protocol;
+  const char* eob;
+  const char* frame;
+};
+
+class ByteExact : public ::testing::TestWithParam<ExactCase> {};
+
+TEST_P(ByteExact, ProgramArrivesWithItsChecksum) {
+  const ExactCase k = GetParam();
+  TempDir dir;
+  const Program prog(30, 3000.0, k.protocol == Protocol::Drip);  // 20 ms a block
+  SimControllerConfig cfg = config(dir / "cnc", k.protocol, 19200, k.frame);
+  cfg.line.eob = std::string(k.eob) == "\r\n" ? EndOfBlock::CrLf : EndOfBlock::Lf;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  std::vector<std::string> lines = lines_of(prog.text(k.eob));
+  std::string wire;
+  for (auto& line : lines) {
+    if (std::string(k.frame) == "7E2") {
+      for (char& c : line) c = static_cast<char>(c | 0x80);  // a 7-bit UART never sees bit 8
+    }
+    wire += line;
+  }
+  if (k.protocol == Protocol::Drip) {
+    ASSERT_TRUE(peer.send_drip(wire));
+    EXPECT_LE(peer.max_ahead(), 16);
+  } else {
+    ASSERT_TRUE(peer.send_ack(lines, cfg.buffer_bytes));
+    EXPECT_EQ(peer.replies, std::vector<std::string>(prog.blocks.size(), "ok"));
+  }
+  ASSERT_TRUE(run.wait_end());
+  peer.pump();
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.program_sha256, prog.sha());
+  EXPECT_EQ(log.blocks_received, static_cast<long>(prog.blocks.size()));
+  EXPECT_EQ(log.bytes_received, wire.size());
+  EXPECT_TRUE(log.program_end_received);
+  EXPECT_TRUE(log.program_end_executed);
+  EXPECT_TRUE(log.alarms.empty());
+  EXPECT_LE(log.max_buffer_fill, cfg.buffer_bytes);
+  ASSERT_EQ(static_cast<int>(log.moves.size()), prog.moves());
+  EXPECT_EQ(log.moves.back().p, (std::array<double, 3>{30.0, 0.0, 0.0}));
+  EXPECT_EQ(log.moves.back().n, 300);
+  EXPECT_DOUBLE_EQ(log.moves.back().feed_mm_per_min, 3000.0);
+  EXPECT_LE(log.link_use, 1.0);
+  if (k.protocol == Protocol::Drip) {
+    EXPECT_GE(log.xoff_sent, 1);  // 11 ms on the wire, 20 ms to execute: the buffer fills
+    EXPECT_EQ(peer.received.front(), kXon);  // ready
+  } else {
+    EXPECT_EQ(log.xoff_sent, 0);
+    EXPECT_GE(log.max_planner_blocks, 16);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(SimController, ByteExact,
+                         ::testing::Values(ExactCase{Protocol::Drip, "\n", "7E2"},
+                                           ExactCase{Protocol::Drip, "\n", "8N1"},
+                                           ExactCase{Protocol::Drip, "\r\n", "7E2"},
+                                           ExactCase{Protocol::Drip, "\r\n", "8N1"},
+                                           ExactCase{Protocol::Ack, "\n", "7E2"},
+                                           ExactCase{Protocol::Ack, "\n", "8N1"},
+                                           ExactCase{Protocol::Ack, "\r\n", "7E2"},
+                                           ExactCase{Protocol::Ack, "\r\n", "8N1"}));
+
+// ---- pacing ----
+
+// Writes `chars` at once into a controller with a buffer large enough to take them and measures
+// how long the controller takes to read them off the pty. Returns the log.
+SimLog pace(const fs::path& link, int baud, const std::string& frame, int chars,
+            double& elapsed_s) {
+  SimControllerConfig cfg = config(link, Protocol::Drip, baud, frame);
+  cfg.line.flow = Flow::None;
+  cfg.buffer_bytes = 8192;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  std::string text;
+  while (static_cast<int>(text.size()) + 20 <= chars) text += "(pacing test 0123)\n";
+  text += std::string(static_cast<std::size_t>(chars) - text.size() - 1, ' ') + "\n";
+  const auto t0 = Clock::now();
+  peer.write_all(text);
+  EXPECT_TRUE(run.wait(
+      [&](const SimProgress& p) { return p.bytes_received >= static_cast<std::uint64_t>(chars); }));
+  elapsed_s = since(t0);
+  return run.stop();
+}
+
+TEST(SimController, PacesReceptionAtTheLineRate) {
+  TempDir dir;
+  double elapsed = 0.0;
+  SimLog log = pace(dir / "cnc", 19200, "7E2", 1000, elapsed);
+  const double cps = 19200.0 / 11.0;  // 1745.45 characters a second (spec/dnc.md)
+  std::cout << "[ measured ] 1000 chars at 19200 7E2: " << elapsed << " s (line: " << 1000 / cps
+            << " s), controller's bytes_per_s " << log.bytes_per_s << ", link_use " << log.link_use
+            << "\n";
+  EXPECT_EQ(log.bytes_received, 1000U);
+  EXPECT_GE(elapsed, 1000.0 / cps);
+  EXPECT_LT(elapsed, 3.0 * 1000.0 / cps);
+  EXPECT_LE(log.bytes_per_s, cps * (1.0 + 1e-9));
+  EXPECT_GE(log.reception_s, 1000.0 / cps - 1e-9);
+  EXPECT_GT(log.link_use, 0.9);
+
+  log = pace(dir / "cnc", 115200, "8N1", 5000, elapsed);
+  std::cout << "[ measured ] 5000 chars at 115200 8N1: " << elapsed
+            << " s (line: " << 5000 / 11520.0 << " s), link_use " << log.link_use << "\n";
+  EXPECT_GE(elapsed, 5000.0 / 11520.0);
+  EXPECT_LE(log.bytes_per_s, 11520.0 * (1.0 + 1e-9));
+  EXPECT_GT(log.link_use, 0.8);
+}
+
+// ---- flow control ----
+
+TEST(SimController, XoffAtHighWaterXonAtLowWater) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 19200, "7E2");
+  Running run(cfg);  // buffer 256, XOFF at 192, XON at 96
+  Peer peer(cfg.line.device, run.sim);
+  const Program prog(40, 1500.0);  // 45 ms a block of some 22 characters: the buffer fills
+  ASSERT_TRUE(peer.send_drip(prog.text("\n")));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.program_sha256, prog.sha());
+  ASSERT_GE(peer.fill_at_xoff.size(), 2U);
+  ASSERT_GE(peer.fill_at_xon.size(), 3U);  // ready, then each time the fill fell
+  for (const int f : peer.fill_at_xoff) {
+    EXPECT_GE(f, 192 - 25);  // at most one block started since DC3 was sent at 192
+    EXPECT_LE(f, 192 + 16);
+  }
+  for (std::size_t i = 1; i < peer.fill_at_xon.size(); ++i) EXPECT_LE(peer.fill_at_xon[i], 96);
+  EXPECT_GE(log.max_buffer_fill, 192);
+  EXPECT_LE(log.max_buffer_fill, 192 + 16);
+  EXPECT_EQ(log.xoff_sent, static_cast<long>(peer.fill_at_xoff.size()));
+  EXPECT_TRUE(log.alarms.empty());
+}
+
+TEST(SimController, SenderIgnoringXoffOverflows) {
+  for (const Flow flow : {Flow::XonXoff, Flow::None}) {
+    TempDir dir;
+    SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 115200, "8N1");
+    cfg.line.flow = flow;
+    Running run(cfg);
+    Peer peer(cfg.line.device, run.sim);
+    const Program prog(100, 600.0);  // slow moves: the buffer cannot drain
+    peer.send_drip(prog.text("\n"), /*obey=*/false);
+    peer.listen(0.2);
+    ASSERT_TRUE(run.wait([](const SimProgress& p) { return p.alarms > 0; }));
+    const SimLog& log = run.stop();
+    ASSERT_EQ(log.alarms.size(), 1U);
+    EXPECT_EQ(log.alarms[0].code, "overflow");
+    EXPECT_GT(log.alarms[0].block, 0);
+    EXPECT_EQ(log.max_buffer_fill, 256);
+    EXPECT_GT(log.bytes_after_alarm, 0U);
+    EXPECT_LE(log.blocks_executed, 2);  // stopped
+    ASSERT_GE(peer.received.size(), 2U);
+    EXPECT_EQ(peer.received.substr(peer.received.size() - 2), std::string({kXoff, kNak}));
+    if (flow == Flow::None) {
+      EXPECT_EQ(peer.received, std::string({kXoff, kNak}));  // nothing else on a line without
+    }
+  }
+}
+
+// ---- underruns ----
+
+TEST(SimController, NoUnderrunWhenFedAhead) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 115200, "8N1");
+  cfg.buffer_bytes = 2048;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  const Program prog(40, 6000.0);  // 10 ms a block, some 0.4 s in all
+  ASSERT_TRUE(peer.send_drip(prog.text("\n")));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.underruns, 0);
+  EXPECT_EQ(log.dwell_s, 0.0);
+  EXPECT_EQ(log.program_sha256, prog.sha());
+  // Back to back: the moves end 10 ms apart (1 mm, or √1.25 mm, at 100 mm/s).
+  for (std::size_t i = 1; i < log.moves.size(); ++i) {
+    EXPECT_NEAR(log.moves[i].t_s - log.moves[i - 1].t_s, 0.01 * std::sqrt(1.25), 1e-9);
+  }
+}
+
+TEST(SimController, UnderrunCountedWhenTheSenderPauses) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 115200, "8N1");
+  cfg.buffer_bytes = 2048;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  const Program prog(20, 6000.0);
+  const std::string text = prog.text("\n");
+  const auto cut = text.find("N110");  // after the 10th move
+  ASSERT_TRUE(peer.send_drip(text.substr(0, cut)));
+  // prime_idle_s (0.5) starts execution, ~0.1 s of moves, then the tool waits for N110.
+  ASSERT_TRUE(run.wait([](const SimProgress& p) { return p.blocks_executed >= 12; }));
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(peer.send_drip(text.substr(cut)));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.underruns, 1);
+  ASSERT_EQ(log.underrun_events.size(), 1U);
+  EXPECT_EQ(log.underrun_events[0].n, 100);
+  EXPECT_EQ(log.underrun_events[0].block, 12);  // comment, G21, N10 … N100
+  EXPECT_GT(log.underrun_events[0].dwell_s, 0.25);
+  EXPECT_LT(log.underrun_events[0].dwell_s, 1.0);
+  EXPECT_DOUBLE_EQ(log.dwell_s, log.underrun_events[0].dwell_s);
+  EXPECT_EQ(log.program_sha256, prog.sha());
+}
+
+// ---- sequence numbers, lost links, partial lines ----
+
+TEST(SimController, DuplicateSequenceNumbersAreDiscarded) {
+  for (const Protocol protocol : {Protocol::Drip, Protocol::Ack}) {
+    TempDir dir;
+    SimControllerConfig cfg = config(dir / "cnc", protocol);
+    Running run(cfg);
+    Peer peer(cfg.line.device, run.sim);
+    const Program prog(12, 6000.0, false);
+    std::vector<std::string> lines;
+    for (std::size_t i = 0; i < prog.blocks.size(); ++i) {
+      lines.push_back(prog.blocks[i] + "\n");
+      if (i == 9) {  // a sender resuming from N60 after a lost link
+        for (std::size_t j = 7; j <= 9; ++j) lines.push_back(prog.blocks[j] + "\n");
+      }
+    }
+    if (protocol == Protocol::Drip) {
+      std::string text;
+      for (const auto& l : lines) text += l;
+      ASSERT_TRUE(peer.send_drip(text));
+    } else {
+      ASSERT_TRUE(peer.send_ack(lines, cfg.buffer_bytes));
+      EXPECT_EQ(peer.replies, std::vector<std::string>(lines.size(), "ok"));
+    }
+    ASSERT_TRUE(run.wait_end());
+    const SimLog& log = run.stop();
+    EXPECT_EQ(log.duplicates_discarded, 3);
+    EXPECT_EQ(log.program_sha256, prog.sha());
+    EXPECT_EQ(log.blocks_received, static_cast<long>(prog.blocks.size()));
+    EXPECT_EQ(static_cast<int>(log.moves.size()), prog.moves());
+  }
+}
+
+TEST(SimController, DropLinkUnlinksAndRelinksANewPty) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 38400, "8N1");
+  cfg.faults.drop_link_after_blocks = 8;
+  cfg.faults.down_s = 0.3;
+  Running run(cfg);
+  const std::string link = cfg.line.device;
+  const std::string first_device = run.sim.device();
+  const Program prog(20, 6000.0);
+  const std::string text = prog.text("\n");
+  auto peer = std::make_unique<Peer>(link, run.sim);
+  EXPECT_FALSE(peer->send_drip(text));  // the controller hangs up mid-program
+  const auto t_drop = Clock::now();
+  EXPECT_FALSE(peer->pump());  // hang-up
+  EXPECT_FALSE(fs::exists(fs::symlink_status(link)));
+  peer.reset();
+  ASSERT_TRUE(run.wait([](const SimProgress& p) { return p.link_drops == 1; }));
+  std::error_code ec;
+  while (!fs::is_symlink(link, ec) && since(t_drop) < 5.0) std::this_thread::sleep_for(2ms);
+  ASSERT_TRUE(fs::is_symlink(link));
+  EXPECT_GE(since(t_drop), 0.25);
+  EXPECT_EQ(run.sim.progress().blocks_received, 8);  // 8 blocks kept
+  // Resume as a drip sender would: from a few blocks back (the controller drops repeats),
+  // without the opening %.
+  const auto resume = text.find("N40 ");
+  Peer again(link, run.sim);
+  ASSERT_TRUE(again.send_drip(text.substr(resume)));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.link_drops, 1);
+  EXPECT_GE(log.duplicates_discarded, 1);
+  EXPECT_EQ(log.program_sha256, prog.sha());
+  EXPECT_EQ(static_cast<int>(log.moves.size()), prog.moves());
+  std::vector<std::string> events;
+  for (const auto& e : log.link_events) events.push_back(e.event);
+  EXPECT_NE(std::find(events.begin(), events.end(), "down"), events.end());
+  EXPECT_NE(std::find(events.begin(), events.end(), "up"), events.end());
+  EXPECT_EQ(log.link_events.front().device, first_device);
+}
+
+TEST(SimController, PartialLineOfASenderThatLeftIsDiscarded) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip);
+  Running run(cfg);
+  const Program prog(6, 6000.0, false);
+  const std::string first = prog.blocks[0] + "\n" + prog.blocks[1] + "\n" + "N10 G1 X";
+  {
+    Peer peer(cfg.line.device, run.sim);
+    ASSERT_TRUE(peer.send_drip(first));
+  }  // closed mid-block
+  ASSERT_TRUE(run.wait([&](const SimProgress& p) { return p.bytes_received >= first.size(); }));
+  std::this_thread::sleep_for(20ms);
+  Peer peer(cfg.line.device, run.sim);
+  std::string rest;
+  for (std::size_t i = 2; i < prog.blocks.size(); ++i) rest += prog.blocks[i] + "\n";
+  ASSERT_TRUE(peer.send_drip(rest));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.partial_lines_discarded, 1);
+  EXPECT_TRUE(log.alarms.empty());  // "N10 G1 XN10 G1 X1 …" would be a bad block
+  EXPECT_EQ(log.program_sha256, prog.sha());
+  EXPECT_EQ(log.sender_connects, 2);
+  EXPECT_EQ(log.sender_disconnects, 1);
+}
+
+// ---- the acknowledged protocol ----
+
+TEST(SimController, AckAnswersOkAndGrblErrors) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  const std::vector<std::string> lines = {"G21 G90\n", "G1 X1 F6000\n", "G91 X1\n",  "G1 X1..2\n",
+                                          "\n",        "$H\n",          "G1 Y2\r\n", "M30\n"};
+  ASSERT_TRUE(peer.send_ack(lines, cfg.buffer_bytes));
+  EXPECT_EQ(peer.replies, (std::vector<std::string>{"ok", "ok", "error:20", "error:1", "ok",
+                                                    "error:1", "ok", "ok"}));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.blocks_received, 4);
+  EXPECT_EQ(log.blocks_rejected, 3);
+  ASSERT_EQ(log.errors.size(), 3U);
+  EXPECT_EQ(log.errors[0].text, "G91 X1");
+  EXPECT_EQ(log.errors[0].line, 3);
+  EXPECT_EQ(log.program_sha256, sha256_hex("G21 G90\nG1 X1 F6000\nG1 Y2\nM30\n"));
+}
+
+TEST(SimController, AckSenderBreakingCharacterCountingAlarms) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  cfg.buffer_bytes = 128;
+  cfg.planner_blocks = 4;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  const Program prog(60, 600.0, false);
+  std::vector<std::string> lines;
+  for (const auto& b : prog.blocks) lines.push_back(b + "\n");
+  EXPECT_FALSE(peer.send_ack(lines, 100000));  // counts against a buffer it does not have
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.alarms.size(), 1U);
+  EXPECT_EQ(log.alarms[0].code, "overflow");
+  EXPECT_NE(std::find(peer.replies.begin(), peer.replies.end(), "ALARM:1"), peer.replies.end());
+}
+
+// ---- injected faults ----
+
+TEST(SimController, InjectedAlarmStopsTheController) {
+  for (const Protocol protocol : {Protocol::Drip, Protocol::Ack}) {
+    TempDir dir;
+    SimControllerConfig cfg = config(dir / "cnc", protocol);
+    cfg.faults.alarm_after_blocks = 5;
+    Running run(cfg);
+    Peer peer(cfg.line.device, run.sim);
+    const Program prog(20, 6000.0, false);
+    std::vector<std::string> lines;
+    std::string text;
+    for (const auto& b : prog.blocks) {
+      lines.push_back(b + "\n");
+      text += b + "\n";
+    }
+    if (protocol == Protocol::Drip) {
+      EXPECT_FALSE(peer.send_drip(text));
+      EXPECT_TRUE(peer.nak());
+      EXPECT_EQ(peer.received.substr(peer.received.size() - 2), std::string({kXoff, kNak}));
+    } else {
+      EXPECT_FALSE(peer.send_ack(lines, cfg.buffer_bytes));
+      const auto alarm = std::find(peer.replies.begin(), peer.replies.end(), "ALARM:9");
+      ASSERT_NE(alarm, peer.replies.end());
+      EXPECT_EQ(alarm - peer.replies.begin(), 5);  // after the ok of the fifth block
+      for (auto r = alarm + 1; r != peer.replies.end(); ++r) EXPECT_EQ(*r, "error:9");
+    }
+    const SimLog& log = run.stop();
+    ASSERT_EQ(log.alarms.size(), 1U);
+    EXPECT_EQ(log.alarms[0].code, "injected");
+    EXPECT_EQ(log.alarms[0].block, 5);
+    EXPECT_EQ(log.alarms[0].n, 30);
+    EXPECT_EQ(log.blocks_executed, 0);  // never primed: the alarm came first
+  }
+}
+
+TEST(SimController, HoldAssertsXoffForItsTime) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip);
+  cfg.buffer_bytes = 1024;  // no XOFF from the fill, only the hold's
+  cfg.faults.hold_after_blocks = 4;
+  cfg.faults.hold_s = 0.4;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  const Program prog(10, 6000.0);
+  const auto t0 = Clock::now();
+  ASSERT_TRUE(peer.send_drip(prog.text("\n")));
+  EXPECT_GE(since(t0), 0.4);
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.holds, 1);
+  EXPECT_EQ(peer.received, std::string({kXon, kXoff, kXon}));
+  EXPECT_EQ(log.program_sha256, prog.sha());
+}
+
+TEST(SimController, XoffStormLosesNothing) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 19200, "7E2");
+  cfg.faults.xoff_storm = true;
+  cfg.seed = 7;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  const Program prog(60, 6000.0);
+  ASSERT_TRUE(peer.send_drip(prog.text("\n")));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_GE(log.xoff_storms, 1);
+  EXPECT_GE(log.xoff_sent, log.xoff_storms);
+  EXPECT_EQ(log.program_sha256, prog.sha());
+  EXPECT_TRUE(log.alarms.empty());
+  EXPECT_LE(log.max_buffer_fill, cfg.buffer_bytes);
+}
+
+TEST(SimController, NoiseNeverLooksLikeProtocol) {
+  for (const Protocol protocol : {Protocol::Drip, Protocol::Ack}) {
+    TempDir dir;
+    SimControllerConfig cfg = config(dir / "cnc", protocol);
+    cfg.faults.noise_bytes_per_s = 5000;
+    Running run(cfg);
+    Peer peer(cfg.line.device, run.sim);
+    peer.listen(0.4);
+    const SimLog& log = run.stop();
+    peer.pump();
+    EXPECT_GT(log.noise_bytes_sent, 500U);
+    if (protocol == Protocol::Drip) {
+      ASSERT_FALSE(peer.received.empty());
+      EXPECT_EQ(peer.received[0], kXon);  // ready, then noise only
+      // What was written in the last moment before the pty closed may not have been read.
+      EXPECT_LE(peer.received.size() - 1, log.noise_bytes_sent);
+      EXPECT_GE(peer.received.size() - 1 + 64, log.noise_bytes_sent);
+      for (std::size_t i = 1; i < peer.received.size(); ++i) {
+        const char c = peer.received[i];
+        EXPECT_TRUE(c != kXon && c != kXoff && c != kNak && c != kSyn && c != '\n' && c != '\r')
+            << "byte " << i << " = " << static_cast<int>(c);
+      }
+    } else {
+      EXPECT_LE(peer.received.size(), log.noise_bytes_sent);
+      EXPECT_GE(peer.received.size() + 64, log.noise_bytes_sent);
+      EXPECT_GT(peer.replies.size(), 20U);
+      for (const auto& line : peer.replies) {
+        EXPECT_NE(line.rfind("ok", 0), 0U) << line;
+        EXPECT_NE(line.rfind("error", 0), 0U) << line;
+        EXPECT_NE(line.rfind("ALARM", 0), 0U) << line;
+      }
+    }
+  }
+}
+
+TEST(SimController, ExitAtEndReturnsAfterTheProgram) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip);
+  cfg.exit_at_end = true;
+  Running run(cfg);
+  {
+    Peer peer(cfg.line.device, run.sim);
+    ASSERT_TRUE(peer.send_drip(Program(5, 6000.0).text("\n")));
+  }
+  const auto t0 = Clock::now();
+  while (!run.done() && since(t0) < 5.0) std::this_thread::sleep_for(1ms);
+  ASSERT_TRUE(run.done());  // returned on its own
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.stop_reason, "program_end");
+  EXPECT_TRUE(log.program_end_executed);
+  EXPECT_FALSE(fs::is_symlink(cfg.line.device));
+}
+
+}  // namespace
+}  // namespace ncd::comms
