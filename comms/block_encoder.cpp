@@ -348,7 +348,7 @@ bool BlockEncoder::in_band(double v, double t_s, double s_mm) const {
 }
 
 BlockEncoder::Feed BlockEncoder::feed_for(const std::int64_t q[3], double length_mm,
-                                          double planned_s) {
+                                          double planned_s, bool lower) {
   Feed f;
   f.planned_mm_per_min = length_mm / planned_s * 60.0;
   const double capacity = static_cast<double>(settings_.line.baud) * settings_.link_margin;
@@ -370,18 +370,53 @@ BlockEncoder::Feed BlockEncoder::feed_for(const std::int64_t q[3], double length
       return f;
     }
   }
-  // 2. The planned feed, rounded.
-  f.units = std::llround(f.planned_mm_per_min * feed_scale_);
-  if (f.units < 1) {
-    f.units = 1;
-    f.clamped = true;
+  // 2. The planned feed, rounded up or down, whichever brings the controller's summed time
+  // nearer to the plan (so the rounding does not add up block after block).
+  const double exact_units = f.planned_mm_per_min * feed_scale_;
+  std::int64_t down = static_cast<std::int64_t>(std::floor(exact_units));
+  if (down < 1) {
+    down = 1;
+    f.clamped = exact_units < 0.5;
   }
-  const std::int64_t planned_units = f.units;
-  // 3. Lowered to what the link carries, rounded down; the F word changes the length of the
-  // text, so until it holds.
-  for (int k = 0; k < 8 && !carried(f.units) && f.units > 1; ++k) {
-    f.units = std::max<std::int64_t>(
-        1, static_cast<std::int64_t>(std::floor(f.max_mm_per_min * feed_scale_)));
+  const std::int64_t up = std::max(down, static_cast<std::int64_t>(std::ceil(exact_units)));
+  const auto drift_after = [&](std::int64_t units) {
+    return std::abs(time_drift_s_ + length_mm / static_cast<double>(units) * feed_scale_ * 60.0 -
+                    planned_s);
+  };
+  f.units = drift_after(up) < drift_after(down) ? up : down;
+  if (f.units == up && up != down && !carried(up)) f.units = down;
+  const std::int64_t planned_units = down;
+  // 3. Lowered: the largest feed on the grid that the link carries. The F word's length
+  // depends on the feed (its digits, trailing zeros dropped; no word at all for the modal F),
+  // so the candidates are, for every length of the word, the largest feed that F_max allows
+  // at that length, and the feeds below it that are written shorter (fewer decimals; 9…9 with
+  // fewer integer digits); the largest one carried wins.
+  if (!carried(f.units)) {
+    if (!lower) {
+      f.lowered = true;
+      return f;
+    }
+    const int base = format_motion(q, written_feed_);  // the text without an F word
+    std::int64_t best = 0;
+    const auto consider = [&](std::int64_t u) {
+      if (u > best && u < planned_units && carried(u)) best = u;
+    };
+    if (written_feed_ > 0) consider(written_feed_);
+    std::int64_t fs = 1;
+    for (int k = 0; k < settings_.feed_decimals; ++k) fs *= 10;
+    for (int word = 2; word <= 16; ++word) {
+      const double fmax = length_mm * capacity * 60.0 / ((base + word) * bits_);
+      const double bound_units = std::floor(fmax * feed_scale_);
+      if (bound_units < 1.0) break;
+      const auto bound =
+          std::min(planned_units - 1, static_cast<std::int64_t>(std::min(bound_units, 9e15)));
+      for (std::int64_t step = 1; step <= fs; step *= 10) consider(bound - bound % step);
+      for (std::int64_t nines = 10 * fs - 1; nines < bound; nines = 10 * nines + 9) {
+        for (std::int64_t step = 1; step <= fs; step *= 10) consider(nines - nines % step);
+      }
+    }
+    f.units = std::max<std::int64_t>(best, 1);
+    f.over_budget = !carried(f.units);  // also the text and chars of the feed chosen
   }
   f.lowered = f.units < planned_units;
   f.needed_length_mm = f.planned_mm_per_min * f.chars * bits_ / (capacity * 60.0);
@@ -393,7 +428,7 @@ bool BlockEncoder::long_enough_for_link() {
   quantize(end_.p, q);
   if (q[0] == anchor_.q[0] && q[1] == anchor_.q[1] && q[2] == anchor_.q[2]) return false;
   const double length = (written(q) - anchor_.written).norm();
-  return !feed_for(q, length, end_.t_s - anchor_.t_s).lowered;
+  return !feed_for(q, length, end_.t_s - anchor_.t_s, false).lowered;
 }
 
 bool BlockEncoder::close(BlockClose reason) {
@@ -565,6 +600,7 @@ void BlockEncoder::emit(BlockClose reason, const std::int64_t q[3]) {
     s.chord_error_max_block = b.number;
   }
   if (f.clamped) ++s.feed_clamped;
+  if (f.over_budget) ++s.over_budget_blocks;
   if (b.feed_lowered) {
     ++s.lowered_blocks;
     record_lowered(b, f.needed_length_mm);
@@ -728,6 +764,7 @@ nlohmann::ordered_json to_json(const EncoderStats& s) {
   j["closed_by"] = closed;
   j["band_waived_setpoints"] = s.band_waived;
   j["feed_clamped_blocks"] = s.feed_clamped;
+  j["over_budget_blocks"] = s.over_budget_blocks;
   nlohmann::ordered_json ranges = nlohmann::ordered_json::array();
   for (const LoweredRange& r : s.lowered) {
     ranges.push_back({{"first_block", r.first_block},

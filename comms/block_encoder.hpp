@@ -137,9 +137,10 @@ struct EncoderStats {
   }
   double link_use_peak = 0.0;
   long link_use_peak_block = 0;
-  std::int64_t closed_by[6] = {};  // by BlockClose
-  std::int64_t band_waived = 0;    // setpoints joined outside the band: block too short
-  std::int64_t feed_clamped = 0;   // feeds that rounded to 0, written at one unit
+  std::int64_t closed_by[6] = {};       // by BlockClose
+  std::int64_t band_waived = 0;         // setpoints joined outside the band: block too short
+  std::int64_t feed_clamped = 0;        // feeds that rounded to 0, written at one unit
+  std::int64_t over_budget_blocks = 0;  // too short for the link even at one unit of feed
   std::int64_t lowered_blocks = 0;
   std::int64_t lowered_ranges = 0;  // all of them; the first max_lowered_ranges are kept
   std::vector<LoweredRange> lowered;
@@ -188,6 +189,7 @@ class BlockEncoder {
     std::int64_t units = 0;         // as written, in 10^-feed_decimals mm/min
     int chars = 0;                  // of the text with this feed, end of block included
     bool lowered = false, clamped = false;
+    bool over_budget = false;  // not carried even at the lowest feed written
   };
   void quantize(const Vec3& p, std::int64_t q[3]) const;
   Vec3 written(const std::int64_t q[3]) const;
@@ -195,7 +197,8 @@ class BlockEncoder {
   double exact_bound(const Vec3& q) const;
   bool in_band(double v_mm_per_s, double t_s, double s_mm) const;
   bool long_enough_for_link();
-  Feed feed_for(const std::int64_t q[3], double length_mm, double planned_s);
+  // The feed of the open block ending at q; lower = false only says whether it must be.
+  Feed feed_for(const std::int64_t q[3], double length_mm, double planned_s, bool lower = true);
   // Writes the open block up to its last setpoint; false (nothing done) when it would have no
   // written length and may go on.
   bool close(BlockClose reason);
