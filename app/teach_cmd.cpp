@@ -59,7 +59,12 @@ int run_teach(const TeachArgs& a) {
   const toolpath::TeachFrame frame =
       toolpath::make_frame(frame_points(a.frame_points), "--frame-points");
   const auto points = toolpath::parse_points(read_text(a.points, "POINTS"), a.points);
-  const toolpath::TeachPath path = toolpath::teach(points, frame, spec);
+  toolpath::TeachPath path;
+  try {
+    path = toolpath::teach(points, frame, spec);
+  } catch (const InputError& e) {
+    throw InputError(a.points + ": " + e.what());  // the points' file, then point and line
+  }
   write_output(a.output, toolpath::teach_program(path, program));
 
   if (!a.quiet) {
