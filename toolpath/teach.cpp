@@ -17,7 +17,7 @@
 // Offset (§3.3, Fig. 8b, eqs. 19–20). The tool centre for a taught point P_k lies on the path's
 // normal in the frame's XY plane, D/2 − l from P_k, on the stated side of the direction of
 // travel; Z is kept. (Eq. 19 prints l for that distance, and eq. 20 "− P_k/y" for "+ P_k/y";
-// the text, Fig. 8 and the paper's program say D/2 − l and the normal through P_k.) The paper's
+// the text and the paper's program say D/2 − l and the normal through P_k.) The paper's
 // program lies to the LEFT of travel: its check values are only met with n = (−m, 1)/√(1 + m²)
 // while x increases. The tangent at P_k comes from a quadratic through P_k and its neighbours:
 //
@@ -34,12 +34,14 @@
 //                              ┆ D/2 − l, along the normal on the tool's side
 //                              ○ tool centre (left: normal = tangent turned +90°)
 //
-// Both tangents are exact for a parabola y(x); on a circle of radius ρ with steps h the
-// parabola's direction is off by about tanθ · h²/(2ρ²) at chord angle θ, which grows without
-// bound as θ → 90°, while the chord quadratic's tangent is exact on any circle (its normal is
-// radial for any spacing), so nothing is lost by the switch but the paper's own error. The
-// criterion is on the fit's points only; a rigid motion of the part and the frame points
-// together leaves every p', hence the program, unchanged.
+// On a circle of radius ρ with steps h the parabola's direction is off by about
+// tanθ · h²/(2ρ²) at chord angle θ (0.5° at 60° and h = ρ/10), which grows without bound as
+// θ → 90°, while the chord quadratic's tangent at a middle point is exact on any circle (a
+// positive blend of the two unit chords weighted by the opposite chord lengths: its normal is
+// radial for any spacing). So the switch loses nothing but the paper's own error, and moves the
+// normal by no more than that where it happens. The criterion looks at the fit's points only; a
+// rigid motion of the part and the frame points together leaves every p', hence the program,
+// unchanged.
 //
 // End points of an open path use the quadratic through the first (last) three points,
 // evaluated at the end; a closed loop takes its neighbours across the join. Curvature always
@@ -93,12 +95,9 @@ std::string triple(const Vec3& p) {
 // "point 4 (dp4, line 5)": 1-based, with what the source says about it.
 std::string label(const std::vector<TaughtPoint>& points, std::size_t i) {
   const TaughtPoint& p = points[i];
-  std::string s = "point " + std::to_string(i + 1);
-  if (!p.name.empty() && p.line > 0)
-    return s + " (" + p.name + ", line " + std::to_string(p.line) + ")";
-  if (!p.name.empty()) return s + " (" + p.name + ")";
-  if (p.line > 0) return s + " (line " + std::to_string(p.line) + ")";
-  return s;
+  std::string about = p.name;
+  if (p.line > 0) about += (about.empty() ? "line " : ", line ") + std::to_string(p.line);
+  return "point " + std::to_string(i + 1) + (about.empty() ? "" : " (" + about + ")");
 }
 
 // Throws unless every coordinate is finite and within ±kMaxCoordinateMm.
@@ -323,7 +322,6 @@ TeachPath teach(const std::vector<TaughtPoint>& points, const TeachFrame& frame,
   TeachPath out;
   out.spec = spec;
   out.frame = frame;
-  out.source = points;
   out.offset_mm = 0.5 * spec.tool_diameter_mm - spec.depth_mm;
   std::vector<Vec3> q(n);
   for (std::size_t i = 0; i < n; ++i) {

@@ -73,14 +73,13 @@ struct OffsetPoint {
   Vec3 tool_mm;                   // p' + (D/2 − l) n, Z kept
   Eigen::Vector2d tangent;        // unit, in the frame's XY, along the direction of travel
   Eigen::Vector2d normal;         // unit, in the frame's XY, towards the tool
-  double curvature_per_mm = 0.0;  // signed curvature of the fit in XY, > 0 turning left
+  double curvature_per_mm = 0.0;  // of the chord-length quadratic in XY, > 0 turning left
   TangentFit fit = TangentFit::PaperParabola;
 };
 
 struct TeachPath {
   TeachSpec spec;
   TeachFrame frame;
-  std::vector<TaughtPoint> source;  // as given, in order
   std::vector<OffsetPoint> points;  // one per taught point
   double offset_mm = 0.0;           // D/2 − l
   // Smallest radius of curvature where the path bends towards the tool (+inf if nowhere) and
