@@ -1,4 +1,5 @@
 // `ncd teach`: digitized burr points → NC program (paper 003) from the command line.
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -68,13 +69,14 @@ int run_teach(const TeachArgs& a) {
   write_output(a.output, toolpath::teach_program(path, program));
 
   if (!a.quiet) {
-    std::size_t paper = 0;
-    for (const auto& p : path.points) paper += p.fit == toolpath::TangentFit::PaperParabola;
+    const auto paper = std::count_if(path.points.begin(), path.points.end(), [](const auto& p) {
+      return p.fit == toolpath::TangentFit::PaperParabola;
+    });
     std::cerr << "ncd teach: " << path.points.size() << " points, "
               << (spec.closed ? "closed loop" : "open path") << ", tool centre " << path.offset_mm
               << " mm " << to_string(spec.side) << " of travel\n"
               << "  tangent           paper parabola at " << paper << ", chord-length quadratic at "
-              << path.points.size() - paper << "\n";
+              << std::ssize(path.points) - paper << "\n";
     if (!std::isinf(path.min_tool_side_radius_mm)) {
       std::cerr << "  tightest bend     radius " << path.min_tool_side_radius_mm
                 << " mm towards the tool at point " << path.min_tool_side_radius_at + 1 << "\n";
