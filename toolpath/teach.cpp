@@ -88,8 +88,16 @@ std::string num(double v) {
   return format_fixed(v, 3, Rounding::Nearest);
 }
 
+// A coordinate as given but for digits beyond the 6th decimal ("47.45", not "47.450000").
+std::string given(double v) {
+  std::string s = format_fixed(v, 6, Rounding::Nearest);
+  s.erase(s.find_last_not_of('0') + 1);
+  if (s.back() == '.') s.pop_back();
+  return s;
+}
+
 std::string triple(const Vec3& p) {
-  return shortest(p.x()) + ", " + shortest(p.y()) + ", " + shortest(p.z());
+  return given(p.x()) + ", " + given(p.y()) + ", " + given(p.z());
 }
 
 // "point 4 (dp4, line 5)": 1-based, with what the source says about it.
@@ -333,7 +341,7 @@ TeachPath teach(const std::vector<TaughtPoint>& points, const TeachFrame& frame,
     const std::size_t j = (i + 1) % n;
     const double d = (q[j] - q[i]).head<2>().norm();
     if (d < TeachLimits::kMinSpacingMm) {
-      throw InputError(label(points, i) + " and " + label(points, j) + " are " + shortest(d) +
+      throw InputError(label(points, i) + " and " + label(points, j) + " are " + given(d) +
                        " mm apart in the frame's XY plane, closer than " +
                        shortest(TeachLimits::kMinSpacingMm) +
                        " mm: the direction of travel between them is undefined; remove one of "
@@ -394,33 +402,36 @@ std::string teach_program(const TeachPath& path, const TeachProgramOptions& o) {
   const double clear_z_mm = top_mm + o.clearance_mm;
   const TeachSpec& s = path.spec;
   const auto& fp = path.frame.points_mm;
+  // One fact per comment line, each short enough for an 80-character controller line buffer.
   std::ostringstream g;
-  g << "(ncd teach: deburring path taught off line, paper 003 Kim Park Lee; lengths in mm)\n";
-  g << "(frame: P1 = " << triple(fp[0]) << " is the origin, P2 = " << triple(fp[1])
-    << " lies on +X, P3 = " << triple(fp[2]) << " in the XY plane)\n";
+  g << "(ncd teach: deburring path taught off line, paper 003)\n";
+  g << "(frame, mm: P1 = " << triple(fp[0]) << " is the origin)\n";
+  g << "(P2 = " << triple(fp[1]) << " lies on +X)\n";
+  g << "(P3 = " << triple(fp[2]) << " lies in the XY plane)\n";
   g << "(+Z along P1P2 x P1P3: the tool approaches from +Z)\n";
-  g << "(tool diameter D = " << shortest(s.tool_diameter_mm)
-    << ", depth l = " << shortest(s.depth_mm)
-    << ": tool centre D/2 - l = " << shortest(path.offset_mm) << " " << to_string(s.side)
+  g << "(tool diameter D = " << given(s.tool_diameter_mm) << ", depth l = " << given(s.depth_mm)
+    << ")\n";
+  g << "(tool centre D/2 - l = " << given(path.offset_mm) << " " << to_string(s.side)
     << " of the direction of travel, Z as taught)\n";
-  g << "(" << pts.size() << " taught points, " << (s.closed ? "closed loop" : "open path")
-    << "; tangent from the paper's parabola y = ax^2 + bx + c at " << paper
-    << ", chord-length quadratic at " << pts.size() - paper << ")\n";
+  g << "(" << pts.size() << " taught points, " << (s.closed ? "closed loop" : "open path") << ")\n";
+  g << "(tangent: paper's parabola y = ax^2 + bx + c at " << paper << ", chord quadratic at "
+    << pts.size() - paper << ")\n";
   if (std::isinf(path.min_tool_side_radius_mm)) {
     g << "(the path never bends towards the tool: no overcut)\n";
   } else {
-    const bool over = path.min_tool_side_radius_mm < path.offset_mm;
-    g << "(smallest radius of curvature towards the tool " << num(path.min_tool_side_radius_mm)
-      << " at point " << path.min_tool_side_radius_at + 1
-      << (over ? ": BELOW D/2 - l, the tool cuts deeper than l there)\n"
-               : ": not below D/2 - l, no overcut)\n");
+    g << "(tightest bend towards the tool: radius " << num(path.min_tool_side_radius_mm)
+      << " at point " << path.min_tool_side_radius_at + 1 << ")\n";
+    g << (path.min_tool_side_radius_mm < path.offset_mm
+              ? "(BELOW D/2 - l: the tool cuts deeper than l there)\n"
+              : "(not below D/2 - l: no overcut)\n");
   }
   g << "(coordinates " << (o.rounding == Rounding::Truncate ? "truncated toward zero" : "rounded")
-    << " to " << o.decimals << " decimals; F" << shortest(o.feed_mm_per_min) << " mm/min, S"
-    << shortest(o.spindle_rpm) << " rpm)\n";
-  g << "(clearance plane Z" << f(clear_z_mm) << ", " << shortest(o.clearance_mm)
-    << " above the highest point; cutting length " << num(length_mm) << ", "
+    << " to " << o.decimals << " decimals, mm)\n";
+  g << "(F" << shortest(o.feed_mm_per_min) << " mm/min, S" << shortest(o.spindle_rpm)
+    << " rpm, cutting length " << num(length_mm) << ", "
     << format_fixed(60.0 * length_mm / o.feed_mm_per_min, 1, Rounding::Nearest) << " s)\n";
+  g << "(clearance plane Z" << f(clear_z_mm) << ", " << given(o.clearance_mm)
+    << " above the highest point)\n";
   g << "G21\n";
   g << "G90F" << shortest(o.feed_mm_per_min) << "S" << shortest(o.spindle_rpm) << "\n";
   g << "M03\n";

@@ -1,6 +1,10 @@
 // `ncd teach` as a user meets it: the paper's example end to end, the program read back by
-// `ncd replay`, the input formats, and invalid input (exit 2, a message, no file written).
+// `ncd replay` and sent as it is by `ncd stream`, the input formats, and invalid input (exit 2, a
+// message, no file written).
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
+#include <termios.h>
 
 #include <cmath>
 #include <fstream>
@@ -65,6 +69,35 @@ TEST_F(TeachCli, PapersExampleGivesThePapersLinesAndReplays) {
   // Our own reader takes it as it is, and walks it.
   const CmdResult replay = ncd("replay " + program() + " --report " + (dir_ / "r.json").string());
   EXPECT_EQ(replay.status, 0) << replay.err;
+}
+
+TEST_F(TeachCli, ProgramStreamsAsItIs) {
+  ASSERT_EQ(teach(kExamples + "teach-burr.txt --frame-points " + kPaperFrame + kTool).status, 0);
+  // The test plays the controller on the master side of a raw pseudo-terminal; the program is
+  // small enough to sit in the terminal's buffer until it is read.
+  const int master = posix_openpt(O_RDWR | O_NOCTTY);
+  ASSERT_GE(master, 0);
+  ASSERT_EQ(grantpt(master), 0);
+  ASSERT_EQ(unlockpt(master), 0);
+  const std::string slave = ptsname(master);
+  const int fd = ::open(slave.c_str(), O_RDWR | O_NOCTTY);
+  termios t{};
+  tcgetattr(fd, &t);
+  cfmakeraw(&t);
+  tcsetattr(fd, TCSANOW, &t);
+  const CmdResult r = ncd("stream " + program() + " --port " + slave +
+                          " --baud 115200 --frame 8N1 --flow none --no-journal -q");
+  ::close(fd);
+  std::string got;
+  char buf[512];
+  for (pollfd p{master, POLLIN, 0}; ::poll(&p, 1, 200) > 0;) {
+    const ssize_t n = ::read(master, buf, sizeof buf);
+    if (n <= 0) break;
+    got.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(master);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(got, "%\n" + slurp(program()) + "%\n");  // every line a block, % framing added
 }
 
 TEST_F(TeachCli, CsvAndInlineFrameGiveTheSameProgramAsTheExample) {

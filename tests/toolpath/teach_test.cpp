@@ -373,7 +373,7 @@ TEST(Teach, TurnTighterThanTheOffsetIsReportedNotRefused) {
   const TeachPath path = teach(taught(q), identity_frame(), spec(10.0, 0.2));
   EXPECT_LT(path.min_tool_side_radius_mm, path.offset_mm);
   EXPECT_EQ(path.min_tool_side_radius_at, 2u);
-  EXPECT_NE(teach_program(path, {}).find("BELOW D/2 - l, the tool cuts deeper than l there"),
+  EXPECT_NE(teach_program(path, {}).find("(BELOW D/2 - l: the tool cuts deeper than l there)"),
             std::string::npos);
 }
 
@@ -428,7 +428,14 @@ TEST(Teach, ProgramReadsBackThroughTheGcodeReader) {
     TeachProgramOptions o;
     o.decimals = 1 + static_cast<int>(5.0 * u(rng));
     o.rounding = u(rng) < 0.5 ? Rounding::Nearest : Rounding::Truncate;
-    std::istringstream in(teach_program(path, o));
+    const std::string program = teach_program(path, o);
+    // Plain 7-bit lines that fit an 80-character controller line buffer (grbl's).
+    std::istringstream lines(program);
+    for (std::string line; std::getline(lines, line);) {
+      EXPECT_LE(line.size(), 80u) << line;
+      for (char c : line) EXPECT_TRUE(c >= ' ' && c < 127) << line;
+    }
+    std::istringstream in(program);
     const Path read = read_gcode(in, "teach.ngc");
     // The rapid to the clearance plane above the first point only sets the position; then the
     // plunge and the cut at F, and a rapid back up.
@@ -449,6 +456,21 @@ TEST(Teach, ProgramReadsBackThroughTheGcodeReader) {
       EXPECT_LE((pts[j] - want).lpNorm<Eigen::Infinity>(), tol + 1e-12) << "point " << k;
     }
   }
+}
+
+TEST(Teach, HeaderLinesFitEightyCharactersAtTheCoordinateLimit) {
+  const double big = -TeachLimits::kMaxCoordinateMm + 0.123456789;
+  const TeachFrame f = make_frame(
+      {Vec3(big, big, big), Vec3(big + 100.0, big, big), Vec3(big, big + 100.0, big)}, "far");
+  const std::vector<Vec3> q{
+      {big, big + 50, big}, {big + 1, big + 51, big}, {big + 2, big + 53, big}};
+  TeachProgramOptions o;
+  o.decimals = TeachLimits::kMaxDecimals;
+  o.feed_mm_per_min = 12345.678;
+  o.spindle_rpm = 24000.5;
+  const std::string program = teach_program(teach(taught(q), f, spec(12.345678, 0.123456)), o);
+  std::istringstream lines(program);
+  for (std::string line; std::getline(lines, line);) EXPECT_LE(line.size(), 80u) << line;
 }
 
 TEST(Teach, FormatFixedTruncatesTheDecimalNotTheBinary) {
