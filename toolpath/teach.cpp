@@ -355,10 +355,14 @@ TeachPath teach(const std::vector<TaughtPoint>& points, const TeachFrame& frame,
   out.min_tool_side_radius_mm = kInf;
   out.points.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
+    // Neighbours across the join of a loop; the first or last three points at an open end.
     std::array<std::size_t, 3> idx{(k + n - 1) % n, k, (k + 1) % n};
     std::size_t at = 1;
-    if (!spec.closed && k == 0) idx = {0, 1, 2}, at = 0;
-    if (!spec.closed && k == n - 1) idx = {n - 3, n - 2, n - 1}, at = 2;
+    if (!spec.closed && (k == 0 || k == n - 1)) {
+      const std::size_t first = k == 0 ? 0 : n - 3;
+      idx = {first, first + 1, first + 2};
+      at = k - first;
+    }
     const Tangent t =
         fit_tangent({q[idx[0]].head<2>(), q[idx[1]].head<2>(), q[idx[2]].head<2>()}, at);
     if (!(t.direction.norm() >= TeachLimits::kMinTangentNorm)) {
