@@ -15,5 +15,6 @@ void register_bench(CLI::App& app, Runner& run);
 void register_serve(CLI::App& app, Runner& run);
 void register_stream(CLI::App& app, Runner& run);
 void register_sim_controller(CLI::App& app, Runner& run);
+void register_teach(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app
