@@ -722,7 +722,7 @@ void BlockEncoder::queue_model(const EncodedBlock& b) {
   }
   exec_done_s_ = start + b.duration_s;
   m.stream_end_s = exec_done_s_;
-  prev_moving_ = b.end_v_mm_per_s > 0.0;
+  prev_moving_ = !b.positioning && b.end_v_mm_per_s > 0.0;  // the machine waits at the start
   if (queue_size_ == ring) {  // cannot happen: every block takes at least one byte
     queue_fill_ -= queue_[queue_head_].chars;
     queue_head_ = (queue_head_ + 1) % ring;

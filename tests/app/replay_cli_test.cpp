@@ -161,4 +161,117 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
   }
 }
 
+// --blocks: the program a DNC link would carry, within the machine file's [link] budget.
+TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
+  const std::string json = chamfer_json();
+  const fs::path ngc = dir_ / "exp3.ngc", report = dir_ / "r.json", plot = dir_ / "p.svg";
+  const CmdResult r =
+      ncd("replay " + json + " --machine " + kMachine + " --blocks " + ngc.string() + " --report " +
+          report.string() + " --plot " + plot.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* text : {"blocks", "link", "chord error", "underruns", "feed lowered"}) {
+    EXPECT_NE(r.err.find(text), std::string::npos) << text << "\n" << r.err;
+  }
+  const std::string program = slurp(ngc);
+  EXPECT_EQ(program.find('%'), std::string::npos);
+  EXPECT_EQ(program.find('\r'), std::string::npos);
+  EXPECT_EQ(program.rfind("N1G21G90G94G0", 0), 0u) << program.substr(0, 80);
+  std::istringstream in(program);
+  std::string line;
+  std::int64_t lines = 0;
+  while (std::getline(in, line)) {
+    ++lines;
+    EXPECT_EQ(line.rfind("N" + std::to_string(lines), 0), 0u) << line;
+  }
+  const auto j = nlohmann::json::parse(slurp(report));
+  ASSERT_TRUE(j.contains("blocks"));
+  const auto& b = j["blocks"];
+  EXPECT_EQ(b["file"].get<std::string>(), ngc.string());
+  EXPECT_EQ(b["blocks"].get<std::int64_t>(), lines);
+  EXPECT_EQ(b["chars"].get<std::int64_t>(), static_cast<std::int64_t>(program.size()));
+  EXPECT_EQ(b["setpoints"].get<std::int64_t>(), j["cycles"].get<std::int64_t>() + 1);
+  EXPECT_LE(b["chord_error_max_mm"].get<double>(), 0.002 * (1 + 1e-9));
+  EXPECT_EQ(b["link"]["line"].get<std::string>(), "19200 7E2 xonxoff drip LF");
+  EXPECT_LE(b["link"]["use_peak"].get<double>(), 0.8 * (1 + 1e-9));
+  EXPECT_EQ(b["feed_lowered"]["blocks"].get<int>(), 0);
+  EXPECT_EQ(b["queue_model"]["underruns"].get<int>(), 0);
+  EXPECT_EQ(j["machine"]["link"]["frame"].get<std::string>(), "7E2");
+  EXPECT_EQ(j["machine"]["encoder"]["chord_tolerance_mm"].get<double>(), 0.002);
+  EXPECT_NE(slurp(plot).find("feed written in the blocks"), std::string::npos);
+  // The program is a path replay reads: the same loop, to within the tolerance.
+  const fs::path back = dir_ / "back.json";
+  ASSERT_EQ(
+      ncd("replay " + ngc.string() + " --machine " + kMachine + " -q --report " + back.string())
+          .status,
+      0);
+  EXPECT_NEAR(nlohmann::json::parse(slurp(back))["path_length_mm"].get<double>(),
+              j["path_length_mm"].get<double>(), 0.01);
+  // Deterministic: the same inputs, the same program.
+  ASSERT_EQ(ncd("replay " + json + " --machine " + kMachine + " -q --blocks " +
+                (dir_ / "again.ngc").string())
+                .status,
+            0);
+  EXPECT_EQ(slurp(dir_ / "again.ngc"), program);
+}
+
+TEST_F(Replay, ASlowLinkInTheMachineFileLowersTheFeedAndSaysWhere) {
+  const std::string json = chamfer_json();
+  std::string machine = slurp(kMachine);
+  const std::size_t at = machine.find("baud = 19200");
+  ASSERT_NE(at, std::string::npos);
+  machine.replace(at, 12, "baud = 1200");
+  const std::string m = write("slow.toml", machine);
+  const fs::path ngc = dir_ / "slow.ngc", report = dir_ / "r.json";
+  const CmdResult r = ncd("replay " + json + " --machine " + m + " --blocks " + ngc.string() +
+                          " --report " + report.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("1200 7E2"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("chord tolerance"), std::string::npos) << r.err;
+  const auto b = nlohmann::json::parse(slurp(report))["blocks"];
+  EXPECT_GT(b["feed_lowered"]["blocks"].get<int>(), 0);
+  ASSERT_GT(b["feed_lowered"]["ranges"].get<int>(), 0);
+  const auto& range = b["feed_lowered"]["range_list"][0];
+  EXPECT_LT(range["lowered_feed_min_mm_per_min"].get<double>(),
+            range["planned_feed_mm_per_min"].get<double>());
+  EXPECT_NE(range["reason"].get<std::string>().find("1200 7E2"), std::string::npos);
+  EXPECT_EQ(b["queue_model"]["underruns"].get<int>(), 0);
+  // A looser tolerance from the command line: longer blocks, fewer lowered.
+  ASSERT_EQ(ncd("replay " + json + " --machine " + m + " -q --chord-tolerance 0.02 --blocks " +
+                ngc.string() + " --report " + report.string())
+                .status,
+            0);
+  const auto loose = nlohmann::json::parse(slurp(report))["blocks"];
+  EXPECT_EQ(loose["chord_tolerance_mm"].get<double>(), 0.02);
+  EXPECT_LT(loose["blocks"].get<int>(), b["blocks"].get<int>());
+}
+
+TEST_F(Replay, LinkAndEncoderSettingsThatCannotBeMetAreClearErrors) {
+  const std::string cubic = write("cubic.json", kCubic);
+  const std::vector<BadReplay> cases = {
+      {"[link]\nbaud = 19200\nparity = \"even\"\n", cubic, "unknown key"},
+      {"[link]\nframe = \"9X1\"\n", cubic, "link.frame"},
+      {"[link]\nbaud = 12345\n", cubic, "baud 12345"},
+      {"[link]\nflow = \"dtr\"\n", cubic, "flow control"},
+      {"[link]\npercent = 1\n", cubic, "true or false"},
+      {"[encoder]\nchord_tolerance_mm = 0.0005\n", cubic, "rounding error"},
+      {"[encoder]\nfeed_band = 2\n", cubic, "feed_band"},
+      {"[encoder]\ndecimal = 3\n", cubic, "unknown key"},
+  };
+  for (const auto& c : cases) {
+    const std::string machine = write("m.toml", c.machine);
+    const fs::path ngc = dir_ / "out.ngc";
+    const CmdResult r =
+        ncd("replay " + c.path + " --machine " + machine + " --blocks " + ngc.string());
+    EXPECT_EQ(r.status, 2) << c.machine << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.machine << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(ngc));
+  }
+  // The tolerance from the command line is checked the same way, before the walk.
+  const CmdResult r =
+      ncd("replay " + cubic + " --chord-tolerance 0.0001 --blocks " + (dir_ / "x.ngc").string());
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("--chord-tolerance"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "x.ngc"));
+}
+
 }  // namespace
