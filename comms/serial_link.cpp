@@ -3,6 +3,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <stdlib.h>
 #include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
@@ -69,10 +70,34 @@ SerialLink::SerialLink(const LineSettings& line)
   }
 }
 
+// libserial's Close() restores the old termios first and throws if the device has gone, leaving
+// the port open, and its destructor would then throw again. So a vanished device's descriptor
+// is replaced (dup2) by a fresh pseudo-terminal, on which Close() succeeds.
 SerialLink::~SerialLink() {
+  if (!port_->IsOpen()) return;
   try {
-    if (port_->IsOpen()) port_->Close();
-  } catch (const std::exception&) {  // a vanished device cannot be closed cleanly; nothing to do
+    port_->Close();
+    return;
+  } catch (const std::exception&) {  // the device vanished: see above
+  }
+  const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+  int stand_in = -1;
+  if (master >= 0 && ::grantpt(master) == 0 && ::unlockpt(master) == 0) {
+    stand_in = ::open(::ptsname(master), O_RDWR | O_NOCTTY);
+  }
+  bool closed = false;
+  if (stand_in >= 0 && ::dup2(stand_in, fd_) == fd_) {
+    try {
+      port_->Close();
+      closed = true;
+    } catch (const std::exception&) {  // handled below
+    }
+  }
+  if (stand_in >= 0) ::close(stand_in);
+  if (master >= 0) ::close(master);
+  if (!closed) {
+    ::close(fd_);
+    (void)port_.release();  // cannot be destroyed safely; a few bytes, once per lost port
   }
 }
 

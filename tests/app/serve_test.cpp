@@ -13,7 +13,9 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "comms/sha256.hpp"
 #include "tests/app/cli_fixture.hpp"
+#include "tests/common/process.hpp"
 
 namespace {
 
@@ -77,9 +79,10 @@ const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,
 class Serve : public Cli {
  protected:
   // Starts `ncd serve` with a config of `clock` on a socket in the test folder.
-  void launch(const std::string& clock) {
+  void launch(const std::string& clock, const std::string& extra = "") {
     socket_ = (dir_ / "ncd.sock").string();
-    const std::string config = write("serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n");
+    const std::string config =
+        write("serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n" + extra);
     pid_ = fork();
     if (pid_ == 0) {
       const std::string err = (dir_ / "serve.err").string();
@@ -217,6 +220,80 @@ TEST_F(Serve, ClientLeavingDoesNotStopTheJobAndSigtermExitsZero) {
   const std::string log = slurp(dir_ / "serve.err");
   EXPECT_NE(log.find("SIGTERM"), std::string::npos) << log;
   EXPECT_NE(log.find("0 setpoints lost"), std::string::npos) << log;
+}
+
+// A machine file whose [link] names the simulated controller's port.
+std::string link_machine(const std::string& device, double xoff_timeout_s) {
+  return "[link]\ndevice = \"" + device +
+         "\"\nbaud = 115200\nframe = \"8N1\"\nflow = \"xonxoff\"\nxoff_timeout_s = " +
+         std::to_string(xoff_timeout_s) + "\n";
+}
+
+// The SHA-256 of a program file's blocks, each ended by LF (the controller's checksum).
+std::string program_sha(const fs::path& file) {
+  std::istringstream in(slurp(file));
+  std::string all;
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty() && line != "%") all += line + "\n";
+  }
+  return ncd::comms::sha256_hex(all);
+}
+
+TEST_F(Serve, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
+  const std::string cubic = write("cubic.json", kCubic);
+  const std::string link = (dir_ / "cnc").string();
+  const std::string machine = write("machine.toml", link_machine(link, 5.0));
+  ASSERT_EQ(ncd("replay " + cubic + " -q --machine " + machine + " --blocks " +
+                (dir_ / "replay.ngc").string())
+                .status,
+            0);
+  ncd::test::Process cnc({NCD_EXE, "sim-controller", "--link", link, "--baud", "115200", "--frame",
+                          "8N1", "--log", (dir_ / "cnc.json").string(), "--exit-at-end"},
+                         (dir_ / "cnc.out").string(), (dir_ / "cnc.err").string());
+  ASSERT_TRUE(ncd::test::wait_for_path(link, 5.0));
+  launch("simulated", "machine = \"" + machine + "\"\n");
+  Client c(socket_);
+  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  const json s = wait_for(c, "done");
+  const std::string sha = program_sha(dir_ / "replay.ngc");
+  ASSERT_TRUE(s["stream"].is_object()) << s.dump();
+  EXPECT_TRUE(s["stream"]["completed"].get<bool>()) << s.dump();
+  EXPECT_EQ(s["stream"]["program_sha256"], sha);
+  EXPECT_EQ(cnc.wait(30.0), 0) << slurp(dir_ / "cnc.err");
+  const json log = json::parse(slurp(dir_ / "cnc.json"));
+  EXPECT_EQ(log["program_sha256"], sha);
+  EXPECT_EQ(log["underruns"], 0);
+  EXPECT_TRUE(log["alarms"].empty());
+}
+
+TEST_F(Serve, LinkHoldHoldsTheMotionAndResumes) {
+  const std::string cubic = write("cubic.json", kCubic);
+  const std::string link = (dir_ / "cnc").string();
+  const std::string machine = write("machine.toml", link_machine(link, 0.3));
+  ncd::test::Process cnc({NCD_EXE, "sim-controller", "--link", link, "--baud", "115200", "--frame",
+                          "8N1", "--log", (dir_ / "cnc.json").string(), "--exit-at-end",
+                          "--hold-after-blocks", "4", "--hold-s", "1.5"},
+                         (dir_ / "cnc.out").string(), (dir_ / "cnc.err").string());
+  ASSERT_TRUE(ncd::test::wait_for_path(link, 5.0));
+  launch("wall", "machine = \"" + machine + "\"\n");
+  Client c(socket_);
+  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  const json held = wait_for(c, "holding");
+  EXPECT_TRUE(held["stream"]["held_by_link"].get<bool>()) << held.dump();
+  const json s = wait_for(c, "done");
+  EXPECT_TRUE(s["stream"]["completed"].get<bool>()) << s.dump();
+  EXPECT_GE(s["stream"]["xoff_timeouts"].get<int>(), 1);
+  EXPECT_LE(s["accel_max"].get<double>(), 1000.0 * (1 + 1e-9));
+  EXPECT_LE(s["jerk_max"].get<double>(), 20000.0 * (1 + 1e-9));
+  EXPECT_EQ(cnc.wait(30.0), 0);
+  const json log = json::parse(slurp(dir_ / "cnc.json"));
+  EXPECT_EQ(log["program_sha256"], s["stream"]["program_sha256"]);
+  EXPECT_TRUE(log["alarms"].empty());
+  const std::string err = slurp(dir_ / "serve.err");
+  EXPECT_NE(err.find("the link holds"), std::string::npos) << err;
+  EXPECT_NE(err.find("resuming the motion"), std::string::npos) << err;
 }
 
 }  // namespace
