@@ -606,7 +606,7 @@ TEST(BlockEncoder, RandomSweep) {
   std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const int bauds[] = {2400, 9600, 19200, 115200};
-  for (int round = 0; round < 12; ++round) {
+  for (int round = 0; round < 8; ++round) {
     std::ostringstream j;
     j.precision(17);
     const int n = 6 + static_cast<int>(u(rng) * 5);
