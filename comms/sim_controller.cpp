@@ -485,9 +485,9 @@ struct SimController::Impl {
 
   void drop_link(double t) {
     drop_pending = false;
+    link_event(t, "down");
     pty.close();
     ++log.link_drops;
-    link_event(t, "down");
     event("link down after " + std::to_string(log.blocks_received) + " blocks (fault injection); " +
           cfg.line.device + " back in " + num(cfg.faults.down_s) + " s");
     down_until = t + cfg.faults.down_s;
@@ -924,6 +924,7 @@ struct SimController::Impl {
       if (down_until && t >= *down_until) restore_link(t);
       if (pty.is_open()) on_slave_events(t);
       receive(t, readable);
+      flow();  // DC3 when the fill reached high water, before a block starting now frees room
       execute(t);
       faults(t);
       flow();
