@@ -135,13 +135,15 @@ void parse_encoder(const toml::value& table, const std::string& name, comms::Enc
       e.number_start = static_cast<long>(as_int_in(v, where, 0, 99999999));
     } else if (key == "number_step") {
       e.number_step = static_cast<long>(as_int_in(v, where, 1, 1000));
+    } else if (key == "max_block_s") {
+      e.max_block_s = as_real(v, where);
     } else if (key == "max_setpoints_per_block") {
       e.max_setpoints_per_block = static_cast<std::size_t>(as_int_in(v, where, 2, 1 << 20));
     } else {
       throw InputError("unknown key " + where +
                        "; [encoder] takes chord_tolerance_mm, feed_band, link_margin, decimals, "
                        "feed_decimals, time_tolerance_s, number_start, number_step, "
-                       "max_setpoints_per_block");
+                       "max_setpoints_per_block, max_block_s");
     }
   }
 }
@@ -264,7 +266,8 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                   {"time_tolerance_s", e.time_tolerance_s},
                   {"number_start", e.number_start},
                   {"number_step", e.number_step},
-                  {"max_setpoints_per_block", e.max_setpoints_per_block}};
+                  {"max_setpoints_per_block", e.max_setpoints_per_block},
+                  {"max_block_s", e.max_block_s}};
   return j;
 }
 

@@ -12,7 +12,9 @@
 // setpoint q extends it unless one of these closes it first, in this order:
 //   1. Turn: the move into q points back (dot product < 0 with the last move longer than 0):
 //      a cusp or a reversal. The block ends at the turning point.
-//   2. Cap: the buffer of the open block is full (max_setpoints_per_block).
+//   2. Cap: the buffer of the open block is full (max_setpoints_per_block), or Duration: the
+//      block would last longer than max_block_s (when set: a live stream cannot wait for
+//      blocks of any length).
 //   3. Chord: some setpoint of the block, or q, would be farther than ε from the segment
 //      Aw–round(q). The ends are the ROUNDED ones, as written, so the rounding (at most
 //      ρ = √3/2·10^-decimals) is part of the error; ε < ρ is refused by validate().
@@ -63,8 +65,8 @@
 // which wants X, Y and Z known before the first G1.
 //
 // A block whose rounded end equals its rounded start cannot be written: the encoder keeps
-// extending it, and at the cap drops its setpoints (all within ε of the start) while keeping
-// its start time, so the next block's feed takes the standstill into account.
+// extending it, and at the cap (or max_block_s) drops its setpoints (all within ε of the start)
+// while keeping its start time, so the next block's feed takes the standstill into account.
 #include "comms/block_encoder.hpp"
 
 #include <algorithm>
@@ -80,7 +82,6 @@ namespace {
 
 constexpr double kTinyMoveMm = 1e-9;  // moves shorter than this carry no direction
 constexpr double kMaxCoordMm = 1e9;   // beyond this a coordinate is not a machine's
-constexpr int kCloseReasons = 6;
 
 double pow10(int n) {
   double s = 1.0;
@@ -158,6 +159,8 @@ const char* to_string(BlockClose reason) {
       return "turn";
     case BlockClose::Cap:
       return "cap";
+    case BlockClose::Duration:
+      return "duration";
     case BlockClose::End:
       return "end";
   }
@@ -206,6 +209,10 @@ void validate(const EncoderSettings& s) {
     throw InputError("encoder time_tolerance_s = " + general(s.time_tolerance_s) +
                      " is invalid: give how far the controller's time may run from the plan "
                      "before F is written again, 0 or more (one period, 0.004 s, by default)");
+  }
+  if (!std::isfinite(s.max_block_s) || s.max_block_s < 0.0) {
+    throw InputError("encoder max_block_s = " + general(s.max_block_s) +
+                     " is invalid: give the longest block in seconds, or 0 for no limit");
   }
   if (s.max_setpoints_per_block < 2 || s.max_setpoints_per_block > (1u << 20)) {
     throw InputError(
@@ -285,6 +292,8 @@ void BlockEncoder::push(const motion::Setpoint& sp) {
       measure = !close(BlockClose::Turn);
     } else if (pending_.size() >= settings_.max_setpoints_per_block) {
       measure = !close(BlockClose::Cap);
+    } else if (settings_.max_block_s > 0.0 && sp.t_s - anchor_.t_s > settings_.max_block_s) {
+      measure = !close(BlockClose::Duration);
     } else if (!accept_chord(sp.p, bound)) {
       measure = !close(BlockClose::Chord);
     } else if (!in_band(sp.v_mm_per_s, sp.t_s, sp.s_mm)) {
@@ -439,7 +448,7 @@ bool BlockEncoder::close(BlockClose reason) {
     // (the chord test against a segment of no length is the distance to it), so any block
     // from the anchor keeps them within it: at the cap they may go; otherwise the block goes
     // on.
-    if (reason == BlockClose::Cap) {
+    if (reason == BlockClose::Cap || reason == BlockClose::Duration) {
       for (const Vec3& p : pending_) {
         carried_error_mm_ = std::max(carried_error_mm_, (p - anchor_.written).norm());
       }
@@ -650,7 +659,7 @@ void BlockEncoder::flush_lowered_range() {
   ++stats_.lowered_ranges;
   if (stats_.lowered.size() >= settings_.max_lowered_ranges) return;
   std::string causes;
-  for (int k = 0; k < kCloseReasons; ++k) {
+  for (int k = 0; k < kBlockCloseCount; ++k) {
     if (range_reasons_[k] == 0) continue;
     if (!causes.empty()) causes += ", ";
     switch (static_cast<BlockClose>(k)) {
@@ -665,6 +674,9 @@ void BlockEncoder::flush_lowered_range() {
         break;
       case BlockClose::Cap:
         causes += "the cap of setpoints per block";
+        break;
+      case BlockClose::Duration:
+        causes += "the longest block of " + general(settings_.max_block_s) + " s";
         break;
       case BlockClose::End:
         causes += "the end of the path";
@@ -758,7 +770,7 @@ nlohmann::ordered_json to_json(const EncoderStats& s) {
   j["time_drift_max_s"] = s.time_drift_max_s;
   j["unwritten_tail_s"] = s.unwritten_tail_s;
   nlohmann::ordered_json closed;
-  for (int k = 1; k < kCloseReasons; ++k) {
+  for (int k = 1; k < kBlockCloseCount; ++k) {
     closed[to_string(static_cast<BlockClose>(k))] = s.closed_by[k];
   }
   j["closed_by"] = closed;

@@ -39,6 +39,10 @@ struct EncoderSettings {
   long number_start = 1;              // N of the first block
   long number_step = 1;               // N increment
   std::size_t max_setpoints_per_block = 4096;  // the buffer of the open block (fixed memory)
+  // Longest block, s; 0: no limit. A block reaches the sink only once it is closed, so when
+  // streaming live the controller may wait up to this long for the next one: keep it below
+  // the cycle's lead over the controller.
+  double max_block_s = 0.0;
   // The link the program must fit (from the machine file's [link]).
   double link_margin = 0.8;               // use at most this share of the line's capacity
   LineSettings line;                      // baud, frame and end of block set the budget
@@ -62,8 +66,10 @@ enum class BlockClose : std::uint8_t {
   FeedBand,  // the planned feed would leave the band around the block's mean
   Turn,      // the path turns by more than 90° (a cusp or a reversal)
   Cap,       // the buffer of the open block is full
+  Duration,  // the block would last longer than max_block_s
   End,       // finish(): the end of the path
 };
+inline constexpr int kBlockCloseCount = 7;
 const char* to_string(BlockClose reason);
 
 struct EncodedBlock {
@@ -137,7 +143,7 @@ struct EncoderStats {
   }
   double link_use_peak = 0.0;
   long link_use_peak_block = 0;
-  std::int64_t closed_by[6] = {};       // by BlockClose
+  std::int64_t closed_by[kBlockCloseCount] = {};  // by BlockClose
   std::int64_t band_waived = 0;         // setpoints joined outside the band: block too short
   std::int64_t feed_clamped = 0;        // feeds that rounded to 0, written at one unit
   std::int64_t over_budget_blocks = 0;  // too short for the link even at one unit of feed
@@ -240,7 +246,7 @@ class BlockEncoder {
   // The lowered range being collected.
   bool in_range_ = false;
   LoweredRange range_;
-  std::int64_t range_reasons_[6] = {};
+  std::int64_t range_reasons_[kBlockCloseCount] = {};
   // The queue model's state: blocks in the controller's buffer (start time, chars).
   struct Queued {
     double start_s;

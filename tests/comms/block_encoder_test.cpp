@@ -298,6 +298,21 @@ TEST(BlockEncoder, StraightLineAtConstantFeedFillsTheCap) {
   EXPECT_LE(e.stats.chord_error_max_mm, rounding_error_mm(3) * 2);
 }
 
+TEST(BlockEncoder, ALongestBlockBoundsWhatALiveStreamWaitsFor) {
+  EncoderSettings s = link(115200, "8N1");
+  s.max_block_s = 0.5;
+  const auto sps = line(Vec3::Zero(), Vec3::UnitZ(), 1000, [](double) { return 20.0; });
+  const Encoded e = encode(s, sps);
+  check_program(s, sps, e);
+  ASSERT_EQ(e.blocks.size(), 9u);  // 4 s in blocks of 0.5 s
+  for (std::size_t i = 1; i < e.blocks.size(); ++i) {
+    EXPECT_NEAR(e.blocks[i].planned_duration_s, 0.5, 1e-9) << e.blocks[i].text;
+  }
+  EXPECT_EQ(e.stats.closed_by[static_cast<int>(BlockClose::Duration)], 7);
+  s.max_block_s = -1.0;
+  EXPECT_THROW(BlockEncoder(s, [](const EncodedBlock&) {}), InputError);
+}
+
 TEST(BlockEncoder, CircleBlocksKeepTheirSagittaWithinTheTolerance) {
   const double r = 10.0;
   const toolpath::Path path = toolpath::read_path_text(circle_json(r, 1.0, 1200.0), "circle");
