@@ -43,6 +43,8 @@ namespace {
 
 using nlohmann::json;
 
+constexpr double kLiveMaxBlockS = 0.5;  // longest block when streaming live, s
+
 // A request's field as a number, with the key named in the error.
 double number(const json& obj, const std::string& key) {
   if (!obj.contains(key)) throw InputError("\"" + key + "\" is missing");
@@ -349,6 +351,9 @@ void Service::start_stream(const toolpath::Path& path, const Vec3& start_mm) {
   ls->line.device = port_;
   comms::EncoderSettings enc = config_.machine.encoder;
   enc.line = ls->line;
+  // Live, a block reaches the controller only when it closes: bound its length in time so the
+  // controller's lead stays short (a machine file's max_block_s, else 0.5 s).
+  if (enc.max_block_s <= 0.0) enc.max_block_s = kLiveMaxBlockS;
   ls->encoder = std::make_unique<comms::BlockEncoder>(enc, [raw](const comms::EncodedBlock& b) {
     raw->blocks_encoded.fetch_add(1, std::memory_order_relaxed);
     raw->chars_encoded.fetch_add(b.chars, std::memory_order_relaxed);

@@ -203,6 +203,10 @@ class Session {
   }
 
   void ack_byte(char c) {
+    if (c == kXoff || c == kXon) {  // some controllers pace with DC1/DC3 on top of the acks
+      drip_byte(c);
+      return;
+    }
     if (c == '\r') return;
     if (c != '\n') {
       if (line_.size() < 256) line_ += c;
@@ -242,7 +246,7 @@ class Session {
 
   void noise(std::size_t bytes, char c) {
     report_.noise_bytes += static_cast<std::int64_t>(bytes);
-    if (report_.noise_bytes <= 64 || report_.noise_bytes % 1024 == 0) {
+    if (++noise_events_ <= 10 || noise_events_ % 100 == 0) {
       emit(SenderEvent::Kind::Noise, resume_point(),
            ack_ ? "ignored an unexpected line from the controller"
                 : "ignored an unexpected byte 0x" + hex_byte(c) + " from the controller");
@@ -354,6 +358,7 @@ class Session {
   }
 
   void write_ack() {
+    if (s_.line.flow == Flow::XonXoff && !xon_) return;
     while (true) {
       if (sent_items_ == items_.size() && !pull()) return;
       Item& it = items_[sent_items_];
@@ -544,6 +549,7 @@ class Session {
   bool source_done_ = false;
   bool source_waiting_ = false;
   bool numbered_ = true;
+  std::int64_t noise_events_ = 0;
   bool xon_ = true;
   double xoff_since_s_ = 0.0;
   bool xoff_reported_ = false;

@@ -40,7 +40,7 @@ for _ in $(seq 100); do [ -e "$out/cnc" ] && break; sleep 0.05; done
   sed 's/^/  /'
 wait $sim
 trap - EXIT
-sed 's/^/  /' "$out/controller.err"
+sed "s/^/  /" "$out/controller.out" "$out/controller.err"
 echo
 sent=$(grep -o '"program_sha256": *"[0-9a-f]*"' "$out/stream.json" | grep -o '[0-9a-f]\{64\}')
 got=$(grep -o '"program_sha256": *"[0-9a-f]*"' "$out/controller.json" | grep -o '[0-9a-f]\{64\}')
