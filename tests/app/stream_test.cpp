@@ -99,7 +99,7 @@ TEST_F(Stream, XoffStormAndLongHoldLoseNothing) {
   std::string sha;
   const std::string prog = program(400, 20000, &sha);
   const std::uint64_t seed = ncd::test::seed();
-  auto cnc = controller("--baud 38400 --frame 7E2 --buffer 128 --xoff-storm --seed " +
+  auto cnc = controller("--baud 38400 --frame 7E2 --buffer 256 --xoff-storm --seed " +
                         std::to_string(seed) + " --hold-after-blocks 150 --hold-s 2.5");
   const auto r =
       ncd("stream " + prog + " --port " + link_ +
@@ -109,7 +109,7 @@ TEST_F(Stream, XoffStormAndLongHoldLoseNothing) {
   const auto log = controller_log(*cnc);
   EXPECT_EQ(log["program_sha256"], sha);
   EXPECT_TRUE(log["alarms"].empty()) << log["alarms"];
-  EXPECT_LE(log["max_buffer_fill"].get<int>(), 128);
+  EXPECT_LT(log["max_buffer_fill"].get<int>(), 256);  // never full: the sender stopped in time
   const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
   EXPECT_GT(rep["xoff_count"].get<int>(), 3);
   EXPECT_EQ(rep["xoff_timeouts"], 1);
