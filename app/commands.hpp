@@ -13,5 +13,6 @@ void register_chamfer(CLI::App& app, Runner& run);
 void register_replay(CLI::App& app, Runner& run);
 void register_bench(CLI::App& app, Runner& run);
 void register_serve(CLI::App& app, Runner& run);
+void register_robot(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   ncd::app::register_replay(app, run);
   ncd::app::register_bench(app, run);
   ncd::app::register_serve(app, run);
+  ncd::app::register_robot(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
