@@ -89,8 +89,9 @@
 // approach_distance along N from the first and last poses are added, and every move carries its
 // mode (moving or chamfering) and speed. W, P, R from a matrix M: r = atan2(M10, M00), then with
 // Q = Rz(−r) M: p = atan2(−M20, Q00), w = atan2(−Q12, Q11); where M00 = M10 = 0 (P = ±90°,
-// gimbal lock) only w ∓ r is fixed and r = 0 is chosen. Every step is exact, so the round trip
-// is at rounding level everywhere, also at and next to the lock.
+// gimbal lock; taken as such below |(M00, M10)| = 1e-13) only w ∓ r is fixed and r = 0 is
+// chosen. w is solved for the r actually used, so the round trip stays at rounding level
+// (1e-13 at worst, at the lock threshold) everywhere, also at and next to the lock.
 #include "toolpath/robot.hpp"
 
 #include <Eigen/Eigenvalues>
