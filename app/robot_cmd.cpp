@@ -2,7 +2,9 @@
 // (paper 002): poses with W, P, R attitudes in the robot frame, as JSON or as a plain text
 // program whose header documents it. The geometry is in toolpath/robot.cpp.
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
