@@ -16,5 +16,6 @@ void register_serve(CLI::App& app, Runner& run);
 void register_stream(CLI::App& app, Runner& run);
 void register_sim_controller(CLI::App& app, Runner& run);
 void register_teach(CLI::App& app, Runner& run);
+void register_robot(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app
