@@ -47,4 +47,32 @@ void write_output(const std::string& path, const std::string& text) {
   }
 }
 
+StreamedFile::StreamedFile(const std::string& path, const std::string& what, int buffer_bytes)
+    : path_(path) {
+  const std::filesystem::path target(path_);
+  tmp_ = (target.parent_path() / ("." + target.filename().string() + ".tmp")).string();
+  file_ = std::fopen(tmp_.c_str(), "wb");
+  if (!file_) {
+    throw InputError("cannot create " + tmp_ + "; check that the folder of " + what + " exists");
+  }
+  std::setvbuf(file_, nullptr, _IOFBF, static_cast<std::size_t>(buffer_bytes));
+}
+
+StreamedFile::~StreamedFile() {
+  if (file_) {
+    std::fclose(file_);
+    std::remove(tmp_.c_str());
+  }
+}
+
+void StreamedFile::commit() {
+  const bool ok = std::fflush(file_) == 0 && std::ferror(file_) == 0;
+  std::fclose(file_);
+  file_ = nullptr;
+  if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
+    std::remove(tmp_.c_str());
+    throw std::runtime_error("cannot write " + path_);
+  }
+}
+
 }  // namespace ncd::app

@@ -40,43 +40,18 @@ struct ReplayArgs {
 };
 
 // The NC program of --blocks: one block a line, LF, no `%` (the streamer frames it), written
-// as it comes into a temporary file renamed when the run succeeds.
+// as it comes and renamed into place when the run succeeds.
 class ProgramFile {
  public:
-  explicit ProgramFile(const std::string& path) : path_(path) {
-    const std::filesystem::path target(path_);
-    tmp_ = (target.parent_path() / ("." + target.filename().string() + ".tmp")).string();
-    file_ = std::fopen(tmp_.c_str(), "wb");
-    if (!file_) {
-      throw InputError("cannot create " + tmp_ + "; check that the folder of --blocks exists");
-    }
-    std::setvbuf(file_, nullptr, _IOFBF, 1 << 16);
-  }
-  ~ProgramFile() {
-    if (file_) {
-      std::fclose(file_);
-      std::remove(tmp_.c_str());
-    }
-  }
-  ProgramFile(const ProgramFile&) = delete;
-  ProgramFile& operator=(const ProgramFile&) = delete;
+  explicit ProgramFile(const std::string& path) : file_(path, "--blocks", 1 << 16) {}
   void write(const std::string& block) {
-    std::fwrite(block.data(), 1, block.size(), file_);
-    std::fputc('\n', file_);
+    file_.write(block.data(), block.size());
+    file_.write("\n", 1);
   }
-  void commit() {
-    const bool ok = std::fflush(file_) == 0 && std::ferror(file_) == 0;
-    std::fclose(file_);
-    file_ = nullptr;
-    if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
-      std::remove(tmp_.c_str());
-      throw std::runtime_error("cannot write " + path_);
-    }
-  }
+  void commit() { file_.commit(); }
 
  private:
-  std::string path_, tmp_;
-  std::FILE* file_ = nullptr;
+  StreamedFile file_;
 };
 
 // Fixed-size time buckets for the plot; pairs merge when they fill up.

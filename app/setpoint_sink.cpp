@@ -10,24 +10,11 @@
 
 namespace ncd::app {
 
-SetpointSink::SetpointSink(const std::string& path) : path_(path) {
-  if (path_.empty()) return;
-  const std::filesystem::path target(path_);
-  tmp_ = (target.parent_path() / ("." + target.filename().string() + ".tmp")).string();
-  file_ = std::fopen(tmp_.c_str(), "wb");
-  if (!file_) {
-    throw InputError("cannot create " + tmp_ +
-                     "; check that the folder of the setpoints file exists");
-  }
-  std::setvbuf(file_, nullptr, _IOFBF, 1 << 20);
-  std::fputs("t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit\n", file_);
-}
-
-SetpointSink::~SetpointSink() {
-  if (file_) {
-    std::fclose(file_);
-    std::remove(tmp_.c_str());
-  }
+SetpointSink::SetpointSink(const std::string& path) {
+  if (path.empty()) return;
+  file_ = std::make_unique<StreamedFile>(path, "the setpoints file", 1 << 20);
+  static constexpr char kHeader[] = "t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit\n";
+  file_->write(kHeader, sizeof kHeader - 1);
 }
 
 void SetpointSink::write(const motion::Setpoint& sp) {
@@ -47,18 +34,11 @@ void SetpointSink::write(const motion::Setpoint& sp) {
   const char* name = motion::limit_name(sp.limit_id);
   while (*name) *p++ = *name++;
   *p++ = '\n';
-  std::fwrite(line, 1, static_cast<std::size_t>(p - line), file_);
+  file_->write(line, static_cast<std::size_t>(p - line));
 }
 
 void SetpointSink::commit() {
-  if (!file_) return;
-  const bool ok = std::fflush(file_) == 0 && std::ferror(file_) == 0;
-  std::fclose(file_);
-  file_ = nullptr;
-  if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
-    std::remove(tmp_.c_str());
-    throw std::runtime_error("cannot write " + path_);
-  }
+  if (file_) file_->commit();
 }
 
 }  // namespace ncd::app

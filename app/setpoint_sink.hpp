@@ -3,9 +3,10 @@
 // renamed when the run succeeds, so a failed run leaves nothing behind.
 #pragma once
 
-#include <cstdio>
+#include <memory>
 #include <string>
 
+#include "app/output.hpp"
 #include "motion/job.hpp"
 
 namespace ncd::app {
@@ -14,7 +15,6 @@ class SetpointSink {
  public:
   // An empty path writes nothing. Throws InputError if the file cannot be created.
   explicit SetpointSink(const std::string& path);
-  ~SetpointSink();  // removes the temporary file unless commit() succeeded
   SetpointSink(const SetpointSink&) = delete;
   SetpointSink& operator=(const SetpointSink&) = delete;
 
@@ -22,8 +22,7 @@ class SetpointSink {
   void commit();                           // flush and rename; throws on failure
 
  private:
-  std::string path_, tmp_;
-  std::FILE* file_ = nullptr;
+  std::unique_ptr<StreamedFile> file_;  // null when nothing is recorded
 };
 
 }  // namespace ncd::app
