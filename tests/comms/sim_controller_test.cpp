@@ -440,6 +440,12 @@ struct ExactCase {
   const char* frame;
 };
 
+// How the case appears in test names and failure messages.
+void PrintTo(const ExactCase& c, std::ostream* os) {
+  *os << (c.protocol == Protocol::Drip ? "drip " : "ack ")
+      << (std::string(c.eob) == "\n" ? "LF " : "CRLF ") << c.frame;
+}
+
 class ByteExact : public ::testing::TestWithParam<ExactCase> {};
 
 TEST_P(ByteExact, ProgramArrivesWithItsChecksum) {
@@ -497,7 +503,12 @@ INSTANTIATE_TEST_SUITE_P(SimController, ByteExact,
                                            ExactCase{Protocol::Ack, "\n", "7E2"},
                                            ExactCase{Protocol::Ack, "\n", "8N1"},
                                            ExactCase{Protocol::Ack, "\r\n", "7E2"},
-                                           ExactCase{Protocol::Ack, "\r\n", "8N1"}));
+                                           ExactCase{Protocol::Ack, "\r\n", "8N1"}),
+                         [](const ::testing::TestParamInfo<ExactCase>& param_info) {
+                           const ExactCase& c = param_info.param;
+                           return std::string(c.protocol == Protocol::Drip ? "Drip" : "Ack") +
+                                  (std::string(c.eob) == "\n" ? "Lf" : "CrLf") + c.frame;
+                         });
 
 // ---- pacing ----
 
