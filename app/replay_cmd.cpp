@@ -123,11 +123,17 @@ Figure replay_figure(const PlotBuckets& plot, const PlotBuckets* blocks, const M
     }
     feeds.push_back(std::move(written));
   }
-  Panel p1{"feed against time",
-           "feed (mm/min)",
-           feeds,
-           {{m.limits.max_feed_mm_per_min, "machine maximum feed"}},
-           {}};
+  // The machine's maximum is drawn only when the feed comes near it; far above, it would flatten
+  // the curves a reader looks at, so the title states it instead.
+  double peak_mm_per_min = 0.0;
+  for (const auto& b : plot.buckets()) peak_mm_per_min = std::max(peak_mm_per_min, b.feed_max);
+  const double max_feed = m.limits.max_feed_mm_per_min;
+  const bool show_max = peak_mm_per_min >= 0.25 * max_feed;
+  char title[128];
+  std::snprintf(title, sizeof title, "feed against time (machine maximum %.0f mm/min%s)", max_feed,
+                show_max ? "" : ", off the scale");
+  Panel p1{title, "feed (mm/min)", feeds, {}, {}};
+  if (show_max) p1.lines.push_back({max_feed, "machine maximum feed"});
   Panel p2{"roughness predicted by the ball-end model (Choi)",
            "R_max (um)",
            {rough},
