@@ -264,7 +264,7 @@ json Service::start() {
   auto job = std::make_unique<motion::Job>(*path_, job_config());
   stream_.reset();
   held_by_link_ = false;
-  if (!port_.empty()) start_stream(*path_, job->walker().position());
+  if (!port_.empty()) start_stream(job->walker().position());
   motion::CycleOptions o;
   o.clock = config_.clock;
   o.realtime = config_.realtime;
@@ -342,8 +342,7 @@ void Service::end_job() {
   if (on_idle_) io_.post(on_idle_);
 }
 
-void Service::start_stream(const toolpath::Path& path, const Vec3& start_mm) {
-  (void)path;
+void Service::start_stream(const Vec3& start_mm) {
   const LinkConfig& link = config_.machine.link;
   auto ls = std::make_unique<LiveStream>();
   LiveStream* raw = ls.get();

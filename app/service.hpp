@@ -54,10 +54,10 @@ class Service : public comms::ControlHandler {
   nlohmann::json start();
   void drain();       // pops setpoints on a 1 ms timer while a job runs
   void finish_job();  // the cycle has ended: close the setpoints file, set the state
-  void start_stream(const toolpath::Path& path, const Vec3& start_mm);
-  void link_hold(bool hold);  // the sender's hold callback, on the I/O thread
-  void await_stream();        // after the cycle: wait (on a timer) for the sender to finish
-  void end_job();             // the job is over, motion and transfer
+  void start_stream(const Vec3& start_mm);  // the encoder and the sender thread of the job
+  void link_hold(bool hold);                // the sender's hold callback, on the I/O thread
+  void await_stream();  // after the cycle: wait (on a timer) for the sender to finish
+  void end_job();       // the job is over, motion and transfer
   nlohmann::json stream_status() const;
   void require_active(const char* cmd) const;
   motion::JobConfig job_config() const;

@@ -74,7 +74,6 @@ class Session {
                     ? s.resend_window_chars
                     : s.max_queued_chars + static_cast<int>(std::ceil(0.25 * cps_))) {
     report_.first_block = first_block;
-    next_index_ = 0;
     skip_until_ = first_block;
     if (!ack_ && s.line.percent_framing && first_block == 0) {
       Item open;
