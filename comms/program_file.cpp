@@ -9,16 +9,20 @@
 
 namespace ncd::comms {
 
-std::string block_of_line(const std::string& line) {
+std::string line_text(std::string_view raw) {
   std::string s;
-  s.reserve(line.size());
-  for (char c : line) {
-    if (c != '\r' && c != '\0') s += c;
+  s.reserve(raw.size());
+  for (char c : raw) {
+    if (c != '\r' && c != '\n' && c != '\0') s += c;
   }
   const auto first = s.find_first_not_of(" \t");
   if (first == std::string::npos) return {};
   const auto last = s.find_last_not_of(" \t");
-  s = s.substr(first, last - first + 1);
+  return s.substr(first, last - first + 1);
+}
+
+std::string block_of_line(const std::string& line) {
+  std::string s = line_text(line);
   return s == "%" ? std::string() : s;
 }
 

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <fstream>
 #include <string>
+#include <string_view>
 
 #include "comms/dnc_sender.hpp"
 
@@ -32,7 +33,9 @@ class ProgramFile : public BlockSource {
   std::ifstream in_;
 };
 
-// The program's block text for a raw line: CR and NULs removed; empty for framing lines.
+// A raw line as text: CR, LF and NULs removed, spaces and tabs trimmed at both ends.
+std::string line_text(std::string_view raw);
+// The program's block text for a raw line: line_text, empty for framing (`%`) lines.
 std::string block_of_line(const std::string& line);
 
 }  // namespace ncd::comms

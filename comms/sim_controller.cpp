@@ -65,6 +65,7 @@
 #include <deque>
 #include <random>
 
+#include "comms/program_file.hpp"
 #include "comms/pty.hpp"
 #include "comms/sha256.hpp"
 #include "core/error.hpp"
@@ -119,19 +120,6 @@ bool read_number(std::string_view text, std::size_t& i, double& value) {
   value = negative ? -v : v;
   i = j;
   return true;
-}
-
-// The text of a line as a block: CR and NUL removed, spaces and tabs trimmed at both ends.
-std::string block_text(std::string_view raw) {
-  std::string s;
-  s.reserve(raw.size());
-  for (char c : raw) {
-    if (c != '\r' && c != '\0' && c != '\n') s += c;
-  }
-  const auto first = s.find_first_not_of(" \t");
-  if (first == std::string::npos) return {};
-  const auto last = s.find_last_not_of(" \t");
-  return s.substr(first, last - first + 1);
 }
 
 double distance(const std::array<double, 3>& a, const std::array<double, 3>& b) {
@@ -615,7 +603,7 @@ struct SimController::Impl {
     line.size = static_cast<int>(partial.size());
     line.epoch = rx_epoch;
     line.ready_t = t;
-    const std::string text = block_text(partial);
+    const std::string text = line_text(partial);
     partial.clear();
     partial_chars = 0;
     if (text.empty() || text == "%") {

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "comms/pty.hpp"
 #include "tests/app/cli_fixture.hpp"
 
 namespace {
@@ -73,29 +74,18 @@ TEST_F(TeachCli, PapersExampleGivesThePapersLinesAndReplays) {
 
 TEST_F(TeachCli, ProgramStreamsAsItIs) {
   ASSERT_EQ(teach(kExamples + "teach-burr.txt --frame-points " + kPaperFrame + kTool).status, 0);
-  // The test plays the controller on the master side of a raw pseudo-terminal; the program is
-  // small enough to sit in the terminal's buffer until it is read.
-  const int master = posix_openpt(O_RDWR | O_NOCTTY);
-  ASSERT_GE(master, 0);
-  ASSERT_EQ(grantpt(master), 0);
-  ASSERT_EQ(unlockpt(master), 0);
-  const std::string slave = ptsname(master);
-  const int fd = ::open(slave.c_str(), O_RDWR | O_NOCTTY);
-  termios t{};
-  tcgetattr(fd, &t);
-  cfmakeraw(&t);
-  tcsetattr(fd, TCSANOW, &t);
-  const CmdResult r = ncd("stream " + program() + " --port " + slave +
+  // The test plays the controller on the master side of the project's raw pty pair, which holds
+  // its slave open, so the small program waits in the terminal's buffer until it is read.
+  ncd::comms::Pty pty((dir_ / "cnc").string());
+  const CmdResult r = ncd("stream " + program() + " --port " + pty.device() +
                           " --baud 115200 --frame 8N1 --flow none --no-journal -q");
-  ::close(fd);
   std::string got;
   char buf[512];
-  for (pollfd p{master, POLLIN, 0}; ::poll(&p, 1, 200) > 0;) {
-    const ssize_t n = ::read(master, buf, sizeof buf);
+  for (pollfd p{pty.master(), POLLIN, 0}; ::poll(&p, 1, 200) > 0;) {
+    const ssize_t n = ::read(pty.master(), buf, sizeof buf);
     if (n <= 0) break;
     got.append(buf, static_cast<std::size_t>(n));
   }
-  ::close(master);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(got, "%\n" + slurp(program()) + "%\n");  // every line a block, % framing added
 }

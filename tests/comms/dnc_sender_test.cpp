@@ -20,6 +20,7 @@
 #include "comms/dnc_sender.hpp"
 #include "comms/live_blocks.hpp"
 #include "comms/program_file.hpp"
+#include "comms/pty.hpp"
 #include "comms/sha256.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
@@ -103,31 +104,12 @@ TEST(ProgramFile, FramingIsNotABlock) {
   fs::remove(p);
 }
 
-// A pseudo-terminal whose master side the test plays as the controller.
-struct Pty {
-  Pty() {
-    master = posix_openpt(O_RDWR | O_NOCTTY);
-    EXPECT_GE(master, 0);
-    grantpt(master);
-    unlockpt(master);
-    slave_name = ptsname(master);
-    const int s = ::open(slave_name.c_str(), O_RDWR | O_NOCTTY);
-    termios t{};
-    tcgetattr(s, &t);
-    cfmakeraw(&t);
-    tcsetattr(s, TCSANOW, &t);
-    ::close(s);
-  }
-  ~Pty() { ::close(master); }
-  int master = -1;
-  std::string slave_name;
-};
-
 // Drip feed: after the controller's DC3 the sender stops within max_queued_chars characters,
 // give or take the DC3's own way across the pty,
 // and the program still arrives whole once DC1 comes.
 TEST(DncSender, DripStopsWithinTheQueueLimitAfterXoff) {
-  Pty pty;
+  // The test plays the controller on the master side of the project's own pty pair.
+  Pty pty(temp("link").string());
   LiveBlocks blocks;
   std::string expect;
   for (int i = 1; i <= 250; ++i) {
@@ -137,7 +119,7 @@ TEST(DncSender, DripStopsWithinTheQueueLimitAfterXoff) {
   }
   blocks.close();
   SenderSettings s;
-  s.line.device = pty.slave_name;
+  s.line.device = pty.device();
   s.line.baud = 38400;
   s.line.percent_framing = false;
   s.max_queued_chars = 16;
@@ -157,10 +139,10 @@ TEST(DncSender, DripStopsWithinTheQueueLimitAfterXoff) {
       std::size_t n = 0;
       const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
       while (std::chrono::steady_clock::now() < end) {
-        pollfd p{pty.master, POLLIN, 0};
+        pollfd p{pty.master(), POLLIN, 0};
         if (::poll(&p, 1, 1) > 0) {
           char buf[256];
-          const ssize_t r = ::read(pty.master, buf, sizeof buf);
+          const ssize_t r = ::read(pty.master(), buf, sizeof buf);
           if (r > 0) {
             got.append(buf, static_cast<std::size_t>(r));
             n += static_cast<std::size_t>(r);
@@ -172,10 +154,10 @@ TEST(DncSender, DripStopsWithinTheQueueLimitAfterXoff) {
     read_for(30);
     const char xoff = kXoff, xon = kXon;
     int waiting = 0;  // written before the DC3 but not read yet: not the sender's overrun
-    ASSERT_EQ(::ioctl(pty.master, FIONREAD, &waiting), 0);
-    ASSERT_EQ(::write(pty.master, &xoff, 1), 1);
+    ASSERT_EQ(::ioctl(pty.master(), FIONREAD, &waiting), 0);
+    ASSERT_EQ(::write(pty.master(), &xoff, 1), 1);
     after_xoff.push_back(read_for(50) - static_cast<std::size_t>(waiting));
-    ASSERT_EQ(::write(pty.master, &xon, 1), 1);
+    ASSERT_EQ(::write(pty.master(), &xon, 1), 1);
     ++cycle;
   }
   t.join();
