@@ -13,12 +13,24 @@
 
 namespace ncd::toolpath {
 
+// How the planner joins a segment to the one before it (RS-274/NGC G61, G61.1, G64).
+enum class PathControl {
+  blend,       // G64: corners may be rounded within blend_tolerance_mm (or the machine's default)
+  exact_path,  // G61: no rounding; the tool passes through every programmed corner exactly
+  exact_stop,  // G61.1: the machine comes to rest at the end of every move
+};
+
 struct PathSegment {
   std::variant<Polyline, NurbsCurve> geometry;
   std::optional<double> feed_mm_per_min;  // programmed feed; none for rapids or when not given
   std::optional<double> spindle_rpm;      // spindle speed while it turns; none when stopped
   bool rapid = false;                     // G0: the machine's rapid rate, not a cutting feed
   int source_line = 0;                    // 1-based line of the source that opened it; 0 if none
+  PathControl path_control = PathControl::blend;  // mode in force for this segment's corners
+  std::optional<double> blend_tolerance_mm;       // G64 P: deviation allowed at a blended corner
+  std::optional<double> smoothing_tolerance_mm;   // G64 Q: deviation allowed when smoothing runs
+  bool stop_before = false;  // the machine must be at rest where this segment starts (an event
+                             // that needs rest precedes it: M0/M1, M6, dwell, spindle change)
 };
 
 struct Path {
