@@ -1,8 +1,8 @@
 // One interpolation period of the curve walker on a rational cubic NURBS with the knot vector
 // of paper 004, Fig. 11 ([0 0 0 0 0.2 0.4 0.6 0.8 1 1 1 1], an up- and down-milling path):
 // Taylor predictor + Newton correction on the true arc length against the paper's Taylor-only
-// step (eq. 7), at Δs = 0.4 mm (100 mm/s at 4 ms). Spec §2 quotes 4.3 µs per cycle for an RK2
-// predictor–corrector (Erwinski 2022).
+// step (eq. 7), at Δs = 0.4 mm (100 mm/s at 4 ms). docs/feedrate.md §2 quotes 4.3 µs per cycle
+// for an RK2 predictor–corrector (Erwinski 2022).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>

@@ -47,7 +47,7 @@
 // an F word costs 6–8 characters, so the modal F is kept while it is within the feed band of
 // the block's planned feed and the controller's summed time stays within time_tolerance_s (one
 // period) of the plan; otherwise a new F is written.
-// The budget (spec/dnc.md): a block of c characters (text + end of block) at b bits each
+// The budget (docs/block-encoder.md): a block of c characters (text + end of block) at b bits each
 // takes c·b/baud s on the wire; the sender may use link_margin of the line, so the block must
 // last at least c·b/(baud·margin) s, i.e.
 //   F ≤ F_max = L · baud · margin · 60 / (c · b)   (L mm, F mm/min).

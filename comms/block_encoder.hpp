@@ -1,6 +1,6 @@
 // The block encoder: the interpolator's setpoints in, RS-274 blocks for a DNC link out.
 //
-// A 4 ms setpoint is far too short to be a block on an RS-232 line (spec/dnc.md, "The bandwidth
+// A 4 ms setpoint is too short for a block on an RS-232 line (docs/block-encoder.md, "The bandwidth
 // budget"): a block of c characters at b bits each over `baud` takes c·b/baud s on the wire, so
 // at feed F it must be at least F·c·b/baud long or the controller starves. The encoder merges
 // consecutive setpoints into straight G1 blocks, as long as the written program stays within a

@@ -1,7 +1,7 @@
 // The curve walker: one parameter step per interpolation period.
 //
 // Given the arc length Δs the planned motion covers in this period (s(t+T) − s(t), not F·T:
-// with a varying feed only the planned s(t) is right, spec §2), find u_{i+1} with
+// with a varying feed only the planned s(t) is right, docs/feedrate.md §2), find u_{i+1} with
 //
 //     g(u) = ∫_{u_i}^{u} |P'(w)| dw − Δs = 0.
 //

@@ -1,5 +1,5 @@
 // Choi, Jung, Hong, Yang, "NURBS interpolator for controlling the surface roughness" (paper
-// 004), section 2, as reconstructed in spec/feedrate.md §1.
+// 004), section 2, as reconstructed in docs/feedrate.md §1.
 //
 // A ball of radius r, stepping over by the pick feed f_p between passes and advancing by the
 // feed per tooth f_t along each pass, leaves two kinds of marks. Away from the tool tip

@@ -1,4 +1,4 @@
-// Choi's ball-end roughness model (paper 004, spec/feedrate.md §1): the peak-to-valley
+// Choi's ball-end roughness model (paper 004, docs/feedrate.md §1): the peak-to-valley
 // roughness R_max left by a ball-end mill as a function of pick feed, feed per tooth and the
 // inclination of the surface, its inverse (the feed per tooth that meets a roughness target)
 // and the feed that follows. The model is explained once, in roughness.cpp.

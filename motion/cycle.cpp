@@ -1,4 +1,4 @@
-// The cycle thread (DESIGN.md, "Threads of the service", thread 2).
+// The cycle thread (docs/architecture.md, "Threads of the service", thread 2).
 //
 //   deadline d_k = d_0 + k T (absolute CLOCK_MONOTONIC)
 //

@@ -1,5 +1,5 @@
 // A path of straight moves through points, optionally with the cutter-contact normal at each
-// point (the chamfer generator knows it; spec/feedrate.md 1.4 uses it for the inclination α).
+// point (the chamfer generator knows it; docs/feedrate.md §1.4 uses it for the inclination α).
 #pragma once
 
 #include <cstddef>

@@ -1,5 +1,5 @@
 // Robot chamfering of a hole through a cylinder: paper 002 (Asakawa, Toda, Takeuchi) §3–§6,
-// with the conventions of spec/robot.md.
+// with the conventions of docs/robot.md.
 //
 // Frame (workpiece). The hole (cylinder B of the paper, radius r) runs along z, the base
 // cylinder (A, radius R > r) along y, the origin where the axes cross. The edge a of §4.1

@@ -1,5 +1,5 @@
 // Robot chamfering of a hole through a cylinder by a 6-axis robot holding a rotary bar (paper
-// 002, Asakawa, Toda, Takeuchi; spec/robot.md). Pure geometry: the edge curve, the workpiece
+// 002, Asakawa, Toda, Takeuchi; docs/robot.md). Pure geometry: the edge curve, the workpiece
 // surface data (§3.1, §4.1), the tool attitude data and the rules for T_g (§3.2, §4.2), the
 // touch-point matching (§5), and the robot's W, P, R attitude form (§6). The algorithm and
 // every definition are explained once, in robot.cpp.

@@ -1,5 +1,5 @@
 // Off-line teaching of a deburring path: paper 003 (Kim, Park, Lee) §3.2–3.3, with the
-// conventions of spec/teach.md.
+// conventions of docs/teach.md.
 //
 // Frame (§3.2). Three digitized points fix the frame the program is written in: P1 is the
 // origin, P2 lies on +X, P3 in the XY plane.

@@ -1,5 +1,5 @@
 // Off-line teaching of a deburring path (paper 003, Kim, Park, Lee, with the conventions of
-// spec/teach.md): digitized points → three-point frame → tool-radius offset → NC program. The
+// docs/teach.md): digitized points → three-point frame → tool-radius offset → NC program. The
 // algorithm is explained once, in teach.cpp.
 #pragma once
 

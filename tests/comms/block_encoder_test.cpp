@@ -1,6 +1,6 @@
 // The block encoder against independent checks: a brute-force distance scan of every setpoint
 // to the polyline of written end points (the chord error), the sagitta of a circle, the budget
-// formula of spec/dnc.md recomputed from the text as written, the program parsed back by a
+// formula of docs/block-encoder.md recomputed from the text as written, the program read back by a
 // parser written here and by our G-code reader, and a random sweep over curves, tolerances,
 // decimals and links.
 #include "comms/block_encoder.hpp"

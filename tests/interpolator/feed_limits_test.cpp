@@ -1,5 +1,5 @@
 // Feed limits: each limit binds where its closed form says it should, and the reported speed
-// is that closed form, recomputed here from the spec's formulas (spec/feedrate.md §§1, 3).
+// is that closed form, recomputed here from the formulas of docs/feedrate.md §§1, 3.
 #include "interpolator/feed_limits.hpp"
 
 #include <gtest/gtest.h>
@@ -27,7 +27,7 @@ CuttingParams fast_cutting() {
   return c;
 }
 
-// Spec §1.1 and §1.2, written out again: f_t = min(eq. 5, eq. 6), F = f_t z N.
+// docs/feedrate.md §1.1 and §1.2, written out again: f_t = min(eq. 5, eq. 6), F = f_t z N.
 double roughness_reference_mm_per_s(const CuttingParams& c, double alpha) {
   const double r = c.ball_radius_mm, fp = c.pick_feed_mm, R = c.roughness_target_um / 1000.0;
   const double ft_out = fp / (2.0 * kPi) + std::sqrt(8.0 * r * R - fp * fp);

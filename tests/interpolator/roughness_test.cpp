@@ -1,4 +1,4 @@
-// Choi's roughness model against the check values of spec/feedrate.md §1.3 (re-derived from the
+// Choi's roughness model against the check values of docs/feedrate.md §1.3 (re-derived from the
 // paper's figures), its inverse against the forward law over random inputs, and the input
 // errors that must never be clamped.
 #include "interpolator/roughness.hpp"
@@ -29,7 +29,7 @@ std::string message_of(const CuttingParams& p) {
   return "";
 }
 
-// --- check values, spec §1.3 -----------------------------------------------------------------
+// --- check values, docs/feedrate.md §1.3 -----------------------------------------------------
 
 TEST(ChoiCheckValues, OutsideDeadCentreIs10_67um) {
   const double um = roughness_mm(kR, kFp, kFt, deg_to_rad(10.0)) * 1e3;

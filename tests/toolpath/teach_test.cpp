@@ -1,5 +1,5 @@
 // Off-line teaching (paper 003) against the paper's table and program as settled in
-// spec/teach.md, exact identities (orthonormal frame, planted frame coordinates, offset distance,
+// docs/teach.md, exact identities (orthonormal frame, planted frame coordinates, offset distance,
 // radial normals on a circle, rigid-motion invariance, wrap-around), a slow reference for the
 // paper's parabola (a Vandermonde solve), the program read back by our G-code reader, and one
 // error per invalid input.
@@ -105,7 +105,7 @@ std::vector<Vec3> random_path(std::mt19937_64& rng, std::size_t n) {
   return q;
 }
 
-// ---------------------------------------------------------------- the paper's figures (spec)
+// ------------------------------------------------------- the paper's figures (docs/teach.md)
 
 TEST(Teach, FrameReproducesThePapersTable) {
   // §3.2 prints x and y truncated to 3 decimals and z rounded to 6 (29.1817 → 29.181, but
