@@ -42,7 +42,7 @@
 // The right-angle model and the real part. The paper chamfers a right-angle edge (Fig. 4),
 // with plane B = the hole wall and plane A ⟂ the wall through the edge. The cylinder surface
 // (normal n_c = (x, 0, z)/R) is not ⟂ the wall: n_c · D_p = −(r/R) cos² θ, so the wall and the
-// cylinder meet at 90° − δ, δ = asin((r/R) cos² θ) (60° at θ = 0 for the paper's r/R = 1/2).
+// cylinder meet at 90° − δ, δ = asin((r/R) cos² θ) (30° at θ = 0 for the paper's r/R = 1/2).
 // D and T_f are exactly 45° to the wall and to plane A; to the cylinder surface T_f makes
 // 45° − δ and D 45° + δ: 45° only where δ = 0 (θ = ±90°, or R → ∞). We follow the paper and
 // report the range of T_f's angle to the cylinder in the checks (signed, positive into the
