@@ -2,7 +2,8 @@
 JOBS ?= $(shell nproc)
 NCD := build/release/app/ncd
 
-.PHONY: all deps release debug demo test test-release test-debug format format-check bench clean
+.PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build format \
+	format-check bench clean
 
 all: release
 
@@ -20,13 +21,25 @@ debug: deps
 demo: release
 	@scripts/demo.sh $(NCD)
 
-test: format-check test-release test-debug
+test: format-check test-release test-debug test-fuzz
 
 test-release: release
 	ctest --preset release -j $(JOBS)
 
 test-debug: debug
 	ctest --preset debug -j $(JOBS)
+
+# libFuzzer harnesses of tests/fuzz (docs/input-ranges.md): `make fuzz` runs each FUZZ_SECONDS.
+FUZZ_SECONDS ?= 60
+fuzz-build: deps
+	@cmake --preset fuzz >/dev/null
+	@cmake --build --preset fuzz -j $(JOBS)
+
+fuzz: fuzz-build
+	scripts/fuzz.sh run $(FUZZ_SECONDS)
+
+test-fuzz: fuzz-build
+	scripts/fuzz.sh corpus 3
 
 bench: release
 	build/release/bench/ncd_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true

@@ -7,11 +7,13 @@
 
 #include <cmath>
 #include <cstdint>
-#include <fstream>
-#include <sstream>
 #include <toml.hpp>
 
+#include "app/toml_text.hpp"
+#include "core/decimal.hpp"
 #include "core/error.hpp"
+#include "core/input_file.hpp"
+#include "core/input_ranges.hpp"
 
 namespace ncd::app {
 namespace {
@@ -22,20 +24,49 @@ double as_real(const toml::value& v, const std::string& where) {
   throw InputError(where + " must be a number, not " + toml::format(v));
 }
 
-int as_int(const toml::value& v, const std::string& where) {
-  if (!v.is_integer() || v.as_integer() < 1 || v.as_integer() > 1000) {
-    throw InputError(where + " must be a whole number from 1 to 1000, not " + toml::format(v));
-  }
-  return static_cast<int>(v.as_integer());
-}
-
+// Every TOML integer goes through checked_integer (core/decimal.hpp): in range, or an error
+// naming the key, the value and the range.
 std::int64_t as_int_in(const toml::value& v, const std::string& where, std::int64_t lo,
                        std::int64_t hi) {
-  if (!v.is_integer() || v.as_integer() < lo || v.as_integer() > hi) {
+  if (!v.is_integer()) {
     throw InputError(where + " must be a whole number from " + std::to_string(lo) + " to " +
                      std::to_string(hi) + ", not " + toml::format(v));
   }
-  return v.as_integer();
+  return checked_integer(v.as_integer(), lo, hi, where);
+}
+
+int as_int(const toml::value& v, const std::string& where) {
+  return static_cast<int>(as_int_in(v, where, 1, 1000));
+}
+
+// A value within its documented range (core/input_ranges.hpp, docs/input-ranges.md).
+void check(double value, const ranges::Range& r, const std::string& where) {
+  checked_range(value, r.lo, r.hi, where, r.unit,
+                "give a value in the range, or leave the key out for the default (see "
+                "config/machine.example.toml)");
+}
+
+// The plausible ranges of the machine file; the interpolator's, the cutting law's and the
+// encoder's own validate() then check the relations between values.
+void check_ranges(const MachineConfig& c, const std::string& name) {
+  const auto& l = c.limits;
+  const auto& k = c.cutting;
+  check(l.period_s, ranges::kPeriodS, name + ": period_s");
+  check(l.max_feed_mm_per_min, ranges::kMaxFeedMmPerMin, name + ": max_feed_mm_per_min");
+  check(l.max_accel_mm_per_s2, ranges::kMaxAccelMmPerS2, name + ": max_accel_mm_per_s2");
+  check(l.max_jerk_mm_per_s3, ranges::kMaxJerkMmPerS3, name + ": max_jerk_mm_per_s3");
+  check(l.chord_tolerance_mm, ranges::kChordToleranceMm, name + ": chord_tolerance_mm");
+  check(k.ball_radius_mm, ranges::kBallRadiusMm, name + ": cutting.ball_radius_mm");
+  check(k.pick_feed_mm, ranges::kPickFeedMm, name + ": cutting.pick_feed_mm");
+  check(k.spindle_rpm, ranges::kSpindleRpm, name + ": cutting.spindle_rpm");
+  check(k.roughness_target_um, ranges::kRoughnessTargetUm, name + ": cutting.roughness_target_um");
+  check(c.link.xoff_timeout_s, ranges::kXoffTimeoutS, name + ": link.xoff_timeout_s");
+  check(c.link.reconnect_max_s, ranges::kReconnectMaxS, name + ": link.reconnect_max_s");
+  const auto& e = c.encoder;
+  check(e.chord_tolerance_mm, ranges::kEncoderChordToleranceMm,
+        name + ": encoder.chord_tolerance_mm");
+  check(e.time_tolerance_s, ranges::kTimeToleranceS, name + ": encoder.time_tolerance_s");
+  check(e.max_block_s, ranges::kMaxBlockS, name + ": encoder.max_block_s");
 }
 
 double as_positive(const toml::value& v, const std::string& where) {
@@ -151,13 +182,7 @@ void parse_encoder(const toml::value& table, const std::string& name, comms::Enc
 }  // namespace
 
 MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
-  toml::value root;
-  try {
-    std::istringstream in(text);
-    root = toml::parse(in, name);
-  } catch (const std::exception& e) {
-    throw InputError("cannot read machine file " + name + ": " + e.what());
-  }
+  const toml::value root = parse_toml_text(text, name, "machine file");
   MachineConfig c;
   c.source = name;
   auto& l = c.limits;
@@ -211,6 +236,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
   }
   c.encoder.line = c.link.line;
   c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
+  check_ranges(c, name);
   try {
     interpolator::validate(c.limits);
     interpolator::validate(c.cutting);
@@ -222,11 +248,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
 }
 
 MachineConfig load_machine_config(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError("cannot open machine file " + path + " (--machine)");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse_machine_config(text.str(), path);
+  return parse_machine_config(read_input_file(path, "machine file, --machine"), path);
 }
 
 nlohmann::ordered_json to_json(const MachineConfig& c) {

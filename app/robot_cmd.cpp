@@ -16,6 +16,7 @@
 #include "app/commands.hpp"
 #include "app/output.hpp"
 #include "core/error.hpp"
+#include "core/input_file.hpp"
 #include "toolpath/robot.hpp"
 
 namespace ncd::app {
@@ -53,44 +54,10 @@ std::string fixed(double v, int decimals) {
   return s.str();
 }
 
-// Touch-point file: one touch per line, "x_w y_w z_w x_r y_r z_r" in mm (workpiece frame, then
-// robot frame), separated by spaces, tabs or commas; '#' starts a comment; blank lines skipped.
+// The touch-point file (--touch-points), read as toolpath::parse_touch_points() describes.
 std::vector<toolpath::TouchPoint> read_touch_points(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    throw InputError("cannot read the touch-point file " + path + ": " + std::strerror(errno) +
-                     " (--touch-points)");
-  }
-  std::vector<toolpath::TouchPoint> touches;
-  std::string line;
-  for (int line_no = 1; std::getline(in, line); ++line_no) {
-    if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
-    for (char& c : line) {
-      if (c == ',') c = ' ';
-    }
-    std::istringstream words(line);
-    std::vector<double> values;
-    for (std::string word; words >> word;) {
-      errno = 0;
-      char* end = nullptr;
-      const double v = std::strtod(word.c_str(), &end);
-      if (end == word.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) {
-        throw InputError(path + ":" + std::to_string(line_no) + ": '" + word +
-                         "' is not a finite number; a touch line reads x_w y_w z_w x_r y_r z_r "
-                         "in mm (workpiece frame, then robot frame)");
-      }
-      values.push_back(v);
-    }
-    if (values.empty()) continue;
-    if (values.size() != 6) {
-      throw InputError(path + ":" + std::to_string(line_no) + ": " + std::to_string(values.size()) +
-                       " numbers where a touch line has 6: x_w y_w z_w x_r y_r z_r in mm "
-                       "(workpiece frame, then robot frame)");
-    }
-    touches.push_back(
-        {Vec3(values[0], values[1], values[2]), Vec3(values[3], values[4], values[5])});
-  }
-  return touches;
+  return toolpath::parse_touch_points(read_input_file(path, "touch-point file, --touch-points"),
+                                      path);
 }
 
 ordered_json vec(const Vec3& v) {

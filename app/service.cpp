@@ -28,13 +28,14 @@
 #include <mutex>
 #include <sstream>
 #include <thread>
-#include <toml.hpp>
 
 #include "app/chamfer_report.hpp"
 #include "comms/block_encoder.hpp"
 #include "comms/live_blocks.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
+#include "core/input_file.hpp"
+#include "core/json_input.hpp"
 #include "toolpath/chamfer.hpp"
 #include "toolpath/path_io.hpp"
 
@@ -96,7 +97,9 @@ toolpath::Path chamfer_path(const json& spec) {
     s.avoid = !j["no_avoid"].get<bool>();
   }
   if (j.contains("initial_segments")) {
-    s.initial_segments = static_cast<int>(number(j, "initial_segments"));
+    s.initial_segments = static_cast<int>(
+        json_integer(j["initial_segments"], toolpath::ChamferLimits::kMinInitialSegments,
+                     toolpath::ChamferLimits::kMaxInitialSegments, "\"initial_segments\""));
   }
   toolpath::NgcOptions ngc;
   if (j.contains("feed")) ngc.feed_mm_per_min = number(j, "feed");
@@ -114,44 +117,7 @@ toolpath::Path chamfer_path(const json& spec) {
 }  // namespace
 
 ServiceConfig load_service_config(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError("cannot open service config " + path + " (--config)");
-  std::stringstream text;
-  text << in.rdbuf();
-  toml::value root;
-  try {
-    std::istringstream s(text.str());
-    root = toml::parse(s, path);
-  } catch (const std::exception& e) {
-    throw InputError("cannot read service config " + path + ": " + e.what());
-  }
-  ServiceConfig c;
-  c.source = path;
-  for (const auto& [key, v] : root.as_table()) {
-    const std::string where = path + ": " + key;
-    if (key == "listen" && v.is_string()) {
-      c.listen = v.as_string();
-    } else if (key == "token" && v.is_string()) {
-      c.token = v.as_string().str;
-    } else if (key == "machine" && v.is_string()) {
-      c.machine_file = v.as_string();
-    } else if (key == "clock" && v.is_string() &&
-               (v.as_string() == "wall" || v.as_string() == "simulated")) {
-      c.clock = v.as_string() == "wall" ? motion::ClockKind::Wall : motion::ClockKind::Simulated;
-    } else if (key == "realtime" && v.is_boolean()) {
-      c.realtime = v.as_boolean();
-    } else if (key == "listen" || key == "token" || key == "machine" || key == "clock" ||
-               key == "realtime") {
-      throw InputError(where + " has the wrong type or value: " + toml::format(v) +
-                       " (listen, token, machine: strings; clock: \"wall\" or \"simulated\"; "
-                       "realtime: true or false)");
-    } else {
-      throw InputError("unknown key " + where +
-                       "; the service config takes listen, token, machine, clock, realtime");
-    }
-  }
-  if (!c.machine_file.empty()) c.machine = load_machine_config(c.machine_file);
-  return c;
+  return parse_service_config(read_input_file(path, "service config, --config"), path);
 }
 
 // The encoder, the queue and the sender thread of a streamed job.

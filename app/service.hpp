@@ -33,6 +33,8 @@ struct ServiceConfig {
 
 // Throws InputError naming the file, the key and the value.
 ServiceConfig load_service_config(const std::string& path);
+// The same on TOML text already in memory; `name` stands for the file in messages.
+ServiceConfig parse_service_config(const std::string& text, const std::string& name);
 
 class Service : public comms::ControlHandler {
  public:

@@ -11,6 +11,7 @@
 #include "app/commands.hpp"
 #include "app/output.hpp"
 #include "core/error.hpp"
+#include "core/input_file.hpp"
 #include "toolpath/teach.hpp"
 
 namespace ncd::app {
@@ -23,17 +24,10 @@ struct TeachArgs {
   bool truncate = false, quiet = false;
 };
 
-// The whole file, or an InputError naming it and the flag that gave it.
+// The whole file (a regular file, core/input_file.hpp), or an InputError naming it and the flag
+// that gave it.
 std::string read_text(const std::string& path, const std::string& flag) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    throw InputError("cannot open " + path + " (" + flag + "): " + std::strerror(errno) +
-                     "; check the path and its permissions");
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError("cannot read " + path + " (" + flag + "); check the file");
-  return text.str();
+  return read_input_file(path, flag);
 }
 
 // --frame-points: "x,y,z;x,y,z;x,y,z" inline, or a file of exactly three points.

@@ -12,7 +12,7 @@
 // Every reply carries "ok"; a false one carries "error", a message that says what was wrong and
 // what to send instead. A request is checked in this order, and the first failure is the reply:
 // valid JSON, an object, the "token" (when one is configured), a string "cmd". "subscribe" needs
-// "hz" in (0, max_subscribe_hz]; everything else (including unknown commands) goes to the
+// "hz" in [0.1, max_subscribe_hz]; everything else (including unknown commands) goes to the
 // handler. None of these errors closes the connection. A line longer than max_line_bytes gets
 // one error reply as soon as it is known to be too long; the rest of it, up to its newline, is
 // discarded. "\r\n" is accepted. A blank line is no request and gets no reply, but like any line
@@ -50,6 +50,8 @@
 #include <unordered_set>
 
 #include "core/error.hpp"
+#include "core/input_ranges.hpp"
+#include "core/json_input.hpp"
 
 namespace ncd::comms {
 
@@ -170,7 +172,6 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void consume(const char* data, std::size_t size);
   void on_line(std::string_view line);
   Json answer(std::string_view line, std::optional<double>& subscribe_hz);
-  Json subscribe_reply(const Json& request, std::optional<double>& subscribe_hz) const;
   Json handler_reply(const Json& request);
   void start_stream(double hz);
   void stop_stream();
@@ -258,57 +259,14 @@ void Connection::on_line(std::string_view line) {
   if (subscribe_hz) start_stream(*subscribe_hz);
 }
 
-// The reply to one request line, in the order of checks described at the top.
+// The reply to one request line: the checks, then the handler.
 Json Connection::answer(std::string_view line, std::optional<double>& subscribe_hz) {
-  Json request;
-  try {
-    request = Json::parse(line);
-  } catch (const Json::exception& e) {
-    return error_reply("the request is not valid JSON (" + clip(e.what()) +
-                       "); send one JSON object per line, such as {\"cmd\":\"status\"}");
+  RequestCheck check = check_request(line, server_->options);
+  if (!check.to_handler) {
+    subscribe_hz = check.subscribe_hz;
+    return std::move(check.reply);
   }
-  if (!request.is_object()) {
-    return error_reply(std::string("the request is a JSON ") + request.type_name() +
-                       ", not an object; send one object per line, such as {\"cmd\":\"status\"}");
-  }
-  if (const auto& token = server_->options.token) {
-    const auto given = request.find("token");
-    if (given == request.end() || !given->is_string()) {
-      return error_reply(
-          "this server requires a string \"token\" in every request; add the token from the "
-          "service config");
-    }
-    if (!same_token(given->get_ref<const std::string&>(), *token)) {
-      return error_reply("the \"token\" is wrong; use the token from the service config");
-    }
-  }
-  const auto cmd = request.find("cmd");
-  if (cmd == request.end()) {
-    return error_reply("the request has no \"cmd\"; add one, such as {\"cmd\":\"status\"}");
-  }
-  if (!cmd->is_string()) {
-    return error_reply(std::string("\"cmd\" is a JSON ") + cmd->type_name() +
-                       "; it must be a string, such as \"status\"");
-  }
-  if (*cmd == "subscribe") return subscribe_reply(request, subscribe_hz);
-  return handler_reply(request);
-}
-
-// Checks "hz" of a subscribe request; sets subscribe_hz when it is acceptable.
-Json Connection::subscribe_reply(const Json& request, std::optional<double>& subscribe_hz) const {
-  const double max_hz = server_->options.max_subscribe_hz;
-  const std::string range = "greater than 0 and at most " + number_text(max_hz);
-  const auto hz = request.find("hz");
-  if (hz == request.end() || !hz->is_number()) {
-    return error_reply("subscribe needs \"hz\", the number of status lines per second, " + range +
-                       ", such as {\"cmd\":\"subscribe\",\"hz\":10}");
-  }
-  const double value = hz->get<double>();
-  if (!(value > 0.0 && value <= max_hz)) {
-    return error_reply("\"hz\" = " + number_text(value) + " is out of range: it must be " + range);
-  }
-  subscribe_hz = value;
-  return {{"ok", true}};
+  return handler_reply(check.request);
 }
 
 // Calls the handler and makes its reply well formed: an object with "ok", and "error" if false.
@@ -461,6 +419,75 @@ void listen_at(State& state, const Protocol::endpoint& endpoint, const std::stri
 }
 
 }  // namespace
+
+namespace {
+
+// Checks "hz" of a subscribe request; sets subscribe_hz when it is acceptable.
+Json subscribe_reply(const Json& request, const ServerOptions& options,
+                     std::optional<double>& subscribe_hz) {
+  const double max_hz = options.max_subscribe_hz;
+  const std::string range = "at least " + number_text(ranges::kMinSubscribeHz) + " and at most " +
+                            number_text(max_hz) + " (docs/input-ranges.md)";
+  const auto hz = request.find("hz");
+  if (hz == request.end() || !hz->is_number()) {
+    return error_reply("subscribe needs \"hz\", the number of status lines per second, " + range +
+                       ", such as {\"cmd\":\"subscribe\",\"hz\":10}");
+  }
+  const double value = hz->get<double>();
+  if (!(value >= ranges::kMinSubscribeHz && value <= max_hz)) {
+    return error_reply("\"hz\" = " + number_text(value) + " is out of range: it must be " + range);
+  }
+  subscribe_hz = value;
+  return {{"ok", true}};
+}
+
+}  // namespace
+
+// The checks of one request line, in the order described at the top.
+RequestCheck check_request(std::string_view line, const ServerOptions& options) {
+  RequestCheck out;
+  const auto reject = [&](std::string message) {
+    out.reply = error_reply(std::move(message));
+    return out;
+  };
+  Json request;
+  try {
+    request = parse_json_input(line, "the request",
+                               "send one JSON object per line, such as {\"cmd\":\"status\"}");
+  } catch (const InputError& e) {
+    return reject(clip(e.what()));
+  }
+  if (!request.is_object()) {
+    return reject(std::string("the request is a JSON ") + request.type_name() +
+                  ", not an object; send one object per line, such as {\"cmd\":\"status\"}");
+  }
+  if (const auto& token = options.token) {
+    const auto given = request.find("token");
+    if (given == request.end() || !given->is_string()) {
+      return reject(
+          "this server requires a string \"token\" in every request; add the token from the "
+          "service config");
+    }
+    if (!same_token(given->get_ref<const std::string&>(), *token)) {
+      return reject("the \"token\" is wrong; use the token from the service config");
+    }
+  }
+  const auto cmd = request.find("cmd");
+  if (cmd == request.end()) {
+    return reject("the request has no \"cmd\"; add one, such as {\"cmd\":\"status\"}");
+  }
+  if (!cmd->is_string()) {
+    return reject(std::string("\"cmd\" is a JSON ") + cmd->type_name() +
+                  "; it must be a string, such as \"status\"");
+  }
+  if (*cmd == "subscribe") {
+    out.reply = subscribe_reply(request, options, out.subscribe_hz);
+    return out;
+  }
+  out.to_handler = true;
+  out.request = std::move(request);
+  return out;
+}
 
 ListenAddress ListenAddress::parse(const std::string& text) {
   ListenAddress address;

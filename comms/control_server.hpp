@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 
 namespace ncd::comms {
 
@@ -47,6 +48,17 @@ struct ServerOptions {
   std::optional<std::string> token;    // required in every request ("token") when set
   double max_subscribe_hz = 1000;      // upper bound of "hz" in subscribe
 };
+
+// The checks of one request line (without its newline), in the order described in
+// control_server.cpp: valid JSON (at most 64 levels deep), an object, the token, a string
+// "cmd", and for "subscribe" its "hz". Never throws for any input.
+struct RequestCheck {
+  bool to_handler = false;             // the request passed; the handler answers it
+  nlohmann::json request;              // the parsed request when to_handler
+  nlohmann::json reply;                // the reply when !to_handler (an error or subscribe's ok)
+  std::optional<double> subscribe_hz;  // a valid subscribe's rate
+};
+RequestCheck check_request(std::string_view line, const ServerOptions& options);
 
 class ControlServer {
  public:

@@ -6,6 +6,7 @@
 
 #include "comms/sha256.hpp"
 #include "core/error.hpp"
+#include "core/input_file.hpp"
 
 namespace ncd::comms {
 
@@ -27,6 +28,7 @@ std::string block_of_line(const std::string& line) {
 }
 
 ProgramSummary scan_program(const std::string& path, int data_bits, int max_block_chars) {
+  require_regular_file(path, "NC program");  // a FIFO or a device would block or never end
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError("cannot read the NC program " + path + ": check the path");
   ProgramSummary sum;
@@ -69,7 +71,8 @@ ProgramSummary scan_program(const std::string& path, int data_bits, int max_bloc
   return sum;
 }
 
-ProgramFile::ProgramFile(const std::string& path) : in_(path, std::ios::binary) {
+ProgramFile::ProgramFile(const std::string& path)
+    : in_((require_regular_file(path, "NC program"), path), std::ios::binary) {
   if (!in_) throw InputError("cannot read the NC program " + path + ": check the path");
 }
 

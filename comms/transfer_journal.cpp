@@ -2,16 +2,20 @@
 #include "comms/transfer_journal.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
 #include "core/error.hpp"
+#include "core/input_file.hpp"
+#include "core/json_input.hpp"
 
 namespace ncd::comms {
 namespace {
@@ -73,6 +77,9 @@ void TransferJournal::write_record() {
 }
 
 std::optional<JournalState> TransferJournal::read(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return std::nullopt;  // no journal yet
+  require_regular_file(path, "transfer journal");           // never open a FIFO or a device
   std::ifstream in(path);
   if (!in) return std::nullopt;
   const auto bad = [&](const std::string& why) {
@@ -83,12 +90,15 @@ std::optional<JournalState> TransferJournal::read(const std::string& path) {
   if (!std::getline(in, head) || !std::getline(in, rec)) throw bad("truncated");
   JournalState s;
   try {
-    const auto j = nlohmann::json::parse(head);
+    const auto j = parse_json_input(head, path);
     if (j.at("journal").get<std::string>() != kMagic) throw bad("unknown format");
     s.program_sha256 = j.at("program_sha256").get<std::string>();
     s.settings = j.at("settings").get<std::string>();
-    s.blocks = j.at("blocks").get<std::int64_t>();
+    s.blocks = json_integer(j.at("blocks"), 0, std::numeric_limits<std::int64_t>::max(), "blocks");
   } catch (const nlohmann::json::exception& e) {
+    throw bad(e.what());
+  } catch (const InputError& e) {
+    if (std::string(e.what()).rfind("the transfer journal", 0) == 0) throw;  // already bad()
     throw bad(e.what());
   }
   long long confirmed = -1;

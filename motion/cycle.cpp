@@ -224,15 +224,16 @@ void Cycle::run() {
       const std::int64_t late = std::max<std::int64_t>(0, woke - deadline);
       stats_.lateness_ns.add(static_cast<double>(late));
       const std::int64_t due = 1 + late / period_ns;
-      if (due > 1) {
-        ++stats_.late_wakeups;
-        stats_.caught_up += due - 1;
-      }
+      if (due > 1) ++stats_.late_wakeups;
       const std::int64_t t0 = now_ns();
-      for (std::int64_t k = 0; k < due && running; ++k) running = run_period(state);
+      std::int64_t ran = 0;  // fewer than due when the job ends during a catch-up
+      for (; ran < due && running; ++ran) running = run_period(state);
+      // Every period run is counted once: at its wake-up, or as caught up (periods = wake-ups +
+      // caught_up, exactly, also when the job ends in the middle of a catch-up).
+      stats_.caught_up += ran - 1;
       const std::int64_t work = now_ns() - t0;
-      stats_.compute_ns.add(static_cast<double>(work) / static_cast<double>(due));
-      if (work > due * period_ns) ++stats_.overruns;
+      stats_.compute_ns.add(static_cast<double>(work) / static_cast<double>(ran));
+      if (work > ran * period_ns) ++stats_.overruns;
       deadline += due * period_ns;
     }
   } catch (const std::exception& e) {

@@ -2,14 +2,16 @@
 // names the key as a path such as points[3].cl[2]) or the G-code reader.
 #include "toolpath/path_io.hpp"
 
-#include <cerrno>
+#include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/decimal.hpp"
 #include "core/error.hpp"
+#include "core/input_file.hpp"
+#include "core/input_ranges.hpp"
+#include "core/json_input.hpp"
 #include "toolpath/gcode_reader.hpp"
 
 namespace ncd::toolpath {
@@ -56,11 +58,42 @@ class JsonReader {
     return v;
   }
 
+  // A number within a documented range (core/input_ranges.hpp, docs/input-ranges.md).
+  double in_range(const json& j, const std::string& path, const ranges::Range& r,
+                  const std::string& way_out) const {
+    const double v = positive(j, path);
+    try {
+      return checked_range(v, r.lo, r.hi, "\"" + path + "\"", r.unit, way_out);
+    } catch (const InputError& e) {
+      throw InputError(file_ + ": " + e.what());
+    }
+  }
+
+  double coordinate(const json& j, const std::string& path) const {
+    const double v = number(j, path);
+    if (v < ranges::kCoordinateMm.lo || v > ranges::kCoordinateMm.hi) {
+      fail(path, "= " + j.dump() + " is outside the plausible range [" +
+                     number_text(ranges::kCoordinateMm.lo) + ", " +
+                     number_text(ranges::kCoordinateMm.hi) +
+                     "] mm; check the units (mm) (ranges: docs/input-ranges.md)");
+    }
+    return v;
+  }
+
   Vec3 vec3(const json& j, const std::string& path) const {
     if (!j.is_array() || j.size() != 3) {
       fail(path, "= " + j.dump() + " is not a point; write [x, y, z] in mm");
     }
-    return Vec3(number(j[0], path + "[0]"), number(j[1], path + "[1]"), number(j[2], path + "[2]"));
+    return Vec3(coordinate(j[0], path + "[0]"), coordinate(j[1], path + "[1]"),
+                coordinate(j[2], path + "[2]"));
+  }
+
+  double feed(const json& j, const std::string& path) const {
+    return in_range(j, path, ranges::kProgramFeedMmPerMin, "give the feed in mm/min");
+  }
+
+  double spindle(const json& j, const std::string& path) const {
+    return in_range(j, path, ranges::kProgramSpindleRpm, "give the spindle speed in rpm");
   }
 
   const json& array(const json& j, const std::string& path) const {
@@ -111,10 +144,10 @@ class JsonReader {
         fail("input", "is not an object; write {\"feed_mm_per_min\": F, \"spindle_rpm\": S}");
       }
       if (const auto f = in->find("feed_mm_per_min"); f != in->end() && !f->is_null()) {
-        seg.feed_mm_per_min = positive(*f, "input.feed_mm_per_min");
+        seg.feed_mm_per_min = feed(*f, "input.feed_mm_per_min");
       }
       if (const auto s = in->find("spindle_rpm"); s != in->end() && !s->is_null()) {
-        seg.spindle_rpm = positive(*s, "input.spindle_rpm");
+        seg.spindle_rpm = spindle(*s, "input.spindle_rpm");
       }
     }
     validate(pl, file_ + ": chamfer loop \"points\"");
@@ -133,10 +166,10 @@ class JsonReader {
     }
     PathSegment seg;
     if (const auto f = doc.find("feed_mm_per_min"); f != doc.end()) {
-      seg.feed_mm_per_min = positive(*f, "feed_mm_per_min");
+      seg.feed_mm_per_min = feed(*f, "feed_mm_per_min");
     }
     if (const auto s = doc.find("spindle_rpm"); s != doc.end()) {
-      seg.spindle_rpm = positive(*s, "spindle_rpm");
+      seg.spindle_rpm = spindle(*s, "spindle_rpm");
     }
     if (has_nurbs) {
       const json& n = doc["nurbs"];
@@ -145,21 +178,32 @@ class JsonReader {
              "is not an object; write {\"degree\": p, \"knots\": [...], \"points\": [...]}");
       }
       only_keys(n, "nurbs", {"degree", "knots", "points", "weights"});
-      const double d = number(member(n, "degree", "nurbs.degree"), "nurbs.degree");
-      if (d != std::floor(d) || d < NurbsCurve::kMinDegree || d > NurbsCurve::kMaxDegree) {
-        fail("nurbs.degree", "= " + n["degree"].dump() +
-                                 " is out of range: it must be an integer "
-                                 "from 1 to 7; re-approximate the curve");
+      int d = 0;
+      try {
+        d = static_cast<int>(json_integer(member(n, "degree", "nurbs.degree"),
+                                          NurbsCurve::kMinDegree, NurbsCurve::kMaxDegree,
+                                          "\"nurbs.degree\""));
+      } catch (const InputError& e) {
+        throw InputError(file_ + ": " + e.what() + "; re-approximate the curve");
       }
       std::vector<double> weights;
       if (n.contains("weights")) weights = numbers(n["weights"], "nurbs.weights");
       try {
-        seg.geometry = NurbsCurve(
-            static_cast<int>(d), numbers(member(n, "knots", "nurbs.knots"), "nurbs.knots"),
-            vec3s(member(n, "points", "nurbs.points"), "nurbs.points"), std::move(weights));
+        seg.geometry = NurbsCurve(d, numbers(member(n, "knots", "nurbs.knots"), "nurbs.knots"),
+                                  vec3s(member(n, "points", "nurbs.points"), "nurbs.points"),
+                                  std::move(weights));
       } catch (const InputError& e) {
         if (std::string(e.what()).rfind(file_, 0) == 0) throw;
         fail("nurbs", std::string("is invalid: ") + e.what());
+      }
+      // A curve whose control points all coincide has no length and no direction (its
+      // chord length is 0): nothing to walk. (A zero parametric speed at one end, from a
+      // repeated end point, is a valid curve that the planner walks.)
+      const auto& pts = std::get<NurbsCurve>(seg.geometry).points();
+      if (std::all_of(pts.begin(), pts.end(), [&](const Vec3& p) { return p == pts.front(); })) {
+        fail("nurbs.points",
+             "are all the same point: the curve has zero length; give the "
+             "control points of a curve that moves, or remove the segment");
       }
     } else {
       const json& p = doc["polyline"];
@@ -190,14 +234,8 @@ Path read_path_text(const std::string& text, const std::string& name) {
   }
   Path path;
   if (text[first] == '{') {
-    json doc;
-    try {
-      doc = json::parse(text);
-    } catch (const json::parse_error& e) {
-      throw InputError(name + ": not valid JSON (" + e.what() +
-                       "); fix the syntax, or if it is G-code make sure it does not start "
-                       "with '{'");
-    }
+    const json doc = parse_json_input(
+        text, name, "fix the syntax, or if it is G-code make sure it does not start with '{'");
     const JsonReader r(name);
     if (!doc.is_object()) r.fail("", "is not a JSON object; write { ... }");
     if (doc.contains("nurbs") || doc.contains("polyline")) {
@@ -218,15 +256,7 @@ Path read_path_text(const std::string& text, const std::string& name) {
 }
 
 Path read_path_file(const std::string& filename) {
-  std::ifstream in(filename, std::ios::binary);
-  if (!in) {
-    throw InputError(filename + ": cannot open (" + std::strerror(errno) +
-                     "); check the path and its permissions");
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError(filename + ": read error; check the file");
-  return read_path_text(text.str(), filename);
+  return read_path_text(read_input_file(filename, "path file"), filename);
 }
 
 }  // namespace ncd::toolpath

@@ -100,6 +100,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/decimal.hpp"
 #include "core/error.hpp"
 
 namespace ncd::toolpath {
@@ -490,6 +491,39 @@ RobotProgram make_robot_program(const RobotPath& path, const RigidTransform& tra
   for (const auto& p : path.poses) add(MoveMode::Cut, to_robot(p), o.speed_mm_per_s);
   add(MoveMode::Move, away(to_robot(path.poses.back())), o.move_speed_mm_per_s);
   return prog;
+}
+
+std::vector<TouchPoint> parse_touch_points(const std::string& text, const std::string& name) {
+  std::vector<TouchPoint> touches;
+  std::istringstream in(text);
+  std::string line;
+  for (int line_no = 1; std::getline(in, line); ++line_no) {
+    if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+    for (char& c : line) {
+      if (c == ',') c = ' ';
+    }
+    const std::string where = name + ":" + std::to_string(line_no);
+    std::istringstream words(line);
+    std::vector<double> values;
+    for (std::string word; words >> word;) {
+      const DecimalResult r = parse_decimal(word);
+      if (!r) {
+        throw InputError(where + ": '" + word + "' " + decimal_error_text(r.error) +
+                         "; a touch line reads x_w y_w z_w x_r y_r z_r in mm (workpiece frame, "
+                         "then robot frame)");
+      }
+      values.push_back(r.value);
+    }
+    if (values.empty()) continue;
+    if (values.size() != 6) {
+      throw InputError(where + ": " + std::to_string(values.size()) +
+                       " numbers where a touch line has 6: x_w y_w z_w x_r y_r z_r in mm "
+                       "(workpiece frame, then robot frame)");
+    }
+    touches.push_back(
+        {Vec3(values[0], values[1], values[2]), Vec3(values[3], values[4], values[5])});
+  }
+  return touches;
 }
 
 }  // namespace ncd::toolpath

@@ -135,6 +135,12 @@ struct TouchLimits {
   static constexpr double kMinSpreadMm = 1.0;      // RMS distance from the best-fit line
 };
 
+// Touch-point file: one touch per line, "x_w y_w z_w x_r y_r z_r" in mm (workpiece frame, then
+// robot frame), separated by spaces, tabs or commas; '#' starts a comment; blank lines skipped.
+// Numbers follow the decimal grammar of core/decimal.hpp (no hexadecimal, no "+-1"). Throws
+// InputError naming `name`, the line and the word.
+std::vector<TouchPoint> parse_touch_points(const std::string& text, const std::string& name);
+
 // Matching (§5): the rigid transform that best maps the workpiece points onto the robot
 // points (Kabsch: SVD of the cross-covariance; exact for exact data, least squares for more
 // than three), and the residual of each touch.

@@ -67,6 +67,7 @@
 #include <sstream>
 #include <string_view>
 
+#include "core/decimal.hpp"
 #include "core/error.hpp"
 
 namespace ncd::toolpath {
@@ -199,26 +200,22 @@ std::vector<std::string_view> split_blank(std::string_view s) {
   return out;
 }
 
-// The whole token as a number, or false ("1.5", "-2", "+3e1"; not "1.5mm", not "").
+// Whether the whole token reads as a number of the decimal grammar (core/decimal.hpp), even
+// one too large or too small to use: "1.5", "-2", "+3e1"; not "1.5mm", "+-10", "0x1p5", "".
 bool parse_number(std::string_view tok, double& v) {
-  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
-  if (tok.empty()) return false;
-  const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
-  return r.ec == std::errc() && r.ptr == tok.data() + tok.size();
+  const DecimalResult r = parse_decimal(tok);
+  v = r.value;
+  return r.error != DecimalError::Malformed;
 }
 
-// A coordinate from a token, or an InputError that names where and how to fix it.
+// A coordinate from a token, or an InputError that names where, why and how to fix it.
 double coordinate(std::string_view tok, char axis, const std::string& where) {
-  double v = 0.0;
-  if (!parse_number(tok, v)) {
-    throw InputError(where + ": '" + std::string(tok) + "' (" + std::string(1, axis) +
-                     ") is not a number; write plain decimal numbers in mm");
+  const DecimalResult r = parse_decimal(tok);
+  if (!r) {
+    throw InputError(where + ": '" + std::string(tok) + "' (" + std::string(1, axis) + ") " +
+                     decimal_error_text(r.error) + "; write plain decimal numbers in mm");
   }
-  if (!std::isfinite(v)) {
-    throw InputError(where + ": " + std::string(1, axis) + " = '" + std::string(tok) +
-                     "' is not finite; every coordinate must be a number in mm");
-  }
-  return v;
+  return r.value;
 }
 
 std::string lower(std::string_view s) {

@@ -249,15 +249,22 @@ void expect_ncd_contract(const nlohmann::json& j, int seconds) {
   }
   EXPECT_EQ(j["seconds"].get<int>(), seconds);
   EXPECT_EQ(j["period_ms"].get<double>(), 4.0);
-  const double expected = 250.0 * seconds;
-  EXPECT_NEAR(j["periods_before_stop"].get<double>(), expected, 0.2 * expected);
-  EXPECT_NEAR(j["periods"].get<double>(), expected, 0.2 * expected);
+  // What stays true on a loaded machine (no rates: a busy machine runs fewer periods in the
+  // window, and that is what the lateness figures are for). Nothing is lost; every period is
+  // accounted for, run at its own wake-up or caught up back to back after a late one; and the
+  // time base never runs ahead of the wall clock: at most one period per elapsed period (one
+  // more per job, whose first deadline is one period after its start).
+  const auto periods = j["periods"].get<std::int64_t>();
+  EXPECT_GT(periods, 0);
   EXPECT_EQ(j["setpoints_lost"].get<std::int64_t>(), 0);
-  EXPECT_EQ(j["setpoints"].get<std::int64_t>(), j["periods"].get<std::int64_t>());
+  EXPECT_EQ(j["setpoints"].get<std::int64_t>(), periods);
   std::int64_t in_bins = 0;
   for (const auto& b : j["lateness_histogram"]) in_bins += b["count"].get<std::int64_t>();
   EXPECT_GT(in_bins, 0);
-  EXPECT_LE(in_bins, j["periods"].get<std::int64_t>());  // one per wake-up, <= one per period
+  EXPECT_EQ(in_bins + j["caught_up_periods"].get<std::int64_t>(), periods);  // one per wake-up
+  EXPECT_LE(j["periods_before_stop"].get<std::int64_t>(), periods);
+  EXPECT_LE(static_cast<double>(periods) * 0.004,
+            j["wall_s"].get<double>() + 0.004 * j["jobs"].get<double>() + 1e-9);
   const auto& late = j["lateness_us"];
   EXPECT_LE(late["p50"].get<double>(), late["p99"].get<double>());
   EXPECT_LE(late["p99"].get<double>(), late["p999"].get<double>());
@@ -316,7 +323,10 @@ TEST_F(BenchLatencyCli, OneSecondBesideCyclictest) {
   for (const char* key : {"p50", "p99", "p999", "max"}) {
     ASSERT_TRUE(ct["lateness_us"][key].is_number()) << key;
   }
-  EXPECT_NEAR(ct["samples"].get<double>(), 250.0, 50.0);
+  // cyclictest wakes at most once per interval over its -D1s (it does not catch up: a loaded
+  // machine gives fewer samples, never more).
+  EXPECT_GT(ct["samples"].get<double>(), 0.0);
+  EXPECT_LE(ct["samples"].get<double>(), 1.0 / 0.004 + 1.0);
   EXPECT_NE(ct["command"].get<std::string>().find("-i4000"), std::string::npos);
   EXPECT_TRUE(j["p99_ratio_limit"].is_number());
   EXPECT_NE(r.out.find("\ncyclictest "), std::string::npos) << r.out;  // its row of the table

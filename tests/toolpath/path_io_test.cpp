@@ -219,10 +219,38 @@ TEST(PathIo, ErrorsNameTheFileTheKeyAndTheWayOut) {
     read_path_file("/nonexistent/dir/path.json");
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/dir/path.json: cannot open"),
+    EXPECT_NE(std::string(e.what()).find("cannot open /nonexistent/dir/path.json (path file)"),
               std::string::npos)
         << e.what();
   }
+}
+
+// Issue 11's path reproducers: each an InputError naming the key (or the byte offset), never an
+// escaped nlohmann exception, a stack overflow or a path of zero length.
+TEST(PathIo, NumbersNestingAndZeroLengthAreInputErrors) {
+  expect_error("n1.json", R"({"nurbs":1e400})", {"n1.json: \"nurbs\" is out of range"});
+  expect_error("n2.json", R"({"polyline":{"points":[[0,0,0],[-1e999,0,0]]}})",
+               {"\"polyline.points[1][0]\" is out of range"});
+  expect_error("n3.json", R"({"polyline":{"points":)" + std::string(100000, '['),
+               {"n3.json: line 1, column 85 (byte offset 84)", "nesting deeper than 64"});
+  expect_error("n4.json",
+               R"({"nurbs":{"degree":2,"knots":[0,0,0,1,1,1],"points":[[1,2,3],[1,2,3],[1,2,3]]}})",
+               {"\"nurbs.points\" are all the same point", "zero length"});
+  expect_error("n5.json", R"({"nurbs": {"degree": 4.9, "knots": [], "points": []}})",
+               {"\"nurbs.degree\" = 4.9 is not a whole number", "from 1 to 7"});
+  expect_error("n6.json", R"({"nurbs": {"degree": 3e9, "knots": [], "points": []}})",
+               {"\"nurbs.degree\" = 3000000000 is out of range"});
+  expect_error("n7.json", R"({"polyline":{"points":[[0,0,0],[1,0,0]]},"feed_mm_per_min":0.0001})",
+               {"\"feed_mm_per_min\" = 0.0001 is outside the plausible range [0.1, 120000]"});
+  expect_error("n8.json", R"({"polyline":{"points":[[0,0,0],[1,0,0]]},"spindle_rpm":1e9})",
+               {"\"spindle_rpm\" = 1000000000 is outside the plausible range [1, 200000] rpm"});
+  expect_error("n9.json", R"({"polyline":{"points":[[0,0,0],[1e6,0,0]]}})",
+               {"\"polyline.points[1][0]\" = 1000000.0 is outside", "[-100000, 100000] mm"});
+  // A repeated end control point (zero parametric speed at that end) is a valid curve.
+  const Path p = read_path_text(
+      R"({"nurbs":{"degree":2,"knots":[0,0,0,1,1,1],"points":[[0,0,0],[0,0,0],[10,0,0]]}})",
+      "ok.json");
+  EXPECT_EQ(p.segments.size(), 1u);
 }
 
 }  // namespace

@@ -519,12 +519,12 @@ TEST(Teach, GarbageInTheFileNamesFileLineAndValue) {
     std::vector<const char*> says;
   };
   const std::vector<Case> cases{
-      {"dp1 1 2 3\ndp2 1 nan 3\n", {"pts.txt:2", "y = 'nan' is not finite"}},
+      {"dp1 1 2 3\ndp2 1 nan 3\n", {"pts.txt:2", "'nan' (y) is not a number"}},
       {"dp1 1 2 3\ndp2 1 2 3.0.1\n", {"pts.txt:2", "'3.0.1' (z) is not a number"}},
       {"1 2 3\n\n1 2\n", {"pts.txt:3", "2 fields", "'name x y z' or 'x y z'"}},
       {"x,y,z\n1,2,3\n1,2\n", {"pts.txt:3", "2 fields where 3 are expected"}},
       {"x,y,height\n1,2,3\n", {"pts.txt:1", "no 'z' column"}},
-      {"x,y,z\n1,2,inf\n", {"pts.txt:2", "z = 'inf' is not finite"}},
+      {"x,y,z\n1,2,inf\n", {"pts.txt:2", "'inf' (z) is not a number"}},
       {"x,y,z\n1,2,3mm\n", {"pts.txt:2", "'3mm' (z) is not a number"}},
   };
   for (const Case& c : cases) {

@@ -1,0 +1,43 @@
+// The service config (`ncd serve --config FILE.toml`) on toml11, through the text checks of
+// app/toml_text.hpp. Kept apart from the service so that the config fuzz harness
+// (tests/fuzz/service_config_fuzz.cpp) links without the service.
+#include <toml.hpp>
+
+#include "app/service.hpp"
+#include "app/toml_text.hpp"
+#include "core/error.hpp"
+
+namespace ncd::app {
+
+ServiceConfig parse_service_config(const std::string& text, const std::string& path) {
+  const toml::value root = parse_toml_text(text, path, "service config");
+  ServiceConfig c;
+  c.source = path;
+  for (const auto& [key, v] : root.as_table()) {
+    const std::string where = path + ": " + key;
+    if (key == "listen" && v.is_string()) {
+      c.listen = v.as_string();
+    } else if (key == "token" && v.is_string()) {
+      c.token = v.as_string().str;
+    } else if (key == "machine" && v.is_string()) {
+      c.machine_file = v.as_string();
+    } else if (key == "clock" && v.is_string() &&
+               (v.as_string() == "wall" || v.as_string() == "simulated")) {
+      c.clock = v.as_string() == "wall" ? motion::ClockKind::Wall : motion::ClockKind::Simulated;
+    } else if (key == "realtime" && v.is_boolean()) {
+      c.realtime = v.as_boolean();
+    } else if (key == "listen" || key == "token" || key == "machine" || key == "clock" ||
+               key == "realtime") {
+      throw InputError(where + " has the wrong type or value: " + toml::format(v) +
+                       " (listen, token, machine: strings; clock: \"wall\" or \"simulated\"; "
+                       "realtime: true or false)");
+    } else {
+      throw InputError("unknown key " + where +
+                       "; the service config takes listen, token, machine, clock, realtime");
+    }
+  }
+  if (!c.machine_file.empty()) c.machine = load_machine_config(c.machine_file);
+  return c;
+}
+
+}  // namespace ncd::app

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Runs the libFuzzer harnesses of build/fuzz (the "fuzz" preset; docs/input-ranges.md).
+#   scripts/fuzz.sh corpus [SECONDS]   every seed of tests/fuzz/corpus/<name>/, then SECONDS of
+#                                      mutation each (default 3); what `make test` runs
+#   scripts/fuzz.sh run [SECONDS]      SECONDS of fuzzing each (default 60, FUZZ_SECONDS in make),
+#                                      new inputs kept in build/fuzz/corpus/<name>/
+# Exits non-zero on the first finding (a crash, a sanitizer report, an escaped exception, a
+# timeout of 10 s on one input, more than 2 GB of memory); the input is saved as
+# build/fuzz/artifacts/<name>-crash-… and can be replayed with build/fuzz/tests/fuzz/ncd_fuzz_<name> FILE.
+set -euo pipefail
+mode=${1:-corpus}
+root=$(cd "$(dirname "$0")/.." && pwd)
+bin=$root/build/fuzz/tests/fuzz
+case $mode in
+  corpus) seconds=${2:-3} ;;
+  run) seconds=${2:-60} ;;
+  *) echo "usage: $0 corpus|run [SECONDS]" >&2; exit 2 ;;
+esac
+shopt -s nullglob
+harnesses=("$root"/tests/fuzz/*_fuzz.cpp)
+if [ ${#harnesses[@]} -eq 0 ]; then echo "no harness in tests/fuzz" >&2; exit 1; fi
+mkdir -p "$root/build/fuzz/artifacts"
+scratch=$(mktemp -d)
+trap 'rm -rf "$scratch"' EXIT
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+for src in "${harnesses[@]}"; do
+  stem=$(basename "$src" .cpp)
+  name=${stem%_fuzz}
+  exe=$bin/ncd_fuzz_$name
+  seeds=$root/tests/fuzz/corpus/$name
+  if [ ! -x "$exe" ]; then echo "$exe is missing: build the fuzz preset first (make fuzz-build)" >&2; exit 1; fi
+  if [ ! -d "$seeds" ]; then echo "$seeds is missing: every harness needs a seed corpus" >&2; exit 1; fi
+  if [ "$mode" = run ]; then
+    work=$root/build/fuzz/corpus/$name
+  else
+    work=$scratch/$name
+  fi
+  mkdir -p "$work"
+  echo "fuzz $name: ${seconds} s over $(ls "$seeds" | wc -l) seeds"
+  # The harness runs in the scratch directory: files the fuzzer names (a service config's
+  # "machine") are looked up there, not in the source tree.
+  (cd "$scratch" && "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+      -print_final_stats=0 -artifact_prefix="$root/build/fuzz/artifacts/$name-" \
+      "$work" "$seeds" 2>"$scratch/$name.log") || {
+    echo "fuzz $name FAILED; the log follows, the input is in build/fuzz/artifacts/" >&2
+    tail -n 60 "$scratch/$name.log" >&2
+    exit 1
+  }
+  grep -E "^#[0-9]+ +DONE|Done [0-9]+ runs" "$scratch/$name.log" | tail -n 1 || true
+done
