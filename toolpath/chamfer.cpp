@@ -211,8 +211,10 @@ void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::
   const double th = 0.5 * (lo + hi);
   worst_gap = std::min(worst_gap, half_gap(th));
   if (!(worst_gap > kMinHalfGapMm)) {
+    // θ to 0.01°, in [0°, 360°).
+    const double deg = std::round(rad_to_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) * 100.0) / 100.0;
     throw InputError(drill + " does not pierce " + pipe + " completely: the drill's generator at " +
-                     "θ = " + fmt_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) +
+                     "θ = " + fmt(deg >= 360.0 ? 0.0 : deg + 0.0) + "°" +
                      (worst_gap > -kMinHalfGapMm ? " only grazes it" : " misses it") +
                      ", so the edge is not a closed loop around the hole (for a cylinder pipe and "
                      "no tilt: r + |eccentricity| must stay below the radius); reduce "
