@@ -95,7 +95,7 @@ constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c 
 constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π], doubled until
 constexpr int kMaxArcDoublings = 10;       // the total changes by less than kArcTolerance
 constexpr double kArcTolerance = 1e-14;    // (relative)
-constexpr int kPierceScan = 720;           // samples of θ in the piercing check
+constexpr int kPierceScan = 360;           // samples of θ in the piercing check
 constexpr double kMinHalfGapMm = 1e-6;     // upper and lower roots at least 2 µm apart
 constexpr double kMaxHalfAngleRad = kPi / 3.0;
 constexpr double kMinSplitTheta = 1e-9;  // a split below this cannot reach ε
@@ -123,27 +123,40 @@ struct Quadratic {
   double discriminant() const { return qb * qb - 4.0 * qa * qc; }
 };
 
-Quadratic generator_quadratic(const PipeSurface& s, double r, double theta) {
+Quadratic generator_quadratic(const PipeSurface& s, double r, double cos_t, double sin_t) {
   const Vec3& a = s.axis_direction;
-  const Vec3 w0 = Vec3(r * std::cos(theta), r * std::sin(theta), 0.0) - s.axis_point;
+  const Vec3 w0 = Vec3(r * cos_t, r * sin_t, 0.0) - s.axis_point;
   const double aw = a.dot(w0), rho0 = s.radius_mm + s.slope * aw;
   const double k2 = s.slope * s.slope;
   return {1.0 - (1.0 + k2) * a.z() * a.z(), 2.0 * (w0.z() - a.z() * aw - s.slope * a.z() * rho0),
           w0.squaredNorm() - aw * aw - rho0 * rho0};
 }
 
-// The upper (larger) or lower root z of g at θ, polished by Newton on |w⊥| − ρ; nullopt where
-// the generator misses the surface. Requires qa > 0 (checked by validate).
-std::optional<double> generator_root(const PipeSurface& s, double r, double theta, bool upper) {
-  const Quadratic q = generator_quadratic(s, r, theta);
+Quadratic generator_quadratic(const PipeSurface& s, double r, double theta) {
+  return generator_quadratic(s, r, std::cos(theta), std::sin(theta));
+}
+
+// The upper (larger) or lower root of g, from the stable quadratic formula; nullopt where the
+// generator misses the surface. Requires qa > 0 (checked by validate).
+std::optional<double> quadratic_root(const Quadratic& q, bool upper) {
   const double disc = q.discriminant();
   if (!(disc >= 0.0) || !(q.qa > 0.0)) return std::nullopt;
   const double sq = std::sqrt(disc);
   const double m = -0.5 * (q.qb + std::copysign(sq, q.qb));
   const double r1 = m / q.qa, r2 = m != 0.0 ? q.qc / m : r1;
-  double z = upper ? std::max(r1, r2) : std::min(r1, r2);
+  return upper ? std::max(r1, r2) : std::min(r1, r2);
+}
+
+// That root at θ (given by its cosine and sine), polished by Newton on the distance-like
+// |w⊥| − ρ to machine precision: the start is within rounding of the cancellation in g's
+// constant term, so one or two steps suffice.
+std::optional<double> generator_root(const PipeSurface& s, double r, double cos_t, double sin_t,
+                                     bool upper) {
+  const auto start = quadratic_root(generator_quadratic(s, r, cos_t, sin_t), upper);
+  if (!start) return std::nullopt;
+  double z = *start;
   const Vec3& a = s.axis_direction;
-  const Vec3 x0(r * std::cos(theta), r * std::sin(theta), 0.0);
+  const Vec3 x0(r * cos_t, r * sin_t, 0.0);
   for (int i = 0; i < 4; ++i) {
     const Vec3 w = x0 + Vec3(0.0, 0.0, z) - s.axis_point;
     const double aw = a.dot(w);
@@ -153,8 +166,7 @@ std::optional<double> generator_root(const PipeSurface& s, double r, double thet
     if (!(dist > 0.0) || slope == 0.0) break;
     const double step = (dist - (s.radius_mm + s.slope * aw)) / slope;
     z -= step;
-    if (std::abs(step) <= 2.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(z)))
-      break;
+    if (std::abs(step) <= 4.0 * std::numeric_limits<double>::epsilon() * (std::abs(z) + r)) break;
   }
   return z;
 }
@@ -188,7 +200,8 @@ void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::
     const double g = half_gap(th);
     if (g < worst_gap) worst_gap = g, worst = i;
     for (const bool upper : {true, false}) {
-      const auto z = generator_root(surf, r, th, upper);
+      if (surf.slope == 0.0) break;  // a cylinder has no far nappe
+      const auto z = quadratic_root(generator_quadratic(surf, r, th), upper);
       if (z && !(surf.axial_radius(Vec3(r * std::cos(th), r * std::sin(th), *z)) > 0.0)) {
         throw InputError(drill + " meets " + pipe +
                          " beyond the cone's apex at θ = " + fmt_deg(th) +
@@ -200,7 +213,7 @@ void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::
   // Golden-section refinement of the smallest gap between the neighbouring samples.
   double lo = 2.0 * kPi * (worst - 1) / kPierceScan, hi = 2.0 * kPi * (worst + 1) / kPierceScan;
   const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
-  for (int i = 0; i < 60; ++i) {
+  for (int i = 0; i < 50; ++i) {
     const double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
     if (half_gap(x1) < half_gap(x2)) {
       hi = x2;
@@ -393,7 +406,7 @@ ChamferModel::Jet ChamferModel::jet(double theta) const {
         {r * c, r * s, sign_z_ * h}, {-r * s, r * c, sign_z_ * h1}, {-r * c, -r * s, sign_z_ * h2}};
   }
   // Numerical intersection: the root along the generator, then implicit differentiation.
-  const double z = *generator_root(surface_, r, theta, spec_.side == Side::Upper);
+  const double z = *generator_root(surface_, r, c, s, spec_.side == Side::Upper);
   const Vec3 x(r * c, r * s, z);
   const Vec3 x_theta(-r * s, r * c, 0.0), x_theta2(-r * c, -r * s, 0.0);
   const Vec3 grad = surface_.gradient(x);
@@ -594,8 +607,9 @@ RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
 
 double ChamferModel::arc_length(double theta0, double theta1) const {
   const auto v = [this](double th) { return speed(th); };
+  // The panel count is doubled from half the nominal one until two successive totals agree.
   int panels = std::max(
-      1, static_cast<int>(std::ceil(std::abs(theta1 - theta0) / (2.0 * kPi / kArcLengthPanels))));
+      1, static_cast<int>(std::ceil(std::abs(theta1 - theta0) / (4.0 * kPi / kArcLengthPanels))));
   double coarse = GaussLegendre10::integrate(v, theta0, theta1, panels);
   for (int i = 0; i < kMaxArcDoublings; ++i) {
     panels *= 2;
@@ -616,27 +630,31 @@ double ChamferModel::chord_deviation(double theta0, double theta1) const {
     return len > 0.0 ? w.cross(chord).norm() / len : w.norm();
   };
   const double mid = 0.5 * (theta0 + theta1);
-  double best = distance(mid);  // eq. (34)
-  if (len == 0.0) return best;
+  if (len == 0.0) return distance(mid);
   // The maximum is where C' ⟂ w⊥ (w⊥ = part of C − p0 normal to the chord): Newton on
-  // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint, kept inside the piece.
+  // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint (eq. 34's sample), kept inside the
+  // piece; every iterate's distance counts.
   const Vec3 u = chord / len;
-  double th = mid;
-  for (int i = 0; i < 8; ++i) {
+  double best = 0.0, th = mid;
+  for (int i = 0; i < 9; ++i) {
     const Jet j = jet(th);
-    const Vec3 &d1 = j.d1, &d2 = j.d2;
     const Vec3 w = j.c - p0;
     const Vec3 w_perp = w - w.dot(u) * u;
-    const Vec3 d1_perp = d1 - d1.dot(u) * u;
-    const double phi = d1.dot(w_perp);
-    const double slope = d2.dot(w_perp) + d1_perp.squaredNorm();
+    best = std::max(best, w_perp.norm());
+    if (i == 8) break;
+    const Vec3 d1_perp = j.d1 - j.d1.dot(u) * u;
+    const double phi = j.d1.dot(w_perp);
+    const double slope = j.d2.dot(w_perp) + d1_perp.squaredNorm();
     if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
     const double next = th - phi / slope;
     if (!(next > theta0 && next < theta1)) break;
     const bool converged = std::abs(next - th) <= 1e-13 * (theta1 - theta0);
     th = next;
-    best = std::max(best, distance(th));
-    if (converged) break;
+    if (converged) {
+      const Vec3 wc = point(th) - p0;
+      best = std::max(best, (wc - wc.dot(u) * u).norm());
+      break;
+    }
   }
   return best;
 }
