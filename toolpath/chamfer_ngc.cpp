@@ -128,8 +128,8 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
          "pipe axis, units mm)\n";
     g << "(set-up: clamp the part with the DRILL AXIS VERTICAL; the pipe axis then passes "
          "through X"
-      << num(p0.x(), d) << " Y" << num(p0.y(), d) << " Z" << num(p0.z(), d) << " along ("
-      << num(a.x(), 4) << ", " << num(a.y(), 4) << ", " << num(a.z(), 4) << "), rising "
+      << num(p0.x(), d) << " Y" << num(p0.y(), d) << " Z" << num(p0.z(), d) << " with direction X"
+      << num(a.x(), 4) << " Y" << num(a.y(), 4) << " Z" << num(a.z(), 4) << ", rising "
       << num(rad_to_deg(std::asin(std::abs(a.z()))), 3) << " deg out of the XY plane)\n";
     if (a.z() != 0.0) {
       g << "(safe Z clears the hole's rim; the inclined pipe rises higher away from the hole:"

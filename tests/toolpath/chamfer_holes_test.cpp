@@ -6,8 +6,10 @@
 // surfaces |(x, z)| = R + y tan ψ, drill axis through e·n̂ along d(τ, φ).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <sstream>
 
 #include "core/error.hpp"
 #include "tests/common/seed.hpp"
@@ -614,6 +616,12 @@ TEST(ChamferHoles, PipeFrameIsRefusedForATiltedDrillAndIsAShiftOtherwise) {
   o.frame = ProgramFrame::Drill;
   const std::string drill = chamfer_program(generate_chamfer(s), o);
   EXPECT_NE(drill.find("DRILL AXIS VERTICAL"), std::string::npos);
+  // RS-274 comments do not nest: at most one '(' and one ')' per line.
+  std::istringstream lines(drill);
+  for (std::string line; std::getline(lines, line);) {
+    EXPECT_LE(std::count(line.begin(), line.end(), '('), 1) << line;
+    EXPECT_LE(std::count(line.begin(), line.end(), ')'), 1) << line;
+  }
   EXPECT_NE(drill.find("rising 20.000 deg"), std::string::npos) << drill.substr(0, 1500);
 }
 
