@@ -22,6 +22,14 @@ template <class T>
 ordered_json opt(const std::optional<T>& v) {
   return v ? ordered_json(*v) : ordered_json();
 }
+// θ ranges where a check fails, in degrees: [[from, to], ...].
+ordered_json ranges_deg(const std::vector<toolpath::ThetaRange>& ranges) {
+  ordered_json out = ordered_json::array();
+  for (const auto& r : ranges) {
+    out.push_back(ordered_json::array({rad_to_deg(r.from_rad), rad_to_deg(r.to_rad)}));
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -77,13 +85,17 @@ ordered_json chamfer_json(const ChamferPath& path, const toolpath::NgcOptions& n
   rod["limit_radius"] = opt(ck.limit_radius_mm);
   rod["max_cl_radius"] = ck.max_cl_radius_mm;
   rod["adjusted_points"] = ck.adjusted_points;
-  out["checks"] = {
-      {"local", {{"ok", ck.local_ok}, {"min_inv_ke", finite_or_null(ck.min_inv_ke_mm)}}},
-      {"global",
-       {{"ok", ck.global_ok},
-        {"max_minus_ez", ck.max_minus_ez},
-        {"min_minus_ez", ck.min_minus_ez}}},
-      {"rod", std::move(rod)}};
+  rod["fail_theta_deg"] = ranges_deg(ck.rod_fail);
+  out["checks"] = {{"local",
+                    {{"ok", ck.local_ok},
+                     {"min_inv_ke", finite_or_null(ck.min_inv_ke_mm)},
+                     {"fail_theta_deg", ranges_deg(ck.local_fail)}}},
+                   {"global",
+                    {{"ok", ck.global_ok},
+                     {"max_minus_ez", ck.max_minus_ez},
+                     {"min_minus_ez", ck.min_minus_ez},
+                     {"fail_theta_deg", ranges_deg(ck.global_fail)}}},
+                   {"rod", std::move(rod)}};
   out["elapsed_ms"] = elapsed_ms;
   return out;
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -185,6 +186,19 @@ TEST_F(Cli, InclinedEccentricConeHoleIsWrittenInTheDrillFrame) {
   EXPECT_NE(tight.err.find("local: the edge curves more tightly than the ball"), std::string::npos)
       << tight.err;
   EXPECT_NE(tight.err.find("θ ∈ ["), std::string::npos) << tight.err;
+  // The JSON reports the same range (no program is refused there).
+  const auto tj = nlohmann::json::parse(
+      ncd("chamfer --pipe-radius 18 --drill-radius 8 --ball-radius 3 --width 0.7 "
+          "--drill-tilt-deg 60 -q")
+          .out);
+  ASSERT_EQ(tj["checks"]["local"]["fail_theta_deg"].size(), 1u);
+  const auto range = tj["checks"]["local"]["fail_theta_deg"][0].get<std::vector<double>>();
+  EXPECT_LT(range[0], 90.0);
+  EXPECT_GT(range[1], 90.0);
+  for (const auto& p : tj["points"]) {
+    const double deg = p["theta"].get<double>() * 180.0 / std::numbers::pi;
+    EXPECT_EQ(deg >= range[0] && deg <= range[1], p["inv_ke"].get<double>() < 3.0) << deg;
+  }
 }
 
 TEST_F(Cli, OutputFileAndPlotAreWritten) {

@@ -556,6 +556,12 @@ TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
   expect_error(s, "does not pierce the inner pipe surface (radius 18 mm");
   expect_error(s, "θ = 0°");
   expect_error(s, "eccentricity 5.5 mm");
+  s.eccentricity_mm = 5.0;  // r + e = R_I exactly: the generator at θ = 0 touches the bore
+  expect_error(s, "θ = 0° only grazes it");
+  s.eccentricity_mm = -5.0;  // and at θ = 180° on the other side
+  expect_error(s, "θ = 180° only grazes it");
+  s.eccentricity_mm = std::nan("");
+  expect_error(s, "--eccentricity");
   s.eccentricity_mm = 4.0;
   s.pipe_thickness_mm = 3.0;  // fine inside; the outer surface (21 mm) is pierced too
   EXPECT_NO_THROW((void)generate_chamfer(s));
