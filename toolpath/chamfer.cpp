@@ -5,7 +5,7 @@
 // Geometry. Everything is computed in the drill frame: the drill (radius r) runs along z, the
 // pipe axis is the line p0 + s a with a = (0, cos γ, sin γ) and p0 = (−e, 0, 0), γ the
 // inclination of the drill from the pipe's normal plane and e the eccentricity (the relative
-// position of two lines is their angle and distance; the tilt τ and azimuth φ of the spec only
+// position of two lines is their angle and distance; the tilt τ and azimuth φ of ChamferSpec only
 // say where this sits in the pipe frame, see DrillPlacement). The pipe surface is the quadric
 // f(x) = |w|² − (w·a)² − ρ², w = x − p0, ρ = R_s + (w·a) tan ψ (cylinder for ψ = 0).
 //
@@ -27,8 +27,8 @@
 // refined by golden section): a generator that misses or grazes a wall surface means the drill
 // does not pierce it completely, and is refused with its θ.
 //
-// In the normal plane T
-// at x_p = C(θ) two unit tangents span the wedge to be chamfered:
+// Downstream, as in the paper. In the normal plane T at x_p = C(θ) two unit tangents span the
+// wedge to be chamfered (N_H = (cos θ, sin θ, 0), eq. 12):
 //
 //     t1 = s1 (N_H × t)   along the hole surface, into the wall                 eq. (14)
 //     t2 = s2 (t × N_p)   along the pipe surface, away from the hole            eq. (15)

@@ -368,16 +368,28 @@ TEST(ChamferHoles, RodLimitHeldOverRandomHoles) {
 
 // ---------------------------------------------------------------- slow reference
 
-// The edge by brute force: for each θ, bisection along the generator between a point inside
-// the pipe (z = 0) and one outside, on this file's radial excess.
+// The edge by brute force: for each θ, bisection along the generator between the point most
+// inside the pipe (golden section: the radial excess is convex along a line) and one outside,
+// on this file's radial excess.
 Vec3 brute_edge_point(const Part& p, double radius, double theta, bool upper) {
+  const auto excess = [&](double z) {
+    return pipe_excess(p, generator_point(p, theta, z), radius);
+  };
+  double lo = -8.0 * radius, hi = 8.0 * radius;
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int i = 0; i < 120; ++i) {
+    const double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
+    (excess(x1) < excess(x2) ? hi : lo) = excess(x1) < excess(x2) ? x2 : x1;
+  }
+  double in = 0.5 * (lo + hi);
+  EXPECT_LT(excess(in), 0.0) << "θ = " << theta << ": the generator misses the surface";
   const double dir = upper ? 1.0 : -1.0;
-  double in = 0.0, out = dir * radius;
-  while (pipe_excess(p, generator_point(p, theta, out), radius) < 0.0) out *= 2.0;
+  double out = in + dir * radius;
+  while (excess(out) < 0.0) out = in + 2.0 * (out - in);
   for (int i = 0; i < 200; ++i) {
     const double mid = 0.5 * (in + out);
     if (mid == in || mid == out) break;
-    (pipe_excess(p, generator_point(p, theta, mid), radius) < 0.0 ? in : out) = mid;
+    (excess(mid) < 0.0 ? in : out) = mid;
   }
   return generator_point(p, theta, 0.5 * (in + out));
 }
@@ -393,7 +405,6 @@ TEST(ChamferHoles, BruteForceIntersectionGivesTheSameCurveAndLength) {
     const ChamferSpec& s = *spec;
     const Part part = part_of(s);
     const ChamferModel m(s);
-    ASSERT_LT(pipe_excess(part, generator_point(part, 0.0, 0.0), s.pipe_radius_mm), 0.0);
     const int n = 1 << 14;
     std::vector<Vec3> pts(n);
     for (int i = 0; i < n; ++i) {
