@@ -13,8 +13,9 @@ namespace {
 
 struct ChamferArgs {
   toolpath::ChamferSpec spec;
-  std::string edge = "inner", side = "upper", format = "json", point = "tip";
-  std::optional<double> rod_radius_mm, non_knife_angle_deg, safe_z_mm;
+  std::string edge = "inner", side = "upper", format = "json", point = "tip", frame = "drill";
+  std::optional<double> rod_radius_mm, non_knife_angle_deg, safe_z_mm, pipe_thickness_mm;
+  double tilt_deg = 0.0, azimuth_deg = 0.0, half_angle_deg = 0.0;
   bool no_avoid = false, quiet = false;
   double feed_mm_per_min = 300.0, spindle_rpm = 3000.0;
   std::string output, plot;
@@ -30,7 +31,16 @@ int run_chamfer(const ChamferArgs& a) {
     spec.non_knife_angle_rad = deg_to_rad(*a.non_knife_angle_deg);
   }
   spec.avoid = !a.no_avoid;
+  require_finite("drill tilt (--drill-tilt-deg)", a.tilt_deg);
+  require_finite("drill azimuth (--drill-azimuth-deg)", a.azimuth_deg);
+  require_finite("pipe half-angle (--pipe-half-angle-deg)", a.half_angle_deg);
+  spec.drill_tilt_rad = deg_to_rad(a.tilt_deg);
+  spec.drill_azimuth_rad = deg_to_rad(a.azimuth_deg);
+  spec.pipe_half_angle_rad = deg_to_rad(a.half_angle_deg);
+  spec.pipe_thickness_mm = a.pipe_thickness_mm;
+  toolpath::validate(spec);
   toolpath::NgcOptions ngc;
+  ngc.frame = a.frame == "drill" ? toolpath::ProgramFrame::Drill : toolpath::ProgramFrame::Pipe;
   ngc.feed_mm_per_min = a.feed_mm_per_min;
   ngc.spindle_rpm = a.spindle_rpm;
   ngc.point = a.point == "tip" ? toolpath::ProgramPoint::Tip : toolpath::ProgramPoint::Centre;
@@ -52,11 +62,11 @@ int run_chamfer(const ChamferArgs& a) {
     text = chamfer_csv(path);
   } else {
     if (interferes && spec.avoid) {
-      throw InputError("the path interferes with the part (local " +
-                       std::string(ck.local_ok ? "ok" : "fails") + ", global " +
-                       (ck.global_ok ? "ok" : "fails") + ", rod " + (ck.rod_ok ? "ok" : "fails") +
-                       "); no NC program written. Use a smaller --ball-radius, or --no-avoid to "
-                       "write it anyway for a deliberate test cut");
+      throw InputError(
+          "the path interferes with the part: " + toolpath::interference_reasons(path) +
+          ". No NC program written. Use a smaller --ball-radius (or another edge, "
+          "tilt or set-up), or --no-avoid to write it anyway for a deliberate test "
+          "cut");
     }
     text = toolpath::chamfer_program(path, ngc);
   }
@@ -79,7 +89,8 @@ void register_chamfer(CLI::App& app, Runner& run) {
   CLI::App* c = app.add_subcommand(
       "chamfer",
       "Tool path for a constant-width chamfer of a drilled hole in a pipe (paper 000). "
-      "Frame: drill axis = Z, pipe axis = Y, origin where they cross; lengths in mm.");
+      "Drill frame: Z along the drill axis; with no tilt and no eccentricity the pipe axis is Y "
+      "and the origin is where the axes cross; lengths in mm.");
   c->add_option("--pipe-radius", a->spec.pipe_radius_mm,
                 "radius of the pipe surface carrying the edge (R outside, R_I inside), mm")
       ->required();
@@ -100,6 +111,27 @@ void register_chamfer(CLI::App& app, Runner& run) {
   c->add_option("--rod-radius", a->rod_radius_mm, "cutter rod radius R_od, mm (rod check)");
   c->add_option("--non-knife-angle", a->non_knife_angle_deg,
                 "non-cutting cap angle 2β of the ball, degrees (rod check)");
+  c->add_option("--drill-tilt-deg", a->tilt_deg,
+                "angle τ of the drill axis from the pipe's radial Z direction, degrees, [0, 90)")
+      ->capture_default_str();
+  c->add_option("--drill-azimuth-deg", a->azimuth_deg,
+                "direction of the tilt about Z, degrees: 0 along the pipe axis (a lateral), "
+                "90 across it")
+      ->capture_default_str();
+  c->add_option("--eccentricity", a->spec.eccentricity_mm,
+                "distance of the drill axis from the pipe axis (signed, along pipe Y × drill), mm")
+      ->capture_default_str();
+  c->add_option("--pipe-half-angle-deg", a->half_angle_deg,
+                "half-angle ψ of a cone pipe (radius growing along +Y; --pipe-radius is taken "
+                "where the drill axis passes nearest), degrees; 0 = cylinder")
+      ->capture_default_str();
+  c->add_option("--pipe-thickness", a->pipe_thickness_mm,
+                "wall thickness, mm: the drill must then pierce the other wall surface too");
+  c->add_option("--frame", a->frame,
+                "frame of the NC program: drill (Z along the drill axis, part set up with the "
+                "hole vertical) or pipe (only for an untilted drill)")
+      ->check(CLI::IsMember({"drill", "pipe"}))
+      ->capture_default_str();
   c->add_flag("--no-avoid", a->no_avoid,
               "keep α = 1 and report interference instead of avoiding it (Algorithm 1 off)");
   c->add_option("--initial-segments", a->spec.initial_segments,

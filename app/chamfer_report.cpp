@@ -22,6 +22,14 @@ template <class T>
 ordered_json opt(const std::optional<T>& v) {
   return v ? ordered_json(*v) : ordered_json();
 }
+// θ ranges where a check fails, in degrees: [[from, to], ...].
+ordered_json ranges_deg(const std::vector<toolpath::ThetaRange>& ranges) {
+  ordered_json out = ordered_json::array();
+  for (const auto& r : ranges) {
+    out.push_back(ordered_json::array({rad_to_deg(r.from_rad), rad_to_deg(r.to_rad)}));
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -41,6 +49,12 @@ ordered_json chamfer_json(const ChamferPath& path, const toolpath::NgcOptions& n
   in["non_knife_angle_deg"] = opt(non_knife_angle_deg);
   in["avoid"] = s.avoid;
   in["initial_segments"] = s.initial_segments;
+  in["drill_tilt_deg"] = rad_to_deg(s.drill_tilt_rad);
+  in["drill_azimuth_deg"] = rad_to_deg(s.drill_azimuth_rad);
+  in["eccentricity_mm"] = s.eccentricity_mm;
+  in["pipe_half_angle_deg"] = rad_to_deg(s.pipe_half_angle_rad);
+  in["pipe_thickness_mm"] = opt(s.pipe_thickness_mm);
+  in["frame"] = "drill";  // points are in the drill frame, z along the drill axis
   in["feed_mm_per_min"] = ngc.feed_mm_per_min;
   in["spindle_rpm"] = ngc.spindle_rpm;
   in["program_point"] = ngc.point == toolpath::ProgramPoint::Tip ? "tip" : "centre";
@@ -71,13 +85,17 @@ ordered_json chamfer_json(const ChamferPath& path, const toolpath::NgcOptions& n
   rod["limit_radius"] = opt(ck.limit_radius_mm);
   rod["max_cl_radius"] = ck.max_cl_radius_mm;
   rod["adjusted_points"] = ck.adjusted_points;
-  out["checks"] = {
-      {"local", {{"ok", ck.local_ok}, {"min_inv_ke", finite_or_null(ck.min_inv_ke_mm)}}},
-      {"global",
-       {{"ok", ck.global_ok},
-        {"max_minus_ez", ck.max_minus_ez},
-        {"min_minus_ez", ck.min_minus_ez}}},
-      {"rod", std::move(rod)}};
+  rod["fail_theta_deg"] = ranges_deg(ck.rod_fail);
+  out["checks"] = {{"local",
+                    {{"ok", ck.local_ok},
+                     {"min_inv_ke", finite_or_null(ck.min_inv_ke_mm)},
+                     {"fail_theta_deg", ranges_deg(ck.local_fail)}}},
+                   {"global",
+                    {{"ok", ck.global_ok},
+                     {"max_minus_ez", ck.max_minus_ez},
+                     {"min_minus_ez", ck.min_minus_ez},
+                     {"fail_theta_deg", ranges_deg(ck.global_fail)}}},
+                   {"rod", std::move(rod)}};
   out["elapsed_ms"] = elapsed_ms;
   return out;
 }
@@ -117,6 +135,12 @@ std::string chamfer_summary(const ChamferPath& path, double elapsed_ms) {
   o << "chamfer: " << toolpath::to_string(s.edge) << " " << toolpath::to_string(s.side)
     << " edge, pipe radius " << s.pipe_radius_mm << " mm, drill radius " << s.drill_radius_mm
     << " mm, ball radius " << s.ball_radius_mm << " mm, width " << s.width_mm << " mm\n";
+  if (s.drill_tilt_rad != 0.0 || s.eccentricity_mm != 0.0 || s.pipe_half_angle_rad != 0.0) {
+    o << "  geometry          drill tilt " << rad_to_deg(s.drill_tilt_rad) << " deg (azimuth "
+      << rad_to_deg(s.drill_azimuth_rad) << " deg), eccentricity " << s.eccentricity_mm
+      << " mm, pipe half-angle " << rad_to_deg(s.pipe_half_angle_rad)
+      << " deg; points in the drill frame\n";
+  }
   o << "  points            " << path.points.size() << " (closed loop, tolerance " << s.tolerance_mm
     << " mm), CL loop length " << length << " mm\n";
   o << "  width |AB|        " << w_min << " .. " << w_max << " mm (top view " << pw_min << " .. "
@@ -157,6 +181,12 @@ Figure chamfer_figure(const ChamferPath& path) {
   Figure fig;
   fig.title = "Chamfer of the " + toolpath::to_string(s.edge) + " " + toolpath::to_string(s.side) +
               " edge (paper 000, Fig. 14)";
+  if (s.drill_tilt_rad != 0.0 || s.eccentricity_mm != 0.0 || s.pipe_half_angle_rad != 0.0) {
+    std::ostringstream g;
+    g << std::setprecision(4) << ": tilt " << rad_to_deg(s.drill_tilt_rad) << " deg, eccentricity "
+      << s.eccentricity_mm << " mm, cone " << rad_to_deg(s.pipe_half_angle_rad) << " deg";
+    fig.title += g.str();
+  }
   fig.x_label = "theta (deg)";
   fig.panels.push_back({"alpha distribution (Algorithm 1)", "alpha", {alpha}, {}, {}});
   fig.panels.push_back({"local interference check",

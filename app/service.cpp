@@ -64,7 +64,8 @@ toolpath::Path chamfer_path(const json& spec) {
   static const char* kKeys[] = {"pipe_radius",     "drill_radius", "ball_radius", "width",
                                 "tolerance",       "edge",         "side",        "rod_radius",
                                 "non_knife_angle", "no_avoid",     "feed",        "spindle",
-                                "initial_segments"};
+                                "initial_segments", "drill_tilt_deg", "drill_azimuth_deg",
+                                "eccentricity", "pipe_half_angle_deg", "pipe_thickness"};
   for (const auto& [k, v] : j.items()) {
     if (std::find(std::begin(kKeys), std::end(kKeys), k) == std::end(kKeys)) {
       throw InputError("unknown chamfer parameter \"" + k +
@@ -101,15 +102,24 @@ toolpath::Path chamfer_path(const json& spec) {
         json_integer(j["initial_segments"], toolpath::ChamferLimits::kMinInitialSegments,
                      toolpath::ChamferLimits::kMaxInitialSegments, "\"initial_segments\""));
   }
+  // Inclined, eccentric and cone holes (docs/chamfer.md): the names of `ncd chamfer`.
+  if (j.contains("drill_tilt_deg")) s.drill_tilt_rad = deg_to_rad(number(j, "drill_tilt_deg"));
+  if (j.contains("drill_azimuth_deg")) {
+    s.drill_azimuth_rad = deg_to_rad(number(j, "drill_azimuth_deg"));
+  }
+  if (j.contains("eccentricity")) s.eccentricity_mm = number(j, "eccentricity");
+  if (j.contains("pipe_half_angle_deg")) {
+    s.pipe_half_angle_rad = deg_to_rad(number(j, "pipe_half_angle_deg"));
+  }
+  if (j.contains("pipe_thickness")) s.pipe_thickness_mm = number(j, "pipe_thickness");
   toolpath::NgcOptions ngc;
   if (j.contains("feed")) ngc.feed_mm_per_min = number(j, "feed");
   if (j.contains("spindle")) ngc.spindle_rpm = number(j, "spindle");
   require_positive("feed", ngc.feed_mm_per_min);
   const toolpath::ChamferPath path = toolpath::generate_chamfer(s);
   if (!path.checks.local_ok || !path.checks.global_ok || !path.checks.rod_ok) {
-    throw InputError(
-        "the chamfer interferes with the part (see `ncd chamfer` with the same "
-        "parameters); not submitted");
+    throw InputError("the chamfer interferes with the part (" +
+                     toolpath::interference_reasons(path) + "); not submitted");
   }
   return toolpath::read_path_text(chamfer_json(path, ngc, nka_deg, 0.0).dump(), "chamfer job");
 }

@@ -1,5 +1,8 @@
 // The whole experiment-3 path of paper 000 (segmentation, δ, Algorithm 1), against which the
-// paper reports 46–62 ms on an i7-4770; and its parts, to see where the time goes.
+// paper reports 46–62 ms on an i7-4770; and its parts, to see where the time goes. Then a hole
+// beyond the paper (docs/chamfer.md): a 45° lateral with 2 mm eccentricity in a 5° cone, whose
+// edge curve is intersected numerically, measured in the same run as the paper's case (also
+// with the paper's closed-form edge, the baseline of the numerical intersection).
 #include <benchmark/benchmark.h>
 
 #include "toolpath/chamfer.hpp"
@@ -30,6 +33,42 @@ void BM_Experiment3WholePath(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(points);
 }
 BENCHMARK(BM_Experiment3WholePath)->Unit(benchmark::kMicrosecond);
+
+void BM_Experiment3ClosedFormEdge(benchmark::State& state) {
+  ChamferSpec spec = experiment3();
+  spec.edge_curve = EdgeCurve::ClosedForm;
+  for (auto _ : state) benchmark::DoNotOptimize(generate_chamfer(spec).points.data());
+}
+BENCHMARK(BM_Experiment3ClosedFormEdge)->Unit(benchmark::kMicrosecond);
+
+// The lateral: inner edge of R_I = 18 mm at the reference point, 3 mm wall, r = 13 mm drill
+// tilted 45° along the pipe, 2 mm off its axis, cone half-angle 5°, the paper's ball and width.
+// No rod limit: on the acute side of this edge no α keeps a vertical rod clear (refused).
+ChamferSpec lateral() {
+  ChamferSpec s = experiment3();
+  s.drill_tilt_rad = deg_to_rad(45.0);
+  s.eccentricity_mm = 2.0;
+  s.pipe_half_angle_rad = deg_to_rad(5.0);
+  s.pipe_thickness_mm = 3.0;
+  s.rod_radius_mm.reset();
+  s.non_knife_angle_rad.reset();
+  return s;
+}
+
+void BM_Lateral45Eccentric2Cone5WholePath(benchmark::State& state) {
+  const ChamferSpec spec = lateral();
+  std::size_t points = 0;
+  int adjusted = 0;
+  for (auto _ : state) {
+    const ChamferPath path = generate_chamfer(spec);
+    points = path.points.size();
+    adjusted = path.checks.adjusted_points;
+    benchmark::DoNotOptimize(path.points.data());
+  }
+  state.counters["points"] = static_cast<double>(points);
+  state.counters["adjusted"] = adjusted;
+}
+BENCHMARK(BM_Lateral45Eccentric2Cone5WholePath)->Unit(benchmark::kMicrosecond);
 
 void BM_Experiment3Segmentation(benchmark::State& state) {
   const ChamferModel model(experiment3());

@@ -1,13 +1,34 @@
 // Constant-width chamfer of a drilled hole in a pipe: paper 000 (Sato, Sato, Maekawa, CAD 2016)
-// sections 2–4, with the conventions and corrections of spec/chamfer.md.
+// sections 2–4, extended to any drilled hole (inclined, eccentric, cone pipes). Conventions,
+// corrections and decisions: docs/chamfer.md.
 //
-// Geometry. The drill (radius r) runs along z, the pipe along y. The edge carried by the pipe
-// surface of radius R_s (R outside, R_I inside) is, with σ = +1 upper and −1 lower,
+// Geometry. Everything is computed in the drill frame: the drill (radius r) runs along z, the
+// pipe axis is the line p0 + s a with a = (0, cos γ, sin γ) and p0 = (−e, 0, 0), γ the
+// inclination of the drill from the pipe's normal plane and e the eccentricity (the relative
+// position of two lines is their angle and distance; the tilt τ and azimuth φ of ChamferSpec only
+// say where this sits in the pipe frame, see DrillPlacement). The pipe surface is the quadric
+// f(x) = |w|² − (w·a)² − ρ², w = x − p0, ρ = R_s + (w·a) tan ψ (cylinder for ψ = 0).
 //
-//     C(θ) = (r cos θ, r sin θ, σ h(θ)),   h = sqrt(R_s² − r² cos² θ)          eqs. (4), (5)
+// Edge curve by numerical intersection. For a hole that pierces the wall every generator
+// D(θ, z) = (r cos θ, r sin θ, z) of the drill (eq. 1) meets the surface twice, so the edge is
+// a graph over the angle about the drill axis: C(θ) = (r cos θ, r sin θ, z(θ)) with
+// g(θ, z) = f(D(θ, z)) = 0, z the upper (larger) or lower root. g is quadratic in z: its stable
+// root is the start, polished by Newton on the distance-like |w⊥| − ρ to machine precision.
+// The derivatives come from implicit differentiation, with the analytic gradient and the
+// constant Hessian 2(I − (1 + tan²ψ) a aᵀ) of f:
 //
-// Its Frenet data (eqs. 6–10) give t and the curvature vector k = κ n. In the normal plane T
-// at x_p = C(θ) two unit tangents span the wedge to be chamfered:
+//     z' = −g_θ / g_z,   z'' = −(g_θθ + 2 g_θz z' + g_zz z'²) / g_z,
+//
+// so t, b, n, κ and k = κ n (eqs. 6–10) are exact to rounding, not finite differences, and the
+// loop closes exactly (C(2π) = C(0)). With γ = e = ψ = 0 this is eq. (4)/(5) itself
+// (C(θ) = (r cos θ, r sin θ, σ sqrt(R_s² − r² cos² θ)), σ = +1 upper, −1 lower), which is kept
+// (EdgeCurve::ClosedForm) as the reference. The pipe normal N_p is ∇f/|∇f| (eq. 16), which
+// points away from the pipe axis. Validation checks the discriminant of g over θ (a dense scan
+// refined by golden section): a generator that misses or grazes a wall surface means the drill
+// does not pierce it completely, and is refused with its θ.
+//
+// Downstream, as in the paper. In the normal plane T at x_p = C(θ) two unit tangents span the
+// wedge to be chamfered (N_H = (cos θ, sin θ, 0), eq. 12):
 //
 //     t1 = s1 (N_H × t)   along the hole surface, into the wall                 eq. (14)
 //     t2 = s2 (t × N_p)   along the pipe surface, away from the hole            eq. (15)
@@ -28,23 +49,25 @@
 // the ball allow. The width exists only for e·t1 > 0 and e·t2 > 0, i.e. α ∈ (−c, −1/c) with
 // c = t1·t2.
 //
-// Interference (section 4). Local: R_B ≤ 1/|k_e|, k_e = (k·e) e (eqs. 36, 37). Global: the
-// cutter vector −e must not point into the hole surface: −e_z ≤ 0 on inner/upper, ≥ 0 on
-// outer/upper, opposite on lower edges (eq. 40, with the typo r < R_I corrected), which bounds
-// α as eq. (41) does. Rod: on an inner edge the rod passes through the hole, so the CL must
-// stay within the cylinder of radius R_R = min(r − R_B sin β, r − R_od) about the drill axis
-// (eq. 42). Algorithm 1 finds the smallest α ≥ 1 for which it does. The paper's F(α) of
-// eq. (46) compares |x_p − x_R| with R_B − δ, x_R being where the line x_p + u e meets that
-// cylinder; since CL lies on the same line, F has the sign of F̃(α) = |CL_xy| − R_R, which
-// we use instead: it is exact (no line–ellipse Newton, no degenerate planes c = 0 at
-// θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is checked on.
-// δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved with
-// Illinois regula falsi instead of plain bisection (same bracket, fewer δ solves); the safe
+// Interference (section 4), with the machine's tool axis +z along the drill axis. Local:
+// R_B ≤ 1/|k_e|, k_e = (k·e) e (eqs. 36, 37). Global: the cutter vector −e must not point into
+// the hole surface: −e_z ≤ 0 on inner/upper, ≥ 0 on outer/upper, opposite on lower edges
+// (eq. 40, with the typo r < R_I corrected), which bounds α as eq. (41) does. Where a check
+// fails the θ ranges and the reason are reported (interference_reasons), never clamped. Rod: on an
+// inner edge the rod passes through the hole, so the CL must stay within the cylinder of radius R_R
+// = min(r − R_B sin β, r − R_od) about the drill axis (eq. 42). Algorithm 1 finds the smallest α ≥
+// 1 for which it does. The paper's F(α) of eq. (46) compares |x_p − x_R| with R_B − δ, x_R being
+// where the line x_p + u e meets that cylinder; since CL lies on the same line, F has the sign of
+// F̃(α) = |CL_xy| − R_R, which we use instead: it is exact (no line–ellipse Newton, no degenerate
+// planes c = 0 at θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is
+// checked on. δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved
+// with Illinois regula falsi instead of plain bisection (same bracket, fewer δ solves); the safe
 // end of the final bracket is returned. A θ where no admissible α clears the rod is
 // reported, never hidden.
 //
 // Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length (composite
-// Gauss–Legendre, Newton on eq. 31 to machine precision), each split at its parametric midpoint
+// Gauss–Legendre, panels doubled until the total converges, so the step follows the curvature;
+// Newton on eq. 31 to machine precision), each split at its parametric midpoint
 // while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
 // we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
 // midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
@@ -69,8 +92,13 @@ constexpr double kAlphaTolerance = 1e-13;  // relative width of the final α bra
 constexpr double kRodToleranceMm = 1e-12;  // ε_α of Algorithm 1, on |CL_xy| − R_R
 constexpr double kAlphaMargin = 1e-9;      // keep α strictly inside the admissible range
 constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c = 0)
-constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π]
-constexpr double kMinSplitTheta = 1e-9;    // a split below this cannot reach ε
+constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π], doubled until
+constexpr int kMaxArcDoublings = 10;       // the total changes by less than kArcTolerance
+constexpr double kArcTolerance = 1e-14;    // (relative)
+constexpr int kPierceScan = 360;           // samples of θ in the piercing check
+constexpr double kMinHalfGapMm = 1e-6;     // upper and lower roots at least 2 µm apart
+constexpr double kMaxHalfAngleRad = kPi / 3.0;
+constexpr double kMinSplitTheta = 1e-9;  // a split below this cannot reach ε
 
 std::string fmt(double v) {
   std::ostringstream s;
@@ -89,7 +117,174 @@ double plus_root(double q, double a, double delta, double ball) {
   return -q * a + std::sqrt(std::max(disc, 0.0));
 }
 
+// g(z) = qa z² + qb z + qc: the pipe surface's implicit f along the drill generator at θ.
+struct Quadratic {
+  double qa = 0.0, qb = 0.0, qc = 0.0;
+  double discriminant() const { return qb * qb - 4.0 * qa * qc; }
+};
+
+Quadratic generator_quadratic(const PipeSurface& s, double r, double cos_t, double sin_t) {
+  const Vec3& a = s.axis_direction;
+  const Vec3 w0 = Vec3(r * cos_t, r * sin_t, 0.0) - s.axis_point;
+  const double aw = a.dot(w0), rho0 = s.radius_mm + s.slope * aw;
+  const double k2 = s.slope * s.slope;
+  return {1.0 - (1.0 + k2) * a.z() * a.z(), 2.0 * (w0.z() - a.z() * aw - s.slope * a.z() * rho0),
+          w0.squaredNorm() - aw * aw - rho0 * rho0};
+}
+
+Quadratic generator_quadratic(const PipeSurface& s, double r, double theta) {
+  return generator_quadratic(s, r, std::cos(theta), std::sin(theta));
+}
+
+// The upper (larger) or lower root of g, from the stable quadratic formula; nullopt where the
+// generator misses the surface. Requires qa > 0 (checked by validate).
+std::optional<double> quadratic_root(const Quadratic& q, bool upper) {
+  const double disc = q.discriminant();
+  if (!(disc >= 0.0) || !(q.qa > 0.0)) return std::nullopt;
+  const double sq = std::sqrt(disc);
+  const double m = -0.5 * (q.qb + std::copysign(sq, q.qb));
+  const double r1 = m / q.qa, r2 = m != 0.0 ? q.qc / m : r1;
+  return upper ? std::max(r1, r2) : std::min(r1, r2);
+}
+
+// That root at θ (given by its cosine and sine), polished by Newton on the distance-like
+// |w⊥| − ρ to machine precision: the start is within rounding of the cancellation in g's
+// constant term, so one or two steps suffice.
+std::optional<double> generator_root(const PipeSurface& s, double r, double cos_t, double sin_t,
+                                     bool upper) {
+  const auto start = quadratic_root(generator_quadratic(s, r, cos_t, sin_t), upper);
+  if (!start) return std::nullopt;
+  double z = *start;
+  const Vec3& a = s.axis_direction;
+  const Vec3 x0(r * cos_t, r * sin_t, 0.0);
+  for (int i = 0; i < 4; ++i) {
+    const Vec3 w = x0 + Vec3(0.0, 0.0, z) - s.axis_point;
+    const double aw = a.dot(w);
+    const Vec3 w_perp = w - aw * a;
+    const double dist = w_perp.norm();
+    const double slope = w_perp.z() / dist - s.slope * a.z();
+    if (!(dist > 0.0) || slope == 0.0) break;
+    const double step = (dist - (s.radius_mm + s.slope * aw)) / slope;
+    z -= step;
+    if (std::abs(step) <= 4.0 * std::numeric_limits<double>::epsilon() * (std::abs(z) + r)) break;
+  }
+  return z;
+}
+
+// Refuses a surface the drill does not pierce completely: a generator that misses or grazes it,
+// or meets the far nappe of a cone.
+void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::string& which) {
+  const double r = spec.drill_radius_mm;
+  const std::string drill = "the drill (r = " + fmt(r) + " mm, tilt " +
+                            fmt_deg(spec.drill_tilt_rad) + ", eccentricity " +
+                            fmt(spec.eccentricity_mm) + " mm)";
+  const std::string pipe = "the " + which + " pipe surface (radius " + fmt(surf.radius_mm) +
+                           " mm at the reference point, half-angle " +
+                           fmt_deg(spec.pipe_half_angle_rad) + ")";
+  const double az = surf.axis_direction.z();
+  if (!(generator_quadratic(surf, r, 0.0).qa > 1e-9)) {
+    throw InputError(drill + " runs at " + fmt_deg(std::acos(std::min(1.0, std::abs(az)))) +
+                     " to the pipe axis, which must exceed the half-angle " +
+                     fmt_deg(std::abs(spec.pipe_half_angle_rad)) + " of " + pipe +
+                     " for a hole through the wall; reduce --drill-tilt-deg");
+  }
+  const auto half_gap = [&](double th) {
+    const Quadratic q = generator_quadratic(surf, r, th);
+    const double d = q.discriminant();
+    return d > 0.0 ? std::sqrt(d) / (2.0 * q.qa) : -std::sqrt(-d) / (2.0 * q.qa);
+  };
+  int worst = 0;
+  double worst_gap = kInf;
+  for (int i = 0; i < kPierceScan; ++i) {
+    const double th = 2.0 * kPi * i / kPierceScan;
+    const double g = half_gap(th);
+    if (g < worst_gap) worst_gap = g, worst = i;
+    for (const bool upper : {true, false}) {
+      if (surf.slope == 0.0) break;  // a cylinder has no far nappe
+      const auto z = quadratic_root(generator_quadratic(surf, r, th), upper);
+      if (z && !(surf.axial_radius(Vec3(r * std::cos(th), r * std::sin(th), *z)) > 0.0)) {
+        throw InputError(drill + " meets " + pipe +
+                         " beyond the cone's apex at θ = " + fmt_deg(th) +
+                         "; move the hole away from the apex (a larger --pipe-radius"
+                         " or a smaller --pipe-half-angle-deg)");
+      }
+    }
+  }
+  // Golden-section refinement of the smallest gap between the neighbouring samples.
+  double lo = 2.0 * kPi * (worst - 1) / kPierceScan, hi = 2.0 * kPi * (worst + 1) / kPierceScan;
+  const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int i = 0; i < 50; ++i) {
+    const double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
+    if (half_gap(x1) < half_gap(x2)) {
+      hi = x2;
+    } else {
+      lo = x1;
+    }
+  }
+  const double th = 0.5 * (lo + hi);
+  worst_gap = std::min(worst_gap, half_gap(th));
+  if (!(worst_gap > kMinHalfGapMm)) {
+    // θ to 0.01°, in [0°, 360°).
+    const double deg = std::round(rad_to_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) * 100.0) / 100.0;
+    throw InputError(drill + " does not pierce " + pipe + " completely: the drill's generator at " +
+                     "θ = " + fmt(deg >= 360.0 ? 0.0 : deg + 0.0) + "°" +
+                     (worst_gap > -kMinHalfGapMm ? " only grazes it" : " misses it") +
+                     ", so the edge is not a closed loop around the hole (for a cylinder pipe and "
+                     "no tilt: r + |eccentricity| must stay below the radius); reduce "
+                     "--eccentricity, --drill-radius or --drill-tilt-deg");
+  }
+}
+
 }  // namespace
+
+double PipeSurface::implicit(const Vec3& x) const {
+  const Vec3 w = x - axis_point;
+  const double aw = axis_direction.dot(w), rho = radius_mm + slope * aw;
+  return w.squaredNorm() - aw * aw - rho * rho;
+}
+
+Vec3 PipeSurface::gradient(const Vec3& x) const {
+  const Vec3 w = x - axis_point;
+  const double aw = axis_direction.dot(w), rho = radius_mm + slope * aw;
+  return 2.0 * (w - (aw + slope * rho) * axis_direction);
+}
+
+double PipeSurface::axial_radius(const Vec3& x) const {
+  return radius_mm + slope * axis_direction.dot(x - axis_point);
+}
+
+Vec3 DrillPlacement::to_drill(const Vec3& p) const {
+  const Vec3 w = p - origin;
+  return {w.dot(x), w.dot(y), w.dot(z)};
+}
+
+DrillPlacement drill_placement(const ChamferSpec& spec) {
+  const double tau = spec.drill_tilt_rad, phi = spec.drill_azimuth_rad;
+  const Vec3 d(std::sin(tau) * std::sin(phi), std::sin(tau) * std::cos(phi), std::cos(tau));
+  const Vec3 pipe_axis(0.0, 1.0, 0.0);
+  DrillPlacement p;
+  p.z = d;
+  p.y = (pipe_axis - pipe_axis.dot(d) * d).normalized();
+  p.x = p.y.cross(p.z);
+  p.origin = spec.eccentricity_mm * p.x;  // x = Y × d / |Y × d| = n̂
+  return p;
+}
+
+PipeSurface pipe_surface(const ChamferSpec& spec, double radius_mm) {
+  const DrillPlacement p = drill_placement(spec);
+  PipeSurface s;
+  s.axis_point = p.to_drill(Vec3::Zero());
+  s.axis_direction = Vec3(p.x.y(), p.y.y(), p.z.y());  // +Y in drill coordinates
+  s.radius_mm = radius_mm;
+  s.slope = std::tan(spec.pipe_half_angle_rad);
+  return s;
+}
+
+std::optional<double> companion_radius_mm(const ChamferSpec& spec) {
+  if (!spec.pipe_thickness_mm) return std::nullopt;
+  const double radial = *spec.pipe_thickness_mm / std::cos(spec.pipe_half_angle_rad);
+  return spec.edge == Edge::Inner ? spec.pipe_radius_mm + radial : spec.pipe_radius_mm - radial;
+}
 
 std::string to_string(Edge edge) {
   return edge == Edge::Inner ? "inner" : "outer";
@@ -105,7 +300,36 @@ void validate(const ChamferSpec& s) {
   require_positive("ball radius R_B (--ball-radius)", s.ball_radius_mm);
   require_positive("chamfer width W (--width)", s.width_mm);
   require_positive("tolerance ε (--tolerance)", s.tolerance_mm);
-  if (s.drill_radius_mm >= s.pipe_radius_mm) {
+  require_finite("drill tilt τ (--drill-tilt-deg)", s.drill_tilt_rad);
+  require_finite("drill azimuth φ (--drill-azimuth-deg)", s.drill_azimuth_rad);
+  require_finite("eccentricity (--eccentricity, mm)", s.eccentricity_mm);
+  require_finite("pipe half-angle ψ (--pipe-half-angle-deg)", s.pipe_half_angle_rad);
+  if (s.drill_tilt_rad < 0.0 || s.drill_tilt_rad >= 0.5 * kPi) {
+    throw InputError("drill tilt τ = " + fmt_deg(s.drill_tilt_rad) +
+                     " must lie in [0°, 90°) (--drill-tilt-deg; the direction of the tilt is "
+                     "--drill-azimuth-deg)");
+  }
+  if (std::abs(s.pipe_half_angle_rad) >= kMaxHalfAngleRad) {
+    throw InputError("pipe half-angle ψ = " + fmt_deg(s.pipe_half_angle_rad) +
+                     " must lie in (−60°, 60°) (--pipe-half-angle-deg; 0 for a cylinder)");
+  }
+  const bool paper_geometry =
+      s.drill_tilt_rad == 0.0 && s.eccentricity_mm == 0.0 && s.pipe_half_angle_rad == 0.0;
+  if (s.edge_curve == EdgeCurve::ClosedForm && !paper_geometry) {
+    throw InputError(
+        "the closed-form edge curve (eq. 4) holds only without tilt, eccentricity "
+        "and cone angle; use the numerical edge curve");
+  }
+  if (s.pipe_thickness_mm) {
+    require_positive("pipe wall thickness (--pipe-thickness)", *s.pipe_thickness_mm);
+    const double other = *companion_radius_mm(s);
+    if (!(other > 0.0)) {
+      throw InputError("pipe wall thickness " + fmt(*s.pipe_thickness_mm) +
+                       " mm leaves no bore inside the outer radius " + fmt(s.pipe_radius_mm) +
+                       " mm; use a smaller --pipe-thickness");
+    }
+  }
+  if (s.pipe_half_angle_rad == 0.0 && s.drill_radius_mm >= s.pipe_radius_mm) {
     throw InputError("drill radius r = " + fmt(s.drill_radius_mm) +
                      " mm must be smaller than the pipe radius " + fmt(s.pipe_radius_mm) +
                      " mm (a drill as wide as the pipe cuts it in two, and the edge is not a "
@@ -149,9 +373,19 @@ void validate(const ChamferSpec& s) {
           " mm reaches the drill radius r = " + fmt(s.drill_radius_mm) + " mm");
     }
   }
+  if (!paper_geometry) {
+    check_pierces(s, pipe_surface(s, s.pipe_radius_mm), to_string(s.edge));
+  }
+  if (const auto other = companion_radius_mm(s)) {
+    check_pierces(s, pipe_surface(s, *other),
+                  to_string(s.edge == Edge::Inner ? Edge::Outer : Edge::Inner));
+  }
 }
 
-ChamferModel::ChamferModel(const ChamferSpec& spec) : spec_(spec) {
+ChamferModel::ChamferModel(const ChamferSpec& spec)
+    : spec_(spec),
+      placement_(drill_placement(spec)),
+      surface_(pipe_surface(spec, spec.pipe_radius_mm)) {
   validate(spec_);
   const bool upper = spec_.side == Side::Upper;
   const bool inner = spec_.edge == Edge::Inner;
@@ -160,26 +394,44 @@ ChamferModel::ChamferModel(const ChamferSpec& spec) : spec_(spec) {
   sign_t2_ = upper ? 1.0 : -1.0;
 }
 
-Vec3 ChamferModel::point(double theta) const {
-  const double r = spec_.drill_radius_mm, rs = spec_.pipe_radius_mm;
+ChamferModel::Jet ChamferModel::jet(double theta) const {
+  const double r = spec_.drill_radius_mm;
   const double c = std::cos(theta), s = std::sin(theta);
-  return {r * c, r * s, sign_z_ * std::sqrt(rs * rs - r * r * c * c)};
+  if (spec_.edge_curve == EdgeCurve::ClosedForm) {  // eqs. (4), (5)
+    const double rs = spec_.pipe_radius_mm;
+    const double h = std::sqrt(rs * rs - r * r * c * c);
+    const double h1 = r * r * c * s / h;                        // dh/dθ
+    const double h2 = (r * r * (c * c - s * s) - h1 * h1) / h;  // from (h h')' = r² cos 2θ
+    return {
+        {r * c, r * s, sign_z_ * h}, {-r * s, r * c, sign_z_ * h1}, {-r * c, -r * s, sign_z_ * h2}};
+  }
+  // Numerical intersection: the root along the generator, then implicit differentiation.
+  const double z = *generator_root(surface_, r, c, s, spec_.side == Side::Upper);
+  const Vec3 x(r * c, r * s, z);
+  const Vec3 x_theta(-r * s, r * c, 0.0), x_theta2(-r * c, -r * s, 0.0);
+  const Vec3 grad = surface_.gradient(x);
+  const Vec3& a = surface_.axis_direction;
+  const double h = 1.0 + surface_.slope * surface_.slope;  // Hessian 2(I − h a aᵀ)
+  const double a_theta = a.dot(x_theta);
+  const double g_z = grad.z(), g_t = grad.dot(x_theta);
+  const double g_zz = 2.0 * (1.0 - h * a.z() * a.z());
+  const double g_tz = -2.0 * h * a_theta * a.z();
+  const double g_tt = 2.0 * (x_theta.squaredNorm() - h * a_theta * a_theta) + grad.dot(x_theta2);
+  const double z1 = -g_t / g_z;
+  const double z2 = -(g_tt + 2.0 * g_tz * z1 + g_zz * z1 * z1) / g_z;
+  return {x, {x_theta.x(), x_theta.y(), z1}, {x_theta2.x(), x_theta2.y(), z2}};
+}
+
+Vec3 ChamferModel::point(double theta) const {
+  return jet(theta).c;
 }
 
 Vec3 ChamferModel::derivative(double theta) const {
-  const double r = spec_.drill_radius_mm, rs = spec_.pipe_radius_mm;
-  const double c = std::cos(theta), s = std::sin(theta);
-  const double h = std::sqrt(rs * rs - r * r * c * c);
-  return {-r * s, r * c, sign_z_ * r * r * c * s / h};
+  return jet(theta).d1;
 }
 
 Vec3 ChamferModel::second_derivative(double theta) const {
-  const double r = spec_.drill_radius_mm, rs = spec_.pipe_radius_mm;
-  const double c = std::cos(theta), s = std::sin(theta);
-  const double h = std::sqrt(rs * rs - r * r * c * c);
-  const double h1 = r * r * c * s / h;                        // dh/dθ
-  const double h2 = (r * r * (c * c - s * s) - h1 * h1) / h;  // d²h/dθ², from (h h')' = r² cos 2θ
-  return {-r * c, -r * s, sign_z_ * h2};
+  return jet(theta).d2;
 }
 
 double ChamferModel::speed(double theta) const {
@@ -188,16 +440,18 @@ double ChamferModel::speed(double theta) const {
 
 EdgeFrame ChamferModel::frame(double theta) const {
   const double c = std::cos(theta), s = std::sin(theta);
-  const Vec3 d1 = derivative(theta), d2 = second_derivative(theta);
+  const Jet j = jet(theta);
+  const Vec3 &d1 = j.d1, &d2 = j.d2;
   EdgeFrame f;
   f.theta_rad = theta;
-  f.xp = point(theta);
+  f.xp = j.c;
   const double v = d1.norm();
   f.t = d1 / v;
   f.k = d1.cross(d2).cross(d1) / (v * v * v * v);  // κ n = (C' × C'') × C' / |C'|⁴
   const Vec3 n_hole(c, s, 0.0);                    // eq. (12)
-  const Vec3 n_pipe =
-      Vec3(f.xp.x(), 0.0, f.xp.z()) / spec_.pipe_radius_mm;  // eq. (16), away from the pipe axis
+  const Vec3 n_pipe = spec_.edge_curve == EdgeCurve::ClosedForm
+                          ? Vec3(f.xp.x(), 0.0, f.xp.z()) / spec_.pipe_radius_mm  // eq. (17)
+                          : surface_.gradient(f.xp).normalized();  // eq. (16), away from the axis
   f.t1 = sign_t1_ * n_hole.cross(f.t);
   f.t2 = sign_t2_ * f.t.cross(n_pipe);
   f.c = f.t1.dot(f.t2);
@@ -353,9 +607,18 @@ RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
 
 double ChamferModel::arc_length(double theta0, double theta1) const {
   const auto v = [this](double th) { return speed(th); };
-  const int panels = std::max(
-      1, static_cast<int>(std::ceil(std::abs(theta1 - theta0) / (2.0 * kPi / kArcLengthPanels))));
-  return GaussLegendre10::integrate(v, theta0, theta1, panels);
+  // The panel count is doubled from half the nominal one until two successive totals agree.
+  int panels = std::max(
+      1, static_cast<int>(std::ceil(std::abs(theta1 - theta0) / (4.0 * kPi / kArcLengthPanels))));
+  double coarse = GaussLegendre10::integrate(v, theta0, theta1, panels);
+  for (int i = 0; i < kMaxArcDoublings; ++i) {
+    panels *= 2;
+    const double fine = GaussLegendre10::integrate(v, theta0, theta1, panels);
+    const bool converged = std::abs(fine - coarse) <= kArcTolerance * std::abs(fine);
+    coarse = fine;
+    if (converged) break;
+  }
+  return coarse;
 }
 
 double ChamferModel::chord_deviation(double theta0, double theta1) const {
@@ -367,27 +630,31 @@ double ChamferModel::chord_deviation(double theta0, double theta1) const {
     return len > 0.0 ? w.cross(chord).norm() / len : w.norm();
   };
   const double mid = 0.5 * (theta0 + theta1);
-  double best = distance(mid);  // eq. (34)
-  if (len == 0.0) return best;
+  if (len == 0.0) return distance(mid);
   // The maximum is where C' ⟂ w⊥ (w⊥ = part of C − p0 normal to the chord): Newton on
-  // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint, kept inside the piece.
+  // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint (eq. 34's sample), kept inside the
+  // piece; every iterate's distance counts.
   const Vec3 u = chord / len;
-  double th = mid;
-  for (int i = 0; i < 8; ++i) {
-    const Vec3 d1 = derivative(th);
-    const Vec3 d2 = second_derivative(th);
-    const Vec3 w = point(th) - p0;
+  double best = 0.0, th = mid;
+  for (int i = 0; i < 9; ++i) {
+    const Jet j = jet(th);
+    const Vec3 w = j.c - p0;
     const Vec3 w_perp = w - w.dot(u) * u;
-    const Vec3 d1_perp = d1 - d1.dot(u) * u;
-    const double phi = d1.dot(w_perp);
-    const double slope = d2.dot(w_perp) + d1_perp.squaredNorm();
+    best = std::max(best, w_perp.norm());
+    if (i == 8) break;
+    const Vec3 d1_perp = j.d1 - j.d1.dot(u) * u;
+    const double phi = j.d1.dot(w_perp);
+    const double slope = j.d2.dot(w_perp) + d1_perp.squaredNorm();
     if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
     const double next = th - phi / slope;
     if (!(next > theta0 && next < theta1)) break;
     const bool converged = std::abs(next - th) <= 1e-13 * (theta1 - theta0);
     th = next;
-    best = std::max(best, distance(th));
-    if (converged) break;
+    if (converged) {
+      const Vec3 wc = point(th) - p0;
+      best = std::max(best, (wc - wc.dot(u) * u).norm());
+      break;
+    }
   }
   return best;
 }
@@ -439,6 +706,65 @@ std::vector<double> ChamferModel::segment() const {
   return out;
 }
 
+namespace {
+
+// Maximal runs of consecutive points (cyclically) where `bad` holds, as θ ranges.
+template <class Bad>
+std::vector<ThetaRange> fail_ranges(const std::vector<CutterPose>& pts, Bad bad) {
+  std::vector<ThetaRange> out;
+  const std::size_t n = pts.size();
+  std::size_t start = 0;
+  while (start < n && bad(pts[start])) ++start;  // a run through θ = 0 is closed at its end
+  if (start == n) return n == 0 ? out : std::vector<ThetaRange>{{0.0, 2.0 * kPi}};
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = (start + k) % n;
+    if (!bad(pts[i])) continue;
+    std::size_t j = i;
+    while (k + 1 < n && bad(pts[(start + k + 1) % n])) ++k, j = (start + k) % n;
+    out.push_back({pts[i].theta_rad, pts[j].theta_rad});
+  }
+  return out;
+}
+
+std::string ranges_text(const std::vector<ThetaRange>& ranges) {
+  std::string out;
+  for (std::size_t i = 0; i < ranges.size() && i < 4; ++i) {
+    out += (i ? ", " : "") + std::string("θ ∈ [") + fmt(rad_to_deg(ranges[i].from_rad)) + "°, " +
+           fmt(rad_to_deg(ranges[i].to_rad)) + "°]";
+  }
+  if (ranges.size() > 4) out += " and " + std::to_string(ranges.size() - 4) + " more";
+  return out;
+}
+
+}  // namespace
+
+std::string interference_reasons(const ChamferPath& path) {
+  const auto& ck = path.checks;
+  const auto& s = path.spec;
+  std::string out;
+  if (!ck.local_ok) {
+    out += "local: the edge curves more tightly than the ball (1/|k_e| down to " +
+           fmt(ck.min_inv_ke_mm) + " mm < R_B = " + fmt(s.ball_radius_mm) + " mm) at " +
+           ranges_text(ck.local_fail) + "; ";
+  }
+  if (!ck.global_ok) {
+    out +=
+        "global: the cutter vector −e points into the hole surface, so the ball coming down "
+        "+Z along the drill axis would cut the hole wall, at " +
+        ranges_text(ck.global_fail) + "; ";
+  }
+  if (!ck.rod_ok) {
+    out +=
+        "rod: the cutter location leaves the cylinder of radius R_R = " + fmt(*ck.limit_radius_mm) +
+        " mm about the drill axis (up to " + fmt(ck.max_cl_radius_mm) +
+        " mm), so the rod or the non-cutting cap touches the hole, "
+        "at " +
+        ranges_text(ck.rod_fail) + "; ";
+  }
+  if (!out.empty()) out.resize(out.size() - 2);
+  return out;
+}
+
 ChamferPath generate_chamfer(const ChamferSpec& spec) {
   const ChamferModel model(spec);
   ChamferPath path;
@@ -472,6 +798,16 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
   const bool ez_nonpositive = (spec.edge == Edge::Inner) == (spec.side == Side::Upper);
   ck.global_ok = ez_nonpositive ? ck.max_minus_ez <= 0.0 : ck.min_minus_ez >= 0.0;
   ck.rod_ok = !ck.limit_radius_mm || ck.max_cl_radius_mm <= *ck.limit_radius_mm;
+  const auto& pts = path.points;
+  ck.local_fail =
+      fail_ranges(pts, [&](const CutterPose& p) { return p.inv_ke_mm < spec.ball_radius_mm; });
+  ck.global_fail = fail_ranges(pts, [&](const CutterPose& p) {
+    return ez_nonpositive ? p.minus_ez > 0.0 : p.minus_ez < 0.0;
+  });
+  if (ck.limit_radius_mm) {
+    ck.rod_fail =
+        fail_ranges(pts, [&](const CutterPose& p) { return p.cl_radius_mm > *ck.limit_radius_mm; });
+  }
   if (spec.avoid && !ck.uncleared_theta_rad.empty()) {
     const double th = ck.uncleared_theta_rad.front();
     const EdgeFrame f = model.frame(th);

@@ -1,5 +1,6 @@
-// Constant-width chamfer of a drilled hole in a pipe (paper 000, Sato, Sato, Maekawa 2016, with
-// the conventions of spec/chamfer.md). The algorithm is explained once, in chamfer.cpp.
+// Constant-width chamfer of a drilled hole in a pipe (paper 000, Sato, Sato, Maekawa 2016), for
+// any drilled hole: inclined, eccentric, in cylinder or cone pipes (docs/chamfer.md). The
+// algorithm is explained once, in chamfer.cpp.
 #pragma once
 
 #include <optional>
@@ -12,14 +13,24 @@ namespace ncd::toolpath {
 
 enum class Edge { Inner, Outer };
 enum class Side { Upper, Lower };
+// How the edge curve is obtained: by intersecting the drill cylinder with the pipe surface
+// numerically (any geometry), or by the paper's eq. (4)/(5) (its geometry only: no tilt, no
+// eccentricity, a cylinder), kept as the reference the numerical curve is tested against.
+enum class EdgeCurve { Numerical, ClosedForm };
 
 std::string to_string(Edge edge);
 std::string to_string(Side side);
 
 // Everything that defines one chamfer job. Lengths in mm, angles in rad.
+//
+// The pipe frame: pipe axis = Y, origin O at the foot on the pipe axis of the common
+// perpendicular of pipe and drill axes, Z towards the drill's entry side. The drill axis has the
+// direction d = (sin τ sin φ, sin τ cos φ, cos τ) (tilt τ from Z, azimuth φ from +Y towards +X)
+// and passes through e·n̂, n̂ = Y × d / |Y × d| (e = eccentricity). With τ = e = ψ = 0 this is the
+// paper's set-up. The model works in the drill frame (drill axis = z), see DrillPlacement.
 struct ChamferSpec {
-  double pipe_radius_mm = 18.0;   // radius of the pipe surface carrying the edge (R or R_I)
-  double drill_radius_mm = 13.0;  // r, drill axis = z, pipe axis = y
+  double pipe_radius_mm = 18.0;   // radius at O of the pipe surface carrying the edge (R or R_I)
+  double drill_radius_mm = 13.0;  // r
   double ball_radius_mm = 3.0;    // R_B
   double width_mm = 0.7;          // W = |AB|
   double tolerance_mm = 0.01;     // chordal tolerance ε of the segmentation
@@ -29,7 +40,44 @@ struct ChamferSpec {
   std::optional<double> non_knife_angle_rad;  // 2β, the non-cutting cap of the ball
   bool avoid = true;                          // false: keep α = 1 and only report interference
   int initial_segments = 60;                  // N of the equal-arc-length start (eq. 29)
+  double drill_tilt_rad = 0.0;                // τ, in [0, 90°)
+  double drill_azimuth_rad = 0.0;             // φ: 0 tilts along the pipe (a lateral)
+  double eccentricity_mm = 0.0;               // e, signed offset of the drill axis along n̂
+  double pipe_half_angle_rad = 0.0;  // ψ of a cone pipe, radius growing along +Y; 0 = cylinder
+  std::optional<double> pipe_thickness_mm;  // wall thickness normal to the surface; when given,
+                                            // the drill must pierce the other surface too
+  EdgeCurve edge_curve = EdgeCurve::Numerical;
 };
+
+// A pipe surface (cylinder or cone) in the drill frame: the points whose distance from the axis
+// line p0 + s a is ρ(s) = radius + s tan ψ > 0. f(x) = |w|² − (w·a)² − ρ(w·a)², w = x − p0, is
+// the implicit form whose gradient is the normal pointing away from the axis (eq. 16).
+struct PipeSurface {
+  Vec3 axis_point;         // p0, the image of the pipe frame's origin O
+  Vec3 axis_direction;     // a, unit, the image of +Y
+  double radius_mm = 0.0;  // ρ at p0
+  double slope = 0.0;      // tan ψ
+  double implicit(const Vec3& x) const;
+  Vec3 gradient(const Vec3& x) const;
+  double axial_radius(const Vec3& x) const;  // ρ at the station of x
+};
+
+// Where the drill frame (in which the model works and the default program is written) sits in
+// the pipe frame: z along the drill axis d, origin at e·n̂, y along the part of +Y normal to d,
+// x = y × z = n̂. For τ = e = 0 it is the pipe frame itself.
+struct DrillPlacement {
+  Vec3 origin;   // drill-frame origin in pipe coordinates
+  Vec3 x, y, z;  // drill-frame axes in pipe coordinates
+  Vec3 to_pipe(const Vec3& p) const { return origin + p.x() * x + p.y() * y + p.z() * z; }
+  Vec3 direction_to_pipe(const Vec3& v) const { return v.x() * x + v.y() * y + v.z() * z; }
+  Vec3 to_drill(const Vec3& p) const;
+};
+
+DrillPlacement drill_placement(const ChamferSpec& spec);
+// The pipe surface of the given radius at O (the spec's cone angle and placement), drill frame.
+PipeSurface pipe_surface(const ChamferSpec& spec, double radius_mm);
+// Radius at O of the other wall surface when the thickness is known (inner ↔ outer).
+std::optional<double> companion_radius_mm(const ChamferSpec& spec);
 
 // Limits that make a ChamferSpec valid, shared by validation and its error messages.
 struct ChamferLimits {
@@ -121,15 +169,30 @@ class ChamferModel {
   std::vector<double> segment() const;
   // Largest distance between C on [theta0, theta1] and the chord joining its ends.
   double chord_deviation(double theta0, double theta1) const;
+  const PipeSurface& surface() const { return surface_; }
+  const DrillPlacement& placement() const { return placement_; }
 
  private:
+  struct Jet {
+    Vec3 c, d1, d2;  // C, dC/dθ, d²C/dθ²
+  };
+  Jet jet(double theta) const;
   ChamferSpec spec_;
+  DrillPlacement placement_;
+  PipeSurface surface_;
   double sign_z_;   // +1 upper, −1 lower
   double sign_t1_;  // s1 of the spec
   double sign_t2_;  // s2 of the spec
 };
 
+// A closed θ interval, from one path point to another, where a check fails.
+struct ThetaRange {
+  double from_rad = 0.0;
+  double to_rad = 0.0;
+};
+
 struct ChamferChecks {
+  std::vector<ThetaRange> local_fail, global_fail, rod_fail;  // where each check fails
   bool local_ok = true;
   double min_inv_ke_mm = 0.0;
   bool global_ok = true;
@@ -152,5 +215,9 @@ struct ChamferPath {
 // The whole pipeline: segmentation, δ, Algorithm 1, checks. Throws InputError when the
 // geometry cannot be chamfered (the message names θ, the value and the limit).
 ChamferPath generate_chamfer(const ChamferSpec& spec);
+
+// Why a ball reaching down +z cannot cut this edge as computed: every failed check with its θ
+// ranges and what it means; empty when all checks pass.
+std::string interference_reasons(const ChamferPath& path);
 
 }  // namespace ncd::toolpath

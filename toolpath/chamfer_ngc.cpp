@@ -1,9 +1,13 @@
 // RS-274/NGC writer for a chamfer loop (LinuxCNC dialect): a header comment that states every
 // parameter, G21 G90 G94, an approach, the closed loop of G1 moves, a retract, M2.
 //
-// Frame: X0 Y0 on the drill axis, Z0 on the pipe axis, pipe along Y. A 3-axis machine works
-// from +Z, so a lower edge is cut with the part turned over, rotated 180° about the pipe axis
-// (X → −X, Z → −Z), which maps the lower edge onto an upper one; the header says so.
+// Frames (docs/chamfer.md): by default the drill frame, Z along the drill axis, X0 Y0 on it, Z0
+// at the foot of the common perpendicular with the pipe axis; the header says how the pipe axis
+// then lies, i.e. how to set up the part. The pipe frame (Z0 on the pipe axis, pipe along Y) is
+// the same up to a shift by the eccentricity when the drill is not tilted, and refused when it
+// is: a 3-axis machine cuts along +Z, and every check assumes that is the drill axis. A lower
+// edge is cut with the part turned over, rotated 180° about Y (X → −X, Z → −Z), which maps it
+// onto an upper one; the header says so.
 // Approach: inner edges are reached down the drill axis and then outwards (the ball only fits
 // through the hole near its axis); outer edges by a vertical descent onto the first point.
 #include "toolpath/chamfer_ngc.hpp"
@@ -26,13 +30,35 @@ std::string num(double v, int decimals) {
 
 }  // namespace
 
-double default_safe_z_mm(const ChamferSpec& spec) {
-  return spec.pipe_radius_mm + 4.0 * spec.ball_radius_mm;
+std::string to_string(ProgramFrame frame) {
+  return frame == ProgramFrame::Drill ? "drill" : "pipe";
 }
 
-Vec3 program_point(const ChamferSpec& spec, const CutterPose& pose, ProgramPoint point) {
-  Vec3 p = pose.cl;
+double default_safe_z_mm(const ChamferSpec& spec) {
+  ChamferSpec rim = spec;  // the outer surface's edge on the same side
+  if (const auto other = companion_radius_mm(spec); other && spec.edge == Edge::Inner) {
+    rim.pipe_radius_mm = *other;
+    rim.edge = Edge::Outer;
+  }
+  rim.pipe_thickness_mm.reset();
+  rim.rod_radius_mm.reset();
+  rim.non_knife_angle_rad.reset();
+  const ChamferModel model(rim);
+  const double sign = spec.side == Side::Upper ? 1.0 : -1.0;  // lower edges turned over
+  double top = -1e300;
+  for (int i = 0; i < 720; ++i) top = std::max(top, sign * model.point(i * kPi / 360.0).z());
+  return top + 4.0 * spec.ball_radius_mm;
+}
+
+Vec3 program_frame_point(const ChamferSpec& spec, const Vec3& q, ProgramFrame frame) {
+  Vec3 p = frame == ProgramFrame::Pipe ? drill_placement(spec).to_pipe(q) : q;
   if (spec.side == Side::Lower) p = Vec3(-p.x(), p.y(), -p.z());
+  return p;
+}
+
+Vec3 program_point(const ChamferSpec& spec, const CutterPose& pose, ProgramPoint point,
+                   ProgramFrame frame) {
+  Vec3 p = program_frame_point(spec, pose.cl, frame);
   if (point == ProgramPoint::Tip) p.z() -= spec.ball_radius_mm;
   return p;
 }
@@ -43,10 +69,18 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   require_positive("spindle speed (--spindle, rpm)", o.spindle_rpm);
   require_finite("safe Z (--safe-z, mm)", o.safe_z_mm);
   if (path.points.empty()) throw InputError("the chamfer path has no points");
+  if (o.frame == ProgramFrame::Pipe && s.drill_tilt_rad != 0.0) {
+    throw InputError("the pipe frame puts the machine's Z at the drill tilt τ = " +
+                     num(rad_to_deg(s.drill_tilt_rad), 3) +
+                     " deg to the hole, but a 3-axis machine cuts along +Z and the ball, its cap "
+                     "and its rod are checked along the drill axis; use --frame drill and set up "
+                     "the part with the drill axis vertical as the program's header says");
+  }
+  const auto at = [&](std::size_t i) { return program_point(s, path.points[i], o.point, o.frame); };
   double top = -1e300, length = 0.0;
   for (std::size_t i = 0; i < path.points.size(); ++i) {
-    const Vec3 p = program_point(s, path.points[i], o.point);
-    const Vec3 q = program_point(s, path.points[(i + 1) % path.points.size()], o.point);
+    const Vec3 p = at(i);
+    const Vec3 q = at((i + 1) % path.points.size());
     top = std::max(top, p.z() + (o.point == ProgramPoint::Tip ? 2.0 : 1.0) * s.ball_radius_mm);
     length += (q - p).norm();
   }
@@ -71,7 +105,37 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     << ", non-knife angle "
     << (s.non_knife_angle_rad ? num(rad_to_deg(*s.non_knife_angle_rad), 3) + " deg" : "not given")
     << ", rod avoidance " << (s.avoid ? "on" : "off (alpha = 1)") << ")\n";
-  g << "(frame: X0 Y0 on the drill axis, Z0 on the pipe axis, pipe along Y, units mm)\n";
+  const bool paper = s.drill_tilt_rad == 0.0 && s.eccentricity_mm == 0.0;
+  if (!paper || s.pipe_half_angle_rad != 0.0 || s.pipe_thickness_mm) {
+    g << "(drill tilt " << num(rad_to_deg(s.drill_tilt_rad), 3) << " deg, azimuth "
+      << num(rad_to_deg(s.drill_azimuth_rad), 3) << " deg, eccentricity "
+      << num(s.eccentricity_mm, 4) << " mm, pipe half-angle "
+      << num(rad_to_deg(s.pipe_half_angle_rad), 3) << " deg, wall thickness "
+      << (s.pipe_thickness_mm ? num(*s.pipe_thickness_mm, 4) + " mm" : "not given") << ")\n";
+  }
+  const Vec3 axis_xy = program_frame_point(s, Vec3::Zero(), o.frame);  // drill axis at z = 0
+  if (paper) {
+    g << "(frame: X0 Y0 on the drill axis, Z0 on the pipe axis, pipe along Y, units mm)\n";
+  } else if (o.frame == ProgramFrame::Pipe) {
+    g << "(frame: PIPE frame: pipe axis along Y through X0 Z0, drill axis vertical through X"
+      << num(axis_xy.x(), d) << " Y0, units mm)\n";
+  } else {
+    const PipeSurface surf = pipe_surface(s, s.pipe_radius_mm);
+    const Vec3 p0 = program_frame_point(s, surf.axis_point, o.frame);
+    Vec3 a = surf.axis_direction;
+    if (s.side == Side::Lower) a = Vec3(-a.x(), a.y(), -a.z());
+    g << "(frame: DRILL frame: Z along the drill axis, X0 Y0 on it, Z0 where it is closest to the "
+         "pipe axis, units mm)\n";
+    g << "(set-up: clamp the part with the DRILL AXIS VERTICAL; the pipe axis then passes "
+         "through X"
+      << num(p0.x(), d) << " Y" << num(p0.y(), d) << " Z" << num(p0.z(), d) << " with direction X"
+      << num(a.x(), 4) << " Y" << num(a.y(), 4) << " Z" << num(a.z(), 4) << ", rising "
+      << num(rad_to_deg(std::asin(std::abs(a.z()))), 3) << " deg out of the XY plane)\n";
+    if (a.z() != 0.0) {
+      g << "(safe Z clears the hole's rim; the inclined pipe rises higher away from the hole:"
+           " start with the tool above the hole)\n";
+    }
+  }
   if (s.side == Side::Lower) {
     g << "(LOWER EDGE: written for the part TURNED OVER, rotated 180 deg about the pipe axis Y:"
          " X -> -X, Z -> -Z)\n";
@@ -94,9 +158,10 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   g << "G64 P" << num(s.tolerance_mm, 4) << "\n";
   g << "S" << num(o.spindle_rpm, 0) << " M3\n";
   g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
-  const Vec3 first = program_point(s, path.points.front(), o.point);
+  const Vec3 first = at(0);
+  const std::string axis = "X" + num(axis_xy.x(), d) + " Y" + num(axis_xy.y(), d);
   if (s.edge == Edge::Inner) {
-    g << "G0 X0 Y0\n";
+    g << "G0 " << axis << "\n";
     g << "G1 Z" << num(first.z(), d) << " F" << num(o.feed_mm_per_min, 1) << "\n";
     g << "G1 " << xyz(first) << "\n";
   } else {
@@ -104,10 +169,10 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     g << "G1 Z" << num(first.z(), d) << " F" << num(o.feed_mm_per_min, 1) << "\n";
   }
   for (std::size_t i = 1; i < path.points.size(); ++i) {
-    g << "G1 " << xyz(program_point(s, path.points[i], o.point)) << "\n";
+    g << "G1 " << xyz(at(i)) << "\n";
   }
   g << "G1 " << xyz(first) << " (loop closed)\n";
-  if (s.edge == Edge::Inner) g << "G1 X0 Y0\n";
+  if (s.edge == Edge::Inner) g << "G1 " << axis << "\n";
   g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
   g << "M5\nM2\n%\n";
   return g.str();

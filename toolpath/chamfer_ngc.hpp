@@ -8,6 +8,10 @@
 namespace ncd::toolpath {
 
 enum class ProgramPoint { Tip, Centre };
+// The frame the program is written in (docs/chamfer.md, "Frames"). Drill: Z along the drill
+// axis, the part set up with the hole vertical (the default). Pipe: Z0 on the pipe axis, pipe
+// along Y; only for an untilted drill, whose axis is then the machine's Z.
+enum class ProgramFrame { Drill, Pipe };
 
 struct NgcOptions {
   double feed_mm_per_min = 300.0;  // the paper's experiments
@@ -15,17 +19,26 @@ struct NgcOptions {
   ProgramPoint point = ProgramPoint::Tip;
   double safe_z_mm = 0.0;  // clearance height in the program's frame, above the part
   int decimals = 4;        // digits after the point in coordinates (0.1 µm)
+  ProgramFrame frame = ProgramFrame::Drill;
 };
 
-// Default clearance: the pipe surface of the edge plus two ball diameters, in the frame the
-// program is written in (lower edges turned over).
+std::string to_string(ProgramFrame frame);
+
+// Default clearance: the highest point of the hole's rim on the outer surface (the edge's own
+// surface when the thickness is not given) plus two ball diameters, in the frame the program is
+// written in (lower edges turned over).
 double default_safe_z_mm(const ChamferSpec& spec);
 
-// Throws InputError when an option is out of range (feed, spindle, safe Z below the path).
+// Throws InputError when an option is out of range (feed, spindle, safe Z below the path, the
+// pipe frame for a tilted drill).
 std::string chamfer_program(const ChamferPath& path, const NgcOptions& options);
 
-// Where the program moves the machine for a pose: the part turned over for lower edges
-// (rotated 180° about the pipe axis y), minus R_B in z for the tip.
-Vec3 program_point(const ChamferSpec& spec, const CutterPose& pose, ProgramPoint point);
+// A point of the model (drill frame) in the program's frame: the pipe frame if asked, then the
+// part turned over for lower edges (rotated 180° about Y: X → −X, Z → −Z).
+Vec3 program_frame_point(const ChamferSpec& spec, const Vec3& p, ProgramFrame frame);
+// Where the program moves the machine for a pose: program_frame_point of the ball centre,
+// minus R_B in z for the tip.
+Vec3 program_point(const ChamferSpec& spec, const CutterPose& pose, ProgramPoint point,
+                   ProgramFrame frame = ProgramFrame::Drill);
 
 }  // namespace ncd::toolpath

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -134,6 +136,69 @@ TEST_F(Cli, LowerEdgeProgramIsForThePartTurnedOver) {
   EXPECT_NEAR(pts[5][0], -cl[0], 5e-5);
   EXPECT_NEAR(pts[5][1], cl[1], 5e-5);
   EXPECT_NEAR(pts[5][2], -cl[2], 5e-5);
+}
+
+TEST_F(Cli, InclinedEccentricConeHoleIsWrittenInTheDrillFrame) {
+  const std::string lateral =
+      "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 "
+      "--drill-tilt-deg 45 --eccentricity 2 --pipe-half-angle-deg 5 --pipe-thickness 3 -q";
+  const auto j = nlohmann::json::parse(ncd(lateral).out);
+  EXPECT_EQ(j["input"]["drill_tilt_deg"].get<double>(), 45.0);
+  EXPECT_EQ(j["input"]["eccentricity_mm"].get<double>(), 2.0);
+  EXPECT_EQ(j["input"]["frame"].get<std::string>(), "drill");
+  const CmdResult r = ncd(lateral + " --format ngc --program-point centre");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("DRILL AXIS VERTICAL"), std::string::npos) << r.out.substr(0, 1500);
+  EXPECT_NE(r.out.find("rising 45.000 deg"), std::string::npos) << r.out.substr(0, 1500);
+  const auto pts = g1_points(r.out);
+  ASSERT_EQ(pts.size(), j["points"].size() + 1);
+  for (std::size_t i = 0; i < j["points"].size(); ++i) {
+    const auto cl = j["points"][i]["cl"].get<std::vector<double>>();
+    EXPECT_NEAR(pts[i][0], cl[0], 5e-5);
+    EXPECT_NEAR(pts[i][2], cl[2], 5e-5);
+  }
+  // LinuxCNC's own interpreter reads the program: one straight feed per point, plus the
+  // approach down the axis, the closing move and the way back to the axis.
+  const fs::path ngc = dir_ / "lateral.ngc", canon = dir_ / "lateral.canon";
+  ASSERT_EQ(ncd(lateral + " --format ngc -o " + ngc.string()).status, 0);
+  if (fs::exists("/usr/bin/rs274")) {
+    const std::string cmd =
+        "/usr/bin/rs274 -g " + ngc.string() + " < /dev/null > " + canon.string() + " 2>&1";
+    EXPECT_EQ(std::system(cmd.c_str()), 0) << slurp(canon);
+    std::istringstream lines(slurp(canon));
+    std::size_t feeds = 0;
+    for (std::string line; std::getline(lines, line);) {
+      feeds += line.find("STRAIGHT_FEED") != std::string::npos;
+    }
+    EXPECT_EQ(feeds, j["points"].size() + 3);
+  }
+  const CmdResult pipe = ncd(lateral + " --format ngc --frame pipe");
+  EXPECT_EQ(pipe.status, 2);
+  EXPECT_NE(pipe.err.find("tilt τ = 45.000 deg"), std::string::npos) << pipe.err;
+  const CmdResult miss = ncd(
+      "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --eccentricity 6");
+  EXPECT_EQ(miss.status, 2);
+  EXPECT_NE(miss.err.find("does not pierce the inner pipe surface"), std::string::npos) << miss.err;
+  const CmdResult tight = ncd(
+      "chamfer --pipe-radius 18 --drill-radius 8 --ball-radius 3 --width 0.7 --drill-tilt-deg 60 "
+      "--format ngc");
+  EXPECT_EQ(tight.status, 2);
+  EXPECT_NE(tight.err.find("local: the edge curves more tightly than the ball"), std::string::npos)
+      << tight.err;
+  EXPECT_NE(tight.err.find("θ ∈ ["), std::string::npos) << tight.err;
+  // The JSON reports the same range (no program is refused there).
+  const auto tj = nlohmann::json::parse(
+      ncd("chamfer --pipe-radius 18 --drill-radius 8 --ball-radius 3 --width 0.7 "
+          "--drill-tilt-deg 60 -q")
+          .out);
+  ASSERT_EQ(tj["checks"]["local"]["fail_theta_deg"].size(), 1u);
+  const auto range = tj["checks"]["local"]["fail_theta_deg"][0].get<std::vector<double>>();
+  EXPECT_LT(range[0], 90.0);
+  EXPECT_GT(range[1], 90.0);
+  for (const auto& p : tj["points"]) {
+    const double deg = p["theta"].get<double>() * 180.0 / std::numbers::pi;
+    EXPECT_EQ(deg >= range[0] && deg <= range[1], p["inv_ke"].get<double>() < 3.0) << deg;
+  }
 }
 
 TEST_F(Cli, OutputFileAndPlotAreWritten) {

@@ -155,6 +155,21 @@ TEST_F(Serve, ChamferJobByParameterNames) {
   EXPECT_NEAR(s["feed_max_mm_per_min"].get<double>(), 300.0, 1e-6);  // the chamfer's F300
 }
 
+TEST_F(Serve, InclinedChamferJobTakesTheFlagNames) {
+  launch("simulated");
+  Client c(socket_);
+  json job = {{"pipe-radius", 18}, {"drill-radius", 13},       {"ball-radius", 3},
+              {"width", 0.7},      {"drill-tilt-deg", 45},     {"drill_azimuth_deg", 0},
+              {"eccentricity", 2}, {"pipe-half-angle-deg", 5}, {"pipe-thickness", 3}};
+  json r = c.request({{"cmd", "submit"}, {"job", job}});
+  ASSERT_TRUE(r["ok"].get<bool>()) << r.dump();
+  job["eccentricity"] = 6;
+  job["drill-tilt-deg"] = 0;
+  r = c.request({{"cmd", "submit"}, {"job", job}});
+  EXPECT_FALSE(r["ok"].get<bool>());
+  EXPECT_NE(r.dump().find("does not pierce"), std::string::npos) << r.dump();
+}
+
 TEST_F(Serve, HoldResumeAndOverrideKeepTheLimits) {
   const std::string cubic = write("cubic.json", kCubic);
   launch("wall");  // a 1.6 s job in real time, so that commands arrive while it moves

@@ -1,4 +1,4 @@
-// Chamfer generator (paper 000) against the paper's figures as settled in spec/chamfer.md, exact
+// Chamfer generator (paper 000) against the paper's figures as settled in docs/chamfer.md, exact
 // identities over random geometries, and slow references written here (dense scans,
 // brute-force chord deviation, Simpson arc length).
 #include "toolpath/chamfer.hpp"
@@ -18,7 +18,7 @@ namespace {
 
 constexpr double kHalfPi = 0.5 * kPi;
 
-// The paper's section 5.1 geometry (radii, see the spec): R_I = 18, r = 13, R_B = 3, W = 0.7.
+// The paper's section 5.1 geometry (radii, see docs/chamfer.md): R_I = 18, r = 13, R_B = 3, W = 0.7.
 ChamferSpec paper_geometry() {
   ChamferSpec s;
   s.pipe_radius_mm = 18.0;
@@ -56,7 +56,7 @@ ChamferSpec random_spec(std::mt19937_64& rng) {
   return s;
 }
 
-// ---------------------------------------------------------------- the paper's figures (spec)
+// ---------------------------------------------------------------- the paper's figures (docs/chamfer.md)
 
 TEST(ChamferPaper, LocalCheckOfExperiment1IsSmallestAtHalfPi) {
   const ChamferModel m(paper_geometry());
@@ -66,7 +66,7 @@ TEST(ChamferPaper, LocalCheckOfExperiment1IsSmallestAtHalfPi) {
     const double v = m.pose_at(th, 1.0).inv_ke_mm;
     if (v < best) best = v, at = th;
   }
-  EXPECT_NEAR(best, 10.675, 5e-4);  // spec: 10.675 at θ = π/2
+  EXPECT_NEAR(best, 10.675, 5e-4);  // docs/chamfer.md: 10.675 at θ = π/2
   EXPECT_NEAR(std::fmod(at, kPi), kHalfPi, 1e-9);
   EXPECT_GT(best, 3.0);  // > R_B: no local interference
 }
@@ -110,7 +110,7 @@ double crossing_deg(const ChamferModel& m, double radius) {
 TEST(ChamferPaper, Experiment2InterferesBetween50And130Degrees) {
   const ChamferModel m(experiment(2));
   const double rr = *m.rod_limit_radius_mm();
-  // The spec's 50.05° is for R_R as printed, 10.824 mm; the exact 13 − 3 sin 46.5° is
+  // The 50.05° of docs/chamfer.md is for R_R as printed, 10.824 mm; the exact 13 − 3 sin 46.5° is
   // 10.82388 mm, which crosses 0.006° earlier.
   EXPECT_NEAR(crossing_deg(m, 10.824), 50.05, 5e-3);
   const double lo = deg_to_rad(crossing_deg(m, rr));
@@ -168,7 +168,7 @@ TEST(ChamferPaper, AdmissibleAlphaAtThetaZero) {
   const EdgeFrame f = m.frame(0.0);
   EXPECT_NEAR(f.c, -13.0 / 18.0, 1e-15);
   const AlphaRange r = m.alpha_range(f);
-  EXPECT_NEAR(r.lo, 13.0 / 18.0, 1e-15);  // spec: 0.722 < α < 1.385
+  EXPECT_NEAR(r.lo, 13.0 / 18.0, 1e-15);  // docs/chamfer.md: 0.722 < α < 1.385
   EXPECT_NEAR(r.hi, 18.0 / 13.0, 1e-15);
   EXPECT_TRUE(m.solve_delta(f, 1.3).has_value());
   EXPECT_FALSE(m.solve_delta(f, 0.70).has_value());
@@ -228,7 +228,7 @@ TEST(ChamferIdentity, AlphaOneCutsEqualArcsAndMatchesTheClosedForm) {
       const EdgeFrame f = m.frame(2.0 * kPi * u(rng));
       const CutterPose p = m.pose(f, 1.0, *m.solve_delta(f, 1.0));
       EXPECT_NEAR((p.a - p.xp).norm(), (p.b - p.xp).norm(), 1e-9);
-      // Closed form for α = 1 (spec): ζ = W / (2 sin(φ/2)), q² + 2ζ cos(φ/2) q + ζ² − R_B² = 0.
+      // Closed form for α = 1 (docs/chamfer.md): ζ = W / (2 sin(φ/2)), q² + 2ζ cos(φ/2) q + ζ² − R_B² = 0.
       const double phi = std::acos(f.c);
       const double zeta = s.width_mm / (2.0 * std::sin(0.5 * phi));
       const double b = zeta * std::cos(0.5 * phi);
@@ -283,7 +283,7 @@ TEST(ChamferIdentity, LowerEdgesMirrorUpperOnes) {
 }
 
 TEST(ChamferIdentity, SharpWedgeNeedsTheSafeguard) {
-  // Spec: an outer edge with r/R = 13/14 has δ ≈ 1.8 mm; Newton alone leaves the domain there.
+  // docs/chamfer.md: an outer edge with r/R = 13/14 has δ ≈ 1.8 mm; Newton alone leaves the domain there.
   ChamferSpec s = paper_geometry();
   s.pipe_radius_mm = 14.0;
   s.edge = Edge::Outer;
