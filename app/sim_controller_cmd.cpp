@@ -35,13 +35,15 @@ std::string realtime_reception() {
 struct SimArgs {
   std::string link, log;
   LinkFlags flags;
-  int buffer = 256;
+  int buffer = 0;  // 0: 256 (drip) or 128 (ack, grbl)
   int xoff_at = 0;  // 0: default
   int xon_at = -1;  // -1: default
-  int planner_blocks = 16;
+  int planner_blocks = 15;
   double rapid = 5000.0;
   bool exit_at_end = false;
   long long seed = -1;  // -1: random
+  bool skip_duplicate_n = false, reset_on_open = false, report_line_numbers = false;
+  double boot_s = 0.0;
   comms::SimFaults faults;
 };
 
@@ -91,6 +93,10 @@ int run_sim_controller(const SimArgs& a) {
   cfg.planner_blocks = a.planner_blocks;
   cfg.rapid_mm_per_min = a.rapid;
   cfg.exit_at_end = a.exit_at_end;
+  cfg.skip_duplicate_n = a.skip_duplicate_n;
+  cfg.reset_on_open = a.reset_on_open;
+  cfg.report_line_numbers = a.report_line_numbers;
+  cfg.boot_s = a.boot_s;
   if (a.seed < -1) {
     throw InputError("--seed " + std::to_string(a.seed) + " is invalid: use 0 or more");
   }
@@ -139,30 +145,47 @@ void register_sim_controller(CLI::App& app, Runner& run) {
   CLI::App* c = app.add_subcommand(
       "sim-controller",
       "A simulated CNC controller on a pseudo-terminal linked at --link PATH: paces reception at "
-      "the line's speed, DC1/DC3 (drip) or ok/error:N (ack), executes the blocks in real time. "
+      "the line's speed, DC1/DC3 (drip) or grbl 1.1 (ack: ok when queued, 15-block planner, "
+      "128-byte buffer, 79 characters a line, ? ! ~ and 0x18), executes the blocks in real time. "
       "Runs until SIGTERM/SIGINT (or --exit-at-end), then writes --log.");
   c->add_option("--link", a->link, "path of the symbolic link to the pty's slave, e.g. /tmp/cnc0")
       ->required();
   add_link_flags(*c, a->flags);
-  c->add_option("--buffer", a->buffer, "receive buffer, bytes (64 … 1048576)")
-      ->capture_default_str();
+  c->add_option("--buffer", a->buffer,
+                "receive buffer, bytes (64 … 1048576; default 256, or grbl's 128 with "
+                "--protocol ack)");
   c->add_option("--xoff-at", a->xoff_at,
                 "high-water mark: DC3 when the fill reaches it (default buffer − min(64, "
                 "buffer/4))");
   c->add_option("--xon-at", a->xon_at,
                 "low-water mark: DC1 when the fill falls to it (default xoff-at / 2)");
   c->add_option("--planner-blocks", a->planner_blocks,
-                "ack: planner queue, blocks (the executing one included)")
+                "ack: planner queue, blocks (the executing one included; grbl 1.1: 15)")
       ->capture_default_str();
   c->add_option("--rapid", a->rapid, "G0 rate, mm/min")->capture_default_str();
   c->add_option("--log", a->log, "write the run's log here (JSON, atomically) on exit");
   c->add_flag("--exit-at-end", a->exit_at_end,
               "exit once the program end has been executed (or 1 s after an alarm)");
   c->add_option("--seed", a->seed, "seed of the storm and noise faults (default: random)");
+  c->add_flag("--skip-duplicate-n", a->skip_duplicate_n,
+              "drip: discard a block whose N is not above the last one (a controller documented "
+              "to skip repeated sequence numbers); without it a repeated block runs again");
+  c->add_flag("--reset-on-open", a->reset_on_open,
+              "ack: a sender opening the port resets the controller (an Arduino's DTR "
+              "auto-reset): it boots for --boot-s, then sends its banner");
+  c->add_option("--boot-s", a->boot_s,
+                "ack: time from a reset to the banner; bytes received meanwhile are lost, s")
+      ->capture_default_str();
+  c->add_flag("--report-line-numbers", a->report_line_numbers,
+              "ack: status reports carry Ln: (grbl built with USE_LINE_NUMBERS)");
   comms::SimFaults& f = a->faults;
   c->add_option("--drop-link-after-blocks", f.drop_link_after_blocks,
-                "fault: after N blocks close the pty, remove the link, relink a new pty "
-                "after --down-s");
+                "fault: link cut, the controller keeps running: after N blocks close the pty, "
+                "remove the link, relink a new pty after --down-s");
+  c->add_option("--reset-after-blocks", f.reset_after_blocks,
+                "fault: controller reset after N blocks: the block executing is aborted, the "
+                "buffers are lost, the position is kept, the banner is sent again (drip: DC3 "
+                "SYN)");
   c->add_option("--down-s", f.down_s, "fault: how long the link stays down, s")
       ->capture_default_str();
   c->add_flag("--xoff-storm", f.xoff_storm,

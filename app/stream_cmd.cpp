@@ -1,8 +1,10 @@
 // `ncd stream`: send an NC program to a controller over RS-232 DNC and exit 0 once the
-// controller has all of it (confirmed, for the acknowledged protocol). A transfer journal next
-// to the program lets a stopped or killed transfer resume from the first unconfirmed block.
-// Exit status: 0 sent, 2 invalid input, 3 the transfer did not complete (controller alarm,
-// link given up, or stopped by a signal; the journal says where to resume).
+// controller has all of it (drip: delivered; grbl: executed, as its status reports say). A
+// transfer journal next to the program records the first block not known executed, so a
+// stopped or killed transfer can resume there (--resume) or restart from any block with the
+// modal state and a safe re-entry (--restart-from N). Exit status: 0 done, 2 invalid input, 3
+// the job did not complete (interrupted by a reset, an alarm, an error reply or a lost link,
+// or stopped by a signal; the report names the blocks). docs/dnc-link.md has the rules.
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -16,6 +18,7 @@
 #include "app/output.hpp"
 #include "comms/dnc_sender.hpp"
 #include "comms/program_file.hpp"
+#include "comms/program_modal.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
 
@@ -35,7 +38,31 @@ struct StreamArgs {
   double xoff_timeout_s = 5.0;
   double reconnect_max_s = 30.0;
   bool resume = false, restart = false, no_journal = false, quiet = false;
+  long restart_from = 0;  // 1-based block; 0: none
+  std::optional<double> clearance_z_mm;
+  int planner_blocks = 15;
+  double status_hz = 5.0, banner_wait_s = 2.5, startup_timeout_s = 10.0;
+  bool skips_repeated_n = false;
 };
+
+// The modal state in force before block `n` (1-based) and the highest Z reached before it.
+comms::ModalState state_before(const std::string& path, long n, double& max_z_mm) {
+  comms::ProgramFile src(path);
+  comms::ProgramModal modal;
+  std::string text;
+  max_z_mm = -1e300;
+  for (long k = 1; k < n && src.next(text) == comms::BlockStatus::Ready; ++k) {
+    const comms::BlockMotion m = modal.apply(text);
+    if (!m.known) {
+      throw InputError("--restart-from " + std::to_string(n) + ": block " + std::to_string(k) +
+                       " ('" + text + "') moves in a way ncd does not follow (G28, G30, G53, "
+                       "G92), so the position at block " + std::to_string(n) +
+                       " is not known: restart from a block after it");
+    }
+    if (m.motion) max_z_mm = std::max(max_z_mm, m.to_mm[2]);
+  }
+  return modal.state();
+}
 
 std::string fmt(double v, int decimals) {
   char buf[64];
@@ -44,8 +71,28 @@ std::string fmt(double v, int decimals) {
 }
 
 nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettings& line,
-                           const std::string& program, const std::string& journal) {
+                           const std::string& program, const comms::ProgramSummary& sum,
+                           const std::string& journal) {
   return {{"program", program},
+          {"program_summary",
+           {{"path", program}, {"blocks", sum.blocks}, {"bytes", sum.bytes}, {"sha256", sum.sha256}}},
+          {"transfer",
+           {{"first_block", r.first_block + 1},
+            {"blocks_sent", r.blocks_sent},
+            {"blocks_queued", line.protocol == comms::Protocol::Ack ? nlohmann::json(r.blocks_queued)
+                                                                   : nlohmann::json(nullptr)},
+            {"blocks_executed",
+             r.blocks_executed >= 0 ? nlohmann::json(r.blocks_executed) : nlohmann::json(nullptr)},
+            {"execution_basis", r.execution_basis},
+            {"first_block_not_known_executed", r.blocks_confirmed + 1},
+            {"interrupted", r.interrupted},
+            {"dropped", r.dropped},
+            {"reconnects", r.reconnects},
+            {"link_losses", r.link_losses},
+            {"startup", r.startup},
+            {"bytes_before_banner", r.bytes_before_banner},
+            {"status_reports", r.status_reports},
+            {"notes", r.notes}}},
           {"port", line.device},
           {"settings", comms::describe(line)},
           {"chars_per_s", comms::chars_per_s(line)},
@@ -89,14 +136,66 @@ int run_stream(const StreamArgs& a) {
                      "(grbl 128, grblHAL 1024)");
   }
   if (a.resume && a.restart) throw InputError("--resume and --restart exclude each other");
-  const int max_block = line.protocol == comms::Protocol::Ack ? a.rx_buffer_bytes - 2 : 4096;
+  if (a.restart_from != 0 && (a.resume || a.restart)) {
+    throw InputError("--restart-from excludes --resume and --restart: it starts a new transfer");
+  }
+  const bool ack = line.protocol == comms::Protocol::Ack;
+  if (ack && line.eob == comms::EndOfBlock::CrLf) {
+    throw InputError("--eob crlf with --protocol ack: grbl ends a line at CR and at LF, so CR LF "
+                     "is a block and an empty line, answered by two oks, and character "
+                     "counting would lose count; use --eob lf");
+  }
+  if (a.status_hz < 0.0 || a.status_hz > 10.0) {
+    throw InputError("--status-hz " + fmt(a.status_hz, 2) +
+                     " is out of range: use 0 (no polling) or up to 10 (grbl: 5 to 10)");
+  }
+  if (a.planner_blocks < 1 || a.planner_blocks > 1000) {
+    throw InputError("--planner-blocks " + std::to_string(a.planner_blocks) +
+                     " is out of range: use 1 to 1000 (grbl 1.1: 15)");
+  }
+  require_positive("--banner-wait (s)", a.banner_wait_s);
+  require_positive("--startup-timeout (s)", a.startup_timeout_s);
+  const int max_block = ack ? a.rx_buffer_bytes - 2 : 4096;
   const comms::ProgramSummary program = comms::scan_program(a.program, line.data_bits, max_block);
+  if (ack && program.longest_kept > comms::kGrblLineChars) {
+    throw InputError(a.program + ":" + std::to_string(program.longest_kept_line) + ": a block of " +
+                     std::to_string(program.longest_kept) +
+                     " characters without spaces and comments; grbl keeps " +
+                     std::to_string(comms::kGrblLineChars) +
+                     " and answers error:11: split the block or shorten its numbers");
+  }
+  if (a.restart_from < 0 || a.restart_from > program.blocks) {
+    throw InputError("--restart-from " + std::to_string(a.restart_from) +
+                     " is out of range: the program has blocks 1 to " +
+                     std::to_string(program.blocks));
+  }
+  std::vector<std::string> preamble;
+  if (a.restart_from > 0) {
+    double max_z = 0.0;
+    const comms::ModalState at = state_before(a.program, a.restart_from, max_z);
+    double clearance = 0.0;
+    if (a.clearance_z_mm) {
+      clearance = *a.clearance_z_mm;
+    } else if (max_z > -1e299) {
+      clearance = max_z;
+    } else {
+      throw InputError("--restart-from " + std::to_string(a.restart_from) +
+                       ": no move before it says where the clearance plane is: give "
+                       "--clearance-z MM (work coordinates)");
+    }
+    if (clearance < at.position_mm[2]) {
+      throw InputError("--clearance-z " + fmt(clearance, 3) + " is below block " +
+                       std::to_string(a.restart_from) + "'s start at Z " +
+                       fmt(at.position_mm[2], 3) + ": give a clearance plane above the part");
+    }
+    preamble = comms::restart_blocks(at, clearance);
+  }
 
   // The journal: resume where a previous transfer of the same program stopped.
   const std::string journal_path =
       a.no_journal ? "" : (a.journal.empty() ? a.program + ".journal" : a.journal);
-  std::int64_t first_block = 0;
-  if (!journal_path.empty() && !a.restart) {
+  std::int64_t first_block = a.restart_from > 0 ? a.restart_from - 1 : 0;
+  if (!journal_path.empty() && !a.restart && a.restart_from == 0) {
     const auto previous = comms::TransferJournal::read(journal_path);
     if (previous && !previous->complete) {
       if (previous->program_sha256 != program.sha256) {
@@ -136,6 +235,12 @@ int run_stream(const StreamArgs& a) {
   settings.rx_buffer_bytes = a.rx_buffer_bytes;
   settings.xoff_timeout_s = a.xoff_timeout_s;
   settings.reconnect_max_s = a.reconnect_max_s;
+  settings.planner_blocks = a.planner_blocks;
+  settings.status_hz = a.status_hz;
+  settings.banner_wait_s = a.banner_wait_s;
+  settings.startup_timeout_s = a.startup_timeout_s;
+  settings.controller_skips_repeated_n = a.skips_repeated_n;
+  settings.preamble = preamble;
   comms::ProgramFile source(a.program);
   const bool quiet = a.quiet;
   comms::DncSender sender(settings, source, [quiet](const comms::SenderEvent& e) {
@@ -153,6 +258,7 @@ int run_stream(const StreamArgs& a) {
               << " s on the wire"
               << (first_block > 0 ? "; resuming at block " + std::to_string(first_block + 1) : "")
               << std::endl;
+    for (const std::string& p : preamble) std::cerr << "ncd stream: restart: " << p << "\n";
   }
 
   g_stop.store(false);
@@ -164,23 +270,39 @@ int run_stream(const StreamArgs& a) {
   const comms::SenderReport r = sender.run(g_stop);
 
   if (!a.report.empty()) {
-    write_output(a.report, report_json(r, line, a.program, journal_path).dump(2) + "\n");
+    write_output(a.report,
+                 report_json(r, line, a.program, program, journal_path).dump(2) + "\n");
   }
-  std::cout << (r.completed ? "sent " : "NOT COMPLETE: ") << r.blocks - r.first_block << " blocks ("
-            << r.bytes_written << " bytes) in " << fmt(r.duration_s, 2) << " s, "
+  // The program, then the transfer: what was sent, queued, executed.
+  std::cout << "program: " << program.blocks << " blocks, " << program.bytes << " bytes, sha256 "
+            << program.sha256 << "\n";
+  std::cout << (r.completed ? "done: " : r.stopped ? "STOPPED: " : "INTERRUPTED: ")
+            << "from block " << r.first_block + 1 << ", " << r.blocks_sent << " blocks sent";
+  if (ack) std::cout << ", " << r.blocks_queued << " queued (ok)";
+  if (r.blocks_executed >= 0) {
+    std::cout << ", " << r.blocks_executed << " executed (by " << r.execution_basis << ")";
+  } else {
+    std::cout << "; executed blocks not known (" << r.execution_basis << ")";
+  }
+  std::cout << "; " << r.bytes_written << " bytes in " << fmt(r.duration_s, 2) << " s, "
             << fmt(100.0 * r.link_use, 1) << " % of the line; XOFF " << r.xoff_count
-            << " times (longest " << fmt(r.xoff_longest_s, 2) << " s), " << r.reconnects
-            << " reconnects, " << r.blocks_resent << " blocks resent, " << r.noise_bytes
-            << " noise bytes ignored\n"
-            << "program sha256 " << r.program_sha256 << "\n";
+            << " times (longest " << fmt(r.xoff_longest_s, 2) << " s), " << r.link_losses
+            << " link losses, " << r.reconnects << " resumed, " << r.blocks_resent
+            << " blocks resent, " << r.noise_bytes << " noise bytes ignored\n";
+  for (const std::string& n : r.notes) std::cout << "note: " << n << "\n";
   if (r.completed) {
     if (!journal_path.empty()) std::filesystem::remove(journal_path);
     return 0;
   }
-  std::cout << (r.stopped ? "stopped" : "failed: " + r.failure) << "; the controller has "
-            << r.blocks_confirmed << " blocks confirmed"
-            << (journal_path.empty() ? "" : "; resume with --resume (journal " + journal_path + ")")
-            << "\n";
+  if (r.stopped) {
+    std::cout << "stopped; the first block not known " << (ack ? "executed" : "delivered")
+              << " is " << r.blocks_confirmed + 1
+              << (journal_path.empty() ? "" : "; resume with --resume (journal " + journal_path + ")")
+              << "\n";
+  } else {
+    std::cout << "interrupted: " << r.failure << "\n";
+    if (!r.dropped.empty()) std::cout << "dropped: " << r.dropped << "\n";
+  }
   return 3;
 }
 
@@ -216,6 +338,29 @@ void register_stream(CLI::App& app, Runner& run) {
   c->add_flag("--resume", a->resume, "continue an unfinished transfer from its journal");
   c->add_flag("--restart", a->restart, "ignore an unfinished transfer and send it all");
   c->add_option("--report", a->report, "write the transfer report as JSON to this file");
+  c->add_option("--restart-from", a->restart_from,
+                "start a new transfer at block N (1-based): the modal state in force at N, up to "
+                "the clearance plane, over N's start, down at feed, then N onwards");
+  c->add_option("--clearance-z", a->clearance_z_mm,
+                "restart: the clearance plane, mm in work coordinates (default: the highest Z "
+                "before N)");
+  c->add_option("--planner-blocks", a->planner_blocks,
+                "ack: the controller's planner, blocks (grbl 1.1: 15), to read Bf:")
+      ->capture_default_str();
+  c->add_option("--status-hz", a->status_hz,
+                "ack: poll the controller's status ('?') this often; 0: never (executed "
+                "blocks are then not known)")
+      ->capture_default_str();
+  c->add_option("--banner-wait", a->banner_wait_s,
+                "ack: wait this long for the controller's banner before waking it with an "
+                "empty line, s")
+      ->capture_default_str();
+  c->add_option("--startup-timeout", a->startup_timeout_s,
+                "ack: give up when the controller has not spoken after this long, s")
+      ->capture_default_str();
+  c->add_flag("--controller-skips-repeated-n", a->skips_repeated_n,
+              "drip: the controller's manual says it discards a block whose N it already has; "
+              "only then are blocks resent after a lost link");
   c->add_flag("-q,--quiet", a->quiet, "no progress lines");
   c->callback([a, &run] { run = [a] { return run_stream(*a); }; });
 }

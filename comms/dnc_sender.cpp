@@ -1,8 +1,8 @@
-// DNC sender (spec/dnc.md). Blocks go out as a byte stream; what matters is how far ahead of
-// the controller the sender may be and how it knows what the controller has.
+// DNC sender (docs/dnc-link.md). Blocks go out as a byte stream; what matters is how far ahead
+// of the controller the sender may be and what it knows about what the controller has.
 //
-//   source ──► [ window: resend window | written, unconfirmed | not yet written ] ──► link
-//                ▲ first block to resend (journal)
+//   source ──► [ queued (ack: ok'd, not known executed) | written, unanswered | not written ]
+//                ▲ first block not known executed (journal)
 //
 // Drip feed. The controller paces with DC1/DC3 (or CTS). The sender keeps at most
 // max_queued_chars ahead of the wire, so that after a DC3 it stops within that many
@@ -10,21 +10,45 @@
 // a UART) and a wire model: bytes written minus the bytes the line can have carried since,
 // at pacing_fraction of its capacity (a pseudo-terminal has no output queue to ask). A block is
 // delivered when the model and the kernel both say its last byte has left. Drip feed has no
-// confirmation, so after a lost link the sender goes back a resend window of characters before
-// the first block it cannot vouch for; blocks carry N numbers and the controller discards an N
-// it already has (a Fanuc-style sequence-number restart). Without N numbers the report says a
-// resume may repeat blocks.
+// confirmation and no report: "sent" is all that is known, and the report says so. After a
+// lost link the sender cannot tell which blocks arrived, and a controller executes a block it
+// receives twice; so it resends (a resend window of characters before the first block it
+// cannot vouch for) only when the controller is documented to discard a repeated N
+// (controller_skips_repeated_n, numbered blocks). Otherwise the job stops as interrupted.
 //
-// Acknowledged streaming (grbl). Each line is answered `ok` or `error:N`; character counting
-// keeps the sum of unanswered lines within the controller's receive buffer. A block is
-// confirmed by its `ok`; after a lost link every unanswered block is sent again.
+// Acknowledged streaming (grbl 1.1). Nothing is sent before the controller has spoken: the
+// sender waits banner_wait_s for the banner ("Grbl 1.1h ['$' for help]"), else wakes it with an
+// LF and waits for its `ok`, up to startup_timeout_s. Each line is answered `ok` (queued) or
+// `error:N`; character counting keeps the sum of unanswered lines within the receive buffer.
+// `?` is polled at status_hz; each status report says which of the queued blocks are done:
+//   Ln:n      the block numbered n executes: all before it are done;
+//   Bf:b,r    the planner holds planner_blocks − b moves: all older queued moves are done;
+//   neither   Idle: all done; else the block whose segment holds the reported position
+//             executes, if exactly one queued move's segment holds it.
+// A block without motion takes effect when the moves before it are done. A report that
+// comes after an `ok` in the stream was made after that block was queued, so the counts agree.
+// A banner, `[MSG:Reset to continue]` or ALARM mid-program is a reset: the job is interrupted,
+// the report names the last block known executed and the first not known executed, and ncd
+// does not resume past it. On error:N or ALARM the sender holds (`!`), reads a status, then
+// resets (0x18) so nothing queued after the error runs, and reports what the reset dropped.
 //
-// Faults. A hang-up or I/O error closes the port; it is reopened with back-off (0.1 s doubling
-// to 2 s) for up to reconnect_max_s, then the transfer resumes as above. A hold (XOFF or CTS)
-// longer than xoff_timeout_s is reported and raises the hold callback, which a live job uses to
-// bring the motion to a planned stop. NAK or SYN (drip), `error:N` or `ALARM` (ack) stop the
-// transfer with the block named. Other bytes are noise: counted, logged, ignored. The journal
-// records the first block to resend, so a restarted ncd resumes there.
+// A lost link (ack). The port is reopened with back-off (0.1 s doubling to 2 s, for up to
+// reconnect_max_s). A banner on the new connection is a reset: interrupted. Otherwise the
+// sender holds (`!`) and reads status until the controller is held or idle, then resumes only
+// if the position proves what the controller holds: the receive buffer is empty (Bf), and
+// either the planner is empty and the position is the end point of exactly one candidate move
+// (queued or sent), or the position lies inside exactly one candidate move's segment and the
+// planner holds that move and the P − 1 after it. The moves up to the last one held are then
+// queued; the ones sent after it were lost and go again, after a line of 80 characters that
+// grbl must refuse with error:11, which discards a partial line the cut may have left in its
+// line buffer. Anything else (no Bf, a non-empty buffer, a position that matches none or
+// several, a block without motion right after the last one held) stops as interrupted.
+//
+// Faults. A hang-up or I/O error closes the port. A hold (XOFF or CTS) longer than
+// xoff_timeout_s is reported and raises the hold callback, which a live job uses to bring the
+// motion to a planned stop. NAK or SYN (drip) stop the transfer with the block named. Other
+// bytes are noise: counted, logged, ignored. The journal records the first block not known
+// executed (ack) or delivered (drip), so a restarted ncd resumes there.
 #include "comms/dnc_sender.hpp"
 
 #include <algorithm>
@@ -32,11 +56,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <charconv>
 #include <deque>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <thread>
 
+#include "comms/program_modal.hpp"
 #include "comms/serial_link.hpp"
 #include "comms/sha256.hpp"
 #include "comms/transfer_journal.hpp"
@@ -45,18 +72,68 @@ namespace ncd::comms {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using Vec3 = std::array<double, 3>;
+
+constexpr std::int64_t kFraming = -1;  // % and NUL leader
+constexpr std::int64_t kPreamble = -2;  // restart lines
+constexpr std::int64_t kFlush = -3;     // ack: the line grbl must refuse (error:11)
+constexpr double kPositionTolMm = 0.002;  // grbl reports 3 decimals
 
 struct Item {
-  std::int64_t index = -1;  // program block, or -1 for framing
-  bool closing = false;     // the closing `%`
-  std::string bytes;        // with end of block
-  double end_mark = -1.0;   // bytes written on this connection when its last byte went out
+  std::int64_t index = kFraming;  // program block, or one of the negative kinds
+  bool closing = false;           // the closing `%`
+  std::string bytes;              // with end of block
+  double end_mark = -1.0;         // bytes written on this connection when its last byte went out
+  BlockMotion geo;                // what the block does
+  std::optional<long> n;          // its N
 };
 
 bool starts_with_n_word(const std::string& text) {
   const auto p = text.find_first_not_of(" \t");
   return p != std::string::npos && (text[p] == 'N' || text[p] == 'n') && p + 1 < text.size() &&
          std::isdigit(static_cast<unsigned char>(text[p + 1])) != 0;
+}
+
+std::optional<long> n_word(const std::string& text) {
+  if (!starts_with_n_word(text)) return std::nullopt;
+  const auto p = text.find_first_not_of(" \t") + 1;
+  long v = 0;
+  const auto r = std::from_chars(text.data() + p, text.data() + text.size(), v);
+  if (r.ec != std::errc()) return std::nullopt;
+  return v;
+}
+
+double dist(const Vec3& a, const Vec3& b) {
+  return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+}
+
+// Distance from p to the segment a–b, and where along it (0 at a, 1 at b).
+double to_segment(const Vec3& p, const Vec3& a, const Vec3& b, double& u) {
+  Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  u = len2 > 0.0 ? ((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1] + (p[2] - a[2]) * d[2]) / len2
+                 : 0.0;
+  u = std::clamp(u, 0.0, 1.0);
+  const Vec3 q{a[0] + u * d[0], a[1] + u * d[1], a[2] + u * d[2]};
+  return dist(p, q);
+}
+
+std::optional<Vec3> axes(std::string_view v) {
+  Vec3 out{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const auto comma = v.find(',');
+    const std::string_view part = v.substr(0, comma);
+    double x = 0.0;
+    const char* first = part.data();
+    if (!part.empty() && part[0] == '+') ++first;
+    const auto r = std::from_chars(first, part.data() + part.size(), x);
+    if (r.ec != std::errc()) return std::nullopt;
+    out[k] = x;
+    if (comma == std::string_view::npos) return k == 2 || k == 1 ? std::optional<Vec3>(out)
+                                                                 : std::nullopt;
+    v.remove_prefix(comma + 1);
+  }
+  return out;
 }
 
 class Session {
@@ -81,6 +158,20 @@ class Session {
                    eob_text(s.line.eob);
       items_.push_back(open);
     }
+    ProgramModal pre;
+    for (const std::string& line : s.preamble) {
+      Item it;
+      it.index = kPreamble;
+      it.bytes = line + eob_text(s.line.eob);
+      it.geo = pre.apply(line);
+      items_.push_back(std::move(it));
+    }
+    report_.startup = ack_ ? "none" : "";
+    if (!ack_) {
+      report_.execution_basis = "not known: drip feed has no reply; sent is all that is known";
+    } else if (s.status_hz <= 0.0) {
+      report_.execution_basis = "not known: status polling is off";
+    }
   }
 
   SenderReport run(const std::atomic<bool>& stop) {
@@ -104,6 +195,8 @@ class Session {
   }
 
  private:
+  enum class Phase { Startup, Ready, Recovering };
+
   double now_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
 
   void emit(SenderEvent::Kind kind, std::int64_t block, std::string text) {
@@ -116,19 +209,26 @@ class Session {
     if (on_hold_) on_hold_(hold);
   }
 
+  bool over() const { return !report_.failure.empty(); }
+
   // One pass: read, account, write, confirm. False when the transfer is over.
   bool step() {
     read_input();
-    if (!report_.failure.empty()) return false;
+    if (over()) return false;
     advance_model();
     watch_hold();
     if (ack_) {
-      write_ack();
+      if (phase_ == Phase::Startup) startup();
+      if (phase_ == Phase::Recovering) recovering();
+      if (phase_ == Phase::Ready) {
+        write_ack();
+        poll_status();
+      }
     } else {
       write_drip();
       confirm_drip();
     }
-    if (!report_.failure.empty()) return false;
+    if (over()) return false;
     progress();
     if (done()) {
       report_.completed = true;
@@ -140,9 +240,11 @@ class Session {
 
   int wait_ms() const { return source_waiting_ ? 5 : 1; }
 
+  bool status_known() const { return s_.status_hz > 0.0 && status_supported_; }
+
   bool done() const {
     if (!source_done_) return false;
-    if (ack_) return items_.empty();
+    if (ack_) return phase_ == Phase::Ready && items_.empty() && (queued_.empty() || !status_known());
     return std::all_of(items_.begin(), items_.end(), [&](const Item& it) {
       return it.end_mark >= 0.0 && it.end_mark <= delivered();
     });
@@ -165,7 +267,7 @@ class Session {
 
   void read_input() {
     char buf[256];
-    while (true) {
+    while (link_) {
       const std::size_t n = link_->read_some(buf, sizeof buf);
       if (n == 0) return;
       for (std::size_t i = 0; i < n; ++i) ack_ ? ack_byte(buf[i]) : drip_byte(buf[i]);
@@ -213,15 +315,78 @@ class Session {
     }
     const std::string line = line_;
     line_.clear();
-    if (line.empty()) return;
+    if (!line.empty()) ack_line(line);
+  }
+
+  static bool is_banner(const std::string& line) { return line.rfind("Grbl ", 0) == 0; }
+
+  void ack_line(const std::string& line) {
+    if (over()) return;  // the job is over; what still comes is not acted on
+    if (line.rfind("ALARM", 0) == 0 || is_banner(line) ||
+        line.rfind("[MSG:Reset to continue]", 0) == 0) {
+      track_ok_ = false;  // the planner may have been cleared: Bf no longer counts executed
+    }
+    if (auto st = parse_grbl_status(line)) {
+      on_status(*st);
+      return;
+    }
+    if (phase_ == Phase::Startup) {
+      if (is_banner(line)) {
+        if (opened_once_before_) {
+          controller_reset("the controller reset while the link was down (its banner '" + line +
+                           "' came on the new connection)");
+          return;
+        }
+        report_.startup = "banner";
+        emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
+        phase_ = Phase::Ready;
+      } else if (line == "ok" && woke_) {
+        report_.startup = "woken";
+        emit(SenderEvent::Kind::Opened, resume_point(),
+             "the controller answered the wake-up line");
+        phase_ = Phase::Ready;
+      } else {
+        noise(line.size() + 1, '\0');
+      }
+      return;
+    }
+    if (stopping_) {  // after a hold for an error: account what still comes, nothing else
+      if (line == "ok" && sent_items_ > 0) take_ok();
+      if (is_banner(line)) reset_seen_ = true;
+      return;
+    }
+    if (line.front() == '[' && line.rfind("[MSG:Reset to continue]", 0) != 0) {
+      // grbl's feedback messages ([MSG:…], [GC:…]): informative
+      report_.notes.push_back("the controller said " + line);
+      return;
+    }
     if (line == "ok") {
-      acknowledge();
+      if (sent_items_ == 0) {
+        noise(3, '\0');  // an `ok` for nothing we sent
+        return;
+      }
+      if (items_.front().index == kFlush) {
+        interrupt("the controller accepted the line that should have cleared its line buffer "
+                  "after the link came back; not sending more");
+        return;
+      }
+      take_ok();
     } else if (line.rfind("error:", 0) == 0) {
-      const std::int64_t block = items_.empty() ? next_index_ : items_.front().index;
-      alarm("the controller rejected block " + std::to_string(block + 1) + " with " + line +
-            (items_.empty() ? "" : " ('" + trim_eob(items_.front().bytes) + "')"));
+      if (sent_items_ > 0 && items_.front().index == kFlush) {  // refused, as it must be
+        unacked_bytes_ -= static_cast<int>(items_.front().bytes.size());
+        items_.pop_front();
+        --sent_items_;
+        return;
+      }
+      const std::int64_t block = sent_items_ > 0 ? items_.front().index : next_index_;
+      const std::string what = sent_items_ > 0 ? " ('" + trim_eob(items_.front().bytes) + "')" : "";
+      stop_controller("the controller rejected " +
+                      (block >= 0 ? "block " + std::to_string(block + 1) : std::string("a line")) +
+                      " with " + line + what);
     } else if (line.rfind("ALARM", 0) == 0) {
-      alarm("the controller raised " + line);
+      stop_controller("the controller raised " + line);
+    } else if (is_banner(line) || line.rfind("[MSG:Reset to continue]", 0) == 0) {
+      controller_reset("the controller reset mid-program ('" + line + "')");
     } else {
       noise(line.size() + 1, '\0');
     }
@@ -232,15 +397,381 @@ class Session {
     return s;
   }
 
-  void acknowledge() {
-    if (sent_items_ == 0) {
-      noise(3, '\0');  // an `ok` for nothing we sent
-      return;
-    }
-    unacked_bytes_ -= static_cast<int>(items_.front().bytes.size());
+  // The front unanswered line was answered ok: the controller queued it.
+  void take_ok() {
+    Item it = std::move(items_.front());
     items_.pop_front();
     --sent_items_;
+    unacked_bytes_ -= static_cast<int>(it.bytes.size());
+    queue_item(std::move(it));
+  }
+
+  void queue_item(Item it) {
+    if (it.index >= 0) ++report_.blocks_queued;
+    if (!it.geo.motion && queued_.empty()) {
+      executed(it);
+    } else {
+      queued_.push_back(std::move(it));
+    }
     confirm_journal();
+  }
+
+  void executed(const Item& it) {
+    if (it.index >= 0) {
+      ++executed_count_;
+      last_executed_ = it.index;
+    }
+  }
+
+  // Marks the oldest queued blocks done: `moves` moves and the blocks without motion that
+  // follow them (they took effect once the moves before them were done).
+  void pop_done(std::size_t moves) {
+    while (!queued_.empty()) {
+      if (queued_.front().geo.motion) {
+        if (moves == 0) break;
+        --moves;
+      }
+      executed(queued_.front());
+      queued_.pop_front();
+    }
+  }
+
+  std::size_t queued_moves() const {
+    return static_cast<std::size_t>(std::count_if(
+        queued_.begin(), queued_.end(), [](const Item& it) { return it.geo.motion; }));
+  }
+
+  Vec3 work_position(const GrblStatus& st) {
+    if (st.wco) wco_ = *st.wco;
+    if (st.wpos) return *st.wpos;
+    const Vec3 m = st.mpos.value_or(Vec3{});
+    return {m[0] - wco_[0], m[1] - wco_[1], m[2] - wco_[2]};
+  }
+
+  void on_status(const GrblStatus& st) {
+    ++report_.status_reports;
+    status_supported_ = true;
+    last_status_ = st;
+    last_position_ = work_position(st);
+    have_status_ = true;
+    if (phase_ != Phase::Ready && !stopping_) return;  // startup and recovery read it themselves
+    if (!track_ok_ || st.state == "Alarm") return;
+    track(st, last_position_);
+  }
+
+  void track(const GrblStatus& st, const Vec3& pos) {
+    if (st.state == "Idle") {
+      pop_done(queued_moves());
+      basis("Bf");
+    } else if (st.line_number) {
+      const auto at = std::find_if(queued_.begin(), queued_.end(),
+                                   [&](const Item& it) { return it.n == st.line_number; });
+      if (at != queued_.end()) {
+        pop_done(static_cast<std::size_t>(std::count_if(
+            queued_.begin(), at, [](const Item& it) { return it.geo.motion; })));
+      }
+      basis("Ln");
+    } else if (st.free_blocks) {
+      const auto held = static_cast<std::size_t>(std::max(0, s_.planner_blocks - *st.free_blocks));
+      const std::size_t moves = queued_moves();
+      if (moves > held) pop_done(moves - held);
+      basis("Bf");
+    } else {
+      std::optional<std::size_t> hit;
+      std::size_t moves_before = 0, before_hit = 0;
+      int hits = 0;
+      for (const Item& it : queued_) {
+        if (!it.geo.motion) continue;
+        double u = 0.0;
+        if (to_segment(pos, it.geo.from_mm, it.geo.to_mm, u) <= kPositionTolMm && u < 1.0) {
+          ++hits;
+          before_hit = moves_before;
+          hit = moves_before;
+        }
+        ++moves_before;
+      }
+      if (hits == 1) pop_done(before_hit);
+      basis("position");
+    }
+    confirm_journal();
+  }
+
+  void basis(const char* how) {
+    if (report_.execution_basis.empty()) report_.execution_basis = how;
+  }
+
+  void poll_status() {
+    if (s_.status_hz <= 0.0) return;
+    const double now = now_s();
+    if (now < next_poll_s_) return;
+    next_poll_s_ = now + 1.0 / s_.status_hz;
+    write_raw("?");
+    if (++polls_ >= 20 && !have_status_ && status_supported_) {
+      status_supported_ = false;
+      report_.execution_basis = "not known: the controller does not answer '?'";
+      report_.notes.push_back(
+          "the controller answered no status report: executed blocks are not known; "
+          "'completed' means every block was queued (answered ok)");
+    }
+  }
+
+  void write_raw(std::string_view bytes) {
+    std::size_t off = 0;
+    const double until = now_s() + 1.0;
+    while (off < bytes.size() && now_s() < until) {
+      const std::size_t n = link_->write_some(bytes.substr(off));
+      off += n;
+      report_.bytes_written += static_cast<std::int64_t>(n);
+      if (off < bytes.size()) link_->wait(1, true);
+    }
+  }
+
+  // Start-up: never send before the controller has spoken.
+  void startup() {
+    const double since = now_s() - phase_t0_;
+    if (!opened_once_before_) {
+      if (!woke_ && since >= s_.banner_wait_s) {
+        woke_ = true;
+        emit(SenderEvent::Kind::Opened, resume_point(),
+             "no banner within " + fixed(s_.banner_wait_s, 1) +
+                 " s: waking the controller with an empty line");
+        write_raw("\n");
+      }
+      if (since >= s_.startup_timeout_s) {
+        report_.failure = "the controller on " + s_.line.device + " did not speak within " +
+                          fixed(s_.startup_timeout_s, 1) +
+                          " s (no banner, no answer to an empty line): check that it is "
+                          "powered, the port, the baud rate and the frame (" +
+                          describe(s_.line) + "), or raise --startup-timeout";
+      }
+      return;
+    }
+    // After a lost link: a banner means a reset (handled in ack_line). Without one, hold and
+    // ask where the controller is.
+    if (since >= std::min(s_.banner_wait_s, 1.0)) {
+      phase_ = Phase::Recovering;
+      phase_t0_ = now_s();
+      have_status_ = false;
+      write_raw("!?");
+      next_poll_s_ = now_s() + 0.2;
+    }
+  }
+
+  void recovering() {
+    const double now = now_s();
+    if (now - phase_t0_ > 5.0) {
+      interrupt("the controller gave no status within 5 s after the link came back");
+      return;
+    }
+    if (have_status_ && last_status_ &&
+        (last_status_->state == "Idle" || last_status_->state == "Hold:0")) {
+      decide_resume(*last_status_, last_position_);
+      return;
+    }
+    if (now >= next_poll_s_) {
+      next_poll_s_ = now + 0.2;
+      write_raw("?");
+    }
+  }
+
+  // The controller is held or idle after a lost link: resume only if the position proves
+  // which blocks it holds (see the top of this file).
+  void decide_resume(const GrblStatus& st, const Vec3& pos) {
+    const std::string where = " (position " + fixed(pos[0], 3) + ", " + fixed(pos[1], 3) + ", " +
+                              fixed(pos[2], 3) + ", " + st.state + ")";
+    if (!st.free_blocks) {
+      interrupt("after the lost link the status has no Bf: field, so the blocks the controller "
+                "holds cannot be counted (grbl: $10=2 or 3)" + where);
+      return;
+    }
+    if (st.free_bytes && *st.free_bytes < s_.rx_buffer_bytes) {
+      interrupt("after the lost link the controller's receive buffer still holds " +
+                std::to_string(s_.rx_buffer_bytes - *st.free_bytes) +
+                " bytes, lines not yet read: which blocks they are cannot be told" + where);
+      return;
+    }
+    // Candidates: queued (ok'd) blocks, then the lines written on the lost connection.
+    std::vector<const Item*> cands;
+    for (const Item& it : queued_) cands.push_back(&it);
+    const std::size_t n_queued = cands.size();
+    const std::size_t written = sent_items_ + (cur_off_ > 0 ? 1 : 0);
+    for (std::size_t i = 0; i < written && i < items_.size(); ++i) cands.push_back(&items_[i]);
+    const auto held = static_cast<std::size_t>(std::max(0, s_.planner_blocks - *st.free_blocks));
+    // The last candidate the controller received: index into cands, or -1 for "none".
+    long last = -1;
+    if (cands.empty()) {
+      last = -1;
+    } else if (held == 0) {
+      int hits = 0;
+      for (std::size_t i = 0; i < cands.size(); ++i) {
+        if (cands[i]->geo.motion && dist(cands[i]->geo.to_mm, pos) <= kPositionTolMm) {
+          ++hits;
+          last = static_cast<long>(i);
+        }
+      }
+      if (hits != 1) {
+        if (hits == 0 && n_queued == cands.size()) {
+          last = static_cast<long>(cands.size()) - 1;  // nothing in flight: all queued ran
+        } else {
+          interrupt("after the lost link the position matches " + std::to_string(hits) +
+                    " end points of the blocks the controller may have" + where);
+          return;
+        }
+      }
+    } else {
+      int hits = 0;
+      long e = -1;
+      bool at_end = false;
+      for (std::size_t i = 0; i < cands.size(); ++i) {
+        if (!cands[i]->geo.motion) continue;
+        double u = 0.0;
+        if (to_segment(pos, cands[i]->geo.from_mm, cands[i]->geo.to_mm, u) <= kPositionTolMm &&
+            (u > 0.0 || dist(pos, cands[i]->geo.from_mm) > kPositionTolMm)) {
+          ++hits;
+          e = static_cast<long>(i);
+          at_end = dist(pos, cands[i]->geo.to_mm) <= kPositionTolMm;
+        }
+      }
+      if (hits != 1) {
+        interrupt("after the lost link the position lies on " + std::to_string(hits) +
+                  " of the blocks the controller may have" + where);
+        return;
+      }
+      // The planner holds `held` moves starting with e (or with the move after e, at its end).
+      std::size_t need = at_end ? held : held - 1;
+      last = e;
+      for (std::size_t i = static_cast<std::size_t>(e) + 1; i < cands.size() && need > 0; ++i) {
+        if (cands[i]->geo.motion) {
+          --need;
+          last = static_cast<long>(i);
+        }
+      }
+      if (need > 0) {
+        interrupt("after the lost link the controller holds " + std::to_string(held) +
+                  " moves, more than ncd sent" + where);
+        return;
+      }
+    }
+    if (last + 1 < static_cast<long>(n_queued)) {
+      interrupt("after the lost link the position says the controller lacks blocks it had "
+                "queued" + where);
+      return;
+    }
+    const std::size_t next = static_cast<std::size_t>(last + 1);
+    if (next < cands.size() && !cands[next]->geo.motion) {
+      interrupt("after the lost link it cannot be told whether block '" +
+                trim_eob(cands[next]->bytes) +
+                "' (no motion) reached the controller" + where);
+      return;
+    }
+    // The controller has cands[0 .. last]: queue the written ones it received, resend the rest.
+    const std::size_t received = next > n_queued ? next - n_queued : 0;
+    for (std::size_t i = 0; i < received; ++i) {
+      Item it = std::move(items_.front());
+      items_.pop_front();
+      queue_item(std::move(it));
+    }
+    std::int64_t resent = 0;
+    for (std::size_t i = 0; i + received < written && i < items_.size(); ++i) {
+      if (items_[i].index >= 0) ++resent;
+    }
+    report_.blocks_resent += resent;
+    sent_items_ = 0;
+    cur_off_ = 0;
+    unacked_bytes_ = 0;
+    for (Item& it : items_) it.end_mark = -1.0;
+    const std::size_t moves = queued_moves();
+    if (moves > held) pop_done(moves - held);
+    Item flush;
+    flush.index = kFlush;
+    flush.bytes = ")" + std::string(80, 'X') + "\n";
+    items_.push_front(std::move(flush));
+    ++report_.reconnects;
+    phase_ = Phase::Ready;
+    if (st.state == "Hold:0") write_raw("~");
+    emit(SenderEvent::Kind::Reopened, resume_point(),
+         "the position proves what the controller holds" + where + "; resuming with block " +
+             std::to_string(resume_point() + 1) + (resent > 0 ? " (" + std::to_string(resent) +
+                                                                   " lost in the cut go again)"
+                                                             : std::string()));
+    confirm_journal();
+  }
+
+  // A reset, seen: nothing to stop, the queue is gone. Never resume past it.
+  void controller_reset(const std::string& why) {
+    const std::int64_t first = first_unexecuted();
+    dropped_note(first);
+    interrupt(why);
+  }
+
+  // An error reply or an alarm: hold at once, read a status, then reset so nothing queued after
+  // it runs.
+  void stop_controller(const std::string& why) {
+    report_.alarms.push_back(why);
+    emit(SenderEvent::Kind::Alarm, resume_point(), why);
+    if (s_.reset_on_error && link_) {
+      stopping_ = true;
+      try {
+        have_status_ = false;
+        write_raw("!?");
+        pump_until(1.0, [&] { return have_status_; });
+        write_raw(std::string(1, '\x18'));
+        pump_until(3.0, [&] { return reset_seen_; });
+      } catch (const LinkError&) {
+      }
+      stopping_ = false;
+      report_.notes.push_back("the controller was held (!) and reset (0x18) after the failure");
+    }
+    dropped_note(first_unexecuted());
+    interrupt(why);
+  }
+
+  template <class Pred>
+  void pump_until(double timeout_s, Pred pred) {
+    const double until = now_s() + timeout_s;
+    while (now_s() < until && !pred()) {
+      read_input();
+      link_->wait(5, false);
+    }
+  }
+
+  void dropped_note(std::int64_t first) {
+    std::int64_t lo = -1, hi = -1, in_flight = 0;
+    for (const Item& it : queued_) {
+      if (it.index < 0) continue;
+      if (lo < 0) lo = it.index;
+      hi = it.index;
+    }
+    for (std::size_t i = 0; i < sent_items_ && i < items_.size(); ++i) {
+      if (items_[i].index >= 0) ++in_flight;
+    }
+    std::string d;
+    if (lo >= 0) {
+      d = "blocks " + std::to_string(lo + 1) + "-" + std::to_string(hi + 1) +
+          " were queued in the controller and not known executed";
+    }
+    if (in_flight > 0) {
+      d += (d.empty() ? "" : "; ") + std::to_string(in_flight) +
+           " more were sent and not answered";
+    }
+    report_.dropped = d.empty() ? "nothing was queued beyond block " + std::to_string(first) : d;
+  }
+
+  void interrupt(const std::string& why) {
+    report_.interrupted = true;
+    const std::int64_t first = first_unexecuted();
+    std::string where;
+    if (ack_ && status_known()) {
+      where = "; last block known executed: " +
+              (last_executed_ >= 0 ? std::to_string(last_executed_ + 1) : std::string("none")) +
+              ", first block not known executed: " + std::to_string(first + 1) +
+              "; not resuming: check the machine, then restart with --restart-from " +
+              std::to_string(first + 1);
+    } else {
+      where = "; first block not known delivered: " + std::to_string(first + 1) +
+              " (executed blocks are not known on this link)";
+    }
+    report_.failure = why + where;
   }
 
   void noise(std::size_t bytes, char c) {
@@ -260,8 +791,8 @@ class Session {
 
   void alarm(const std::string& text) {
     report_.alarms.push_back(text);
-    report_.failure = text;
     emit(SenderEvent::Kind::Alarm, resume_point(), text);
+    interrupt(text);
   }
 
   void watch_hold() {
@@ -319,12 +850,22 @@ class Session {
       ++report_.blocks;
       report_.program_bytes += static_cast<std::int64_t>(text.size() + 1);
       if (!starts_with_n_word(text)) numbered_ = false;
+      const BlockMotion geo = modal_.apply(text);
       if (index < skip_until_) continue;
       Item it;
       it.index = index;
       it.bytes = text + eob_text(s_.line.eob);
+      it.geo = geo;
+      it.n = n_word(text);
       items_.push_back(std::move(it));
       return true;
+    }
+  }
+
+  void written(const Item& it) {
+    if (it.index >= 0 && it.index >= sent_high_) {
+      sent_high_ = it.index + 1;
+      ++report_.blocks_sent;
     }
   }
 
@@ -350,6 +891,7 @@ class Session {
       cur_off_ += n;
       if (cur_off_ == it.bytes.size()) {
         it.end_mark = static_cast<double>(conn_written_);
+        written(it);
         ++sent_items_;
         cur_off_ = 0;
       }
@@ -363,10 +905,11 @@ class Session {
       Item& it = items_[sent_items_];
       const int size = static_cast<int>(it.bytes.size());
       if (size > s_.rx_buffer_bytes) {
-        alarm("block " + std::to_string(it.index + 1) + " has " + std::to_string(size) +
-              " characters, more than the controller's " + std::to_string(s_.rx_buffer_bytes) +
-              "-byte receive buffer: raise --rx-buffer to the controller's size or shorten the "
-              "block");
+        report_.failure = "block " + std::to_string(it.index + 1) + " has " +
+                          std::to_string(size) + " characters, more than the controller's " +
+                          std::to_string(s_.rx_buffer_bytes) +
+                          "-byte receive buffer: raise --rx-buffer to the controller's size or "
+                          "shorten the block";
         return;
       }
       if (cur_off_ == 0 && unacked_bytes_ + size > s_.rx_buffer_bytes) return;
@@ -378,6 +921,7 @@ class Session {
       cur_off_ += n;
       if (cur_off_ < it.bytes.size()) return;
       it.end_mark = static_cast<double>(conn_written_);
+      written(it);
       ++sent_items_;
       cur_off_ = 0;
     }
@@ -391,8 +935,9 @@ class Session {
       if (items_[i].end_mark > have) break;
       confirmed_bytes_after_front += static_cast<std::int64_t>(items_[i].bytes.size());
     }
+    const std::int64_t keep = s_.controller_skips_repeated_n ? window_ : 0;
     while (sent_items_ > 0 && items_.front().end_mark <= have &&
-           (items_.front().index < 0 || confirmed_bytes_after_front >= window_)) {
+           (items_.front().index < 0 || confirmed_bytes_after_front >= keep)) {
       if (sent_items_ > 1) {
         confirmed_bytes_after_front -= static_cast<std::int64_t>(items_[1].bytes.size());
       }
@@ -402,7 +947,7 @@ class Session {
     confirm_journal();
   }
 
-  // The first block that would be sent again after a lost link.
+  // The first block not delivered (drip) or not known queued (ack), for progress lines.
   std::int64_t resume_point() const {
     for (const Item& it : items_) {
       if (it.index >= 0) return it.index;
@@ -410,10 +955,20 @@ class Session {
     return std::max(next_index_, skip_until_);
   }
 
+  // The first block not known executed (ack) or delivered (drip).
+  std::int64_t first_unexecuted() const {
+    if (ack_ && status_known()) {
+      for (const Item& it : queued_) {
+        if (it.index >= 0) return it.index;
+      }
+    }
+    return resume_point();
+  }
+
   void confirm_journal() {
     if (journal_ == nullptr) return;
     const double now = now_s();
-    const std::int64_t point = resume_point();
+    const std::int64_t point = first_unexecuted();
     if (point == journaled_ || (now - journal_at_s_ < 0.02 && !source_done_)) return;
     journal_->confirm(point);
     journaled_ = point;
@@ -422,16 +977,32 @@ class Session {
 
   void lost_link(const std::string& why) {
     link_.reset();
-    ++report_.reconnects;
+    ++report_.link_losses;
     set_hold(true);
-    if (!ack_ && !numbered_) {
-      emit(SenderEvent::Kind::LinkLost, resume_point(),
-           "the blocks carry no N numbers, so the controller cannot discard repeats: the resume "
-           "may repeat up to " +
-               std::to_string(window_) + " characters of blocks");
+    if (ack_) {
+      if (phase_ == Phase::Startup && !opened_once_before_ && !woke_) {
+        phase_t0_ = -1.0;  // nothing was sent yet: start again
+      } else {
+        opened_once_before_ = true;
+      }
+      line_.clear();
+      conn_written_ = 0;
+      emit(SenderEvent::Kind::LinkLost, first_unexecuted(),
+           why + "; the first block not known executed is " +
+               std::to_string(first_unexecuted() + 1) +
+               "; on reconnecting ncd holds the controller and resumes only if its position "
+               "proves which blocks it has");
+      return;
+    }
+    if (!s_.controller_skips_repeated_n || !numbered_) {
+      interrupt(why + ": a drip-feed controller executes what it receives and says nothing, so "
+                      "which blocks arrived cannot be told, and a block sent again would run "
+                      "twice" +
+                std::string(numbered_ ? "" : " (the blocks carry no N numbers)"));
+      return;
     }
     // Everything still in the window goes again, except the opening framing.
-    std::erase_if(items_, [](const Item& it) { return it.index < 0 && !it.closing; });
+    std::erase_if(items_, [](const Item& it) { return it.index == kFraming && !it.closing; });
     std::int64_t resent = 0;
     for (std::size_t i = 0; i < items_.size(); ++i) {
       if (items_[i].index >= 0 && (i < sent_items_ || (i == sent_items_ && cur_off_ > 0))) {
@@ -450,11 +1021,13 @@ class Session {
     xon_ = true;
     cts_low_ = false;
     emit(SenderEvent::Kind::LinkLost, resume_point(),
-         why + "; will resume at block " + std::to_string(resume_point() + 1));
+         why + "; will resume at block " + std::to_string(resume_point() + 1) +
+             " (the controller discards the N numbers it already has)");
   }
 
   // Opens (or reopens) the port with back-off; false if it could not be opened in time.
   bool reopen(const std::atomic<bool>& stop) {
+    if (over()) return false;
     const double start = now_s();
     double backoff = 0.1;
     std::string last_error;
@@ -464,13 +1037,17 @@ class Session {
         last_tick_ = Clock::now();
         if (opened_once_) {
           emit(SenderEvent::Kind::Reopened, resume_point(),
-               "reopened " + s_.line.device + " after " + fixed(now_s() - start, 1) +
-                   " s; resuming at block " + std::to_string(resume_point() + 1));
+               "reopened " + s_.line.device + " after " + fixed(now_s() - start, 1) + " s");
+          if (!ack_) ++report_.reconnects;
         } else {
           emit(SenderEvent::Kind::Opened, resume_point(),
                "opened " + s_.line.device + " at " + describe(s_.line));
         }
         opened_once_ = true;
+        phase_ = Phase::Startup;
+        phase_t0_ = now_s();
+        have_status_ = false;
+        next_poll_s_ = 0.0;
         set_hold(false);
         return true;
       } catch (const LinkError& e) {
@@ -484,9 +1061,16 @@ class Session {
       report_.stopped = true;
       return false;
     }
-    report_.failure =
-        (opened_once_ ? "gave up reopening the link after " : "cannot open the link: ") +
-        (opened_once_ ? fixed(s_.reconnect_max_s, 0) + " s: " : std::string()) + last_error;
+    std::error_code ec;
+    const bool gone = !std::filesystem::exists(s_.line.device, ec);
+    const std::string reason =
+        gone ? s_.line.device + " does not exist (no such file)" : last_error;
+    if (opened_once_) {
+      interrupt("the port went away and did not come back within " +
+                fixed(s_.reconnect_max_s, 0) + " s: " + reason);
+    } else {
+      report_.failure = "cannot open the link: " + reason;
+    }
     return false;
   }
 
@@ -498,7 +1082,8 @@ class Session {
          std::to_string(report_.blocks) + " blocks taken, " +
              std::to_string(report_.bytes_written) + " bytes written, " +
              fixed(100.0 * static_cast<double>(report_.bytes_written) / (now * cps_), 0) +
-             " % of the line" + (xon_ ? "" : ", held by XOFF"));
+             " % of the line" + (xon_ ? "" : ", held by XOFF") +
+             (ack_ && phase_ == Phase::Startup ? ", waiting for the controller to speak" : ""));
   }
 
   static std::string fixed(double v, int decimals) {
@@ -513,13 +1098,18 @@ class Session {
     report_.link_use = report_.duration_s > 0.0 ? static_cast<double>(report_.bytes_written) /
                                                       (report_.duration_s * cps_)
                                                 : 0.0;
-    report_.blocks_confirmed = report_.completed ? report_.blocks : resume_point();
+    if (report_.completed && ack_ && status_known()) pop_done(queued_moves());
+    report_.blocks_confirmed = report_.completed ? report_.blocks : first_unexecuted();
+    if (ack_ && status_known()) report_.blocks_executed = executed_count_;
+    if (ack_ && !status_known() && report_.execution_basis.empty()) {
+      report_.execution_basis = "not known";
+    }
     report_.program_sha256 = sha_.hex();
     if (journal_ != nullptr) {
       if (report_.completed) {
         journal_->complete();
       } else {
-        journal_->confirm(resume_point());
+        journal_->confirm(first_unexecuted());
       }
     }
     link_.reset();
@@ -535,7 +1125,8 @@ class Session {
   const int window_;
 
   std::unique_ptr<SerialLink> link_;
-  std::deque<Item> items_;
+  std::deque<Item> items_;   // not yet answered (ack) or delivered (drip), oldest first
+  std::deque<Item> queued_;  // ack: answered ok, not known executed
   std::size_t sent_items_ = 0;  // items at the front fully written on this connection
   std::size_t cur_off_ = 0;     // bytes of items_[sent_items_] written
   std::int64_t conn_written_ = 0;
@@ -545,6 +1136,9 @@ class Session {
   std::string line_;
   std::int64_t next_index_ = 0;
   std::int64_t skip_until_ = 0;
+  std::int64_t sent_high_ = 0;
+  std::int64_t executed_count_ = 0, last_executed_ = -1;
+  ProgramModal modal_;
   bool source_done_ = false;
   bool source_waiting_ = false;
   bool numbered_ = true;
@@ -556,6 +1150,16 @@ class Session {
   double cts_low_since_s_ = 0.0;
   bool holding_ = false;
   bool opened_once_ = false;
+  bool opened_once_before_ = false;  // ack: a connection carried blocks before this one
+  Phase phase_ = Phase::Startup;
+  double phase_t0_ = 0.0;
+  bool woke_ = false;
+  bool stopping_ = false, reset_seen_ = false, track_ok_ = true;
+  bool status_supported_ = true, have_status_ = false;
+  long polls_ = 0;
+  double next_poll_s_ = 0.0;
+  std::optional<GrblStatus> last_status_;
+  Vec3 last_position_{}, wco_{};
   std::int64_t journaled_ = -1;
   double journal_at_s_ = -1.0;
   double next_progress_s_ = 1.0;
@@ -576,6 +1180,58 @@ void DncSender::resume_from(std::int64_t first_block) {
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_);
   return session.run(stop);
+}
+
+}  // namespace ncd::comms
+
+namespace ncd::comms {
+
+std::optional<GrblStatus> parse_grbl_status(std::string_view line) {
+  if (line.size() < 3 || line.front() != '<' || line.back() != '>') return std::nullopt;
+  line = line.substr(1, line.size() - 2);
+  GrblStatus st;
+  bool first = true;
+  while (!line.empty() || first) {
+    const auto bar = line.find('|');
+    const std::string_view field = line.substr(0, bar);
+    line = bar == std::string_view::npos ? std::string_view() : line.substr(bar + 1);
+    if (first) {
+      if (field.empty()) return std::nullopt;
+      st.state = std::string(field);
+      first = false;
+      continue;
+    }
+    const auto colon = field.find(':');
+    if (colon == std::string_view::npos) continue;
+    const std::string_view key = field.substr(0, colon), value = field.substr(colon + 1);
+    if (key == "MPos") {
+      st.mpos = axes(value);
+      if (!st.mpos) return std::nullopt;
+    } else if (key == "WPos") {
+      st.wpos = axes(value);
+      if (!st.wpos) return std::nullopt;
+    } else if (key == "WCO") {
+      st.wco = axes(value);
+    } else if (key == "Bf") {
+      const auto comma = value.find(',');
+      int b = 0, r = 0;
+      if (comma == std::string_view::npos ||
+          std::from_chars(value.data(), value.data() + comma, b).ec != std::errc() ||
+          std::from_chars(value.data() + comma + 1, value.data() + value.size(), r).ec !=
+              std::errc()) {
+        return std::nullopt;
+      }
+      st.free_blocks = b;
+      st.free_bytes = r;
+    } else if (key == "Ln") {
+      long n = 0;
+      if (std::from_chars(value.data(), value.data() + value.size(), n).ec == std::errc()) {
+        st.line_number = n;
+      }
+    }
+  }
+  if (!st.mpos && !st.wpos) return std::nullopt;
+  return st;
 }
 
 }  // namespace ncd::comms

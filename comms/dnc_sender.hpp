@@ -1,13 +1,17 @@
 // The DNC sender: takes NC blocks from a source (a program file, or the block encoder live from
-// the cycle) and sends them over the serial link with one of two protocols, keeping a journal
-// so that neither a lost link nor a restarted ncd loses or repeats a block. The algorithm is
-// described at the top of dnc_sender.cpp.
+// the cycle) and sends them over the serial link with one of two protocols, tracking what the
+// controller queued and executed as far as the protocol tells, and keeping a journal of the
+// first block not known executed. It resumes after a lost link only where that is provably safe.
+// The algorithm is described at the top of dnc_sender.cpp; the rules in docs/dnc-link.md.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <array>
 #include <functional>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "comms/line_settings.hpp"
@@ -28,7 +32,28 @@ struct SenderSettings {
   // Negative: max_queued_chars + 0.25 s of line.
   int resend_window_chars = -1;
   double pacing_fraction = 0.98;  // drip: pace at this fraction of the line's capacity
+  // drip: the controller's maker documents that it discards a block whose N it already has;
+  // only then are blocks resent after a lost link (else the job stops as interrupted).
+  bool controller_skips_repeated_n = false;
+  // ack (grbl): start-up, status polling and recovery.
+  int planner_blocks = 15;         // grbl 1.1: 15
+  double status_hz = 5.0;          // `?` polls (out of band); 0: none, "executed" is not known
+  double banner_wait_s = 2.5;      // wait this long for the banner before waking with an LF
+  double startup_timeout_s = 10.0;  // no banner and no answer to the wake by then: give up
+  bool reset_on_error = true;      // on error:N or ALARM: feed hold, then soft reset (0x18)
+  // Lines sent before the first block (a restart's modal state and re-entry), without N.
+  std::vector<std::string> preamble;
 };
+
+// A grbl 1.1 status report, `<Run|MPos:1.000,2.000,0.000|Bf:14,120|Ln:40|FS:500,0>`.
+struct GrblStatus {
+  std::string state;  // Idle, Run, Hold:0, Hold:1, Alarm, …
+  std::optional<std::array<double, 3>> mpos, wpos, wco;
+  std::optional<int> free_blocks, free_bytes;  // Bf:
+  std::optional<long> line_number;             // Ln:
+};
+// Parses one status line (without CR LF); nullopt if it is not one.
+std::optional<GrblStatus> parse_grbl_status(std::string_view line);
 
 enum class BlockStatus { Ready, NotYet, End };
 
@@ -49,12 +74,24 @@ struct SenderEvent {
 };
 
 struct SenderReport {
-  bool completed = false;             // the controller has the whole program (confirmed, for ack)
-  bool stopped = false;               // stopped on request before the end
+  bool completed = false;    // drip: all delivered; ack: all executed (or queued without status)
+  bool stopped = false;      // stopped on request before the end
+  bool interrupted = false;  // a reset, an alarm, an error or a lost link stopped the job
   std::string failure;                // alarm or link given up; empty otherwise
   std::int64_t first_block = 0;       // resumed from this block (journal)
   std::int64_t blocks = 0;            // program blocks taken from the source
-  std::int64_t blocks_confirmed = 0;  // resume point at the end
+  std::int64_t blocks_confirmed = 0;  // resume point at the end: the first block not known
+                                      // executed (ack) or delivered (drip), 0-based
+  std::int64_t blocks_sent = 0;       // program blocks written in full at least once
+  std::int64_t blocks_queued = 0;     // ack: answered ok (queued by the controller)
+  std::int64_t blocks_executed = -1;  // ack with status: known executed; -1 not known (drip)
+  std::string execution_basis;        // how `executed` is known: Ln, Bf, position, or not
+  std::string dropped;                // what a reset threw away (queued, not executed)
+  int link_losses = 0;                // the port failed or hung up
+  std::uint64_t bytes_before_banner = 0;  // ack: always 0 (nothing is sent before it)
+  std::string startup;                    // ack: banner | woken | none
+  long status_reports = 0;
+  std::vector<std::string> notes;  // what the report cannot vouch for
   std::int64_t blocks_resent = 0;     // sent again after a lost link
   std::int64_t bytes_written = 0;     // everything written, framing and resends included
   std::int64_t program_bytes = 0;     // the blocks with their end of block, once each
@@ -64,7 +101,7 @@ struct SenderReport {
   double xoff_total_s = 0.0;
   double xoff_longest_s = 0.0;
   int xoff_timeouts = 0;
-  int reconnects = 0;
+  int reconnects = 0;  // reopened and resumed
   std::int64_t noise_bytes = 0;
   std::vector<std::string> alarms;
   int max_output_queue = 0;     // largest TIOCOUTQ seen

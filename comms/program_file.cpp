@@ -22,6 +22,23 @@ std::string line_text(std::string_view raw) {
   return s.substr(first, last - first + 1);
 }
 
+int grbl_line_chars(std::string_view text) {
+  int n = 0;
+  bool paren = false;
+  for (const char c : text) {
+    if (paren) {
+      paren = c != ')';
+    } else if (c == ';') {
+      break;
+    } else if (c == '(') {
+      paren = true;
+    } else if (static_cast<unsigned char>(c) > ' ' && c != '/') {
+      ++n;
+    }
+  }
+  return n;
+}
+
 std::string block_of_line(const std::string& line) {
   std::string s = line_text(line);
   return s == "%" ? std::string() : s;
@@ -57,6 +74,11 @@ ProgramSummary scan_program(const std::string& path, int data_bits, int max_bloc
     ++sum.blocks;
     sum.bytes += static_cast<std::int64_t>(block.size() + 1);
     sum.longest_block = std::max(sum.longest_block, static_cast<int>(block.size()));
+    const int kept = grbl_line_chars(block);
+    if (kept > sum.longest_kept) {
+      sum.longest_kept = kept;
+      sum.longest_kept_line = number;
+    }
     if (!(block.size() > 1 && (block[0] == 'N' || block[0] == 'n') &&
           std::isdigit(static_cast<unsigned char>(block[1])) != 0)) {
       sum.numbered = false;

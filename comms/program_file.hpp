@@ -18,7 +18,16 @@ struct ProgramSummary {
   std::string sha256;      // of the blocks, each ended by one LF
   bool numbered = true;    // every block starts with an N word
   int longest_block = 0;   // characters, without end of block
+  int longest_kept = 0;    // grbl_line_chars of the longest block by that count
+  long longest_kept_line = 0;  // its line in the file (1-based)
 };
+
+// grbl 1.1 keeps 79 characters of a line (LINE_BUFFER_SIZE 80) after removing spaces, control
+// characters and comments; a longer line is answered error:11.
+inline constexpr int kGrblLineChars = 79;
+// The characters grbl keeps of a line (spaces, control characters, `(…)` and `;…` removed);
+// grbl 1.1 refuses a line that keeps more than 79 with error:11.
+int grbl_line_chars(std::string_view text);
 
 // Reads the whole program once to check and summarise it; throws InputError naming the file and
 // line of a character a 7-bit line cannot carry or a block longer than max_block_chars.

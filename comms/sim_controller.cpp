@@ -1,5 +1,7 @@
 // The simulated controller: a CNC's DNC port on a pseudo-terminal, one thread, one loop, on the
-// wall clock.
+// wall clock or on a clock the caller injects (SimControllerConfig::clock, a ManualClock in the
+// tests), so that pacing, execution and faults can be tested in simulated time. The protocols
+// and what each guarantees are described in docs/dnc-link.md.
 //
 //   sender ─► pty slave ═ kernel ═► master ─► wire ─► receive buffer ─► (ack: planner) ─► executor
 //                                  ≤ chars_per_s    buffer_bytes        planner_blocks   real time
@@ -17,24 +19,38 @@
 // 2. The receive buffer holds the line being received and the complete lines not yet taken out,
 //    CR and LF included; NULs (leader) are dropped on arrival, as a tape reader skips them. A
 //    character that finds the buffer full is an overflow: alarm. A line longer than
-//    max_block_chars is an error (ack: error:14) or an alarm (drip).
+//    max_block_chars is an error (ack: error:11) or an alarm (drip).
 // 3. Drip: DC3 when the fill reaches xoff_at, DC1 when it falls to xon_at; a sender that
 //    connects gets the current state first (DC1, ready, at the start); XOFF storms, holds and
 //    alarms also assert DC3.
-//    Ack (grbl): a line is answered when it leaves the receive buffer: `ok` when it enters the
-//    planner queue (whose count includes the executing block, as grbl's does), at once for a
-//    line that is no block, `error:N` when it does not parse. A sender counting characters never
-//    overflows the buffer; one that does broke the rule: alarm. No DC1/DC3 in ack mode.
+//    Ack (grbl 1.1): CR and LF each end a line (so CR LF is a line and an empty line, two oks).
+//    A line is answered when it leaves the receive buffer: `ok` when a move enters the planner
+//    queue (planner_blocks, 15 as grbl's, the executing block included), `ok` for a block
+//    without motion once the planner has run empty and the block took effect (grbl
+//    synchronises for M codes and G4; it does not for pure setup blocks, which the simulation
+//    makes wait as well), `error:N` when it does not parse, `error:11` when more than 79
+//    characters are left after removing spaces and comments. A sender counting characters
+//    never overflows the buffer; one that does broke the rule: alarm. No DC1/DC3 in ack mode.
+//    Real-time bytes are taken out of the stream as they arrive, like grbl's serial interrupt:
+//    `?` answers `<State|MPos:x,y,z|Bf:free blocks,free bytes[|Ln:n]|FS:feed,0>`, `!` holds
+//    (the motion stops at once where it is: Hold:0), `~` resumes, 0x18 resets. A reset (also
+//    the injected fault, and with reset_on_open a sender opening the port) aborts the block
+//    executing, throws away the planner, the receive buffer and a partial line, keeps the
+//    position, and after boot_s (bytes received meanwhile are lost, counted as
+//    bytes_before_banner) sends the banner; a reset while moving first says ALARM:3 and locks
+//    the controller (error:9 for every line) until `$X`. N numbers are ignored.
 // 4. Lines. LF ends a line; CR and NUL are removed, spaces and tabs trimmed at both ends. Empty
 //    lines and `%` lines are framing: a `%` after a block on the current connection ends the
 //    program; any other `%` opens it (again, from a sender that reconnected).
-//    Every other line is a block, comments included. A block whose N is not above the last
-//    accepted N is a duplicate from a sender resuming after a lost link: discarded (ack: still
-//    answered ok). Accepted blocks are hashed (SHA-256, each with one LF); M2/M30 end the
-//    program too. Lines after the end are counted and ignored (ack: answered ok).
-// 5. Execution starts when the buffer is primed: the fill reaches xoff_at (ack: or the planner
-//    is full), the program end has arrived, or prime_idle_s passed without a character while a
-//    block waits. Then each block runs for its time (distance / F for G1, the rapid rate for G0,
+//    Every other line is a block, comments included. A repeated block is executed again; only
+//    with skip_duplicate_n (drip) is a block whose N is not above the last accepted N
+//    discarded, as a controller documented to skip repeated sequence numbers would. Accepted
+//    blocks are hashed (SHA-256, each with one LF); M2/M30 end the program too. Lines after the
+//    end are counted and ignored (ack: answered ok). Each block executed to its end is logged
+//    (`executed`), so a test can compare what ran with the program.
+// 5. Execution starts when the buffer is primed (ack: at once, as grbl's auto cycle start): the
+//    fill reaches xoff_at, the program end has arrived, or prime_idle_s passed without a
+//    character while a block waits. Then each block runs for its time (distance / F for G1, the rapid rate for G0,
 //    P seconds for G4, none for the rest) back to back on exact times, so the jitter of this
 //    loop does not accumulate. A block's characters leave the buffer when it starts (drip).
 //    When the executor is free and the next block arrives later, before the program end has,
@@ -133,6 +149,8 @@ double distance(const std::array<double, 3>& a, const std::array<double, 3>& b) 
 SimControllerConfig checked(SimControllerConfig c) {
   check_baud(c.line.baud);
   if (c.line.device.empty()) bad("no link path", "give --link PATH, e.g. /tmp/cnc0");
+  const bool ack = c.line.protocol == Protocol::Ack;
+  if (c.buffer_bytes == 0) c.buffer_bytes = ack ? 128 : 256;
   if (c.buffer_bytes < 64 || c.buffer_bytes > (1 << 20)) {
     bad("--buffer " + std::to_string(c.buffer_bytes) + " is out of range",
         "use 64 to 1048576 bytes (grbl has 128, grblHAL 1024, a Fanuc some 256)");
@@ -151,7 +169,7 @@ SimControllerConfig checked(SimControllerConfig c) {
   }
   if (c.planner_blocks < 1 || c.planner_blocks > 1000) {
     bad("--planner-blocks " + std::to_string(c.planner_blocks) + " is out of range",
-        "use 1 to 1000 (grbl has 16)");
+        "use 1 to 1000 (grbl 1.1 has 15)");
   }
   if (!std::isfinite(c.rapid_mm_per_min) || c.rapid_mm_per_min <= 0.0) {
     bad("--rapid " + num(c.rapid_mm_per_min) + " mm/min is invalid", "use a rate above 0");
@@ -162,7 +180,21 @@ SimControllerConfig checked(SimControllerConfig c) {
   }
   SimFaults& f = c.faults;
   const bool xon_xoff = c.line.protocol == Protocol::Drip && c.line.flow == Flow::XonXoff;
-  if (f.drop_link_after_blocks < 0 || f.hold_after_blocks < 0 || f.alarm_after_blocks < 0) {
+  if (!std::isfinite(c.boot_s) || c.boot_s < 0.0 || c.boot_s > 60.0) {
+    bad("--boot-s " + num(c.boot_s) + " is out of range",
+        "use 0 to 60 s (an Arduino's bootloader takes about 1 to 2 s)");
+  }
+  if ((c.reset_on_open || c.report_line_numbers) && !ack) {
+    bad(std::string(c.reset_on_open ? "--reset-on-open" : "--report-line-numbers") +
+            " is a grbl behaviour",
+        "use --protocol ack");
+  }
+  if (c.skip_duplicate_n && ack) {
+    bad("--skip-duplicate-n is not a grbl behaviour (grbl ignores N numbers)",
+        "use --protocol drip, or leave it out");
+  }
+  if (f.drop_link_after_blocks < 0 || f.hold_after_blocks < 0 || f.alarm_after_blocks < 0 ||
+      f.reset_after_blocks < 0) {
     bad("a fault's block count is negative", "use a count of 1 or more, or 0 for none");
   }
   if (!std::isfinite(f.down_s) || f.down_s < 0.0 || f.down_s > 3600.0) {
@@ -263,6 +295,7 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
           motion = static_cast<int>(code10 / 10);
         } else if (code10 == 40) {
           dwell = true;
+          b.dwell = true;
         } else if (code10 == 640) {
           g64 = true;
         } else if (code10 == 910) {
@@ -358,6 +391,8 @@ struct SimController::Impl {
     double ready_t = 0.0;     // when the executor may have it
     SimBlock block;
     int error = 0;
+    std::string text;  // the block, for the executed log
+    long seq = 0;      // blocks accepted when it was (1-based)
   };
 
   explicit Impl(SimControllerConfig c)
@@ -383,7 +418,10 @@ struct SimController::Impl {
 
   // ---- time and output ----
 
-  double now_s() const { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+  double now_s() const {
+    if (cfg.clock) return cfg.clock->now_s() - clock_t0;
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+  }
 
   void event(const std::string& text) {
     if (cfg.on_event) cfg.on_event(text);
@@ -414,6 +452,7 @@ struct SimController::Impl {
     const ssize_t n = ::write(pty.master(), out.data(), out.size());
     if (n > 0) {
       out.erase(0, static_cast<std::size_t>(n));
+      bytes_sent += static_cast<std::uint64_t>(n);
     } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
       out.clear();
     }
@@ -437,6 +476,7 @@ struct SimController::Impl {
     ::tcflush(pty.held_slave(), TCIFLUSH);  // nothing stale for the new sender
     out.clear();
     if (xon_xoff) send_flow(told_xoff);
+    if (!drip && cfg.reset_on_open) reset(t, "port_opened");
   }
 
   void sender_disconnected(double t) {
@@ -544,6 +584,21 @@ struct SimController::Impl {
     ++log.bytes_received;
     log.last_byte_t_s = t;
     if (cfg.line.data_bits == 7) c = static_cast<char>(c & 0x7F);
+    if (!drip) {
+      if (booting_until) {  // the controller is not listening yet
+        ++log.bytes_before_banner;
+        return;
+      }
+      if (c == kGrblStatus) {
+        send(status_report(t));
+        ++log.status_reports;
+        return;
+      }
+      if (c == kGrblHold) return feed_hold(t);
+      if (c == kGrblResume) return cycle_start(t);
+      if (c == kGrblReset) return reset(t, "soft_reset");
+      if (c == '\r') c = '\n';  // grbl ends a line at CR and at LF
+    }
     if (alarmed) {
       ++log.bytes_after_alarm;
       if (!drip && c == '\n') {  // grbl: locked out until the alarm is cleared
@@ -561,10 +616,10 @@ struct SimController::Impl {
         ++log.lines_received;
         Line line;
         line.kind = Kind::Error;
-        line.error = kErrLineTooLong;
+        line.error = kErrLineOverflow;
         line.epoch = rx_epoch;
         line.ready_t = t;
-        log.errors.push_back({t, log.lines_received, kErrLineTooLong, "",
+        log.errors.push_back({t, log.lines_received, kErrLineOverflow, "",
                               "more than " + std::to_string(max_block) + " characters"});
         ++log.blocks_rejected;
         queue_line(std::move(line), t);
@@ -616,8 +671,33 @@ struct SimController::Impl {
       queue_line(std::move(line), t);
       return;
     }
+    if (!drip && (grbl_locked || text[0] == '$')) {  // grbl: locked until $X; $ commands
+      line.kind = Kind::Error;
+      line.error = kErrAlarmLock;
+      if (text == "$X" || text == "$x") {
+        grbl_locked = false;
+        line.kind = Kind::Framing;
+        send("[MSG:Caution: Unlocked]\r\n");
+      } else if (text[0] == '$') {
+        line.error = kErrExpectedLetter;
+      }
+      if (line.kind == Kind::Error) {
+        log.errors.push_back({t, log.lines_received, line.error, text,
+                              grbl_locked ? "locked by an alarm: send $X" : "not a block"});
+        ++log.blocks_rejected;
+      }
+      queue_line(std::move(line), t);
+      return;
+    }
     SimModal modal_after = modal;
-    SimParse p = parse_sim_block(text, modal_after, cfg.rapid_mm_per_min);
+    SimParse p;
+    if (!drip && grbl_line_chars(text) > kGrblLineChars) {  // grbl checks this before parsing
+      p.error = kErrLineOverflow;
+      p.message = std::to_string(grbl_line_chars(text)) + " characters without spaces and " +
+                  "comments, more than grbl's " + std::to_string(kGrblLineChars);
+    } else {
+      p = parse_sim_block(text, modal_after, cfg.rapid_mm_per_min);
+    }
     if (p.error != 0) {
       ++log.blocks_rejected;
       if (drip) {
@@ -630,7 +710,7 @@ struct SimController::Impl {
       queue_line(std::move(line), t);
       return;
     }
-    if (p.block.n && log.last_n && *p.block.n <= *log.last_n) {
+    if (drip && cfg.skip_duplicate_n && p.block.n && log.last_n && *p.block.n <= *log.last_n) {
       ++log.duplicates_discarded;
       ++blocks_in_epoch;
       line.kind = Kind::Duplicate;
@@ -640,7 +720,9 @@ struct SimController::Impl {
     } else {
       modal = modal_after;
       line.block = p.block;
+      line.text = text;
       accept(text, p.block, t);
+      line.seq = log.blocks_received;
     }
     queue_line(std::move(line), t);
   }
@@ -666,6 +748,7 @@ struct SimController::Impl {
     if (f.alarm_after_blocks == k) {
       alarm_pending = true;  // after the line is queued
     }
+    if (f.reset_after_blocks == k && log.resets.empty()) reset_pending = true;
   }
 
   void receive_end(double t) {
@@ -677,6 +760,10 @@ struct SimController::Impl {
   void queue_line(Line line, double t) {
     rx.push_back(std::move(line));
     if (!drip) pump_planner(t);
+    if (reset_pending) {
+      reset_pending = false;
+      reset(t, "injected");
+    }
     if (alarm_pending) {
       alarm_pending = false;
       raise_alarm(
@@ -686,18 +773,42 @@ struct SimController::Impl {
   }
 
   // Ack: answers the lines at the head of the receive buffer, moving blocks into the planner.
+  // Blocks in grbl's planner: the queue and the move executing.
+  std::size_t planner_count() const { return planner.size() + (busy && !sync_busy ? 1 : 0); }
+
   void pump_planner(double t) {
-    while (!rx.empty()) {
+    while (!rx.empty() && !alarmed) {
       Line& line = rx.front();
+      if (line.kind == Kind::Block && !line.block.move) {
+        // grbl synchronises: the block waits for the planner to run empty, then takes effect.
+        if (!planner.empty() || busy || held) return;
+        if (!started) {
+          started = true;
+          log.execution_start_t_s = t;
+        }
+        fill -= line.size;
+        if (line.block.dwell) {  // answered once the dwell is over
+          start_block(line, t);
+          sync_busy = true;
+          rx.pop_front();
+          return;
+        }
+        current = line.block;
+        current_text = line.text;
+        current_seq = line.seq;
+        finish(t);
+        reply(line, "ok\r\n");
+        rx.pop_front();
+        continue;
+      }
       if (line.kind == Kind::Block || line.kind == Kind::End) {
-        const std::size_t held = planner.size() + (busy ? 1 : 0);
-        if (held >= static_cast<std::size_t>(cfg.planner_blocks)) return;
+        if (planner_count() >= static_cast<std::size_t>(cfg.planner_blocks)) return;
         line.ready_t = t;
         reply(line, "ok\r\n");
         fill -= line.size;
         planner.push_back(std::move(line));
         log.max_planner_blocks =
-            std::max(log.max_planner_blocks, static_cast<long>(planner.size() + (busy ? 1 : 0)));
+            std::max(log.max_planner_blocks, static_cast<long>(planner_count()));
       } else {
         reply(line, line.kind == Kind::Error ? "error:" + std::to_string(line.error) + "\r\n"
                                              : std::string("ok\r\n"));
@@ -730,6 +841,109 @@ struct SimController::Impl {
     fill = 0;
   }
 
+  // ---- grbl's real-time commands and resets ----
+
+  std::array<double, 3> position_at(double t) const {
+    if (!busy || !current.move) return position;
+    if (held) return hold_pos;
+    const double span = cur_t1 - cur_t0;
+    const double f = span > 0.0 ? std::clamp((t - cur_t0) / span, 0.0, 1.0) : 1.0;
+    std::array<double, 3> p{};
+    for (std::size_t k = 0; k < 3; ++k) p[k] = cur_from[k] + f * (current.to[k] - cur_from[k]);
+    return p;
+  }
+
+  std::string status_report(double t) const {
+    std::string s = "<";
+    if (alarmed || grbl_locked) {
+      s += "Alarm";
+    } else if (held) {
+      s += "Hold:0";  // the simulated hold stops at once: complete, ready to resume
+    } else {
+      s += busy || !planner.empty() ? "Run" : "Idle";
+    }
+    const auto p = position_at(t);
+    std::array<char, 96> text{};
+    std::snprintf(text.data(), text.size(), "|MPos:%.3f,%.3f,%.3f|Bf:%d,%d", p[0], p[1], p[2],
+                  cfg.planner_blocks - static_cast<int>(planner_count()),
+                  cfg.buffer_bytes - fill);
+    s += text.data();
+    if (cfg.report_line_numbers && busy && current.n && *current.n > 0) {
+      s += "|Ln:" + std::to_string(*current.n);
+    }
+    std::snprintf(text.data(), text.size(), "|FS:%.0f,0>\r\n",
+                  busy && !held && current.move ? current.feed_mm_per_min : 0.0);
+    return s + text.data();
+  }
+
+  void feed_hold(double t) {
+    ++log.feed_holds;
+    if (held || alarmed) return;
+    hold_pos = position_at(t);
+    held = true;
+    remaining_s = busy ? std::max(0.0, busy_end - t) : 0.0;
+    event("feed hold");
+  }
+
+  void cycle_start(double t) {
+    if (!held) return;
+    ++log.cycle_starts;
+    held = false;
+    if (busy) {
+      cur_from = hold_pos;
+      cur_t0 = t;
+      busy_end = cur_t1 = t + remaining_s;
+    } else {
+      free_at = std::max(free_at, t);
+    }
+    event("cycle start");
+    pump_planner(t);
+  }
+
+  // A controller reset (soft reset 0x18, the injected fault, or the port opened with
+  // reset_on_open): the motion stops where it is, the queue is lost, the position kept.
+  void reset(double t, const std::string& cause) {
+    SimReset r;
+    r.t_s = t;
+    r.cause = cause;
+    r.in_motion = busy && !held && current.move;
+    if (busy) {
+      position = position_at(t);
+      r.aborted = current_text;
+    }
+    r.position = position;
+    for (const Line& l : planner) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
+    for (const Line& l : rx) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
+    busy = sync_busy = held = false;
+    rx.clear();
+    planner.clear();
+    partial.clear();
+    partial_chars = 0;
+    discarding_long = false;
+    fill = 0;
+    free_at = t;
+    log.resets.push_back(r);
+    event("reset (" + cause + ")" + (r.aborted ? ": aborted '" + *r.aborted + "'" : "") + ", " +
+          std::to_string(r.blocks_lost) + " queued blocks lost, position kept");
+    if (drip) {  // a Fanuc-type control: DC3 then SYN, ready again at low water
+      send_flow(true);
+      send(std::string(1, kSyn));
+      return;
+    }
+    if (r.in_motion && !alarmed) {
+      send("ALARM:3\r\n");  // grbl: reset while in motion, position may be lost
+      grbl_locked = true;
+    }
+    booting_until = t + cfg.boot_s;
+  }
+
+  void boot_done() {
+    booting_until.reset();
+    send(std::string("\r\n") + kGrblBanner + "\r\n");
+    if (grbl_locked) send("[MSG:'$H'|'$X' to unlock]\r\n");
+    ++log.banners_sent;
+  }
+
   // ---- execution ----
 
   bool primed(double t) const {
@@ -738,6 +952,7 @@ struct SimController::Impl {
       return l.kind == Kind::Block || l.kind == Kind::End;
     });
     if (!has_block) return false;
+    if (!drip) return true;  // grbl starts a cycle as soon as a move is planned
     if (end_received || fill >= xoff_at) return true;
     if (!drip && planner.size() >= static_cast<std::size_t>(cfg.planner_blocks)) return true;
     return t - log.last_byte_t_s >= cfg.prime_idle_s;
@@ -751,12 +966,17 @@ struct SimController::Impl {
       free_at = t;
       log.execution_start_t_s = t;
     }
+    if (!drip) pump_planner(t);
     for (;;) {
       if (busy) {
-        if (busy_end > t) return;
+        if (held || busy_end > t) return;
+        const bool answer = sync_busy;
         finish(busy_end);
+        if (answer) send("ok\r\n");  // a dwell is answered when it is over
         if (!drip) pump_planner(busy_end);
+        if (busy) continue;
       }
+      if (held) return;
       auto& q = drip ? rx : planner;
       if (q.empty()) return;
       Line line = std::move(q.front());
@@ -769,20 +989,32 @@ struct SimController::Impl {
       }
       free_at = start;
       if (line.kind == Kind::Block) {
-        busy = true;
-        moved = moved || line.block.move;
-        busy_end = start + line.block.duration_s;
-        current = line.block;
+        start_block(line, start);
       } else if (line.kind == Kind::End) {
         end_executed(start);
       }
     }
   }
 
+  void start_block(const Line& line, double start) {
+    busy = true;
+    sync_busy = false;
+    moved = moved || line.block.move;
+    busy_end = start + line.block.duration_s;
+    current = line.block;
+    current_text = line.text;
+    current_seq = line.seq;
+    cur_from = position;
+    cur_t0 = start;
+    cur_t1 = busy_end;
+  }
+
   void finish(double t) {
     busy = false;
+    sync_busy = false;
     free_at = t;
     ++log.blocks_executed;
+    log.executed.push_back({current_seq, current.n, current_text, t});
     if (current.n) last_exec_n = current.n;
     if (current.move) {
       log.path_length_mm += distance(position, current.to);
@@ -827,7 +1059,7 @@ struct SimController::Impl {
         }
       }
     }
-    if (f.noise_bytes_per_s > 0.0 && open_count > 0 && t >= next_noise) {
+    while (f.noise_bytes_per_s > 0.0 && open_count > 0 && t >= next_noise) {
       const std::size_t n = drip ? static_cast<std::size_t>(uniform(1.0, 5.0))
                                  : static_cast<std::size_t>(uniform(4.0, 25.0));
       if (out.size() < kMaxOutQueue) {
@@ -884,7 +1116,8 @@ struct SimController::Impl {
     double due = t + kLoopPeriodS;
     if (pty.is_open() && !rx_idle) due = std::min(due, credit_t + (1.0 - credit) / cps);
     if (pty.is_open() && rx_idle && !backlog.empty()) due = t;
-    if (busy) due = std::min(due, busy_end);
+    if (busy && !held) due = std::min(due, busy_end);
+    if (booting_until) due = std::min(due, *booting_until);
     const double prime_t = log.last_byte_t_s + cfg.prime_idle_s;
     if (!started && prime_t > t) due = std::min(due, prime_t);
     if (down_until) due = std::min(due, *down_until);
@@ -895,11 +1128,14 @@ struct SimController::Impl {
     if (stop.load()) return true;
     if (!cfg.exit_at_end) return false;
     if (alarmed) return t - alarm_t >= cfg.alarm_linger_s;
+    // ack: the sender polls status until it has seen the end executed; wait for it to leave
+    if (!drip && open_count > 0) return false;
     return log.program_end_executed && t - log.last_byte_t_s >= cfg.exit_quiet_s && out.empty();
   }
 
   void run() {
     t0 = Clock::now();
+    if (cfg.clock) clock_t0 = cfg.clock->now_s();
     link_event(0.0, "created");  // DC1 (ready) goes to each sender as it connects
     next_storm = uniform(0.05, 0.5);
     if (cfg.faults.noise_bytes_per_s > 0.0) {
@@ -910,6 +1146,7 @@ struct SimController::Impl {
       double t = now_s();
       if (should_exit(t)) break;
       if (down_until && t >= *down_until) restore_link(t);
+      if (booting_until && t >= *booting_until) boot_done();
       if (pty.is_open()) on_slave_events(t);
       receive(t, readable);
       flow();  // DC3 when the fill reached high water, before a block starting now frees room
@@ -978,6 +1215,10 @@ struct SimController::Impl {
     live_alarms.store(static_cast<long>(log.alarms.size()), std::memory_order_relaxed);
     live_fill.store(fill, std::memory_order_relaxed);
     live_end_received.store(end_received, std::memory_order_relaxed);
+    live_noise.store(log.noise_bytes_sent, std::memory_order_relaxed);
+    live_sent.store(bytes_sent, std::memory_order_relaxed);
+    live_t.store(now_s(), std::memory_order_relaxed);
+    live_resets.store(static_cast<long>(log.resets.size()), std::memory_order_relaxed);
     live_end_executed.store(log.program_end_executed, std::memory_order_release);
   }
 
@@ -990,7 +1231,9 @@ struct SimController::Impl {
   std::array<int, 2> wake{-1, -1};
   std::atomic<bool> stop{false};
   Clock::time_point t0 = Clock::now();
+  double clock_t0 = 0.0;
   SimLog log;
+  std::uint64_t bytes_sent = 0;
   Sha256 sha;
   std::string out;
 
@@ -999,7 +1242,7 @@ struct SimController::Impl {
   std::uint64_t rx_epoch = 0, reply_epoch = 0;
   std::optional<std::uint64_t> marker;  // bytes taken when the last sender's bytes are all read
   std::optional<double> down_until;
-  bool drop_pending = false, alarm_pending = false;
+  bool drop_pending = false, alarm_pending = false, reset_pending = false;
 
   // wire
   std::array<char, 4096> buf{};
@@ -1032,12 +1275,23 @@ struct SimController::Impl {
   SimBlock current;
   std::array<double, 3> position{0.0, 0.0, 0.0};
   std::optional<long> last_exec_n;
+  std::string current_text;
+  long current_seq = 0;
+  std::array<double, 3> cur_from{}, hold_pos{};  // the move executing: from, and where held
+  double cur_t0 = 0.0, cur_t1 = 0.0, remaining_s = 0.0;
+  bool sync_busy = false;  // ack: the executor runs a dwell outside the planner
+  bool held = false;       // ack: feed hold (!)
+  bool grbl_locked = false;  // ack: alarm state after a reset in motion, until $X
+  std::optional<double> booting_until;
 
   // live view
   std::atomic<std::uint64_t> live_bytes{0};
   std::atomic<long> live_blocks{0}, live_executed{0}, live_drops{0}, live_alarms{0};
   std::atomic<int> live_fill{0};
   std::atomic<bool> live_end_received{false}, live_end_executed{false};
+  std::atomic<std::uint64_t> live_noise{0}, live_sent{0};
+  std::atomic<double> live_t{0.0};
+  std::atomic<long> live_resets{0};
 };
 
 SimController::SimController(SimControllerConfig config)
@@ -1073,6 +1327,10 @@ SimProgress SimController::progress() const noexcept {
   p.alarms = impl_->live_alarms.load(std::memory_order_relaxed);
   p.buffer_fill = impl_->live_fill.load(std::memory_order_relaxed);
   p.program_end_received = impl_->live_end_received.load(std::memory_order_relaxed);
+  p.noise_bytes_sent = impl_->live_noise.load(std::memory_order_relaxed);
+  p.bytes_sent = impl_->live_sent.load(std::memory_order_relaxed);
+  p.t_s = impl_->live_t.load(std::memory_order_relaxed);
+  p.resets = impl_->live_resets.load(std::memory_order_relaxed);
   return p;
 }
 
@@ -1110,6 +1368,11 @@ Json settings_json(const SimControllerConfig& c) {
               {"underrun_grace_s", c.underrun_grace_s},
               {"exit_at_end", c.exit_at_end},
               {"seed", c.seed},
+              {"skip_duplicate_n", c.skip_duplicate_n},
+              {"reset_on_open", c.reset_on_open},
+              {"boot_s", c.boot_s},
+              {"report_line_numbers", c.report_line_numbers},
+              {"clock", c.clock ? "injected" : "wall"},
               {"faults",
                {{"drop_link_after_blocks", f.drop_link_after_blocks},
                 {"down_s", f.down_s},
@@ -1117,7 +1380,8 @@ Json settings_json(const SimControllerConfig& c) {
                 {"hold_after_blocks", f.hold_after_blocks},
                 {"hold_s", f.hold_s},
                 {"noise_bytes_per_s", f.noise_bytes_per_s},
-                {"alarm_after_blocks", f.alarm_after_blocks}}}};
+                {"alarm_after_blocks", f.alarm_after_blocks},
+                {"reset_after_blocks", f.reset_after_blocks}}}};
 }
 
 Json to_json(const SimLog& l) {
@@ -1149,6 +1413,20 @@ Json to_json(const SimLog& l) {
                       {"code", e.code},
                       {"text", e.text},
                       {"message", e.message}});
+  }
+  Json executed = Json::array();
+  for (const SimExecuted& e : l.executed) {
+    executed.push_back(
+        {{"seq", e.seq}, {"n", optional_json(e.n)}, {"text", e.text}, {"t_s", e.t_s}});
+  }
+  Json resets = Json::array();
+  for (const SimReset& r : l.resets) {
+    resets.push_back({{"t_s", r.t_s},
+                      {"cause", r.cause},
+                      {"in_motion", r.in_motion},
+                      {"aborted", r.aborted ? Json(*r.aborted) : Json(nullptr)},
+                      {"position", {r.position[0], r.position[1], r.position[2]}},
+                      {"blocks_lost", r.blocks_lost}});
   }
   Json links = Json::array();
   for (const SimLinkEvent& e : l.link_events) {
@@ -1199,7 +1477,14 @@ Json to_json(const SimLog& l) {
               {"sender_disconnects", l.sender_disconnects},
               {"link_events", links},
               {"path_length_mm", l.path_length_mm},
-              {"moves", moves}};
+              {"moves", moves},
+              {"executed", executed},
+              {"resets", resets},
+              {"status_reports", l.status_reports},
+              {"feed_holds", l.feed_holds},
+              {"cycle_starts", l.cycle_starts},
+              {"bytes_before_banner", l.bytes_before_banner},
+              {"banners_sent", l.banners_sent}};
 }
 
 }  // namespace ncd::comms

@@ -1,8 +1,11 @@
 // A simulated CNC controller on a pseudo-terminal: the other end of `ncd stream`. It paces
-// reception at the line's baud and frame, holds a receive buffer with DC1/DC3 flow control (or
-// answers grbl-type ok / error:N), parses the blocks, executes them in real time at their feed
-// and records what it did. Faults (link drops, XOFF storms and holds, noise, alarms) can be
-// injected for the sender's tests. The model is explained at the top of sim_controller.cpp.
+// reception at the line's baud and frame, holds a receive buffer with DC1/DC3 flow control (drip)
+// or models grbl 1.1 (ack: ok when queued, a 15-block planner, a 128-byte receive ring, 79
+// characters a line, status reports, feed hold, cycle start and soft reset, a banner on reset),
+// parses the blocks, executes them in (simulated or wall) time at their feed and records each
+// block it executed. Faults (link cuts with the controller running, controller resets, XOFF
+// storms and holds, noise, alarms) can be injected for the sender's tests. The model is
+// explained at the top of sim_controller.cpp; the protocols in docs/dnc-link.md.
 //
 //   SimController sim(config);   // creates the pty and links it at config.line.device
 //   std::thread t([&] { sim.run(); });
@@ -23,30 +26,54 @@
 #include <vector>
 
 #include "comms/line_settings.hpp"
+#include "comms/program_file.hpp"
 
 namespace ncd::comms {
 
 // Faults injected into the link, for the sender's tests. Block counts are accepted blocks
 // (`blocks_received`); 0 turns a fault off. Each count-triggered fault happens once.
 struct SimFaults {
-  long drop_link_after_blocks = 0;  // then close the pty, unlink the path, relink a new pty
+  // Link cut, the controller keeps running: close the pty, unlink the path, relink a new pty.
+  long drop_link_after_blocks = 0;
   double down_s = 1.0;              // ... after this long
   bool xoff_storm = false;          // random DC3, held 20–300 ms, DC1, while receiving
   long hold_after_blocks = 0;       // then assert DC3 once for hold_s
   double hold_s = 10.0;
   double noise_bytes_per_s = 0.0;  // random bytes (drip) or garbage lines (ack) to the sender
   long alarm_after_blocks = 0;     // then raise an alarm and stop executing
+  // Controller reset (power cycle, watchdog, reset button): the block executing is aborted, the
+  // receive buffer and the planner are lost, the position is kept, the banner is sent again
+  // (ack; after ALARM:3 when it was moving, as grbl's reset during motion does).
+  long reset_after_blocks = 0;
+};
+
+// The controller's time. Null in the config: the wall clock (steady_clock). A test gives a
+// ManualClock and advances it, so that the controller's logic runs in simulated time whatever
+// the load on the machine.
+class SimClock {
+ public:
+  virtual ~SimClock() = default;
+  virtual double now_s() const = 0;
+};
+
+class ManualClock : public SimClock {
+ public:
+  double now_s() const override { return t_s_.load(std::memory_order_acquire); }
+  void advance(double dt_s) { t_s_.store(now_s() + dt_s, std::memory_order_release); }
+
+ private:
+  std::atomic<double> t_s_{0.0};
 };
 
 struct SimControllerConfig {
   LineSettings line;  // line.device is the path of the link to create (a symbolic link)
-  int buffer_bytes = 256;
+  int buffer_bytes = 0;  // 0: 256 (drip) or grbl's 128 (ack)
   // High-water mark (DC3 when the fill reaches it); default buffer − min(64, buffer/4), which
   // leaves room for a sender that stops within 16 characters.
   std::optional<int> xoff_at;
   // Low-water mark (DC1 when the fill falls to it); default xoff_at / 2.
   std::optional<int> xon_at;
-  int planner_blocks = 16;           // ack protocol: grbl-like planner queue
+  int planner_blocks = 15;  // ack: grbl 1.1's planner (16 slots, 15 usable)
   double rapid_mm_per_min = 5000.0;  // G0
   double prime_idle_s = 0.5;         // execution starts after this long without a character
   double underrun_grace_s = 0.002;   // dry spells shorter than this are timer jitter, not counted
@@ -54,6 +81,15 @@ struct SimControllerConfig {
   double exit_quiet_s = 0.2;         // ... and the line has been quiet this long
   double alarm_linger_s = 1.0;       // with exit_at_end: run() returns this long after an alarm
   std::uint64_t seed = 0;            // for the storm and noise faults
+  // Drip: discard a block whose N is not above the last accepted N (a controller documented to
+  // skip repeated sequence numbers). Off, a repeated block is executed again, as most do.
+  bool skip_duplicate_n = false;
+  // Ack: a sender opening the port resets the controller (an Arduino's DTR auto-reset), which
+  // then boots for boot_s, losing what it receives meanwhile, and sends its banner.
+  bool reset_on_open = false;
+  double boot_s = 0.0;
+  bool report_line_numbers = false;  // ack: status reports carry Ln: (grbl's USE_LINE_NUMBERS)
+  std::shared_ptr<const SimClock> clock;  // null: the wall clock
   SimFaults faults;
   // Told of link events and alarms as they happen (on the thread of run()); may be empty.
   std::function<void(const std::string&)> on_event;
@@ -63,8 +99,14 @@ struct SimControllerConfig {
 // and the way out.
 SimControllerConfig checked(SimControllerConfig config);
 // The longest block (characters before CR/LF) the controller takes: 255, or less when the
-// buffer could not otherwise hold a whole block below its high-water mark.
+// buffer could not otherwise hold a whole block below its high-water mark. In ack (grbl) mode
+// this is the raw line the receive buffer can hold; grbl's own limit is kGrblLineChars.
 int max_block_chars(const SimControllerConfig& config);
+
+// grbl 1.1h's start-up line (report.c), without its leading CR LF.
+inline constexpr const char* kGrblBanner = "Grbl 1.1h ['$' for help]";
+// grbl's real-time commands, taken out of the stream as they arrive.
+inline constexpr char kGrblStatus = '?', kGrblHold = '!', kGrblResume = '~', kGrblReset = 0x18;
 
 // ---- Block parsing (one pure function, also used by the tests) ----
 
@@ -74,7 +116,7 @@ enum SimError : int {
   kErrBadNumber = 2,       // a letter without a number, or a malformed number
   kErrNegative = 4,        // negative F, S, T or P
   kErrAlarmLock = 9,       // a line received while in alarm
-  kErrLineTooLong = 14,    // more than max_block_chars characters
+  kErrLineOverflow = 11,   // more than 79 characters kept (grbl's line buffer)
   kErrUnsupported = 20,    // G91, G20, G2/G3, unknown G or M codes, unsupported letters
   kErrModalGroup = 21,     // two motion codes in one block
   kErrUndefinedFeed = 22,  // G1 with no F so far
@@ -94,6 +136,7 @@ struct SimModal {
 struct SimBlock {
   std::optional<long> n;         // the sequence number, when the block has one
   bool move = false;             // G0/G1 with an axis word
+  bool dwell = false;            // G4
   int g = 0;                     // 0 or 1, for a move
   std::array<double, 3> to{};    // end point, mm
   double feed_mm_per_min = 0.0;  // feed of the move (the rapid rate for G0)
@@ -144,6 +187,25 @@ struct SimErrorReply {  // ack protocol: a line answered error:N
   std::string text, message;
 };
 
+// A block the controller executed to its end (a move reached its end point, a dwell elapsed,
+// a setup block took effect), in the order it did so.
+struct SimExecuted {
+  long seq = 0;  // blocks accepted by then, this one included (1-based)
+  std::optional<long> n;
+  std::string text;
+  double t_s = 0.0;
+};
+
+// A controller reset: what it interrupted and what it threw away.
+struct SimReset {
+  double t_s = 0.0;
+  std::string cause;                // injected | soft_reset (0x18) | port_opened
+  bool in_motion = false;           // grbl then raises ALARM:3 and locks until $X
+  std::optional<std::string> aborted;  // the block executing, left unfinished
+  std::array<double, 3> position{};    // kept
+  long blocks_lost = 0;                // in the planner and the receive buffer
+};
+
 struct SimLinkEvent {
   double t_s = 0.0;
   std::string event;  // created | sender_connected | sender_disconnected | down | up
@@ -179,6 +241,11 @@ struct SimLog {
   std::vector<SimLinkEvent> link_events;
   std::vector<SimMove> moves;
   double path_length_mm = 0.0;
+  std::vector<SimExecuted> executed;
+  std::vector<SimReset> resets;
+  long status_reports = 0, feed_holds = 0, cycle_starts = 0;
+  std::uint64_t bytes_before_banner = 0;  // ack: received while booting, before the banner
+  long banners_sent = 0;
 };
 
 // The log as the JSON `--log` writes (field names in README, `ncd sim-controller`).
@@ -192,6 +259,9 @@ struct SimProgress {
   long blocks_received = 0, blocks_executed = 0, link_drops = 0, alarms = 0;
   int buffer_fill = 0;
   bool program_end_received = false, program_end_executed = false;
+  std::uint64_t noise_bytes_sent = 0, bytes_sent = 0;  // bytes_sent: written to the pty
+  double t_s = 0.0;                                    // the controller's time
+  long resets = 0;
 };
 
 class SimController {
