@@ -24,7 +24,8 @@ Path spiral_path(int turns) {
   for (int i = 1; i <= inner; ++i) knots.push_back(i);
   knots.insert(knots.end(), degree + 1, inner + 1.0);
   Path path;
-  path.segments.push_back({NurbsCurve(degree, knots, pts), std::nullopt, std::nullopt, false, 0});
+  path.segments.push_back({NurbsCurve(degree, knots, pts), std::nullopt, std::nullopt, false, 0,
+                           PathControl::blend, std::nullopt, std::nullopt, false});
   path.source = "spiral of " + std::to_string(turns) + " turns";
   return path;
 }
