@@ -67,6 +67,7 @@ struct MoveGeom {
   double cos_beta;        // cap: edge points with p·n ≥ cos β are below the bounding plane
   double phi_lo, phi_hi;  // polar range of the cap over all azimuths
   double reach_mm;        // footprint half-size around the contact point
+  double rho_hi_mm;       // largest distance from the axis of an edge point in the cap
   std::int64_t steps;     // samples m = 0..steps
   std::int32_t index;
 };
@@ -146,6 +147,7 @@ class Cutter {
       g.phi_hi = std::min(0.5 * kPi, slope + beta);
       g.reach_mm = 2.0 * r_ * std::sin(0.5 * beta) + map.cell_mm();
       const double rho_hi = r_ * std::sin(g.phi_hi);
+      g.rho_hi_mm = rho_hi + map.cell_mm();
       const double v = std::hypot(g.dcx, g.dcy) / std::max(dt, 1e-300);
       g.steps = dt > 0.0
                     ? static_cast<std::int64_t>(std::ceil(dt * (omega * rho_hi + v) / sample_mm))
@@ -157,6 +159,7 @@ class Cutter {
     ox_ = r_ * gx_ / len_;
     oy_ = r_ * gy_ / len_;
     teeth_ = tool.teeth;
+    inv_h_ = 1.0 / map.cell_mm();
   }
 
   std::int64_t steps_total() const { return steps_total_; }
@@ -193,8 +196,7 @@ class Cutter {
   // Lowers one cell; returns whether the sample fell on the tile.
   bool lower(const Tile& t, double px, double py, double cx, double cy, double cz, double rcos,
              std::int32_t index, int& last_i, int& last_j) {
-    const double h = map_.cell_mm();
-    const double fi = (px - map_.x0_mm()) / h, fj = (py - map_.y0_mm()) / h;
+    const double fi = (px - map_.x0_mm()) * inv_h_, fj = (py - map_.y0_mm()) * inv_h_;
     if (!(fi >= t.i0 && fi < t.i1 && fj >= t.j0 && fj < t.j1)) return false;
     const int i = static_cast<int>(fi), j = static_cast<int>(fj);
     if (i == last_i && j == last_j) return false;
@@ -214,6 +216,11 @@ class Cutter {
   std::int64_t edge_straight(const Tile& t, const MoveGeom& g, double cx, double cy, double cz,
                              double th, double bx0, double bx1, double by0, double by1) {
     const double ct = std::cos(th), st = std::sin(th);
+    // The part of the edge over the tile first (no trigonometry), then the cap.
+    double rlo = 0.0, rhi = g.rho_hi_mm;
+    clip_ray(cx, ct, bx0, bx1, rlo, rhi);
+    clip_ray(cy, st, by0, by1, rlo, rhi);
+    if (rlo > rhi) return 0;
     const double c = gx_ * ct + gy_ * st;
     const double q = len_ * g.cos_beta / std::sqrt(1.0 + c * c);
     if (q > 1.0) return 0;
@@ -221,10 +228,6 @@ class Cutter {
     const double phi0 = std::atan(c);
     const double phi_lo = std::max(0.0, phi0 - delta), phi_hi = std::min(0.5 * kPi, phi0 + delta);
     if (phi_lo > phi_hi) return 0;
-    double rlo = r_ * std::sin(phi_lo), rhi = r_ * std::sin(phi_hi);
-    clip_ray(cx, ct, bx0, bx1, rlo, rhi);
-    clip_ray(cy, st, by0, by1, rlo, rhi);
-    if (rlo > rhi) return 0;
     const double plo = std::asin(std::min(1.0, std::max(0.0, rlo) / r_));
     const double phi_hi_tile = std::asin(std::min(1.0, rhi / r_));
     const auto last = static_cast<std::int64_t>(rsin_.size()) - 1;
@@ -266,7 +269,7 @@ class Cutter {
   double gx_ = 0.0, gy_ = 0.0, len_ = 1.0, ox_ = 0.0, oy_ = 0.0;
   bool helix_ = false;
   int teeth_ = 1;
-  double dphi_ = 0.0;
+  double dphi_ = 0.0, inv_h_ = 1.0;
   std::vector<double> rsin_, rcos_, lag_;
   std::vector<MoveGeom> geoms_;
   std::int64_t steps_total_ = 0;
