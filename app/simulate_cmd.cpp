@@ -532,6 +532,21 @@ int run_setpoints(const SimulateArgs& a) {
   opt.threads = a.threads;
   const surface::SimStats st = surface::simulate(map, s.tool, moves, opt);
   const surface::CellRegion all{0, map.nx(), 0, map.ny()};
+  std::int64_t uncut = 0;
+  for (int j = 0; j < map.ny(); ++j) {
+    for (int i = 0; i < map.nx(); ++i) uncut += map.cut_by(i, j) < 0;
+  }
+  if (uncut == map.cells()) {
+    throw InputError("the tool never cuts below --surface-z " + std::to_string(*a.surface_z_mm) +
+                     " mm inside --patch: put the patch where the setpoints pass and the surface "
+                     "above the tool tip there");
+  }
+  if (uncut > 0 && !a.quiet) {
+    std::fprintf(stderr,
+                 "ncd simulate: %lld of %lld cells of the patch are not cut; the R_max "
+                 "map counts only windows cut wholly\n",
+                 static_cast<long long>(uncut), static_cast<long long>(map.cells()));
+  }
   const Plane ref = surface::fit_plane(map, all);
   const surface::Roughness r = surface::measure(map, ref, all);
   const double w = std::max(s.pick_feed_mm, s.tool.teeth * ft_median);

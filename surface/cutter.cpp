@@ -72,6 +72,8 @@ struct MoveGeom {
   std::int32_t index;
 };
 
+constexpr double kMaxSteps = 1e10;  // hours of computing: a clear limit, not a hang
+
 struct Tile {
   int i0, i1, j0, j1;  // cells [i0, i1) × [j0, j1)
 };
@@ -149,9 +151,14 @@ class Cutter {
       const double rho_hi = r_ * std::sin(g.phi_hi);
       g.rho_hi_mm = rho_hi + map.cell_mm();
       const double v = std::hypot(g.dcx, g.dcy) / std::max(dt, 1e-300);
-      g.steps = dt > 0.0
-                    ? static_cast<std::int64_t>(std::ceil(dt * (omega * rho_hi + v) / sample_mm))
-                    : 0;
+      const double steps = dt > 0.0 ? std::ceil(dt * (omega * rho_hi + v) / sample_mm) : 0.0;
+      if (steps > kMaxSteps) {
+        throw InputError("move " + std::to_string(k) + " lasts " + num(dt) + " s and needs " +
+                         num(steps) + " time steps at a cell of " + num(map.cell_mm()) +
+                         " mm, above " + num(kMaxSteps) +
+                         ": simulate a shorter stretch of the run or use a coarser cell");
+      }
+      g.steps = static_cast<std::int64_t>(steps);
       g.steps = std::max<std::int64_t>(g.steps, dt > 0.0 ? 1 : 0);
       steps_total_ += g.steps + 1;
       geoms_.push_back(g);

@@ -61,6 +61,12 @@ TEST_F(Simulate, ReplaySetpointsGetTheModelOfTheirOwnFeed) {
   EXPECT_NEAR(j["feed_per_tooth_median_mm"].get<double>(), 0.5, 1e-3);
   EXPECT_NEAR(j["rmax_map"]["model_max_um"].get<double>(), 25.06, 0.01);
   EXPECT_EQ(j["rmax_um"]["uncut_cells"], 0);
+  // A patch the tool never reaches is an error, not a report of zeros.
+  const CmdResult away =
+      ncd("simulate --setpoints " + path + " --patch 5 5 6 6 --surface-z 0.04 --cell-um 10 -q");
+  EXPECT_EQ(away.status, 2);
+  EXPECT_NE(away.err.find("never cuts"), std::string::npos) << away.err;
+  EXPECT_TRUE(away.out.empty());
 }
 
 TEST_F(Simulate, InputsThatCannotBeSimulatedAreClearErrors) {

@@ -217,6 +217,32 @@ TEST(ZMapDeterminism, ThreadsAndTilesDoNotChangeTheSurface) {
   }
 }
 
+TEST(ZMapInitialSurface, AHeightFunctionBelowItsPlaneEndsAsThePlaneDoes) {
+  // Where every cell is cut, the final surface cannot depend on the material that was there:
+  // a wavy initial surface under the same bounding plane leaves the same heights.
+  RasterSpec s;
+  s.inclination_deg = 10.0;
+  s.patch_x_mm = 0.5;
+  s.patch_y_mm = 0.5;
+  s.cell_mm = 0.01;
+  const BallEndMill tool;
+  const RasterRun run = make_raster(s, tool);
+  InitialSurface wavy = run.initial;
+  wavy.height = [p = run.initial](double x, double y) {
+    return p.plane_mm(x, y) - 0.002 * (1.0 + std::sin(40.0 * x) * std::cos(25.0 * y));
+  };
+  ZMap plane(run.grid, run.initial), waves(run.grid, wavy);
+  EXPECT_NE(plane.z_mm(3, 7), waves.z_mm(3, 7));
+  simulate(plane, tool, run.moves);
+  simulate(waves, tool, run.moves);
+  for (int j = 0; j < plane.ny(); ++j) {
+    for (int i = 0; i < plane.nx(); ++i) {
+      ASSERT_GE(plane.cut_by(i, j), 0);
+      ASSERT_EQ(plane.z_mm(i, j), waves.z_mm(i, j)) << i << ", " << j;
+    }
+  }
+}
+
 TEST(ZMapSetpoints, FourMsSetpointsCutLikeOneMove) {
   // The same straight pass as one move and as 4 ms setpoints read from the replay CSV: the
   // time steps differ, the surface may not (beyond the step's own resolution).
@@ -311,6 +337,11 @@ TEST(ZMapInput, BadGridsToolsAndMovesAreNamed) {
   back.t0_s = 1.0;
   back.t1_s = 0.5;
   EXPECT_NE(msg([&] { simulate(map, BallEndMill{}, {back}); }).find("time order"),
+            std::string::npos);
+  Move forever;
+  forever.from_mm = forever.to_mm = Vec3(0.5, 0.5, -0.01);
+  forever.t1_s = 1e9;  // a billion seconds of spindle turns
+  EXPECT_NE(msg([&] { simulate(map, BallEndMill{}, {forever}); }).find("shorter stretch"),
             std::string::npos);
   Move inf;
   inf.to_mm.x() = std::numeric_limits<double>::infinity();
