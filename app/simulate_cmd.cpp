@@ -42,8 +42,8 @@ using surface::ZMap;
 struct SimulateArgs {
   std::string case_name, setpoints, machine;
   std::vector<double> patch;  // x0 y0 x1 y1
-  std::optional<double> surface_z_mm, cell_um, stock_mm, phase_step_deg, radius_mm, rpm, helix_deg,
-      pick_feed_mm, ft_mm, alpha_deg, window_x_mm, window_y_mm;
+  std::optional<double> surface_z_mm, nominal_z_mm, cell_um, stock_mm, phase_step_deg, radius_mm,
+      rpm, helix_deg, pick_feed_mm, ft_mm, alpha_deg, window_x_mm, window_y_mm;
   double slope_deg = 0.0;
   std::optional<int> teeth;
   int threads = 0;
@@ -149,6 +149,7 @@ struct Pictures {
   std::string title;
   std::vector<std::string> notes;
   double model_um = std::numeric_limits<double>::quiet_NaN();
+  std::string window_reference = "the nominal surface";
 };
 
 void write_pictures(const SimulateArgs& a, const ZMap& map, const Plane& ref,
@@ -174,9 +175,8 @@ void write_pictures(const SimulateArgs& a, const ZMap& map, const Plane& ref,
     h.value_label = "R_max (um)";
     h.notes = p.notes;
     char line[200];
-    std::snprintf(line, sizeof line,
-                  "windows of %.3f x %.3f mm, peak to valley after the window's best plane",
-                  rm.window_x_mm, rm.window_y_mm);
+    std::snprintf(line, sizeof line, "windows of %.3f x %.3f mm, peak to valley from %s",
+                  rm.window_x_mm, rm.window_y_mm, p.window_reference.c_str());
     h.notes.emplace_back(line);
     double lo = std::numeric_limits<double>::infinity(), hi = -lo, mlo = lo, mhi = -lo;
     for (const auto& w : rm.windows) {
@@ -291,7 +291,7 @@ int run_case(const SimulateArgs& a) {
   const std::vector<double> model_by_move(run.moves.size(), model_um);
   const double wx = a.window_x_mm.value_or(s.tool.teeth * ft_mm);
   const double wy = a.window_y_mm.value_or(fp);
-  const surface::RmaxMap rm = surface::rmax_map(map, wx, wy, model_by_move);
+  const surface::RmaxMap rm = surface::rmax_map(map, wx, wy, model_by_move, &run.nominal);
 
   nlohmann::ordered_json j;
   j["case"] = a.case_name;
@@ -504,24 +504,37 @@ int run_setpoints(const SimulateArgs& a) {
   if (!(std::abs(a.slope_deg) < 60.0)) {
     throw InputError("--slope-deg " + std::to_string(a.slope_deg) + " is outside (-60, 60)");
   }
-  // The model for each move: its feed per tooth and inclination.
-  std::vector<double> model_um(moves.size()), fts;
+  // The model for each move: its feed per tooth and inclination. The default cell follows the
+  // feed per tooth that most of the path's length was cut at (the median over length), not the
+  // slow setpoints of corners and starts.
+  std::vector<double> model_um(moves.size());
+  std::vector<std::pair<double, double>> ft_len;  // (f_t, length)
   const double zn = s.tool.teeth * s.tool.spindle_rpm;
+  double total_len = 0.0;
   for (std::size_t k = 0; k < moves.size(); ++k) {
     const auto& m = moves[k];
     const Vec3 d = m.to_mm - m.from_mm;
     const double dt = m.t1_s - m.t0_s;
     const double ft = dt > 0.0 ? d.norm() / dt * 60.0 / zn : 0.0;
-    if (ft > 0.0) fts.push_back(ft);
+    if (ft > 0.0) {
+      ft_len.emplace_back(ft, d.norm());
+      total_len += d.norm();
+    }
     model_um[k] = interpolator::roughness_mm(
                       s.tool.radius_mm, s.pick_feed_mm, ft,
                       d.norm() > 0.0 ? interpolator::inclination_from_tangent_rad(d) : 0.0) *
                   1e3;
   }
-  if (fts.empty()) throw InputError(a.setpoints + ": the tool never moves");
-  std::nth_element(fts.begin(), fts.begin() + static_cast<std::ptrdiff_t>(fts.size() / 2),
-                   fts.end());
-  const double ft_median = fts[fts.size() / 2];
+  if (ft_len.empty()) throw InputError(a.setpoints + ": the tool never moves");
+  std::sort(ft_len.begin(), ft_len.end());
+  double ft_median = ft_len.back().first, run_len = 0.0;
+  for (const auto& [ft, len] : ft_len) {
+    run_len += len;
+    if (run_len >= 0.5 * total_len) {
+      ft_median = ft;
+      break;
+    }
+  }
   surface::GridSpec g{a.patch[0], a.patch[2], a.patch[1], a.patch[3],
                       a.cell_um ? *a.cell_um * 1e-3 : ft_median / 100.0};
   surface::InitialSurface init;
@@ -547,11 +560,13 @@ int run_setpoints(const SimulateArgs& a) {
                  "map counts only windows cut wholly\n",
                  static_cast<long long>(uncut), static_cast<long long>(map.cells()));
   }
-  const Plane ref = surface::fit_plane(map, all);
+  const Plane ref =
+      a.nominal_z_mm ? Plane{*a.nominal_z_mm, init.grad_x, 0.0} : surface::fit_plane(map, all);
   const surface::Roughness r = surface::measure(map, ref, all);
   const double w = std::max(s.pick_feed_mm, s.tool.teeth * ft_median);
   const surface::RmaxMap rm =
-      surface::rmax_map(map, a.window_x_mm.value_or(w), a.window_y_mm.value_or(w), model_um);
+      surface::rmax_map(map, a.window_x_mm.value_or(w), a.window_y_mm.value_or(w), model_um,
+                        a.nominal_z_mm ? &ref : nullptr);
   double worst = 0.0, worst_model = std::nan(""), model_max = 0.0;
   std::size_t cut_windows = 0;
   for (const auto& win : rm.windows) {
@@ -568,11 +583,12 @@ int run_setpoints(const SimulateArgs& a) {
   j["moves"] = moves.size();
   j["tool"] = tool_json(s.tool);
   j["pick_feed_mm"] = s.pick_feed_mm;
-  j["feed_per_tooth_median_mm"] = r4(ft_median);
+  j["feed_per_tooth_median_by_length_mm"] = r4(ft_median);
   j["grid"] = {{"cell_um", r4(map.cell_mm() * 1e3)}, {"nx", map.nx()}, {"ny", map.ny()}};
   j["simulation"] = sim_json(st, map);
   j["rmax_um"] = roughness_json(r);
-  j["rmax_um"]["reference"] = "least-squares plane of the patch";
+  j["rmax_um"]["reference"] = a.nominal_z_mm ? "the plane of --nominal-z and --slope-deg"
+                                             : "least-squares plane of the patch";
   j["rmax_map"] = {{"window_mm", {r4(rm.window_x_mm), r4(rm.window_y_mm)}},
                    {"windows", rm.windows.size()},
                    {"windows_wholly_cut", cut_windows},
@@ -587,6 +603,7 @@ int run_setpoints(const SimulateArgs& a) {
                 "%zu moves, f_t median %.4f mm, f_p %.3g mm; worst window R_max %.2f um",
                 moves.size(), ft_median, s.pick_feed_mm, worst);
   p.notes.emplace_back(note);
+  if (!a.nominal_z_mm) p.window_reference = "each window's best plane";
   write_pictures(a, map, ref, r, rm, p);
   if (!a.quiet) {
     std::fprintf(stderr,
@@ -625,6 +642,10 @@ void register_simulate(CLI::App& app, Runner& run) {
                 "CSV of `ncd replay --setpoints` (tool tip positions)");
   c->add_option("--patch", a->patch, "with --setpoints: X0 Y0 X1 Y1 of the patch, mm")->expected(4);
   c->add_option("--surface-z", a->surface_z_mm, "with --setpoints: initial surface height, mm");
+  c->add_option(
+      "--nominal-z", a->nominal_z_mm,
+      "with --setpoints: height at x = 0, y = 0 of the surface meant to be left (parallel "
+      "to the initial one); R_max is measured from it (default: the patch's best plane)");
   c->add_option("--slope-deg", a->slope_deg, "with --setpoints: initial surface slope along x");
   c->add_option("--machine", a->machine,
                 "machine file: [cutting] radius, teeth, spindle, pick feed");

@@ -89,7 +89,7 @@ Plane fit_plane(const ZMap& map, const CellRegion& region) {
 }
 
 RmaxMap rmax_map(const ZMap& map, double window_x_mm, double window_y_mm,
-                 const std::vector<double>& model_um_by_move) {
+                 const std::vector<double>& model_um_by_move, const Plane* reference) {
   require_positive("window_x_mm", window_x_mm);
   require_positive("window_y_mm", window_y_mm);
   const double h = map.cell_mm();
@@ -104,7 +104,7 @@ RmaxMap rmax_map(const ZMap& map, double window_x_mm, double window_y_mm,
     for (int wi = 0; wi < out.nx; ++wi) {
       const CellRegion reg{wi * wx, std::min(map.nx(), (wi + 1) * wx), wj * wy,
                            std::min(map.ny(), (wj + 1) * wy)};
-      const Roughness r = measure(map, fit_plane(map, reg), reg);
+      const Roughness r = measure(map, reference ? *reference : fit_plane(map, reg), reg);
       RmaxWindow w;
       w.x_mm = 0.5 * (map.x_mm(reg.i0) + map.x_mm(reg.i1 - 1));
       w.y_mm = 0.5 * (map.y_mm(reg.j0) + map.y_mm(reg.j1 - 1));

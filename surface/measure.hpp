@@ -39,7 +39,7 @@ Plane fit_plane(const ZMap& map, const CellRegion& region);
 
 struct RmaxWindow {
   double x_mm = 0.0, y_mm = 0.0;  // centre
-  double rmax_um = 0.0;           // peak to valley after removing the window's best plane
+  double rmax_um = 0.0;           // peak to valley from the reference (or the best plane)
   double model_um = 0.0;          // the model for the move that cut the centre cell; NaN if none
   bool cut = false;               // every cell of the window was cut
 };
@@ -50,10 +50,11 @@ struct RmaxMap {
   std::vector<RmaxWindow> windows;  // row-major, nx·ny
 };
 
-// R_max over windows of about window_x × window_y (whole cells, at least 3 × 3), tiling the map;
-// model_um_by_move[k] is the model's R_max for move k. Throws InputError on a window that is not
-// positive and finite.
+// R_max over windows of about window_x × window_y (whole cells, at least 3 × 3), tiling the map,
+// measured from `reference` when given (the nominal surface), else from each window's own
+// least-squares plane; model_um_by_move[k] is the model's R_max for move k. Throws InputError on a
+// window that is not positive and finite.
 RmaxMap rmax_map(const ZMap& map, double window_x_mm, double window_y_mm,
-                 const std::vector<double>& model_um_by_move);
+                 const std::vector<double>& model_um_by_move, const Plane* reference = nullptr);
 
 }  // namespace ncd::surface

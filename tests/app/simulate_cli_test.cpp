@@ -58,7 +58,7 @@ TEST_F(Simulate, ReplaySetpointsGetTheModelOfTheirOwnFeed) {
   ASSERT_EQ(r.status, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["moves"].get<int>(), rows - 1);
-  EXPECT_NEAR(j["feed_per_tooth_median_mm"].get<double>(), 0.5, 1e-3);
+  EXPECT_NEAR(j["feed_per_tooth_median_by_length_mm"].get<double>(), 0.5, 1e-3);
   EXPECT_NEAR(j["rmax_map"]["model_max_um"].get<double>(), 25.06, 0.01);
   EXPECT_EQ(j["rmax_um"]["uncut_cells"], 0);
   // A patch the tool never reaches is an error, not a report of zeros.
@@ -67,6 +67,27 @@ TEST_F(Simulate, ReplaySetpointsGetTheModelOfTheirOwnFeed) {
   EXPECT_EQ(away.status, 2);
   EXPECT_NE(away.err.find("never cuts"), std::string::npos) << away.err;
   EXPECT_TRUE(away.out.empty());
+}
+
+TEST_F(Simulate, TheFeedNcdPlansLeavesTheRoughnessItPromises) {
+  // A level raster replayed at the roughness-bounded feed (target 10.67 um: the law lowers f_t to
+  // 0.3265 mm at alpha = 0, the paper's Fig. 15), then cut on the Z-map from its setpoints.
+  const std::string src = NCD_SOURCE_DIR;
+  const std::string sp = (dir_ / "sp.csv").string();
+  ASSERT_EQ(ncd("replay " + src + "/examples/raster-level.ngc --machine " + src +
+                "/examples/raster-finish.toml --setpoints " + sp + " -q --report " +
+                (dir_ / "replay.json").string())
+                .status,
+            0);
+  const CmdResult r = ncd("simulate --setpoints " + sp + " --machine " + src +
+                          "/examples/raster-finish.toml --patch 0 0 1.3 1 --surface-z 0.05 "
+                          "--nominal-z 0 --cell-um 5 -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["feed_per_tooth_median_by_length_mm"].get<double>(), 0.3265, 0.001);
+  EXPECT_NEAR(j["rmax_map"]["model_max_um"].get<double>(), 10.67, 0.01);
+  EXPECT_EQ(j["rmax_um"]["uncut_cells"], 0);
+  EXPECT_NEAR(j["rmax_um"]["areal"].get<double>(), 10.67, 1.0);
 }
 
 TEST_F(Simulate, InputsThatCannotBeSimulatedAreClearErrors) {
