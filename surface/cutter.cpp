@@ -105,7 +105,7 @@ void clip_ray(double p, double d, double b0, double b1, double& lo, double& hi) 
 class Cutter {
  public:
   Cutter(ZMap& map, const BallEndMill& tool, const std::vector<Move>& moves, double sample_mm)
-      : map_(map), tool_(tool), r_(tool.radius_mm), r2_(tool.radius_mm * tool.radius_mm) {
+      : map_(map), r_(tool.radius_mm), r2_(tool.radius_mm * tool.radius_mm) {
     const InitialSurface& s = map.initial();
     gx_ = s.grad_x;
     gy_ = s.grad_y;
@@ -271,7 +271,6 @@ class Cutter {
   }
 
   ZMap& map_;
-  BallEndMill tool_;
   double r_, r2_;
   double gx_ = 0.0, gy_ = 0.0, len_ = 1.0, ox_ = 0.0, oy_ = 0.0;
   bool helix_ = false;

@@ -1,7 +1,7 @@
 // See raster.hpp. A raster case: the nominal surface is the plane z = tan α · x, the initial one
 // lies `stock` above it (normal to it), and the ball's centre runs at r above the nominal
 // surface, so its lowest point touches it. The feed per tooth is measured along the path (on the
-// slope), F = f_t z N (the spec's §1.2), so each pass takes its 3-D length / F.
+// slope), F = f_t z N, so each pass takes its 3-D length / F (docs/surface-simulation.md §5).
 #include "surface/raster.hpp"
 
 #include <charconv>

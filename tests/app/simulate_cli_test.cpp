@@ -26,7 +26,8 @@ TEST_F(Simulate, Fig13ReportAndPictures) {
   const auto j = nlohmann::json::parse(slurp(dir_ / "r.json"));
   EXPECT_EQ(j["paper"]["figure"], "Fig. 13");
   EXPECT_EQ(j["raster"]["inclination_deg"], 10.0);
-  EXPECT_NEAR(j["model"]["rmax_um"].get<double>(), 10.669, 0.001);  // eq. 2, spec §1.3
+  EXPECT_NEAR(j["model"]["rmax_um"].get<double>(), 10.669,
+              0.001);  // eq. 2 (docs/surface-simulation.md §6)
   EXPECT_EQ(j["model"]["branch"], "eq. 2 (outside)");
   const double sim = j["rmax_um"]["areal"].get<double>();
   EXPECT_NEAR(sim, 10.7, 1.0);
