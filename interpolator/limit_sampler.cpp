@@ -72,9 +72,35 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
     const auto& c = std::get<toolpath::NurbsCurve>(g);
     return unit_or_zero(c.eval(at_end ? c.u_end() : c.u_begin()).d1);
   };
-  for (std::size_t k = 1; k < n; ++k) {
-    joint_corner_[k] = corner_speed(direction(k - 1, true), direction(k, false));
+  // Joints (the corner where segment k begins belongs to the move ending there, k − 1) and
+  // the interior vertices of polylines, in increasing s; the interior vertices' s is summed
+  // exactly as next_interval() sums it, so that every stop is a node of the stream.
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k > 0) {
+      const Vec3 d_in = direction(k - 1, true), d_out = direction(k, false);
+      const FeedLimitResult corner = corner_speed(d_in, d_out);
+      if (path.segments[k].stop_before ||
+          must_stop(d_in, d_out, path.segments[k - 1].path_control, corner)) {
+        if (stops_mm_.empty() || starts_mm_[k] > stops_mm_.back()) {
+          stops_mm_.push_back(starts_mm_[k]);
+        }
+      } else {
+        joint_corner_[k] = corner;
+      }
+    }
+    if (const auto* line = std::get_if<toolpath::Polyline>(&path.segments[k].geometry)) {
+      double s = starts_mm_[k];
+      for (std::size_t v = 1; v + 1 < line->points.size(); ++v) {
+        s += (line->points[v] - line->points[v - 1]).norm();
+        if (vertex_is_stop(k, v) && (stops_mm_.empty() || s > stops_mm_.back())) {
+          stops_mm_.push_back(s);
+        }
+      }
+    }
   }
+  const double total = starts_mm_[n];
+  while (!stops_mm_.empty() && stops_mm_.back() >= total) stops_mm_.pop_back();
+  std::erase_if(stops_mm_, [](double s) { return s <= 0.0; });
   breakpoints_.resize(n);  // here, so that walking the segments later allocates nothing
   for (std::size_t k = 0; k < n; ++k) {
     if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
@@ -83,10 +109,31 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   }
 }
 
+double LimitSampler::stop_below_mm_per_s() const {
+  return limits_.max_accel_mm_per_s2 * limits_.period_s;
+}
+
+bool LimitSampler::must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
+                             const FeedLimitResult& corner) const {
+  if (d_in.isZero() || d_out.isZero()) return true;  // a zero-length move
+  if (mode == toolpath::PathControl::exact_stop) return true;
+  const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+  if (phi < kMinTurnRad) return false;  // tangent: no corner
+  if (mode == toolpath::PathControl::exact_path) return true;
+  return !(corner.feed_mm_per_s >= stop_below_mm_per_s());
+}
+
+bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  const Vec3 d_in = unit_or_zero(line.points[vertex] - line.points[vertex - 1]);
+  const Vec3 d_out = unit_or_zero(line.points[vertex + 1] - line.points[vertex]);
+  return must_stop(d_in, d_out, path_.segments[segment].path_control, corner_speed(d_in, d_out));
+}
+
 FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out) const {
-  const double cos_phi = std::clamp(d_in.dot(d_out), -1.0, 1.0);
-  const double phi = std::acos(cos_phi);
-  if (d_in.isZero() || d_out.isZero() || phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
+  if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
+  const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+  if (phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
   const double eps = limits_.chord_tolerance_mm, t = limits_.period_s;
   const double chord = 2.0 * eps / (t * std::sin(0.5 * phi));
   const double c = std::cos(0.5 * phi);
@@ -115,12 +162,29 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
   const auto& seg = path_.segments[segment];
   if (seg.rapid) return segment_cap(segment);
   const auto& line = std::get<toolpath::Polyline>(seg.geometry);
-  const Vec3 dir = unit_or_zero(line.points[piece + 1] - line.points[piece]);
+  const auto& pts = line.points;
+  const Vec3 dir = unit_or_zero(pts[piece + 1] - pts[piece]);
   FeedLimitResult r = segment_cap(segment);
+  // A piece shorter than one period's travel at the cap: several vertices fall inside one
+  // period, so the polyline acts as a curve, of discrete curvature κ_v = 2 sin(φ_v / 2) /
+  // min(l_in, l_out) at a vertex turning by φ_v (1/R on a polygon inscribed in a circle of
+  // radius R); the piece takes the curve laws at the larger κ of its two ends. Stops and
+  // joints are left out (the motion rests there, or the joint's corner speed holds).
+  double kappa = 0.0;
+  if ((pts[piece + 1] - pts[piece]).norm() < r.feed_mm_per_s * limits_.period_s) {
+    for (const std::size_t v : {piece, piece + 1}) {
+      if (v == 0 || v + 1 == pts.size()) continue;
+      const Vec3 in = pts[v] - pts[v - 1], out = pts[v + 1] - pts[v];
+      const double l_in = in.norm(), l_out = out.norm();
+      if (!(l_in > 0.0 && l_out > 0.0) || vertex_is_stop(segment, v)) continue;
+      const double cos_phi = std::clamp(in.dot(out) / (l_in * l_out), -1.0, 1.0);
+      kappa = std::max(kappa, 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / std::min(l_in, l_out));
+    }
+  }
   for (const std::size_t v : {piece, piece + 1}) {
     const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
                                               : inclination_from_normal_rad(line.normals[v], dir);
-    r = min_of(r, feed_limit(limits_, cutting_, 0.0, alpha));
+    r = min_of(r, feed_limit(limits_, cutting_, kappa, alpha));
   }
   return r;
 }
@@ -129,6 +193,7 @@ FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vert
   const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
   if (vertex == 0) return joint_corner_[segment];
   if (vertex + 1 == line.points.size()) return joint_corner_[segment + 1];
+  if (vertex_is_stop(segment, vertex)) return {kInf, FeedLimit::Corner};  // at rest there
   return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
                       unit_or_zero(line.points[vertex + 1] - line.points[vertex]));
 }
@@ -191,11 +256,32 @@ FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double 
   return best;
 }
 
+// The next edge past s_ of the corner zones at both ends of a piece (or a curve segment):
+// c ± v T and c ± 2 v T for a corner of speed v at c. The intervals of the zone [c − vT, c + vT]
+// take the corner speed; the ones just outside it keep their own limit, so that with the
+// node rule (the minimum of both neighbours) the slow stretch is [c − 2vT, c + 2vT].
+double LimitSampler::next_zone_edge_mm(double c0_mm, double v0, double c1_mm, double v1) const {
+  const double tol = 1e-12 * std::max(1.0, std::abs(c1_mm));
+  double best = kInf;
+  const auto consider = [&](double e) {
+    if (e > s_ + tol && e < c1_mm - tol && e < best) best = e;
+  };
+  if (std::isfinite(v0)) {
+    consider(c0_mm + v0 * limits_.period_s);
+    consider(c0_mm + 2.0 * v0 * limits_.period_s);
+  }
+  if (std::isfinite(v1)) {
+    consider(c1_mm - 2.0 * v1 * limits_.period_s);
+    consider(c1_mm - v1 * limits_.period_s);
+  }
+  return best;
+}
+
 void LimitSampler::apply_zones(Interval& iv) const {
   const auto zone = [&](double center_mm, FeedLimitResult corner) {
     if (!std::isfinite(corner.feed_mm_per_s)) return;
     const double half = corner.feed_mm_per_s * limits_.period_s;
-    if (iv.a_mm <= center_mm + half && iv.b_mm >= center_mm - half &&
+    if (iv.a_mm < center_mm + half && iv.b_mm > center_mm - half &&
         corner.feed_mm_per_s < iv.v_mm_per_s) {
       iv.v_mm_per_s = corner.feed_mm_per_s;
       iv.limit = corner.limit;
@@ -230,18 +316,19 @@ bool LimitSampler::next_interval(Interval& iv) {
       const double len = (line->points[piece_ + 1] - line->points[piece_]).norm();
       const bool last_piece = piece_ + 2 == line->points.size();
       const double end = last_piece ? starts_mm_[segment_ + 1] : piece_s_ + len;
-      const auto subs =
-          static_cast<std::size_t>(std::max(1.0, std::ceil(len / config_.spacing_mm)));
       const FeedLimitResult v = limit_on_piece(segment_, piece_);
+      const double remaining = end - s_;
+      const double subs = std::max(1.0, std::ceil(remaining / config_.spacing_mm - 1e-9));
+      double b = subs <= 1.0 ? end : s_ + remaining / subs;
+      b = std::min(b, next_zone_edge_mm(piece_s_, corner_limit(segment_, piece_).feed_mm_per_s, end,
+                                        corner_limit(segment_, piece_ + 1).feed_mm_per_s));
       iv.a_mm = s_;
-      iv.b_mm = sub_ + 1 == subs
-                    ? end
-                    : piece_s_ + len * static_cast<double>(sub_ + 1) / static_cast<double>(subs);
+      iv.b_mm = b;
       iv.v_mm_per_s = v.feed_mm_per_s;
       iv.limit = v.limit;
       apply_zones(iv);
-      s_ = iv.b_mm;
-      if (++sub_ == subs) {
+      s_ = b;
+      if (b >= end) {
         ++piece_, sub_ = 0;
         piece_s_ = end;
       }
@@ -259,6 +346,20 @@ bool LimitSampler::next_interval(Interval& iv) {
     while (knot_ < knots.size() && knots[knot_] <= u_) ++knot_;
     if (knot_ < knots.size()) u1 = std::min(u1, knots[knot_]);
     u1 = std::min(u1, c.u_end());
+    // The corner zones at the joints get intervals of their own (their edges mapped to u at
+    // the joint's parametric speed), so that a slow corner does not slow a whole interval.
+    const double s0 = starts_mm_[segment_], s1 = starts_mm_[segment_ + 1];
+    const double edge = next_zone_edge_mm(s0, joint_corner_[segment_].feed_mm_per_s, s1,
+                                          joint_corner_[segment_ + 1].feed_mm_per_s);
+    if (std::isfinite(edge)) {
+      const bool near_start = edge - s0 < s1 - edge;
+      const double speed_joint = c.eval(near_start ? c.u_begin() : c.u_end()).d1.norm();
+      if (speed_joint > 0.0) {
+        const double ue = near_start ? c.u_begin() + (edge - s0) / speed_joint
+                                     : c.u_end() - (s1 - edge) / speed_joint;
+        if (ue > u_) u1 = std::min(u1, ue);
+      }
+    }
     const double arc =
         GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
     const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1);
@@ -288,7 +389,7 @@ bool LimitSampler::next(LimitNode& out) {
   if (!started_) {
     started_ = true;
     enter_segment();
-    pending_ = {0.0, kInf, FeedLimit::MaxFeed};
+    pending_ = {0.0, kInf, FeedLimit::MaxFeed, kInf, kInf};
   }
   Interval iv{};
   while (next_interval(iv)) {
@@ -297,8 +398,9 @@ bool LimitSampler::next(LimitNode& out) {
       pending_.feed_mm_per_s = iv.v_mm_per_s;
       pending_.limit = iv.limit;
     }
+    pending_.right_mm_per_s = iv.v_mm_per_s;
     out = pending_;
-    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit};
+    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf};
     return true;
   }
   out = pending_;
