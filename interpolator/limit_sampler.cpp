@@ -63,6 +63,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       config_(config) {
   const std::size_t n = path.segments.size();
   joint_corner_.assign(n + 1, FeedLimitResult{kInf, FeedLimit::Corner});
+  inner_corners_.resize(n);
   const auto direction = [&](std::size_t k, bool at_end) -> Vec3 {
     const auto& g = path.segments[k].geometry;
     if (const auto* line = std::get_if<toolpath::Polyline>(&g)) {
@@ -72,13 +73,18 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
     const auto& c = std::get<toolpath::NurbsCurve>(g);
     return unit_or_zero(c.eval(at_end ? c.u_end() : c.u_begin()).d1);
   };
+  const auto curvature = [&](std::size_t k, bool at_end) -> double {
+    const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry);
+    return c ? curvature_per_mm(c->eval(at_end ? c->u_end() : c->u_begin())) : 0.0;
+  };
   // Joints (the corner where segment k begins belongs to the move ending there, k − 1) and
   // the interior vertices of polylines, in increasing s; the interior vertices' s is summed
   // exactly as next_interval() sums it, so that every stop is a node of the stream.
   for (std::size_t k = 0; k < n; ++k) {
     if (k > 0) {
       const Vec3 d_in = direction(k - 1, true), d_out = direction(k, false);
-      const FeedLimitResult corner = corner_speed(d_in, d_out);
+      const FeedLimitResult corner =
+          corner_speed(d_in, d_out, std::max(curvature(k - 1, true), curvature(k, false)));
       if (path.segments[k].stop_before ||
           must_stop(d_in, d_out, path.segments[k - 1].path_control, corner)) {
         if (stops_mm_.empty() || starts_mm_[k] > stops_mm_.back()) {
@@ -86,6 +92,34 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
         }
       } else {
         joint_corner_[k] = corner;
+      }
+    }
+    if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
+      // Interior knots where the tangent turns: a stop, or a corner with its zone. Their s is
+      // the span lengths summed (Gauss–Legendre, 4 panels); the stream's node there differs
+      // by rounding only, which the job's matching of stops allows for.
+      const std::vector<double> bp = c->breakpoints();
+      double s = starts_mm_[k];
+      for (std::size_t i = 1; i + 1 < bp.size(); ++i) {
+        const double h = (bp[i] - bp[i - 1]) / 4.0;
+        for (int p = 0; p < 4; ++p) {
+          const double a = bp[i - 1] + h * p, b = p == 3 ? bp[i] : a + h;
+          s += GaussLegendre10::integrate([c](double u) { return c->eval(u).d1.norm(); }, a, b);
+        }
+        const toolpath::CurvePoint cl = c->eval(std::nextafter(bp[i], -kInf)), cr = c->eval(bp[i]);
+        const Vec3 left = cl.d1, right = cr.d1;
+        const Vec3 d_in = unit_or_zero(left), d_out = unit_or_zero(right);
+        if (!d_in.isZero() && !d_out.isZero() &&
+            std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)) < kMinTurnRad) {
+          continue;  // smooth
+        }
+        const FeedLimitResult corner =
+            corner_speed(d_in, d_out, std::max(curvature_per_mm(cl), curvature_per_mm(cr)));
+        if (must_stop(d_in, d_out, path.segments[k].path_control, corner)) {
+          if (stops_mm_.empty() || s > stops_mm_.back()) stops_mm_.push_back(s);
+        } else {
+          inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner});
+        }
       }
     }
     if (const auto* line = std::get_if<toolpath::Polyline>(&path.segments[k].geometry)) {
@@ -130,12 +164,19 @@ bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const
   return must_stop(d_in, d_out, path_.segments[segment].path_control, corner_speed(d_in, d_out));
 }
 
-FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out) const {
+// κ: the larger curvature of the two sides at the corner (curves meeting there): the chord
+// across the corner then also bows by κ Δs² / 8, so Δs solves
+// (Δs / 2) sin(φ/2) + κ Δs² / 8 = ε_c (for κ = 0: Δs = 2 ε_c / sin(φ/2)).
+FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
+                                           double curvature_per_mm) const {
   if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
   const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
   if (phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
   const double eps = limits_.chord_tolerance_mm, t = limits_.period_s;
-  const double chord = 2.0 * eps / (t * std::sin(0.5 * phi));
+  const double b = 0.5 * std::sin(0.5 * phi), qa = 0.125 * curvature_per_mm;
+  const double step =
+      qa > 0.0 && std::isfinite(qa) ? 2.0 * eps / (b + std::sqrt(b * b + 4.0 * qa * eps)) : eps / b;
+  const double chord = step / t;
   const double c = std::cos(0.5 * phi);
   const double junction =
       c < 1.0 ? std::sqrt(limits_.max_accel_mm_per_s2 * eps * c / (1.0 - c)) : kInf;
@@ -160,7 +201,6 @@ FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) cons
 
 FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t piece) const {
   const auto& seg = path_.segments[segment];
-  if (seg.rapid) return segment_cap(segment);
   const auto& line = std::get<toolpath::Polyline>(seg.geometry);
   const auto& pts = line.points;
   const Vec3 dir = unit_or_zero(pts[piece + 1] - pts[piece]);
@@ -168,18 +208,52 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
   // A piece shorter than one period's travel at the cap: several vertices fall inside one
   // period, so the polyline acts as a curve, of discrete curvature κ_v = 2 sin(φ_v / 2) /
   // min(l_in, l_out) at a vertex turning by φ_v (1/R on a polygon inscribed in a circle of
-  // radius R); the piece takes the curve laws at the larger κ of its two ends. Stops and
-  // joints are left out (the motion rests there, or the joint's corner speed holds).
+  // radius R); the piece takes the curve laws at the larger κ of its two ends (across a
+  // joint with the neighbour's piece). Stops are left out: the motion rests there.
   double kappa = 0.0;
   if ((pts[piece + 1] - pts[piece]).norm() < r.feed_mm_per_s * limits_.period_s) {
+    const auto& segs = path_.segments;
+    // The piece before a vertex, or after it; across a joint, the neighbour's first or last
+    // piece (a curve's tangent counts as a long piece); zero where there is none or the
+    // motion rests at the vertex.
+    const auto piece_before = [&](std::size_t v) -> Vec3 {
+      if (v > 0) return vertex_is_stop(segment, v) ? Vec3::Zero() : Vec3(pts[v] - pts[v - 1]);
+      if (segment == 0 || !std::isfinite(joint_corner_[segment].feed_mm_per_s)) {
+        return Vec3::Zero();
+      }
+      if (const auto* l = std::get_if<toolpath::Polyline>(&segs[segment - 1].geometry)) {
+        return l->points.back() - l->points[l->points.size() - 2];
+      }
+      const auto& c = std::get<toolpath::NurbsCurve>(segs[segment - 1].geometry);
+      return 1e9 * unit_or_zero(c.eval(c.u_end()).d1);
+    };
+    const auto piece_after = [&](std::size_t v) -> Vec3 {
+      if (v + 1 < pts.size()) return pts[v + 1] - pts[v];
+      if (segment + 1 == segs.size() || !std::isfinite(joint_corner_[segment + 1].feed_mm_per_s)) {
+        return Vec3::Zero();
+      }
+      if (const auto* l = std::get_if<toolpath::Polyline>(&segs[segment + 1].geometry)) {
+        return l->points[1] - l->points[0];
+      }
+      const auto& c = std::get<toolpath::NurbsCurve>(segs[segment + 1].geometry);
+      return 1e9 * unit_or_zero(c.eval(c.u_begin()).d1);
+    };
     for (const std::size_t v : {piece, piece + 1}) {
-      if (v == 0 || v + 1 == pts.size()) continue;
-      const Vec3 in = pts[v] - pts[v - 1], out = pts[v + 1] - pts[v];
+      const Vec3 in = piece_before(v), out = piece_after(v);
       const double l_in = in.norm(), l_out = out.norm();
-      if (!(l_in > 0.0 && l_out > 0.0) || vertex_is_stop(segment, v)) continue;
+      if (!(l_in > 0.0 && l_out > 0.0)) continue;
       const double cos_phi = std::clamp(in.dot(out) / (l_in * l_out), -1.0, 1.0);
       kappa = std::max(kappa, 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / std::min(l_in, l_out));
     }
+  }
+  if (seg.rapid) {  // no cutting: the curve laws without the roughness law
+    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                   FeedLimit::Chord});
+    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                   FeedLimit::CentripetalAccel});
+    r = min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
+                   FeedLimit::CentripetalJerk});
+    return r;
   }
   for (const std::size_t v : {piece, piece + 1}) {
     const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
@@ -301,7 +375,34 @@ void LimitSampler::apply_zones(Interval& iv) const {
   } else {
     zone(starts_mm_[segment_], joint_corner_[segment_]);
     zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1]);
+    const auto& inner = inner_corners_[segment_];
+    const double reach = 2.0 * limits_.max_feed_mm_per_min / 60.0 * limits_.period_s;
+    auto it = std::lower_bound(inner.begin(), inner.end(), iv.a_mm - reach,
+                               [](const InnerCorner& c, double s) { return c.s_mm < s; });
+    for (; it != inner.end() && it->s_mm <= iv.b_mm + reach; ++it) zone(it->s_mm, it->corner);
   }
+}
+
+// The smallest u in (u_, u1) at an edge of the zone of a corner inside the curve (see
+// next_zone_edge_mm), mapped to u with the parametric speed on its side; u1 if none.
+double LimitSampler::inner_corner_edge_u(double u1) const {
+  const auto& inner = inner_corners_[segment_];
+  if (inner.empty()) return u1;
+  const double T = limits_.period_s;
+  const double reach = 2.0 * limits_.max_feed_mm_per_min / 60.0 * T;
+  auto it = std::lower_bound(inner.begin(), inner.end(), s_ - reach,
+                             [](const InnerCorner& k, double s) { return k.s_mm < s; });
+  const double tiny = 1e-12 * std::max(1.0, std::abs(u1));
+  for (; it != inner.end() && it->s_mm <= s_ + reach + config_.spacing_mm; ++it) {
+    const double h = it->corner.feed_mm_per_s * T;
+    for (const double off : {-2.0 * h, -h, h, 2.0 * h}) {
+      const double speed = off < 0.0 ? it->speed_in : it->speed_out;
+      if (!(speed > 0.0)) continue;
+      const double u = it->u + off / speed;
+      if (u > u_ + tiny && u < u1) u1 = u;
+    }
+  }
+  return u1;
 }
 
 bool LimitSampler::next_interval(Interval& iv) {
@@ -360,6 +461,7 @@ bool LimitSampler::next_interval(Interval& iv) {
         if (ue > u_) u1 = std::min(u1, ue);
       }
     }
+    u1 = inner_corner_edge_u(u1);
     const double arc =
         GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
     const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1);

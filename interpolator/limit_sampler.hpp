@@ -64,12 +64,14 @@ class LimitSampler {
   void enter_segment();
   FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1) const;
   FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
-  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out) const;
+  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out,
+                               double curvature_per_mm = 0.0) const;
   bool must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
                  const FeedLimitResult& corner) const;
   bool vertex_is_stop(std::size_t segment, std::size_t vertex) const;
   double next_zone_edge_mm(double c0_mm, double v0, double c1_mm, double v1) const;
   void apply_zones(Interval& iv) const;
+  double inner_corner_edge_u(double u1) const;
 
   const toolpath::Path& path_;
   std::vector<double> starts_mm_;
@@ -79,6 +81,13 @@ class LimitSampler {
   std::vector<FeedLimitResult> joint_corner_;  // at the start of each segment (index 0: none;
                                                // +inf where the motion stops)
   std::vector<double> stops_mm_;
+  // Corners inside a NURBS (an interior knot where the tangent turns: full multiplicity, or
+  // degree 1), with the parametric speed on each side, per segment in increasing u.
+  struct InnerCorner {
+    double u, s_mm, speed_in, speed_out;
+    FeedLimitResult corner;
+  };
+  std::vector<std::vector<InnerCorner>> inner_corners_;
   // Cursor.
   std::size_t segment_ = 0;
   std::size_t piece_ = 0;                         // polyline piece

@@ -34,9 +34,8 @@ inline double scurve_time_s(double d, double v, double a, double j) {
   return 2.0 * ramp_t(0.5 * (lo + hi));
 }
 
-// The programmed geometry: points along the path with their arc length (summed chords).
-// Polyline vertices exactly; NURBS sampled about every `step_mm` of arc (the chord sum is
-// short of the arc by κ²h²/24 relative: far below a micrometre on the test curves).
+// The programmed geometry: points along the path with their arc length. Polyline vertices
+// exactly; NURBS sampled about every `step_mm` of arc.
 struct GeometryTable {
   std::vector<double> s_mm;
   std::vector<Vec3> p;
@@ -64,7 +63,24 @@ inline GeometryTable tabulate(const toolpath::Path& path, double step_mm = 0.002
                      .norm();
       }
       const int n = std::clamp(static_cast<int>(rough / step_mm), 64, 1000000);
-      for (int k = 0; k <= n; ++k) add(c.eval(k == n ? u1 : u0 + (u1 - u0) * k / n).p);
+      // Arc length between samples by 3-point Gauss–Legendre on |P'| (not the chord, whose
+      // shortfall would add up along the path and shift the table against the setpoints' s).
+      const auto speed = [&c](double u) { return c.eval(u).d1.norm(); };
+      double u_prev = u0;
+      for (int k = 0; k <= n; ++k) {
+        const double u = k == n ? u1 : u0 + (u1 - u0) * k / n;
+        const Vec3 q = c.eval(u).p;
+        if (t.p.empty()) {
+          t.s_mm.push_back(0.0);
+        } else {
+          const double h = 0.5 * (u - u_prev), m = 0.5 * (u + u_prev), g = std::sqrt(0.6);
+          const double arc =
+              h * (5.0 * speed(m - g * h) + 8.0 * speed(m) + 5.0 * speed(m + g * h)) / 9.0;
+          t.s_mm.push_back(t.s_mm.back() + arc);
+        }
+        t.p.push_back(q);
+        u_prev = u;
+      }
     }
   }
   return t;
