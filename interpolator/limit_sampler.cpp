@@ -73,9 +73,21 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
     const auto& c = std::get<toolpath::NurbsCurve>(g);
     return unit_or_zero(c.eval(at_end ? c.u_end() : c.u_begin()).d1);
   };
+  // The curvature next to a joint: the curve's, or on a polyline the discrete curvature of
+  // the vertex next to the joint, 2 sin(φ/2) / min(l_in, l_out) (see limit_on_piece).
   const auto curvature = [&](std::size_t k, bool at_end) -> double {
-    const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry);
-    return c ? curvature_per_mm(c->eval(at_end ? c->u_end() : c->u_begin())) : 0.0;
+    const auto& g = path.segments[k].geometry;
+    if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
+      return curvature_per_mm(c->eval(at_end ? c->u_end() : c->u_begin()));
+    }
+    const auto& p = std::get<toolpath::Polyline>(g).points;
+    if (p.size() < 3) return 0.0;
+    const std::size_t v = at_end ? p.size() - 2 : 1;
+    const Vec3 in = p[v] - p[v - 1], out = p[v + 1] - p[v];
+    const double l = std::min(in.norm(), out.norm());
+    if (!(l > 0.0)) return 0.0;
+    const double cos_phi = std::clamp(in.dot(out) / (in.norm() * out.norm()), -1.0, 1.0);
+    return 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / l;
   };
   // Joints (the corner where segment k begins belongs to the move ending there, k − 1) and
   // the interior vertices of polylines, in increasing s; the interior vertices' s is summed
