@@ -1,4 +1,4 @@
-// Feed limits along a path (spec/feedrate.md §§1–3). The commanded feed at a point is the
+// Feed limits along a path (docs/planner.md §1). The commanded feed at a point is the
 // smallest of five speeds, each a closed form in the local curvature κ = 1/ρ and the contact
 // inclination α:
 //

@@ -1,6 +1,6 @@
 // The feed limit at one point of a path: the smallest of the roughness law (paper 004), the
 // chord error, the centripetal acceleration and jerk, and the machine's maximum feed
-// (spec/feedrate.md §3), with the name of the limit that binds. Explained in feed_limits.cpp.
+// (docs/planner.md §1), with the name of the limit that binds. Explained in feed_limits.cpp.
 // Pure functions, no allocation: the planner samples them along the path.
 #pragma once
 
@@ -30,8 +30,8 @@ inline constexpr int kFeedLimitCount = 7;
 // "corner".
 const char* to_string(FeedLimit limit);
 
-// The machine and interpolation limits. Defaults are literature values (spec §3): a_max in
-// 500–3000 mm/s², j_max in 2e4–6e4 mm/s³, a 1 µm chord tolerance, a 4 ms period.
+// The machine and interpolation limits. Defaults are literature values (docs/planner.md §1): a_max
+// in 500–3000 mm/s², j_max in 2e4–6e4 mm/s³, a 1 µm chord tolerance, a 4 ms period.
 struct MachineLimits {
   double period_s = 0.004;              // T, the interpolation period
   double max_feed_mm_per_min = 6000.0;  // machine maximum feed (100 mm/s)

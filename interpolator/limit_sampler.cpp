@@ -13,20 +13,29 @@
 // a node on every knot and vertex. The minimum over a curve interval: five samples, then
 // Brent's method around the lowest (the minimum may sit just inside an end).
 //
-// What is limited: on curves, feed_limit() at each point (roughness law with α = asin(t_z),
-// chord error, centripetal acceleration and jerk, machine maximum); on polyline pieces the
-// roughness law with α from the contact normals at both ends (or the piece's direction) and
-// the machine maximum (a straight line has no curvature); everywhere the program's F word.
-// Rapids (G0) are limited by the machine maximum only. At a corner (a polyline vertex, or a
-// joint where the tangent turns by φ) the speed is bounded by
+// What is limited (docs/planner.md §§1–3): on curves, feed_limit() at each point (roughness
+// law with α = asin(t_z), chord error, centripetal acceleration and jerk, machine maximum); on
+// polyline pieces the roughness law with α from the contact normals at both ends (or the
+// piece's direction) and the machine maximum, plus, on a piece shorter than one period's
+// travel, the curve laws at the discrete curvature 2 sin(φ/2) / min(l_in, l_out) of its end
+// vertices (several vertices in one period: the polyline acts as a curve); everywhere the
+// program's F word. Rapids (G0) take the machine maximum and the curve laws of short pieces.
+// At a corner (a polyline vertex, a joint, or an interior knot of a NURBS where the tangent
+// turns by φ, next to curvature κ) the speed is bounded by
 //
-//     chord:     the chord of one period across the corner deviates (Δs/2) sin(φ/2) ≤ ε_c
-//                → v ≤ 2 ε_c / (T sin(φ/2))
+//     chord:     the chord of one period across the corner deviates (Δs/2) sin(φ/2) + κΔs²/8
+//                ≤ ε_c → Δs, v ≤ Δs / T
 //     junction:  the machine rounds the corner within ε_c at a_max (grbl's junction deviation)
 //                → v² ≤ a_max ε_c cos(φ/2) / (1 − cos(φ/2))
 //
-// over a zone of one period's travel, v_c T, on each side, so that every period whose chord
-// crosses the corner runs at the corner speed.
+// over the zone [c − v_c T, c + v_c T] (every period whose chord crosses the corner lies in
+// it, since the planner checks whole periods). The zone has intervals of its own, with nodes
+// at c ± v_c T and c ± 2 v_c T, so that the node rule slows only 4 v_c T of path, not the
+// 0.2 mm intervals around it.
+//
+// Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
+// stretches between stops separately, and takes each node's left and right interval values
+// at a stop for the stretch on that side.
 #include "interpolator/limit_sampler.hpp"
 
 #include <algorithm>

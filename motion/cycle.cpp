@@ -1,4 +1,4 @@
-// The cycle thread (DESIGN.md, "Threads of the service", thread 2).
+// The cycle thread of the service (docs/planner.md §5 for its watchdog).
 //
 //   deadline d_k = d_0 + k T (absolute CLOCK_MONOTONIC)
 //

@@ -1,4 +1,13 @@
 // The job loop of one period: limit sampler → planner → path walker (see job.hpp).
+//
+// Stretches (docs/planner.md §3): the path is cut at the sampler's stops into stretches
+//
+//     0 ────────── stop ────── stop ──────────── L
+//       stretch 0       1            2
+//
+// The planner plans one stretch at a time in its own arc length, from rest to rest exactly at
+// its end; Planner::restart then starts the next (no allocation). Setpoints carry the arc
+// length from the path start, and the walker walks the whole path.
 #include "motion/job.hpp"
 
 #include <algorithm>
