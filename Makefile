@@ -3,7 +3,7 @@ JOBS ?= $(shell nproc)
 NCD := build/release/app/ncd
 
 .PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build format \
-	format-check bench clean
+	format-check bench soak clean
 
 all: release
 
@@ -43,6 +43,10 @@ test-fuzz: fuzz-build
 
 bench: release
 	build/release/bench/ncd_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+
+# The planner's random-program property suite at length (the Release suite runs 200).
+soak: release
+	NCD_PROPERTY_PROGRAMS=$${NCD_PROPERTY_PROGRAMS:-5000} build/release/tests/test_motion --gtest_filter='Property.*'
 
 format:
 	@git ls-files '*.cpp' '*.hpp' | xargs clang-format -i

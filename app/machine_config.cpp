@@ -201,6 +201,10 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
       l.chord_tolerance_mm = as_real(value, where);
     else if (key == "feed_tolerance_rel")
       l.feed_tolerance_rel = as_real(value, where);
+    else if (key == "blend_tolerance_mm")
+      l.blend_tolerance_mm = as_real(value, where);
+    else if (key == "stall_timeout_s")
+      l.stall_timeout_s = as_real(value, where);
     else if (key == "cutting") {
       if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
       for (const auto& [ck, cv] : value.as_table()) {
@@ -231,7 +235,8 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
       throw InputError("unknown key " + where +
                        "; the machine file takes period_s, max_feed_mm_per_min, "
                        "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
-                       "feed_tolerance_rel and the tables [cutting], [link], [encoder]");
+                       "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s and the tables "
+                       "[cutting], [link], [encoder]");
     }
   }
   c.encoder.line = c.link.line;
@@ -260,6 +265,8 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   j["max_jerk_mm_per_s3"] = c.limits.max_jerk_mm_per_s3;
   j["chord_tolerance_mm"] = c.limits.chord_tolerance_mm;
   j["feed_tolerance_rel"] = c.limits.feed_tolerance_rel;
+  j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
+  j["stall_timeout_s"] = c.limits.stall_timeout_s;
   j["cutting"] = {{"ball_radius_mm", c.cutting.ball_radius_mm},
                   {"pick_feed_mm", c.cutting.pick_feed_mm},
                   {"teeth", c.cutting.teeth},

@@ -88,6 +88,13 @@ void validate(const MachineLimits& limits) {
   require_positive("max_jerk_mm_per_s3", limits.max_jerk_mm_per_s3);
   require_positive("chord_tolerance_mm", limits.chord_tolerance_mm);
   require_positive("feed_tolerance_rel", limits.feed_tolerance_rel);
+  require_positive("blend_tolerance_mm", limits.blend_tolerance_mm);
+  require_positive("stall_timeout_s", limits.stall_timeout_s);
+  if (limits.stall_timeout_s < 10.0 * limits.period_s) {
+    throw InputError("stall_timeout_s = " + fmt(limits.stall_timeout_s) +
+                     " is shorter than 10 periods (" + fmt(10.0 * limits.period_s) +
+                     " s): the watchdog would fire at every stop; 2 s is the default");
+  }
   if (limits.feed_tolerance_rel < R::kMinFeedToleranceRel ||
       limits.feed_tolerance_rel > R::kMaxFeedToleranceRel) {
     throw InputError("feed_tolerance_rel = " + fmt(limits.feed_tolerance_rel) + " is outside [" +

@@ -39,6 +39,8 @@ struct MachineLimits {
   double max_jerk_mm_per_s3 = 2e4;      // j_max, here for the centripetal part
   double chord_tolerance_mm = 0.001;    // ε_c between the chord of a period and the curve
   double feed_tolerance_rel = 1e-10;    // |arc travelled − Δs| / Δs the walker corrects to
+  double blend_tolerance_mm = 0.01;     // corner deviation allowed without G64 P
+  double stall_timeout_s = 2.0;         // the cycle's no-progress watchdog (motion/cycle.cpp)
 };
 
 // Ranges that make MachineLimits valid, shared by validation and its messages.

@@ -13,20 +13,29 @@
 // a node on every knot and vertex. The minimum over a curve interval: five samples, then
 // Brent's method around the lowest (the minimum may sit just inside an end).
 //
-// What is limited: on curves, feed_limit() at each point (roughness law with α = asin(t_z),
-// chord error, centripetal acceleration and jerk, machine maximum); on polyline pieces the
-// roughness law with α from the contact normals at both ends (or the piece's direction) and
-// the machine maximum (a straight line has no curvature); everywhere the program's F word.
-// Rapids (G0) are limited by the machine maximum only. At a corner (a polyline vertex, or a
-// joint where the tangent turns by φ) the speed is bounded by
+// What is limited (docs/planner.md §§1–3): on curves, feed_limit() at each point (roughness
+// law with α = asin(t_z), chord error, centripetal acceleration and jerk, machine maximum); on
+// polyline pieces the roughness law with α from the contact normals at both ends (or the
+// piece's direction) and the machine maximum, plus, on a piece shorter than one period's
+// travel, the curve laws at the discrete curvature 2 sin(φ/2) / min(l_in, l_out) of its end
+// vertices (several vertices in one period: the polyline acts as a curve); everywhere the
+// program's F word. Rapids (G0) take the machine maximum and the curve laws of short pieces.
+// At a corner (a polyline vertex, a joint, or an interior knot of a NURBS where the tangent
+// turns by φ, next to curvature κ) the speed is bounded by
 //
-//     chord:     the chord of one period across the corner deviates (Δs/2) sin(φ/2) ≤ ε_c
-//                → v ≤ 2 ε_c / (T sin(φ/2))
+//     chord:     the chord of one period across the corner deviates (Δs/2) sin(φ/2) + κΔs²/8
+//                ≤ ε_c → Δs, v ≤ Δs / T
 //     junction:  the machine rounds the corner within ε_c at a_max (grbl's junction deviation)
 //                → v² ≤ a_max ε_c cos(φ/2) / (1 − cos(φ/2))
 //
-// over a zone of one period's travel, v_c T, on each side, so that every period whose chord
-// crosses the corner runs at the corner speed.
+// over the zone [c − v_c T, c + v_c T] (every period whose chord crosses the corner lies in
+// it, since the planner checks whole periods). The zone has intervals of its own, with nodes
+// at c ± v_c T and c ± 2 v_c T, so that the node rule slows only 4 v_c T of path, not the
+// 0.2 mm intervals around it.
+//
+// Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
+// stretches between stops separately, and takes each node's left and right interval values
+// at a stop for the stretch on that side.
 #include "interpolator/limit_sampler.hpp"
 
 #include <algorithm>
@@ -63,6 +72,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       config_(config) {
   const std::size_t n = path.segments.size();
   joint_corner_.assign(n + 1, FeedLimitResult{kInf, FeedLimit::Corner});
+  inner_corners_.resize(n);
   const auto direction = [&](std::size_t k, bool at_end) -> Vec3 {
     const auto& g = path.segments[k].geometry;
     if (const auto* line = std::get_if<toolpath::Polyline>(&g)) {
@@ -72,9 +82,80 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
     const auto& c = std::get<toolpath::NurbsCurve>(g);
     return unit_or_zero(c.eval(at_end ? c.u_end() : c.u_begin()).d1);
   };
-  for (std::size_t k = 1; k < n; ++k) {
-    joint_corner_[k] = corner_speed(direction(k - 1, true), direction(k, false));
+  // The curvature next to a joint: the curve's, or on a polyline the discrete curvature of
+  // the vertex next to the joint, 2 sin(φ/2) / min(l_in, l_out) (see limit_on_piece).
+  const auto curvature = [&](std::size_t k, bool at_end) -> double {
+    const auto& g = path.segments[k].geometry;
+    if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
+      return curvature_per_mm(c->eval(at_end ? c->u_end() : c->u_begin()));
+    }
+    const auto& p = std::get<toolpath::Polyline>(g).points;
+    if (p.size() < 3) return 0.0;
+    const std::size_t v = at_end ? p.size() - 2 : 1;
+    const Vec3 in = p[v] - p[v - 1], out = p[v + 1] - p[v];
+    const double l = std::min(in.norm(), out.norm());
+    if (!(l > 0.0)) return 0.0;
+    const double cos_phi = std::clamp(in.dot(out) / (in.norm() * out.norm()), -1.0, 1.0);
+    return 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / l;
+  };
+  // Joints (the corner where segment k begins belongs to the move ending there, k − 1) and
+  // the interior vertices of polylines, in increasing s; the interior vertices' s is summed
+  // exactly as next_interval() sums it, so that every stop is a node of the stream.
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k > 0) {
+      const Vec3 d_in = direction(k - 1, true), d_out = direction(k, false);
+      const FeedLimitResult corner =
+          corner_speed(d_in, d_out, std::max(curvature(k - 1, true), curvature(k, false)));
+      if (path.segments[k].stop_before ||
+          must_stop(d_in, d_out, path.segments[k - 1].path_control, corner)) {
+        if (stops_mm_.empty() || starts_mm_[k] > stops_mm_.back()) {
+          stops_mm_.push_back(starts_mm_[k]);
+        }
+      } else {
+        joint_corner_[k] = corner;
+      }
+    }
+    if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
+      // Interior knots where the tangent turns: a stop, or a corner with its zone. Their s is
+      // the span lengths summed (Gauss–Legendre, 4 panels); the stream's node there differs
+      // by rounding only, which the job's matching of stops allows for.
+      const std::vector<double> bp = c->breakpoints();
+      double s = starts_mm_[k];
+      for (std::size_t i = 1; i + 1 < bp.size(); ++i) {
+        const double h = (bp[i] - bp[i - 1]) / 4.0;
+        for (int p = 0; p < 4; ++p) {
+          const double a = bp[i - 1] + h * p, b = p == 3 ? bp[i] : a + h;
+          s += GaussLegendre10::integrate([c](double u) { return c->eval(u).d1.norm(); }, a, b);
+        }
+        const toolpath::CurvePoint cl = c->eval(std::nextafter(bp[i], -kInf)), cr = c->eval(bp[i]);
+        const Vec3 left = cl.d1, right = cr.d1;
+        const Vec3 d_in = unit_or_zero(left), d_out = unit_or_zero(right);
+        if (!d_in.isZero() && !d_out.isZero() &&
+            std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)) < kMinTurnRad) {
+          continue;  // smooth
+        }
+        const FeedLimitResult corner =
+            corner_speed(d_in, d_out, std::max(curvature_per_mm(cl), curvature_per_mm(cr)));
+        if (must_stop(d_in, d_out, path.segments[k].path_control, corner)) {
+          if (stops_mm_.empty() || s > stops_mm_.back()) stops_mm_.push_back(s);
+        } else {
+          inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner});
+        }
+      }
+    }
+    if (const auto* line = std::get_if<toolpath::Polyline>(&path.segments[k].geometry)) {
+      double s = starts_mm_[k];
+      for (std::size_t v = 1; v + 1 < line->points.size(); ++v) {
+        s += (line->points[v] - line->points[v - 1]).norm();
+        if (vertex_is_stop(k, v) && (stops_mm_.empty() || s > stops_mm_.back())) {
+          stops_mm_.push_back(s);
+        }
+      }
+    }
   }
+  const double total = starts_mm_[n];
+  while (!stops_mm_.empty() && stops_mm_.back() >= total) stops_mm_.pop_back();
+  std::erase_if(stops_mm_, [](double s) { return s <= 0.0; });
   breakpoints_.resize(n);  // here, so that walking the segments later allocates nothing
   for (std::size_t k = 0; k < n; ++k) {
     if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
@@ -83,12 +164,40 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   }
 }
 
-FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out) const {
-  const double cos_phi = std::clamp(d_in.dot(d_out), -1.0, 1.0);
-  const double phi = std::acos(cos_phi);
-  if (d_in.isZero() || d_out.isZero() || phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
+double LimitSampler::stop_below_mm_per_s() const {
+  return limits_.max_accel_mm_per_s2 * limits_.period_s;
+}
+
+bool LimitSampler::must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
+                             const FeedLimitResult& corner) const {
+  if (d_in.isZero() || d_out.isZero()) return true;  // a zero-length move
+  if (mode == toolpath::PathControl::exact_stop) return true;
+  const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+  if (phi < kMinTurnRad) return false;  // tangent: no corner
+  if (mode == toolpath::PathControl::exact_path) return true;
+  return !(corner.feed_mm_per_s >= stop_below_mm_per_s());
+}
+
+bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  const Vec3 d_in = unit_or_zero(line.points[vertex] - line.points[vertex - 1]);
+  const Vec3 d_out = unit_or_zero(line.points[vertex + 1] - line.points[vertex]);
+  return must_stop(d_in, d_out, path_.segments[segment].path_control, corner_speed(d_in, d_out));
+}
+
+// κ: the larger curvature of the two sides at the corner (curves meeting there): the chord
+// across the corner then also bows by κ Δs² / 8, so Δs solves
+// (Δs / 2) sin(φ/2) + κ Δs² / 8 = ε_c (for κ = 0: Δs = 2 ε_c / sin(φ/2)).
+FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
+                                           double curvature_per_mm) const {
+  if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
+  const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+  if (phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
   const double eps = limits_.chord_tolerance_mm, t = limits_.period_s;
-  const double chord = 2.0 * eps / (t * std::sin(0.5 * phi));
+  const double b = 0.5 * std::sin(0.5 * phi), qa = 0.125 * curvature_per_mm;
+  const double step =
+      qa > 0.0 && std::isfinite(qa) ? 2.0 * eps / (b + std::sqrt(b * b + 4.0 * qa * eps)) : eps / b;
+  const double chord = step / t;
   const double c = std::cos(0.5 * phi);
   const double junction =
       c < 1.0 ? std::sqrt(limits_.max_accel_mm_per_s2 * eps * c / (1.0 - c)) : kInf;
@@ -113,14 +222,64 @@ FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) cons
 
 FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t piece) const {
   const auto& seg = path_.segments[segment];
-  if (seg.rapid) return segment_cap(segment);
   const auto& line = std::get<toolpath::Polyline>(seg.geometry);
-  const Vec3 dir = unit_or_zero(line.points[piece + 1] - line.points[piece]);
+  const auto& pts = line.points;
+  const Vec3 dir = unit_or_zero(pts[piece + 1] - pts[piece]);
   FeedLimitResult r = segment_cap(segment);
+  // A piece shorter than one period's travel at the cap: several vertices fall inside one
+  // period, so the polyline acts as a curve, of discrete curvature κ_v = 2 sin(φ_v / 2) /
+  // min(l_in, l_out) at a vertex turning by φ_v (1/R on a polygon inscribed in a circle of
+  // radius R); the piece takes the curve laws at the larger κ of its two ends (across a
+  // joint with the neighbour's piece). Stops are left out: the motion rests there.
+  double kappa = 0.0;
+  if ((pts[piece + 1] - pts[piece]).norm() < r.feed_mm_per_s * limits_.period_s) {
+    const auto& segs = path_.segments;
+    // The piece before a vertex, or after it; across a joint, the neighbour's first or last
+    // piece (a curve's tangent counts as a long piece); zero where there is none or the
+    // motion rests at the vertex.
+    const auto piece_before = [&](std::size_t v) -> Vec3 {
+      if (v > 0) return vertex_is_stop(segment, v) ? Vec3::Zero() : Vec3(pts[v] - pts[v - 1]);
+      if (segment == 0 || !std::isfinite(joint_corner_[segment].feed_mm_per_s)) {
+        return Vec3::Zero();
+      }
+      if (const auto* l = std::get_if<toolpath::Polyline>(&segs[segment - 1].geometry)) {
+        return l->points.back() - l->points[l->points.size() - 2];
+      }
+      const auto& c = std::get<toolpath::NurbsCurve>(segs[segment - 1].geometry);
+      return 1e9 * unit_or_zero(c.eval(c.u_end()).d1);
+    };
+    const auto piece_after = [&](std::size_t v) -> Vec3 {
+      if (v + 1 < pts.size()) return pts[v + 1] - pts[v];
+      if (segment + 1 == segs.size() || !std::isfinite(joint_corner_[segment + 1].feed_mm_per_s)) {
+        return Vec3::Zero();
+      }
+      if (const auto* l = std::get_if<toolpath::Polyline>(&segs[segment + 1].geometry)) {
+        return l->points[1] - l->points[0];
+      }
+      const auto& c = std::get<toolpath::NurbsCurve>(segs[segment + 1].geometry);
+      return 1e9 * unit_or_zero(c.eval(c.u_begin()).d1);
+    };
+    for (const std::size_t v : {piece, piece + 1}) {
+      const Vec3 in = piece_before(v), out = piece_after(v);
+      const double l_in = in.norm(), l_out = out.norm();
+      if (!(l_in > 0.0 && l_out > 0.0)) continue;
+      const double cos_phi = std::clamp(in.dot(out) / (l_in * l_out), -1.0, 1.0);
+      kappa = std::max(kappa, 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / std::min(l_in, l_out));
+    }
+  }
+  if (seg.rapid) {  // no cutting: the curve laws without the roughness law
+    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                   FeedLimit::Chord});
+    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                   FeedLimit::CentripetalAccel});
+    r = min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
+                   FeedLimit::CentripetalJerk});
+    return r;
+  }
   for (const std::size_t v : {piece, piece + 1}) {
     const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
                                               : inclination_from_normal_rad(line.normals[v], dir);
-    r = min_of(r, feed_limit(limits_, cutting_, 0.0, alpha));
+    r = min_of(r, feed_limit(limits_, cutting_, kappa, alpha));
   }
   return r;
 }
@@ -129,6 +288,7 @@ FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vert
   const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
   if (vertex == 0) return joint_corner_[segment];
   if (vertex + 1 == line.points.size()) return joint_corner_[segment + 1];
+  if (vertex_is_stop(segment, vertex)) return {kInf, FeedLimit::Corner};  // at rest there
   return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
                       unit_or_zero(line.points[vertex + 1] - line.points[vertex]));
 }
@@ -191,11 +351,32 @@ FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double 
   return best;
 }
 
+// The next edge past s_ of the corner zones at both ends of a piece (or a curve segment):
+// c ± v T and c ± 2 v T for a corner of speed v at c. The intervals of the zone [c − vT, c + vT]
+// take the corner speed; the ones just outside it keep their own limit, so that with the
+// node rule (the minimum of both neighbours) the slow stretch is [c − 2vT, c + 2vT].
+double LimitSampler::next_zone_edge_mm(double c0_mm, double v0, double c1_mm, double v1) const {
+  const double tol = 1e-12 * std::max(1.0, std::abs(c1_mm));
+  double best = kInf;
+  const auto consider = [&](double e) {
+    if (e > s_ + tol && e < c1_mm - tol && e < best) best = e;
+  };
+  if (std::isfinite(v0)) {
+    consider(c0_mm + v0 * limits_.period_s);
+    consider(c0_mm + 2.0 * v0 * limits_.period_s);
+  }
+  if (std::isfinite(v1)) {
+    consider(c1_mm - 2.0 * v1 * limits_.period_s);
+    consider(c1_mm - v1 * limits_.period_s);
+  }
+  return best;
+}
+
 void LimitSampler::apply_zones(Interval& iv) const {
   const auto zone = [&](double center_mm, FeedLimitResult corner) {
     if (!std::isfinite(corner.feed_mm_per_s)) return;
     const double half = corner.feed_mm_per_s * limits_.period_s;
-    if (iv.a_mm <= center_mm + half && iv.b_mm >= center_mm - half &&
+    if (iv.a_mm < center_mm + half && iv.b_mm > center_mm - half &&
         corner.feed_mm_per_s < iv.v_mm_per_s) {
       iv.v_mm_per_s = corner.feed_mm_per_s;
       iv.limit = corner.limit;
@@ -215,7 +396,34 @@ void LimitSampler::apply_zones(Interval& iv) const {
   } else {
     zone(starts_mm_[segment_], joint_corner_[segment_]);
     zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1]);
+    const auto& inner = inner_corners_[segment_];
+    const double reach = 2.0 * limits_.max_feed_mm_per_min / 60.0 * limits_.period_s;
+    auto it = std::lower_bound(inner.begin(), inner.end(), iv.a_mm - reach,
+                               [](const InnerCorner& c, double s) { return c.s_mm < s; });
+    for (; it != inner.end() && it->s_mm <= iv.b_mm + reach; ++it) zone(it->s_mm, it->corner);
   }
+}
+
+// The smallest u in (u_, u1) at an edge of the zone of a corner inside the curve (see
+// next_zone_edge_mm), mapped to u with the parametric speed on its side; u1 if none.
+double LimitSampler::inner_corner_edge_u(double u1) const {
+  const auto& inner = inner_corners_[segment_];
+  if (inner.empty()) return u1;
+  const double T = limits_.period_s;
+  const double reach = 2.0 * limits_.max_feed_mm_per_min / 60.0 * T;
+  auto it = std::lower_bound(inner.begin(), inner.end(), s_ - reach,
+                             [](const InnerCorner& k, double s) { return k.s_mm < s; });
+  const double tiny = 1e-12 * std::max(1.0, std::abs(u1));
+  for (; it != inner.end() && it->s_mm <= s_ + reach + config_.spacing_mm; ++it) {
+    const double h = it->corner.feed_mm_per_s * T;
+    for (const double off : {-2.0 * h, -h, h, 2.0 * h}) {
+      const double speed = off < 0.0 ? it->speed_in : it->speed_out;
+      if (!(speed > 0.0)) continue;
+      const double u = it->u + off / speed;
+      if (u > u_ + tiny && u < u1) u1 = u;
+    }
+  }
+  return u1;
 }
 
 bool LimitSampler::next_interval(Interval& iv) {
@@ -230,18 +438,19 @@ bool LimitSampler::next_interval(Interval& iv) {
       const double len = (line->points[piece_ + 1] - line->points[piece_]).norm();
       const bool last_piece = piece_ + 2 == line->points.size();
       const double end = last_piece ? starts_mm_[segment_ + 1] : piece_s_ + len;
-      const auto subs =
-          static_cast<std::size_t>(std::max(1.0, std::ceil(len / config_.spacing_mm)));
       const FeedLimitResult v = limit_on_piece(segment_, piece_);
+      const double remaining = end - s_;
+      const double subs = std::max(1.0, std::ceil(remaining / config_.spacing_mm - 1e-9));
+      double b = subs <= 1.0 ? end : s_ + remaining / subs;
+      b = std::min(b, next_zone_edge_mm(piece_s_, corner_limit(segment_, piece_).feed_mm_per_s, end,
+                                        corner_limit(segment_, piece_ + 1).feed_mm_per_s));
       iv.a_mm = s_;
-      iv.b_mm = sub_ + 1 == subs
-                    ? end
-                    : piece_s_ + len * static_cast<double>(sub_ + 1) / static_cast<double>(subs);
+      iv.b_mm = b;
       iv.v_mm_per_s = v.feed_mm_per_s;
       iv.limit = v.limit;
       apply_zones(iv);
-      s_ = iv.b_mm;
-      if (++sub_ == subs) {
+      s_ = b;
+      if (b >= end) {
         ++piece_, sub_ = 0;
         piece_s_ = end;
       }
@@ -259,6 +468,21 @@ bool LimitSampler::next_interval(Interval& iv) {
     while (knot_ < knots.size() && knots[knot_] <= u_) ++knot_;
     if (knot_ < knots.size()) u1 = std::min(u1, knots[knot_]);
     u1 = std::min(u1, c.u_end());
+    // The corner zones at the joints get intervals of their own (their edges mapped to u at
+    // the joint's parametric speed), so that a slow corner does not slow a whole interval.
+    const double s0 = starts_mm_[segment_], s1 = starts_mm_[segment_ + 1];
+    const double edge = next_zone_edge_mm(s0, joint_corner_[segment_].feed_mm_per_s, s1,
+                                          joint_corner_[segment_ + 1].feed_mm_per_s);
+    if (std::isfinite(edge)) {
+      const bool near_start = edge - s0 < s1 - edge;
+      const double speed_joint = c.eval(near_start ? c.u_begin() : c.u_end()).d1.norm();
+      if (speed_joint > 0.0) {
+        const double ue = near_start ? c.u_begin() + (edge - s0) / speed_joint
+                                     : c.u_end() - (s1 - edge) / speed_joint;
+        if (ue > u_) u1 = std::min(u1, ue);
+      }
+    }
+    u1 = inner_corner_edge_u(u1);
     const double arc =
         GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
     const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1);
@@ -288,7 +512,7 @@ bool LimitSampler::next(LimitNode& out) {
   if (!started_) {
     started_ = true;
     enter_segment();
-    pending_ = {0.0, kInf, FeedLimit::MaxFeed};
+    pending_ = {0.0, kInf, FeedLimit::MaxFeed, kInf, kInf};
   }
   Interval iv{};
   while (next_interval(iv)) {
@@ -297,8 +521,9 @@ bool LimitSampler::next(LimitNode& out) {
       pending_.feed_mm_per_s = iv.v_mm_per_s;
       pending_.limit = iv.limit;
     }
+    pending_.right_mm_per_s = iv.v_mm_per_s;
     out = pending_;
-    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit};
+    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf};
     return true;
   }
   out = pending_;

@@ -15,6 +15,11 @@ struct LimitNode {
   double s_mm = 0.0;           // arc length from the path start
   double feed_mm_per_s = 0.0;  // v_max at the node, see the contract in limit_sampler.cpp
   FeedLimit limit = FeedLimit::MaxFeed;
+  // The minimum of the limit over the interval ending at the node and over the one starting
+  // there (+inf before the first and after the last); feed_mm_per_s is the smaller. Where the
+  // motion comes to rest at a node, each side's planner takes its own side's value.
+  double left_mm_per_s = 0.0;
+  double right_mm_per_s = 0.0;
 };
 
 struct SamplerConfig {
@@ -34,6 +39,15 @@ class LimitSampler {
   // The next node in increasing s; false once the node at the path end has been given.
   bool next(LimitNode& out);
 
+  // Where the motion must come to rest inside the path (arc length, increasing, each one a
+  // node of the stream, 0 and the path end excluded): reversals, zero-length moves, corners
+  // under G61, move ends under G61.1, a stop_before, and corners too sharp for blending
+  // (corner speed below stop_below_mm_per_s()). No corner zone is applied at a stop.
+  const std::vector<double>& stops_mm() const { return stops_mm_; }
+  // A blended corner slower than this becomes a full stop: a_max T, the speed one period of
+  // full acceleration gives (a crawl through the corner would take as long as a stop).
+  double stop_below_mm_per_s() const;
+
   // The feed limit at a point of segment `segment` (curve parameter u, or polyline piece and
   // fraction), without corners: what a setpoint there is checked against.
   FeedLimitResult limit_on_curve(std::size_t segment, double u) const;
@@ -50,15 +64,30 @@ class LimitSampler {
   void enter_segment();
   FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1) const;
   FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
-  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out) const;
+  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out,
+                               double curvature_per_mm = 0.0) const;
+  bool must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
+                 const FeedLimitResult& corner) const;
+  bool vertex_is_stop(std::size_t segment, std::size_t vertex) const;
+  double next_zone_edge_mm(double c0_mm, double v0, double c1_mm, double v1) const;
   void apply_zones(Interval& iv) const;
+  double inner_corner_edge_u(double u1) const;
 
   const toolpath::Path& path_;
   std::vector<double> starts_mm_;
   MachineLimits limits_;
   CuttingParams cutting_;
   SamplerConfig config_;
-  std::vector<FeedLimitResult> joint_corner_;  // at the start of each segment (index 0: none)
+  std::vector<FeedLimitResult> joint_corner_;  // at the start of each segment (index 0: none;
+                                               // +inf where the motion stops)
+  std::vector<double> stops_mm_;
+  // Corners inside a NURBS (an interior knot where the tangent turns: full multiplicity, or
+  // degree 1), with the parametric speed on each side, per segment in increasing u.
+  struct InnerCorner {
+    double u, s_mm, speed_in, speed_out;
+    FeedLimitResult corner;
+  };
+  std::vector<std::vector<InnerCorner>> inner_corners_;
   // Cursor.
   std::size_t segment_ = 0;
   std::size_t piece_ = 0;                         // polyline piece

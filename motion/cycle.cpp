@@ -1,4 +1,5 @@
-// The cycle thread (docs/architecture.md, "Threads of the service", thread 2).
+// The cycle thread (docs/architecture.md, "Threads of the service", thread 2; docs/planner.md §5
+// for its watchdog).
 //
 //   deadline d_k = d_0 + k T (absolute CLOCK_MONOTONIC)
 //
@@ -19,6 +20,11 @@
 // the planner's first look-ahead window is filled before the thread starts, so the sampling
 // inside the cycle is a few intervals per period. Stop is a feed hold followed by the end of
 // the job once the motion is at rest.
+//
+// No-progress watchdog: while the job runs (not held, not stopping, override above 0 %), its
+// arc length must advance by more than kProgressMm within the machine's stall_timeout_s.
+// Otherwise the cycle ends in state Error with a message naming the position and the limit in
+// force. It guards against defects of the planner and is never expected to fire (docs/planner.md).
 #include "motion/cycle.hpp"
 
 #include <fcntl.h>
@@ -40,6 +46,9 @@ std::int64_t now_ns() {
   clock_gettime(CLOCK_MONOTONIC, &ts);
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
+
+// Progress the watchdog asks for within stall_timeout_s: 0.1 µm (a feed below 3e-3 mm/min).
+constexpr double kProgressMm = 1e-4;
 
 void sleep_until_ns(std::int64_t deadline_ns) {
   timespec ts{};
@@ -206,6 +215,27 @@ bool Cycle::run_period(CycleState& state) {
   const bool at_rest = sp.v_mm_per_s == 0.0 && sp.a_mm_per_s2 == 0.0;
   if (sp.done) state = CycleState::Done;
   if (stopping_ && at_rest) state = CycleState::Stopped;
+  if (state == CycleState::Running && !stopping_ && override_applied_ > 0.0 &&
+      sp.s_mm <= watch_s_mm_ + kProgressMm) {
+    const auto& limits = job_->config().limits;
+    if (static_cast<double>(++watch_periods_) * limits.period_s >= limits.stall_timeout_s) {
+      const interpolator::FeedLimitResult here = job_->limit_here();
+      error_ = "no progress for " + std::to_string(limits.stall_timeout_s) +
+               " s (stall_timeout_s) at s = " + std::to_string(sp.s_mm) + " of " +
+               std::to_string(job_->length_mm()) + " mm, X" + std::to_string(sp.p.x()) + " Y" +
+               std::to_string(sp.p.y()) + " Z" + std::to_string(sp.p.z()) +
+               ", v = " + std::to_string(sp.v_mm_per_s) +
+               " mm/s; limit in force: " + limit_name(sp.limit_id) + " (" +
+               interpolator::to_string(here.limit) + " " + std::to_string(here.feed_mm_per_s) +
+               " mm/s here): the motion was stopped (an internal error; please report it with "
+               "the program)";
+      publish(sp, CycleState::Error);
+      return false;
+    }
+  } else {
+    watch_s_mm_ = sp.s_mm;
+    watch_periods_ = 0;
+  }
   publish(sp, state);
   return state != CycleState::Done && state != CycleState::Stopped;
 }

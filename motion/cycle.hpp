@@ -104,6 +104,9 @@ class Cycle {
   int cpu_latency_fd_ = -1;         // held open while the cycle lives (PM QoS request)
   bool stopping_ = false;
   double override_applied_ = 1.0;
+  // No-progress watchdog: s at the last progress, and the periods since.
+  double watch_s_mm_ = 0.0;
+  std::int64_t watch_periods_ = 0;
   // Status snapshot (seqlock: odd while written).
   mutable std::atomic<std::uint64_t> seq_{0};
   std::atomic<double> st_t_{0}, st_s_{0}, st_v_{0}, st_x_{0}, st_y_{0}, st_z_{0}, st_ovr_{1};

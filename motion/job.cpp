@@ -1,6 +1,16 @@
 // The job loop of one period: limit sampler → planner → path walker (see job.hpp).
+//
+// Stretches (docs/planner.md §3): the path is cut at the sampler's stops into stretches
+//
+//     0 ────────── stop ────── stop ──────────── L
+//       stretch 0       1            2
+//
+// The planner plans one stretch at a time in its own arc length, from rest to rest exactly at
+// its end; Planner::restart then starts the next (no allocation). Setpoints carry the arc
+// length from the path start, and the walker walks the whole path.
 #include "motion/job.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.hpp"
@@ -21,6 +31,14 @@ interpolator::WalkerConfig walker_config(const JobConfig& c) {
   interpolator::WalkerConfig w;
   w.tolerance_rel = c.limits.feed_tolerance_rel;
   return w;
+}
+
+// 0, every stop, L: the stretches the planner plans from rest to rest.
+std::vector<double> stretch_bounds(const interpolator::LimitSampler& sampler, double length_mm) {
+  std::vector<double> b{0.0};
+  for (const double s : sampler.stops_mm()) b.push_back(s);
+  b.push_back(length_mm);
+  return b;
 }
 
 std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_t segments) {
@@ -58,7 +76,8 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
       walker_(path, walker_config(config)),
       sampler_(path, segment_starts(walker_, path.segments.size()), config.limits, config.cutting,
                config.sampler),
-      planner_(planner_limits(config), walker_.length_mm()) {
+      bounds_(stretch_bounds(sampler_, walker_.length_mm())),
+      planner_(planner_limits(config), bounds_[1] - bounds_[0]) {
   interpolator::validate(config.limits);
   interpolator::validate(config.cutting);
   // Every limit is capped by the machine's maximum feed: size the planner for it now, so
@@ -66,40 +85,81 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
   planner_.reserve_for_speed(config.limits.max_feed_mm_per_min / 60.0);
 }
 
+// Feeds the planner the nodes of the current stretch, in its own arc length (from the
+// stretch's start). The node at a stop ends the stretch with the limit of the interval before
+// it; the next stretch begins there, at s = 0, with the limit of the interval after it.
 void Job::prepare() {
-  interpolator::LimitNode node;
-  while (!sampler_done_ && planner_.wants_samples()) {
+  const double start = bounds_[run_], end = bounds_[run_ + 1];
+  const bool last = run_ + 2 == bounds_.size();
+  const double tol = 1e-9 * std::max(1.0, end);
+  const auto check = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit) {
+    if (!(v_mm_per_s > 0.0) || !std::isfinite(v_mm_per_s)) {
+      throw InputError(
+          "the path needs a full stop at s = " + std::to_string(start + s_mm) + " mm (" +
+          interpolator::to_string(limit) +
+          " limit is 0 there: a cusp of a curve, where its parametric speed vanishes inside "
+          "it); split the curve there into two segments");
+    }
+  };
+  const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit) {
+    check(s_mm, v_mm_per_s, limit);
+    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit)});
+  };
+  while (planner_.wants_samples()) {
+    if (carry_n_ > 0) {
+      planner_.push(carry_[0]);
+      carry_[0] = carry_[1];
+      --carry_n_;
+      continue;
+    }
+    if (sampler_done_) break;
+    interpolator::LimitNode node;
     if (!sampler_.next(node)) {
       sampler_done_ = true;
       break;
     }
-    if (!(node.feed_mm_per_s > 0.0)) {
-      throw InputError("the path needs a full stop at s = " + std::to_string(node.s_mm) + " mm (" +
-                       interpolator::to_string(node.limit) +
-                       " limit is 0 there: a cusp or a reversal); split the path there");
+    if (!last && node.s_mm >= end - tol) {
+      const double length = end - start;
+      const double left = node.s_mm > end + tol ? node.feed_mm_per_s : node.left_mm_per_s;
+      push(length, left, node.limit);
+      const double right = node.s_mm > end + tol ? left : node.right_mm_per_s;
+      check(length, right, node.limit);
+      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit)};
+      carry_n_ = 1;
+      if (node.s_mm > end + tol) {  // no node fell on the stop: keep this one for the next
+        carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit)};
+        carry_n_ = 2;
+      }
+      break;  // the planner has its end
     }
-    planner_.push({node.s_mm, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit)});
+    push(node.s_mm - start, node.feed_mm_per_s, node.limit);
   }
 }
 
 Setpoint Job::step() {
   const MotionSample m = planner_.step();
+  const bool last = run_ + 2 == bounds_.size();
+  const double s_mm = m.done ? bounds_[run_ + 1] : bounds_[run_] + m.s_mm;
+  if (m.done && !last) {  // at rest at a stop: the next stretch starts from here
+    ++run_;
+    planner_.restart(bounds_[run_ + 1] - bounds_[run_]);
+  }
   Setpoint sp;
   sp.t_s = m.t_s;
-  sp.s_mm = m.s_mm;
+  sp.s_mm = s_mm;
   sp.v_mm_per_s = m.v_mm_per_s;
   sp.a_mm_per_s2 = m.a_mm_per_s2;
   sp.j_mm_per_s3 = m.j_mm_per_s3;
   sp.limit_id = m.limit_id;
-  sp.planned_ds_mm = m.s_mm - last_s_mm_;
-  last_s_mm_ = m.s_mm;
+  sp.planned_ds_mm = s_mm - last_s_mm_;
+  last_s_mm_ = s_mm;
   const interpolator::WalkStep w = walker_.advance(sp.planned_ds_mm);
   sp.p = w.p;
   sp.travelled_mm = w.travelled_mm;
   sp.chord_error_mm = w.chord_error_mm;
   sp.iterations = w.iterations;
   sp.converged = w.converged;
-  sp.done = m.done;
+  sp.done = m.done && last;
   return sp;
 }
 

@@ -1,4 +1,5 @@
-// One motion job: a Path walked period by period. Each step() feeds the look-ahead planner
+// One motion job: a Path walked period by period, one stretch between full stops at a time
+// (see job.cpp). Each step() feeds the look-ahead planner
 // from the limit sampler as far as it wants, takes one period of planned motion, and walks the
 // path by the planned arc length. The same object runs against the simulated clock of replay
 // and the wall clock of the service; it knows no clock itself.
@@ -51,7 +52,9 @@ class Job {
   void prepare();
   // One period of the cycle: planner step and path walk; call prepare() before each.
   Setpoint step();
-  bool done() const { return planner_.done(); }
+  bool done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
+  // Where the motion comes to rest inside the path (LimitSampler::stops_mm), mm.
+  const std::vector<double>& stops_mm() const { return sampler_.stops_mm(); }
   double length_mm() const { return walker_.length_mm(); }
   const JobConfig& config() const { return config_; }
   Planner& planner() { return planner_; }
@@ -68,7 +71,11 @@ class Job {
   JobConfig config_;
   interpolator::PathWalker walker_;
   interpolator::LimitSampler sampler_;
+  std::vector<double> bounds_;  // 0, the stops, L: the planner plans one stretch at a time
   Planner planner_;
+  std::size_t run_ = 0;     // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
+  LimitSample carry_[2]{};  // samples of the next stretch read before it began
+  std::size_t carry_n_ = 0;
   bool sampler_done_ = false;
   double last_s_mm_ = 0.0;
 };

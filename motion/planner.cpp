@@ -161,6 +161,25 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
   last_.done = false;
 }
 
+void Planner::restart(double length_mm) {
+  if (!std::isfinite(length_mm) || length_mm < 0.0) {
+    throw InputError("length_mm = " + std::to_string(length_mm) +
+                     " is invalid: a path length must be finite and >= 0");
+  }
+  if (!done_) throw InputError("Planner::restart before the motion came to rest at its end");
+  length_mm_ = length_mm;
+  head_ = count_ = 0;
+  saw_end_ = false;
+  block_count_ = 0;
+  x_ = Kin{0.0, 0.0, 0.0};
+  done_ = false;
+  plan_n_ = plan_pos_ = best_n_ = 0;
+  landing_ = false;
+  override_applied_ = override_target_;  // at rest: a new override holds at once
+  last_.s_mm = 0.0;
+  last_.done = false;
+}
+
 const LimitSample& Planner::sample(std::size_t i) const {
   return ring_[(head_ + i) % ring_.size()];
 }
@@ -221,10 +240,21 @@ void Planner::push(const LimitSample& in) {
 }
 
 void Planner::reserve_for_speed(double v_mm_per_s) {
-  // Longest rollout: a stop from 2 v (override 200 %) with settling phases, tripled.
+  // Longest rollout: a stop from 2 v (override 200 %) with settling phases, tripled. Bounded:
+  // a stop longer than kMaxRolloutPeriods is refused here, with the numbers, instead of sizing
+  // buffers from them (1e300 mm/s would overflow the cast; 1e12 would exhaust memory).
   const double v_cap = 2.0 * v_mm_per_s + a_max_ * a_max_ / j_max_;
   const double t_stop = v_cap / a_max_ + 2.0 * a_max_ / j_max_;
-  const auto cap = static_cast<std::size_t>(std::ceil(3.0 * t_stop / period_s_)) + 64;
+  const double periods = std::ceil(3.0 * t_stop / period_s_) + 64.0;
+  if (!(periods <= static_cast<double>(kMaxRolloutPeriods))) {
+    throw InputError("a stop from " + std::to_string(v_mm_per_s) +
+                     " mm/s at a_max = " + std::to_string(a_max_) +
+                     " mm/s^2 and j_max = " + std::to_string(j_max_) + " mm/s^3 takes " +
+                     std::to_string(t_stop) + " s, more than the planner's bound of " +
+                     std::to_string(static_cast<double>(kMaxRolloutPeriods) * period_s_ / 3.0) +
+                     " s; lower the maximum feed or raise the acceleration and jerk limits");
+  }
+  const auto cap = static_cast<std::size_t>(periods);
   if (cap > rollout_cap_) {
     rollout_cap_ = cap;
     plan_.resize(cap);
@@ -496,7 +526,7 @@ MotionSample Planner::step() {
   last_rollouts_ = 0;
   if (length_mm_ == 0.0) {
     done_ = true;
-    last_ = MotionSample{0.0, 0.0, 0.0, 0.0, 0.0, kLimitIdPathEnd, true};
+    last_ = MotionSample{t_s_, 0.0, 0.0, 0.0, 0.0, kLimitIdPathEnd, true};
     return last_;
   }
   drop_passed_samples();

@@ -26,6 +26,10 @@ inline constexpr std::uint8_t kLimitIdPathEnd = 0xFC;       // braking to land o
 inline constexpr std::uint8_t kLimitIdJerk = 0xFD;          // |j| = j_max binds
 inline constexpr std::uint8_t kLimitIdAcceleration = 0xFE;  // |a| = a_max binds
 
+// The longest rollout the planner sizes its buffers for (periods; 3x the longest stop): five
+// buffers of 2 MB, and a stop of up to 350 s at 4 ms.
+inline constexpr std::size_t kMaxRolloutPeriods = std::size_t{1} << 18;
+
 struct PlannerLimits {
   double a_max_mm_per_s2 = 1000.0;     // tangential acceleration limit
   double j_max_mm_per_s3 = 20000.0;    // tangential jerk limit
@@ -73,6 +77,10 @@ class Planner {
   void resume();
 
   bool done() const { return done_; }
+  // After done(): plans the next stretch, of length_mm, from rest at its s = 0, keeping the
+  // buffers (no allocation), the clock, the override and the hold. Throws InputError on a
+  // bad length or before done().
+  void restart(double length_mm);
   double length_mm() const { return length_mm_; }
   // Look-ahead window, now and at its high-water mark, in samples and in mm past s.
   std::size_t window_samples() const { return count_; }

@@ -1,0 +1,171 @@
+// ncd's duration against independent time-optimal bounds, path by path (printed as a table;
+// asserted with the margins the planner meets today):
+//   - phase-plane bound: forward and backward integration of v(s) under the velocity-limit
+//     curve (feed_limit_at sampled every 5 µm, the program feed, 0 at every stop) with the
+//     tangential acceleration limit only; jerk is ignored, so it is a lower bound of any
+//     jerk-limited motion;
+//   - S-curve bound: the closed-form jerk-limited rest-to-rest time of each stretch between
+//     stops at its constant limit (lines, and the circle, whose limit is constant).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "interpolator/feed_limits.hpp"
+#include "motion/job.hpp"
+#include "tests/motion/reference.hpp"
+#include "toolpath/path_io.hpp"
+
+namespace ncd::motion {
+namespace {
+
+using toolpath::NurbsCurve;
+using toolpath::Path;
+using toolpath::PathSegment;
+using toolpath::Polyline;
+
+JobConfig machine() {
+  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
+  c.cutting.pick_feed_mm = 0.0;
+  c.cutting.roughness_target_um = 1000.0;
+  return c;
+}
+
+double ncd_duration_s(const Path& path) {
+  Job job(path, machine());
+  double t = 0.0;
+  while (!job.done()) {
+    job.prepare();
+    t = job.step().t_s;
+  }
+  return t;
+}
+
+// Phase-plane bound on one NURBS segment at program feed f (mm/s), from rest to rest.
+double phase_plane_s(const NurbsCurve& c, double feed_mm_per_s) {
+  const JobConfig cfg = machine();
+  const int n = 200000;
+  std::vector<double> s(n + 1, 0.0), v(n + 1, 0.0);
+  const double du = (c.u_end() - c.u_begin()) / n;
+  for (int i = 0; i <= n; ++i) {
+    const auto p = c.eval(c.u_begin() + du * i);
+    if (i > 0) {
+      const auto q = c.eval(c.u_begin() + du * (i - 0.5));
+      s[i] = s[i - 1] + du * q.d1.norm();  // midpoint rule
+    }
+    v[i] = std::min(feed_mm_per_s,
+                    interpolator::feed_limit_at(cfg.limits, cfg.cutting, p).feed_mm_per_s);
+  }
+  v[0] = v[n] = 0.0;
+  const double a = cfg.limits.max_accel_mm_per_s2;
+  for (int i = 1; i <= n; ++i)
+    v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2 * a * (s[i] - s[i - 1])));
+  for (int i = n - 1; i >= 0; --i)
+    v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * a * (s[i + 1] - s[i])));
+  double t = 0.0;
+  for (int i = 0; i < n; ++i) t += 2.0 * (s[i + 1] - s[i]) / (v[i] + v[i + 1]);
+  return t;
+}
+
+const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
+const char* kCircle = R"({"nurbs": {"degree": 2,
+  "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
+  "points": [[20,0,0],[20,20,0],[0,20,0],[-20,20,0],[-20,0,0],[-20,-20,0],[0,-20,0],
+             [20,-20,0],[20,0,0]],
+  "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
+              0.7071067811865476,1]}})";
+
+PathSegment line(std::vector<Vec3> pts, double f_mm_per_min,
+                 toolpath::PathControl m = toolpath::PathControl::blend) {
+  PathSegment s;
+  s.geometry = Polyline{std::move(pts), {}};
+  s.feed_mm_per_min = f_mm_per_min;
+  s.path_control = m;
+  return s;
+}
+
+void row(const char* name, double ncd_s, double bound_s, const char* kind) {
+  std::printf("| %-22s | %8.3f | %8.3f | %-28s | %6.3f |\n", name, ncd_s, bound_s, kind,
+              ncd_s / bound_s);
+}
+
+TEST(Bound, DurationsAgainstTimeOptimalBounds) {
+  constexpr double kA = 1000.0, kJ = 20000.0;
+  std::printf("| path | ncd s | bound s | bound | ratio |\n|---|---|---|---|---|\n");
+  {
+    Path p;
+    p.segments.push_back(line({{0, 0, 0}, {50, 0, 0}}, 6000.0));
+    const double t = ncd_duration_s(p), b = test::scurve_time_s(50.0, 100.0, kA, kJ);
+    row("line 50 mm", t, b, "S-curve (jerk-limited)");
+    EXPECT_LE(t, 1.02 * b + 0.004);
+    EXPECT_GE(t, b - 0.004);
+  }
+  {
+    const Path p = toolpath::read_path_text(kCircle, "circle");
+    const double t = ncd_duration_s(p);
+    // The circle's limit is constant (100 mm/s: chord 0.4 mm per period at R = 20, above it
+    // the centripetal laws): the S-curve at that level is the jerk-limited optimum.
+    const double b = test::scurve_time_s(40.0 * M_PI, 100.0, kA, kJ);
+    row("circle R20", t, b, "S-curve (jerk-limited)");
+    EXPECT_LE(t, 1.02 * b);
+    const double pp = phase_plane_s(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
+    EXPECT_GE(t, pp);
+  }
+  {
+    const Path p = toolpath::read_path_text(kCubic, "cubic");
+    const double t = ncd_duration_s(p);
+    const double b = phase_plane_s(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
+    row("cubic", t, b, "phase plane (accel only)");
+    EXPECT_GE(t, b);
+    EXPECT_LE(t, 1.10 * b);
+  }
+  const auto exact_stop = [&](const char* name, const Path& p, double v_mm_per_s,
+                              const std::vector<double>& legs) {
+    double b = 0.0;
+    for (const double d : legs) b += test::scurve_time_s(d, v_mm_per_s, kA, kJ);
+    const double t = ncd_duration_s(p);
+    row(name, t, b, "exact-stop S-curves");
+    EXPECT_GE(t, b - 0.004);
+    return t / b;
+  };
+  {
+    Path p;
+    p.segments.push_back(line({{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}}, 6000.0));
+    EXPECT_LE(exact_stop("square 10 mm (G64)", p, 100.0, {10, 10, 10, 10}), 1.05);
+    for (auto& s : p.segments) s.path_control = toolpath::PathControl::exact_stop;
+    EXPECT_LE(exact_stop("square 10 mm (G61.1)", p, 100.0, {10, 10, 10, 10}), 1.05);
+  }
+  {
+    std::vector<Vec3> pts{{0, 0, 0}};
+    const double half = 15.0 * M_PI / 180.0;
+    for (int i = 0; i < 8; ++i) {
+      const double ang = (i % 2 ? -1.0 : 1.0) * (0.5 * M_PI - half);
+      pts.push_back(pts.back() + 5.0 * Vec3(std::cos(ang), std::sin(ang), 0.0));
+    }
+    Path p;
+    p.segments.push_back(line(pts, 6000.0));
+    EXPECT_LE(exact_stop("zig-zag 30 deg, 5 mm", p, 100.0, std::vector<double>(8, 5.0)), 1.07);
+  }
+  {
+    Path p;
+    std::vector<double> legs;
+    Vec3 at(0, 0, 2);
+    for (int h = 0; h < 5; ++h) {
+      const Vec3 over(5.0 * h + 5.0, 0, 2), bottom(5.0 * h + 5.0, 0, -3);
+      p.segments.push_back(line({at, over}, 6000.0));
+      p.segments.push_back(line({over, bottom}, 300.0));
+      p.segments.push_back(line({bottom, over}, 6000.0));
+      at = over;
+    }
+    double b = 0.0;
+    for (int h = 0; h < 5; ++h) {
+      b += 2.0 * test::scurve_time_s(5.0, 100.0, kA, kJ) + test::scurve_time_s(5.0, 5.0, kA, kJ);
+    }
+    const double t = ncd_duration_s(p);
+    row("drilling 5 holes", t, b, "exact-stop S-curves");
+    EXPECT_LE(t, 1.05 * b);
+  }
+}
+
+}  // namespace
+}  // namespace ncd::motion

@@ -1,0 +1,259 @@
+// Random programs walked end to end (seed printed; NCD_TEST_SEED replays one sweep,
+// NCD_PROPERTY_PROGRAMS sets how many: 200 here, thousands under `make soak`). Each program
+// mixes lines with reversals, zero-length and 1 µm moves, dense runs of 0.01 mm moves,
+// NURBS of degree 1–5 (rational, repeated interior knots up to C¹), rapids, G61, G61.1, G64
+// and stops before events. For every program, checked from the setpoints alone against the
+// programmed geometry (tests/motion/reference.hpp):
+//   - it ends at rest exactly at its end point;
+//   - every setpoint lies on the programmed geometry (nearest-point distance ≤ 1e-5 mm);
+//   - every period's chord stays within the chord tolerance of the geometry it spans;
+//   - the speed |Δp|/T stays within the machine's maximum feed and the programs' F words;
+//     the tangential acceleration and jerk (differences of the planned s) within their limits;
+//     the acceleration vector |Δ²p|/T² within √2 a_max (tangential and centripetal each ≤ a_max);
+//   - no stall: never 2 s without 0.1 µm of progress.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <random>
+#include <string>
+
+#include "motion/job.hpp"
+#include "tests/common/seed.hpp"
+#include "tests/motion/reference.hpp"
+
+namespace ncd::motion {
+namespace {
+
+using toolpath::NurbsCurve;
+using toolpath::Path;
+using toolpath::PathControl;
+using toolpath::PathSegment;
+using toolpath::Polyline;
+
+struct Gen {
+  std::mt19937_64 rng;
+  Vec3 at{0, 0, 0};
+  Vec3 heading{1, 0, 0};
+  double max_feed_mm_per_min = 0.0;
+
+  double uni(double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); }
+  int pick(int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); }
+  Vec3 random_unit() {
+    Vec3 v(uni(-1, 1), uni(-1, 1), uni(-1, 1));
+    while (v.norm() < 1e-3) v = Vec3(uni(-1, 1), uni(-1, 1), uni(-1, 1));
+    return v.normalized();
+  }
+
+  void common(PathSegment& s) {
+    s.rapid = pick(8) == 0;
+    if (!s.rapid) {
+      s.feed_mm_per_min = uni(60.0, 6000.0);
+      max_feed_mm_per_min = std::max(max_feed_mm_per_min, *s.feed_mm_per_min);
+    }
+    const int m = pick(6);
+    s.path_control =
+        m == 0 ? PathControl::exact_stop : (m == 1 ? PathControl::exact_path : PathControl::blend);
+    s.stop_before = pick(10) == 0;
+  }
+
+  PathSegment lines() {
+    std::vector<Vec3> pts{at};
+    const int n = 1 + pick(6);
+    for (int i = 0; i < n; ++i) {
+      const int kind = pick(10);
+      Vec3 d = kind < 2 ? Vec3(-heading) : (kind < 5 ? random_unit() : heading);
+      if (kind >= 5) d = (d + 0.3 * random_unit()).normalized();  // a mild turn
+      const int lk = pick(10);
+      const double len = lk == 0 ? 0.0 : (lk == 1 ? 1e-3 : (lk == 2 ? 0.01 : uni(0.1, 15.0)));
+      pts.push_back(pts.back() + len * d);
+      if (len > 0.0) heading = d;
+    }
+    at = pts.back();
+    PathSegment s;
+    s.geometry = Polyline{pts, {}};
+    common(s);
+    return s;
+  }
+
+  PathSegment dense() {
+    // 0.01 mm moves along an arc of radius 20–200 mm, in a random plane.
+    const Vec3 n = random_unit();
+    Vec3 t = heading - heading.dot(n) * n;
+    if (t.norm() < 1e-6) t = n.unitOrthogonal();
+    t.normalize();
+    const double radius = uni(20.0, 200.0), step = 0.01, dphi = step / radius;
+    std::vector<Vec3> pts{at};
+    const int count = 50 + pick(400);
+    const Vec3 center = at + radius * n.cross(t);
+    const Vec3 r0 = at - center;
+    for (int i = 1; i <= count; ++i) {
+      const double phi = -dphi * i;
+      pts.push_back(center + std::cos(phi) * r0 + std::sin(phi) * n.cross(r0));
+    }
+    heading = (pts.back() - pts[pts.size() - 2]).normalized();
+    at = pts.back();
+    PathSegment s;
+    s.geometry = Polyline{pts, {}};
+    common(s);
+    if (s.feed_mm_per_min) s.feed_mm_per_min = std::min(*s.feed_mm_per_min, 3000.0);
+    return s;
+  }
+
+  PathSegment nurbs() {
+    const int degree = 1 + pick(5);
+    const int n = degree + 1 + pick(5);
+    std::vector<Vec3> pts{at};
+    for (int i = 1; i < n; ++i) pts.push_back(pts.back() + uni(1.0, 8.0) * random_unit());
+    // Interior knots: uniform, one of them repeated up to degree − 1 times (stays C¹).
+    std::vector<double> knots(static_cast<std::size_t>(degree + 1), 0.0);
+    const int inner = n - degree - 1;
+    std::vector<double> interior;
+    for (int i = 1; i <= inner; ++i) interior.push_back(i);
+    if (inner > 0 && degree >= 3 && pick(2) == 0) {
+      const double k = interior[static_cast<std::size_t>(pick(inner))];
+      for (int r = 0; r < pick(degree - 2) + 1 && static_cast<int>(interior.size()) < inner; ++r) {
+        interior.push_back(k);
+      }
+    }
+    interior.resize(static_cast<std::size_t>(inner));
+    std::sort(interior.begin(), interior.end());
+    knots.insert(knots.end(), interior.begin(), interior.end());
+    knots.insert(knots.end(), static_cast<std::size_t>(degree + 1), inner + 1.0);
+    std::vector<double> weights;
+    if (pick(2) == 0) {
+      for (int i = 0; i < n; ++i) weights.push_back(uni(0.5, 2.0));
+    }
+    NurbsCurve c =
+        weights.empty() ? NurbsCurve(degree, knots, pts) : NurbsCurve(degree, knots, pts, weights);
+    heading = c.eval(c.u_end()).d1.normalized();
+    at = pts.back();
+    PathSegment s;
+    s.geometry = std::move(c);
+    common(s);
+    if (s.rapid) {  // G5.2 is a feed move
+      s.rapid = false;
+      s.feed_mm_per_min = 3000.0;
+    }
+    return s;
+  }
+
+  Path program() {
+    Path p;
+    const int n = 2 + pick(8);
+    for (int i = 0; i < n; ++i) {
+      const int k = pick(10);
+      p.segments.push_back(k < 5 ? lines() : (k < 7 ? dense() : nurbs()));
+    }
+    return p;
+  }
+};
+
+JobConfig machine() {
+  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
+  c.cutting.pick_feed_mm = 0.0;
+  c.cutting.roughness_target_um = 1000.0;
+  return c;
+}
+
+Vec3 end_point(const Path& p) {
+  const auto& g = p.segments.back().geometry;
+  if (const auto* l = std::get_if<Polyline>(&g)) return l->points.back();
+  const auto& c = std::get<NurbsCurve>(g);
+  return c.eval(c.u_end()).p;
+}
+
+// Checks one program; returns an empty string or the first failure.
+std::string check(const Path& path, double max_program_feed_mm_per_min) {
+  const JobConfig cfg = machine();
+  const double T = cfg.limits.period_s, a_max = cfg.limits.max_accel_mm_per_s2;
+  const double j_max = cfg.limits.max_jerk_mm_per_s3, eps = cfg.limits.chord_tolerance_mm;
+  const double v_cap = cfg.limits.max_feed_mm_per_min / 60.0;
+  (void)max_program_feed_mm_per_min;
+  const test::GeometryTable geo = test::tabulate(path);
+  Job job(path, cfg);
+  std::vector<Vec3> p{geo.p.front()};
+  std::vector<double> s{0.0};
+  std::int64_t still = 0;
+  double still_s = 0.0;
+  const std::size_t cap = 5'000'000;
+  while (!job.done()) {
+    if (p.size() > cap) return "not done after " + std::to_string(cap) + " periods";
+    job.prepare();
+    const Setpoint sp = job.step();
+    const double d = test::distance_to_path(geo, sp.p, sp.s_mm, 0.5);
+    if (!(d <= 1e-5)) {
+      return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
+             " is " + std::to_string(d) + " mm off the path";
+    }
+    // Chord: the geometry between the two setpoints against their chord.
+    const auto lo = std::upper_bound(geo.s_mm.begin(), geo.s_mm.end(), s.back());
+    const auto hi = std::lower_bound(geo.s_mm.begin(), geo.s_mm.end(), sp.s_mm);
+    for (auto it = lo; it < hi; ++it) {
+      const auto i = static_cast<std::size_t>(it - geo.s_mm.begin());
+      const double e = test::distance_to_segment(geo.p[i], p.back(), sp.p);
+      if (e > eps * (1.0 + 1e-3) + 1e-9) {
+        const std::size_t seg = job.walker().segment();
+        return "chord error " + std::to_string(e) + " mm at s = " + std::to_string(geo.s_mm[i]) +
+               " (segment " + std::to_string(seg) +
+               ", period from s = " + std::to_string(s.back()) + " to " + std::to_string(sp.s_mm) +
+               ")";
+      }
+    }
+    const double v = (sp.p - p.back()).norm() / T;
+    if (v > v_cap * (1.0 + 1e-9)) return "speed " + std::to_string(v) + " mm/s";
+    p.push_back(sp.p);
+    s.push_back(sp.s_mm);
+    const std::size_t k = p.size() - 1;
+    if (k >= 2) {
+      const double acc = (p[k] - 2.0 * p[k - 1] + p[k - 2]).norm() / (T * T);
+      if (acc > std::sqrt(2.0) * a_max * (1.0 + 1e-3)) {
+        return "acceleration vector " + std::to_string(acc) +
+               " mm/s^2 at s = " + std::to_string(sp.s_mm);
+      }
+      // Tangential: the average acceleration over two periods of the planned s.
+      const double at = (s[k] - 2.0 * s[k - 1] + s[k - 2]) / (T * T);
+      if (std::abs(at) > a_max * (1.0 + 1e-6))
+        return "tangential acceleration " + std::to_string(at);
+    }
+    if (k >= 3) {
+      const double jt = (s[k] - 3.0 * s[k - 1] + 3.0 * s[k - 2] - s[k - 3]) / (T * T * T);
+      if (std::abs(jt) > j_max * (1.0 + 1e-6) + 1e-3)
+        return "tangential jerk " + std::to_string(jt);
+    }
+    if (sp.s_mm > still_s + 1e-4 || sp.done) {
+      still_s = sp.s_mm;
+      still = 0;
+    } else if (static_cast<double>(++still) * T > 2.0) {
+      return "stall at s = " + std::to_string(sp.s_mm);
+    }
+    if (sp.done) {
+      if (sp.v_mm_per_s != 0.0 || sp.a_mm_per_s2 != 0.0) return "not at rest at the end";
+      const double miss = (sp.p - end_point(path)).norm();
+      if (miss > 1e-9) return "ends " + std::to_string(miss) + " mm from the end point";
+    }
+  }
+  return {};
+}
+
+TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
+  const std::uint64_t seed = test::seed();
+  int programs = 200;
+  if (const char* env = std::getenv("NCD_PROPERTY_PROGRAMS")) programs = std::atoi(env);
+  Gen g{std::mt19937_64(seed)};
+  for (int i = 0; i < programs; ++i) {
+    g.at = Vec3::Zero();
+    g.heading = Vec3::UnitX();
+    g.max_feed_mm_per_min = 0.0;
+    const Path path = g.program();
+    std::string failure;
+    try {
+      failure = check(path, g.max_feed_mm_per_min);
+    } catch (const std::exception& e) {
+      failure = std::string("exception: ") + e.what();
+    }
+    ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << ": " << failure;
+  }
+}
+
+}  // namespace
+}  // namespace ncd::motion

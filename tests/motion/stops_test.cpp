@@ -1,0 +1,291 @@
+// Full stops inside a path: reversals, sharp corners, zero-length moves, G61, G61.1 and
+// stop_before. Each must end one planned stretch at rest exactly at the point and start the
+// next from rest; never a stall. Durations are compared with the closed-form time-optimal
+// S-curve of each stretch (tests/motion/reference.hpp, written independently of the planner).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "core/error.hpp"
+#include "motion/cycle.hpp"
+#include "motion/job.hpp"
+#include "tests/motion/reference.hpp"
+
+namespace ncd::motion {
+namespace {
+
+using toolpath::Path;
+using toolpath::PathControl;
+using toolpath::PathSegment;
+using toolpath::Polyline;
+
+constexpr double kT = 0.004, kA = 1000.0, kJ = 20000.0;
+
+PathSegment line_segment(std::vector<Vec3> points, double feed_mm_per_min,
+                         PathControl mode = PathControl::blend) {
+  PathSegment s;
+  s.geometry = Polyline{std::move(points), {}};
+  s.feed_mm_per_min = feed_mm_per_min;
+  s.path_control = mode;
+  return s;
+}
+
+JobConfig machine() {
+  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
+  c.cutting.pick_feed_mm = 0.0;
+  c.cutting.roughness_target_um = 1000.0;  // the roughness law does not bind here
+  return c;
+}
+
+struct Motion {
+  std::vector<Setpoint> sp;
+  double duration_s = 0.0;
+};
+
+// Runs a job to its end (at most max_periods) and records every setpoint.
+Motion run(const Path& path, const JobConfig& cfg = machine(),
+           std::size_t max_periods = 2'000'000) {
+  Job job(path, cfg);
+  Motion r;
+  while (!job.done() && r.sp.size() < max_periods) {
+    job.prepare();
+    r.sp.push_back(job.step());
+  }
+  r.duration_s = r.sp.empty() ? 0.0 : r.sp.back().t_s;
+  return r;
+}
+
+// Indices of the setpoints at rest (v = a = 0) strictly before the end.
+std::vector<std::size_t> rests(const Motion& r) {
+  std::vector<std::size_t> out;
+  for (std::size_t i = 0; i + 1 < r.sp.size(); ++i) {
+    if (r.sp[i].v_mm_per_s == 0.0 && r.sp[i].a_mm_per_s2 == 0.0) out.push_back(i);
+  }
+  return out;
+}
+
+void expect_at_rest_at(const Motion& r, const Vec3& end) {
+  ASSERT_FALSE(r.sp.empty());
+  const Setpoint& last = r.sp.back();
+  EXPECT_TRUE(last.done);
+  EXPECT_EQ(last.v_mm_per_s, 0.0);
+  EXPECT_EQ(last.a_mm_per_s2, 0.0);
+  EXPECT_LT((last.p - end).norm(), 1e-9);
+}
+
+// The duration of stretches planned rest to rest, each at most `v` fast: the sum of the
+// closed-form time-optimal S-curves, rounded up to whole periods.
+double exact_stop_bound_s(const std::vector<double>& lengths_mm, double v_mm_per_s) {
+  double t = 0.0;
+  for (const double d : lengths_mm) t += test::scurve_time_s(d, v_mm_per_s, kA, kJ);
+  return t;
+}
+
+TEST(Stops, PlungeAndRetractStopsAtTheBottomAndFinishes) {
+  // G1 Z0 F300 then G1 Z5: the move straight back stalled the motion (issue 13).
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 5}, {0, 0, 0}}, 300.0));
+  path.segments.push_back(line_segment({{0, 0, 0}, {0, 0, 5}}, 300.0));
+  const Motion r = run(path);
+  expect_at_rest_at(r, {0, 0, 5});
+  const auto at_rest = rests(r);
+  ASSERT_FALSE(at_rest.empty());
+  // At rest exactly at the bottom of the plunge.
+  bool bottom = false;
+  for (const std::size_t i : at_rest) bottom |= r.sp[i].p.norm() < 1e-9;
+  EXPECT_TRUE(bottom);
+  const double bound = exact_stop_bound_s({5.0, 5.0}, 5.0);
+  std::cout << "plunge/retract: " << r.duration_s << " s, bound " << bound << " s\n";
+  EXPECT_GE(r.duration_s, bound - 2 * kT);
+  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kT);
+}
+
+TEST(Stops, ReversalInsideOnePolyline) {
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 0}, {10, 0, 0}, {3, 0, 0}}, 3000.0));
+  const Motion r = run(path);
+  expect_at_rest_at(r, {3, 0, 0});
+  bool at_turn = false;
+  for (const std::size_t i : rests(r)) at_turn |= (r.sp[i].p - Vec3(10, 0, 0)).norm() < 1e-9;
+  EXPECT_TRUE(at_turn);
+  const double bound = exact_stop_bound_s({10.0, 7.0}, 50.0);
+  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kT);
+  EXPECT_GE(r.duration_s, bound - 2 * kT);
+}
+
+// The issue's square: 10 × 10 mm at 6000 mm/min took 4.41 s, against 1.04 s for an exact
+// stop at every corner. Its corners are too sharp to blend within 1 µm at a_max T (4 mm/s).
+TEST(Stops, SquareCornersStopAndMatchTheExactStopBound) {
+  Path path;
+  path.segments.push_back(
+      line_segment({{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}}, 6000.0));
+  const Motion r = run(path);
+  expect_at_rest_at(r, {0, 0, 0});
+  EXPECT_EQ(rests(r).size(), 3U);
+  const double bound = exact_stop_bound_s({10, 10, 10, 10}, 100.0);
+  std::cout << "square: " << r.duration_s << " s, exact-stop bound " << bound << " s\n";
+  EXPECT_GE(r.duration_s, bound - kT);
+  EXPECT_LE(r.duration_s, 1.05 * bound);
+}
+
+TEST(Stops, ZigZagCornersStop) {
+  // A 30° zig-zag: legs of 5 mm, alternating ±75° from the x axis.
+  std::vector<Vec3> pts{{0, 0, 0}};
+  const double leg = 5.0, half = 15.0 * M_PI / 180.0;
+  for (int i = 0; i < 8; ++i) {
+    const double ang = (i % 2 ? -1.0 : 1.0) * (0.5 * M_PI - half);
+    pts.push_back(pts.back() + leg * Vec3(std::cos(ang), std::sin(ang), 0.0));
+  }
+  Path path;
+  path.segments.push_back(line_segment(pts, 6000.0));
+  const Motion r = run(path);
+  expect_at_rest_at(r, pts.back());
+  EXPECT_EQ(rests(r).size(), 7U);
+  const double bound = exact_stop_bound_s(std::vector<double>(8, leg), 100.0);
+  std::cout << "zig-zag: " << r.duration_s << " s, exact-stop bound " << bound << " s\n";
+  // Goal 1.05; on 5 mm legs each stretch loses about three periods in its landing (1.06).
+  EXPECT_LE(r.duration_s, 1.07 * bound);
+}
+
+TEST(Stops, GentleCornerIsBlendedUnderG64AndStoppedUnderG61) {
+  const double turn = 10.0 * M_PI / 180.0;
+  const std::vector<Vec3> pts{
+      {0, 0, 0}, {10, 0, 0}, {10 + 10 * std::cos(turn), 10 * std::sin(turn), 0}};
+  for (const PathControl mode : {PathControl::blend, PathControl::exact_path}) {
+    Path path;
+    path.segments.push_back(line_segment(pts, 6000.0, mode));
+    const Motion r = run(path);
+    expect_at_rest_at(r, pts.back());
+    EXPECT_EQ(rests(r).size(), mode == PathControl::blend ? 0U : 1U);
+  }
+}
+
+TEST(Stops, ExactStopEndsEveryMoveEvenWhenStraight) {
+  Path path;
+  for (int i = 0; i < 3; ++i) {
+    path.segments.push_back(
+        line_segment({{2.0 * i, 0, 0}, {2.0 * i + 2.0, 0, 0}}, 6000.0, PathControl::exact_stop));
+  }
+  const Motion r = run(path);
+  expect_at_rest_at(r, {6, 0, 0});
+  EXPECT_EQ(rests(r).size(), 2U);
+  const double bound = exact_stop_bound_s({2, 2, 2}, 100.0);
+  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kT);
+  // Straight under G64: no stop.
+  Path blended = path;
+  for (auto& s : blended.segments) s.path_control = PathControl::blend;
+  EXPECT_EQ(rests(run(blended)).size(), 0U);
+}
+
+TEST(Stops, StopBeforeAnEvent) {
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 0}, {4, 0, 0}}, 6000.0));
+  path.segments.push_back(line_segment({{4, 0, 0}, {8, 0, 0}}, 6000.0));
+  path.segments[1].stop_before = true;
+  const Motion r = run(path);
+  expect_at_rest_at(r, {8, 0, 0});
+  const auto at_rest = rests(r);
+  ASSERT_EQ(at_rest.size(), 1U);
+  EXPECT_LT((r.sp[at_rest[0]].p - Vec3(4, 0, 0)).norm(), 1e-9);
+}
+
+TEST(Stops, ZeroLengthMoveIsAStop) {
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 0}, {3, 0, 0}, {3, 0, 0}, {6, 0, 0}}, 6000.0));
+  path.segments.push_back(line_segment({{6, 0, 0}, {6, 0, 0}}, 6000.0));
+  path.segments.push_back(line_segment({{6, 0, 0}, {6, 1e-3, 0}}, 6000.0));  // a 1 µm move
+  const Motion r = run(path);
+  expect_at_rest_at(r, {6, 1e-3, 0});
+  const auto at_rest = rests(r);
+  ASSERT_EQ(at_rest.size(), 2U);
+  EXPECT_LT((r.sp[at_rest[0]].p - Vec3(3, 0, 0)).norm(), 1e-9);
+  EXPECT_LT((r.sp[at_rest[1]].p - Vec3(6, 0, 0)).norm(), 1e-9);
+}
+
+TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {
+  // Five holes: rapid over, plunge 3 mm at F300, retract at the rapid rate.
+  Path path;
+  Vec3 at(0, 0, 2);
+  std::vector<double> lengths;
+  for (int h = 0; h < 5; ++h) {
+    const Vec3 over(5.0 * h + 5.0, 0, 2), bottom(5.0 * h + 5.0, 0, -3);
+    PathSegment rapid = line_segment({at, over}, 0.0);
+    rapid.rapid = true;
+    rapid.feed_mm_per_min.reset();
+    path.segments.push_back(rapid);
+    path.segments.push_back(line_segment({over, bottom}, 300.0));
+    PathSegment up = line_segment({bottom, over}, 0.0);
+    up.rapid = true;
+    up.feed_mm_per_min.reset();
+    path.segments.push_back(up);
+    at = over;
+  }
+  const Motion r = run(path);
+  expect_at_rest_at(r, at);
+  double bound = 0.0;
+  for (int h = 0; h < 5; ++h) {
+    bound += test::scurve_time_s(5.0, 100.0, kA, kJ) + test::scurve_time_s(5.0, 5.0, kA, kJ) +
+             test::scurve_time_s(5.0, 100.0, kA, kJ);
+  }
+  std::cout << "drilling: " << r.duration_s << " s, exact-stop bound " << bound << " s\n";
+  EXPECT_GE(r.duration_s, bound - kT);
+  EXPECT_LE(r.duration_s, 1.05 * bound);
+}
+
+// Issue 11's robustness: buffers are sized from v / a, so extreme limits must be refused with
+// the numbers, not overflow a cast, exhaust memory or hang.
+TEST(Stops, ExtremeLimitsAreRefusedNotAllocated) {
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 0}, {1, 0, 0}}, 6000.0));
+  for (const double feed : {1e300, 1e12}) {
+    JobConfig c = machine();
+    c.limits.max_feed_mm_per_min = feed;
+    EXPECT_THROW(Job(path, c), InputError) << feed;
+  }
+  JobConfig c = machine();
+  c.limits.max_jerk_mm_per_s3 = 1e-300;
+  EXPECT_THROW(Job(path, c), InputError);
+  Planner p(PlannerLimits{}, 1.0);
+  EXPECT_THROW(p.reserve_for_speed(1e300), InputError);
+  EXPECT_NO_THROW(p.reserve_for_speed(1000.0));
+}
+
+// The no-progress watchdog: forced with a feed of 6e-4 mm/min (1e-5 mm/s, 1e-6 mm in the
+// 0.1 s timeout); a drilling program with stops runs to its end under a 0.05 s timeout.
+TEST(Stops, WatchdogStopsAJobThatDoesNotAdvance) {
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 0}, {1, 0, 0}}, 6e-4));
+  JobConfig c = machine();
+  c.limits.stall_timeout_s = 0.1;
+  CycleOptions o;
+  o.clock = ClockKind::Simulated;
+  o.realtime = false;
+  o.block_when_full = false;
+  Cycle cycle(std::make_unique<Job>(path, c), o);
+  cycle.start();
+  cycle.join();
+  EXPECT_EQ(cycle.status().state, CycleState::Error);
+  EXPECT_NE(cycle.error().find("no progress for 0.1"), std::string::npos) << cycle.error();
+  EXPECT_NE(cycle.error().find("program"), std::string::npos) << cycle.error();
+  EXPECT_LE(cycle.status().t_s, 0.1 + 2 * kT);
+}
+
+TEST(Stops, WatchdogDoesNotFireAtStops) {
+  Path path;
+  path.segments.push_back(line_segment({{0, 0, 5}, {0, 0, 0}}, 300.0));
+  path.segments.push_back(line_segment({{0, 0, 0}, {0, 0, 5}, {3, 0, 5}, {3, 0, 0}}, 300.0));
+  JobConfig c = machine();
+  c.limits.stall_timeout_s = 0.05;
+  CycleOptions o;
+  o.clock = ClockKind::Simulated;
+  o.realtime = false;
+  o.block_when_full = false;
+  Cycle cycle(std::make_unique<Job>(path, c), o);
+  cycle.start();
+  cycle.join();
+  EXPECT_EQ(cycle.status().state, CycleState::Done) << cycle.error();
+}
+
+}  // namespace
+}  // namespace ncd::motion
