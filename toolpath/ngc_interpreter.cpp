@@ -454,6 +454,9 @@ class Interpreter {
     if (!digit) {
       fail("expected a number at '" + s.substr(b, 12) + "'; write digits such as 1.5");
     }
+    if (i < s.size() && (s[i] == '.' || std::isdigit(static_cast<unsigned char>(s[i])))) {
+      fail("malformed number '" + s.substr(b, i - b + 1) + "...'; write one decimal point");
+    }
     double v = 0.0;
     const auto r = std::from_chars(s.data() + digits_at, s.data() + i, v);
     if (r.ec != std::errc() || r.ptr != s.data() + i) {
@@ -777,6 +780,10 @@ class Interpreter {
         if (frames_.size() > 1) {
           fail("end of file inside subroutine o" + frames_.back().sub + "; add its endsub");
         }
+        if (opened_by_percent_) {
+          cur_line_ = lines.empty() ? 0 : lines.size() - 1;
+          fail("the program opens with % but has neither a closing % line nor M2/M30; add one");
+        }
         break;  // a program that just ends: treated as ended (LinuxCNC wants M2 or %)
       }
       if (++blocks_ > opt_.max_blocks) {
@@ -790,6 +797,7 @@ class Interpreter {
       if (norm_ == "%") {
         if (cur_file_ == 0 && first_content && frames_.size() == 1) {
           first_content = false;
+          opened_by_percent_ = true;
           cur_line_ = next_line_;
           continue;
         }
@@ -952,12 +960,13 @@ class Interpreter {
     if (k == "endsub" || k == "return") {
       if (frames_.size() == 1) fail("o" + o.label + " " + k + " outside a subroutine; remove it");
       std::size_t i = o.args_at;
+      double returned = 0.0;
       value_returned_ = false;
-      value_ = 0.0;
       if (i < norm_.size() && norm_[i] == '[') {
-        value_ = read_expression(norm_, i);
+        returned = read_expression(norm_, i);
         value_returned_ = true;
       }
+      value_ = returned;
       for (std::size_t p = 0; p < 30; ++p) params_[p + 1] = fr.saved[p];
       const std::size_t ret_file = fr.file, ret_line = fr.return_line;
       frames_.pop_back();
@@ -1059,6 +1068,14 @@ class Interpreter {
       const auto it = fr.loops.find(o.label);
       if (it == fr.loops.end()) fail("o" + o.label + " " + k + " outside its loop");
       const Loop loop = it->second;
+      if (loop.kind == Loop::do_loop && k == "continue") {
+        fail("o" + o.label + " continue inside a do loop: LinuxCNC leaves the loop there, "
+             "which is rarely meant; use a while loop");
+      }
+      if (loop.kind == Loop::repeat_loop) {
+        fail("o" + o.label + " " + k + " inside a repeat loop: LinuxCNC allows " + k +
+             " only in while and do loops; use a while loop with a counter");
+      }
       const std::size_t end =
           loop.kind == Loop::while_loop  ? seek(o.label, {"endwhile"}, found)
           : loop.kind == Loop::do_loop   ? seek(o.label, {"while"}, found)
@@ -1153,7 +1170,7 @@ class Interpreter {
       if (grp < 0) fail("M" + std::to_string(c) + " is not supported (unknown M code); remove it");
       if (grp >= 9 || c == 19 || c == 61) fail(m_refusal(c));
       auto& slot = mg[static_cast<std::size_t>(grp)];
-      if (slot >= 0 && !(grp == 8 && slot != 9 && c != 9)) {
+      if (slot >= 0) {
         fail("M" + std::to_string(slot) + " and M" + std::to_string(c) +
              " are in the same modal group; keep one");
       }
@@ -1169,6 +1186,30 @@ class Interpreter {
       if (c != '$' && b.has(c)) fail("E word is not supported (it belongs to G76/M66); remove it");
     }
     if (b.has('d')) fail("D word (cutter compensation) is not supported; remove it");
+  }
+
+  // A word no code on the line (or the modal motion) reads is an error, as in LinuxCNC.
+  void check_words_used(const Block& b, int motion_word, int nonmodal) const {
+    const bool axes = b.has('x') || b.has('y') || b.has('z');
+    const int mm = motion_word >= 0 ? motion_word : (axes && nonmodal < 0 ? motion_mode_ : -1);
+    const bool arc = mm == 20 || mm == 30;
+    const bool cyc = mm == 730 || mm == 810 || mm == 820 || mm == 830 || mm == 850 || mm == 890;
+    const bool nurbs = mm == 52;
+    const bool g64 = b.has_g(640);
+    const auto need = [&](char c, bool ok, const char* users) {
+      if (b.has(c) && !ok) {
+        fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) +
+             " with no code that uses it (" + users + "); remove it");
+      }
+    };
+    need('i', arc, "G2/G3");
+    need('j', arc, "G2/G3");
+    need('k', arc, "G2/G3");
+    need('r', arc || cyc || nonmodal == 100, "G2/G3 R, canned cycles, G10");
+    need('p', arc || cyc || nurbs || g64 || nonmodal == 40 || nonmodal == 100,
+         "G4, G10, G64, G82, G89, G2/G3 turns, G5.2 weights");
+    need('q', g64 || mm == 730 || mm == 830, "G64, G73, G83");
+    need('l', cyc || nurbs || nonmodal == 100, "G10, canned cycles, G5.2");
   }
 
   double len_word(const Block& b, char c) const {
@@ -1212,11 +1253,20 @@ class Interpreter {
     return m;
   }
 
+  // Axes programmed by the move just emitted are known from now on (its own start was not).
+  void settle_known() {
+    for (std::size_t a = 0; a < 3; ++a) {
+      known_[a] = known_[a] || pending_known_[a];
+      pending_known_[a] = false;
+    }
+  }
+
   void line_to(const Vec3& end_mm, bool rapid) {
     Motion m = base_motion(rapid);
     m.geometry = LineMove{end_mm / k()};
     emit_motion(std::move(m));
     pos_ = end_mm;
+    settle_known();
   }
 
   void execute_block(Block& b) {
@@ -1233,6 +1283,7 @@ class Interpreter {
       nurbs_line(b, motion_word);
       return;
     }
+    check_words_used(b, motion_word, nonmodal);
     // 1. message
     if (b.has_message) emit(MessageEvent{b.message});
     // 2. feed mode
@@ -1387,7 +1438,7 @@ class Interpreter {
     if (b.has_g(970)) { /* rpm mode: the default */ }
     if (b.has_g(400)) { /* cutter compensation off: always */ }
     // 19. non-modal
-    bool axes_used = false;
+    bool axes_used = b.has_g(431);
     switch (nonmodal) {
       case 100: g10(b); axes_used = true; break;
       case 280: case 300: home(b, nonmodal == 280 ? 5161 : 5181); axes_used = true; break;
@@ -1451,7 +1502,7 @@ class Interpreter {
       } else {
         t[a] = incremental_ ? pos_[a] + v : v;
       }
-      if (!incremental_ || g53) known_[static_cast<std::size_t>(a)] = true;
+      if (!incremental_ || g53) pending_known_[static_cast<std::size_t>(a)] = true;
     }
     return t;
   }
@@ -1572,6 +1623,7 @@ class Interpreter {
     m.geometry = a;
     emit_motion(std::move(m));
     pos_ = end;
+    settle_known();
   }
 
   // ---- canned cycles (LinuxCNC's convert_cycle_xy and its plane variants) -------------------
@@ -1631,9 +1683,9 @@ class Interpreter {
       cc = depth_val;
       if (b.has(fw)) aa = len_word(b, fw);
       if (b.has(sw)) bb = len_word(b, sw);
-      if (b.has(fw)) known_[static_cast<std::size_t>(ax.first)] = true;
-      if (b.has(sw)) known_[static_cast<std::size_t>(ax.second)] = true;
-      known_[static_cast<std::size_t>(ax.axis)] = true;
+      if (b.has(fw)) pending_known_[static_cast<std::size_t>(ax.first)] = true;
+      if (b.has(sw)) pending_known_[static_cast<std::size_t>(ax.second)] = true;
+      pending_known_[static_cast<std::size_t>(ax.axis)] = true;
     } else {
       if (b.has(fw)) aa_inc = len_word(b, fw);
       if (b.has(sw)) bb_inc = len_word(b, sw);
@@ -1750,7 +1802,7 @@ class Interpreter {
     for (int a = 0; a < 3; ++a) {
       if (!any || b.has(static_cast<char>('x' + a))) {
         end[a] = home_prog[a];
-        known_[static_cast<std::size_t>(a)] = true;
+        pending_known_[static_cast<std::size_t>(a)] = true;
       }
     }
     line_to(end, true);
@@ -1864,6 +1916,7 @@ class Interpreter {
     st.item = std::move(m);
     program_.steps.push_back(std::move(st));
     pos_ = nurbs_.points.back();
+    settle_known();
     nurbs_open_ = false;
     motion_mode_ = -1;
   }
@@ -1900,6 +1953,7 @@ class Interpreter {
   std::size_t next_line_ = 0;
   long blocks_ = 0;
   bool ended_ = false;
+  bool opened_by_percent_ = false;
   bool skipping_sub_ = false;
   std::string norm_;
   std::vector<Assign> assigns_;
@@ -1911,6 +1965,7 @@ class Interpreter {
 
   Vec3 pos_{0, 0, 0};  // program coordinates, mm
   std::array<bool, 3> known_{};
+  std::array<bool, 3> pending_known_{};
   Units units_ = Units::mm;
   Plane plane_ = Plane::xy;
   bool incremental_ = false;
@@ -1925,8 +1980,8 @@ class Interpreter {
   Vec3 tool_offset_{0, 0, 0};
   int coord_sys_ = 1;
   Vec3 g92_{0, 0, 0};
-  int motion_mode_ = 0;
-  bool retract_r_ = false;
+  int motion_mode_ = -1;  // none, as LinuxCNC starts
+  bool retract_r_ = true;  // G99, as rs274 starts
   double cycle_r_ = 0.0, cycle_cc_ = 0.0, cycle_p_ = 0.0, cycle_q_ = 0.0, cycle_il_ = 0.0;
   bool cycle_il_known_ = false;
   PathControlEvent control_{};

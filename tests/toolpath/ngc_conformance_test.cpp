@@ -95,8 +95,12 @@ std::vector<Item> parse_rs274(const std::string& out) {
         if (c == ',') c = ' ';
       }
       std::istringstream as(a);
-      double v;
-      while (as >> v) nums.push_back(v);
+      std::string tok;
+      while (as >> tok) {
+        char* end = nullptr;
+        const double v = std::strtod(tok.c_str(), &end);
+        if (end != tok.c_str() && *end == '\0') nums.push_back(v);
+      }
     }
     if (name == "ON_RESET") {
       started = true;
@@ -187,7 +191,8 @@ std::vector<Item> items_of(const Program& p) {
                               std::to_string(st.src.line);
     if (const auto* m = std::get_if<Motion>(&st.item)) {
       Item it;
-      it.feed = m->feed;
+      // rs274 passes an inverse-time feed on as units per minute: F × the move's length.
+      it.feed = m->feed_mode == FeedMode::inverse_time ? m->feed * motion_length(*m) : m->feed;
       it.speed = m->spindle_rpm;
       it.spindle = m->spindle == SpindleDir::cw ? 1 : m->spindle == SpindleDir::ccw ? 2 : 0;
       it.mist = mist;
@@ -234,6 +239,10 @@ std::vector<Item> items_of(const Program& p) {
                 : s->kind == StopKind::optional_stop ? "OPTIONAL_PROGRAM_STOP"
                                                      : "PALLET_SHUTTLE";
       items.push_back(it);
+      if (s->kind == StopKind::pallet_shuttle) {  // LinuxCNC's M60 exchanges, then stops
+        it.text = "PROGRAM_STOP";
+        items.push_back(it);
+      }
     } else if (const auto* end = std::get_if<EndEvent>(&e)) {
       if (end->m == 30) {  // LinuxCNC's M30 exchanges the pallet, then ends
         Item shuttle = it;
