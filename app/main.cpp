@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   ncd::app::register_sim_controller(app, run);
   ncd::app::register_teach(app, run);
   ncd::app::register_robot(app, run);
+  ncd::app::register_check(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -183,7 +183,8 @@ class JsonReader {
 
 }  // namespace
 
-Path read_path_text(const std::string& text, const std::string& name) {
+Path read_path_text(const std::string& text, const std::string& name,
+                    const InterpretOptions& ngc) {
   const std::size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) {
     throw InputError(name + ": the file is empty; give a chamfer JSON, a JSON path or G-code");
@@ -211,13 +212,13 @@ Path read_path_text(const std::string& text, const std::string& name) {
     }
   } else {
     std::istringstream in(text);
-    path = read_gcode(in, name);
+    path = read_gcode(in, name, ngc);
   }
   path.source = name;
   return path;
 }
 
-Path read_path_file(const std::string& filename) {
+Path read_path_file(const std::string& filename, const InterpretOptions& ngc) {
   std::ifstream in(filename, std::ios::binary);
   if (!in) {
     throw InputError(filename + ": cannot open (" + std::strerror(errno) +
@@ -226,7 +227,7 @@ Path read_path_file(const std::string& filename) {
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) throw InputError(filename + ": read error; check the file");
-  return read_path_text(text.str(), filename);
+  return read_path_text(text.str(), filename, ngc);
 }
 
 }  // namespace ncd::toolpath
