@@ -30,6 +30,7 @@ using toolpath::Program;
 struct CheckArgs {
   std::string file, machine, tool_table, parameter_file;
   bool json = false;
+  bool summary_only = false;
 };
 
 struct Summary {
@@ -128,7 +129,7 @@ int run_check(const CheckArgs& a) {
   const Program p = toolpath::interpret_ngc_file(a.file, opt);
   const Summary s = summarise(p, machine);
   std::ostringstream canonical;
-  toolpath::write_canonical(canonical, p);
+  if (!a.summary_only) toolpath::write_canonical(canonical, p);
   const bool any = s.moves > 0;
   if (a.json) {
     nlohmann::ordered_json j;
@@ -203,6 +204,7 @@ void register_check(CLI::App& app, Runner& run) {
   c->add_option("--parameter-file", a->parameter_file,
                 "LinuxCNC parameter file, .var (overrides [program]); read, not written");
   c->add_flag("--json", a->json, "print JSON instead of text");
+  c->add_flag("--summary", a->summary_only, "print the summary only, not the canonical program");
   c->callback([a, &run] { run = [a] { return run_check(*a); }; });
 }
 

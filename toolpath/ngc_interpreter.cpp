@@ -1176,15 +1176,13 @@ class Interpreter {
       }
       slot = c;
     }
-    for (const char c : std::string("abcuvw")) {
+    for (const char c : {'a', 'b', 'c', 'u', 'v', 'w'}) {
       if (b.has(c) && b.v(c) != 0.0) {
         fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) +
              ": axes other than X, Y, Z are not supported; ncd drives three axes: remove the word");
       }
     }
-    for (const char c : std::string("e$")) {
-      if (c != '$' && b.has(c)) fail("E word is not supported (it belongs to G76/M66); remove it");
-    }
+    if (b.has('e')) fail("E word is not supported (it belongs to G76/M66); remove it");
     if (b.has('d')) fail("D word (cutter compensation) is not supported; remove it");
   }
 

@@ -318,14 +318,14 @@ const char* plane_name(Plane p) {
   return p == Plane::xz ? "G18" : p == Plane::yz ? "G19" : "G17";
 }
 
+// Six decimals, trailing zeros trimmed to one digit after the point, no "-0.0".
 std::string num(double v) {
   char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6f", v);
-  std::string s = buf;
-  // Trim trailing zeros but keep one digit after the point.
-  while (s.size() > 2 && s.back() == '0' && s[s.size() - 2] != '.') s.pop_back();
-  if (s == "-0.0") s = "0.0";
-  return s;
+  int n = std::snprintf(buf, sizeof buf, "%.6f", v);
+  if (n <= 0 || n >= static_cast<int>(sizeof buf)) return "nan";
+  while (n > 2 && buf[n - 1] == '0' && buf[n - 2] != '.') --n;
+  if (n == 4 && buf[0] == '-' && buf[1] == '0' && buf[3] == '0') return "0.0";
+  return std::string(buf, static_cast<std::size_t>(n));
 }
 
 std::string xyz(const Vec3& p) {
@@ -336,7 +336,9 @@ std::string xyz(const Vec3& p) {
 
 void write_canonical(std::ostream& out, const Program& program) {
   for (const Step& step : program.steps) {
-    out << where(program, step.src) << ' ';
+    const std::size_t f = static_cast<std::size_t>(step.src.file);
+    out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':'
+        << step.src.line << ' ';
     if (const auto* m = std::get_if<Motion>(&step.item)) {
       std::visit(
           [&](const auto& g) {
