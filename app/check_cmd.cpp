@@ -58,12 +58,17 @@ void sample(const Motion& m, Summary& s) {
     const toolpath::PlaneAxes ax = toolpath::plane_axes(arc->plane);
     const double a0 = std::atan2(m.start[ax.second] - arc->centre[ax.second],
                                  m.start[ax.first] - arc->centre[ax.first]);
-    const int n = std::max(8, static_cast<int>(std::ceil(std::abs(g.sweep_rad) / 0.01)));
-    for (int i = 1; i <= n; ++i) {
-      const double f = static_cast<double>(i) / n;
+    // The extremes of a circle are where the angle is a multiple of 90°: those inside the
+    // sweep, plus the ends (the axis coordinate moves linearly, its extremes are the ends).
+    const double lo = std::min(a0, a0 + g.sweep_rad), hi = std::max(a0, a0 + g.sweep_rad);
+    for (double q = std::ceil(lo / (kPi / 2)); q * (kPi / 2) <= hi; q += 1.0) {
+      const double ang = q * (kPi / 2);
+      const double f = (ang - a0) / g.sweep_rad;
+      const long quarter = static_cast<long>(q) % 4;
+      const long qm = quarter < 0 ? quarter + 4 : quarter;
       Vec3 p;
-      p[ax.first] = arc->centre[ax.first] + g.radius * std::cos(a0 + g.sweep_rad * f);
-      p[ax.second] = arc->centre[ax.second] + g.radius * std::sin(a0 + g.sweep_rad * f);
+      p[ax.first] = arc->centre[ax.first] + g.radius * (qm == 0 ? 1.0 : qm == 2 ? -1.0 : 0.0);
+      p[ax.second] = arc->centre[ax.second] + g.radius * (qm == 1 ? 1.0 : qm == 3 ? -1.0 : 0.0);
       p[ax.axis] = m.start[ax.axis] + g.rise * f;
       add(p);
     }
