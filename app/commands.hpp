@@ -18,5 +18,6 @@ void register_sim_controller(CLI::App& app, Runner& run);
 void register_teach(CLI::App& app, Runner& run);
 void register_robot(CLI::App& app, Runner& run);
 void register_simulate(CLI::App& app, Runner& run);
+void register_check(CLI::App& app, Runner& run);
 
 }  // namespace ncd::app

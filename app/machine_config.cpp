@@ -179,6 +179,37 @@ void parse_encoder(const toml::value& table, const std::string& name, comms::Enc
   }
 }
 
+// [program]: the RS-274/NGC interpreter's setting (docs/ngc-interpreter.md).
+void parse_program(const toml::value& table, const std::string& name,
+                   toolpath::InterpretOptions& p) {
+  const auto units = [&](const toml::value& v, const std::string& where) {
+    const std::string u = as_text(v, where);
+    if (u == "mm") return toolpath::Units::mm;
+    if (u == "inch") return toolpath::Units::inch;
+    throw InputError(where + " = \"" + u + "\" must be \"mm\" or \"inch\"");
+  };
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": program." + key;
+    if (key == "default_units") {
+      p.default_units = units(v, where);
+    } else if (key == "machine_units") {
+      p.machine_units = units(v, where);
+    } else if (key == "tool_table") {
+      p.tool_table = as_text(v, where);
+    } else if (key == "parameter_file") {
+      p.parameter_file = as_text(v, where);
+    } else if (key == "subroutine_path") {
+      if (!v.is_array()) throw InputError(where + " must be a list of folders: [\"subs\"]");
+      p.subroutine_path.clear();
+      for (const auto& d : v.as_array()) p.subroutine_path.push_back(as_text(d, where));
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [program] takes default_units, machine_units, tool_table, "
+                       "parameter_file, subroutine_path");
+    }
+  }
+}
+
 }  // namespace
 
 MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
@@ -228,6 +259,9 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
     } else if (key == "link") {
       if (!value.is_table()) throw InputError(where + " must be a table: [link]");
       parse_link(value, name, c.link);
+    } else if (key == "program") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [program]");
+      parse_program(value, name, c.program);
     } else if (key == "encoder") {
       if (!value.is_table()) throw InputError(where + " must be a table: [encoder]");
       parse_encoder(value, name, c.encoder);
@@ -236,7 +270,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
                        "; the machine file takes period_s, max_feed_mm_per_min, "
                        "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
                        "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s and the tables "
-                       "[cutting], [link], [encoder]");
+                       "[cutting], [link], [encoder], [program]");
     }
   }
   c.encoder.line = c.link.line;
@@ -297,6 +331,12 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                   {"number_step", e.number_step},
                   {"max_setpoints_per_block", e.max_setpoints_per_block},
                   {"max_block_s", e.max_block_s}};
+  const toolpath::InterpretOptions& p = c.program;
+  j["program"] = {{"default_units", p.default_units == toolpath::Units::inch ? "inch" : "mm"},
+                  {"machine_units", p.machine_units == toolpath::Units::inch ? "inch" : "mm"},
+                  {"tool_table", p.tool_table},
+                  {"parameter_file", p.parameter_file},
+                  {"subroutine_path", p.subroutine_path}};
   return j;
 }
 

@@ -11,6 +11,7 @@
 #include "comms/line_settings.hpp"
 #include "interpolator/feed_limits.hpp"
 #include "interpolator/roughness.hpp"
+#include "toolpath/ngc_interpreter.hpp"
 
 namespace ncd::app {
 
@@ -30,6 +31,9 @@ struct MachineConfig {
   LinkConfig link;
   // [encoder]; its line and rx_buffer_bytes are copies of [link]'s, set by the parser.
   comms::EncoderSettings encoder;
+  // [program]: how RS-274/NGC programs are read (default_units, machine_units, tool_table,
+  // parameter_file, subroutine_path); see docs/ngc-interpreter.md.
+  toolpath::InterpretOptions program;
   std::string source = "defaults";  // the file it was read from
 };
 

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   ncd::app::register_teach(app, run);
   ncd::app::register_robot(app, run);
   ncd::app::register_simulate(app, run);
+  ncd::app::register_check(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -229,7 +229,7 @@ int run_replay(const ReplayArgs& a) {
   MachineConfig machine;  // the documented defaults unless --machine
   if (!a.machine.empty()) machine = load_machine_config(a.machine);
   if (a.chord_tolerance_mm) machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
-  const toolpath::Path path = toolpath::read_path_file(a.path);
+  const toolpath::Path path = toolpath::read_path_file(a.path, machine.program);
   motion::JobConfig cfg;
   cfg.limits = machine.limits;
   cfg.cutting = machine.cutting;

@@ -227,7 +227,8 @@ class JsonReader {
 
 }  // namespace
 
-Path read_path_text(const std::string& text, const std::string& name) {
+Path read_path_text(const std::string& text, const std::string& name,
+                    const InterpretOptions& ngc) {
   const std::size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) {
     throw InputError(name + ": the file is empty; give a chamfer JSON, a JSON path or G-code");
@@ -249,14 +250,14 @@ Path read_path_text(const std::string& text, const std::string& name) {
     }
   } else {
     std::istringstream in(text);
-    path = read_gcode(in, name);
+    path = read_gcode(in, name, ngc);
   }
   path.source = name;
   return path;
 }
 
-Path read_path_file(const std::string& filename) {
-  return read_path_text(read_input_file(filename, "path file"), filename);
+Path read_path_file(const std::string& filename, const InterpretOptions& ngc) {
+  return read_path_text(read_input_file(filename, "path file"), filename, ngc);
 }
 
 }  // namespace ncd::toolpath

@@ -13,14 +13,17 @@
 
 #include <string>
 
+#include "toolpath/ngc_interpreter.hpp"
 #include "toolpath/path.hpp"
 
 namespace ncd::toolpath {
 
 // Throws InputError naming the file, for JSON the key, and the way out.
-Path read_path_file(const std::string& filename);
+// `ngc` applies to RS-274/NGC only (tool table, parameter file, units, subroutine path).
+Path read_path_file(const std::string& filename, const InterpretOptions& ngc = {});
 
 // The same on text already in memory; `name` stands for the file in messages.
-Path read_path_text(const std::string& text, const std::string& name);
+Path read_path_text(const std::string& text, const std::string& name,
+                    const InterpretOptions& ngc = {});
 
 }  // namespace ncd::toolpath

@@ -141,7 +141,7 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
       {"max_accel_mm_per_s2 = -1000\n", cubic, "max_accel"},
       {"period_s = 0\n", cubic, "period"},
       {"max_jerk_mm_per_s3 = \"fast\"\n", cubic, "must be a number"},
-      {"", write("arc.ngc", "G21 G90\nG0 X0 Y0 Z0\nG2 X10 Y0 I5 J0 F100\n"), "arc.ngc:3:"},
+      {"", write("comp.ngc", "G21 G90\nG0 X0 Y0 Z0\nG41 G1 X10 Y0 F100\n"), "comp.ngc:3:"},
       // A G5.2 block whose first point repeats the current position: a cusp at the start.
       {"",
        write("cusp.ngc",

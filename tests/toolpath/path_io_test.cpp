@@ -213,7 +213,7 @@ TEST(PathIo, ErrorsNameTheFileTheKeyAndTheWayOut) {
                {"exactly one of \"nurbs\" and \"polyline\""});
   expect_error("bad13.json", R"({"what": 1})", {"neither \"points\""});
   expect_error("bad14.json", "{\"points\": [1, 2,", {"not valid JSON"});
-  expect_error("bad15.ngc", "G0 X0 Y0 Z0\nG2 X1 Y1 I1 F10\n", {":2:", "G2"});
+  expect_error("bad15.ngc", "G0 X0 Y0 Z0\nG2 X1 Y1 R0.1 F10\n", {":2:", "R0.1 is too small"});
   expect_error("empty.ngc", " \n\n", {"the file is empty"});
   try {
     read_path_file("/nonexistent/dir/path.json");

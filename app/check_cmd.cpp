@@ -1,0 +1,216 @@
+// `ncd check FILE`: reads an RS-274/NGC program with the interpreter (docs/ngc-interpreter.md)
+// and prints what a person checks before running it: the canonical program (one move or event
+// a line, each with its source file:line, in the program's units) and a summary in mm: extents
+// per axis (machine coordinates, arcs and NURBS sampled), cut and rapid lengths, an estimate of
+// the time (each move at its feed, capped at the machine's maximum feed; rapids at the
+// machine's maximum feed; dwells), the tools, spindle speeds and feeds. --json for tools.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "app/commands.hpp"
+#include "app/machine_config.hpp"
+#include "core/error.hpp"
+#include "toolpath/ngc_interpreter.hpp"
+#include "toolpath/program.hpp"
+
+namespace ncd::app {
+namespace {
+
+using toolpath::Motion;
+using toolpath::Program;
+
+struct CheckArgs {
+  std::string file, machine, tool_table, parameter_file;
+  bool json = false;
+  bool summary_only = false;
+};
+
+struct Summary {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+  double cut_mm = 0.0, rapid_mm = 0.0, time_s = 0.0, dwell_s = 0.0;
+  std::size_t moves = 0, events = 0;
+  std::set<int> tools;
+  std::set<double> spindle_rpm;
+  double feed_min = std::numeric_limits<double>::infinity(), feed_max = 0.0;
+  bool capped = false;  // some feed was above the machine's maximum
+};
+
+// Points along a motion in machine mm, for the extents.
+void sample(const Motion& m, Summary& s) {
+  const double k = toolpath::mm_per_unit(m.units);
+  const auto add = [&](const Vec3& p_prog) {
+    const Vec3 p = (p_prog + m.offset) * k;
+    s.lo = s.lo.cwiseMin(p);
+    s.hi = s.hi.cwiseMax(p);
+  };
+  add(m.start);
+  if (const auto* arc = std::get_if<toolpath::ArcMove>(&m.geometry)) {
+    const toolpath::ArcGeometry g = toolpath::arc_geometry(m.start, *arc);
+    const toolpath::PlaneAxes ax = toolpath::plane_axes(arc->plane);
+    const double a0 = std::atan2(m.start[ax.second] - arc->centre[ax.second],
+                                 m.start[ax.first] - arc->centre[ax.first]);
+    // The extremes of a circle are where the angle is a multiple of 90°: those inside the
+    // sweep, plus the ends (the axis coordinate moves linearly, its extremes are the ends).
+    const double lo = std::min(a0, a0 + g.sweep_rad), hi = std::max(a0, a0 + g.sweep_rad);
+    for (double q = std::ceil(lo / (kPi / 2)); q * (kPi / 2) <= hi; q += 1.0) {
+      const double ang = q * (kPi / 2);
+      const double f = (ang - a0) / g.sweep_rad;
+      const long quarter = static_cast<long>(q) % 4;
+      const long qm = quarter < 0 ? quarter + 4 : quarter;
+      Vec3 p;
+      p[ax.first] = arc->centre[ax.first] + g.radius * (qm == 0 ? 1.0 : qm == 2 ? -1.0 : 0.0);
+      p[ax.second] = arc->centre[ax.second] + g.radius * (qm == 1 ? 1.0 : qm == 3 ? -1.0 : 0.0);
+      p[ax.axis] = m.start[ax.axis] + g.rise * f;
+      add(p);
+    }
+  } else if (const auto* nm = std::get_if<toolpath::NurbsMove>(&m.geometry)) {
+    const auto& c = nm->curve;
+    for (int i = 0; i <= 256; ++i) add(c.eval(c.u_begin() + (c.u_end() - c.u_begin()) * i / 256.0).p);
+  } else if (const auto* pl = std::get_if<toolpath::PolylineMove>(&m.geometry)) {
+    for (const Vec3& p : pl->polyline.points) add(p);
+  }
+  add(toolpath::motion_end(m));
+}
+
+Summary summarise(const Program& p, const MachineConfig& machine) {
+  Summary s;
+  const double rapid_mm_per_min = machine.limits.max_feed_mm_per_min;
+  for (const toolpath::Step& st : p.steps) {
+    if (const auto* m = std::get_if<Motion>(&st.item)) {
+      ++s.moves;
+      sample(*m, s);
+      const double k = toolpath::mm_per_unit(m->units);
+      const double len = toolpath::motion_length(*m) * k;
+      if (m->rapid) {
+        s.rapid_mm += len;
+        s.time_s += len / rapid_mm_per_min * 60.0;
+      } else {
+        s.cut_mm += len;
+        double feed = m->feed_mode == toolpath::FeedMode::per_minute ? m->feed * k : m->feed * len;
+        s.feed_min = std::min(s.feed_min, feed);
+        s.feed_max = std::max(s.feed_max, feed);
+        if (feed > machine.limits.max_feed_mm_per_min) {
+          s.capped = true;
+          feed = machine.limits.max_feed_mm_per_min;
+        }
+        if (feed > 0.0) s.time_s += len / feed * 60.0;
+      }
+      if (m->tool != 0) s.tools.insert(m->tool);
+      if (m->spindle != toolpath::SpindleDir::off) s.spindle_rpm.insert(m->spindle_rpm);
+      continue;
+    }
+    ++s.events;
+    const auto& e = std::get<toolpath::Event>(st.item);
+    if (const auto* d = std::get_if<toolpath::DwellEvent>(&e)) {
+      s.dwell_s += d->seconds;
+      s.time_s += d->seconds;
+    }
+    if (const auto* t = std::get_if<toolpath::ToolChangeEvent>(&e)) s.tools.insert(t->tool);
+  }
+  return s;
+}
+
+std::string fixed(double v, int decimals) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  return b;
+}
+
+int run_check(const CheckArgs& a) {
+  MachineConfig machine;
+  if (!a.machine.empty()) machine = load_machine_config(a.machine);
+  toolpath::InterpretOptions opt = machine.program;
+  if (!a.tool_table.empty()) opt.tool_table = a.tool_table;
+  if (!a.parameter_file.empty()) opt.parameter_file = a.parameter_file;
+  const Program p = toolpath::interpret_ngc_file(a.file, opt);
+  const Summary s = summarise(p, machine);
+  std::ostringstream canonical;
+  if (!a.summary_only) toolpath::write_canonical(canonical, p);
+  const bool any = s.moves > 0;
+  if (a.json) {
+    nlohmann::ordered_json j;
+    j["program"] = a.file;
+    j["files"] = p.files;
+    nlohmann::ordered_json lines = nlohmann::ordered_json::array();
+    std::istringstream in(canonical.str());
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+    j["canonical"] = lines;
+    nlohmann::ordered_json sum;
+    sum["moves"] = s.moves;
+    sum["events"] = s.events;
+    if (any) {
+      sum["extents_mm"] = {{"x", {s.lo.x(), s.hi.x()}}, {"y", {s.lo.y(), s.hi.y()}},
+                           {"z", {s.lo.z(), s.hi.z()}}};
+    }
+    sum["cut_length_mm"] = s.cut_mm;
+    sum["rapid_length_mm"] = s.rapid_mm;
+    sum["dwell_s"] = s.dwell_s;
+    sum["estimated_time_s"] = s.time_s;
+    sum["rapid_rate_mm_per_min"] = machine.limits.max_feed_mm_per_min;
+    sum["feed_capped_at_machine_maximum"] = s.capped;
+    sum["tools"] = std::vector<int>(s.tools.begin(), s.tools.end());
+    sum["spindle_rpm"] = std::vector<double>(s.spindle_rpm.begin(), s.spindle_rpm.end());
+    if (s.feed_max > 0.0) sum["feed_mm_per_min"] = {{"min", s.feed_min}, {"max", s.feed_max}};
+    j["summary"] = sum;
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  std::cout << canonical.str();
+  std::cout << "summary of " << a.file << " (mm, machine coordinates)\n";
+  std::cout << "  moves " << s.moves << ", events " << s.events << "\n";
+  if (any) {
+    for (int i = 0; i < 3; ++i) {
+      std::cout << "  " << "XYZ"[i] << " from " << fixed(s.lo[i], 4) << " to " << fixed(s.hi[i], 4)
+                << "\n";
+    }
+  }
+  std::cout << "  cut length " << fixed(s.cut_mm, 3) << " mm, rapid length " << fixed(s.rapid_mm, 3)
+            << " mm\n";
+  std::cout << "  estimated time " << fixed(s.time_s, 1) << " s (feeds capped at "
+            << fixed(machine.limits.max_feed_mm_per_min, 0) << " mm/min, rapids at that rate, "
+            << fixed(s.dwell_s, 1) << " s of dwell)" << (s.capped ? "; some feeds were capped" : "")
+            << "\n";
+  std::cout << "  tools";
+  if (s.tools.empty()) std::cout << " none";
+  for (int t : s.tools) std::cout << " T" << t;
+  std::cout << "\n  spindle";
+  if (s.spindle_rpm.empty()) std::cout << " never on";
+  for (double r : s.spindle_rpm) std::cout << " " << fixed(r, 0) << " rpm";
+  std::cout << "\n  feeds";
+  if (s.feed_max > 0.0) {
+    std::cout << " " << fixed(s.feed_min, 1) << " to " << fixed(s.feed_max, 1) << " mm/min\n";
+  } else {
+    std::cout << " none\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+void register_check(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<CheckArgs>();
+  CLI::App* c = app.add_subcommand(
+      "check",
+      "read an RS-274/NGC program (LinuxCNC's dialect) and print its canonical moves and "
+      "events with their source lines, then extents, lengths, time, tools, speeds and feeds");
+  c->add_option("FILE", a->file, "the NC program")->required();
+  c->add_option("--machine", a->machine,
+                "machine file (TOML): limits for the time estimate, [program] for the reader");
+  c->add_option("--tool-table", a->tool_table, "LinuxCNC tool table (overrides [program])");
+  c->add_option("--parameter-file", a->parameter_file,
+                "LinuxCNC parameter file, .var (overrides [program]); read, not written");
+  c->add_flag("--json", a->json, "print JSON instead of text");
+  c->add_flag("--summary", a->summary_only, "print the summary only, not the canonical program");
+  c->callback([a, &run] { run = [a] { return run_check(*a); }; });
+}
+
+}  // namespace ncd::app

@@ -1,0 +1,50 @@
+// libFuzzer harness of the RS-274/NGC interpreter (docs/ngc-interpreter.md): any bytes are a
+// program; the interpreter either returns a program or throws InputError, never crashes or
+// hangs (loops are bounded by InterpretOptions::max_blocks), and no move it returns carries a
+// NaN or an infinity; to_path keeps that property.
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <string>
+
+#include "core/error.hpp"
+#include "toolpath/ngc_interpreter.hpp"
+#include "toolpath/program.hpp"
+
+namespace {
+
+bool finite(const ncd::Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace ncd::toolpath;
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  InterpretOptions opt;
+  opt.max_blocks = 20000;  // a fuzzed endless loop ends quickly
+  Program p;
+  try {
+    p = interpret_ngc(text, "fuzz.ngc", opt);
+  } catch (const ncd::InputError&) {
+    return 0;
+  }
+  for (const Step& s : p.steps) {
+    if (const auto* m = std::get_if<Motion>(&s.item)) {
+      if (!finite(m->start) || !finite(motion_end(*m)) || !std::isfinite(m->feed)) std::abort();
+      if (const auto* a = std::get_if<ArcMove>(&m->geometry)) {
+        if (!finite(a->centre)) std::abort();
+      }
+    }
+  }
+  try {
+    const ncd::toolpath::Path path = to_path(p);
+    for (const auto& seg : path.segments) {
+      if (seg.feed_mm_per_min && !std::isfinite(*seg.feed_mm_per_min)) std::abort();
+    }
+  } catch (const ncd::InputError&) {
+  }
+  return 0;
+}
