@@ -91,6 +91,7 @@ int run_stream(const StreamArgs& a) {
   if (a.resume && a.restart) throw InputError("--resume and --restart exclude each other");
   const int max_block = line.protocol == comms::Protocol::Ack ? a.rx_buffer_bytes - 2 : 4096;
   const comms::ProgramSummary program = comms::scan_program(a.program, line.data_bits, max_block);
+  require_serial_port(a.port, "--port");  // a file or a missing port: exit 2 now, no retries
 
   // The journal: resume where a previous transfer of the same program stopped.
   const std::string journal_path =

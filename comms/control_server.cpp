@@ -12,12 +12,13 @@
 // Every reply carries "ok"; a false one carries "error", a message that says what was wrong and
 // what to send instead. A request is checked in this order, and the first failure is the reply:
 // valid JSON, an object, the "token" (when one is configured), a string "cmd". "subscribe" needs
-// "hz" in (0, max_subscribe_hz]; everything else (including unknown commands) goes to the
-// handler. None of these errors closes the connection. A line longer than max_line_bytes gets
-// one error reply as soon as it is known to be too long; the rest of it, up to its newline, is
-// discarded. "\r\n" is accepted. A blank line is no request and gets no reply, but like any line
-// it ends a status stream. An unterminated last line before the client's end of stream is still
-// answered, and the replies are flushed before the connection closes.
+// "hz" in [min_subscribe_hz, max_subscribe_hz] (0.01 to 1000 by default); everything else
+// (including unknown commands) goes to the handler. None of these errors closes the connection. A
+// line longer than max_line_bytes gets one error reply as soon as it is known to be too long; the
+// rest of it, up to its newline, is discarded. "\r\n" is accepted. A blank line is no request and
+// gets no reply, but like any line it ends a status stream. An unterminated last line before the
+// client's end of stream is still answered, and the replies are flushed before the connection
+// closes.
 //
 // Each connection reads and writes on its own: replies and status lines go to a per-connection
 // queue written one async_write at a time. When a client stops reading, its queue grows to
@@ -296,15 +297,17 @@ Json Connection::answer(std::string_view line, std::optional<double>& subscribe_
 
 // Checks "hz" of a subscribe request; sets subscribe_hz when it is acceptable.
 Json Connection::subscribe_reply(const Json& request, std::optional<double>& subscribe_hz) const {
+  const double min_hz = server_->options.min_subscribe_hz;
   const double max_hz = server_->options.max_subscribe_hz;
-  const std::string range = "greater than 0 and at most " + number_text(max_hz);
+  const std::string range =
+      "at least " + number_text(min_hz) + " and at most " + number_text(max_hz);
   const auto hz = request.find("hz");
   if (hz == request.end() || !hz->is_number()) {
     return error_reply("subscribe needs \"hz\", the number of status lines per second, " + range +
                        ", such as {\"cmd\":\"subscribe\",\"hz\":10}");
   }
   const double value = hz->get<double>();
-  if (!(value > 0.0 && value <= max_hz)) {
+  if (!(value >= min_hz && value <= max_hz)) {
     return error_reply("\"hz\" = " + number_text(value) + " is out of range: it must be " + range);
   }
   subscribe_hz = value;
@@ -541,6 +544,10 @@ ControlServer::ControlServer(boost::asio::io_context& io, const ListenAddress& a
     throw InputError("max_line_bytes = 0 is invalid: it must be at least 1 (default 65536)");
   }
   require_positive("max_subscribe_hz", options.max_subscribe_hz);
+  require_positive("min_subscribe_hz", options.min_subscribe_hz);
+  if (options.min_subscribe_hz > options.max_subscribe_hz) {
+    throw InputError("min_subscribe_hz is above max_subscribe_hz; swap them");
+  }
   if (options.token && options.token->empty()) {
     throw InputError("the control token is empty; set a non-empty token or remove it");
   }

@@ -45,6 +45,7 @@ class ControlHandler {
 struct ServerOptions {
   std::size_t max_line_bytes = 65536;  // longer request lines get an error reply and are skipped
   std::optional<std::string> token;    // required in every request ("token") when set
+  double min_subscribe_hz = 0.01;      // lower bound of "hz" in subscribe (one line per 100 s)
   double max_subscribe_hz = 1000;      // upper bound of "hz" in subscribe
 };
 

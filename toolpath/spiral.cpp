@@ -24,7 +24,9 @@ Path spiral_path(int turns) {
   for (int i = 1; i <= inner; ++i) knots.push_back(i);
   knots.insert(knots.end(), degree + 1, inner + 1.0);
   Path path;
-  path.segments.push_back({NurbsCurve(degree, knots, pts), std::nullopt, std::nullopt, false, 0});
+  PathSegment segment;
+  segment.geometry = NurbsCurve(degree, knots, pts);
+  path.segments.push_back(std::move(segment));
   path.source = "spiral of " + std::to_string(turns) + " turns";
   return path;
 }
