@@ -123,11 +123,11 @@ void check_output(const std::string& path, const std::string& what) {
   }
   const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
   if (::stat(folder.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
-    throw InputError("cannot write " + path + " (" + what + "): the folder " + folder.string() +
+    throw InputError("cannot create " + path + " (" + what + "): the folder " + folder.string() +
                      " does not exist; create it or choose another file");
   }
   if (::access(folder.c_str(), W_OK) != 0) {
-    throw InputError("cannot write " + path + " (" + what + "): the folder " + folder.string() +
+    throw InputError("cannot create " + path + " (" + what + "): the folder " + folder.string() +
                      " is not writable (" + error_text(errno) + ")");
   }
 }
