@@ -3,7 +3,17 @@ JOBS ?= $(shell nproc)
 NCD := build/release/app/ncd
 
 .PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build format \
-	format-check bench soak clean
+	format-check bench soak clean install uninstall
+
+# `make install [PREFIX=/usr/local] [DESTDIR=]`: the binary, the systemd unit (its paths set to
+# PREFIX), the sysusers entry of the user `ncd`, the example configs (an existing
+# /etc/ncd/serve.toml is kept) and the documentation. With an empty DESTDIR, as root, the user is
+# created and systemd reloaded. See docs/hardening.md, "Deployment".
+PREFIX ?= /usr/local
+SYSCONFDIR ?= /etc
+UNITDIR ?= $(SYSCONFDIR)/systemd/system
+SYSUSERSDIR ?= /usr/lib/sysusers.d
+DOCDIR ?= $(PREFIX)/share/doc/ncd
 
 all: release
 
@@ -54,6 +64,31 @@ format:
 format-check: deps
 	@files=$$(git ls-files '*.cpp' '*.hpp'); \
 	if [ -n "$$files" ]; then clang-format --dry-run -Werror $$files; fi
+
+install: release
+	install -D -m 0755 $(NCD) $(DESTDIR)$(PREFIX)/bin/ncd
+	install -d $(DESTDIR)$(UNITDIR) $(DESTDIR)$(SYSCONFDIR)/ncd $(DESTDIR)$(DOCDIR)
+	sed -e 's|/usr/local/bin/ncd|$(PREFIX)/bin/ncd|' \
+	    -e 's|/usr/local/share/doc/ncd|$(DOCDIR)|' \
+	    -e 's|/etc/ncd/|$(SYSCONFDIR)/ncd/|' deploy/ncd.service > $(DESTDIR)$(UNITDIR)/ncd.service
+	chmod 0644 $(DESTDIR)$(UNITDIR)/ncd.service
+	install -D -m 0644 deploy/ncd.sysusers.conf $(DESTDIR)$(SYSUSERSDIR)/ncd.conf
+	install -m 0644 config/serve.example.toml config/machine.example.toml \
+	    $(DESTDIR)$(SYSCONFDIR)/ncd/
+	[ -e $(DESTDIR)$(SYSCONFDIR)/ncd/serve.toml ] || \
+	    install -m 0644 config/serve.example.toml $(DESTDIR)$(SYSCONFDIR)/ncd/serve.toml
+	install -m 0644 README.md docs/*.md $(DESTDIR)$(DOCDIR)/
+	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ]; then \
+	    systemd-sysusers $(SYSUSERSDIR)/ncd.conf 2>/dev/null || \
+	    { getent passwd ncd >/dev/null || useradd --system --home-dir /var/lib/ncd \
+	        --shell /usr/sbin/nologin --groups dialout ncd; }; \
+	    systemctl daemon-reload 2>/dev/null || true; \
+	fi
+
+uninstall:
+	rm -f $(DESTDIR)$(PREFIX)/bin/ncd $(DESTDIR)$(UNITDIR)/ncd.service \
+	    $(DESTDIR)$(SYSUSERSDIR)/ncd.conf
+	rm -rf $(DESTDIR)$(DOCDIR)
 
 clean:
 	rm -rf build out

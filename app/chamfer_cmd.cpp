@@ -48,6 +48,8 @@ int run_chamfer(const ChamferArgs& a) {
   require_positive("feed (--feed, mm/min)", ngc.feed_mm_per_min);
   require_positive("spindle speed (--spindle, rpm)", ngc.spindle_rpm);
 
+  check_output(a.output, "-o");
+  check_output(a.plot, "--plot");
   const auto t0 = std::chrono::steady_clock::now();
   const toolpath::ChamferPath path = toolpath::generate_chamfer(spec);
   const double elapsed_ms =
@@ -70,7 +72,7 @@ int run_chamfer(const ChamferArgs& a) {
     }
     text = toolpath::chamfer_program(path, ngc);
   }
-  if (!a.plot.empty()) write_output(a.plot, render_svg(chamfer_figure(path)));
+  if (!a.plot.empty()) write_output(a.plot, render_svg(chamfer_figure(path)), "--plot");
   write_output(a.output, text);
   if (!a.quiet) {
     std::cerr << chamfer_summary(path, elapsed_ms);

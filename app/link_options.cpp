@@ -1,6 +1,13 @@
 // Line flags: one definition for every subcommand that opens a DNC link.
 #include "app/link_options.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
 #include "core/error.hpp"
 
 namespace ncd::app {
@@ -36,6 +43,38 @@ comms::LineSettings line_settings(const LinkFlags& flags, const std::string& dev
   }
   line.nul_leader = flags.nul_leader;
   return line;
+}
+
+void require_serial_port(const std::string& device, const std::string& what) {
+  const std::string named = device + " (" + what + ")";
+  struct stat st {};
+  if (::stat(device.c_str(), &st) != 0) {
+    throw InputError("no such file: " + named + ": " + std::strerror(errno) +
+                     "; give the machine's serial port, such as /dev/ttyS0 or /dev/ttyUSB0");
+  }
+  if (!S_ISCHR(st.st_mode)) {
+    const char* kind = S_ISREG(st.st_mode)    ? "a regular file"
+                       : S_ISDIR(st.st_mode)  ? "a directory"
+                       : S_ISFIFO(st.st_mode) ? "a FIFO"
+                                              : "not a device";
+    throw InputError(named + " is " + kind +
+                     ", not a serial port; give the machine's serial port, such as /dev/ttyS0");
+  }
+  // O_NONBLOCK: a serial port without carrier must not block here; O_NOCTTY: never become
+  // the process's controlling terminal.
+  const int fd = ::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    throw InputError("cannot open " + named + ": " + std::strerror(err) +
+                     (err == EACCES ? "; add the user to the dialout group" : ""));
+  }
+  const bool tty = ::isatty(fd) == 1;
+  ::close(fd);
+  if (!tty) {
+    throw InputError(named +
+                     " is a character device but not a terminal (tty): not a serial port; "
+                     "give the machine's serial port, such as /dev/ttyS0");
+  }
 }
 
 }  // namespace ncd::app

@@ -23,5 +23,10 @@ struct LinkFlags {
 void add_link_flags(CLI::App& sub, LinkFlags& flags);
 // Checks the flags and turns them into line settings for `device`; throws InputError.
 comms::LineSettings line_settings(const LinkFlags& flags, const std::string& device);
+// Checks, before any transfer, that device is a terminal (a serial port or a pseudo-terminal):
+// a missing file is "no such file" at once (no reconnect attempts), anything else that is not
+// a tty (a regular file, /dev/full, a FIFO) is refused. Throws InputError naming the device and
+// `what` (the flag or key that gave it).
+void require_serial_port(const std::string& device, const std::string& what);
 
 }  // namespace ncd::app

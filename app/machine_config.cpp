@@ -206,6 +206,40 @@ void parse_program(const toml::value& table, const std::string& name,
       throw InputError("unknown key " + where +
                        "; [program] takes default_units, machine_units, tool_table, "
                        "parameter_file, subroutine_path");
+      }
+    }
+  }
+
+// [envelope]: x_min_mm … z_max_mm, finite, min < max on every axis.
+void parse_envelope(const toml::value& table, const std::string& name, Envelope& e) {
+  static const char* const kAxes = "xyz";
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": envelope." + key;
+    bool known = false;
+    for (int a = 0; a < 3 && !known; ++a) {
+      const std::string axis(1, kAxes[a]);
+      for (const bool is_min : {true, false}) {
+        if (key != axis + (is_min ? "_min_mm" : "_max_mm")) continue;
+        const double x = as_real(v, where);
+        if (!std::isfinite(x) || std::abs(x) > 1e6) {
+          throw InputError(where + " = " + toml::format(v) +
+                           " must be a finite travel within ±1e6 mm (1 km)");
+        }
+        (is_min ? e.min_mm : e.max_mm)[a] = x;
+        known = true;
+      }
+    }
+    if (!known) {
+      throw InputError("unknown key " + where +
+                       "; [envelope] takes x_min_mm, x_max_mm, y_min_mm, y_max_mm, z_min_mm, "
+                       "z_max_mm");
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (!(e.min_mm[a] < e.max_mm[a])) {
+      throw InputError(name + ": envelope." + std::string(1, kAxes[a]) +
+                       "_min_mm = " + std::to_string(e.min_mm[a]) + " must be below " +
+                       std::string(1, kAxes[a]) + "_max_mm = " + std::to_string(e.max_mm[a]));
     }
   }
 }
@@ -265,12 +299,15 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
     } else if (key == "encoder") {
       if (!value.is_table()) throw InputError(where + " must be a table: [encoder]");
       parse_encoder(value, name, c.encoder);
+    } else if (key == "envelope") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [envelope]");
+      parse_envelope(value, name, c.envelope);
     } else {
       throw InputError("unknown key " + where +
                        "; the machine file takes period_s, max_feed_mm_per_min, "
                        "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
                        "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s and the tables "
-                       "[cutting], [link], [encoder], [program]");
+                       "[cutting], [link], [encoder], [envelope], [program]");
     }
   }
   c.encoder.line = c.link.line;
@@ -320,6 +357,9 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                {"xoff_timeout_s", c.link.xoff_timeout_s},
                {"reconnect_max_s", c.link.reconnect_max_s},
                {"journal", c.link.journal}};
+  j["envelope"] = {{"x_min_mm", c.envelope.min_mm.x()}, {"x_max_mm", c.envelope.max_mm.x()},
+                   {"y_min_mm", c.envelope.min_mm.y()}, {"y_max_mm", c.envelope.max_mm.y()},
+                   {"z_min_mm", c.envelope.min_mm.z()}, {"z_max_mm", c.envelope.max_mm.z()}};
   const comms::EncoderSettings& e = c.encoder;
   j["encoder"] = {{"chord_tolerance_mm", e.chord_tolerance_mm},
                   {"feed_band", e.feed_band},

@@ -9,6 +9,7 @@
 
 #include "comms/block_encoder.hpp"
 #include "comms/line_settings.hpp"
+#include "core/geometry.hpp"
 #include "interpolator/feed_limits.hpp"
 #include "interpolator/roughness.hpp"
 #include "toolpath/ngc_interpreter.hpp"
@@ -25,10 +26,20 @@ struct LinkConfig {
   std::string journal;            // transfer journal file; empty: none
 };
 
+// [envelope]: the machine's travel per axis, mm, in the frame of the programs it runs. Every
+// point of a path must lie inside before any motion starts (docs/hardening.md). The defaults
+// (±2000 mm) are wider than most machining centres: set the machine's own.
+struct Envelope {
+  static constexpr double kDefaultTravelMm = 2000.0;
+  Vec3 min_mm = Vec3::Constant(-kDefaultTravelMm);
+  Vec3 max_mm = Vec3::Constant(kDefaultTravelMm);
+};
+
 struct MachineConfig {
   interpolator::MachineLimits limits;
   interpolator::CuttingParams cutting;
   LinkConfig link;
+  Envelope envelope;
   // [encoder]; its line and rx_buffer_bytes are copies of [link]'s, set by the parser.
   comms::EncoderSettings encoder;
   // [program]: how RS-274/NGC programs are read (default_units, machine_units, tool_table,

@@ -1,6 +1,6 @@
 // ncd: a PC-NC service for deburring and chamfering drilled holes. One subcommand per use.
-// Exit status: 0 success, 2 invalid input (the message says what and how to fix it),
-// 1 internal failure.
+// Exit status: 0 success, 2 invalid input (the message says what and how to fix it), 3 a run
+// refused for a limit violation (nothing streamed), 1 an I/O error or an internal failure.
 #include <exception>
 #include <iostream>
 
@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "ncd: toolpaths for deburring and chamfering drilled holes, walked in a 4 ms cycle at a "
       "roughness-bounded feed and streamed to a CNC over RS-232 DNC"};
+  app.set_version_flag("--version", std::string("ncd ") + NCD_VERSION);
   app.require_subcommand(1);
   ncd::app::Runner run;
   ncd::app::register_chamfer(app, run);
@@ -34,6 +35,12 @@ int main(int argc, char** argv) {
   } catch (const ncd::InputError& e) {
     std::cerr << "ncd: error: " << e.what() << "\n";
     return 2;
+  } catch (const ncd::LimitError& e) {
+    std::cerr << "ncd: refused: " << e.what() << "\n";
+    return 3;
+  } catch (const ncd::IoError& e) {
+    std::cerr << "ncd: I/O error: " << e.what() << "\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "ncd: internal error: " << e.what() << "\n";
     return 1;

@@ -17,6 +17,7 @@
 #include <string>
 
 #include "app/commands.hpp"
+#include "app/job_checks.hpp"
 #include "app/machine_config.hpp"
 #include "app/output.hpp"
 #include "app/setpoint_sink.hpp"
@@ -37,6 +38,7 @@ struct ReplayArgs {
   std::string path, machine, setpoints, report, plot, blocks;
   std::optional<double> chord_tolerance_mm;  // overrides [encoder] chord_tolerance_mm
   bool quiet = false;
+  bool allow_interference = false;
 };
 
 // The NC program of --blocks: one block a line, LF, no `%` (the streamer frames it), written
@@ -226,10 +228,20 @@ void print_blocks(const comms::EncoderStats& b, const std::string& file) {
 }
 
 int run_replay(const ReplayArgs& a) {
+  check_output(a.report, "--report");
+  check_output(a.plot, "--plot");
+  check_output(a.setpoints, "--setpoints");
+  check_output(a.blocks, "--blocks");
   MachineConfig machine;  // the documented defaults unless --machine
   if (!a.machine.empty()) machine = load_machine_config(a.machine);
   if (a.chord_tolerance_mm) machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
   const toolpath::Path path = toolpath::read_path_file(a.path, machine.program);
+  // Before any motion: the chamfer's checks and tool, the envelope, the size of the run.
+  const ChamferAcceptance chamfer =
+      accept_chamfer(path, machine, a.allow_interference, "--allow-interference");
+  if (!chamfer.note.empty()) std::cerr << "replay: " << chamfer.note << "\n";
+  check_envelope(path, machine);
+  check_estimate(estimate_run(path, machine), !a.setpoints.empty());
   motion::JobConfig cfg;
   cfg.limits = machine.limits;
   cfg.cutting = machine.cutting;
@@ -248,6 +260,11 @@ int run_replay(const ReplayArgs& a) {
                        " (--chord-tolerance or the machine file's [encoder])");
     }
     program = std::make_unique<ProgramFile>(a.blocks);
+    if (chamfer.interference_allowed) {
+      program->write(
+          "(ncd: the chamfer failed its interference checks; written because of "
+          "--allow-interference)");
+    }
     encoder = std::make_unique<comms::BlockEncoder>(
         machine.encoder, [&program, &block_plot](const comms::EncodedBlock& b) {
           program->write(b.text);
@@ -263,6 +280,7 @@ int run_replay(const ReplayArgs& a) {
   motion::RunStats st;
   st.path_length_mm = job.length_mm();
   double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
+  std::string fault;          // the step rule's message when it stopped the run
   const auto wall0 = std::chrono::steady_clock::now();
   auto next_progress = wall0 + std::chrono::seconds(2);
   for (;;) {
@@ -271,6 +289,10 @@ int run_replay(const ReplayArgs& a) {
     const auto t0 = std::chrono::steady_clock::now();
     const motion::Setpoint sp = job.step();
     const auto t1 = std::chrono::steady_clock::now();
+    if (sp.fault != motion::StepFault::None) {
+      fault = job.fault_message();
+      break;  // the step rule: this setpoint is not emitted, the run ends here
+    }
     lookahead_ns += static_cast<double>(std::chrono::nanoseconds(t0 - tp).count());
     const double limit = job.limit_here().feed_mm_per_s;
     const double rough = job.roughness_here_um(sp.v_mm_per_s);
@@ -281,7 +303,11 @@ int run_replay(const ReplayArgs& a) {
     plot.add(sp.t_s, sp.v_mm_per_s * 60.0, limit * 60.0, rough);
     if (sp.done) break;
     if (sp.t_s > kMaxSimulatedS) {
-      throw std::runtime_error("the motion did not finish within 100 h of simulated time");
+      // Unreachable by a valid input: check_estimate refused runs of more than a quarter of it.
+      throw LimitError(
+          "the motion did not finish within 100 h of simulated time, though it was "
+          "estimated at most " +
+          std::to_string(kMaxRunS / 3600.0) + " h: the walk crawls; nothing was written");
     }
     if (!a.quiet && t1 > next_progress) {
       std::cerr << "replay: " << static_cast<int>(100.0 * sp.s_mm / job.length_mm()) << " % ("
@@ -293,18 +319,32 @@ int run_replay(const ReplayArgs& a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const std::string source = path.source;
   if (encoder) encoder->finish();
+  // The acceptance rule: a run that stopped on the step rule, or whose numbers show a violation
+  // or a drift, writes its report and plot (to show why) but no setpoints and no blocks.
+  std::string refused = fault;
+  if (refused.empty()) refused = motion::refusal(st, cfg);
   if (!a.report.empty()) {
     nlohmann::ordered_json report = report_json(st, machine, source, job, lookahead_ns);
+    report["accepted"] = refused.empty();
+    report["interference_allowed"] = chamfer.interference_allowed;
+    report["refused"] =
+        refused.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(refused);
     if (encoder) {
       nlohmann::ordered_json blocks = {{"file", a.blocks}};
       blocks.update(comms::to_json(encoder->stats()));
       report["blocks"] = std::move(blocks);
     }
-    write_output(a.report, report.dump(1) + "\n");
+    write_output(a.report, report.dump(1) + "\n", "--report");
   }
   if (!a.plot.empty()) {
     write_output(a.plot,
-                 render_svg(replay_figure(plot, encoder ? &block_plot : nullptr, machine, source)));
+                 render_svg(replay_figure(plot, encoder ? &block_plot : nullptr, machine, source)),
+                 "--plot");
+  }
+  if (!refused.empty()) {
+    throw LimitError(source + ": " + refused +
+                     "; no setpoints and no blocks were written (exit 3; the report and the plot "
+                     "show the run)");
   }
   sink.commit();
   if (program) program->commit();
@@ -357,6 +397,9 @@ void register_replay(CLI::App& app, Runner& run) {
   c->add_option("--chord-tolerance", a->chord_tolerance_mm,
                 "block encoder chord tolerance, mm (default: the machine file's [encoder] "
                 "chord_tolerance_mm, 0.002)");
+  c->add_flag("--allow-interference", a->allow_interference,
+              "walk a chamfer whose interference checks failed (a deliberate test cut); the "
+              "summary, the report and the blocks say so");
   c->add_flag("-q,--quiet", a->quiet, "no progress or summary on standard error");
   c->callback([a, &run] { run = [a] { return run_replay(*a); }; });
 }

@@ -43,7 +43,16 @@ int run_serve(const ServeArgs& a) {
       io.stop();
     });
   });
-  io.run();
+  // An exception out of a handler must not end the service: log it and go on serving (the
+  // handlers of the job state machine catch their own and put the job in error).
+  for (;;) {
+    try {
+      io.run();
+      break;
+    } catch (const std::exception& e) {
+      std::cerr << "ncd serve: internal error (the service goes on): " << e.what() << std::endl;
+    }
+  }
   std::cerr << "ncd serve: stopped" << std::endl;
   return 0;
 }
@@ -59,8 +68,10 @@ void register_serve(CLI::App& app, Runner& run) {
   c->add_option("--config", a->config,
                 "service config (TOML): listen, token, machine, clock, realtime; see "
                 "config/serve.example.toml");
-  c->add_option("--listen", a->listen,
-                "tcp:HOST:PORT or unix:PATH (overrides the config; default tcp:127.0.0.1:7878)");
+  c->add_option(
+      "--listen", a->listen,
+      "tcp:HOST:PORT or unix:PATH (overrides the config; default unix:DIR/ncd.sock, DIR = "
+      "$RUNTIME_DIRECTORY, else $XDG_RUNTIME_DIR, else /tmp)");
   c->callback([a, &run] { run = [a] { return run_serve(*a); }; });
 }
 

@@ -23,6 +23,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <mutex>
@@ -30,6 +31,8 @@
 #include <thread>
 
 #include "app/chamfer_report.hpp"
+#include "app/job_checks.hpp"
+#include "app/link_options.hpp"
 #include "comms/block_encoder.hpp"
 #include "comms/live_blocks.hpp"
 #include "comms/transfer_journal.hpp"
@@ -67,6 +70,7 @@ toolpath::Path chamfer_path(const json& spec) {
                                 "initial_segments", "drill_tilt_deg", "drill_azimuth_deg",
                                 "eccentricity", "pipe_half_angle_deg", "pipe_thickness"};
   for (const auto& [k, v] : j.items()) {
+    if (k == "allow_interference") continue;  // read by submit()
     if (std::find(std::begin(kKeys), std::end(kKeys), k) == std::end(kKeys)) {
       throw InputError("unknown chamfer parameter \"" + k +
                        "\"; the names are those of `ncd chamfer --help`");
@@ -117,14 +121,22 @@ toolpath::Path chamfer_path(const json& spec) {
   if (j.contains("spindle")) ngc.spindle_rpm = number(j, "spindle");
   require_positive("feed", ngc.feed_mm_per_min);
   const toolpath::ChamferPath path = toolpath::generate_chamfer(s);
-  if (!path.checks.local_ok || !path.checks.global_ok || !path.checks.rod_ok) {
-    throw InputError("the chamfer interferes with the part (" +
-                     toolpath::interference_reasons(path) + "); not submitted");
-  }
+  // Its checks and its ball radius travel in the JSON, as for a chamfer file: accept_chamfer()
+  // decides at submit, the same way for both.
   return toolpath::read_path_text(chamfer_json(path, ngc, nka_deg, 0.0).dump(), "chamfer job");
 }
 
 }  // namespace
+
+std::string default_listen() {
+  for (const char* var : {"RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"}) {
+    const char* dir = std::getenv(var);
+    // RUNTIME_DIRECTORY may list several directories separated by ':'; the first is ours.
+    if (dir && *dir == '/')
+      return "unix:" + std::string(dir).substr(0, std::string(dir).find(':')) + "/ncd.sock";
+  }
+  return "unix:/tmp/ncd.sock";
+}
 
 ServiceConfig load_service_config(const std::string& path) {
   return parse_service_config(read_input_file(path, "service config, --config"), path);
@@ -165,6 +177,8 @@ const char* Service::name(State s) {
       return "holding";
     case State::Done:
       return "done";
+    case State::Stopped:
+      return "stopped";
     case State::Error:
       return "error";
   }
@@ -184,8 +198,8 @@ Service::~Service() {
 
 motion::JobConfig Service::job_config() const {
   motion::JobConfig j;
-  j.limits = config_.machine.limits;
-  j.cutting = config_.machine.cutting;
+  j.limits = job_machine_.limits;
+  j.cutting = job_machine_.cutting;
   return j;
 }
 
@@ -203,33 +217,67 @@ json Service::submit(const json& req) {
     throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
   }
   const json& job = req["job"];
+  bool allow_interference = false;
+  if (const auto allow = job.find("allow_interference"); allow != job.end()) {
+    if (!allow->is_boolean()) {
+      throw InputError("\"job\".\"allow_interference\" must be true or false");
+    }
+    allow_interference = allow->get<bool>();
+  }
   std::unique_ptr<toolpath::Path> path;
+  std::string job_name;
   if (job.contains("path")) {
+    for (const auto& [key, value] : job.items()) {
+      if (key != "path" && key != "allow_interference") {
+        throw InputError("unknown key \"job\".\"" + key +
+                         "\" in a path job; it takes \"path\" and \"allow_interference\"");
+      }
+    }
     if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
     path = std::make_unique<toolpath::Path>(toolpath::read_path_file(job["path"], config_.machine.program));
-    job_name_ = job["path"].get<std::string>();
+    job_name = job["path"].get<std::string>();
   } else {
     path = std::make_unique<toolpath::Path>(chamfer_path(job));
-    job_name_ = "chamfer";
+    job_name = "chamfer";
   }
-  // Build the job once now, so that a path the machine cannot run is refused at submit.
-  (void)motion::Job(*path, job_config());
-  port_ = config_.machine.link.line.device;
+  std::string port = config_.machine.link.line.device;
   if (req.contains("port")) {
     if (!req["port"].is_string()) {
       throw InputError("\"port\" must be a device name, or \"\" for no streaming");
     }
-    port_ = req["port"];
+    port = req["port"];
   }
-  setpoints_file_.clear();
+  std::string setpoints;
   if (req.contains("setpoints")) {
     if (!req["setpoints"].is_string()) throw InputError("\"setpoints\" must be a file name");
-    setpoints_file_ = req["setpoints"];
+    setpoints = req["setpoints"];
+    check_output(setpoints, "\"setpoints\"");
   }
+  // Before any motion, as `ncd replay` does: the chamfer's checks and tool, the envelope, the
+  // size of the run, the port.
+  MachineConfig machine = config_.machine;
+  const ChamferAcceptance chamfer =
+      accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
+  check_envelope(*path, machine);
+  check_estimate(estimate_run(*path, machine), !setpoints.empty());
+  if (!port.empty()) require_serial_port(port, "\"port\"");
+  // Build the job once now, so that a path the machine cannot run is refused at submit.
+  motion::JobConfig jc;
+  jc.limits = machine.limits;
+  jc.cutting = machine.cutting;
+  (void)motion::Job(*path, jc);
+  if (!chamfer.note.empty()) std::cerr << "ncd serve: " << chamfer.note << "\n";
+  job_name_ = std::move(job_name);
+  job_machine_ = std::move(machine);
+  interference_allowed_ = chamfer.interference_allowed;
+  port_ = std::move(port);
+  setpoints_file_ = std::move(setpoints);
   path_ = std::move(path);
   state_ = State::Ready;
   error_.clear();
-  return {{"ok", true}, {"state", name(state_)}, {"job", job_name_}};
+  json reply{{"ok", true}, {"state", name(state_)}, {"job", job_name_}};
+  if (interference_allowed_) reply["warning"] = chamfer.note;
+  return reply;
 }
 
 json Service::start() {
@@ -237,9 +285,14 @@ json Service::start() {
     throw InputError(std::string("start: nothing to start (state ") + name(state_) +
                      "); submit a job first");
   }
+  if (!port_.empty()) require_serial_port(port_, "\"port\"");  // it may have gone since submit
   auto job = std::make_unique<motion::Job>(*path_, job_config());
   stream_.reset();
   held_by_link_ = false;
+  start_mm_ = job->walker().position();
+  stop_why_.clear();
+  moving_s_ = 0.0;
+  held_time_left_s_.reset();
   if (!port_.empty()) start_stream(job->walker().position());
   motion::CycleOptions o;
   o.clock = config_.clock;
@@ -257,11 +310,36 @@ json Service::start() {
   return {{"ok", true}, {"state", name(state_)}, {"realtime", realtime_}};
 }
 
+void Service::fail_job(const std::string& why) {
+  std::cerr << "ncd serve: job " << job_name_ << " failed: " << why << "\n";
+  timer_.cancel();
+  if (cycle_) cycle_->stop();
+  cycle_.reset();  // joins the cycle thread
+  if (stream_) {
+    stream_->blocks.close();
+    stream_.reset();  // stops and joins the sender thread
+  }
+  sink_.reset();  // removes the setpoints' temporary file
+  state_ = State::Error;
+  error_ = why;
+  end_job();
+}
+
 void Service::drain() {
+  try {
+    drain_setpoints();
+  } catch (const std::exception& e) {
+    fail_job(std::string("internal error: ") + e.what());
+  }
+}
+
+void Service::drain_setpoints() {
   if (!cycle_) return;
   motion::Setpoint sp;
+  const double period_s = job_machine_.limits.period_s;
   while (cycle_->pop(sp)) {
     ++setpoints_;
+    if (sp.v_mm_per_s > 0.0) moving_s_ += period_s;
     last_ = sp;
     accel_max_ = std::max(accel_max_, std::abs(sp.a_mm_per_s2));
     jerk_max_ = std::max(jerk_max_, std::abs(sp.j_mm_per_s3));
@@ -289,11 +367,17 @@ void Service::finish_job() {
   if (end == motion::CycleState::Error) {
     state_ = State::Error;
     error_ = cycle_->error();
+  } else if (end == motion::CycleState::Stopped) {
+    state_ = State::Stopped;
   } else {
     state_ = State::Done;
   }
   try {
-    sink_->commit();
+    if (state_ == State::Error) {
+      sink_.reset();  // a job in error keeps no setpoints file (its temporary is removed)
+    } else {
+      sink_->commit();
+    }
   } catch (const std::exception& e) {
     state_ = State::Error;
     error_ = e.what();
@@ -359,8 +443,18 @@ void Service::start_stream(const Vec3& start_mm) {
       });
   ls->sender->set_journal(ls->journal.get());
   ls->sender->on_hold([this](bool hold) { io_.post([this, hold] { link_hold(hold); }); });
+  // No exception may leave the thread (it would end the service): one becomes the report's
+  // failure, and the job ends in error.
   ls->thread = std::thread([raw] {
-    raw->report = raw->sender->run(raw->stop);
+    try {
+      raw->report = raw->sender->run(raw->stop);
+    } catch (const std::exception& e) {
+      raw->report.completed = false;
+      raw->report.failure = std::string("the sender failed: ") + e.what();
+    } catch (...) {
+      raw->report.completed = false;
+      raw->report.failure = "the sender failed (unknown exception)";
+    }
     raw->done.store(true, std::memory_order_release);
   });
   std::cerr << "ncd serve: streaming job " << job_name_ << " to " << port_ << " at "
@@ -435,19 +529,38 @@ json Service::stream_status() const {
 
 json Service::handle(const json& req) {
   const std::string cmd = req["cmd"];
+  // Every key of a request is known, or the request is refused: a typo is never ignored.
+  const auto keys_for = [](const std::string& c) -> std::vector<std::string> {
+    if (c == "submit") return {"job", "port", "setpoints"};
+    if (c == "override") return {"percent"};
+    return {};
+  };
+  const std::vector<std::string> extra = keys_for(cmd);
+  for (const auto& [key, value] : req.items()) {
+    if (key == "cmd" || key == "token") continue;
+    if (std::find(extra.begin(), extra.end(), key) == extra.end()) {
+      std::string known = "\"cmd\"";
+      for (const std::string& k : extra) known += ", \"" + k + "\"";
+      throw InputError("unknown key \"" + key + "\" in a \"" + cmd + "\" request; it takes " +
+                       known + " (and \"token\" when the service has one)");
+    }
+  }
   if (cmd == "submit") return submit(req);
   if (cmd == "start") return start();
   if (cmd == "status") return status();
   if (cmd == "hold") {
     require_active("hold");
+    if (state_ != State::Holding) held_time_left_s_ = time_left_s();
     cycle_->hold();
     state_ = State::Holding;
   } else if (cmd == "resume") {
     require_active("resume");
     cycle_->resume();
     state_ = State::Running;
+    held_time_left_s_.reset();
   } else if (cmd == "stop") {
     require_active("stop");
+    stop_why_ = "stop requested by a client";
     cycle_->stop();
   } else if (cmd == "override") {
     require_active("override");
@@ -465,6 +578,33 @@ json Service::handle(const json& req) {
   return {{"ok", true}, {"state", name(state_)}};
 }
 
+// The time the job still needs: what is left of the path at the mean feed of the time spent
+// moving so far (a hold adds neither time nor path, so the estimate does not grow while
+// held); frozen at its value when the hold was asked for. None until the tool has moved.
+std::optional<double> Service::time_left_s() const {
+  if (state_ == State::Holding && held_time_left_s_) return held_time_left_s_;
+  if (!cycle_) return std::nullopt;
+  const motion::CycleStatus c = cycle_->status();
+  if (!(moving_s_ > 0.0) || !(c.s_mm > 0.0)) return std::nullopt;
+  const double mean_mm_per_s = c.s_mm / moving_s_;
+  return std::max(0.0, cycle_->length_mm() - c.s_mm) / mean_mm_per_s;
+}
+
+json Service::stop_report() const {
+  json r{{"why", stop_why_.empty() ? "stopped" : stop_why_},
+         {"position", {last_.p.x(), last_.p.y(), last_.p.z()}},
+         {"s_mm", last_.s_mm},
+         {"length_mm", cycle_ ? cycle_->length_mm() : 0.0},
+         {"line", json()}};
+  if (cycle_ && path_) {
+    const std::size_t seg = cycle_->job().walker().segment();
+    if (seg < path_->segments.size() && path_->segments[seg].source_line > 0) {
+      r["line"] = path_->segments[seg].source_line;
+    }
+  }
+  return r;
+}
+
 json Service::status() {
   json s;
   s["ok"] = true;
@@ -474,15 +614,19 @@ json Service::status() {
   if (cycle_) {
     const motion::CycleStatus c = cycle_->status();
     length = cycle_->length_mm();
-    s["position"] = {c.x_mm, c.y_mm, c.z_mm};
+    // Before the first period the cycle has published nothing: the path's start.
+    if (c.periods == 0) {
+      s["position"] = {start_mm_.x(), start_mm_.y(), start_mm_.z()};
+    } else {
+      s["position"] = {c.x_mm, c.y_mm, c.z_mm};
+    }
     s["feed_mm_per_min"] = c.v_mm_per_s * 60.0;
     s["progress"] = length > 0.0 ? c.s_mm / length : 1.0;
-    const double avg = c.t_s > 0.0 ? c.s_mm / c.t_s : 0.0;  // mean feed so far, mm/s
-    json left;  // null until the job has moved: the mean feed so far is the estimate
-    if (state_ == State::Done) {
+    json left;  // null until the job has moved
+    if (state_ == State::Done || state_ == State::Stopped || state_ == State::Streaming) {
       left = 0.0;
-    } else if (avg > 0.0) {
-      left = (length - c.s_mm) / avg;
+    } else if (const auto t = time_left_s()) {
+      left = *t;
     }
     s["time_left_s"] = left;
     s["t_s"] = c.t_s;
@@ -501,6 +645,8 @@ json Service::status() {
   s["jerk_max"] = jerk_max_;
   s["feed_max_mm_per_min"] = feed_max_ * 60.0;
   if (!error_.empty()) s["job_error"] = error_;
+  if (state_ == State::Stopped) s["stopped"] = stop_report();
+  if (interference_allowed_) s["interference_allowed"] = true;
   s["stream"] = stream_status();
   return s;
 }
@@ -514,6 +660,7 @@ void Service::shutdown(std::function<void()> done) {
   }
   if (cycle_ && !cycle_->finished()) {
     std::cerr << "ncd serve: stopping the running job (a jerk-limited stop on the path)\n";
+    stop_why_ = "the service was shut down (SIGTERM or SIGINT)";
     on_idle_ = std::move(done);
     cycle_->stop();
     return;

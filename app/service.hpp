@@ -20,12 +20,17 @@
 
 namespace ncd::app {
 
+// The default control endpoint: unix:DIR/ncd.sock in the runtime directory, DIR =
+// $RUNTIME_DIRECTORY (systemd's RuntimeDirectory=), else $XDG_RUNTIME_DIR, else /tmp. The socket
+// is made with mode 0660: its owner and group may drive the machine, nobody else.
+std::string default_listen();
+
 // `ncd serve --config FILE.toml`: every key optional.
 struct ServiceConfig {
-  std::string listen = "tcp:127.0.0.1:7878";  // loopback only unless a token is set
-  std::optional<std::string> token;           // required on every request when set
-  std::string machine_file;                   // machine TOML; empty: the documented defaults
-  MachineConfig machine;                      // loaded from machine_file
+  std::string listen = default_listen();  // TCP on loopback by config; elsewhere a token
+  std::optional<std::string> token;       // required on every request when set
+  std::string machine_file;               // machine TOML; empty: the documented defaults
+  MachineConfig machine;                  // loaded from machine_file
   motion::ClockKind clock = motion::ClockKind::Wall;  // "simulated": run jobs without sleeping
   bool realtime = true;                               // ask for SCHED_FIFO and locked memory
   std::string source = "defaults";
@@ -49,12 +54,15 @@ class Service : public comms::ControlHandler {
 
  private:
   // Streaming: the motion has ended; the controller is still receiving its blocks.
-  enum class State { Idle, Ready, Running, Holding, Streaming, Done, Error };
+  // Stopped: ended early by `stop` or by a shutdown, at rest on the path (stop_ says where).
+  enum class State { Idle, Ready, Running, Holding, Streaming, Done, Stopped, Error };
   static const char* name(State s);
 
   nlohmann::json submit(const nlohmann::json& req);
   nlohmann::json start();
-  void drain();       // pops setpoints on a 1 ms timer while a job runs
+  void drain();  // pops setpoints on a 1 ms timer while a job runs (drain_setpoints)
+  void drain_setpoints();
+  std::optional<double> time_left_s() const;
   void finish_job();  // the cycle has ended: close the setpoints file, set the state
   void start_stream(const Vec3& start_mm);  // the encoder and the sender thread of the job
   void link_hold(bool hold);                // the sender's hold callback, on the I/O thread
@@ -63,11 +71,19 @@ class Service : public comms::ControlHandler {
   nlohmann::json stream_status() const;
   void require_active(const char* cmd) const;
   motion::JobConfig job_config() const;
+  void fail_job(const std::string& why);  // any exception while a job runs: state error
+  nlohmann::json stop_report() const;     // why and where a stopped job stopped
 
   boost::asio::io_context& io_;
   ServiceConfig config_;
   State state_ = State::Idle;
   std::string job_name_, error_;
+  MachineConfig job_machine_;  // the machine for this job (a chamfer's ball radius applied)
+  bool interference_allowed_ = false;
+  Vec3 start_mm_ = Vec3::Zero();  // where the job's path starts
+  std::string stop_why_;          // set by `stop` or a shutdown
+  double moving_s_ = 0.0;         // time with the tool moving, s (the estimate of time_left_s)
+  std::optional<double> held_time_left_s_;  // frozen while holding
   std::unique_ptr<toolpath::Path> path_;
   std::string setpoints_file_;
   std::string port_;  // the DNC port of the submitted job; empty: no streaming

@@ -12,7 +12,7 @@ namespace ncd::app {
 
 SetpointSink::SetpointSink(const std::string& path) {
   if (path.empty()) return;
-  file_ = std::make_unique<StreamedFile>(path, "the setpoints file", 1 << 20);
+  file_ = std::make_unique<StreamedFile>(path, "--setpoints", 1 << 20);
   static constexpr char kHeader[] = "t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit\n";
   file_->write(kHeader, sizeof kHeader - 1);
 }

@@ -190,6 +190,7 @@ int run_stream(const StreamArgs& a) {
     }
     preamble = comms::restart_blocks(at, clearance);
   }
+  require_serial_port(a.port, "--port");  // a file or a missing port: exit 2 now, no retries
 
   // The journal: resume where a previous transfer of the same program stopped.
   const std::string journal_path =

@@ -12,7 +12,7 @@
 // Every reply carries "ok"; a false one carries "error", a message that says what was wrong and
 // what to send instead. A request is checked in this order, and the first failure is the reply:
 // valid JSON, an object, the "token" (when one is configured), a string "cmd". "subscribe" needs
-// "hz" in [0.1, max_subscribe_hz]; everything else (including unknown commands) goes to the
+// "hz" in [min_subscribe_hz, max_subscribe_hz] (0.1 to 1000 by default); everything else (including unknown commands) goes to the
 // handler. None of these errors closes the connection. A line longer than max_line_bytes gets
 // one error reply as soon as it is known to be too long; the rest of it, up to its newline, is
 // discarded. "\r\n" is accepted. A blank line is no request and gets no reply, but like any line
@@ -426,7 +426,7 @@ namespace {
 Json subscribe_reply(const Json& request, const ServerOptions& options,
                      std::optional<double>& subscribe_hz) {
   const double max_hz = options.max_subscribe_hz;
-  const std::string range = "at least " + number_text(ranges::kMinSubscribeHz) + " and at most " +
+  const std::string range = "at least " + number_text(options.min_subscribe_hz) + " and at most " +
                             number_text(max_hz) + " (docs/input-ranges.md)";
   const auto hz = request.find("hz");
   if (hz == request.end() || !hz->is_number()) {
@@ -434,7 +434,7 @@ Json subscribe_reply(const Json& request, const ServerOptions& options,
                        ", such as {\"cmd\":\"subscribe\",\"hz\":10}");
   }
   const double value = hz->get<double>();
-  if (!(value >= ranges::kMinSubscribeHz && value <= max_hz)) {
+  if (!(value >= options.min_subscribe_hz && value <= max_hz)) {
     return error_reply("\"hz\" = " + number_text(value) + " is out of range: it must be " + range);
   }
   subscribe_hz = value;
@@ -568,6 +568,10 @@ ControlServer::ControlServer(boost::asio::io_context& io, const ListenAddress& a
     throw InputError("max_line_bytes = 0 is invalid: it must be at least 1 (default 65536)");
   }
   require_positive("max_subscribe_hz", options.max_subscribe_hz);
+  require_positive("min_subscribe_hz", options.min_subscribe_hz);
+  if (options.min_subscribe_hz > options.max_subscribe_hz) {
+    throw InputError("min_subscribe_hz is above max_subscribe_hz; swap them");
+  }
   if (options.token && options.token->empty()) {
     throw InputError("the control token is empty; set a non-empty token or remove it");
   }

@@ -4,6 +4,8 @@
 // the io_context given (the service's I/O thread); the server starts no threads.
 #pragma once
 
+#include "core/input_ranges.hpp"
+
 #include <boost/asio/io_context.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -46,6 +48,7 @@ class ControlHandler {
 struct ServerOptions {
   std::size_t max_line_bytes = 65536;  // longer request lines get an error reply and are skipped
   std::optional<std::string> token;    // required in every request ("token") when set
+  double min_subscribe_hz = ranges::kMinSubscribeHz;  // lower bound of "hz" in subscribe
   double max_subscribe_hz = 1000;      // upper bound of "hz" in subscribe
 };
 

@@ -1,6 +1,9 @@
 // Errors at the edges of ncd. Invalid input (geometry that cannot be cut, a flag out of range)
 // is an InputError: its message names the value, the limit and a way out, and the executable
-// exits with status 2. Anything else that escapes is an internal failure (status 1).
+// exits with status 2. A run that would break a machine limit is a LimitError (status 3: the
+// motion was refused, nothing was streamed). A failed read or write of a file or of standard
+// output is an IoError (status 1, "I/O error"). Anything else that escapes is an internal
+// failure (status 1).
 #pragma once
 
 #include <cmath>
@@ -10,6 +13,16 @@
 namespace ncd {
 
 class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class LimitError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class IoError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };

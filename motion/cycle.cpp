@@ -63,6 +63,11 @@ void sleep_until_ns(std::int64_t deadline_ns) {
 Cycle::Cycle(std::unique_ptr<Job> job, const CycleOptions& options)
     : job_(std::move(job)), options_(options), ring_(options.ring_capacity) {
   job_->prepare();  // the first look-ahead window, outside the cycle
+  // Until the first period, the status shows where the path starts (not the origin).
+  const Vec3 start = job_->walker().position();
+  st_x_.store(start.x(), std::memory_order_relaxed);
+  st_y_.store(start.y(), std::memory_order_relaxed);
+  st_z_.store(start.z(), std::memory_order_relaxed);
 }
 
 Cycle::~Cycle() {
@@ -198,11 +203,15 @@ bool Cycle::run_period(CycleState& state) {
   }
   const double ovr = override_req_.exchange(-1.0, std::memory_order_acq_rel);
   if (ovr >= 0.0) {
-    planner.set_override(ovr);
+    job_->set_override(ovr);
     override_applied_ = ovr;
   }
   job_->prepare();
   const Setpoint sp = job_->step();
+  if (sp.fault != StepFault::None) {
+    state = CycleState::Error;  // the step rule: not emitted; run() reports it
+    return false;
+  }
   ++stats_.periods;
   if (options_.clock == ClockKind::Simulated && options_.block_when_full) {
     while (!ring_.push(sp)) {
@@ -266,8 +275,16 @@ void Cycle::run() {
       if (work > ran * period_ns) ++stats_.overruns;
       deadline += due * period_ns;
     }
+    if (job_->fault().fault != StepFault::None) {
+      error_ = job_->fault_message();
+      st_state_.store(static_cast<int>(state), std::memory_order_release);
+    }
   } catch (const std::exception& e) {
     error_ = e.what();
+    state = CycleState::Error;
+    st_state_.store(static_cast<int>(state), std::memory_order_release);
+  } catch (...) {  // nothing may leave the thread
+    error_ = "unknown exception in the cycle";
     state = CycleState::Error;
     st_state_.store(static_cast<int>(state), std::memory_order_release);
   }

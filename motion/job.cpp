@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.hpp"
 
@@ -47,7 +48,29 @@ std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_
   return s;
 }
 
+StepBounds step_bounds(const JobConfig& c) {
+  StepBounds b;
+  b.max_feed_mm_per_s = c.limits.max_feed_mm_per_min / 60.0;
+  b.max_accel_mm_per_s2 = c.limits.max_accel_mm_per_s2;
+  b.period_s = c.limits.period_s;
+  return b;
+}
+
 }  // namespace
+
+const char* to_string(StepFault fault) {
+  switch (fault) {
+    case StepFault::None:
+      return "none";
+    case StepFault::Speed:
+      return "speed";
+    case StepFault::Acceleration:
+      return "acceleration";
+    case StepFault::Walk:
+      return "walk";
+  }
+  return "none";
+}
 
 const char* limit_name(std::uint8_t id) {
   switch (id) {
@@ -77,7 +100,8 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
       sampler_(path, segment_starts(walker_, path.segments.size()), config.limits, config.cutting,
                config.sampler),
       bounds_(stretch_bounds(sampler_, walker_.length_mm())),
-      planner_(planner_limits(config), bounds_[1] - bounds_[0]) {
+      planner_(planner_limits(config), bounds_[1] - bounds_[0]),
+      guard_(step_bounds(config), walker_.position()) {
   interpolator::validate(config.limits);
   interpolator::validate(config.cutting);
   // Every limit is capped by the machine's maximum feed: size the planner for it now, so
@@ -160,7 +184,31 @@ Setpoint Job::step() {
   sp.iterations = w.iterations;
   sp.converged = w.converged;
   sp.done = m.done && last;
+  sp.fault = guard_.check(sp.t_s, sp.s_mm, sp.planned_ds_mm, sp.p);
   return sp;
+}
+
+void Job::set_override(double fraction) {
+  planner_.set_override(fraction);
+  guard_.set_override(fraction);
+}
+
+std::string Job::fault_message() const {
+  const StepFaultInfo& f = guard_.info();
+  if (f.fault == StepFault::None) return {};
+  static const char* const kWhat[] = {
+      "", "the planned step is faster than the machine's maximum feed",
+      "the planned step changes faster than the maximum acceleration allows",
+      "the position jumps farther than the planned arc length"};
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "step rule (%s): %s at period %lld (t = %.4f s, s = %.4f mm): from (%.4f, %.4f, "
+                "%.4f) to (%.4f, %.4f, %.4f) mm, %.6g mm against at most %.6g mm; the setpoint was "
+                "not emitted and the job stopped there (see docs/hardening.md, \"The step rule\")",
+                to_string(f.fault), kWhat[static_cast<int>(f.fault)],
+                static_cast<long long>(f.period), f.t_s, f.s_mm, f.from_mm.x(), f.from_mm.y(),
+                f.from_mm.z(), f.to_mm.x(), f.to_mm.y(), f.to_mm.z(), f.value, f.allowed);
+  return text;
 }
 
 interpolator::FeedLimitResult Job::limit_here() const {

@@ -11,6 +11,7 @@
 #include "interpolator/limit_sampler.hpp"
 #include "interpolator/path_walker.hpp"
 #include "motion/planner.hpp"
+#include "motion/step_guard.hpp"
 
 namespace ncd::motion {
 
@@ -36,6 +37,9 @@ struct Setpoint {
   int iterations = 0;           // walker corrections
   bool converged = true;
   bool done = false;  // at rest at the end of the path
+  // The step rule (step_guard.hpp): not None, this setpoint broke it and must not be emitted;
+  // the job is over (every later step repeats the fault).
+  StepFault fault = StepFault::None;
 };
 
 // "roughness", …, "corner" for feed laws; "tangential_accel", "tangential_jerk", "path_end",
@@ -50,11 +54,18 @@ class Job {
   // Look-ahead: feeds the planner from the limit sampler as far as it wants (the planner
   // thread's work). Throws InputError if the path needs a stop the planner cannot take.
   void prepare();
-  // One period of the cycle: planner step and path walk; call prepare() before each.
+  // One period of the cycle: planner step and path walk, checked by the step rule (see
+  // Setpoint::fault); call prepare() before each.
   Setpoint step();
   bool done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
   // Where the motion comes to rest inside the path (LimitSampler::stops_mm), mm.
   const std::vector<double>& stops_mm() const { return sampler_.stops_mm(); }
+  // Feed override as a fraction (0..2), for the planner and the step rule's speed bound.
+  void set_override(double fraction);
+  // The first setpoint the step rule refused, if any.
+  const StepFaultInfo& fault() const { return guard_.info(); }
+  // That fault in words (what, where, the measured and the allowed value); allocates.
+  std::string fault_message() const;
   double length_mm() const { return walker_.length_mm(); }
   const JobConfig& config() const { return config_; }
   Planner& planner() { return planner_; }
@@ -76,6 +87,7 @@ class Job {
   std::size_t run_ = 0;     // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
   LimitSample carry_[2]{};  // samples of the next stretch read before it began
   std::size_t carry_n_ = 0;
+  StepGuard guard_;
   bool sampler_done_ = false;
   double last_s_mm_ = 0.0;
 };

@@ -3,6 +3,7 @@
 #include "motion/run_stats.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 namespace ncd::motion {
 
@@ -46,6 +47,26 @@ void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double li
   if (!sp.converged) ++st.not_converged;
   ++st.cycles_by_limit[sp.limit_id];
   st.step_time_ns.add(step_time_ns);
+}
+
+std::string refusal(const RunStats& st, const JobConfig& config) {
+  std::string why;
+  const auto add = [&why](const std::string& part) { why += (why.empty() ? "" : "; ") + part; };
+  if (st.limit_violations() > 0) {
+    add(std::to_string(st.limit_violations()) + " limit violation(s) (feed " +
+        std::to_string(st.violations_feed) + ", accel " + std::to_string(st.violations_accel) +
+        ", jerk " + std::to_string(st.violations_jerk) + ", chord " +
+        std::to_string(st.violations_chord) + ")");
+  }
+  const double drift_allowed_mm =
+      kDriftToleranceMm + config.limits.feed_tolerance_rel * st.path_length_mm;
+  if (!(std::abs(st.drift_mm()) <= drift_allowed_mm)) {
+    char text[160];
+    std::snprintf(text, sizeof text, "arc-length drift %.6g mm (allowed %.6g mm)", st.drift_mm(),
+                  drift_allowed_mm);
+    add(text);
+  }
+  return why;
 }
 
 }  // namespace ncd::motion

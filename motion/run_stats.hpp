@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 
 #include "core/histogram.hpp"
 #include "motion/job.hpp"
@@ -14,6 +15,10 @@ inline constexpr double kViolationRel = 1e-6;  // a limit is violated beyond thi
 // periods of a ramp from or to rest) the ratio measures the rounding of the path length
 // (≈1e-13 mm), not the interpolator; those steps count in the absolute maximum.
 inline constexpr double kFeedErrorMinStepMm = 1e-3;
+
+// The arc-length drift a run may end with: |Σ true arc − path length| ≤ this + the walker's
+// relative tolerance × length (docs/hardening.md, "Accepting a run").
+inline constexpr double kDriftToleranceMm = 1e-3;
 
 struct RunStats {
   std::int64_t cycles = 0;
@@ -39,6 +44,11 @@ struct RunStats {
   std::int64_t limit_violations() const;
   double drift_mm() const { return (travelled_mm - path_length_mm) + travelled_carry_mm; }
 };
+
+// Why a finished run must not reach a machine: any limit violation (feed, acceleration, jerk,
+// chord) or an arc-length drift beyond kDriftToleranceMm; empty when it may. The one
+// acceptance rule of replay and of its tests.
+std::string refusal(const RunStats& stats, const JobConfig& config);
 
 // Adds one period: the setpoint, the continuous feed limit and the predicted roughness at its
 // position, and the wall time the step took.

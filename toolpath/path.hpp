@@ -33,9 +33,19 @@ struct PathSegment {
                              // that needs rest precedes it: M0/M1, M6, dwell, spindle change)
 };
 
+// What a path made by `ncd chamfer` says about itself (its JSON's "input" and "checks"): the
+// tool it was made for and whether its interference checks passed. Consumers refuse a failed
+// one unless told otherwise, and a machine whose ball radius differs (docs/hardening.md).
+struct ChamferOrigin {
+  double ball_radius_mm = 0.0;
+  bool checks_ok = true;
+  std::string failed_checks;  // "local, rod" …; empty when checks_ok
+};
+
 struct Path {
   std::vector<PathSegment> segments;
-  std::string source;  // file name or stream name the path was read from
+  std::string source;                    // file name or stream name the path was read from
+  std::optional<ChamferOrigin> chamfer;  // set for the JSON of `ncd chamfer`
 };
 
 }  // namespace ncd::toolpath

@@ -119,6 +119,34 @@ class JsonReader {
     return out;
   }
 
+  // The tool and the checks of a chamfer JSON: "input.ball_radius_mm" and every
+  // "checks.*.ok"; a chamfer without them (an older file) counts as failed, since nothing says
+  // it passed.
+  ChamferOrigin chamfer_origin(const json& doc) const {
+    ChamferOrigin o;
+    const auto in = doc.find("input");
+    if (in != doc.end() && in->is_object() && in->contains("ball_radius_mm")) {
+      o.ball_radius_mm = positive((*in)["ball_radius_mm"], "input.ball_radius_mm");
+    }
+    const auto checks = doc.find("checks");
+    if (checks == doc.end() || !checks->is_object() || checks->empty()) {
+      o.checks_ok = false;
+      o.failed_checks = "none recorded";
+      return o;
+    }
+    for (const auto& [name, check] : checks->items()) {
+      const auto ok = check.is_object() ? check.find("ok") : check.end();
+      if (!check.is_object() || ok == check.end() || !ok->is_boolean()) {
+        fail("checks." + name, "has no \"ok\": true or false; regenerate the chamfer");
+      }
+      if (!ok->get<bool>()) {
+        o.checks_ok = false;
+        o.failed_checks += (o.failed_checks.empty() ? "" : ", ") + name;
+      }
+    }
+    return o;
+  }
+
   // (a) `ncd chamfer` JSON.
   Path chamfer(const json& doc) const {
     const json& pts = array(member(doc, "points", "points"), "points");
@@ -154,6 +182,7 @@ class JsonReader {
     seg.geometry = std::move(pl);
     Path path;
     path.segments.push_back(std::move(seg));
+    path.chamfer = chamfer_origin(doc);
     return path;
   }
 

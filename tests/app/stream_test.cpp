@@ -203,10 +203,16 @@ TEST_F(Stream, BadInputExitsTwoAndSendsNothing) {
   const auto r = ncd("stream " + bad + " --port /dev/null --frame 7E2");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("bad.ngc:2"), std::string::npos) << r.err;
+  // A port that does not exist fails at once (no reconnect attempts); a file is no port.
   const auto gone =
-      ncd("stream " + prog + " --port " + (dir_ / "nothing").string() + " --reconnect-max 0.3 -q");
-  EXPECT_EQ(gone.status, 3) << gone.err;
-  EXPECT_NE(gone.out.find("cannot open"), std::string::npos) << gone.out;
+      ncd("stream " + prog + " --port " + (dir_ / "nothing").string() + " --reconnect-max 30 -q");
+  EXPECT_EQ(gone.status, 2) << gone.err;
+  EXPECT_NE(gone.err.find("no such file"), std::string::npos) << gone.err;
+  for (const std::string& port : {std::string("/dev/null"), write("hole.json", "{}")}) {
+    const auto not_tty = ncd("stream " + prog + " --port " + port + " -q");
+    EXPECT_EQ(not_tty.status, 2) << port << ": " << not_tty.err;
+    EXPECT_NE(not_tty.err.find("not a serial port"), std::string::npos) << not_tty.err;
+  }
 }
 
 }  // namespace

@@ -265,6 +265,9 @@ TEST(ControlServerTest, MalformedRequestsGetErrorsAndTheConnectionGoesOn) {
   expect_error(client.request(R"({"cmd":"subscribe","hz":0})"), "out of range");
   expect_error(client.request(R"({"cmd":"subscribe","hz":-3})"), "out of range");
   expect_error(client.request(R"({"cmd":"subscribe","hz":5000})"), "at most 1000");
+  // A tiny rate would leave a subscriber waiting for days: the bound is 0.1 Hz.
+  expect_error(client.request(R"({"cmd":"subscribe","hz":1e-10})"), "at least 0.1");
+  expect_error(client.request(R"({"cmd":"subscribe","hz":0.009})"), "at least 0.1");
   EXPECT_EQ(server.handler.handled, 0);  // none of these reached the handler
   client.send("\n   \r\n");              // blank lines: no request, no reply
   expect_echo(client.request(echo(1)), 1);

@@ -1,0 +1,448 @@
+// `ncd serve` against everything that crashed or hung it (issue 11), thousands of random and
+// mutated request lines (the seed is printed), the job states (stopped, the position before the
+// first period, time_left_s while held) and the chamfer rules of a job. The service must answer
+// every line and stay up.
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <thread>
+
+#include "tests/app/cli_fixture.hpp"
+#include "tests/common/seed.hpp"
+
+namespace {
+
+using ncd::test::Cli;
+using ncd::test::slurp;
+using nlohmann::json;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+// A line-oriented client on a Unix socket.
+class Client {
+ public:
+  explicit Client(const std::string& path) {
+    fd_ = socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+    for (int i = 0; i < 400; ++i) {  // the service may still be starting
+      if (connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) return;
+      std::this_thread::sleep_for(25ms);
+    }
+    ADD_FAILURE() << "cannot connect to " << path;
+  }
+  ~Client() { close(fd_); }
+  bool send_line(const std::string& line) {
+    const std::string s = line + "\n";
+    return write(fd_, s.data(), s.size()) == static_cast<ssize_t>(s.size());
+  }
+  // The next line, or "" after 20 s.
+  std::string read_line() {
+    for (;;) {
+      const auto nl = buf_.find('\n');
+      if (nl != std::string::npos) {
+        std::string line = buf_.substr(0, nl);
+        buf_.erase(0, nl + 1);
+        return line;
+      }
+      pollfd p{fd_, POLLIN, 0};
+      if (poll(&p, 1, 20000) <= 0) return "";
+      char tmp[4096];
+      const ssize_t n = read(fd_, tmp, sizeof tmp);
+      if (n <= 0) return "";
+      buf_.append(tmp, static_cast<std::size_t>(n));
+    }
+  }
+  json request(const json& req) { return request_line(req.dump()); }
+  json request_line(const std::string& line) {
+    if (!send_line(line)) return json{{"ok", false}, {"error", "send failed"}};
+    const std::string reply = read_line();
+    EXPECT_FALSE(reply.empty()) << "no reply to " << line;
+    return reply.empty() ? json{{"ok", false}, {"error", "no reply"}} : json::parse(reply);
+  }
+
+ private:
+  int fd_ = -1;
+  std::string buf_;
+};
+
+const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
+  "feed_mm_per_min": 3000})";
+
+class ServeHardening : public Cli {
+ protected:
+  void launch(const std::string& clock, const std::string& extra = "") {
+    socket_ = (dir_ / "ncd.sock").string();
+    const std::string config =
+        write("serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n" + extra);
+    pid_ = fork();
+    if (pid_ == 0) {
+      const std::string err = (dir_ / "serve.err").string();
+      if (!freopen(err.c_str(), "w", stderr)) _exit(126);
+      execl(NCD_EXE, NCD_EXE, "serve", "--config", config.c_str(), "--listen",
+            ("unix:" + socket_).c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  bool alive() {
+    int status = 0;
+    return pid_ > 0 && waitpid(pid_, &status, WNOHANG) == 0;
+  }
+  int terminate() {
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  void TearDown() override {
+    if (pid_ > 0) terminate();
+    Cli::TearDown();
+  }
+  json wait_for(Client& c, const std::string& state, int tries = 3000) {
+    json s;
+    for (int i = 0; i < tries; ++i) {
+      s = c.request({{"cmd", "status"}});
+      if (s["state"] == state) return s;
+      std::this_thread::sleep_for(10ms);
+    }
+    ADD_FAILURE() << "state never became " << state << ": " << s.dump();
+    return s;
+  }
+  static void expect_error(const json& reply, const std::string& part, const std::string& what) {
+    EXPECT_FALSE(reply.value("ok", true)) << what << ": " << reply.dump();
+    const std::string error = reply.value("error", "");
+    EXPECT_NE(error.find(part), std::string::npos) << what << ": " << reply.dump();
+    EXPECT_EQ(error.find("internal error"), std::string::npos) << what << ": " << reply.dump();
+  }
+
+  std::string socket_;
+  pid_t pid_ = -1;
+};
+
+TEST_F(ServeHardening, EveryRequestShapeThatCrashedOrHungItIsAnErrorReply) {
+  const std::string cubic = write("cubic.json", kCubic);
+  const std::string file_port = write("hole.json", "{}");
+  launch("simulated");
+  Client c(socket_);
+  // Ports that are no serial port: refused at submit, so `start` can never abort the service.
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}, {"port", "/dev/full"}}),
+               "not a serial port", "/dev/full");
+  EXPECT_FALSE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}, {"port", file_port}}),
+               "not a serial port", "a regular file");
+  expect_error(c.request({{"cmd", "submit"},
+                          {"job", {{"path", cubic}}},
+                          {"port", (dir_ / "no-such-tty").string()}}),
+               "no such file", "a missing port");
+  // Rates and keys.
+  expect_error(c.request_line(R"({"cmd":"subscribe","hz":1e-10})"), "at least 0.1", "hz");
+  expect_error(c.request({{"cmd", "status"}, {"verbose", true}}), "unknown key \"verbose\"",
+               "status");
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}, {"prot", "/dev/x"}}),
+               "unknown key \"prot\"", "submit");
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}, {"speed", 3}}}}),
+               "unknown key", "job key");
+  expect_error(c.request({{"cmd", "hold"}, {"now", 1}}), "unknown key", "hold");
+  // Integers that are no integers, or out of range.
+  for (const char* segments : {"3e9", "4.9", "-1", "0"}) {
+    expect_error(c.request_line(std::string(R"({"cmd":"submit","job":{"pipe_radius":30,)") +
+                                R"("drill_radius":10,"ball_radius":3,"width":1,)" +
+                                R"("initial_segments":)" + segments + "}}"),
+                 "initial_segments", segments);
+  }
+  expect_error(
+      c.request({{"cmd", "submit"}, {"job", {{"path", cubic}, {"allow_interference", "yes"}}}}),
+      "allow_interference", "allow_interference");
+  // Still up, and still runs a job to the end.
+  EXPECT_TRUE(alive());
+  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  wait_for(c, "done");
+  EXPECT_TRUE(alive());
+}
+
+// Random lines: valid requests, mutated byte by byte or with hostile values put in. Each gets
+// exactly one reply; the service is up at the end.
+TEST_F(ServeHardening, ThousandsOfRandomAndMutatedLinesAreAllAnswered) {
+  const std::uint64_t seed = ncd::test::seed();
+  std::mt19937_64 rng(seed);
+  const std::string cubic = write("cubic.json", kCubic);
+  launch("simulated");
+  Client c(socket_);
+  const std::vector<json> valid = {
+      {{"cmd", "status"}},
+      {{"cmd", "start"}},
+      {{"cmd", "hold"}},
+      {{"cmd", "resume"}},
+      {{"cmd", "stop"}},
+      {{"cmd", "override"}, {"percent", 50}},
+      {{"cmd", "submit"}, {"job", {{"path", cubic}}}},
+      {{"cmd", "submit"}, {"job", {{"path", cubic}}}, {"port", ""}},
+      {{"cmd", "submit"},
+       {"job",
+        {{"pipe_radius", 18},
+         {"drill_radius", 13},
+         {"ball_radius", 3},
+         {"width", 0.7},
+         {"tolerance", 0.01}}}},
+  };
+  const std::vector<std::string> hostile = {"-1",
+                                            "0",
+                                            "1e400",
+                                            "-1e400",
+                                            "1e-300",
+                                            "3e9",
+                                            "4.9",
+                                            "null",
+                                            "true",
+                                            "[]",
+                                            "{}",
+                                            "\"\"",
+                                            "\"/dev/full\"",
+                                            "[[[[[[1]]]]]]",
+                                            "\"\\u0000\"",
+                                            "1e308",
+                                            "-0",
+                                            "\"x\"",
+                                            "{\"a\":{\"b\":1}}"};
+  const std::string alphabet = "{}[]\":,0123456789.-+eE abcdefghijklmnopqrstuvwxyz\\\x01\xff";
+  constexpr int kLines = 3000;
+  int answered = 0, skipped = 0;
+  for (int i = 0; i < kLines; ++i) {
+    json base = valid[rng() % valid.size()];
+    std::string line;
+    switch (rng() % 3) {
+      case 0: {  // a hostile value under an existing or a new key
+        const std::vector<std::string> keys = {"cmd", "job", "port", "percent", "hz", "extra"};
+        const std::string key = keys[rng() % keys.size()];
+        std::string text = base.dump();
+        text.insert(1, "\"" + key + "\":" + hostile[rng() % hostile.size()] + ",");
+        line = text;
+        break;
+      }
+      case 1: {  // byte mutations
+        line = base.dump();
+        const int edits = 1 + static_cast<int>(rng() % 4);
+        for (int e = 0; e < edits && !line.empty(); ++e) {
+          const std::size_t at = rng() % line.size();
+          const char ch = alphabet[rng() % alphabet.size()];
+          switch (rng() % 3) {
+            case 0:
+              line[at] = ch;
+              break;
+            case 1:
+              line.insert(at, 1, ch);
+              break;
+            default:
+              line.erase(at, 1);
+          }
+        }
+        break;
+      }
+      default: {  // random bytes
+        const std::size_t n = 1 + rng() % 60;
+        for (std::size_t k = 0; k < n; ++k) line += alphabet[rng() % alphabet.size()];
+      }
+    }
+    for (char& ch : line) {
+      if (ch == '\n' || ch == '\r') ch = ' ';
+    }
+    // Lines the protocol answers otherwise: blank ones get no reply, and a valid subscribe
+    // starts a status stream (its rate bounds are tested above).
+    if (line.find_first_not_of(" \t") == std::string::npos) {
+      ++skipped;
+      continue;
+    }
+    try {
+      const json parsed = json::parse(line);
+      if (parsed.is_object() && parsed.value("cmd", json()) == "subscribe") {
+        ++skipped;
+        continue;
+      }
+    } catch (const json::exception&) {
+    }
+    ASSERT_TRUE(c.send_line(line)) << "seed " << seed << ", line " << i << ": " << line;
+    const std::string reply = c.read_line();
+    ASSERT_FALSE(reply.empty()) << "seed " << seed << ", no reply to line " << i << ": " << line;
+    json r;
+    ASSERT_NO_THROW(r = json::parse(reply)) << reply;
+    ASSERT_TRUE(r.contains("ok")) << reply;
+    if (!r["ok"].get<bool>()) {
+      EXPECT_EQ(r.value("error", "").find("internal error"), std::string::npos)
+          << "seed " << seed << ", line " << i << ": " << line << "\n"
+          << reply;
+    }
+    ++answered;
+  }
+  std::cout << "[ lines    ] " << answered << " answered, " << skipped << " skipped\n";
+  EXPECT_GT(answered, kLines * 9 / 10);
+  EXPECT_TRUE(alive()) << "seed " << seed;
+  EXPECT_TRUE(c.request({{"cmd", "status"}})["ok"].get<bool>()) << "seed " << seed;
+}
+
+TEST_F(ServeHardening, StopEndsTheJobAsStoppedWithWhyAndWhere) {
+  const std::string cubic = write("cubic.json", kCubic);
+  launch("wall");  // a 3 s job in real time, so that the stop arrives while it moves
+  Client c(socket_);
+  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  json s;
+  for (int i = 0; i < 500; ++i) {
+    s = c.request({{"cmd", "status"}});
+    if (s["setpoints"].get<int>() > 50) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_EQ(s["state"], "running") << s.dump();
+  ASSERT_TRUE(c.request({{"cmd", "stop"}})["ok"].get<bool>());
+  s = wait_for(c, "stopped");
+  ASSERT_TRUE(s["stopped"].is_object()) << s.dump();
+  EXPECT_EQ(s["stopped"]["why"], "stop requested by a client");
+  const double s_mm = s["stopped"]["s_mm"].get<double>();
+  EXPECT_GT(s_mm, 0.0);
+  EXPECT_LT(s_mm, s["stopped"]["length_mm"].get<double>());
+  EXPECT_LT(s["progress"].get<double>(), 1.0);
+  // Where it stopped is where the machine is: the status position, at rest.
+  EXPECT_EQ(s["stopped"]["position"], s["position"]) << s.dump();
+  EXPECT_EQ(s["feed_mm_per_min"].get<double>(), 0.0);
+  EXPECT_EQ(s["time_left_s"].get<double>(), 0.0);
+  // A new job may follow.
+  EXPECT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
+}
+
+TEST_F(ServeHardening, PositionBeforeTheFirstPeriodIsThePathsStartAndTimeLeftHoldsStill) {
+  // A path that starts far from the origin.
+  const std::string line =
+      write("line.json",
+            R"({"polyline":{"points":[[10,20,5],[60,20,5],[60,70,5]]},"feed_mm_per_min":2000})");
+  launch("wall");
+  Client c(socket_);
+  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", line}}}})["ok"].get<bool>());
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  json s = c.request({{"cmd", "status"}});
+  const auto p = s["position"].get<std::vector<double>>();
+  // From rest, the first periods move nanometres: the start within 0.01 mm, never [0,0,0].
+  EXPECT_NEAR(p[0], 10.0, 0.01) << s.dump();
+  EXPECT_NEAR(p[1], 20.0, 0.01) << s.dump();
+  EXPECT_NEAR(p[2], 5.0, 0.01) << s.dump();
+  // Let it move, hold, and watch time_left_s while held: it must not grow.
+  for (int i = 0; i < 500; ++i) {
+    s = c.request({{"cmd", "status"}});
+    if (!s["time_left_s"].is_null() && s["progress"].get<double>() > 0.1) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_EQ(s["state"], "running") << s.dump();
+  ASSERT_TRUE(c.request({{"cmd", "hold"}})["ok"].get<bool>());
+  const json first = c.request({{"cmd", "status"}});
+  ASSERT_TRUE(first["time_left_s"].is_number()) << first.dump();
+  double last = first["time_left_s"].get<double>();
+  for (int i = 0; i < 8; ++i) {
+    std::this_thread::sleep_for(100ms);
+    const json h = c.request({{"cmd", "status"}});
+    ASSERT_EQ(h["state"], "holding");
+    EXPECT_LE(h["time_left_s"].get<double>(), last) << h.dump();
+    last = h["time_left_s"].get<double>();
+  }
+  ASSERT_TRUE(c.request({{"cmd", "resume"}})["ok"].get<bool>());
+  wait_for(c, "done");
+}
+
+TEST_F(ServeHardening, ChamferJobsRefuseFailedChecksAndAnotherTool) {
+  // A chamfer whose checks fail (a 12 mm ball in a 13 mm hole), and a good one for a 3 mm ball.
+  const std::string big = (dir_ / "big.json").string();
+  ASSERT_EQ(
+      ncd("chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 12 --width 0.7 -q -o " + big)
+          .status,
+      0);
+  const std::string exp3 = (dir_ / "exp3.json").string();
+  ASSERT_EQ(ncd("chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 "
+                "--tolerance 0.01 -q -o " +
+                exp3)
+                .status,
+            0);
+  const std::string machine5 = write("m5.toml", "[cutting]\nball_radius_mm = 5.0\n");
+  launch("simulated", "machine = \"" + machine5 + "\"\n");
+  Client c(socket_);
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", big}}}}), "interference",
+               "big.json");
+  const auto chamfer_job = [](double ball_radius_mm) {
+    return json{{"cmd", "submit"},
+                {"job",
+                 {{"pipe_radius", 18},
+                  {"drill_radius", 13},
+                  {"ball_radius", ball_radius_mm},
+                  {"width", 0.7}}}};
+  };
+  expect_error(c.request(chamfer_job(12)), "interference", "a chamfer job for a 12 mm ball");
+  // The tool: the job's 3 mm against the machine's 5 mm, both named.
+  const json mismatch = c.request({{"cmd", "submit"}, {"job", {{"path", exp3}}}});
+  expect_error(mismatch, "ball radius of 3 mm", "exp3.json on a 5 mm machine");
+  EXPECT_NE(mismatch.value("error", "").find("ball_radius_mm = 5 mm"), std::string::npos)
+      << mismatch.dump();
+  expect_error(c.request(chamfer_job(3)), "ball radius of 3 mm",
+               "a 3 mm chamfer job on a 5 mm machine");
+  // Allowed: said in the reply and in the status.
+  const json allowed =
+      c.request({{"cmd", "submit"}, {"job", {{"path", big}, {"allow_interference", true}}}});
+  // big.json is for a 12 mm ball: still refused on this 5 mm machine, the tool check stands.
+  expect_error(allowed, "ball radius of 12 mm", "big.json allowed, on a 5 mm machine");
+  EXPECT_TRUE(alive());
+}
+
+TEST_F(ServeHardening, InterferenceAllowedIsStatedAndAJobWithTheChamfersToolRuns) {
+  const std::string big = (dir_ / "big.json").string();
+  ASSERT_EQ(
+      ncd("chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 12 --width 0.7 -q -o " + big)
+          .status,
+      0);
+  launch("simulated");  // the documented defaults: a chamfer brings its own ball radius
+  Client c(socket_);
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", big}}}}), "allow_interference",
+               "big.json");
+  const json r =
+      c.request({{"cmd", "submit"}, {"job", {{"path", big}, {"allow_interference", true}}}});
+  ASSERT_TRUE(r["ok"].get<bool>()) << r.dump();
+  EXPECT_NE(r.value("warning", "").find("interference"), std::string::npos) << r.dump();
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  const json s = wait_for(c, "done");
+  EXPECT_TRUE(s.value("interference_allowed", false)) << s.dump();
+}
+
+TEST_F(ServeHardening, AJobThatBreaksTheStepRuleEndsInError) {
+  // The rational NURBS of issue 11: the walk jumps 28 mm in one period after a long crawl.
+  const std::string crawl = write("crawl.json",
+                                  R"({"nurbs": {"degree": 2, "knots": [0,0,0,1,1,2,2,2],
+          "weights": [1,0.7071067811865476,1576461,0.7071067811865476,1],
+          "points": [[0,20,0],[-20,20,0],[-20,0,0],[-20,-20,0],[0,-20,0]]}})");
+  launch("simulated");
+  Client c(socket_);
+  const json r = c.request({{"cmd", "submit"},
+                            {"job", {{"path", crawl}}},
+                            {"setpoints", (dir_ / "crawl.csv").string()}});
+  ASSERT_TRUE(r["ok"].get<bool>()) << r.dump();
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  json s;
+  for (int i = 0; i < 12000; ++i) {  // up to 2 minutes on a loaded machine
+    s = c.request({{"cmd", "status"}});
+    if (s["state"] != "running") break;
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_EQ(s["state"], "error") << s.dump();
+  EXPECT_NE(s.value("job_error", "").find("step rule"), std::string::npos) << s.dump();
+  // Every setpoint that left the cycle moved at most the planned step: none near 28 mm. The
+  // setpoints file of a job in error is not kept.
+  EXPECT_FALSE(fs::exists(dir_ / "crawl.csv"));
+  EXPECT_TRUE(alive());
+}
+
+}  // namespace
