@@ -450,7 +450,8 @@ int run_fig6(const SimulateArgs& a) {
   j["paper_max_error_um"] = 1.8;
   j["simulation"] = {{"cell_updates", updates},
                      {"seconds", r4(seconds)},
-                     {"cells_updated_per_s", std::round(static_cast<double>(updates) / seconds)}};
+                     {"cells_updated_per_s",
+                      seconds > 0.0 ? std::round(static_cast<double>(updates) / seconds) : 0.0}};
   j["points"] = points;
   write_output(a.report, j.dump(2) + "\n");
   if (!a.plot.empty()) {

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -108,6 +109,56 @@ std::pair<Vec3, double> fit_sphere(const std::vector<Vec3>& pts) {
   const Eigen::Vector4d s = a.colPivHouseholderQr().solve(b);
   const Vec3 c = -0.5 * s.head<3>();
   return {c, std::sqrt(c.squaredNorm() - s(3))};
+}
+
+// The slow reference: the residual left at (x, y) by a 2-tooth tool with straight edges through
+// the tip, its centre on y = 0 at x = v t, its edges the line at angle θ(t) = −ω t (M3), found by
+// sampling time finely and taking the deepest cut among the moments the line crosses the point.
+double brute_force_residual_mm(double x, double y, double ft) {
+  const double n_rpm = 10000.0, v = ft * 2.0 * n_rpm / 60.0, w = 2.0 * kPi * n_rpm / 60.0;
+  double best = std::numeric_limits<double>::infinity(), prev = 0.0;
+  const int n = 200000;
+  const double t0 = (x - 1.0) / v, t1 = (x + 1.0) / v;
+  for (int k = 0; k <= n; ++k) {
+    const double t = t0 + (t1 - t0) * k / n;
+    const double dx = x - v * t;
+    const double f = std::sin(-w * t - std::atan2(y, dx));
+    if (k > 0 && (f > 0.0) != (prev > 0.0)) best = std::min(best, dx * dx + y * y);
+    prev = f;
+  }
+  return kR - std::sqrt(kR * kR - best);
+}
+
+TEST(ZMapDeadCentre, OneSideOfThePassKeepsTheSagittaOverTheFeedPerTooth) {
+  // Eq. 3 at α = 0 from the edges' motion alone: beside the centre line, on the side where a
+  // point's direction from the axis turns with the spindle (y < 0 for M3 feeding +x), an edge
+  // meets the point only up to f_t from the axis, leaving up to r − sqrt(r² − f_t²) = 25 µm; on
+  // the other side an edge cuts it near the axis, leaving a few µm at most.
+  const BallEndMill tool;
+  const double ft = 0.5, h = 0.0025;
+  InitialSurface plane;
+  plane.z0_mm = 0.05;
+  ZMap map({0.0, 0.5, -0.2, 0.2, h}, plane);
+  const double v = ft * tool.teeth * tool.spindle_rpm / 60.0;
+  Move m = pass(tool, 0.0, 0.0, -1.0, 1.5, ft, -1.0 / v);  // the centre is at x = 0 at t = 0
+  m.spindle0_rad = 2.0 * kPi * tool.spindle_rpm / 60.0 * (1.0 / v);  // θ(t) = −ω t
+  simulate(map, tool, {m});
+  for (const double y : {-0.1, -0.03, 0.03, 0.1}) {
+    const int j = static_cast<int>((y - map.y0_mm()) / h);
+    double sim = 0.0, ref = 0.0;
+    for (int i = 0; i < map.nx(); i += 10) {
+      sim = std::max(sim, map.z_mm(i, j));
+      ref = std::max(ref, brute_force_residual_mm(map.x_mm(i), map.y_mm(j), ft));
+    }
+    std::cout << "y = " << map.y_mm(j) << " mm: simulated " << sim * 1e3 << " um, reference "
+              << ref * 1e3 << " um\n";
+    EXPECT_NEAR(sim * 1e3, ref * 1e3, 0.3) << "y = " << y;
+    if (y < 0.0) {
+      EXPECT_GT(ref * 1e3, 20.0);
+    } else {
+      EXPECT_LT(ref * 1e3, 3.0);
+    }
+  }
 }
 
 class FixedToolDent : public ::testing::TestWithParam<double> {};
