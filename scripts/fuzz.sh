@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs the libFuzzer harnesses of build/fuzz (the "fuzz" preset; docs/input-ranges.md).
 #   scripts/fuzz.sh corpus [RUNS]      every seed of tests/fuzz/corpus/<name>/, then mutations up
-#                                      to RUNS inputs each (default 5000) from a fixed seed, so
+#                                      to RUNS inputs each (default 2000) from a fixed seed, so
 #                                      that the same code gives the same result; what `make test`
 #                                      runs
 #   scripts/fuzz.sh run [SECONDS]      SECONDS of fuzzing each (default 60, FUZZ_SECONDS in make),
@@ -14,7 +14,7 @@ mode=${1:-corpus}
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=$root/build/fuzz/tests/fuzz
 case $mode in
-  corpus) limit=(-seed=1 -runs="${2:-5000}") ;;
+  corpus) limit=(-seed=1 -runs="${2:-2000}") ;;
   run) limit=(-max_total_time="${2:-60}") ;;
   *) echo "usage: $0 corpus|run [SECONDS]" >&2; exit 2 ;;
 esac
