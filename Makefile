@@ -49,7 +49,7 @@ fuzz: fuzz-build
 	scripts/fuzz.sh run $(FUZZ_SECONDS)
 
 test-fuzz: fuzz-build
-	scripts/fuzz.sh corpus 3
+	scripts/fuzz.sh corpus 2000
 
 bench: release
 	build/release/bench/ncd_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true

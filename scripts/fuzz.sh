@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Runs the libFuzzer harnesses of build/fuzz (the "fuzz" preset; docs/input-ranges.md).
-#   scripts/fuzz.sh corpus [SECONDS]   every seed of tests/fuzz/corpus/<name>/, then SECONDS of
-#                                      mutation each (default 3); what `make test` runs
+#   scripts/fuzz.sh corpus [RUNS]      every seed of tests/fuzz/corpus/<name>/, then mutations up
+#                                      to RUNS inputs each (default 2000) from a fixed seed, so
+#                                      that the same code gives the same result; what `make test`
+#                                      runs
 #   scripts/fuzz.sh run [SECONDS]      SECONDS of fuzzing each (default 60, FUZZ_SECONDS in make),
 #                                      new inputs kept in build/fuzz/corpus/<name>/
 # Exits non-zero on the first finding (a crash, a sanitizer report, an escaped exception, a
@@ -12,8 +14,8 @@ mode=${1:-corpus}
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=$root/build/fuzz/tests/fuzz
 case $mode in
-  corpus) seconds=${2:-3} ;;
-  run) seconds=${2:-60} ;;
+  corpus) limit=(-seed=1 -runs="${2:-2000}") ;;
+  run) limit=(-max_total_time="${2:-60}") ;;
   *) echo "usage: $0 corpus|run [SECONDS]" >&2; exit 2 ;;
 esac
 shopt -s nullglob
@@ -37,10 +39,10 @@ for src in "${harnesses[@]}"; do
     work=$scratch/$name
   fi
   mkdir -p "$work"
-  echo "fuzz $name: ${seconds} s over $(ls "$seeds" | wc -l) seeds"
+  echo "fuzz $name: ${limit[*]} from $(ls "$seeds" | wc -l) seeds"
   # The harness runs in the scratch directory: files the fuzzer names (a service config's
   # "machine") are looked up there, not in the source tree.
-  (cd "$scratch" && "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+  (cd "$scratch" && "$exe" "${limit[@]}" -timeout=10 -rss_limit_mb=2048 \
       -print_final_stats=0 -artifact_prefix="$root/build/fuzz/artifacts/$name-" \
       "$work" "$seeds" 2>"$scratch/$name.log") || {
     echo "fuzz $name FAILED; the log follows, the input is in build/fuzz/artifacts/" >&2

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "tests/app/cli_fixture.hpp"
+#include "tests/common/char_device.hpp"
 
 namespace {
 
@@ -89,7 +90,7 @@ TEST_F(Guard, MachineValuesOutsideTheirRangeNameValueRangeAndWayOut) {
   for (const Case& c : cases) {
     std::vector<std::string> says = c.says;
     says.push_back("m.toml");
-    says.push_back("docs/input-ranges.md");
+    if (c.text.find("teeth") == std::string::npos) says.push_back("docs/input-ranges.md");
     expect_refused(replay_with(c.text), says, c.text);
   }
   // The example file's values (the defaults) are all inside.
@@ -104,6 +105,7 @@ TEST_F(Guard, EveryInputFileMustBeARegularFile) {
   const std::string cubic = write("cubic.json", kCubic);
   const std::string dir = dir_.string();
   const std::string csv = " --setpoints " + (dir_ / "out.csv").string();
+  const std::string device = ncd::test::character_device();
   struct Case {
     std::string args, says;
   };
@@ -114,7 +116,7 @@ TEST_F(Guard, EveryInputFileMustBeARegularFile) {
            {"replay " + cubic + " --machine " + fifo + csv, "is a FIFO (named pipe)"},
            {"replay " + dir + csv, dir + " (path file) is a directory"},
            {"replay " + fifo + csv, fifo + " (path file) is a FIFO"},
-           {"replay /dev/null" + csv, "/dev/null (path file) is a character device"},
+           {"replay " + device + csv, device + " (path file) is a character device"},
            {"serve --config " + dir, "(service config, --config) is a directory"},
            {"serve --config " + fifo, "(service config, --config) is a FIFO"},
        }) {

@@ -153,7 +153,7 @@ TEST_F(TeachCli, InvalidInputExitsTwoAndLeavesTheOldFileAlone) {
       {two + frame + kTool, {"two.txt: the path has 2 point(s)", "at least three"}},
       {dup + frame + kTool,
        {"dup.txt: point 2 (dp2, line 2) and point 3 (dp3, line 3)", "remove one"}},
-      {nan + frame + kTool, {"nan.txt:2", "not finite"}},
+      {nan + frame + kTool, {"nan.txt:2", "'nan' (y) is not a number"}},
       {junk + frame + kTool, {"junk.csv:3", "'five' (y) is not a number"}},
       {(dir_ / "missing.txt").string() + frame + kTool, {"missing.txt", "cannot open"}},
       {ok + frame + kTool + " --decimals 9", {"--decimals"}},

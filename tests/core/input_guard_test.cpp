@@ -19,6 +19,7 @@
 #include "core/input_ranges.hpp"
 #include "core/json_input.hpp"
 #include "core/text_guard.hpp"
+#include "tests/common/char_device.hpp"
 #include "tests/common/seed.hpp"
 
 namespace ncd {
@@ -295,10 +296,10 @@ TEST_F(InputFile, ReadsARegularFileAndRefusesEverythingElseWithoutBlocking) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   // A FIFO without a writer would block an open() without O_NONBLOCK forever: the test would
   // hang until ctest's timeout instead of passing.
-  for (const auto& [path, kind] :
-       std::vector<std::pair<std::string, std::string>>{{dir_.string(), "is a directory"},
-                                                        {fifo.string(), "is a FIFO (named pipe)"},
-                                                        {"/dev/null", "is a character device"}}) {
+  for (const auto& [path, kind] : std::vector<std::pair<std::string, std::string>>{
+           {dir_.string(), "is a directory"},
+           {fifo.string(), "is a FIFO (named pipe)"},
+           {test::character_device(), "is a character device"}}) {
     const std::string m = message_of([&] { (void)read_input_file(path, "--machine"); });
     EXPECT_NE(m.find(path + " (--machine) " + kind + ", not a regular file"), std::string::npos)
         << m;
