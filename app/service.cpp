@@ -67,11 +67,13 @@ toolpath::Path chamfer_path(const json& spec) {
   static const char* kKeys[] = {"pipe_radius",     "drill_radius", "ball_radius", "width",
                                 "tolerance",       "edge",         "side",        "rod_radius",
                                 "non_knife_angle", "no_avoid",     "feed",        "spindle",
-                                "initial_segments", "drill_tilt_deg", "drill_azimuth_deg",
-                                "eccentricity", "pipe_half_angle_deg", "pipe_thickness"};
+                                "initial_segments"};
+  static const char* kHoleKeys[] = {"drill_tilt_deg", "drill_azimuth_deg", "eccentricity",
+                                    "pipe_half_angle_deg", "pipe_thickness"};
   for (const auto& [k, v] : j.items()) {
     if (k == "allow_interference") continue;  // read by submit()
-    if (std::find(std::begin(kKeys), std::end(kKeys), k) == std::end(kKeys)) {
+    if (std::find(std::begin(kKeys), std::end(kKeys), k) == std::end(kKeys) &&
+        std::find(std::begin(kHoleKeys), std::end(kHoleKeys), k) == std::end(kHoleKeys)) {
       throw InputError("unknown chamfer parameter \"" + k +
                        "\"; the names are those of `ncd chamfer --help`");
     }

@@ -18,7 +18,7 @@ namespace {
 
 constexpr double kHalfPi = 0.5 * kPi;
 
-// The paper's section 5.1 geometry (radii, see docs/chamfer.md): R_I = 18, r = 13, R_B = 3, W = 0.7.
+// The paper's section 5.1 geometry (radii, docs/chamfer.md): R_I = 18, r = 13, R_B = 3, W = 0.7.
 ChamferSpec paper_geometry() {
   ChamferSpec s;
   s.pipe_radius_mm = 18.0;
@@ -56,7 +56,8 @@ ChamferSpec random_spec(std::mt19937_64& rng) {
   return s;
 }
 
-// ---------------------------------------------------------------- the paper's figures (docs/chamfer.md)
+// ---------------------------------------------------------------- the paper's figures
+// (docs/chamfer.md)
 
 TEST(ChamferPaper, LocalCheckOfExperiment1IsSmallestAtHalfPi) {
   const ChamferModel m(paper_geometry());
@@ -228,7 +229,8 @@ TEST(ChamferIdentity, AlphaOneCutsEqualArcsAndMatchesTheClosedForm) {
       const EdgeFrame f = m.frame(2.0 * kPi * u(rng));
       const CutterPose p = m.pose(f, 1.0, *m.solve_delta(f, 1.0));
       EXPECT_NEAR((p.a - p.xp).norm(), (p.b - p.xp).norm(), 1e-9);
-      // Closed form for α = 1 (docs/chamfer.md): ζ = W / (2 sin(φ/2)), q² + 2ζ cos(φ/2) q + ζ² − R_B² = 0.
+      // Closed form for α = 1 (docs/chamfer.md): ζ = W / (2 sin(φ/2)), q² + 2ζ cos(φ/2) q + ζ² −
+      // R_B² = 0.
       const double phi = std::acos(f.c);
       const double zeta = s.width_mm / (2.0 * std::sin(0.5 * phi));
       const double b = zeta * std::cos(0.5 * phi);
@@ -283,7 +285,8 @@ TEST(ChamferIdentity, LowerEdgesMirrorUpperOnes) {
 }
 
 TEST(ChamferIdentity, SharpWedgeNeedsTheSafeguard) {
-  // docs/chamfer.md: an outer edge with r/R = 13/14 has δ ≈ 1.8 mm; Newton alone leaves the domain there.
+  // docs/chamfer.md: an outer edge with r/R = 13/14 has δ ≈ 1.8 mm; Newton alone leaves the domain
+  // there.
   ChamferSpec s = paper_geometry();
   s.pipe_radius_mm = 14.0;
   s.edge = Edge::Outer;
