@@ -238,7 +238,10 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
     // piece (a curve's tangent counts as a long piece); zero where there is none or the
     // motion rests at the vertex.
     const auto piece_before = [&](std::size_t v) -> Vec3 {
-      if (v > 0) return vertex_is_stop(segment, v) ? Vec3::Zero() : Vec3(pts[v] - pts[v - 1]);
+      if (v > 0) {  // (the last vertex is a joint: piece_after checks it)
+        const bool stop = v + 1 < pts.size() && vertex_is_stop(segment, v);
+        return stop ? Vec3::Zero() : Vec3(pts[v] - pts[v - 1]);
+      }
       if (segment == 0 || !std::isfinite(joint_corner_[segment].feed_mm_per_s)) {
         return Vec3::Zero();
       }

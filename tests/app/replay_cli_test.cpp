@@ -2,6 +2,7 @@
 // input format, and configurations that cannot be met.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -126,6 +127,21 @@ TEST_F(Replay, NurbsJsonAndGcodeInputs) {
   r = ncd("replay " + g52 + " -q --report " + (dir_ / "n.json").string());
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(slurp(dir_ / "n.json"))["limit_violations"].get<int>(), 0);
+}
+
+// Issue 13: a plunge and a move straight back stalled the motion (100 h of simulated time,
+// then "the motion did not finish"). Now the motion rests at the bottom and goes on: two
+// rest-to-rest moves of 5 mm at 5 mm/s, 1.03 s each by the closed-form S-curve: d / v plus
+// 2 sqrt(v / j) for the ramps (5 mm/s is below a² / j, so a never reaches a_max).
+TEST_F(Replay, PlungeAndRetractRestAtTheBottomAndFinish) {
+  const std::string ngc = write("plunge.ngc", "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F300\nG1 Z5\nM2\n");
+  const CmdResult r = ncd("replay " + ngc + " -q --report " + (dir_ / "p.json").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(slurp(dir_ / "p.json"));
+  EXPECT_EQ(j["limit_violations"].get<int>(), 0);
+  const double bound_s = 2.0 * (5.0 / 5.0 + 2.0 * std::sqrt(5.0 / 20000.0));
+  EXPECT_GE(j["duration_s"].get<double>(), bound_s - 0.004);
+  EXPECT_LE(j["duration_s"].get<double>(), 1.05 * bound_s);
 }
 
 struct BadReplay {

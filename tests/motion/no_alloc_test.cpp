@@ -16,11 +16,12 @@ namespace {
 
 TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
   // A G-code program: lines, a G5.2 NURBS block, more lines: segment changes and joints, and a
-  // slow start, so that higher limits reach the planner only after the first window.
+  // slow start, so that higher limits reach the planner only after the first window; square
+  // corners and a plunge and retract, where the job restarts its planner from rest.
   const toolpath::Path path = toolpath::read_path_text(
       "G21 G90\nG0 X0 Y0 Z0\nG1 X20 Y0 F300\nG1 X20 Y10 F3000\n"
       "G5.2 X30 Y20 P1 L4\nX40 Y0 P2\nX50 Y15 P1\nX60 Y5 P1\nG5.3\n"
-      "G1 X70 Y5\nG1 X70 Y-20 F1200\nM2\n",
+      "G1 X70 Y5\nG1 X70 Y-20 F1200\nG1 Z-2 F300\nG1 Z0\nM2\n",
       "mixed.ngc");
   ASSERT_GE(path.segments.size(), 3u);
   JobConfig cfg;
@@ -37,6 +38,7 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
     if (sp.done) break;
   }
   EXPECT_GT(periods, 100);
+  EXPECT_GE(job.stops_mm().size(), 3u);
   EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
       << "allocations during " << periods << " periods";
 }
