@@ -230,7 +230,8 @@ json Service::submit(const json& req) {
   std::unique_ptr<toolpath::Path> path;
   if (job.contains("path")) {
     if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
-    path = std::make_unique<toolpath::Path>(toolpath::read_path_file(job["path"], config_.machine.program));
+    path = std::make_unique<toolpath::Path>(
+        toolpath::read_path_file(job["path"], config_.machine.program));
     job_name_ = job["path"].get<std::string>();
   } else {
     path = std::make_unique<toolpath::Path>(chamfer_path(job));

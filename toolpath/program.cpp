@@ -154,7 +154,9 @@ NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
     return p;
   };
   // Exact point at fraction f of the sweep.
-  const auto exact = [&](double f) { return point(r0 + (r1 - r0) * f, a0 + sweep * f, h0 + rise * f); };
+  const auto exact = [&](double f) {
+    return point(r0 + (r1 - r0) * f, a0 + sweep * f, h0 + rise * f);
+  };
   int pieces = std::max(1, static_cast<int>(std::ceil(std::abs(sweep) / (kPi / 2.0) - 1e-12)));
   for (;;) {
     std::vector<Vec3> pts;
@@ -204,8 +206,9 @@ NurbsCurve to_machine(const NurbsCurve& c, const Vec3& offset, double k) {
 }
 
 std::string where(const Program& p, const SourceRef& s) {
-  const std::string file =
-      s.file >= 0 && static_cast<std::size_t>(s.file) < p.files.size() ? p.files[static_cast<std::size_t>(s.file)] : "?";
+  const std::string file = s.file >= 0 && static_cast<std::size_t>(s.file) < p.files.size()
+                               ? p.files[static_cast<std::size_t>(s.file)]
+                               : "?";
   return file + ":" + std::to_string(s.line);
 }
 
@@ -263,8 +266,8 @@ Path to_path(const Program& program, const ToPathOptions& options) {
       const Vec3 end_mm = (line->end + m.offset) * k;
       if (open && !stop_pending) {
         PathSegment& last = path.segments.back();
-        if (last.rapid == m.rapid && last.feed_mm_per_min == feed &&
-            last.spindle_rpm == spindle && m.feed_mode == FeedMode::per_minute) {
+        if (last.rapid == m.rapid && last.feed_mm_per_min == feed && last.spindle_rpm == spindle &&
+            m.feed_mode == FeedMode::per_minute) {
           std::get<Polyline>(last.geometry).points.push_back(end_mm);
           continue;
         }
@@ -337,8 +340,8 @@ std::string xyz(const Vec3& p) {
 void write_canonical(std::ostream& out, const Program& program) {
   for (const Step& step : program.steps) {
     const std::size_t f = static_cast<std::size_t>(step.src.file);
-    out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':'
-        << step.src.line << ' ';
+    out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':' << step.src.line
+        << ' ';
     if (const auto* m = std::get_if<Motion>(&step.item)) {
       std::visit(
           [&](const auto& g) {
@@ -351,8 +354,8 @@ void write_canonical(std::ostream& out, const Program& program) {
                   << xyz(g.centre) << " turns " << g.turns << " radius " << num(a.radius)
                   << " sweep_deg " << num(rad_to_deg(a.sweep_rad)) << " rise " << num(a.rise);
             } else if constexpr (std::is_same_v<T, NurbsMove>) {
-              out << "NURBS degree " << g.curve.degree() << " points "
-                  << g.curve.points().size() << " end " << xyz(g.curve.points().back());
+              out << "NURBS degree " << g.curve.degree() << " points " << g.curve.points().size()
+                  << " end " << xyz(g.curve.points().back());
             } else {
               out << "POLYLINE points " << g.polyline.points.size() << " end "
                   << xyz(g.polyline.points.empty() ? m->start : g.polyline.points.back());
@@ -363,7 +366,8 @@ void write_canonical(std::ostream& out, const Program& program) {
         out << (m->feed_mode == FeedMode::inverse_time ? " F1/min " : " F") << num(m->feed);
       }
       out << ' ' << units_name(m->units);
-      if (m->spindle != SpindleDir::off) out << " S" << num(m->spindle_rpm) << ' ' << spindle_name(m->spindle);
+      if (m->spindle != SpindleDir::off)
+        out << " S" << num(m->spindle_rpm) << ' ' << spindle_name(m->spindle);
       if (m->tool != 0) out << " T" << m->tool;
       if (!m->start_known) out << " from-unknown-position";
       out << '\n';
@@ -386,7 +390,7 @@ void write_canonical(std::ostream& out, const Program& program) {
           } else if constexpr (std::is_same_v<T, StopEvent>) {
             out << (e.kind == StopKind::program_stop    ? "STOP M0"
                     : e.kind == StopKind::optional_stop ? "OPTIONAL_STOP M1"
-                                                         : "PALLET_SHUTTLE M60");
+                                                        : "PALLET_SHUTTLE M60");
           } else if constexpr (std::is_same_v<T, EndEvent>) {
             out << "END M" << e.m;
           } else if constexpr (std::is_same_v<T, MessageEvent>) {

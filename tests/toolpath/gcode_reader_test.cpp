@@ -289,7 +289,8 @@ TEST(GcodeReader, ErrorQuotesTheLineText) {
     read("G0 X0 Y0 Z0\nF100\nG1 X1 Q7 (bad)\n");
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("test.ngc:3: Q7 with no code that uses it"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("test.ngc:3: Q7 with no code that uses it"),
+              std::string::npos)
         << e.what();
     EXPECT_NE(std::string(e.what()).find("(line: \"G1 X1 Q7 (bad)\")"), std::string::npos)
         << e.what();
