@@ -486,7 +486,10 @@ class Interpreter {
       const std::size_t b = i;
       while (i < s.size() && std::isdigit(static_cast<unsigned char>(s[i]))) ++i;
       if (i == b) fail("O-word without a number or <name>; write o100 or o<name>");
-      o.label = std::to_string(std::stol(s.substr(b, i - b)));
+      // The number as written without its leading zeros (o010 is o10); any length.
+      std::size_t z = b;
+      while (z + 1 < i && s[z] == '0') ++z;
+      o.label = s.substr(z, i - z);
     }
     const std::size_t kb = i;
     while (i < s.size() && std::isalpha(static_cast<unsigned char>(s[i]))) ++i;
@@ -912,6 +915,13 @@ class Interpreter {
       if (cur_line_ >= lines.size()) {
         if (frames_.size() > 1) {
           fail("end of file inside subroutine o" + frames_.back().sub + "; add its endsub");
+        }
+        if (!frames_.back().loops.empty()) {
+          const auto& [label, loop] = *frames_.back().loops.begin();
+          cur_line_ = loop.start;
+          fail("the loop o" + label +
+               " opened here is not closed before the end of the file; "
+               "add its end (endwhile, while or endrepeat)");
         }
         if (opened_by_percent_) {
           cur_line_ = lines.empty() ? 0 : lines.size() - 1;

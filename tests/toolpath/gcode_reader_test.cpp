@@ -284,6 +284,17 @@ TEST(GcodeReader, ArcsBecomeExactNurbs) {
   }
 }
 
+// Found by the fuzzer (tests/fuzz/ngc_interpreter_fuzz.cpp): an O-word number too long for a
+// long integer, and labels with leading zeros, which name the same label.
+TEST(GcodeReader, LongAndZeroPaddedOWordNumbers) {
+  const std::string digits(300, '9');
+  expect_error("G0 X0 Y0 Z0\no" + digits + " repeat [2]\nG0 X1\n",
+               "test.ngc:2:", "is not closed before the end of the file");
+  const Path p = read("G21 G0 X0 Y0 Z0\no010 repeat [2]\nG91 G0 X1\no10 endrepeat\nM2\n");
+  ASSERT_EQ(p.segments.size(), 1u);
+  EXPECT_EQ(polyline(p, 0).points, (std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}));
+}
+
 TEST(GcodeReader, ErrorQuotesTheLineText) {
   try {
     read("G0 X0 Y0 Z0\nF100\nG1 X1 Q7 (bad)\n");
