@@ -134,7 +134,8 @@ namespace {
 constexpr double kMinMoveMm = 1e-9;  // shorter moves add no geometry (see docs)
 
 // The arc in machine mm as one degree-2 NURBS, see the top of this file.
-NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
+NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm,
+                     const std::string& where_arc) {
   const double k = mm_per_unit(m.units);
   const PlaneAxes ax = plane_axes(arc.plane);
   const ArcGeometry g = arc_geometry(m.start, arc);
@@ -179,7 +180,7 @@ NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
     pts.back() = (arc.end + m.offset) * k;  // the programmed end, not its recomputation
     NurbsCurve curve(2, knots, pts, w);
     const bool exact_circle = rise == 0.0 && r0 == r1;
-    if (exact_circle || pieces >= (1 << 16)) return curve;
+    if (exact_circle) return curve;
     // Deviation from the exact spiral-helix: the angle of each sampled point says where on it
     // the point should be.
     double dev = 0.0;
@@ -194,6 +195,11 @@ NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
       }
     }
     if (dev <= tol_mm) return curve;
+    if (pieces >= (1 << 16)) {
+      throw InputError(where_arc + ": the helix deviates " + std::to_string(dev * 1e3) +
+                       " um from its rational-quadratic form even in 65536 pieces; split it into "
+                       "shorter arcs");
+    }
     pieces *= 2;
   }
 }
@@ -278,7 +284,7 @@ Path to_path(const Program& program, const ToPathOptions& options) {
       open = m.feed_mode == FeedMode::per_minute;
     } else if (const auto* arc = std::get_if<ArcMove>(&m.geometry)) {
       PathSegment seg;
-      seg.geometry = arc_nurbs(m, *arc, options.helix_tolerance_mm);
+      seg.geometry = arc_nurbs(m, *arc, options.helix_tolerance_mm, where(program, m.src));
       path.segments.push_back(std::move(seg));
       open = false;
     } else if (const auto* nm = std::get_if<NurbsMove>(&m.geometry)) {
