@@ -11,6 +11,7 @@
 #include "toolpath/program.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 
@@ -329,9 +330,10 @@ const char* plane_name(Plane p) {
 
 // Six decimals, trailing zeros trimmed to one digit after the point, no "-0.0".
 std::string num(double v) {
-  char buf[64];
-  int n = std::snprintf(buf, sizeof buf, "%.6f", v);
-  if (n <= 0 || n >= static_cast<int>(sizeof buf)) return "nan";
+  char buf[400];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 6);
+  if (r.ec != std::errc()) return "nan";
+  auto n = r.ptr - buf;
   while (n > 2 && buf[n - 1] == '0' && buf[n - 2] != '.') --n;
   if (n == 4 && buf[0] == '-' && buf[1] == '0' && buf[3] == '0') return "0.0";
   return std::string(buf, static_cast<std::size_t>(n));
