@@ -4,7 +4,8 @@
 set -euo pipefail
 pkgs=(build-essential cmake ninja-build clang-format pkg-config
       libeigen3-dev libboost-dev libserial-dev libgtest-dev libgmock-dev libbenchmark-dev
-      libcli11-dev nlohmann-json3-dev libtoml11-dev libfmt-dev libspdlog-dev libssl-dev rt-tests)
+      libcli11-dev nlohmann-json3-dev libtoml11-dev libfmt-dev libspdlog-dev libssl-dev rt-tests
+      linuxcnc-uspace)  # linuxcnc-uspace: rs274, the judge of the G-code conformance suite
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
