@@ -4,6 +4,8 @@
 // per axis (machine coordinates, arcs and NURBS sampled), cut and rapid lengths, an estimate of
 // the time (each move at its feed, capped at the machine's maximum feed; rapids at the
 // machine's maximum feed; dwells), the tools, spindle speeds and feeds. --json for tools.
+// Rapids made before X, Y and Z are all known (the machine comes from wherever it stands)
+// count with their end point only.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -52,7 +54,7 @@ void sample(const Motion& m, Summary& s) {
     s.lo = s.lo.cwiseMin(p);
     s.hi = s.hi.cwiseMax(p);
   };
-  add(m.start);
+  if (m.start_known) add(m.start);  // else the machine comes from wherever it stands
   if (const auto* arc = std::get_if<toolpath::ArcMove>(&m.geometry)) {
     const toolpath::ArcGeometry g = toolpath::arc_geometry(m.start, *arc);
     const toolpath::PlaneAxes ax = toolpath::plane_axes(arc->plane);
@@ -74,7 +76,8 @@ void sample(const Motion& m, Summary& s) {
     }
   } else if (const auto* nm = std::get_if<toolpath::NurbsMove>(&m.geometry)) {
     const auto& c = nm->curve;
-    for (int i = 0; i <= 256; ++i) add(c.eval(c.u_begin() + (c.u_end() - c.u_begin()) * i / 256.0).p);
+    for (int i = 0; i <= 256; ++i)
+      add(c.eval(c.u_begin() + (c.u_end() - c.u_begin()) * i / 256.0).p);
   } else if (const auto* pl = std::get_if<toolpath::PolylineMove>(&m.geometry)) {
     for (const Vec3& p : pl->polyline.points) add(p);
   }
@@ -90,7 +93,9 @@ Summary summarise(const Program& p, const MachineConfig& machine) {
       sample(*m, s);
       const double k = toolpath::mm_per_unit(m->units);
       const double len = toolpath::motion_length(*m) * k;
-      if (m->rapid) {
+      if (m->rapid && !m->start_known) {
+        // Positions the machine from an unknown place: no length, no time.
+      } else if (m->rapid) {
         s.rapid_mm += len;
         s.time_s += len / rapid_mm_per_min * 60.0;
       } else {
@@ -148,8 +153,8 @@ int run_check(const CheckArgs& a) {
     sum["moves"] = s.moves;
     sum["events"] = s.events;
     if (any) {
-      sum["extents_mm"] = {{"x", {s.lo.x(), s.hi.x()}}, {"y", {s.lo.y(), s.hi.y()}},
-                           {"z", {s.lo.z(), s.hi.z()}}};
+      sum["extents_mm"] = {
+          {"x", {s.lo.x(), s.hi.x()}}, {"y", {s.lo.y(), s.hi.y()}}, {"z", {s.lo.z(), s.hi.z()}}};
     }
     sum["cut_length_mm"] = s.cut_mm;
     sum["rapid_length_mm"] = s.rapid_mm;
@@ -169,8 +174,8 @@ int run_check(const CheckArgs& a) {
   std::cout << "  moves " << s.moves << ", events " << s.events << "\n";
   if (any) {
     for (int i = 0; i < 3; ++i) {
-      std::cout << "  " << "XYZ"[i] << " from " << fixed(s.lo[i], 4) << " to " << fixed(s.hi[i], 4)
-                << "\n";
+      std::cout << "  "
+                << "XYZ"[i] << " from " << fixed(s.lo[i], 4) << " to " << fixed(s.hi[i], 4) << "\n";
     }
   }
   std::cout << "  cut length " << fixed(s.cut_mm, 3) << " mm, rapid length " << fixed(s.rapid_mm, 3)

@@ -236,7 +236,8 @@ json Service::submit(const json& req) {
       }
     }
     if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
-    path = std::make_unique<toolpath::Path>(toolpath::read_path_file(job["path"], config_.machine.program));
+    path = std::make_unique<toolpath::Path>(
+        toolpath::read_path_file(job["path"], config_.machine.program));
     job_name = job["path"].get<std::string>();
   } else {
     path = std::make_unique<toolpath::Path>(chamfer_path(job));

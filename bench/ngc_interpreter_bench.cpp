@@ -4,9 +4,9 @@
 #include <benchmark/benchmark.h>
 
 #include <charconv>
-#include <cstring>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #include "toolpath/ngc_interpreter.hpp"
@@ -49,7 +49,8 @@ std::size_t split_words(const std::string& text) {
   const char* p = text.data();
   const char* end = p + text.size();
   while (p < end) {
-    const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
+    const char* nl =
+        static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
     if (!nl) nl = end;
     const char* q = p;
     while (q < nl) {

@@ -7,6 +7,7 @@ pkgs=(build-essential cmake ninja-build clang-format pkg-config
       libcli11-dev nlohmann-json3-dev libtoml11-dev libfmt-dev libspdlog-dev libssl-dev rt-tests
       zlib1g-dev                    # zlib: the PNG writer of ncd simulate
       clang-14 libclang-rt-14-dev)  # clang-14, libclang-rt: the libFuzzer harnesses (make fuzz)
+      linuxcnc-uspace)  # linuxcnc-uspace: rs274, the judge of the G-code conformance suite
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

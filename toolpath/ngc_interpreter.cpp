@@ -108,36 +108,99 @@ struct Block {
 // Modal group of a G code ×10 (LinuxCNC's table), −1 when unknown.
 int g_group(int c) {
   switch (c) {
-    case 40: case 100: case 280: case 281: case 300: case 301: case 530: case 920: case 921:
-    case 922: case 923:
+    case 40:
+    case 100:
+    case 280:
+    case 281:
+    case 300:
+    case 301:
+    case 530:
+    case 920:
+    case 921:
+    case 922:
+    case 923:
       return 0;
-    case 0: case 10: case 20: case 30: case 50: case 51: case 52: case 53: case 330: case 331:
-    case 382: case 383: case 384: case 385: case 730: case 740: case 760: case 800: case 810:
-    case 820: case 830: case 840: case 850: case 860: case 870: case 880: case 890:
+    case 0:
+    case 10:
+    case 20:
+    case 30:
+    case 50:
+    case 51:
+    case 52:
+    case 53:
+    case 330:
+    case 331:
+    case 382:
+    case 383:
+    case 384:
+    case 385:
+    case 730:
+    case 740:
+    case 760:
+    case 800:
+    case 810:
+    case 820:
+    case 830:
+    case 840:
+    case 850:
+    case 860:
+    case 870:
+    case 880:
+    case 890:
       return 1;
-    case 170: case 171: case 180: case 181: case 190: case 191:
+    case 170:
+    case 171:
+    case 180:
+    case 181:
+    case 190:
+    case 191:
       return 2;
-    case 900: case 910:
+    case 900:
+    case 910:
       return 3;
-    case 901: case 911:
+    case 901:
+    case 911:
       return 4;
-    case 930: case 940: case 950:
+    case 930:
+    case 940:
+    case 950:
       return 5;
-    case 200: case 210:
+    case 200:
+    case 210:
       return 6;
-    case 400: case 410: case 411: case 420: case 421:
+    case 400:
+    case 410:
+    case 411:
+    case 420:
+    case 421:
       return 7;
-    case 430: case 431: case 432: case 490:
+    case 430:
+    case 431:
+    case 432:
+    case 490:
       return 8;
-    case 980: case 990:
+    case 980:
+    case 990:
       return 10;
-    case 540: case 550: case 560: case 570: case 580: case 590: case 591: case 592: case 593:
+    case 540:
+    case 550:
+    case 560:
+    case 570:
+    case 580:
+    case 590:
+    case 591:
+    case 592:
+    case 593:
       return 12;
-    case 610: case 611: case 640:
+    case 610:
+    case 611:
+    case 640:
       return 13;
-    case 960: case 970:
+    case 960:
+    case 970:
       return 14;
-    case 70: case 80:
+    case 70:
+    case 80:
       return 15;
     case 520:
       return 0;
@@ -148,15 +211,30 @@ int g_group(int c) {
 
 int m_group(int c) {
   switch (c) {
-    case 0: case 1: case 2: case 30: case 60:
+    case 0:
+    case 1:
+    case 2:
+    case 30:
+    case 60:
       return 4;
-    case 6: case 61:
+    case 6:
+    case 61:
       return 6;
-    case 3: case 4: case 5: case 19:
+    case 3:
+    case 4:
+    case 5:
+    case 19:
       return 7;
-    case 7: case 8: case 9:
+    case 7:
+    case 8:
+    case 9:
       return 8;
-    case 48: case 49: case 50: case 51: case 52: case 53:
+    case 48:
+    case 49:
+    case 50:
+    case 51:
+    case 52:
+    case 53:
       return 9;
     default:
       return c >= 62 && c <= 199 ? 10 : -1;
@@ -166,28 +244,45 @@ int m_group(int c) {
 // Out-of-scope G codes: the refusal text (construct and way out); empty when supported.
 std::string g_refusal(int c) {
   switch (c) {
-    case 410: case 411: case 420: case 421:
+    case 410:
+    case 411:
+    case 420:
+    case 421:
       return g_name(c) +
              " (cutter radius compensation) is not supported; post-process the program with "
              "compensation computed by the CAM (tool centre path) and G40";
-    case 330: case 331: case 760:
-      return g_name(c) + " (spindle-synchronised motion, threading) is not supported; ncd drives "
-                         "no spindle encoder: remove the threading pass";
-    case 382: case 383: case 384: case 385:
+    case 330:
+    case 331:
+    case 760:
+      return g_name(c) +
+             " (spindle-synchronised motion, threading) is not supported; ncd drives "
+             "no spindle encoder: remove the threading pass";
+    case 382:
+    case 383:
+    case 384:
+    case 385:
       return g_name(c) + " (probing) is not supported; probe on the controller, not in the program";
-    case 70: case 80:
+    case 70:
+    case 80:
       return g_name(c) + " (lathe diameter/radius mode) is not supported; ncd is for mills";
-    case 740: case 840: case 860: case 870: case 880:
+    case 740:
+    case 840:
+    case 860:
+    case 870:
+    case 880:
       return g_name(c) +
              " (tapping/boring cycle needing spindle control) is not supported; use G81, G82, "
              "G83, G85 or G89, or write the moves out";
-    case 50: case 51:
+    case 50:
+    case 51:
       return g_name(c) + " (spline) is not supported; use G5.2/G5.3 NURBS, G2/G3 or G1";
     case 950:
       return "G95 (feed per revolution) is not supported; use G94 with F in units per minute";
     case 960:
       return "G96 (constant surface speed) is not supported; use G97 with S in rpm";
-    case 171: case 181: case 191:
+    case 171:
+    case 181:
+    case 191:
       return g_name(c) + " (UVW plane) is not supported; use G17, G18 or G19";
     case 432:
       return "G43.2 (additional tool length offset) is not supported; use G43 H or G43.1";
@@ -200,15 +295,21 @@ std::string g_refusal(int c) {
 
 std::string m_refusal(int c) {
   if (c >= 100 && c <= 199) {
-    return "M" + std::to_string(c) + " (user M code) is not supported; ncd runs no user "
-                                     "programs: remove it or handle it on the controller";
+    return "M" + std::to_string(c) +
+           " (user M code) is not supported; ncd runs no user "
+           "programs: remove it or handle it on the controller";
   }
   switch (c) {
     case 19:
       return "M19 (spindle orient) is not supported; remove it";
     case 61:
       return "M61 (set current tool without a change) is not supported; use T M6";
-    case 48: case 49: case 50: case 51: case 52: case 53:
+    case 48:
+    case 49:
+    case 50:
+    case 51:
+    case 52:
+    case 53:
       return "M" + std::to_string(c) + " (override control) is not supported; remove it";
     default:
       return "M" + std::to_string(c) + " is not supported (I/O, modal state or remap); remove it";
@@ -335,7 +436,9 @@ class Interpreter {
     }
   }
 
-  double param_len(int index) const { return params_[static_cast<std::size_t>(index)] * machine_k_; }
+  double param_len(int index) const {
+    return params_[static_cast<std::size_t>(index)] * machine_k_;
+  }
 
   // ---- O-word scanning ---------------------------------------------------------------------
   // The normalised text of a line (lower case, no spaces, comments out) into `out`; the last
@@ -348,7 +451,8 @@ class Interpreter {
       if (c == ';') break;
       if (c == '(') {
         const std::size_t close = line.find(')', i + 1);
-        if (close == std::string_view::npos) fail("comment '(' is not closed on this line; add ')'");
+        if (close == std::string_view::npos)
+          fail("comment '(' is not closed on this line; add ')'");
         const std::size_t nested = line.find('(', i + 1);
         if (nested < close) fail("nested '(' inside a comment; remove the inner '('");
         if (comment) {
@@ -382,7 +486,10 @@ class Interpreter {
       const std::size_t b = i;
       while (i < s.size() && std::isdigit(static_cast<unsigned char>(s[i]))) ++i;
       if (i == b) fail("O-word without a number or <name>; write o100 or o<name>");
-      o.label = std::to_string(std::stol(s.substr(b, i - b)));
+      // The number as written without its leading zeros (o010 is o10); any length.
+      std::size_t z = b;
+      while (z + 1 < i && s[z] == '0') ++z;
+      o.label = s.substr(z, i - z);
     }
     const std::size_t kb = i;
     while (i < s.size() && std::isalpha(static_cast<unsigned char>(s[i]))) ++i;
@@ -490,11 +597,24 @@ class Interpreter {
 
   static int precedence(int op) {
     switch (op) {
-      case 0: return 6;                               // **
-      case 1: case 2: case 3: return 5;               // * / mod
-      case 4: case 5: return 4;                       // + -
-      case 6: case 7: case 8: case 9: case 10: case 11: return 3;  // eq ne gt ge lt le
-      default: return 2;                              // and or xor
+      case 0:
+        return 6;  // **
+      case 1:
+      case 2:
+      case 3:
+        return 5;  // * / mod
+      case 4:
+      case 5:
+        return 4;  // + -
+      case 6:
+      case 7:
+      case 8:
+      case 9:
+      case 10:
+      case 11:
+        return 3;  // eq ne gt ge lt le
+      default:
+        return 2;  // and or xor
     }
   }
 
@@ -521,10 +641,12 @@ class Interpreter {
   static double apply(int op, double a, double b) {
     switch (op) {
       case 0: {
-        if (a < 0.0 && std::floor(b) != b) fail("attempt to raise a negative number to a non-integer power");
+        if (a < 0.0 && std::floor(b) != b)
+          fail("attempt to raise a negative number to a non-integer power");
         return std::pow(a, b);
       }
-      case 1: return a * b;
+      case 1:
+        return a * b;
       case 2:
         if (b == 0.0) fail("attempt to divide by zero");
         return a / b;
@@ -534,17 +656,28 @@ class Interpreter {
         if (r < 0.0) r += std::abs(b);
         return r;
       }
-      case 4: return a + b;
-      case 5: return a - b;
-      case 6: return std::abs(a - b) < kTolEqual ? 1.0 : 0.0;
-      case 7: return std::abs(a - b) >= kTolEqual ? 1.0 : 0.0;
-      case 8: return a > b && std::abs(a - b) >= kTolEqual ? 1.0 : 0.0;
-      case 9: return a > b || std::abs(a - b) < kTolEqual ? 1.0 : 0.0;
-      case 10: return a < b && std::abs(a - b) >= kTolEqual ? 1.0 : 0.0;
-      case 11: return a < b || std::abs(a - b) < kTolEqual ? 1.0 : 0.0;
-      case 12: return (a != 0.0 && b != 0.0) ? 1.0 : 0.0;
-      case 13: return (a != 0.0 || b != 0.0) ? 1.0 : 0.0;
-      default: return ((a != 0.0) != (b != 0.0)) ? 1.0 : 0.0;
+      case 4:
+        return a + b;
+      case 5:
+        return a - b;
+      case 6:
+        return std::abs(a - b) < kTolEqual ? 1.0 : 0.0;
+      case 7:
+        return std::abs(a - b) >= kTolEqual ? 1.0 : 0.0;
+      case 8:
+        return a > b && std::abs(a - b) >= kTolEqual ? 1.0 : 0.0;
+      case 9:
+        return a > b || std::abs(a - b) < kTolEqual ? 1.0 : 0.0;
+      case 10:
+        return a < b && std::abs(a - b) >= kTolEqual ? 1.0 : 0.0;
+      case 11:
+        return a < b || std::abs(a - b) < kTolEqual ? 1.0 : 0.0;
+      case 12:
+        return (a != 0.0 && b != 0.0) ? 1.0 : 0.0;
+      case 13:
+        return (a != 0.0 || b != 0.0) ? 1.0 : 0.0;
+      default:
+        return ((a != 0.0) != (b != 0.0)) ? 1.0 : 0.0;
     }
   }
 
@@ -557,7 +690,8 @@ class Interpreter {
     vals[0] = read_value(s, i);
     for (;;) {
       const int op = read_operator(s, i);
-      while (top > 0 && (op < 0 || precedence(op) <= precedence(ops[static_cast<std::size_t>(top - 1)]))) {
+      while (top > 0 &&
+             (op < 0 || precedence(op) <= precedence(ops[static_cast<std::size_t>(top - 1)]))) {
         const auto t = static_cast<std::size_t>(top);
         vals[t - 1] = apply(ops[t - 1], vals[t - 1], vals[t]);
         --top;
@@ -574,7 +708,8 @@ class Interpreter {
     while (i < s.size() && s[i] >= 'a' && s[i] <= 'z') ++i;
     const std::string name = s.substr(b, i - b);
     if (i >= s.size() || s[i] != '[') {
-      fail("'" + name + "' is not a function followed by '['; functions are ABS ACOS ASIN ATAN "
+      fail("'" + name +
+           "' is not a function followed by '['; functions are ABS ACOS ASIN ATAN "
            "COS EXP EXISTS FIX FUP LN ROUND SIN SQRT TAN");
     }
     if (name == "exists") {
@@ -622,7 +757,8 @@ class Interpreter {
       if (a < 0.0) fail("argument " + fmt_num(a) + " of SQRT is negative");
       return std::sqrt(a);
     }
-    fail("unknown function '" + name + "'; functions are ABS ACOS ASIN ATAN COS EXP EXISTS FIX "
+    fail("unknown function '" + name +
+         "'; functions are ABS ACOS ASIN ATAN COS EXP EXISTS FIX "
          "FUP LN ROUND SIN SQRT TAN");
   }
 
@@ -780,6 +916,13 @@ class Interpreter {
         if (frames_.size() > 1) {
           fail("end of file inside subroutine o" + frames_.back().sub + "; add its endsub");
         }
+        if (!frames_.back().loops.empty()) {
+          const auto& [label, loop] = *frames_.back().loops.begin();
+          cur_line_ = loop.start;
+          fail("the loop o" + label +
+               " opened here is not closed before the end of the file; "
+               "add its end (endwhile, while or endrepeat)");
+        }
         if (opened_by_percent_) {
           cur_line_ = lines.empty() ? 0 : lines.size() - 1;
           fail("the program opens with % but has neither a closing % line nor M2/M30; add one");
@@ -914,7 +1057,8 @@ class Interpreter {
           } else {
             found = predefined(name, &value);
             if (!found) {
-              fail("#<" + name + "> in a DEBUG comment is not defined; ncd knows no LinuxCNC "
+              fail("#<" + name +
+                   "> in a DEBUG comment is not defined; ncd knows no LinuxCNC "
                    "predefined parameters but _x _y _z _value _value_returned: remove it");
             }
           }
@@ -932,7 +1076,8 @@ class Interpreter {
       }
       if (found) {
         char buf[64];
-        const int n = std::snprintf(buf, sizeof buf, "%.*f", decimals, std::abs(value) < kTolEqual ? 0.0 : value);
+        const int n = std::snprintf(buf, sizeof buf, "%.*f", decimals,
+                                    std::abs(value) < kTolEqual ? 0.0 : value);
         out += n > 0 && n < static_cast<int>(sizeof buf) ? std::string(buf) : "######";
       } else {
         out += "######";
@@ -943,7 +1088,8 @@ class Interpreter {
 
   bool condition(const OLine& o) {
     std::size_t i = o.args_at;
-    if (i >= norm_.size() || norm_[i] != '[') fail("o" + o.label + " " + o.keyword + " needs a condition [..]");
+    if (i >= norm_.size() || norm_[i] != '[')
+      fail("o" + o.label + " " + o.keyword + " needs a condition [..]");
     return read_expression(norm_, i) != 0.0;
   }
 
@@ -982,7 +1128,8 @@ class Interpreter {
         if (n >= 30) fail("more than 30 arguments to o" + o.label + " call");
         args[n++] = read_expression(norm_, i);
       }
-      if (i != norm_.size()) fail("unexpected '" + norm_.substr(i) + "' after o" + o.label + " call arguments");
+      if (i != norm_.size())
+        fail("unexpected '" + norm_.substr(i) + "' after o" + o.label + " call arguments");
       auto it = subs_.find(o.label);
       if (it == subs_.end()) it = load_sub_file(o.label);
       if (frames_.size() > kMaxCallDepth) {
@@ -1069,17 +1216,17 @@ class Interpreter {
       if (it == fr.loops.end()) fail("o" + o.label + " " + k + " outside its loop");
       const Loop loop = it->second;
       if (loop.kind == Loop::do_loop && k == "continue") {
-        fail("o" + o.label + " continue inside a do loop: LinuxCNC leaves the loop there, "
+        fail("o" + o.label +
+             " continue inside a do loop: LinuxCNC leaves the loop there, "
              "which is rarely meant; use a while loop");
       }
       if (loop.kind == Loop::repeat_loop) {
         fail("o" + o.label + " " + k + " inside a repeat loop: LinuxCNC allows " + k +
              " only in while and do loops; use a while loop with a counter");
       }
-      const std::size_t end =
-          loop.kind == Loop::while_loop  ? seek(o.label, {"endwhile"}, found)
-          : loop.kind == Loop::do_loop   ? seek(o.label, {"while"}, found)
-                                         : seek(o.label, {"endrepeat"}, found);
+      const std::size_t end = loop.kind == Loop::while_loop ? seek(o.label, {"endwhile"}, found)
+                              : loop.kind == Loop::do_loop  ? seek(o.label, {"while"}, found)
+                                                            : seek(o.label, {"endrepeat"}, found);
       if (k == "break") {
         fr.loops.erase(o.label);
         next_line_ = end + 1;
@@ -1088,7 +1235,8 @@ class Interpreter {
       }
       return;
     }
-    fail("unknown O-word keyword '" + k + "'; use sub endsub call return if elseif else endif "
+    fail("unknown O-word keyword '" + k +
+         "'; use sub endsub call return if elseif else endif "
          "while endwhile do repeat endrepeat break continue");
   }
 
@@ -1149,7 +1297,8 @@ class Interpreter {
     for (int n = 0; n < b.ng; ++n) {
       const int c = b.g[static_cast<std::size_t>(n)];
       const int grp = g_group(c);
-      if (grp < 0) fail(g_name(c) + " is not supported (unknown, or a lathe/remap code); remove it");
+      if (grp < 0)
+        fail(g_name(c) + " is not supported (unknown, or a lathe/remap code); remove it");
       const std::string r = g_refusal(c);
       if (!r.empty()) fail(r);
       auto& slot = gg[static_cast<std::size_t>(grp)];
@@ -1157,7 +1306,8 @@ class Interpreter {
         fail(g_name(slot) + " and " + g_name(c) + " are in the same modal group; keep one");
       }
       if (grp == 0 && slot >= 0 && !(slot == 530 || c == 530)) {
-        fail(g_name(slot) + " and " + g_name(c) + " are both non-modal codes; put them on two lines");
+        fail(g_name(slot) + " and " + g_name(c) +
+             " are both non-modal codes; put them on two lines");
       }
       if (grp == 0 && c == 530) continue;
       slot = c;
@@ -1213,8 +1363,8 @@ class Interpreter {
   double len_word(const Block& b, char c) const {
     const double v = b.v(c) * k();
     if (std::abs(v) > kMaxCoordMm) {
-      fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) +
-           " is beyond ±" + fmt_num(kMaxCoordMm) + " mm; check the number");
+      fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) + " is beyond ±" +
+           fmt_num(kMaxCoordMm) + " mm; check the number");
     }
     return v;
   }
@@ -1225,7 +1375,9 @@ class Interpreter {
     st.src = src();
     program_.steps.push_back(std::move(st));
   }
-  SourceRef src() const { return SourceRef{static_cast<int>(cur_file_), static_cast<int>(cur_line_ + 1)}; }
+  SourceRef src() const {
+    return SourceRef{static_cast<int>(cur_file_), static_cast<int>(cur_line_ + 1)};
+  }
 
   void emit_motion(Motion&& m) {
     m.src = src();
@@ -1271,7 +1423,9 @@ class Interpreter {
     check_block(b);
     const auto group_code = [&](int grp) {
       for (int n = 0; n < b.ng; ++n) {
-        if (g_group(b.g[static_cast<std::size_t>(n)]) == grp && b.g[static_cast<std::size_t>(n)] != 530) return b.g[static_cast<std::size_t>(n)];
+        if (g_group(b.g[static_cast<std::size_t>(n)]) == grp &&
+            b.g[static_cast<std::size_t>(n)] != 530)
+          return b.g[static_cast<std::size_t>(n)];
       }
       return -1;
     };
@@ -1297,7 +1451,8 @@ class Interpreter {
       const double f_mm = feed_mode_ == FeedMode::per_minute ? f * k() : f;
       if (f != 0.0 && (f_mm < kMinFeedMmPerMin || f_mm > kMaxFeedMmPerMin)) {
         fail("feed F" + fmt_num(f) + " is outside " + fmt_num(kMinFeedMmPerMin) + " to " +
-             fmt_num(kMaxFeedMmPerMin) + (feed_mode_ == FeedMode::per_minute ? " mm/min" : " 1/min") +
+             fmt_num(kMaxFeedMmPerMin) +
+             (feed_mode_ == FeedMode::per_minute ? " mm/min" : " 1/min") +
              "; check the number and the units (G20/G21)");
       }
       feed_ = f;
@@ -1307,7 +1462,8 @@ class Interpreter {
     if (b.has('s')) {
       double s = b.v('s');
       if (s < 0.0) fail("negative spindle speed S" + fmt_num(s) + "; S must be 0 or more");
-      if (s > kMaxSpindleRpm) fail("spindle speed S" + fmt_num(s) + " is above " + fmt_num(kMaxSpindleRpm) + " rpm");
+      if (s > kMaxSpindleRpm)
+        fail("spindle speed S" + fmt_num(s) + " is above " + fmt_num(kMaxSpindleRpm) + " rpm");
       s = s + 0.0;  // S-0 is 0
       if (s != speed_) spindle_changed = spindle_ != SpindleDir::off;
       speed_ = s;
@@ -1315,7 +1471,8 @@ class Interpreter {
     // 5. T
     if (b.has('t')) {
       const double t = b.v('t');
-      if (t < 0 || t != std::floor(t) || t > 99999) fail("tool number T" + fmt_num(t) + " must be a whole number ≥ 0");
+      if (t < 0 || t != std::floor(t) || t > 99999)
+        fail("tool number T" + fmt_num(t) + " must be a whole number ≥ 0");
       const int tn = static_cast<int>(t);
       if (tn != 0 && !tools_.count(tn)) {
         fail("tool T" + std::to_string(tn) + " is not in the tool table" +
@@ -1339,7 +1496,9 @@ class Interpreter {
     }
     // 7. spindle
     if (b.has_m(3) || b.has_m(4) || b.has_m(5)) {
-      const SpindleDir d = b.has_m(3) ? SpindleDir::cw : b.has_m(4) ? SpindleDir::ccw : SpindleDir::off;
+      const SpindleDir d = b.has_m(3)   ? SpindleDir::cw
+                           : b.has_m(4) ? SpindleDir::ccw
+                                        : SpindleDir::off;
       if (d != spindle_) spindle_changed = true;
       spindle_ = d;
     }
@@ -1355,7 +1514,8 @@ class Interpreter {
     if (nonmodal == 40) {
       if (!b.has('p')) fail("G4 without P; give the dwell time in seconds, P0.5");
       const double p = b.v('p');
-      if (p < 0.0 || p > kMaxDwellS) fail("dwell G4 P" + fmt_num(p) + " must be from 0 to " + fmt_num(kMaxDwellS) + " s");
+      if (p < 0.0 || p > kMaxDwellS)
+        fail("dwell G4 P" + fmt_num(p) + " must be from 0 to " + fmt_num(kMaxDwellS) + " s");
       emit(DwellEvent{p});
     }
     // 11. plane
@@ -1377,12 +1537,15 @@ class Interpreter {
         int h = tool_;
         if (b.has('h')) {
           const double hv = b.v('h');
-          if (hv < 0 || hv != std::floor(hv)) fail("G43 H" + fmt_num(hv) + ": H must be a tool number");
+          if (hv < 0 || hv != std::floor(hv))
+            fail("G43 H" + fmt_num(hv) + ": H must be a tool number");
           h = static_cast<int>(hv);
         }
         if (h != 0) {
           const auto it = tools_.find(h);
-          if (it == tools_.end()) fail("G43 H" + std::to_string(h) + ": tool " + std::to_string(h) + " is not in the tool table; add it");
+          if (it == tools_.end())
+            fail("G43 H" + std::to_string(h) + ": tool " + std::to_string(h) +
+                 " is not in the tool table; add it");
           off.z() = it->second.z * machine_k_;
         }
       } else if (b.has_g(431)) {
@@ -1409,14 +1572,21 @@ class Interpreter {
     // 16. path control
     if (const int pc = group_code(13); pc >= 0) {
       PathControlEvent e;
-      e.mode = pc == 610 ? PathControl::exact_path : pc == 611 ? PathControl::exact_stop : PathControl::blend;
+      e.mode = pc == 610   ? PathControl::exact_path
+               : pc == 611 ? PathControl::exact_stop
+                           : PathControl::blend;
       if (pc == 640) {
         if (b.has('p')) {
-          if (b.v('p') < 0.0) fail("G64 P" + fmt_num(b.v('p')) + ": the blend tolerance must be 0 or more (LinuxCNC would take it as 0); write P0 or a positive tolerance");
+          if (b.v('p') < 0.0)
+            fail("G64 P" + fmt_num(b.v('p')) +
+                 ": the blend tolerance must be 0 or more (LinuxCNC would take it as 0); write P0 "
+                 "or a positive tolerance");
           e.p = b.v('p');
         }
         if (b.has('q')) {
-          if (b.v('q') < 0.0) fail("G64 Q" + fmt_num(b.v('q')) + ": the naive-CAM tolerance must be 0 or more; write Q0 or a positive tolerance");
+          if (b.v('q') < 0.0)
+            fail("G64 Q" + fmt_num(b.v('q')) +
+                 ": the naive-CAM tolerance must be 0 or more; write Q0 or a positive tolerance");
           if (!b.has('p')) fail("G64 Q without P; give P as well");
           e.q = b.v('q');
         }
@@ -1433,16 +1603,32 @@ class Interpreter {
     // 18. retract mode
     if (b.has_g(980)) retract_r_ = false;
     if (b.has_g(990)) retract_r_ = true;
-    if (b.has_g(970)) { /* rpm mode: the default */ }
-    if (b.has_g(400)) { /* cutter compensation off: always */ }
+    if (b.has_g(970)) { /* rpm mode: the default */
+    }
+    if (b.has_g(400)) { /* cutter compensation off: always */
+    }
     // 19. non-modal
     bool axes_used = b.has_g(431);
     switch (nonmodal) {
-      case 100: g10(b); axes_used = true; break;
-      case 280: case 300: home(b, nonmodal == 280 ? 5161 : 5181); axes_used = true; break;
-      case 281: case 301: store_home(nonmodal == 281 ? 5161 : 5181); break;
-      case 920: g92(b); axes_used = true; break;
-      case 921: case 922:
+      case 100:
+        g10(b);
+        axes_used = true;
+        break;
+      case 280:
+      case 300:
+        home(b, nonmodal == 280 ? 5161 : 5181);
+        axes_used = true;
+        break;
+      case 281:
+      case 301:
+        store_home(nonmodal == 281 ? 5161 : 5181);
+        break;
+      case 920:
+        g92(b);
+        axes_used = true;
+        break;
+      case 921:
+      case 922:
         pos_ += g92_;
         g92_ = Vec3(0, 0, 0);
         if (nonmodal == 921) {
@@ -1456,21 +1642,27 @@ class Interpreter {
         params_[5210] = 1.0;
         break;
       }
-      default: break;
+      default:
+        break;
     }
     // 20. motion
     const bool g53 = b.has_g(530);
     const bool axis_words = b.has('x') || b.has('y') || b.has('z');
     if (motion_word >= 0) {
       if (motion_word == 800) {
-        if (axis_words && !axes_used) fail("G80 with X, Y or Z: G80 cancels motion, the axes have no meaning here; remove them");
+        if (axis_words && !axes_used)
+          fail(
+              "G80 with X, Y or Z: G80 cancels motion, the axes have no meaning here; remove them");
         motion_mode_ = -1;
         cycle_il_known_ = false;
       } else {
         motion(b, motion_word, g53);
       }
     } else if (axis_words && !axes_used) {
-      if (motion_mode_ < 0) fail("X, Y or Z with no motion mode active (after G80 or G5.3); program G0 or G1 on this line");
+      if (motion_mode_ < 0)
+        fail(
+            "X, Y or Z with no motion mode active (after G80 or G5.3); program G0 or G1 on this "
+            "line");
       motion(b, motion_mode_, g53);
     } else if (g53) {
       fail("G53 without G0 or G1 on the line; write G53 G0 X...");
@@ -1508,7 +1700,8 @@ class Interpreter {
   void motion(Block& b, int code, bool g53) {
     if (code != motion_mode_ && !(code >= 730 && code <= 890)) cycle_il_known_ = false;
     if (code < 730 || code > 890) cycle_il_known_ = false;
-    if (g53 && code != 0 && code != 10) fail("G53 only works with G0 or G1; remove G53 or use G0/G1");
+    if (g53 && code != 0 && code != 10)
+      fail("G53 only works with G0 or G1; remove G53 or use G0/G1");
     if (g53 && incremental_) fail("G53 in incremental mode (G91); switch to G90 first");
     switch (code) {
       case 0:
@@ -1537,7 +1730,8 @@ class Interpreter {
 
   void require_feed(const Block& b, const char* what) {
     if (feed_mode_ == FeedMode::inverse_time) {
-      if (!b.has('f')) fail(std::string(what) + " in inverse time mode (G93) without F on the line; add F");
+      if (!b.has('f'))
+        fail(std::string(what) + " in inverse time mode (G93) without F on the line; add F");
       if (feed_ == 0.0) fail(std::string(what) + " with inverse time F0; F must be positive");
     } else if (feed_ == 0.0) {
       fail(std::string("cannot do ") + what + " with zero feed rate; add an F word");
@@ -1551,11 +1745,15 @@ class Interpreter {
     const char offs[3] = {'i', 'j', 'k'};
     const bool ijk = b.has('i') || b.has('j') || b.has('k');
     const bool r_form = b.has('r');
-    if (!ijk && !r_form) fail("arc without R or I, J, K; give the centre (I J K) or the radius (R)");
+    if (!ijk && !r_form)
+      fail("arc without R or I, J, K; give the centre (I J K) or the radius (R)");
     if (ijk && r_form) fail("arc with both R and I, J, K; keep one form");
     if (ijk && b.has(offs[ax.axis])) {
       fail(std::string(1, static_cast<char>(std::toupper(offs[ax.axis]))) +
-           " word given for an arc in the " + (plane_ == Plane::xy ? "XY" : plane_ == Plane::xz ? "XZ" : "YZ") +
+           " word given for an arc in the " +
+           (plane_ == Plane::xy   ? "XY"
+            : plane_ == Plane::xz ? "XZ"
+                                  : "YZ") +
            " plane; use the plane's two offsets");
     }
     if (ijk && ijk_absolute_ && (!b.has(offs[ax.first]) || !b.has(offs[ax.second]))) {
@@ -1572,7 +1770,8 @@ class Interpreter {
     if (b.has('p')) {
       const double pv = b.v('p');
       if (pv < 1 || pv > kMaxTurns || std::abs(pv - std::round(pv)) > 1e-6) {
-        fail("arc P" + fmt_num(pv) + " (turns) must be a whole number from 1 to " + std::to_string(kMaxTurns));
+        fail("arc P" + fmt_num(pv) + " (turns) must be a whole number from 1 to " +
+             std::to_string(kMaxTurns));
       }
       p = static_cast<int>(std::lround(pv));
     }
@@ -1580,15 +1779,18 @@ class Interpreter {
     const double radius_tol = 0.00005 * kMmPerInch;  // RADIUS_TOLERANCE, same in both units
     if (r_form) {
       const double r = len_word(b, 'r');
-      if (e1 == c1 && e2 == c2) fail("R-form arc whose end is its start; use the I J K form for a full circle");
+      if (e1 == c1 && e2 == c2)
+        fail("R-form arc whose end is its start; use the I J K form for a full circle");
       const double abs_r = std::abs(r);
       const double m1 = (e1 + c1) / 2.0, m2 = (e2 + c2) / 2.0;
       double half = std::hypot(m1 - e1, m2 - e2);
       if (half - abs_r > radius_tol) {
-        fail("arc radius R" + fmt_num(b.v('r')) + " is too small to reach the end point; increase R");
+        fail("arc radius R" + fmt_num(b.v('r')) +
+             " is too small to reach the end point; increase R");
       }
       if (half / abs_r > 1 - 1e-12) half = abs_r;
-      const double theta = std::atan2(e2 - c2, e1 - c1) + (((code == 20) == (r > 0)) ? -kPi / 2 : kPi / 2);
+      const double theta =
+          std::atan2(e2 - c2, e1 - c1) + (((code == 20) == (r > 0)) ? -kPi / 2 : kPi / 2);
       const double turn2 = std::asin(half / abs_r);
       const double off = abs_r * std::cos(turn2);
       cx = m1 + off * std::cos(theta);
@@ -1601,7 +1803,8 @@ class Interpreter {
       const double r1 = std::hypot(cx - c1, cy - c2);
       const double r2 = std::hypot(cx - e1, cy - e2);
       if (r1 < radius_tol || r2 < radius_tol) fail("zero-radius arc; check I, J, K");
-      const double spiral_abs = (units_ == Units::inch ? 2 * 0.001 * std::sqrt(2.0) * kMmPerInch : 2 * 0.01 * std::sqrt(2.0));
+      const double spiral_abs = (units_ == Units::inch ? 2 * 0.001 * std::sqrt(2.0) * kMmPerInch
+                                                       : 2 * 0.01 * std::sqrt(2.0));
       const double abs_err = std::abs(r1 - r2);
       const double rel_err = abs_err / std::max(r1, r2);
       if (abs_err > spiral_abs * 100.0 || (rel_err > 0.001 && abs_err > spiral_abs)) {
@@ -1630,7 +1833,8 @@ class Interpreter {
       fail(g_name(code) + " is not supported; use G73 G81 G82 G83 G85 G89");
     }
     if (feed_ == 0.0) fail("canned cycle " + g_name(code) + " with zero feed rate; add F");
-    if (feed_mode_ == FeedMode::inverse_time) fail("canned cycle in inverse time mode (G93); use G94");
+    if (feed_mode_ == FeedMode::inverse_time)
+      fail("canned cycle in inverse time mode (G93); use G94");
     const PlaneAxes ax = plane_axes(plane_);
     const char depth_word = static_cast<char>('x' + ax.axis);
     double r_val = 0.0;
@@ -1644,24 +1848,30 @@ class Interpreter {
     long repeats = 1;
     if (b.has('l')) {
       const double l = b.v('l');
-      if (l < 1 || l > 100000 || l != std::floor(l)) fail("cycle L" + fmt_num(l) + " must be a whole number from 1 to 100000");
+      if (l < 1 || l > 100000 || l != std::floor(l))
+        fail("cycle L" + fmt_num(l) + " must be a whole number from 1 to 100000");
       repeats = static_cast<long>(l);
     }
     if (motion_mode_ != code && !b.has(depth_word)) {
-      fail(g_name(code) + " without " + std::string(1, static_cast<char>(std::toupper(depth_word))) +
+      fail(g_name(code) + " without " +
+           std::string(1, static_cast<char>(std::toupper(depth_word))) +
            " (the bottom) the first time; add it");
     }
     const double depth_val = b.has(depth_word) ? len_word(b, depth_word) : cycle_cc_;
     double p_val = 0.0, q_val = 0.0;
     if (code == 820 || code == 890) {
-      if (!b.has('p') && motion_mode_ != code) fail(g_name(code) + " without P (dwell) the first time; add P");
+      if (!b.has('p') && motion_mode_ != code)
+        fail(g_name(code) + " without P (dwell) the first time; add P");
       p_val = b.has('p') ? b.v('p') : cycle_p_;
-      if (p_val < 0 || p_val > kMaxDwellS) fail("dwell P" + fmt_num(p_val) + " must be from 0 to " + fmt_num(kMaxDwellS) + " s");
+      if (p_val < 0 || p_val > kMaxDwellS)
+        fail("dwell P" + fmt_num(p_val) + " must be from 0 to " + fmt_num(kMaxDwellS) + " s");
     }
     if (code == 730 || code == 830) {
-      if (!b.has('q') && motion_mode_ != code) fail(g_name(code) + " without Q (peck) the first time; add Q");
+      if (!b.has('q') && motion_mode_ != code)
+        fail(g_name(code) + " without Q (peck) the first time; add Q");
       q_val = b.has('q') ? len_word(b, 'q') : cycle_q_;
-      if (q_val <= 0.0) fail(g_name(code) + " Q" + fmt_num(q_val / k()) + ": the peck must be positive");
+      if (q_val <= 0.0)
+        fail(g_name(code) + " Q" + fmt_num(q_val / k()) + ": the peck must be positive");
     }
     if (b.has('p') && code != 820 && code != 890) {
       // LinuxCNC ignores P there; so do we, silently as it does.
@@ -1690,7 +1900,9 @@ class Interpreter {
       r = r_val + old_cc;
       cc = r + depth_val;
     }
-    if (r < cc) fail("the R plane is below the bottom of the " + g_name(code) + " cycle; R must be above " + std::string(1, static_cast<char>(std::toupper(depth_word))));
+    if (r < cc)
+      fail("the R plane is below the bottom of the " + g_name(code) + " cycle; R must be above " +
+           std::string(1, static_cast<char>(std::toupper(depth_word))));
     const auto at = [&](double a1, double b1, double c1) {
       Vec3 p;
       p[ax.first] = a1;
@@ -1737,7 +1949,8 @@ class Interpreter {
         case 830: {
           long pecks = 0;
           for (double d = r - q_val; d > cc; d -= q_val) {
-            if (++pecks > 100000) fail("peck Q is too small for the depth: more than 100000 pecks; increase Q");
+            if (++pecks > 100000)
+              fail("peck Q is too small for the depth: more than 100000 pecks; increase Q");
             line_to(at(aa, bb, d), false);
             if (code == 830) line_to(at(aa, bb, r), true);
             line_to(at(aa, bb, d + clearance), true);
@@ -1773,11 +1986,14 @@ class Interpreter {
   void g10(const Block& b) {
     if (!b.has('l')) fail("G10 without L; use G10 L2 or G10 L20");
     const double l = b.v('l');
-    if (l != 2 && l != 20) fail("G10 L" + fmt_num(l) + " is not supported; use L2 or L20 (tool table edits are not)");
+    if (l != 2 && l != 20)
+      fail("G10 L" + fmt_num(l) + " is not supported; use L2 or L20 (tool table edits are not)");
     if (!b.has('p')) fail("G10 L" + fmt_num(l) + " without P (coordinate system 0-9); add P");
     const double pv = b.v('p');
-    if (pv < 0 || pv > 9 || pv != std::floor(pv)) fail("G10 P" + fmt_num(pv) + ": P must be 0 (current) to 9");
-    if (b.has('r') && b.v('r') != 0.0) fail("G10 R (rotation of the coordinate system) is not supported; remove R");
+    if (pv < 0 || pv > 9 || pv != std::floor(pv))
+      fail("G10 P" + fmt_num(pv) + ": P must be 0 (current) to 9");
+    if (b.has('r') && b.v('r') != 0.0)
+      fail("G10 R (rotation of the coordinate system) is not supported; remove R");
     const int n = pv == 0 ? coord_sys_ : static_cast<int>(pv);
     const int base = 5201 + 20 * n;
     const Vec3 old = g5x();
@@ -1794,7 +2010,8 @@ class Interpreter {
   void home(const Block& b, int base) {
     const Vec3 mid = target(b, false);
     line_to(mid, true);
-    Vec3 home_prog = Vec3(param_len(base), param_len(base + 1), param_len(base + 2)) - total_offset();
+    Vec3 home_prog =
+        Vec3(param_len(base), param_len(base + 1), param_len(base + 2)) - total_offset();
     const bool any = b.has('x') || b.has('y') || b.has('z');
     Vec3 end = mid;
     for (int a = 0; a < 3; ++a) {
@@ -1812,7 +2029,8 @@ class Interpreter {
   }
 
   void g92(const Block& b) {
-    if (!(b.has('x') || b.has('y') || b.has('z'))) fail("G92 without X, Y or Z; give the axes to set");
+    if (!(b.has('x') || b.has('y') || b.has('z')))
+      fail("G92 without X, Y or Z; give the axes to set");
     for (int a = 0; a < 3; ++a) {
       const char c = static_cast<char>('x' + a);
       if (!b.has(c)) continue;
@@ -1836,7 +2054,8 @@ class Interpreter {
     nurbs_.weights.push_back(1.0);
     nurbs_open_ = true;
     if (b.has('p') && !b.has('x') && !b.has('y')) {
-      if (b.v('p') <= 0.0) fail("weight P" + fmt_num(b.v('p')) + " of the first control point must be > 0");
+      if (b.v('p') <= 0.0)
+        fail("weight P" + fmt_num(b.v('p')) + " of the first control point must be > 0");
       nurbs_.weights[0] = b.v('p');
       if (b.has('l')) nurbs_order(b);
       return;
@@ -1854,17 +2073,21 @@ class Interpreter {
   }
 
   void nurbs_point(const Block& b) {
-    if (b.has('z')) fail("Z in a G5.2 block: the NURBS lies in the XY plane at the current Z; move Z before G5.2");
+    if (b.has('z'))
+      fail(
+          "Z in a G5.2 block: the NURBS lies in the XY plane at the current Z; move Z before G5.2");
     if (b.has('l')) nurbs_order(b);
     if (b.has('x') != b.has('y')) fail("a control point needs both X and Y; add the missing one");
     if (!b.has('x')) {
-      if (b.has('p')) fail("P without X and Y is only allowed on the opening G5.2 line; give X and Y");
+      if (b.has('p'))
+        fail("P without X and Y is only allowed on the opening G5.2 line; give X and Y");
       return;
     }
     if (!b.has('p')) fail("control point without a weight; add P (P1 for an ordinary point)");
     if (b.v('p') <= 0.0) fail("weight P" + fmt_num(b.v('p')) + " must be greater than 0");
     Vec3 p(len_word(b, 'x'), len_word(b, 'y'), nurbs_.start.z());
-    if (incremental_) p = Vec3(nurbs_.points.back().x() + p.x(), nurbs_.points.back().y() + p.y(), p.z());
+    if (incremental_)
+      p = Vec3(nurbs_.points.back().x() + p.x(), nurbs_.points.back().y() + p.y(), p.z());
     nurbs_.points.push_back(p);
     nurbs_.weights.push_back(b.v('p'));
   }
@@ -1878,7 +2101,8 @@ class Interpreter {
       return;
     }
     if ((motion_word >= 0 && motion_word != 52) || b.ng > (motion_word >= 0 ? 1 : 0) || b.nm > 0 ||
-        b.has('s') || b.has('t') || b.has('i') || b.has('j') || b.has('k') || b.has('r') || b.has('q')) {
+        b.has('s') || b.has('t') || b.has('i') || b.has('j') || b.has('k') || b.has('r') ||
+        b.has('q')) {
       fail("only X, Y, P, L and F may appear inside the G5.2 block opened at line " +
            std::to_string(nurbs_.line) + "; close the block with G5.3 first");
     }
@@ -1890,23 +2114,28 @@ class Interpreter {
     const std::size_t kk = static_cast<std::size_t>(nurbs_.order);
     const std::size_t count = nurbs_.points.size();
     if (count < kk) {
-      fail("the G5.2 block opened at line " + std::to_string(nurbs_.line) + " has " + std::to_string(count) +
+      fail("the G5.2 block opened at line " + std::to_string(nurbs_.line) + " has " +
+           std::to_string(count) +
            " control points (the start included), fewer than its order L = " + std::to_string(kk) +
            "; add control points or lower L");
     }
     const std::size_t n = count - 1;
     std::vector<double> knots(n + kk + 1);
     for (std::size_t i = 0; i <= n + kk; ++i) {
-      knots[i] = i < kk ? 0.0 : i <= n ? static_cast<double>(i - kk + 1) : static_cast<double>(n - kk + 2);
+      knots[i] = i < kk   ? 0.0
+                 : i <= n ? static_cast<double>(i - kk + 1)
+                          : static_cast<double>(n - kk + 2);
     }
     std::vector<Vec3> pts;
     for (const Vec3& p : nurbs_.points) pts.push_back(p / k());
     Motion m = base_motion(false);
     m.start = nurbs_.start / k();
     try {
-      m.geometry = NurbsMove{NurbsCurve(nurbs_.order - 1, std::move(knots), std::move(pts), nurbs_.weights)};
+      m.geometry =
+          NurbsMove{NurbsCurve(nurbs_.order - 1, std::move(knots), std::move(pts), nurbs_.weights)};
     } catch (const InputError& e) {
-      fail("the G5.2 block opened at line " + std::to_string(nurbs_.line) + " is not a valid NURBS: " + e.what());
+      fail("the G5.2 block opened at line " + std::to_string(nurbs_.line) +
+           " is not a valid NURBS: " + e.what());
     }
     m.src = SourceRef{static_cast<int>(cur_file_), nurbs_.line};
     Step st;
@@ -1978,7 +2207,7 @@ class Interpreter {
   Vec3 tool_offset_{0, 0, 0};
   int coord_sys_ = 1;
   Vec3 g92_{0, 0, 0};
-  int motion_mode_ = -1;  // none, as LinuxCNC starts
+  int motion_mode_ = -1;   // none, as LinuxCNC starts
   bool retract_r_ = true;  // G99, as rs274 starts
   double cycle_r_ = 0.0, cycle_cc_ = 0.0, cycle_p_ = 0.0, cycle_q_ = 0.0, cycle_il_ = 0.0;
   bool cycle_il_known_ = false;
@@ -1989,7 +2218,8 @@ class Interpreter {
 
 }  // namespace
 
-Program interpret_ngc(const std::string& text, const std::string& name, const InterpretOptions& options) {
+Program interpret_ngc(const std::string& text, const std::string& name,
+                      const InterpretOptions& options) {
   Interpreter in(options);
   try {
     Program p = in.run(text, name);

@@ -15,11 +15,11 @@ struct InterpretOptions {
   // Units of the tool table, the parameter file and the stored positions (LinuxCNC's machine
   // units). LinuxCNC's standalone `rs274` uses inches; a metric machine uses mm.
   Units machine_units = Units::mm;
-  std::string tool_table;      // LinuxCNC tool.tbl; empty: no tools (T0 only)
-  std::string parameter_file;  // LinuxCNC .var; empty: all parameters start at 0
+  std::string tool_table;                    // LinuxCNC tool.tbl; empty: no tools (T0 only)
+  std::string parameter_file;                // LinuxCNC .var; empty: all parameters start at 0
   std::vector<std::string> subroutine_path;  // folders searched for o<name> call → name.ngc
-  bool block_delete = false;  // true: lines starting with '/' are skipped (rs274 -b)
-  long max_blocks = 20'000'000;  // executed blocks before a runaway loop is reported
+  bool block_delete = false;                 // true: lines starting with '/' are skipped (rs274 -b)
+  long max_blocks = 20'000'000;              // executed blocks before a runaway loop is reported
 };
 
 // Interprets a whole program; `name` (a file name) prefixes every error message and becomes

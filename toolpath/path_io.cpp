@@ -256,8 +256,7 @@ class JsonReader {
 
 }  // namespace
 
-Path read_path_text(const std::string& text, const std::string& name,
-                    const InterpretOptions& ngc) {
+Path read_path_text(const std::string& text, const std::string& name, const InterpretOptions& ngc) {
   const std::size_t first = text.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) {
     throw InputError(name + ": the file is empty; give a chamfer JSON, a JSON path or G-code");

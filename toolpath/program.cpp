@@ -11,6 +11,7 @@
 #include "toolpath/program.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 
@@ -134,7 +135,8 @@ namespace {
 constexpr double kMinMoveMm = 1e-9;  // shorter moves add no geometry (see docs)
 
 // The arc in machine mm as one degree-2 NURBS, see the top of this file.
-NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
+NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm,
+                     const std::string& where_arc) {
   const double k = mm_per_unit(m.units);
   const PlaneAxes ax = plane_axes(arc.plane);
   const ArcGeometry g = arc_geometry(m.start, arc);
@@ -154,7 +156,9 @@ NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
     return p;
   };
   // Exact point at fraction f of the sweep.
-  const auto exact = [&](double f) { return point(r0 + (r1 - r0) * f, a0 + sweep * f, h0 + rise * f); };
+  const auto exact = [&](double f) {
+    return point(r0 + (r1 - r0) * f, a0 + sweep * f, h0 + rise * f);
+  };
   int pieces = std::max(1, static_cast<int>(std::ceil(std::abs(sweep) / (kPi / 2.0) - 1e-12)));
   for (;;) {
     std::vector<Vec3> pts;
@@ -177,7 +181,7 @@ NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
     pts.back() = (arc.end + m.offset) * k;  // the programmed end, not its recomputation
     NurbsCurve curve(2, knots, pts, w);
     const bool exact_circle = rise == 0.0 && r0 == r1;
-    if (exact_circle || pieces >= (1 << 16)) return curve;
+    if (exact_circle) return curve;
     // Deviation from the exact spiral-helix: the angle of each sampled point says where on it
     // the point should be.
     double dev = 0.0;
@@ -192,6 +196,11 @@ NurbsCurve arc_nurbs(const Motion& m, const ArcMove& arc, double tol_mm) {
       }
     }
     if (dev <= tol_mm) return curve;
+    if (pieces >= (1 << 16)) {
+      throw InputError(where_arc + ": the helix deviates " + std::to_string(dev * 1e3) +
+                       " um from its rational-quadratic form even in 65536 pieces; split it into "
+                       "shorter arcs");
+    }
     pieces *= 2;
   }
 }
@@ -204,8 +213,9 @@ NurbsCurve to_machine(const NurbsCurve& c, const Vec3& offset, double k) {
 }
 
 std::string where(const Program& p, const SourceRef& s) {
-  const std::string file =
-      s.file >= 0 && static_cast<std::size_t>(s.file) < p.files.size() ? p.files[static_cast<std::size_t>(s.file)] : "?";
+  const std::string file = s.file >= 0 && static_cast<std::size_t>(s.file) < p.files.size()
+                               ? p.files[static_cast<std::size_t>(s.file)]
+                               : "?";
   return file + ":" + std::to_string(s.line);
 }
 
@@ -263,8 +273,8 @@ Path to_path(const Program& program, const ToPathOptions& options) {
       const Vec3 end_mm = (line->end + m.offset) * k;
       if (open && !stop_pending) {
         PathSegment& last = path.segments.back();
-        if (last.rapid == m.rapid && last.feed_mm_per_min == feed &&
-            last.spindle_rpm == spindle && m.feed_mode == FeedMode::per_minute) {
+        if (last.rapid == m.rapid && last.feed_mm_per_min == feed && last.spindle_rpm == spindle &&
+            m.feed_mode == FeedMode::per_minute) {
           std::get<Polyline>(last.geometry).points.push_back(end_mm);
           continue;
         }
@@ -275,7 +285,7 @@ Path to_path(const Program& program, const ToPathOptions& options) {
       open = m.feed_mode == FeedMode::per_minute;
     } else if (const auto* arc = std::get_if<ArcMove>(&m.geometry)) {
       PathSegment seg;
-      seg.geometry = arc_nurbs(m, *arc, options.helix_tolerance_mm);
+      seg.geometry = arc_nurbs(m, *arc, options.helix_tolerance_mm, where(program, m.src));
       path.segments.push_back(std::move(seg));
       open = false;
     } else if (const auto* nm = std::get_if<NurbsMove>(&m.geometry)) {
@@ -320,9 +330,10 @@ const char* plane_name(Plane p) {
 
 // Six decimals, trailing zeros trimmed to one digit after the point, no "-0.0".
 std::string num(double v) {
-  char buf[64];
-  int n = std::snprintf(buf, sizeof buf, "%.6f", v);
-  if (n <= 0 || n >= static_cast<int>(sizeof buf)) return "nan";
+  char buf[400];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 6);
+  if (r.ec != std::errc()) return "nan";
+  auto n = r.ptr - buf;
   while (n > 2 && buf[n - 1] == '0' && buf[n - 2] != '.') --n;
   if (n == 4 && buf[0] == '-' && buf[1] == '0' && buf[3] == '0') return "0.0";
   return std::string(buf, static_cast<std::size_t>(n));
@@ -337,8 +348,8 @@ std::string xyz(const Vec3& p) {
 void write_canonical(std::ostream& out, const Program& program) {
   for (const Step& step : program.steps) {
     const std::size_t f = static_cast<std::size_t>(step.src.file);
-    out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':'
-        << step.src.line << ' ';
+    out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':' << step.src.line
+        << ' ';
     if (const auto* m = std::get_if<Motion>(&step.item)) {
       std::visit(
           [&](const auto& g) {
@@ -351,8 +362,8 @@ void write_canonical(std::ostream& out, const Program& program) {
                   << xyz(g.centre) << " turns " << g.turns << " radius " << num(a.radius)
                   << " sweep_deg " << num(rad_to_deg(a.sweep_rad)) << " rise " << num(a.rise);
             } else if constexpr (std::is_same_v<T, NurbsMove>) {
-              out << "NURBS degree " << g.curve.degree() << " points "
-                  << g.curve.points().size() << " end " << xyz(g.curve.points().back());
+              out << "NURBS degree " << g.curve.degree() << " points " << g.curve.points().size()
+                  << " end " << xyz(g.curve.points().back());
             } else {
               out << "POLYLINE points " << g.polyline.points.size() << " end "
                   << xyz(g.polyline.points.empty() ? m->start : g.polyline.points.back());
@@ -363,7 +374,8 @@ void write_canonical(std::ostream& out, const Program& program) {
         out << (m->feed_mode == FeedMode::inverse_time ? " F1/min " : " F") << num(m->feed);
       }
       out << ' ' << units_name(m->units);
-      if (m->spindle != SpindleDir::off) out << " S" << num(m->spindle_rpm) << ' ' << spindle_name(m->spindle);
+      if (m->spindle != SpindleDir::off)
+        out << " S" << num(m->spindle_rpm) << ' ' << spindle_name(m->spindle);
       if (m->tool != 0) out << " T" << m->tool;
       if (!m->start_known) out << " from-unknown-position";
       out << '\n';
@@ -386,7 +398,7 @@ void write_canonical(std::ostream& out, const Program& program) {
           } else if constexpr (std::is_same_v<T, StopEvent>) {
             out << (e.kind == StopKind::program_stop    ? "STOP M0"
                     : e.kind == StopKind::optional_stop ? "OPTIONAL_STOP M1"
-                                                         : "PALLET_SHUTTLE M60");
+                                                        : "PALLET_SHUTTLE M60");
           } else if constexpr (std::is_same_v<T, EndEvent>) {
             out << "END M" << e.m;
           } else if constexpr (std::is_same_v<T, MessageEvent>) {

@@ -19,10 +19,10 @@
 
 namespace ncd::toolpath {
 
-enum class Units { mm, inch };                 // G21, G20
-enum class Plane { xy, xz, yz };               // G17, G18, G19
+enum class Units { mm, inch };                     // G21, G20
+enum class Plane { xy, xz, yz };                   // G17, G18, G19
 enum class FeedMode { per_minute, inverse_time };  // G94, G93
-enum class SpindleDir { off, cw, ccw };        // M5, M3, M4
+enum class SpindleDir { off, cw, ccw };            // M5, M3, M4
 
 constexpr double kMmPerInch = 25.4;
 inline double mm_per_unit(Units u) {
@@ -70,8 +70,8 @@ struct Motion {
   SpindleDir spindle = SpindleDir::off;
   double spindle_rpm = 0.0;  // programmed S
   int tool = 0;              // tool in the spindle
-  Vec3 offset{0, 0, 0};  // program → machine: work offset + G92 + tool length, program units
-  bool start_known = true;  // false until X, Y and Z have all been programmed (or homed)
+  Vec3 offset{0, 0, 0};      // program → machine: work offset + G92 + tool length, program units
+  bool start_known = true;   // false until X, Y and Z have all been programmed (or homed)
   SourceRef src;
 };
 
@@ -113,9 +113,8 @@ struct UnitsEvent {
   Units units = Units::mm;
 };
 
-using Event = std::variant<SpindleEvent, CoolantEvent, DwellEvent, ToolChangeEvent,
-                           ToolOffsetEvent, StopEvent, EndEvent, MessageEvent, PathControlEvent,
-                           UnitsEvent>;
+using Event = std::variant<SpindleEvent, CoolantEvent, DwellEvent, ToolChangeEvent, ToolOffsetEvent,
+                           StopEvent, EndEvent, MessageEvent, PathControlEvent, UnitsEvent>;
 
 struct Step {
   std::variant<Motion, Event> item;

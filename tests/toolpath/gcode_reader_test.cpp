@@ -4,7 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <string>
 
@@ -284,12 +289,71 @@ TEST(GcodeReader, ArcsBecomeExactNurbs) {
   }
 }
 
+// Found by the fuzzer (tests/fuzz/ngc_interpreter_fuzz.cpp): an O-word number too long for a
+// long integer, and labels with leading zeros, which name the same label.
+TEST(GcodeReader, LongAndZeroPaddedOWordNumbers) {
+  const std::string digits(300, '9');
+  expect_error("G0 X0 Y0 Z0\no" + digits + " repeat [2]\nG0 X1\n",
+               "test.ngc:2:", "is not closed before the end of the file");
+  const Path p = read("G21 G0 X0 Y0 Z0\no010 repeat [2]\nG91 G0 X1\no10 endrepeat\nM2\n");
+  ASSERT_EQ(p.segments.size(), 1u);
+  EXPECT_EQ(polyline(p, 0).points, (std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}));
+}
+
+// Events in the path: those that need the machine at rest mark the next segment; coolant does
+// not. Path control and its tolerances go to the segments in mm; inch moves become mm; an
+// inverse-time feed becomes mm/min (F × length).
+TEST(GcodeReader, EventsPathControlInchAndInverseTime) {
+  const std::string tools = (std::filesystem::temp_directory_path() /
+                             ("gcode_reader_tools_" + std::to_string(::getpid()) + ".tbl"))
+                                .string();
+  std::ofstream(tools) << "T3 P3 Z1 D6\n";
+  InterpretOptions opt;
+  opt.tool_table = tools;
+  std::istringstream in(
+      "G21 G90 G0 X0 Y0 Z0\n"     // 1
+      "G1 X1 F100\n"              // 2  seg 0
+      "M8\n"                      // 3  coolant: no stop
+      "G1 X2\n"                   // 4  (same segment)
+      "M0\n"                      // 5
+      "G1 X3\n"                   // 6  seg 1: stop before
+      "S1000 M3\n"                // 7
+      "G1 X4\n"                   // 8  seg 2: stop before (spindle starts)
+      "G4 P1\n"                   // 9
+      "G1 X5\n"                   // 10 seg 3: stop before (dwell)
+      "T3 M6\n"                   // 11
+      "G1 X6\n"                   // 12 seg 4: stop before (tool change stops the spindle)
+      "G20 G64 P0.001 Q0.0005\n"  // 13
+      "G1 X1 F10\n"               // 14 seg 5: inch, 25.4 mm, 254 mm/min, G64 P in mm
+      "G61.1 G93 G1 X2 F3\n"      // 15 seg 6: exact stop, 25.4 mm × 3/min
+      "M2\n");
+  const Path p = read_gcode(in, "events.ngc", opt);
+  std::remove(tools.c_str());
+  ASSERT_EQ(p.segments.size(), 7u);
+  const std::vector<bool> stops = {false, true, true, true, true, false, false};
+  for (std::size_t i = 0; i < stops.size(); ++i) {
+    EXPECT_EQ(p.segments[i].stop_before, stops[i]) << "segment " << i;
+  }
+  EXPECT_EQ(polyline(p, 0).points.size(), 3u);  // the coolant change did not split it
+  EXPECT_FALSE(p.segments[4].spindle_rpm);      // M6 stopped the spindle
+  const PathSegment& inch = p.segments[5];
+  EXPECT_EQ(polyline(p, 5).points.back(), Vec3(25.4, 0, 0));
+  EXPECT_NEAR(*inch.feed_mm_per_min, 254.0, 1e-9);
+  EXPECT_EQ(inch.path_control, PathControl::blend);
+  EXPECT_NEAR(*inch.blend_tolerance_mm, 0.0254, 1e-15);
+  EXPECT_NEAR(*inch.smoothing_tolerance_mm, 0.0127, 1e-15);
+  const PathSegment& inverse = p.segments[6];
+  EXPECT_EQ(inverse.path_control, PathControl::exact_stop);
+  EXPECT_NEAR(*inverse.feed_mm_per_min, 25.4 * 3.0, 1e-9);
+}
+
 TEST(GcodeReader, ErrorQuotesTheLineText) {
   try {
     read("G0 X0 Y0 Z0\nF100\nG1 X1 Q7 (bad)\n");
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("test.ngc:3: Q7 with no code that uses it"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("test.ngc:3: Q7 with no code that uses it"),
+              std::string::npos)
         << e.what();
     EXPECT_NE(std::string(e.what()).find("(line: \"G1 X1 Q7 (bad)\")"), std::string::npos)
         << e.what();

@@ -187,8 +187,8 @@ std::vector<Item> items_of(const Program& p) {
   bool mist = false, flood = false;
   std::string control = "G64 P0";
   for (const Step& st : p.steps) {
-    const std::string where = p.files.at(static_cast<std::size_t>(st.src.file)) + ":" +
-                              std::to_string(st.src.line);
+    const std::string where =
+        p.files.at(static_cast<std::size_t>(st.src.file)) + ":" + std::to_string(st.src.line);
     if (const auto* m = std::get_if<Motion>(&st.item)) {
       Item it;
       // rs274 passes an inverse-time feed on as units per minute: F × the move's length.
@@ -206,8 +206,12 @@ std::vector<Item> items_of(const Program& p) {
         const PlaneAxes ax = plane_axes(a->plane);
         it.kind = "arc";
         it.text = a->plane == Plane::xz ? "G18" : a->plane == Plane::yz ? "G19" : "G17";
-        it.nums = {a->end[ax.first],    a->end[ax.second],           a->centre[ax.first],
-                   a->centre[ax.second], static_cast<double>(a->turns), a->end[ax.axis]};
+        it.nums = {a->end[ax.first],
+                   a->end[ax.second],
+                   a->centre[ax.first],
+                   a->centre[ax.second],
+                   static_cast<double>(a->turns),
+                   a->end[ax.axis]};
       } else {
         it.kind = "nurbs";
       }
@@ -292,8 +296,8 @@ std::string compare(const std::vector<Item>& lc, const std::vector<Item>& ncd) {
     }
   }
   if (lc.size() != ncd.size()) {
-    return "rs274 has " + std::to_string(lc.size()) + " items, ncd " +
-           std::to_string(ncd.size()) + "; first extra: " +
+    return "rs274 has " + std::to_string(lc.size()) + " items, ncd " + std::to_string(ncd.size()) +
+           "; first extra: " +
            (lc.size() > n ? "rs274 " + describe(lc[n]) : "ncd " + describe(ncd[n]));
   }
   return {};
@@ -324,8 +328,9 @@ class Conformance : public ::testing::Test {
     std::ofstream(dir_ / "p.var") << kVarFile;
     const fs::path out = dir_ / "out.txt", log = dir_ / "log.txt";
     fs::remove(out);
-    const std::string cmd = "cd '" + dir_.string() + "' && printf '\\n\\n\\n' | timeout 60 " + kRs274 +
-                            " -t tool.tbl -v p.var -g '" + program.string() + "' out.txt > log.txt 2>&1";
+    const std::string cmd = "cd '" + dir_.string() + "' && printf '\\n\\n\\n' | timeout 60 " +
+                            kRs274 + " -t tool.tbl -v p.var -g '" + program.string() +
+                            "' out.txt > log.txt 2>&1";
     const int rc = std::system(cmd.c_str());
     std::ifstream o(out), l(log);
     std::stringstream os, ls;
@@ -383,15 +388,29 @@ TEST_F(Conformance, LinuxCncSamplesMatchOrAreRefused) {
     const Outcome o = run(f);
     std::string first_line = o.detail.substr(0, o.detail.find('\n'));
     switch (o.kind) {
-      case Outcome::match: ++matched; table << "  match      " << f.filename().string() << "\n"; break;
-      case Outcome::refused: ++refused; table << "  refused    " << f.filename().string() << ": " << first_line << "\n"; break;
-      case Outcome::rs274_error: ++rs_err; table << "  rs274-error " << f.filename().string() << ": " << first_line << "\n"; break;
-      case Outcome::mismatch: ++mismatched; table << "  MISMATCH   " << f.filename().string() << ": " << o.detail << "\n"; break;
+      case Outcome::match:
+        ++matched;
+        table << "  match      " << f.filename().string() << "\n";
+        break;
+      case Outcome::refused:
+        ++refused;
+        table << "  refused    " << f.filename().string() << ": " << first_line << "\n";
+        break;
+      case Outcome::rs274_error:
+        ++rs_err;
+        table << "  rs274-error " << f.filename().string() << ": " << first_line << "\n";
+        break;
+      case Outcome::mismatch:
+        ++mismatched;
+        table << "  MISMATCH   " << f.filename().string() << ": " << o.detail << "\n";
+        break;
     }
     EXPECT_NE(o.kind, Outcome::mismatch) << f.filename() << ": " << o.detail;
   }
-  std::printf("LinuxCNC samples: %d match, %d refused by ncd, %d refused by rs274 but read by ncd, %d mismatch\n%s",
-              matched, refused, rs_err, mismatched, table.str().c_str());
+  std::printf(
+      "LinuxCNC samples: %d match, %d refused by ncd, %d refused by rs274 but read by ncd, %d "
+      "mismatch\n%s",
+      matched, refused, rs_err, mismatched, table.str().c_str());
 }
 
 }  // namespace
