@@ -84,7 +84,13 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
             {"blocks_executed",
              r.blocks_executed >= 0 ? nlohmann::json(r.blocks_executed) : nlohmann::json(nullptr)},
             {"execution_basis", r.execution_basis},
-            {"first_block_not_known_executed", r.blocks_confirmed + 1},
+            // Drip knows no executed block; the journal's point is then the first block not
+            // known delivered.
+            {"first_block_not_known_executed",
+             r.blocks_executed >= 0 ? r.blocks_confirmed + 1 : r.first_block + 1},
+            {"first_block_not_known_delivered",
+             r.blocks_executed >= 0 ? nlohmann::json(nullptr)
+                                    : nlohmann::json(r.blocks_confirmed + 1)},
             {"interrupted", r.interrupted},
             {"dropped", r.dropped},
             {"reconnects", r.reconnects},
@@ -202,6 +208,21 @@ int run_stream(const StreamArgs& a) {
         throw InputError("the journal " + journal_path +
                          " belongs to a different program (its checksum differs): pass "
                          "--restart to send this program from the start, or --journal FILE");
+      }
+      if (a.resume && ack) {
+        throw InputError(
+            "--resume with --protocol ack: grbl kept executing the blocks it had queued after "
+            "ncd stopped, so sending from the journal's block " +
+            std::to_string(previous->confirmed + 1) +
+            " could repeat them; check the machine, then use --restart-from N");
+      }
+      if (a.resume && !a.skips_repeated_n) {
+        throw InputError(
+            "--resume on a drip-feed link: the journal's block " +
+            std::to_string(previous->confirmed + 1) +
+            " is the first the controller surely lacks, but it may have received more, and it "
+            "would run them twice; pass --controller-skips-repeated-n if its manual says it "
+            "discards repeated N numbers, or check the machine and use --restart-from N");
       }
       if (!a.resume) {
         throw InputError("a transfer of " + a.program + " stopped at block " +

@@ -338,6 +338,7 @@ class Session {
           return;
         }
         report_.startup = "banner";
+        track_ok_ = true;  // the banner that opens the job, not a reset in it
         emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
         phase_ = Phase::Ready;
       } else if (line == "ok" && woke_) {
@@ -849,7 +850,6 @@ class Session {
       const std::int64_t index = next_index_++;
       ++report_.blocks;
       report_.program_bytes += static_cast<std::int64_t>(text.size() + 1);
-      if (!starts_with_n_word(text)) numbered_ = false;
       const BlockMotion geo = modal_.apply(text);
       if (index < skip_until_) continue;
       Item it;
@@ -994,11 +994,16 @@ class Session {
                "proves which blocks it has");
       return;
     }
-    if (!s_.controller_skips_repeated_n || !numbered_) {
+    // The blocks that would go again must carry N, or the controller cannot tell them.
+    bool window_numbered = true;
+    for (std::size_t i = 0; i < items_.size() && i <= sent_items_; ++i) {
+      if (items_[i].index >= 0 && !items_[i].n) window_numbered = false;
+    }
+    if (!s_.controller_skips_repeated_n || !window_numbered) {
       interrupt(why + ": a drip-feed controller executes what it receives and says nothing, so "
                       "which blocks arrived cannot be told, and a block sent again would run "
                       "twice" +
-                std::string(numbered_ ? "" : " (the blocks carry no N numbers)"));
+                std::string(window_numbered ? "" : " (blocks to resend carry no N number)"));
       return;
     }
     // Everything still in the window goes again, except the opening framing.
@@ -1141,7 +1146,6 @@ class Session {
   ProgramModal modal_;
   bool source_done_ = false;
   bool source_waiting_ = false;
-  bool numbered_ = true;
   std::int64_t noise_events_ = 0;
   bool xon_ = true;
   double xoff_since_s_ = 0.0;
