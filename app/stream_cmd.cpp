@@ -85,10 +85,10 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
              r.blocks_executed >= 0 ? nlohmann::json(r.blocks_executed) : nlohmann::json(nullptr)},
             {"execution_basis", r.execution_basis},
             // Drip knows no executed block; the journal's point is then the first block not
-            // known delivered.
+            // sent (carried by the line): whether the blocks before it arrived is not known.
             {"first_block_not_known_executed",
              r.blocks_executed >= 0 ? r.blocks_confirmed + 1 : r.first_block + 1},
-            {"first_block_not_known_delivered",
+            {"first_block_not_sent",
              r.blocks_executed >= 0 ? nlohmann::json(nullptr)
                                     : nlohmann::json(r.blocks_confirmed + 1)},
             {"interrupted", r.interrupted},
@@ -316,8 +316,8 @@ int run_stream(const StreamArgs& a) {
     return 0;
   }
   if (r.stopped) {
-    std::cout << "stopped; the first block not known " << (ack ? "executed" : "delivered")
-              << " is " << r.blocks_confirmed + 1
+    std::cout << "stopped; the first block not known " << (ack ? "executed" : "sent") << " is "
+              << r.blocks_confirmed + 1
               << (journal_path.empty() ? "" : "; resume with --resume (journal " + journal_path + ")")
               << "\n";
   } else {

@@ -48,7 +48,7 @@
 // xoff_timeout_s is reported and raises the hold callback, which a live job uses to bring the
 // motion to a planned stop. NAK or SYN (drip) stop the transfer with the block named. Other
 // bytes are noise: counted, logged, ignored. The journal records the first block not known
-// executed (ack) or delivered (drip), so a restarted ncd resumes there.
+// executed (ack) or sent (drip: carried by the line), so a restarted ncd resumes there.
 #include "comms/dnc_sender.hpp"
 
 #include <algorithm>
@@ -769,8 +769,8 @@ class Session {
               "; not resuming: check the machine, then restart with --restart-from " +
               std::to_string(first + 1);
     } else {
-      where = "; first block not known delivered: " + std::to_string(first + 1) +
-              " (executed blocks are not known on this link)";
+      where = "; first block not sent: " + std::to_string(first + 1) +
+              " (which blocks arrived and executed is not known on this link)";
     }
     report_.failure = why + where;
   }
@@ -955,7 +955,7 @@ class Session {
     return std::max(next_index_, skip_until_);
   }
 
-  // The first block not known executed (ack) or delivered (drip).
+  // The first block not known executed (ack) or sent (drip).
   std::int64_t first_unexecuted() const {
     if (ack_ && status_known()) {
       for (const Item& it : queued_) {

@@ -81,7 +81,7 @@ struct SenderReport {
   std::int64_t first_block = 0;       // resumed from this block (journal)
   std::int64_t blocks = 0;            // program blocks taken from the source
   std::int64_t blocks_confirmed = 0;  // resume point at the end: the first block not known
-                                      // executed (ack) or delivered (drip), 0-based
+                                      // executed (ack) or sent (drip), 0-based
   std::int64_t blocks_sent = 0;       // program blocks written in full at least once
   std::int64_t blocks_queued = 0;     // ack: answered ok (queued by the controller)
   std::int64_t blocks_executed = -1;  // ack with status: known executed; -1 not known (drip)
