@@ -1067,8 +1067,10 @@ struct SimController::Impl {
         send(noise);
         log.noise_bytes_sent += noise.size();
       }
-      next_noise = t + std::exponential_distribution<>(
-                           f.noise_bytes_per_s / static_cast<double>(n + (drip ? 0 : 2)))(rng);
+      // From the last due time, not from now: a late loop catches up instead of thinning out.
+      next_noise = std::max(next_noise, t - 1.0) +
+                   std::exponential_distribution<>(
+                       f.noise_bytes_per_s / static_cast<double>(n + (drip ? 0 : 2)))(rng);
     }
   }
 

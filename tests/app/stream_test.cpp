@@ -250,6 +250,30 @@ TEST_F(Stream, LinkCutWithTheControllerRunningRunsNoBlockTwice) {
   }
 }
 
+// A link cut while grbl is moving with a full planner: on reconnecting ncd holds it (`!`), finds
+// the move under way from the position, counts the moves its planner holds (Bf:), resends only
+// what the cut lost, and resumes (`~`).
+TEST_F(Stream, AckLinkCutWhileMovingResumesFromTheHeldPosition) {
+  const std::string prog = write("slow.ngc", slow_program(80));
+  auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack --drop-link-after-blocks 40 "
+                        "--down-s 0.5");
+  const auto r = ncd("stream " + prog + " --port " + link_ +
+                     " --baud 115200 --frame 8N1 --protocol ack -q --no-journal --banner-wait 0.3 "
+                     "--reconnect-max 5 --report " + (dir_ / "r.json").string());
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  const auto log = controller_log(*cnc);
+  EXPECT_EQ(log["link_drops"], 1);
+  EXPECT_EQ(log["feed_holds"], 1);
+  EXPECT_EQ(log["cycle_starts"], 1);  // it was held mid-move, then resumed
+  const auto ran = executed(log);
+  const auto blocks = blocks_of(prog);
+  EXPECT_EQ(ran, blocks);  // every block once, in order
+  const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
+  EXPECT_EQ(rep["transfer"]["reconnects"], 1);
+  std::cout << "[ measured ] link cut while moving: " << ran.size() << " of " << blocks.size()
+            << " blocks executed once each; " << rep["blocks_resent"] << " resent\n";
+}
+
 // A controller reset mid-program (power cycle, watchdog): the job is interrupted, names the
 // last block known executed and the first not known executed, and never resumes past it.
 TEST_F(Stream, ControllerResetInterruptsNamingTheBlocks) {
