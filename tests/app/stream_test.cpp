@@ -136,9 +136,10 @@ TEST_F(Stream, AckArrivesByteExactAndExecuted) {
   EXPECT_EQ(crlf.status, 2);
   EXPECT_NE(crlf.err.find("--eob lf"), std::string::npos) << crlf.err;
   auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack");
-  const auto r = ncd("stream " + prog + " --port " + link_ +
-                     " --baud 115200 --frame 8N1 --protocol ack --rx-buffer 128 -q --banner-wait 0.3" +
-                     " --report " + (dir_ / "r.json").string());
+  const auto r =
+      ncd("stream " + prog + " --port " + link_ +
+          " --baud 115200 --frame 8N1 --protocol ack --rx-buffer 128 -q --banner-wait 0.3" +
+          " --report " + (dir_ / "r.json").string());
   EXPECT_EQ(r.status, 0) << r.err;
   const auto log = controller_log(*cnc);
   EXPECT_EQ(log["program_sha256"], sha);
@@ -211,19 +212,18 @@ TEST_F(Stream, LinkCutWithTheControllerRunningRunsNoBlockTwice) {
     std::string protocol, sim_flags, stream_flags;
     int status;
   };
-  for (const Case& k :
-       {Case{"ack", "", "--banner-wait 0.3", 0},
-        Case{"drip", "--skip-duplicate-n", "--controller-skips-repeated-n", 0},
-        Case{"drip", "", "", 3}}) {
+  for (const Case& k : {Case{"ack", "", "--banner-wait 0.3", 0},
+                        Case{"drip", "--skip-duplicate-n", "--controller-skips-repeated-n", 0},
+                        Case{"drip", "", "", 3}}) {
     SCOPED_TRACE(k.protocol + " " + k.sim_flags);
     std::string sha;
     const std::string prog = program(400, 20000, &sha);
     auto cnc = controller("--baud 38400 --frame 7E2 --protocol " + k.protocol +
                           " --drop-link-after-blocks 120 --down-s 1 " + k.sim_flags);
-    const auto r = ncd("stream " + prog + " --port " + link_ +
-                       " --baud 38400 --frame 7E2 -q --no-journal --reconnect-max 5 --protocol " +
-                       k.protocol + " " + k.stream_flags + " --report " +
-                       (dir_ / "r.json").string());
+    const auto r =
+        ncd("stream " + prog + " --port " + link_ +
+            " --baud 38400 --frame 7E2 -q --no-journal --reconnect-max 5 --protocol " + k.protocol +
+            " " + k.stream_flags + " --report " + (dir_ / "r.json").string());
     EXPECT_EQ(r.status, k.status) << r.out << r.err;
     const auto log = k.status == 0 ? controller_log(*cnc) : stopped_log(*cnc);
     EXPECT_EQ(log["link_drops"], 1);
@@ -255,11 +255,13 @@ TEST_F(Stream, LinkCutWithTheControllerRunningRunsNoBlockTwice) {
 // what the cut lost, and resumes (`~`).
 TEST_F(Stream, AckLinkCutWhileMovingResumesFromTheHeldPosition) {
   const std::string prog = write("slow.ngc", slow_program(80));
-  auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack --drop-link-after-blocks 40 "
-                        "--down-s 0.5");
+  auto cnc = controller(
+      "--baud 115200 --frame 8N1 --protocol ack --drop-link-after-blocks 40 "
+      "--down-s 0.5");
   const auto r = ncd("stream " + prog + " --port " + link_ +
                      " --baud 115200 --frame 8N1 --protocol ack -q --no-journal --banner-wait 0.3 "
-                     "--reconnect-max 5 --report " + (dir_ / "r.json").string());
+                     "--reconnect-max 5 --report " +
+                     (dir_ / "r.json").string());
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   const auto log = controller_log(*cnc);
   EXPECT_EQ(log["link_drops"], 1);
@@ -308,8 +310,7 @@ TEST_F(Stream, ControllerResetInterruptsNamingTheBlocks) {
       EXPECT_NE(r.out.find("not known"), std::string::npos) << r.out;
     } else {
       EXPECT_GE(first + 2, n + 1);  // at most one status period (0.2 s, 2 moves) behind
-      EXPECT_NE(r.out.find("--restart-from " + std::to_string(first)), std::string::npos)
-          << r.out;
+      EXPECT_NE(r.out.find("--restart-from " + std::to_string(first)), std::string::npos) << r.out;
     }
   }
 }
@@ -323,15 +324,16 @@ TEST_F(Stream, ErrorReplyLeavesNoLaterBlockExecuted) {
   auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack");
   const auto r = ncd("stream " + prog + " --port " + link_ +
                      " --baud 115200 --frame 8N1 --protocol ack -q --no-journal --banner-wait 0.3 "
-                     "--report " + (dir_ / "r.json").string());
+                     "--report " +
+                     (dir_ / "r.json").string());
   EXPECT_EQ(r.status, 3) << r.err;
   EXPECT_NE(r.out.find("error:20"), std::string::npos) << r.out;
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   const auto log = stopped_log(*cnc);
   const auto ran = executed(log);
   const auto blocks = blocks_of(prog);
-  const auto bad = static_cast<std::size_t>(
-      std::find(blocks.begin(), blocks.end(), "N295 G91 X1") - blocks.begin());
+  const auto bad = static_cast<std::size_t>(std::find(blocks.begin(), blocks.end(), "N295 G91 X1") -
+                                            blocks.begin());
   EXPECT_LT(ran_prefix(ran, blocks), bad);  // nothing at or after the bad block ran
   EXPECT_GE(log["feed_holds"].get<int>(), 1);
   ASSERT_FALSE(log["resets"].empty());
@@ -398,7 +400,8 @@ TEST_F(Stream, KilledSenderResumesFromItsJournal) {
   const auto again = ncd("stream " + prog + " --port " + link_ + " --baud 9600 --frame 7E2 -q");
   EXPECT_EQ(again.status, 2) << again.err;  // an unfinished transfer needs --resume or --restart
   EXPECT_NE(again.err.find("--resume"), std::string::npos) << again.err;
-  const auto unsafe = ncd("stream " + prog + " --port " + link_ + " --baud 9600 --frame 7E2 --resume");
+  const auto unsafe =
+      ncd("stream " + prog + " --port " + link_ + " --baud 9600 --frame 7E2 --resume");
   EXPECT_EQ(unsafe.status, 2) << unsafe.err;  // a controller that runs repeats: not resumed
   EXPECT_NE(unsafe.err.find("--controller-skips-repeated-n"), std::string::npos) << unsafe.err;
   const auto r = ncd("stream " + prog + " --port " + link_ +

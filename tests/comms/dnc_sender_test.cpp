@@ -151,17 +151,16 @@ TEST(ProgramModal, EndPointsAndRestartBlocks) {
   EXPECT_FALSE(m.apply("G4 P1").motion);
   EXPECT_FALSE(m.apply("G28").known);
   const auto lines = restart_blocks(m.state(), 25.4);  // the clearance plane at 1 inch
-  const std::vector<std::string> expect = {
-      "(ncd restart: the modes in force at the restart block)",
-      "G20 G90 G55",
-      "T3 M6",
-      "G43 H3",
-      "G0 Z1",
-      "S12000 M3",
-      "M8",
-      "G0 X2 Y2",
-      "G1 Z0.5 F20",
-      "G91 G1 F20"};
+  const std::vector<std::string> expect = {"(ncd restart: the modes in force at the restart block)",
+                                           "G20 G90 G55",
+                                           "T3 M6",
+                                           "G43 H3",
+                                           "G0 Z1",
+                                           "S12000 M3",
+                                           "M8",
+                                           "G0 X2 Y2",
+                                           "G1 Z0.5 F20",
+                                           "G91 G1 F20"};
   EXPECT_EQ(lines, expect);
   ProgramModal none;
   EXPECT_THROW(restart_blocks(none.state(), 5.0), InputError);  // no feed in force

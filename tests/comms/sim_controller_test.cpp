@@ -685,8 +685,8 @@ TEST(SimController, RepeatedSequenceNumbersRunAgainUnlessTheControllerSkipsThem)
     Protocol protocol;
     bool skip;
   };
-  for (const Case k : {Case{Protocol::Drip, false}, Case{Protocol::Drip, true},
-                       Case{Protocol::Ack, false}}) {
+  for (const Case k :
+       {Case{Protocol::Drip, false}, Case{Protocol::Drip, true}, Case{Protocol::Ack, false}}) {
     SCOPED_TRACE(std::string(k.protocol == Protocol::Drip ? "drip" : "ack") +
                  (k.skip ? " skip" : ""));
     TempDir dir;
@@ -797,11 +797,12 @@ TEST(SimController, AckAnswersOkAndGrblErrors) {
   SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
   Running run(cfg);
   Peer peer(cfg.line.device, run.sim);
-  const std::string long_line = "G1 X1.00000000000000000000 Y2.0000000000000000000 (spaces and "
-                                "comments do not count) Z0.000000000000000000000000000001";
+  const std::string long_line =
+      "G1 X1.00000000000000000000 Y2.0000000000000000000 (spaces and "
+      "comments do not count) Z0.000000000000000000000000000001";
   const std::vector<std::string> lines = {
-      "G21 G90\n", "G1 X1 F6000\n", "G91 X1\n", "G1 X1..2\n", "\n", "$H\n", "G1 Y2\r\n",
-      long_line + "\n", "M30\n"};
+      "G21 G90\n", "G1 X1 F6000\n", "G91 X1\n",       "G1 X1..2\n", "\n",
+      "$H\n",      "G1 Y2\r\n",     long_line + "\n", "M30\n"};
   ASSERT_EQ(grbl_line_chars(long_line), 80);  // one more than grbl keeps
   ASSERT_TRUE(peer.send_ack(lines, cfg.buffer_bytes, 20.0));
   // grbl ends a line at CR and at LF: "G1 Y2\r\n" is a block and an empty line, two oks.
@@ -937,8 +938,7 @@ TEST(SimController, NoiseNeverLooksLikeProtocol) {
     // Time stands still now: read until everything sent has arrived.
     const std::size_t lead = protocol == Protocol::Drip ? 1 : 0;  // DC1: ready
     const auto t0 = Clock::now();
-    while (since(t0) < 30.0 &&
-           peer.received.size() < run.sim.progress().noise_bytes_sent + lead) {
+    while (since(t0) < 30.0 && peer.received.size() < run.sim.progress().noise_bytes_sent + lead) {
       peer.pump();
       std::this_thread::sleep_for(1ms);
     }
@@ -1024,7 +1024,7 @@ TEST(SimController, GrblStatusHoldResumeAndResetInSimulatedTime) {
   ASSERT_EQ(log.resets.size(), 1U);
   EXPECT_TRUE(log.resets[0].in_motion);
   EXPECT_EQ(log.resets[0].aborted, "G1 X20");
-  EXPECT_EQ(log.resets[0].blocks_lost, 1);  // G1 X30
+  EXPECT_EQ(log.resets[0].blocks_lost, 1);                   // G1 X30
   EXPECT_NEAR(log.resets[0].position[0], x_of(run2), 0.05);  // kept where it stopped
   EXPECT_EQ(log.feed_holds, 1);
   EXPECT_EQ(log.cycle_starts, 1);
