@@ -409,6 +409,9 @@ struct SimController::Impl {
       throw std::system_error(errno, std::generic_category(), "pipe2");
     }
     log.config = cfg;
+    // The injected clock's zero is taken here, not in run(): a caller that advances the clock
+    // right after construction must not race the thread that starts run().
+    if (cfg.clock) clock_t0 = cfg.clock->now_s();
   }
 
   ~Impl() {
@@ -1136,7 +1139,6 @@ struct SimController::Impl {
 
   void run() {
     t0 = Clock::now();
-    if (cfg.clock) clock_t0 = cfg.clock->now_s();
     link_event(0.0, "created");  // DC1 (ready) goes to each sender as it connects
     next_storm = uniform(0.05, 0.5);
     if (cfg.faults.noise_bytes_per_s > 0.0) {
