@@ -35,7 +35,7 @@ std::string realtime_reception() {
 struct SimArgs {
   std::string link, log;
   LinkFlags flags;
-  int buffer = 0;  // 0: 256 (drip) or 128 (ack, grbl)
+  int buffer = 0;   // 0: 256 (drip) or 128 (ack, grbl)
   int xoff_at = 0;  // 0: default
   int xon_at = -1;  // -1: default
   int planner_blocks = 15;

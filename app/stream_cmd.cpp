@@ -55,9 +55,10 @@ comms::ModalState state_before(const std::string& path, long n, double& max_z_mm
     const comms::BlockMotion m = modal.apply(text);
     if (!m.known) {
       throw InputError("--restart-from " + std::to_string(n) + ": block " + std::to_string(k) +
-                       " ('" + text + "') moves in a way ncd does not follow (G28, G30, G53, "
-                       "G92), so the position at block " + std::to_string(n) +
-                       " is not known: restart from a block after it");
+                       " ('" + text +
+                       "') moves in a way ncd does not follow (G28, G30, G53, "
+                       "G92), so the position at block " +
+                       std::to_string(n) + " is not known: restart from a block after it");
     }
     if (m.motion) max_z_mm = std::max(max_z_mm, m.to_mm[2]);
   }
@@ -73,52 +74,58 @@ std::string fmt(double v, int decimals) {
 nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettings& line,
                            const std::string& program, const comms::ProgramSummary& sum,
                            const std::string& journal) {
-  return {{"program", program},
-          {"program_summary",
-           {{"path", program}, {"blocks", sum.blocks}, {"bytes", sum.bytes}, {"sha256", sum.sha256}}},
-          {"transfer",
-           {{"first_block", r.first_block + 1},
-            {"blocks_sent", r.blocks_sent},
-            {"blocks_queued", line.protocol == comms::Protocol::Ack ? nlohmann::json(r.blocks_queued)
-                                                                   : nlohmann::json(nullptr)},
-            {"blocks_executed",
-             r.blocks_executed >= 0 ? nlohmann::json(r.blocks_executed) : nlohmann::json(nullptr)},
-            {"execution_basis", r.execution_basis},
-            {"first_block_not_known_executed", r.blocks_confirmed + 1},
-            {"interrupted", r.interrupted},
-            {"dropped", r.dropped},
-            {"reconnects", r.reconnects},
-            {"link_losses", r.link_losses},
-            {"startup", r.startup},
-            {"bytes_before_banner", r.bytes_before_banner},
-            {"status_reports", r.status_reports},
-            {"notes", r.notes}}},
-          {"port", line.device},
-          {"settings", comms::describe(line)},
-          {"chars_per_s", comms::chars_per_s(line)},
-          {"completed", r.completed},
-          {"stopped", r.stopped},
-          {"failure", r.failure},
-          {"first_block", r.first_block},
-          {"blocks", r.blocks},
-          {"blocks_confirmed", r.blocks_confirmed},
-          {"blocks_resent", r.blocks_resent},
-          {"bytes_written", r.bytes_written},
-          {"program_bytes", r.program_bytes},
-          {"program_sha256", r.program_sha256},
-          {"duration_s", r.duration_s},
-          {"link_use", r.link_use},
-          {"xoff_count", r.xoff_count},
-          {"xoff_total_s", r.xoff_total_s},
-          {"xoff_longest_s", r.xoff_longest_s},
-          {"xoff_timeouts", r.xoff_timeouts},
-          {"reconnects", r.reconnects},
-          {"noise_bytes", r.noise_bytes},
-          {"alarms", r.alarms},
-          {"max_output_queue", r.max_output_queue},
-          {"max_queued_estimate", r.max_queued_estimate},
-          {"max_unacked_bytes", r.max_unacked_bytes},
-          {"journal", journal}};
+  return {
+      {"program", program},
+      {"program_summary",
+       {{"path", program}, {"blocks", sum.blocks}, {"bytes", sum.bytes}, {"sha256", sum.sha256}}},
+      {"transfer",
+       {{"first_block", r.first_block + 1},
+        {"blocks_sent", r.blocks_sent},
+        {"blocks_queued", line.protocol == comms::Protocol::Ack ? nlohmann::json(r.blocks_queued)
+                                                                : nlohmann::json(nullptr)},
+        {"blocks_executed",
+         r.blocks_executed >= 0 ? nlohmann::json(r.blocks_executed) : nlohmann::json(nullptr)},
+        {"execution_basis", r.execution_basis},
+        // Drip knows no executed block; the journal's point is then the first block not
+        // sent (carried by the line): whether the blocks before it arrived is not known.
+        {"first_block_not_known_executed",
+         r.blocks_executed >= 0 ? r.blocks_confirmed + 1 : r.first_block + 1},
+        {"first_block_not_sent",
+         r.blocks_executed >= 0 ? nlohmann::json(nullptr) : nlohmann::json(r.blocks_confirmed + 1)},
+        {"interrupted", r.interrupted},
+        {"dropped", r.dropped},
+        {"reconnects", r.reconnects},
+        {"link_losses", r.link_losses},
+        {"startup", r.startup},
+        {"bytes_before_banner", r.bytes_before_banner},
+        {"status_reports", r.status_reports},
+        {"notes", r.notes}}},
+      {"port", line.device},
+      {"settings", comms::describe(line)},
+      {"chars_per_s", comms::chars_per_s(line)},
+      {"completed", r.completed},
+      {"stopped", r.stopped},
+      {"failure", r.failure},
+      {"first_block", r.first_block},
+      {"blocks", r.blocks},
+      {"blocks_confirmed", r.blocks_confirmed},
+      {"blocks_resent", r.blocks_resent},
+      {"bytes_written", r.bytes_written},
+      {"program_bytes", r.program_bytes},
+      {"program_sha256", r.program_sha256},
+      {"duration_s", r.duration_s},
+      {"link_use", r.link_use},
+      {"xoff_count", r.xoff_count},
+      {"xoff_total_s", r.xoff_total_s},
+      {"xoff_longest_s", r.xoff_longest_s},
+      {"xoff_timeouts", r.xoff_timeouts},
+      {"reconnects", r.reconnects},
+      {"noise_bytes", r.noise_bytes},
+      {"alarms", r.alarms},
+      {"max_output_queue", r.max_output_queue},
+      {"max_queued_estimate", r.max_queued_estimate},
+      {"max_unacked_bytes", r.max_unacked_bytes},
+      {"journal", journal}};
 }
 
 int run_stream(const StreamArgs& a) {
@@ -141,9 +148,10 @@ int run_stream(const StreamArgs& a) {
   }
   const bool ack = line.protocol == comms::Protocol::Ack;
   if (ack && line.eob == comms::EndOfBlock::CrLf) {
-    throw InputError("--eob crlf with --protocol ack: grbl ends a line at CR and at LF, so CR LF "
-                     "is a block and an empty line, answered by two oks, and character "
-                     "counting would lose count; use --eob lf");
+    throw InputError(
+        "--eob crlf with --protocol ack: grbl ends a line at CR and at LF, so CR LF "
+        "is a block and an empty line, answered by two oks, and character "
+        "counting would lose count; use --eob lf");
   }
   if (a.status_hz < 0.0 || a.status_hz > 10.0) {
     throw InputError("--status-hz " + fmt(a.status_hz, 2) +
@@ -203,6 +211,21 @@ int run_stream(const StreamArgs& a) {
         throw InputError("the journal " + journal_path +
                          " belongs to a different program (its checksum differs): pass "
                          "--restart to send this program from the start, or --journal FILE");
+      }
+      if (a.resume && ack) {
+        throw InputError(
+            "--resume with --protocol ack: grbl kept executing the blocks it had queued after "
+            "ncd stopped, so sending from the journal's block " +
+            std::to_string(previous->confirmed + 1) +
+            " could repeat them; check the machine, then use --restart-from N");
+      }
+      if (a.resume && !a.skips_repeated_n) {
+        throw InputError(
+            "--resume on a drip-feed link: the journal's block " +
+            std::to_string(previous->confirmed + 1) +
+            " is the first the controller surely lacks, but it may have received more, and it "
+            "would run them twice; pass --controller-skips-repeated-n if its manual says it "
+            "discards repeated N numbers, or check the machine and use --restart-from N");
       }
       if (!a.resume) {
         throw InputError("a transfer of " + a.program + " stopped at block " +
@@ -271,13 +294,14 @@ int run_stream(const StreamArgs& a) {
   const comms::SenderReport r = sender.run(g_stop);
 
   if (!a.report.empty()) {
-    write_output(a.report,
-                 report_json(r, line, a.program, program, journal_path).dump(2) + "\n");
+    write_output(a.report, report_json(r, line, a.program, program, journal_path).dump(2) + "\n");
   }
   // The program, then the transfer: what was sent, queued, executed.
   std::cout << "program: " << program.blocks << " blocks, " << program.bytes << " bytes, sha256 "
             << program.sha256 << "\n";
-  std::cout << (r.completed ? "done: " : r.stopped ? "STOPPED: " : "INTERRUPTED: ")
+  std::cout << (r.completed ? "done: "
+                : r.stopped ? "STOPPED: "
+                            : "INTERRUPTED: ")
             << "from block " << r.first_block + 1 << ", " << r.blocks_sent << " blocks sent";
   if (ack) std::cout << ", " << r.blocks_queued << " queued (ok)";
   if (r.blocks_executed >= 0) {
@@ -296,9 +320,10 @@ int run_stream(const StreamArgs& a) {
     return 0;
   }
   if (r.stopped) {
-    std::cout << "stopped; the first block not known " << (ack ? "executed" : "delivered")
-              << " is " << r.blocks_confirmed + 1
-              << (journal_path.empty() ? "" : "; resume with --resume (journal " + journal_path + ")")
+    std::cout << "stopped; the first block not known " << (ack ? "executed" : "sent") << " is "
+              << r.blocks_confirmed + 1
+              << (journal_path.empty() ? ""
+                                       : "; resume with --resume (journal " + journal_path + ")")
               << "\n";
   } else {
     std::cout << "interrupted: " << r.failure << "\n";

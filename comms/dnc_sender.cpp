@@ -48,15 +48,15 @@
 // xoff_timeout_s is reported and raises the hold callback, which a live job uses to bring the
 // motion to a planned stop. NAK or SYN (drip) stop the transfer with the block named. Other
 // bytes are noise: counted, logged, ignored. The journal records the first block not known
-// executed (ack) or delivered (drip), so a restarted ncd resumes there.
+// executed (ack) or sent (drip: carried by the line), so a restarted ncd resumes there.
 #include "comms/dnc_sender.hpp"
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <charconv>
 #include <deque>
 #include <filesystem>
 #include <memory>
@@ -74,9 +74,9 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using Vec3 = std::array<double, 3>;
 
-constexpr std::int64_t kFraming = -1;  // % and NUL leader
-constexpr std::int64_t kPreamble = -2;  // restart lines
-constexpr std::int64_t kFlush = -3;     // ack: the line grbl must refuse (error:11)
+constexpr std::int64_t kFraming = -1;     // % and NUL leader
+constexpr std::int64_t kPreamble = -2;    // restart lines
+constexpr std::int64_t kFlush = -3;       // ack: the line grbl must refuse (error:11)
 constexpr double kPositionTolMm = 0.002;  // grbl reports 3 decimals
 
 struct Item {
@@ -129,8 +129,8 @@ std::optional<Vec3> axes(std::string_view v) {
     const auto r = std::from_chars(first, part.data() + part.size(), x);
     if (r.ec != std::errc()) return std::nullopt;
     out[k] = x;
-    if (comma == std::string_view::npos) return k == 2 || k == 1 ? std::optional<Vec3>(out)
-                                                                 : std::nullopt;
+    if (comma == std::string_view::npos)
+      return k == 2 || k == 1 ? std::optional<Vec3>(out) : std::nullopt;
     v.remove_prefix(comma + 1);
   }
   return out;
@@ -244,7 +244,8 @@ class Session {
 
   bool done() const {
     if (!source_done_) return false;
-    if (ack_) return phase_ == Phase::Ready && items_.empty() && (queued_.empty() || !status_known());
+    if (ack_)
+      return phase_ == Phase::Ready && items_.empty() && (queued_.empty() || !status_known());
     return std::all_of(items_.begin(), items_.end(), [&](const Item& it) {
       return it.end_mark >= 0.0 && it.end_mark <= delivered();
     });
@@ -338,12 +339,12 @@ class Session {
           return;
         }
         report_.startup = "banner";
+        track_ok_ = true;  // the banner that opens the job, not a reset in it
         emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
         phase_ = Phase::Ready;
       } else if (line == "ok" && woke_) {
         report_.startup = "woken";
-        emit(SenderEvent::Kind::Opened, resume_point(),
-             "the controller answered the wake-up line");
+        emit(SenderEvent::Kind::Opened, resume_point(), "the controller answered the wake-up line");
         phase_ = Phase::Ready;
       } else {
         noise(line.size() + 1, '\0');
@@ -366,8 +367,9 @@ class Session {
         return;
       }
       if (items_.front().index == kFlush) {
-        interrupt("the controller accepted the line that should have cleared its line buffer "
-                  "after the link came back; not sending more");
+        interrupt(
+            "the controller accepted the line that should have cleared its line buffer "
+            "after the link came back; not sending more");
         return;
       }
       take_ok();
@@ -437,8 +439,8 @@ class Session {
   }
 
   std::size_t queued_moves() const {
-    return static_cast<std::size_t>(std::count_if(
-        queued_.begin(), queued_.end(), [](const Item& it) { return it.geo.motion; }));
+    return static_cast<std::size_t>(std::count_if(queued_.begin(), queued_.end(),
+                                                  [](const Item& it) { return it.geo.motion; }));
   }
 
   Vec3 work_position(const GrblStatus& st) {
@@ -467,8 +469,8 @@ class Session {
       const auto at = std::find_if(queued_.begin(), queued_.end(),
                                    [&](const Item& it) { return it.n == st.line_number; });
       if (at != queued_.end()) {
-        pop_done(static_cast<std::size_t>(std::count_if(
-            queued_.begin(), at, [](const Item& it) { return it.geo.motion; })));
+        pop_done(static_cast<std::size_t>(
+            std::count_if(queued_.begin(), at, [](const Item& it) { return it.geo.motion; })));
       }
       basis("Ln");
     } else if (st.free_blocks) {
@@ -580,8 +582,10 @@ class Session {
     const std::string where = " (position " + fixed(pos[0], 3) + ", " + fixed(pos[1], 3) + ", " +
                               fixed(pos[2], 3) + ", " + st.state + ")";
     if (!st.free_blocks) {
-      interrupt("after the lost link the status has no Bf: field, so the blocks the controller "
-                "holds cannot be counted (grbl: $10=2 or 3)" + where);
+      interrupt(
+          "after the lost link the status has no Bf: field, so the blocks the controller "
+          "holds cannot be counted (grbl: $10=2 or 3)" +
+          where);
       return;
     }
     if (st.free_bytes && *st.free_bytes < s_.rx_buffer_bytes) {
@@ -653,15 +657,16 @@ class Session {
       }
     }
     if (last + 1 < static_cast<long>(n_queued)) {
-      interrupt("after the lost link the position says the controller lacks blocks it had "
-                "queued" + where);
+      interrupt(
+          "after the lost link the position says the controller lacks blocks it had "
+          "queued" +
+          where);
       return;
     }
     const std::size_t next = static_cast<std::size_t>(last + 1);
     if (next < cands.size() && !cands[next]->geo.motion) {
       interrupt("after the lost link it cannot be told whether block '" +
-                trim_eob(cands[next]->bytes) +
-                "' (no motion) reached the controller" + where);
+                trim_eob(cands[next]->bytes) + "' (no motion) reached the controller" + where);
       return;
     }
     // The controller has cands[0 .. last]: queue the written ones it received, resend the rest.
@@ -691,9 +696,9 @@ class Session {
     if (st.state == "Hold:0") write_raw("~");
     emit(SenderEvent::Kind::Reopened, resume_point(),
          "the position proves what the controller holds" + where + "; resuming with block " +
-             std::to_string(resume_point() + 1) + (resent > 0 ? " (" + std::to_string(resent) +
-                                                                   " lost in the cut go again)"
-                                                             : std::string()));
+             std::to_string(resume_point() + 1) +
+             (resent > 0 ? " (" + std::to_string(resent) + " lost in the cut go again)"
+                         : std::string()));
     confirm_journal();
   }
 
@@ -751,8 +756,7 @@ class Session {
           " were queued in the controller and not known executed";
     }
     if (in_flight > 0) {
-      d += (d.empty() ? "" : "; ") + std::to_string(in_flight) +
-           " more were sent and not answered";
+      d += (d.empty() ? "" : "; ") + std::to_string(in_flight) + " more were sent and not answered";
     }
     report_.dropped = d.empty() ? "nothing was queued beyond block " + std::to_string(first) : d;
   }
@@ -768,8 +772,8 @@ class Session {
               "; not resuming: check the machine, then restart with --restart-from " +
               std::to_string(first + 1);
     } else {
-      where = "; first block not known delivered: " + std::to_string(first + 1) +
-              " (executed blocks are not known on this link)";
+      where = "; first block not sent: " + std::to_string(first + 1) +
+              " (which blocks arrived and executed is not known on this link)";
     }
     report_.failure = why + where;
   }
@@ -849,7 +853,6 @@ class Session {
       const std::int64_t index = next_index_++;
       ++report_.blocks;
       report_.program_bytes += static_cast<std::int64_t>(text.size() + 1);
-      if (!starts_with_n_word(text)) numbered_ = false;
       const BlockMotion geo = modal_.apply(text);
       if (index < skip_until_) continue;
       Item it;
@@ -905,8 +908,8 @@ class Session {
       Item& it = items_[sent_items_];
       const int size = static_cast<int>(it.bytes.size());
       if (size > s_.rx_buffer_bytes) {
-        report_.failure = "block " + std::to_string(it.index + 1) + " has " +
-                          std::to_string(size) + " characters, more than the controller's " +
+        report_.failure = "block " + std::to_string(it.index + 1) + " has " + std::to_string(size) +
+                          " characters, more than the controller's " +
                           std::to_string(s_.rx_buffer_bytes) +
                           "-byte receive buffer: raise --rx-buffer to the controller's size or "
                           "shorten the block";
@@ -955,7 +958,7 @@ class Session {
     return std::max(next_index_, skip_until_);
   }
 
-  // The first block not known executed (ack) or delivered (drip).
+  // The first block not known executed (ack) or sent (drip).
   std::int64_t first_unexecuted() const {
     if (ack_ && status_known()) {
       for (const Item& it : queued_) {
@@ -994,11 +997,17 @@ class Session {
                "proves which blocks it has");
       return;
     }
-    if (!s_.controller_skips_repeated_n || !numbered_) {
-      interrupt(why + ": a drip-feed controller executes what it receives and says nothing, so "
-                      "which blocks arrived cannot be told, and a block sent again would run "
-                      "twice" +
-                std::string(numbered_ ? "" : " (the blocks carry no N numbers)"));
+    // The blocks that would go again must carry N, or the controller cannot tell them.
+    bool window_numbered = true;
+    for (std::size_t i = 0; i < items_.size() && i <= sent_items_; ++i) {
+      if (items_[i].index >= 0 && !items_[i].n) window_numbered = false;
+    }
+    if (!s_.controller_skips_repeated_n || !window_numbered) {
+      interrupt(why +
+                ": a drip-feed controller executes what it receives and says nothing, so "
+                "which blocks arrived cannot be told, and a block sent again would run "
+                "twice" +
+                std::string(window_numbered ? "" : " (blocks to resend carry no N number)"));
       return;
     }
     // Everything still in the window goes again, except the opening framing.
@@ -1066,8 +1075,8 @@ class Session {
     const std::string reason =
         gone ? s_.line.device + " does not exist (no such file)" : last_error;
     if (opened_once_) {
-      interrupt("the port went away and did not come back within " +
-                fixed(s_.reconnect_max_s, 0) + " s: " + reason);
+      interrupt("the port went away and did not come back within " + fixed(s_.reconnect_max_s, 0) +
+                " s: " + reason);
     } else {
       report_.failure = "cannot open the link: " + reason;
     }
@@ -1125,8 +1134,8 @@ class Session {
   const int window_;
 
   std::unique_ptr<SerialLink> link_;
-  std::deque<Item> items_;   // not yet answered (ack) or delivered (drip), oldest first
-  std::deque<Item> queued_;  // ack: answered ok, not known executed
+  std::deque<Item> items_;      // not yet answered (ack) or delivered (drip), oldest first
+  std::deque<Item> queued_;     // ack: answered ok, not known executed
   std::size_t sent_items_ = 0;  // items at the front fully written on this connection
   std::size_t cur_off_ = 0;     // bytes of items_[sent_items_] written
   std::int64_t conn_written_ = 0;
@@ -1141,7 +1150,6 @@ class Session {
   ProgramModal modal_;
   bool source_done_ = false;
   bool source_waiting_ = false;
-  bool numbered_ = true;
   std::int64_t noise_events_ = 0;
   bool xon_ = true;
   double xoff_since_s_ = 0.0;

@@ -5,9 +5,9 @@
 // The algorithm is described at the top of dnc_sender.cpp; the rules in docs/dnc-link.md.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
-#include <array>
 #include <functional>
 #include <optional>
 #include <string>
@@ -36,11 +36,11 @@ struct SenderSettings {
   // only then are blocks resent after a lost link (else the job stops as interrupted).
   bool controller_skips_repeated_n = false;
   // ack (grbl): start-up, status polling and recovery.
-  int planner_blocks = 15;         // grbl 1.1: 15
-  double status_hz = 5.0;          // `?` polls (out of band); 0: none, "executed" is not known
-  double banner_wait_s = 2.5;      // wait this long for the banner before waking with an LF
+  int planner_blocks = 15;          // grbl 1.1: 15
+  double status_hz = 5.0;           // `?` polls (out of band); 0: none, "executed" is not known
+  double banner_wait_s = 2.5;       // wait this long for the banner before waking with an LF
   double startup_timeout_s = 10.0;  // no banner and no answer to the wake by then: give up
-  bool reset_on_error = true;      // on error:N or ALARM: feed hold, then soft reset (0x18)
+  bool reset_on_error = true;       // on error:N or ALARM: feed hold, then soft reset (0x18)
   // Lines sent before the first block (a restart's modal state and re-entry), without N.
   std::vector<std::string> preamble;
 };
@@ -77,24 +77,24 @@ struct SenderReport {
   bool completed = false;    // drip: all delivered; ack: all executed (or queued without status)
   bool stopped = false;      // stopped on request before the end
   bool interrupted = false;  // a reset, an alarm, an error or a lost link stopped the job
-  std::string failure;                // alarm or link given up; empty otherwise
-  std::int64_t first_block = 0;       // resumed from this block (journal)
-  std::int64_t blocks = 0;            // program blocks taken from the source
-  std::int64_t blocks_confirmed = 0;  // resume point at the end: the first block not known
-                                      // executed (ack) or delivered (drip), 0-based
-  std::int64_t blocks_sent = 0;       // program blocks written in full at least once
-  std::int64_t blocks_queued = 0;     // ack: answered ok (queued by the controller)
-  std::int64_t blocks_executed = -1;  // ack with status: known executed; -1 not known (drip)
-  std::string execution_basis;        // how `executed` is known: Ln, Bf, position, or not
-  std::string dropped;                // what a reset threw away (queued, not executed)
-  int link_losses = 0;                // the port failed or hung up
+  std::string failure;       // alarm or link given up; empty otherwise
+  std::int64_t first_block = 0;           // resumed from this block (journal)
+  std::int64_t blocks = 0;                // program blocks taken from the source
+  std::int64_t blocks_confirmed = 0;      // resume point at the end: the first block not known
+                                          // executed (ack) or sent (drip), 0-based
+  std::int64_t blocks_sent = 0;           // program blocks written in full at least once
+  std::int64_t blocks_queued = 0;         // ack: answered ok (queued by the controller)
+  std::int64_t blocks_executed = -1;      // ack with status: known executed; -1 not known (drip)
+  std::string execution_basis;            // how `executed` is known: Ln, Bf, position, or not
+  std::string dropped;                    // what a reset threw away (queued, not executed)
+  int link_losses = 0;                    // the port failed or hung up
   std::uint64_t bytes_before_banner = 0;  // ack: always 0 (nothing is sent before it)
   std::string startup;                    // ack: banner | woken | none
   long status_reports = 0;
   std::vector<std::string> notes;  // what the report cannot vouch for
-  std::int64_t blocks_resent = 0;     // sent again after a lost link
-  std::int64_t bytes_written = 0;     // everything written, framing and resends included
-  std::int64_t program_bytes = 0;     // the blocks with their end of block, once each
+  std::int64_t blocks_resent = 0;  // sent again after a lost link
+  std::int64_t bytes_written = 0;  // everything written, framing and resends included
+  std::int64_t program_bytes = 0;  // the blocks with their end of block, once each
   double duration_s = 0.0;
   double link_use = 0.0;  // bytes_written / (duration · line capacity)
   int xoff_count = 0;

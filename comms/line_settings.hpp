@@ -1,4 +1,4 @@
-// RS-232 line settings as a machine's DNC port expects them (spec/dnc.md): speed, frame
+// RS-232 line settings as a machine's DNC port expects them (docs/dnc-link.md): speed, frame
 // (data bits, parity, stop bits, written "7E2"), flow control, end of block, `%` framing and
 // a NUL leader, and the DNC protocol spoken over the line. One character costs
 // 1 + data + parity + stop bits on the wire, so 7E2 at 19 200 baud carries 1745 characters/s.

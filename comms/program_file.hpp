@@ -14,11 +14,11 @@ namespace ncd::comms {
 
 struct ProgramSummary {
   std::int64_t blocks = 0;
-  std::int64_t bytes = 0;  // blocks with one LF each
-  std::string sha256;      // of the blocks, each ended by one LF
-  bool numbered = true;    // every block starts with an N word
-  int longest_block = 0;   // characters, without end of block
-  int longest_kept = 0;    // grbl_line_chars of the longest block by that count
+  std::int64_t bytes = 0;      // blocks with one LF each
+  std::string sha256;          // of the blocks, each ended by one LF
+  bool numbered = true;        // every block starts with an N word
+  int longest_block = 0;       // characters, without end of block
+  int longest_kept = 0;        // grbl_line_chars of the longest block by that count
   long longest_kept_line = 0;  // its line in the file (1-based)
 };
 

@@ -121,7 +121,8 @@ BlockMotion ProgramModal::apply(std::string_view text) {
     if (m6 || !state_.tool_changed) state_.tool = t_word;
   }
   if (m6) state_.tool_changed = true;
-  if (h_word) state_.length_offset = *h_word >= 0.0 ? static_cast<int>(*h_word) : state_.tool.value_or(0);
+  if (h_word)
+    state_.length_offset = *h_word >= 0.0 ? static_cast<int>(*h_word) : state_.tool.value_or(0);
   if (motion) state_.motion = *motion;
   m.dwell = dwell;
   const bool has_axis = axis[0] || axis[1] || axis[2];
@@ -141,8 +142,9 @@ BlockMotion ProgramModal::apply(std::string_view text) {
 
 std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z_mm) {
   if (!at.feed) {
-    throw InputError("no feed is in force at the restart block: the re-entry moves down at "
-                     "feed; restart from a later block, after the program's first F");
+    throw InputError(
+        "no feed is in force at the restart block: the re-entry moves down at "
+        "feed; restart from a later block, after the program's first F");
   }
   const double unit = at.inch ? 25.4 : 1.0;
   const auto x = [&](double mm) { return num(mm / unit); };

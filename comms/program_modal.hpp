@@ -13,11 +13,11 @@
 namespace ncd::comms {
 
 struct ModalState {
-  bool inch = false;      // G20 / G21
-  bool absolute = true;   // G90 / G91
-  int work_offset = 54;   // G54 … G59
-  std::optional<int> tool;  // T of the last M6 (or the last T when no M6 was seen)
-  bool tool_changed = false;  // an M6 was seen
+  bool inch = false;                 // G20 / G21
+  bool absolute = true;              // G90 / G91
+  int work_offset = 54;              // G54 … G59
+  std::optional<int> tool;           // T of the last M6 (or the last T when no M6 was seen)
+  bool tool_changed = false;         // an M6 was seen
   std::optional<int> length_offset;  // G43 H; none after G49
   int spindle = 5;                   // 3, 4 or 5
   std::optional<double> speed_rpm;   // S
@@ -25,7 +25,7 @@ struct ModalState {
   std::optional<double> feed;        // F, in program units per minute
   int motion = 0;                    // 0, 1, 2, 3 (G80: -1)
   std::array<double, 3> position_mm{0.0, 0.0, 0.0};  // work coordinates, mm
-  bool position_known = false;       // every axis has been given once (absolute) or the start
+  bool position_known = false;  // every axis has been given once (absolute) or the start
 };
 
 // What one block does to the machine, for tracking.

@@ -50,11 +50,11 @@
 //    (`executed`), so a test can compare what ran with the program.
 // 5. Execution starts when the buffer is primed (ack: at once, as grbl's auto cycle start): the
 //    fill reaches xoff_at, the program end has arrived, or prime_idle_s passed without a
-//    character while a block waits. Then each block runs for its time (distance / F for G1, the rapid rate for G0,
-//    P seconds for G4, none for the rest) back to back on exact times, so the jitter of this
-//    loop does not accumulate. A block's characters leave the buffer when it starts (drip).
-//    When the executor is free and the next block arrives later, before the program end has,
-//    the tool dwells: an underrun, counted once per dry spell longer than underrun_grace_s.
+//    character while a block waits. Then each block runs for its time (distance / F for G1, the
+//    rapid rate for G0, P seconds for G4, none for the rest) back to back on exact times, so the
+//    jitter of this loop does not accumulate. A block's characters leave the buffer when it starts
+//    (drip). When the executor is free and the next block arrives later, before the program end
+//    has, the tool dwells: an underrun, counted once per dry spell longer than underrun_grace_s.
 //    Dry spells before the first move are not counted: the tool is not on the path yet, the
 //    controller is reading the program's header (comment lines execute in no time).
 //    Once started, execution never waits to be primed again.
@@ -409,6 +409,9 @@ struct SimController::Impl {
       throw std::system_error(errno, std::generic_category(), "pipe2");
     }
     log.config = cfg;
+    // The injected clock's zero is taken here, not in run(): a caller that advances the clock
+    // right after construction must not race the thread that starts run().
+    if (cfg.clock) clock_t0 = cfg.clock->now_s();
   }
 
   ~Impl() {
@@ -865,8 +868,7 @@ struct SimController::Impl {
     const auto p = position_at(t);
     std::array<char, 96> text{};
     std::snprintf(text.data(), text.size(), "|MPos:%.3f,%.3f,%.3f|Bf:%d,%d", p[0], p[1], p[2],
-                  cfg.planner_blocks - static_cast<int>(planner_count()),
-                  cfg.buffer_bytes - fill);
+                  cfg.planner_blocks - static_cast<int>(planner_count()), cfg.buffer_bytes - fill);
     s += text.data();
     if (cfg.report_line_numbers && busy && current.n && *current.n > 0) {
       s += "|Ln:" + std::to_string(*current.n);
@@ -1067,8 +1069,10 @@ struct SimController::Impl {
         send(noise);
         log.noise_bytes_sent += noise.size();
       }
-      next_noise = t + std::exponential_distribution<>(
-                           f.noise_bytes_per_s / static_cast<double>(n + (drip ? 0 : 2)))(rng);
+      // From the last due time, not from now: a late loop catches up instead of thinning out.
+      next_noise = std::max(next_noise, t - 1.0) +
+                   std::exponential_distribution<>(f.noise_bytes_per_s /
+                                                   static_cast<double>(n + (drip ? 0 : 2)))(rng);
     }
   }
 
@@ -1135,7 +1139,6 @@ struct SimController::Impl {
 
   void run() {
     t0 = Clock::now();
-    if (cfg.clock) clock_t0 = cfg.clock->now_s();
     link_event(0.0, "created");  // DC1 (ready) goes to each sender as it connects
     next_storm = uniform(0.05, 0.5);
     if (cfg.faults.noise_bytes_per_s > 0.0) {
@@ -1279,8 +1282,8 @@ struct SimController::Impl {
   long current_seq = 0;
   std::array<double, 3> cur_from{}, hold_pos{};  // the move executing: from, and where held
   double cur_t0 = 0.0, cur_t1 = 0.0, remaining_s = 0.0;
-  bool sync_busy = false;  // ack: the executor runs a dwell outside the planner
-  bool held = false;       // ack: feed hold (!)
+  bool sync_busy = false;    // ack: the executor runs a dwell outside the planner
+  bool held = false;         // ack: feed hold (!)
   bool grbl_locked = false;  // ack: alarm state after a reset in motion, until $X
   std::optional<double> booting_until;
 

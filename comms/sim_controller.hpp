@@ -35,9 +35,9 @@ namespace ncd::comms {
 struct SimFaults {
   // Link cut, the controller keeps running: close the pty, unlink the path, relink a new pty.
   long drop_link_after_blocks = 0;
-  double down_s = 1.0;              // ... after this long
-  bool xoff_storm = false;          // random DC3, held 20–300 ms, DC1, while receiving
-  long hold_after_blocks = 0;       // then assert DC3 once for hold_s
+  double down_s = 1.0;         // ... after this long
+  bool xoff_storm = false;     // random DC3, held 20–300 ms, DC1, while receiving
+  long hold_after_blocks = 0;  // then assert DC3 once for hold_s
   double hold_s = 10.0;
   double noise_bytes_per_s = 0.0;  // random bytes (drip) or garbage lines (ack) to the sender
   long alarm_after_blocks = 0;     // then raise an alarm and stop executing
@@ -66,14 +66,14 @@ class ManualClock : public SimClock {
 };
 
 struct SimControllerConfig {
-  LineSettings line;  // line.device is the path of the link to create (a symbolic link)
+  LineSettings line;     // line.device is the path of the link to create (a symbolic link)
   int buffer_bytes = 0;  // 0: 256 (drip) or grbl's 128 (ack)
   // High-water mark (DC3 when the fill reaches it); default buffer − min(64, buffer/4), which
   // leaves room for a sender that stops within 16 characters.
   std::optional<int> xoff_at;
   // Low-water mark (DC1 when the fill falls to it); default xoff_at / 2.
   std::optional<int> xon_at;
-  int planner_blocks = 15;  // ack: grbl 1.1's planner (16 slots, 15 usable)
+  int planner_blocks = 15;           // ack: grbl 1.1's planner (16 slots, 15 usable)
   double rapid_mm_per_min = 5000.0;  // G0
   double prime_idle_s = 0.5;         // execution starts after this long without a character
   double underrun_grace_s = 0.002;   // dry spells shorter than this are timer jitter, not counted
@@ -88,7 +88,7 @@ struct SimControllerConfig {
   // then boots for boot_s, losing what it receives meanwhile, and sends its banner.
   bool reset_on_open = false;
   double boot_s = 0.0;
-  bool report_line_numbers = false;  // ack: status reports carry Ln: (grbl's USE_LINE_NUMBERS)
+  bool report_line_numbers = false;       // ack: status reports carry Ln: (grbl's USE_LINE_NUMBERS)
   std::shared_ptr<const SimClock> clock;  // null: the wall clock
   SimFaults faults;
   // Told of link events and alarms as they happen (on the thread of run()); may be empty.
@@ -199,8 +199,8 @@ struct SimExecuted {
 // A controller reset: what it interrupted and what it threw away.
 struct SimReset {
   double t_s = 0.0;
-  std::string cause;                // injected | soft_reset (0x18) | port_opened
-  bool in_motion = false;           // grbl then raises ALARM:3 and locks until $X
+  std::string cause;                   // injected | soft_reset (0x18) | port_opened
+  bool in_motion = false;              // grbl then raises ALARM:3 and locks until $X
   std::optional<std::string> aborted;  // the block executing, left unfinished
   std::array<double, 3> position{};    // kept
   long blocks_lost = 0;                // in the planner and the receive buffer

@@ -1,7 +1,9 @@
 // `ncd stream` against `ncd sim-controller` over real pseudo-terminals: the program arrives
 // byte-exact (the controller's SHA-256 of the blocks equals the file's), with each protocol,
-// through XOFF storms and long holds, a port that vanishes and comes back, a sender killed and
-// restarted from its journal, and noise from the controller.
+// through XOFF storms and long holds, a link cut while the controller runs, a controller reset,
+// an error reply, a sender killed and restarted from its journal, a restart from block N, and
+// noise from the controller. The controller logs each block it executed; the tests compare that
+// log with the program (docs/dnc-link.md states what each dialect guarantees).
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -60,8 +62,54 @@ class Stream : public Cli {
     return nlohmann::json::parse(slurp(log_));
   }
 
+  // Stops a controller that will not end on its own (an interrupted job) and reads its log.
+  nlohmann::json stopped_log(Process& p) {
+    p.signal(SIGTERM);
+    EXPECT_EQ(p.wait(10.0), 0) << slurp(dir_ / "cnc.err");
+    return nlohmann::json::parse(slurp(log_));
+  }
+
+  // The program's blocks as the controller hashes and logs them (block_of_line of each line).
+  std::vector<std::string> blocks_of(const std::string& path) {
+    std::vector<std::string> out;
+    std::istringstream in(slurp(path));
+    for (std::string line; std::getline(in, line);) {
+      if (!line.empty() && line != "%") out.push_back(line);
+    }
+    return out;
+  }
+
+  static std::vector<std::string> executed(const nlohmann::json& log) {
+    std::vector<std::string> out;
+    for (const auto& e : log["executed"]) out.push_back(e["text"].get<std::string>());
+    return out;
+  }
+
+  // The controller ran a prefix of the program, each block once, in order; returns its length.
+  static std::size_t ran_prefix(const std::vector<std::string>& ran,
+                                const std::vector<std::string>& program) {
+    EXPECT_LE(ran.size(), program.size());
+    for (std::size_t i = 0; i < ran.size() && i < program.size(); ++i) {
+      EXPECT_EQ(ran[i], program[i]) << "executed block " << i + 1;
+      if (ran[i] != program[i]) return i;
+    }
+    return ran.size();
+  }
+
   std::string link_, log_;
 };
+
+// A program of slow moves (about 0.1 s each at 600 mm/min), so that grbl's 15-block planner
+// holds 1.5 s of motion: a fault lands while the controller is busy.
+std::string slow_program(int moves) {
+  std::string text = "(slow)\nG21 G90 G94\nG0 Z5\nS1000 M3\nG0 X0 Y0\nG1 Z-1 F600\n";
+  for (int i = 1; i <= moves; ++i) {
+    char line[64];
+    std::snprintf(line, sizeof line, "N%d G1 X%d Y%.1f F600", i * 10, i, (i % 2) * 0.5);
+    text += std::string(line) + "\n";
+  }
+  return text + "G0 Z5\nM5\nM2\n";
+}
 
 TEST_F(Stream, DripArrivesByteExact) {
   std::string sha;
@@ -80,19 +128,58 @@ TEST_F(Stream, DripArrivesByteExact) {
   EXPECT_FALSE(fs::exists(prog + ".journal"));
 }
 
-TEST_F(Stream, AckArrivesByteExactWithCrLf) {
+TEST_F(Stream, AckArrivesByteExactAndExecuted) {
   std::string sha;
   const std::string prog = program(300, 20000, &sha);
-  auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack --eob crlf --buffer 128");
-  const auto r = ncd("stream " + prog + " --port " + link_ +
-                     " --baud 115200 --frame 8N1 --protocol ack --eob crlf --rx-buffer 128 -q" +
-                     " --report " + (dir_ / "r.json").string());
+  // grbl ends a line at CR and at LF: CR LF would be answered twice. Refused before sending.
+  const auto crlf = ncd("stream " + prog + " --port /dev/null --protocol ack --eob crlf");
+  EXPECT_EQ(crlf.status, 2);
+  EXPECT_NE(crlf.err.find("--eob lf"), std::string::npos) << crlf.err;
+  auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack");
+  const auto r =
+      ncd("stream " + prog + " --port " + link_ +
+          " --baud 115200 --frame 8N1 --protocol ack --rx-buffer 128 -q --banner-wait 0.3" +
+          " --report " + (dir_ / "r.json").string());
   EXPECT_EQ(r.status, 0) << r.err;
   const auto log = controller_log(*cnc);
   EXPECT_EQ(log["program_sha256"], sha);
   EXPECT_TRUE(log["alarms"].empty()) << log["alarms"];
+  EXPECT_EQ(executed(log), blocks_of(prog));
   const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
   EXPECT_LE(rep["max_unacked_bytes"].get<int>(), 128);
+  EXPECT_EQ(rep["transfer"]["startup"], "woken");  // no reset on open: no banner to wait for
+  EXPECT_EQ(rep["transfer"]["blocks_executed"], 302);
+  EXPECT_EQ(rep["program_summary"]["blocks"], 302);
+  EXPECT_EQ(rep["program_summary"]["sha256"], sha);
+}
+
+// An Arduino resets when the port opens and boots for a while: nothing may be sent before its
+// banner (the bytes would be lost, or worse, half a line).
+TEST_F(Stream, AckSendsNothingBeforeTheBanner) {
+  std::string sha;
+  const std::string prog = program(50, 20000, &sha);
+  auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack --reset-on-open --boot-s 1.5");
+  const auto r = ncd("stream " + prog + " --port " + link_ +
+                     " --baud 115200 --frame 8N1 --protocol ack -q --banner-wait 3 --report " +
+                     (dir_ / "r.json").string());
+  EXPECT_EQ(r.status, 0) << r.err;
+  const auto log = controller_log(*cnc);
+  EXPECT_EQ(log["bytes_before_banner"], 0);
+  EXPECT_EQ(log["banners_sent"], 1);
+  EXPECT_EQ(executed(log), blocks_of(prog));
+  const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
+  EXPECT_EQ(rep["transfer"]["startup"], "banner");
+  // A controller that never speaks: a clear message, not a wait at "0 % of the line".
+  auto mute = controller("--baud 115200 --frame 8N1 --protocol ack --reset-on-open --boot-s 60");
+  const auto m = ncd("stream " + prog + " --port " + link_ +
+                     " --baud 115200 --frame 8N1 --protocol ack -q --no-journal --banner-wait 0.5 "
+                     "--startup-timeout 1.5");
+  EXPECT_EQ(m.status, 3) << m.err;
+  EXPECT_NE(m.out.find("did not speak within 1.5 s"), std::string::npos) << m.out;
+  const auto mlog = stopped_log(*mute);
+  // Only the wake-up line went out, into a controller still booting.
+  EXPECT_EQ(mlog["bytes_before_banner"], 1);
+  EXPECT_TRUE(mlog["executed"].empty());
 }
 
 TEST_F(Stream, XoffStormAndLongHoldLoseNothing) {
@@ -116,30 +203,192 @@ TEST_F(Stream, XoffStormAndLongHoldLoseNothing) {
   EXPECT_GE(rep["xoff_longest_s"].get<double>(), 2.0);
 }
 
-TEST_F(Stream, PortVanishingResumesWithoutLossOrRepeat) {
-  for (const std::string protocol : {"drip", "ack"}) {
-    SCOPED_TRACE(protocol);
+// A link cut while the controller keeps running. grbl: the sender holds the controller, reads
+// its position and resumes because the position proves what it holds; no block runs twice or
+// is skipped. Drip: resent blocks would run twice, so the job stops as interrupted unless the
+// controller is documented to skip repeated N numbers.
+TEST_F(Stream, LinkCutWithTheControllerRunningRunsNoBlockTwice) {
+  struct Case {
+    std::string protocol, sim_flags, stream_flags;
+    int status;
+  };
+  for (const Case& k : {Case{"ack", "", "--banner-wait 0.3", 0},
+                        Case{"drip", "--skip-duplicate-n", "--controller-skips-repeated-n", 0},
+                        Case{"drip", "", "", 3}}) {
+    SCOPED_TRACE(k.protocol + " " + k.sim_flags);
     std::string sha;
     const std::string prog = program(400, 20000, &sha);
-    auto cnc = controller("--baud 38400 --frame 7E2 --protocol " + protocol +
-                          " --drop-link-after-blocks 120 --down-s 1");
+    auto cnc = controller("--baud 38400 --frame 7E2 --protocol " + k.protocol +
+                          " --drop-link-after-blocks 120 --down-s 1 " + k.sim_flags);
     const auto r =
-        ncd("stream " + prog + " --port " + link_ + " --baud 38400 --frame 7E2 -q --protocol " +
-            protocol + " --report " + (dir_ / "r.json").string());
-    EXPECT_EQ(r.status, 0) << r.err;
-    const auto log = controller_log(*cnc);
-    EXPECT_EQ(log["program_sha256"], sha);
-    EXPECT_EQ(log["blocks_received"], 402);
+        ncd("stream " + prog + " --port " + link_ +
+            " --baud 38400 --frame 7E2 -q --no-journal --reconnect-max 5 --protocol " + k.protocol +
+            " " + k.stream_flags + " --report " + (dir_ / "r.json").string());
+    EXPECT_EQ(r.status, k.status) << r.out << r.err;
+    const auto log = k.status == 0 ? controller_log(*cnc) : stopped_log(*cnc);
     EXPECT_EQ(log["link_drops"], 1);
+    const auto ran = executed(log);
+    const auto blocks = blocks_of(prog);
+    const std::size_t n = ran_prefix(ran, blocks);
     const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
-    EXPECT_EQ(rep["reconnects"], 1);
+    std::cout << "[ measured ] link cut, " << k.protocol << " " << k.sim_flags
+              << ": the controller executed blocks 1-" << n << " of " << blocks.size()
+              << " in order, each once (" << ran.size() << " executions)\n";
+    if (k.status == 0) {
+      EXPECT_EQ(n, blocks.size());
+      EXPECT_EQ(log["program_sha256"], sha);
+      EXPECT_EQ(rep["transfer"]["reconnects"], 1);
+    } else {
+      EXPECT_TRUE(rep["transfer"]["interrupted"].get<bool>());
+      EXPECT_EQ(rep["transfer"]["reconnects"], 0);
+      EXPECT_NE(r.out.find("run twice"), std::string::npos) << r.out;
+      // Drip knows what it wrote, not what arrived (the cut loses the bytes in flight): the
+      // controller cannot have run a block ncd had not written.
+      EXPECT_GE(rep["transfer"]["blocks_sent"].get<std::size_t>(), n);
+      EXPECT_FALSE(rep["transfer"]["first_block_not_sent"].is_null());
+      EXPECT_TRUE(rep["transfer"]["blocks_executed"].is_null());
+    }
+  }
+}
+
+// A link cut while grbl is moving with a full planner: on reconnecting ncd holds it (`!`), finds
+// the move under way from the position, counts the moves its planner holds (Bf:), resends only
+// what the cut lost, and resumes (`~`).
+TEST_F(Stream, AckLinkCutWhileMovingResumesFromTheHeldPosition) {
+  const std::string prog = write("slow.ngc", slow_program(80));
+  auto cnc = controller(
+      "--baud 115200 --frame 8N1 --protocol ack --drop-link-after-blocks 40 "
+      "--down-s 0.5");
+  const auto r = ncd("stream " + prog + " --port " + link_ +
+                     " --baud 115200 --frame 8N1 --protocol ack -q --no-journal --banner-wait 0.3 "
+                     "--reconnect-max 5 --report " +
+                     (dir_ / "r.json").string());
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  const auto log = controller_log(*cnc);
+  EXPECT_EQ(log["link_drops"], 1);
+  EXPECT_EQ(log["feed_holds"], 1);
+  EXPECT_EQ(log["cycle_starts"], 1);  // it was held mid-move, then resumed
+  const auto ran = executed(log);
+  const auto blocks = blocks_of(prog);
+  EXPECT_EQ(ran, blocks);  // every block once, in order
+  const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
+  EXPECT_EQ(rep["transfer"]["reconnects"], 1);
+  std::cout << "[ measured ] link cut while moving: " << ran.size() << " of " << blocks.size()
+            << " blocks executed once each; " << rep["blocks_resent"] << " resent\n";
+}
+
+// A controller reset mid-program (power cycle, watchdog): the job is interrupted, names the
+// last block known executed and the first not known executed, and never resumes past it.
+TEST_F(Stream, ControllerResetInterruptsNamingTheBlocks) {
+  for (const std::string protocol : {"ack", "drip"}) {
+    SCOPED_TRACE(protocol);
+    const std::string prog = write("slow.ngc", slow_program(80));
+    auto cnc = controller("--baud 115200 --frame 8N1 --reset-after-blocks 40 --protocol " +
+                          protocol + (protocol == "drip" ? " --buffer 1024" : ""));
+    const auto r = ncd("stream " + prog + " --port " + link_ +
+                       " --baud 115200 --frame 8N1 -q --no-journal --banner-wait 0.3 --protocol " +
+                       protocol + " --report " + (dir_ / "r.json").string());
+    EXPECT_EQ(r.status, 3) << r.err;
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const auto log = stopped_log(*cnc);
+    ASSERT_EQ(log["resets"].size(), protocol == "ack" ? 2U : 1U);  // the fault, then ncd's 0x18
+    const auto ran = executed(log);
+    const auto blocks = blocks_of(prog);
+    const std::size_t n = ran_prefix(ran, blocks);
+    EXPECT_LT(n, blocks.size());
+    const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
+    EXPECT_TRUE(rep["transfer"]["interrupted"].get<bool>());
+    const auto first = rep["transfer"]["first_block_not_known_executed"].get<std::size_t>();
+    std::cout << "[ measured ] " << protocol << " reset: the controller executed blocks 1-" << n
+              << " of " << blocks.size() << "; ncd: first block not known executed " << first
+              << "\n";
+    // Everything before the block ncd names was executed; nothing after the reset ran. Drip
+    // knows no executed block: it names block 1, and says so.
+    EXPECT_LE(first, n + 1);
+    if (protocol == "drip") {
+      EXPECT_EQ(first, 1U);
+      EXPECT_TRUE(rep["transfer"]["blocks_executed"].is_null());
+      EXPECT_NE(r.out.find("not known"), std::string::npos) << r.out;
+    } else {
+      EXPECT_GE(first + 2, n + 1);  // at most one status period (0.2 s, 2 moves) behind
+      EXPECT_NE(r.out.find("--restart-from " + std::to_string(first)), std::string::npos) << r.out;
+    }
+  }
+}
+
+// An error reply: the sender holds and resets grbl, so no block queued after the bad one runs.
+TEST_F(Stream, ErrorReplyLeavesNoLaterBlockExecuted) {
+  std::string text = slow_program(60);
+  const auto at = text.find("N300 ");
+  text.insert(at, "N295 G91 X1\n");  // grbl (and the simulation) refuse G91 here: error:20
+  const std::string prog = write("bad.ngc", text);
+  auto cnc = controller("--baud 115200 --frame 8N1 --protocol ack");
+  const auto r = ncd("stream " + prog + " --port " + link_ +
+                     " --baud 115200 --frame 8N1 --protocol ack -q --no-journal --banner-wait 0.3 "
+                     "--report " +
+                     (dir_ / "r.json").string());
+  EXPECT_EQ(r.status, 3) << r.err;
+  EXPECT_NE(r.out.find("error:20"), std::string::npos) << r.out;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto log = stopped_log(*cnc);
+  const auto ran = executed(log);
+  const auto blocks = blocks_of(prog);
+  const auto bad = static_cast<std::size_t>(std::find(blocks.begin(), blocks.end(), "N295 G91 X1") -
+                                            blocks.begin());
+  EXPECT_LT(ran_prefix(ran, blocks), bad);  // nothing at or after the bad block ran
+  EXPECT_GE(log["feed_holds"].get<int>(), 1);
+  ASSERT_FALSE(log["resets"].empty());
+  EXPECT_EQ(log["resets"][0]["cause"], "soft_reset");
+  const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
+  EXPECT_NE(rep["transfer"]["dropped"].get<std::string>().find("queued"), std::string::npos)
+      << rep["transfer"];
+  std::cout << "[ measured ] error reply at block " << bad + 1 << ": the controller executed "
+            << ran.size() << " blocks; dropped: " << rep["transfer"]["dropped"] << "\n";
+}
+
+// Restart from block N: the modal state at N, up to the clearance plane, over N's start, down
+// at feed, then N onwards, each exactly once.
+TEST_F(Stream, RestartFromNRunsEachBlockOnceThroughTheClearancePlane) {
+  for (const std::string protocol : {"ack", "drip"}) {
+    SCOPED_TRACE(protocol);
+    const std::string prog = write("slow.ngc", slow_program(40));
+    const auto blocks = blocks_of(prog);
+    const std::size_t n = 30;  // "N240 G1 X24 Y0.0 F600", its start is N230's end (23, 0.5, -1)
+    auto cnc = controller("--baud 115200 --frame 8N1 --rapid 20000 --protocol " + protocol);
+    const auto r = ncd("stream " + prog + " --port " + link_ +
+                       " --baud 115200 --frame 8N1 -q --no-journal --banner-wait 0.3 --protocol " +
+                       protocol + " --restart-from " + std::to_string(n));
+    EXPECT_EQ(r.status, 0) << r.out << r.err;
+    const auto log = controller_log(*cnc);
+    const auto ran = executed(log);
+    // The program's blocks from N, once each, in order, after the restart lines.
+    const std::vector<std::string> tail(blocks.begin() + static_cast<long>(n) - 1, blocks.end());
+    ASSERT_GE(ran.size(), tail.size());
+    EXPECT_EQ(std::vector<std::string>(ran.end() - static_cast<long>(tail.size()), ran.end()),
+              tail);
+    // Before them only ncd's restart lines (which repeat setup blocks such as "G0 Z5"), none
+    // of the program's numbered moves.
+    EXPECT_LE(ran.size() - tail.size(), 10U);
+    for (std::size_t i = 0; i + tail.size() < ran.size(); ++i) {
+      EXPECT_NE(ran[i][0], 'N') << "a numbered block before N ran: " << ran[i];
+    }
+    // The re-entry moves: up to Z5 (the highest Z before N), over (23, 0.5), down to Z-1 at F600.
+    const auto& moves = log["moves"];
+    std::size_t k = 0;
+    while (k < moves.size() && moves[k]["p"][2].get<double>() != 5.0) ++k;
+    ASSERT_LT(k + 3, moves.size());
+    EXPECT_EQ(moves[k + 1]["p"], nlohmann::json::array({23.0, 0.5, 5.0}));
+    EXPECT_EQ(moves[k + 2]["p"], nlohmann::json::array({23.0, 0.5, -1.0}));
+    EXPECT_EQ(moves[k + 2]["feed_mm_per_min"], 600.0);
+    EXPECT_EQ(moves[k + 2]["g"], 1);
+    EXPECT_EQ(moves[k + 3]["n"], 240);
   }
 }
 
 TEST_F(Stream, KilledSenderResumesFromItsJournal) {
   std::string sha;
   const std::string prog = program(500, 20000, &sha);
-  auto cnc = controller("--baud 9600 --frame 7E2");
+  auto cnc = controller("--baud 9600 --frame 7E2 --skip-duplicate-n");
   {
     Process sender({NCD_EXE, "stream", prog, "--port", link_, "--baud", "9600", "--frame", "7E2"},
                    (dir_ / "s1.out").string(), (dir_ / "s1.err").string());
@@ -152,8 +401,13 @@ TEST_F(Stream, KilledSenderResumesFromItsJournal) {
   const auto again = ncd("stream " + prog + " --port " + link_ + " --baud 9600 --frame 7E2 -q");
   EXPECT_EQ(again.status, 2) << again.err;  // an unfinished transfer needs --resume or --restart
   EXPECT_NE(again.err.find("--resume"), std::string::npos) << again.err;
+  const auto unsafe =
+      ncd("stream " + prog + " --port " + link_ + " --baud 9600 --frame 7E2 --resume");
+  EXPECT_EQ(unsafe.status, 2) << unsafe.err;  // a controller that runs repeats: not resumed
+  EXPECT_NE(unsafe.err.find("--controller-skips-repeated-n"), std::string::npos) << unsafe.err;
   const auto r = ncd("stream " + prog + " --port " + link_ +
-                     " --baud 9600 --frame 7E2 --resume --report " + (dir_ / "r.json").string());
+                     " --baud 9600 --frame 7E2 --resume --controller-skips-repeated-n --report " +
+                     (dir_ / "r.json").string());
   EXPECT_EQ(r.status, 0) << r.err;
   const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
   EXPECT_GT(rep["first_block"].get<int>(), 50);
@@ -171,7 +425,8 @@ TEST_F(Stream, NoiseFromTheControllerIsSurvived) {
     auto cnc =
         controller("--baud 38400 --frame 8N1 --noise-bytes-per-s 200 --protocol " + protocol);
     const auto r = ncd("stream " + prog + " --port " + link_ + " --baud 38400 --frame 8N1 -q" +
-                       " --protocol " + protocol + " --report " + (dir_ / "r.json").string());
+                       " --banner-wait 0.3 --protocol " + protocol + " --report " +
+                       (dir_ / "r.json").string());
     EXPECT_EQ(r.status, 0) << r.err;
     const auto log = controller_log(*cnc);
     EXPECT_EQ(log["program_sha256"], sha);

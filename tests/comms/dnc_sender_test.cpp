@@ -20,6 +20,7 @@
 #include "comms/dnc_sender.hpp"
 #include "comms/live_blocks.hpp"
 #include "comms/program_file.hpp"
+#include "comms/program_modal.hpp"
 #include "comms/pty.hpp"
 #include "comms/sha256.hpp"
 #include "comms/transfer_journal.hpp"
@@ -102,6 +103,67 @@ TEST(ProgramFile, FramingIsNotABlock) {
   std::ofstream(p) << "%\n%\n";
   EXPECT_THROW(scan_program(p.string(), 7, 256), InputError);  // no blocks
   fs::remove(p);
+}
+
+// grbl 1.1's status report as report.c writes it; anything else is not one.
+TEST(GrblStatus, ParsesTheFieldsTheLinkUses) {
+  const auto st = parse_grbl_status("<Run|MPos:1.000,-2.500,0.000|Bf:14,120|Ln:40|FS:500,0>");
+  ASSERT_TRUE(st);
+  EXPECT_EQ(st->state, "Run");
+  EXPECT_EQ(*st->mpos, (std::array<double, 3>{1.0, -2.5, 0.0}));
+  EXPECT_EQ(st->free_blocks, 14);
+  EXPECT_EQ(st->free_bytes, 120);
+  EXPECT_EQ(st->line_number, 40);
+  const auto w = parse_grbl_status("<Hold:0|WPos:0.000,0.000,5.000|WCO:1.000,2.000,3.000>");
+  ASSERT_TRUE(w);
+  EXPECT_EQ(w->state, "Hold:0");
+  EXPECT_FALSE(w->mpos);
+  EXPECT_EQ((*w->wpos)[2], 5.0);
+  EXPECT_EQ((*w->wco)[1], 2.0);
+  EXPECT_FALSE(w->free_blocks);
+  for (const char* bad : {"ok", "<Idle>", "<Idle|MPos:1,x,3>", "<|MPos:0,0,0>", "Idle|MPos:0,0,0",
+                          "<Idle|MPos:0,0,0|Bf:15>", ""}) {
+    EXPECT_FALSE(parse_grbl_status(bad)) << bad;
+  }
+}
+
+// grbl's count of a line: spaces, control characters and comments removed (protocol.c).
+TEST(GrblLine, CharactersKeptAreCountedAsGrblDoes) {
+  EXPECT_EQ(grbl_line_chars("G1 X1 Y2"), 6);
+  EXPECT_EQ(grbl_line_chars("G1 (a comment) X1 ; rest"), 4);
+  EXPECT_EQ(grbl_line_chars("(only a comment)"), 0);
+  EXPECT_EQ(grbl_line_chars(std::string(79, 'X')), 79);
+  EXPECT_EQ(grbl_line_chars(")" + std::string(80, 'X')), 81);  // the sender's line flush
+}
+
+// The modal reader: end points in mm (inch and incremental included) and the restart lines,
+// which a hand-written expectation gives here.
+TEST(ProgramModal, EndPointsAndRestartBlocks) {
+  ProgramModal m;
+  EXPECT_FALSE(m.apply("G20 G90 G55 T3 M6 G43 H3").motion);
+  const BlockMotion a = m.apply("S12000 M3 M8 G0 X1 Y2 Z0.5");
+  EXPECT_TRUE(a.motion);
+  EXPECT_EQ(a.to_mm, (std::array<double, 3>{25.4, 50.8, 12.7}));
+  EXPECT_FALSE(m.apply("G91").motion);
+  const BlockMotion b = m.apply("G1 X1 F20");  // incremental, in inches
+  EXPECT_EQ(b.from_mm, a.to_mm);
+  EXPECT_EQ(b.to_mm, (std::array<double, 3>{50.8, 50.8, 12.7}));
+  EXPECT_FALSE(m.apply("G4 P1").motion);
+  EXPECT_FALSE(m.apply("G28").known);
+  const auto lines = restart_blocks(m.state(), 25.4);  // the clearance plane at 1 inch
+  const std::vector<std::string> expect = {"(ncd restart: the modes in force at the restart block)",
+                                           "G20 G90 G55",
+                                           "T3 M6",
+                                           "G43 H3",
+                                           "G0 Z1",
+                                           "S12000 M3",
+                                           "M8",
+                                           "G0 X2 Y2",
+                                           "G1 Z0.5 F20",
+                                           "G91 G1 F20"};
+  EXPECT_EQ(lines, expect);
+  ProgramModal none;
+  EXPECT_THROW(restart_blocks(none.state(), 5.0), InputError);  // no feed in force
 }
 
 // Drip feed: after the controller's DC3 the sender stops within max_queued_chars characters,
