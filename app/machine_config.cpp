@@ -206,9 +206,9 @@ void parse_program(const toml::value& table, const std::string& name,
       throw InputError("unknown key " + where +
                        "; [program] takes default_units, machine_units, tool_table, "
                        "parameter_file, subroutine_path");
-      }
     }
   }
+}
 
 // [envelope]: x_min_mm … z_max_mm, finite, min < max on every axis.
 void parse_envelope(const toml::value& table, const std::string& name, Envelope& e) {

@@ -12,12 +12,12 @@
 // Every reply carries "ok"; a false one carries "error", a message that says what was wrong and
 // what to send instead. A request is checked in this order, and the first failure is the reply:
 // valid JSON, an object, the "token" (when one is configured), a string "cmd". "subscribe" needs
-// "hz" in [min_subscribe_hz, max_subscribe_hz] (0.1 to 1000 by default); everything else (including unknown commands) goes to the
-// handler. None of these errors closes the connection. A line longer than max_line_bytes gets
-// one error reply as soon as it is known to be too long; the rest of it, up to its newline, is
-// discarded. "\r\n" is accepted. A blank line is no request and gets no reply, but like any line
-// it ends a status stream. An unterminated last line before the client's end of stream is still
-// answered, and the replies are flushed before the connection closes.
+// "hz" in [min_subscribe_hz, max_subscribe_hz] (0.1 to 1000 by default); everything else (including
+// unknown commands) goes to the handler. None of these errors closes the connection. A line longer
+// than max_line_bytes gets one error reply as soon as it is known to be too long; the rest of it,
+// up to its newline, is discarded. "\r\n" is accepted. A blank line is no request and gets no
+// reply, but like any line it ends a status stream. An unterminated last line before the client's
+// end of stream is still answered, and the replies are flushed before the connection closes.
 //
 // Each connection reads and writes on its own: replies and status lines go to a per-connection
 // queue written one async_write at a time. When a client stops reading, its queue grows to

@@ -49,7 +49,7 @@ struct ServerOptions {
   std::size_t max_line_bytes = 65536;  // longer request lines get an error reply and are skipped
   std::optional<std::string> token;    // required in every request ("token") when set
   double min_subscribe_hz = ranges::kMinSubscribeHz;  // lower bound of "hz" in subscribe
-  double max_subscribe_hz = 1000;      // upper bound of "hz" in subscribe
+  double max_subscribe_hz = 1000;                     // upper bound of "hz" in subscribe
 };
 
 // The checks of one request line (without its newline), in the order described in
