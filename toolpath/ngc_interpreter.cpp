@@ -37,8 +37,6 @@ namespace ncd::toolpath {
 namespace {
 
 constexpr int kMaxParam = 5602;
-constexpr int kFirstPersistent = 5161;
-constexpr int kLastPersistent = 5390;
 constexpr double kTolEqual = 1e-6;  // LinuxCNC's TOLERANCE_EQUAL for EQ/NE and friends
 // Bounds on what a program may ask for (mm, mm/min, rpm, s): beyond them the value is a typo.
 constexpr double kMaxCoordMm = 1e6;
