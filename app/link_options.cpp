@@ -1,12 +1,13 @@
 // Line flags: one definition for every subcommand that opens a DNC link.
 #include "app/link_options.hpp"
 
-#include <fcntl.h>
 #include <sys/stat.h>
-#include <unistd.h>
+#include <sys/sysmacros.h>
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
+#include <system_error>
 
 #include "core/error.hpp"
 
@@ -60,17 +61,18 @@ void require_serial_port(const std::string& device, const std::string& what) {
     throw InputError(named + " is " + kind +
                      ", not a serial port; give the machine's serial port, such as /dev/ttyS0");
   }
-  // O_NONBLOCK: a serial port without carrier must not block here; O_NOCTTY: never become
-  // the process's controlling terminal.
-  const int fd = ::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-  if (fd < 0) {
-    const int err = errno;
-    throw InputError("cannot open " + named + ": " + std::strerror(err) +
-                     (err == EACCES ? "; add the user to the dialout group" : ""));
-  }
-  const bool tty = ::isatty(fd) == 1;
-  ::close(fd);
-  if (!tty) {
+  // Never open the port to ask isatty(): closing it again hangs up a pseudo-terminal's peer, and
+  // opening and closing a real serial port toggles DTR, which resets an Arduino running grbl. The
+  // kernel tells without an open: Unix98 pty slaves have majors 136-143 (devices.txt), and every
+  // other terminal is in sysfs's tty class.
+  const unsigned major_number = major(st.st_rdev);
+  const bool pty_slave = major_number >= 136 && major_number <= 143;
+  std::error_code ec;
+  const std::filesystem::path sysfs_class =
+      std::filesystem::canonical("/sys/dev/char/" + std::to_string(major_number) + ":" +
+                                     std::to_string(minor(st.st_rdev)) + "/subsystem",
+                                 ec);
+  if (!pty_slave && (ec || sysfs_class.filename() != "tty")) {
     throw InputError(named +
                      " is a character device but not a terminal (tty): not a serial port; "
                      "give the machine's serial port, such as /dev/ttyS0");

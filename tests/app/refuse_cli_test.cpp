@@ -105,10 +105,18 @@ TEST_F(RefuseCli, StepRuleStopsTheRunWithExit3AndWritesNoBlocks) {
 
 TEST_F(RefuseCli, PathOutsideTheEnvelopeIsRefusedBeforeAnyMotion) {
   // G1 X20 Y99999999: before, three minutes of CSV and "internal error ... 100 h".
-  const std::string far = write("far.ngc", "G21 G90\nG0 X0 Y0 Z0\nG1 F600 X20 Y99999999\nM2\n");
+  // The interpreter refuses a coordinate beyond 1 km itself, naming the word and the line.
+  const std::string absurd =
+      write("absurd.ngc", "G21 G90\nG0 X0 Y0 Z0\nG1 F600 X20 Y99999999\nM2\n");
+  const CmdResult a = ncd("replay -q " + absurd + outputs());
+  EXPECT_EQ(a.status, 2) << a.err;
+  EXPECT_NE(a.err.find("absurd.ngc:3: Y1e+08"), std::string::npos) << a.err;
+  expect_nothing_written();
+  // A plausible coordinate beyond the machine's travel is the envelope's refusal.
+  const std::string far = write("far.ngc", "G21 G90\nG0 X0 Y0 Z0\nG1 F600 X20 Y99999\nM2\n");
   const CmdResult r = ncd("replay -q " + far + outputs());
   EXPECT_EQ(r.status, 2) << r.err;
-  EXPECT_NE(r.err.find("Y = 1e+08 mm is outside the machine's travel -2000 .. 2000 mm"),
+  EXPECT_NE(r.err.find("Y = 99999 mm is outside the machine's travel -2000 .. 2000 mm"),
             std::string::npos)
       << r.err;
   EXPECT_NE(r.err.find("line 3"), std::string::npos) << r.err;

@@ -85,7 +85,11 @@ TEST_F(Simulate, TheFeedNcdPlansLeavesTheRoughnessItPromises) {
                           "--nominal-z 0 --cell-um 5 -q");
   ASSERT_EQ(r.status, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  EXPECT_NEAR(j["feed_per_tooth_median_by_length_mm"].get<double>(), 0.3265, 0.001);
+  // The planner may run below the law's f_t (stops at the raster's reversals, chord limits), never
+  // above it.
+  const double ft_mm = j["feed_per_tooth_median_by_length_mm"].get<double>();
+  EXPECT_LE(ft_mm, 0.3265 + 0.0005);
+  EXPECT_GE(ft_mm, 0.3265 * 0.985);
   EXPECT_NEAR(j["rmax_map"]["model_max_um"].get<double>(), 10.67, 0.01);
   EXPECT_EQ(j["rmax_um"]["uncut_cells"], 0);
   EXPECT_NEAR(j["rmax_um"]["areal"].get<double>(), 10.67, 1.0);
