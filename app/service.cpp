@@ -130,16 +130,6 @@ toolpath::Path chamfer_path(const json& spec) {
 
 }  // namespace
 
-std::string default_listen() {
-  for (const char* var : {"RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"}) {
-    const char* dir = std::getenv(var);
-    // RUNTIME_DIRECTORY may list several directories separated by ':'; the first is ours.
-    if (dir && *dir == '/')
-      return "unix:" + std::string(dir).substr(0, std::string(dir).find(':')) + "/ncd.sock";
-  }
-  return "unix:/tmp/ncd.sock";
-}
-
 ServiceConfig load_service_config(const std::string& path) {
   return parse_service_config(read_input_file(path, "service config, --config"), path);
 }

@@ -1,6 +1,8 @@
 // The service config (`ncd serve --config FILE.toml`) on toml11, through the text checks of
 // app/toml_text.hpp. Kept apart from the service so that the config fuzz harness
 // (tests/fuzz/service_config_fuzz.cpp) links without the service.
+#include <cstdlib>
+#include <string>
 #include <toml.hpp>
 
 #include "app/service.hpp"
@@ -8,6 +10,16 @@
 #include "core/error.hpp"
 
 namespace ncd::app {
+
+std::string default_listen() {
+  for (const char* var : {"RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"}) {
+    const char* dir = std::getenv(var);
+    // RUNTIME_DIRECTORY may list several directories separated by ':'; the first is ours.
+    if (dir && *dir == '/')
+      return "unix:" + std::string(dir).substr(0, std::string(dir).find(':')) + "/ncd.sock";
+  }
+  return "unix:/tmp/ncd.sock";
+}
 
 ServiceConfig parse_service_config(const std::string& text, const std::string& path) {
   const toml::value root = parse_toml_text(text, path, "service config");
