@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 #include "toolpath/chamfer.hpp"
 #include "toolpath/chamfer_ngc.hpp"
@@ -398,7 +399,7 @@ TEST(ChamferHoles, BruteForceIntersectionGivesTheSameCurveAndLength) {
   std::mt19937_64 rng(ncd::test::seed());
   int cases = 0;
   double worst_point = 0.0, worst_length = 0.0;
-  while (cases < 12) {
+  while (cases < ncd::test::sweep_cases(12)) {
     const auto spec = random_hole(rng);
     if (!spec) continue;
     ++cases;
@@ -474,7 +475,7 @@ TEST(ChamferHoles, CapAndRodStayOutOfTheMaterial) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   int inner = 0, outer = 0, refused = 0;
   double worst = -1e300;
-  while (inner + outer < 80) {
+  while (inner + outer < ncd::test::sweep_cases(80)) {
     auto spec = random_hole(rng);
     if (!spec) continue;
     ChamferSpec s = *spec;

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 
 namespace ncd::toolpath {
@@ -326,7 +327,7 @@ double brute_deviation(const ChamferModel& m, double a, double b) {
 TEST(ChamferSegmentation, EveryPieceIsWithinTolerance) {
   std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int trial = 0; trial < 20; ++trial) {
+  for (int trial = 0; trial < ncd::test::sweep_cases(20); ++trial) {
     ChamferSpec s = random_spec(rng);
     s.tolerance_mm = std::pow(10.0, -3.0 + 2.0 * u(rng));
     const ChamferModel m(s);
