@@ -18,6 +18,7 @@
 #include <string>
 
 #include "motion/job.hpp"
+#include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 #include "tests/motion/reference.hpp"
 
@@ -237,7 +238,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
 
 TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
   const std::uint64_t seed = test::seed();
-  int programs = 200;
+  int programs = ncd::test::sweep_cases(200);  // a tenth under ASan
   if (const char* env = std::getenv("NCD_PROPERTY_PROGRAMS")) programs = std::atoi(env);
   Gen g{std::mt19937_64(seed)};
   for (int i = 0; i < programs; ++i) {
