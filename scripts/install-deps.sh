@@ -6,8 +6,8 @@ pkgs=(build-essential cmake ninja-build clang-format pkg-config
       libeigen3-dev libboost-dev libserial-dev libgtest-dev libgmock-dev libbenchmark-dev
       libcli11-dev nlohmann-json3-dev libtoml11-dev libfmt-dev libspdlog-dev libssl-dev rt-tests
       zlib1g-dev                    # zlib: the PNG writer of ncd simulate
-      clang-14 libclang-rt-14-dev)  # clang-14, libclang-rt: the libFuzzer harnesses (make fuzz)
-      linuxcnc-uspace)  # linuxcnc-uspace: rs274, the judge of the G-code conformance suite
+      clang-14 libclang-rt-14-dev   # clang-14, libclang-rt: the libFuzzer harnesses (make fuzz)
+      "$@")                         # more packages a caller asks for (scripts/install-judges.sh)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
