@@ -430,6 +430,11 @@ class Interpreter {
       }
       return;
     }
+    if (std::filesystem::is_directory(opt_.parameter_file, ec)) {
+      throw InputError(opt_.parameter_file +
+                       " (parameter file) is a directory; give a file name, such as " +
+                       (std::filesystem::path(opt_.parameter_file) / "ncd.var").string());
+    }
     const std::string text = read_file(opt_.parameter_file, "parameter file");
     std::istringstream in(text);
     std::string line;

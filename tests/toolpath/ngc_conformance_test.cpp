@@ -546,6 +546,8 @@ TEST(NgcParameterFile, OutOfOrderFileIsRefusedAndNothingIsReturnedOnError) {
   EXPECT_NE(ok.parameter_file_text.find("5221\t1e-07\n"), std::string::npos)
       << ok.parameter_file_text;
   EXPECT_TRUE(interpret_ngc("M2\n", "d.ngc", InterpretOptions{}).parameter_file_text.empty());
+  opt.parameter_file = dir.string();  // a directory is no parameter file
+  EXPECT_THROW((void)interpret_ngc("M2\n", "e.ngc", opt), InputError);
   std::error_code ec;
   fs::remove_all(dir, ec);
 }
