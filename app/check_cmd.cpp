@@ -6,6 +6,10 @@
 // machine's maximum feed; dwells), the tools, spindle speeds and feeds. --json for tools.
 // Rapids made before X, Y and Z are all known (the machine comes from wherever it stands)
 // count with their end point only.
+// --save-parameters writes the parameter file back after a program read whole, as LinuxCNC's
+// interpreter does at its exit (docs/ngc-interpreter.md, "Persistent parameters"): checked
+// writable before reading, written to a temporary file renamed over it (app/output.hpp), so a
+// refused program or a failed write leaves the old file as it was.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +23,7 @@
 
 #include "app/commands.hpp"
 #include "app/machine_config.hpp"
+#include "app/output.hpp"
 #include "core/error.hpp"
 #include "toolpath/ngc_interpreter.hpp"
 #include "toolpath/program.hpp"
@@ -33,6 +38,7 @@ struct CheckArgs {
   std::string file, machine, tool_table, parameter_file;
   bool json = false;
   bool summary_only = false;
+  bool save_parameters = false;
 };
 
 struct Summary {
@@ -136,7 +142,16 @@ int run_check(const CheckArgs& a) {
   toolpath::InterpretOptions opt = machine.program;
   if (!a.tool_table.empty()) opt.tool_table = a.tool_table;
   if (!a.parameter_file.empty()) opt.parameter_file = a.parameter_file;
+  if (a.save_parameters) {
+    if (opt.parameter_file.empty()) {
+      throw InputError(
+          "--save-parameters needs a parameter file; give --parameter-file FILE or "
+          "parameter_file in the machine file's [program] table");
+    }
+    check_output(opt.parameter_file, "parameter file");
+  }
   const Program p = toolpath::interpret_ngc_file(a.file, opt);
+  if (a.save_parameters) write_output(opt.parameter_file, p.parameter_file_text, "parameter file");
   const Summary s = summarise(p, machine);
   std::ostringstream canonical;
   if (!a.summary_only) toolpath::write_canonical(canonical, p);
@@ -212,7 +227,11 @@ void register_check(CLI::App& app, Runner& run) {
                 "machine file (TOML): limits for the time estimate, [program] for the reader");
   c->add_option("--tool-table", a->tool_table, "LinuxCNC tool table (overrides [program])");
   c->add_option("--parameter-file", a->parameter_file,
-                "LinuxCNC parameter file, .var (overrides [program]); read, not written");
+                "LinuxCNC parameter file, .var (overrides [program]); read, and written back "
+                "with --save-parameters");
+  c->add_flag("--save-parameters", a->save_parameters,
+              "after a program read whole, write the persistent parameters (work offsets, "
+              "G28/G30 homes, G92) back to the parameter file, as LinuxCNC does at exit");
   c->add_flag("--json", a->json, "print JSON instead of text");
   c->add_flag("--summary", a->summary_only, "print the summary only, not the canonical program");
   c->callback([a, &run] { run = [a] { return run_check(*a); }; });

@@ -23,6 +23,8 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -414,24 +416,112 @@ class Interpreter {
     }
   }
 
+  // LinuxCNC's .var: lines "NUMBER VALUE" in strictly ascending order (LinuxCNC refuses a file
+  // out of order); other lines (comments, blanks) are skipped and kept for the write-back. A
+  // missing file is no error: every parameter starts at 0 and the write-back creates it, as
+  // LinuxCNC does.
   void load_parameters() {
     if (opt_.parameter_file.empty()) return;
+    std::error_code ec;
+    if (!std::filesystem::exists(opt_.parameter_file, ec)) {
+      if (ec) {
+        throw InputError(opt_.parameter_file + ": cannot check the parameter file (" +
+                         ec.message() + "); check the path in the machine file's [program] table");
+      }
+      return;
+    }
+    if (std::filesystem::is_directory(opt_.parameter_file, ec)) {
+      throw InputError(opt_.parameter_file +
+                       " (parameter file) is a directory; give a file name, such as " +
+                       (std::filesystem::path(opt_.parameter_file) / "ncd.var").string());
+    }
     const std::string text = read_file(opt_.parameter_file, "parameter file");
     std::istringstream in(text);
     std::string line;
     int no = 0;
+    long last = 0;
     while (std::getline(in, line)) {
       ++no;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
       std::istringstream ls(line);
       long index = 0;
       double value = 0.0;
-      if (!(ls >> index)) continue;  // blank or comment line
+      if (!(ls >> index)) {  // blank or comment line
+        var_lines_.push_back({0, line});
+        continue;
+      }
       if (!(ls >> value) || index < 1 || index > kMaxParam || !std::isfinite(value)) {
         throw InputError(opt_.parameter_file + ":" + std::to_string(no) +
                          ": expected 'NUMBER VALUE' with NUMBER from 1 to 5602; fix the line");
       }
+      if (index <= last) {
+        throw InputError(opt_.parameter_file + ":" + std::to_string(no) + ": parameter " +
+                         std::to_string(index) + " comes after " + std::to_string(last) +
+                         "; LinuxCNC wants the numbers in ascending order, each once: sort the "
+                         "file and remove the duplicate");
+      }
+      last = index;
       params_[static_cast<std::size_t>(index)] = value;
+      var_lines_.push_back({static_cast<int>(index), line});
     }
+  }
+
+ public:
+  // The parameter file after the program (Program::parameter_file_text): the old file's lines
+  // in place, each parameter line with the parameter's value now, and every persistent
+  // parameter the file lacked inserted where its number belongs.
+  std::string parameter_file_text() const {
+    if (opt_.parameter_file.empty()) return {};
+    std::string out;
+    std::size_t next_required = 0;
+    const auto& req = persistent_parameters();
+    const auto put = [&](int n) {
+      out += std::to_string(n);
+      out += '\t';
+      out += format_parameter(params_[static_cast<std::size_t>(n)]);
+      out += '\n';
+    };
+    for (const auto& [n, text] : var_lines_) {
+      if (n == 0) {
+        out += text;
+        out += '\n';
+        continue;
+      }
+      while (next_required < req.size() && req[next_required] < n) put(req[next_required++]);
+      if (next_required < req.size() && req[next_required] == n) ++next_required;
+      put(n);
+    }
+    while (next_required < req.size()) put(req[next_required++]);
+    return out;
+  }
+
+ private:
+  // LinuxCNC's persistent parameters (its `required_parameters`): G28 and G30 homes
+  // 5161-5169 and 5181-5189, the G92 flag and offsets 5210-5219, the coordinate system 5220
+  // and the nine systems 5221-5230 ... 5381-5390 (X Y Z A B C U V W and the XY rotation).
+  static const std::vector<int>& persistent_parameters() {
+    static const std::vector<int> list = [] {
+      std::vector<int> v;
+      for (int n = 5161; n <= 5169; ++n) v.push_back(n);
+      for (int n = 5181; n <= 5189; ++n) v.push_back(n);
+      for (int n = 5210; n <= 5220; ++n) v.push_back(n);
+      for (int base = 5221; base <= 5381; base += 20) {
+        for (int n = base; n < base + 10; ++n) v.push_back(n);
+      }
+      return v;
+    }();
+    return list;
+  }
+
+  // "%.6f" as LinuxCNC writes when that keeps the value exactly, else the shortest text that
+  // reads back to the same double (rs274 reads either with "%lf").
+  static std::string format_parameter(double v) {
+    if (v == 0.0) v = 0.0;  // no "-0.000000"
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.6f", v);
+    if (std::strtod(buf, nullptr) == v) return buf;
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, r.ptr);
   }
 
   double param_len(int index) const {
@@ -1674,6 +1764,9 @@ class Interpreter {
       if (c == 2 || c == 30) {
         emit(EndEvent{c});
         ended_ = true;
+        // LinuxCNC's program end selects G54 again (convert_stop): the saved 5220 is 1.
+        coord_sys_ = 1;
+        params_[5220] = 1.0;
       }
     }
   }
@@ -2170,6 +2263,7 @@ class Interpreter {
   InterpretOptions opt_;
   double machine_k_ = 1.0;
   Program program_;
+  std::vector<std::pair<int, std::string>> var_lines_;  // the .var's lines: (number or 0, text)
   std::vector<std::unique_ptr<SourceFile>> files_;
   std::unordered_map<std::string, std::pair<std::size_t, std::size_t>> subs_;
   std::vector<Frame> frames_;
@@ -2222,6 +2316,7 @@ Program interpret_ngc(const std::string& text, const std::string& name,
   try {
     Program p = in.run(text, name);
     in.finish();
+    p.parameter_file_text = in.parameter_file_text();
     return p;
   } catch (const Fail& f) {
     throw InputError(in.where() + ": " + f.what + " (line: \"" + in.line_text() + "\")");

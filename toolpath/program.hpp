@@ -125,6 +125,12 @@ struct Program {
   std::vector<std::string> files;  // files[0] is the main program
   std::vector<Step> steps;
   Units units = Units::mm;  // units at the start
+  // The parameter file (InterpretOptions::parameter_file) as it must read after the program:
+  // LinuxCNC's persistent parameters (5161-5169, 5181-5189, 5210-5390 as its required list)
+  // and every parameter the file already held, with their values at the end, in ascending
+  // order; other lines of the old file kept in place. Empty when no parameter file was given.
+  // Writing it back is the caller's choice (docs/ngc-interpreter.md, "Persistent parameters").
+  std::string parameter_file_text;
 };
 
 // Geometry of an arc: radius, signed sweep (rad, + counter-clockwise about the plane's normal

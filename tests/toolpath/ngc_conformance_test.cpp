@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -303,6 +304,39 @@ std::string compare(const std::vector<Item>& lc, const std::vector<Item>& ncd) {
   return {};
 }
 
+// A parameter file's "NUMBER VALUE" lines (other lines skipped, as rs274 reads it).
+std::map<int, double> var_values(const std::string& text) {
+  std::map<int, double> v;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream ls(line);
+    int n = 0;
+    double x = 0.0;
+    if (ls >> n >> x) v[n] = x;
+  }
+  return v;
+}
+
+// The parameter file rs274 wrote at its exit against the one ncd would write: the same
+// parameters, values within 5e-7 + 1e-9 (rs274 writes 6 decimals).
+std::string compare_var(const std::string& rs274_text, const std::string& ncd_text) {
+  const auto lc = var_values(rs274_text), ncd = var_values(ncd_text);
+  if (lc.empty()) return "rs274 wrote no parameter file";
+  for (const auto& [n, x] : lc) {
+    const auto it = ncd.find(n);
+    if (it == ncd.end()) return "parameter " + std::to_string(n) + " written by rs274, not by ncd";
+    if (!(std::fabs(it->second - x) <= 5e-7 + 1e-9)) {
+      return "parameter " + std::to_string(n) + ": rs274 writes " + std::to_string(x) + ", ncd " +
+             std::to_string(it->second);
+    }
+  }
+  for (const auto& [n, x] : ncd) {
+    if (!lc.count(n)) return "parameter " + std::to_string(n) + " written by ncd, not by rs274";
+  }
+  return {};
+}
+
 struct Outcome {
   enum Kind { match, refused, rs274_error, mismatch } kind = match;
   std::string detail;
@@ -324,8 +358,12 @@ class Conformance : public ::testing::Test {
     if (!dir_.empty()) fs::remove_all(dir_, ec);
   }
 
-  Outcome run(const fs::path& program) {
-    std::ofstream(dir_ / "p.var") << kVarFile;
+  // Runs both interpreters with the same parameter file `var` (text; empty: no file at all);
+  // a match needs the same moves and events and the same parameter file written back.
+  Outcome run(const fs::path& program, const std::string& var = kVarFile) {
+    fs::remove(dir_ / "p.var");
+    fs::remove(dir_ / "ncd.var");
+    if (!var.empty()) std::ofstream(dir_ / "p.var") << var;
     const fs::path out = dir_ / "out.txt", log = dir_ / "log.txt";
     fs::remove(out);
     const std::string cmd = "cd '" + dir_.string() + "' && printf '\\n\\n\\n' | timeout 60 " +
@@ -339,7 +377,7 @@ class Conformance : public ::testing::Test {
     InterpretOptions opt;
     opt.machine_units = Units::inch;
     opt.tool_table = (dir_ / "tool.tbl").string();
-    std::ofstream(dir_ / "ncd.var") << kVarFile;
+    if (!var.empty()) std::ofstream(dir_ / "ncd.var") << var;
     opt.parameter_file = (dir_ / "ncd.var").string();
     opt.subroutine_path = {program.parent_path().string()};
     Program p;
@@ -351,10 +389,18 @@ class Conformance : public ::testing::Test {
     if (rc != 0) return {Outcome::rs274_error, ls.str()};
     const std::string diff = compare(parse_rs274(os.str()), items_of(p));
     if (!diff.empty()) return {Outcome::mismatch, diff};
+    std::ifstream v(dir_ / "p.var");
+    std::stringstream vs;
+    vs << v.rdbuf();
+    rs274_var_ = vs.str();
+    ncd_var_ = p.parameter_file_text;
+    const std::string var_diff = compare_var(rs274_var_, ncd_var_);
+    if (!var_diff.empty()) return {Outcome::mismatch, "parameter file: " + var_diff};
     return {Outcome::match, {}};
   }
 
   fs::path dir_;
+  std::string rs274_var_, ncd_var_;  // the parameter files written after the last run
 };
 
 std::vector<fs::path> ngc_files(const fs::path& dir) {
@@ -411,6 +457,99 @@ TEST_F(Conformance, LinuxCncSamplesMatchOrAreRefused) {
       "LinuxCNC samples: %d match, %d refused by ncd, %d refused by rs274 but read by ncd, %d "
       "mismatch\n%s",
       matched, refused, rs_err, mismatched, table.str().c_str());
+}
+
+}  // namespace
+}  // namespace ncd::toolpath
+
+namespace ncd::toolpath {
+namespace {
+
+// Persistent parameters written back: a program stores work offsets (G10 L2, G10 L20), homes
+// (G28.1, G30.1, #5161=), a G92 offset and a user parameter the file held (#31); the parameter
+// file ncd writes after it equals the one rs274 writes. Then a second program that uses all of
+// them reads ncd's file, in ncd and in rs274: the same moves; and ncd's file read back and
+// written again is unchanged (nothing drifts). The file's comment line is kept in place.
+TEST_F(Conformance, PersistentParametersWrittenBackAndReadAgain) {
+  const fs::path set = dir_ / "set.ngc", use = dir_ / "use.ngc";
+  std::ofstream(set) << "G20 G90\nG0 X1 Y2 Z3\nG10 L2 P1 X0.5 Y-0.25 Z0.125\n"
+                        "G10 L2 P2 X-1.5 Y1\nG56 G10 L20 P3 X0.2 Y0.3\nG28.1\n"
+                        "G0 X-2 Y-1 Z0.5\nG30.1\n#5163 = 2.75\n#31 = [#31 + 1.5]\n"
+                        "G55 G92 X0.1 Y0.2\nG0 X0 Y0\nM2\n";
+  const std::string var0 =
+      "; offsets of the test machine\n31 7.0\n5161 1.0\n5162 2.0\n5220 1.0\n5241 9\n";
+  const Outcome o = run(set, var0);
+  ASSERT_EQ(o.kind, Outcome::match) << o.detail;
+  const std::string written = ncd_var_;
+  EXPECT_EQ(written.rfind("; offsets of the test machine\n31\t8.500000\n", 0), 0u) << written;
+  const auto v = var_values(written);
+  EXPECT_EQ(v.at(5220), 1.0);  // M2 selects G54 again
+  EXPECT_EQ(v.at(5210), 1.0);  // G92 stays on, as LinuxCNC keeps it by default
+  EXPECT_EQ(v.at(5163), 2.75);
+  EXPECT_EQ(v.at(5221), 0.5);
+  // homes 5161-5169 and 5181-5189, 5210-5220, nine systems of 10, and #31 from the file
+  EXPECT_EQ(v.size(), 9u + 9u + 11u + 90u + 1u);
+
+  std::ofstream(use) << "G20 G90\nG0 X0 Y0 Z1\nG55 G0 X0 Y0\nG56 G0 X0 Y0\nG54 G0 X1 Y1\n"
+                        "G28 Z1.5\nG30\n(DEBUG, #31 #5163 #5213)\nG92.1\nG0 X0 Y0 Z0\nM2\n";
+  const Outcome again = run(use, written);
+  ASSERT_EQ(again.kind, Outcome::match) << again.detail;
+  InterpretOptions opt;
+  opt.machine_units = Units::inch;
+  opt.parameter_file = (dir_ / "again.var").string();
+  std::ofstream(dir_ / "again.var") << written;
+  const Program p = interpret_ngc("G0 X1 Y1 Z1\nM2\n", "noop.ngc", opt);
+  EXPECT_EQ(p.parameter_file_text, written);
+}
+
+// No parameter file yet: both interpreters start from zeros and write every persistent
+// parameter.
+TEST_F(Conformance, MissingParameterFileIsCreatedWithThePersistentParameters) {
+  const fs::path set = dir_ / "set.ngc";
+  std::ofstream(set) << "G21\nG0 X1 Y2 Z3\nG10 L2 P2 X1.5\nG55\nG28.1\n#31=4\nM2\n";
+  const Outcome o = run(set, "");
+  ASSERT_EQ(o.kind, Outcome::match) << o.detail;
+  EXPECT_EQ(var_values(ncd_var_).size(), 9u + 9u + 11u + 90u);
+  EXPECT_EQ(ncd_var_.find("\n31\t"), std::string::npos);  // #31 was not in a file: volatile
+}
+
+}  // namespace
+}  // namespace ncd::toolpath
+
+namespace ncd::toolpath {
+namespace {
+
+// Without rs274: a parameter file out of order is refused as LinuxCNC refuses it, naming the
+// line; a refused program returns nothing (so nothing can be written back); no parameter file,
+// no text.
+TEST(NgcParameterFile, OutOfOrderFileIsRefusedAndNothingIsReturnedOnError) {
+  const fs::path dir = fs::temp_directory_path() / ("ncd_var_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  InterpretOptions opt;
+  opt.parameter_file = (dir / "p.var").string();
+  std::ofstream(dir / "p.var") << "5161 1\n5220 1\n5162 2\n";
+  try {
+    (void)interpret_ngc("G0 X1 Y1 Z1\nM2\n", "a.ngc", opt);
+    ADD_FAILURE() << "out-of-order parameter file accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("p.var:3: parameter 5162 comes after 5220"),
+              std::string::npos)
+        << e.what();
+  }
+  std::ofstream(dir / "p.var") << "5161 1\n5161 2\n";
+  EXPECT_THROW((void)interpret_ngc("M2\n", "a.ngc", opt), InputError);
+  std::ofstream(dir / "p.var") << "5161 1\n";
+  EXPECT_THROW((void)interpret_ngc("G10 L2 P1 X5\nG41 G1 X1 F100\nM2\n", "b.ngc", opt), InputError);
+  const Program ok = interpret_ngc("#5161 = -0.0\nG10 L2 P1 X0.0000001\nM2\n", "c.ngc", opt);
+  // -0 is written as 0; 1e-7 mm does not fit "%.6f" and is written exactly.
+  EXPECT_NE(ok.parameter_file_text.find("5161\t0.000000\n"), std::string::npos);
+  EXPECT_NE(ok.parameter_file_text.find("5221\t1e-07\n"), std::string::npos)
+      << ok.parameter_file_text;
+  EXPECT_TRUE(interpret_ngc("M2\n", "d.ngc", InterpretOptions{}).parameter_file_text.empty());
+  opt.parameter_file = dir.string();  // a directory is no parameter file
+  EXPECT_THROW((void)interpret_ngc("M2\n", "e.ngc", opt), InputError);
+  std::error_code ec;
+  fs::remove_all(dir, ec);
 }
 
 }  // namespace
