@@ -503,6 +503,10 @@ bool Planner::try_landing() {
   const double slack = 4.0 * x_.v_mm_per_s * T + 64.0 * j_max_ * T * T * T;
   if (length_mm_ - x_.s_mm > need_mm(x_, 0.0) + slack) return false;
   const std::size_t tail = plan_n_ - plan_pos_;
+  // Shorter landings than the plan's first: the earliest rest on L from here.
+  for (std::size_t n = 3; n < tail; ++n) {
+    if (land_with(n, false)) return true;
+  }
   if (tail >= 3 && land_with(tail, true)) return true;
   if (tail >= 2 && land_with(tail + 1, false)) return true;
   std::size_t n = std::max<std::size_t>(3, tail);

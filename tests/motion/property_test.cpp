@@ -6,7 +6,7 @@
 // setpoints alone against the programmed geometry (tests/motion/reference.hpp):
 //   - it ends at rest exactly at its end point;
 //   - every setpoint lies on the walked geometry (nearest-point distance ≤ 1e-5 mm), and within
-//     the active blend tolerance (G64 P, or the machine's) of the programmed geometry;
+//     the active blend tolerance (G64 P) of the programmed geometry;
 //   - every period's chord stays within the chord tolerance of the geometry it spans;
 //   - the speed |Δp|/T stays within the machine's maximum feed and the programs' F words;
 //     the tangential acceleration and jerk (differences of the planned s) within their limits;
@@ -195,12 +195,11 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
              " is " + std::to_string(d) + " mm off the walked path";
     }
     // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
-    // ends at its corner): its G64 P, else the machine's, under G64; none under G61, G61.1.
+    // ends at its corner): its G64 P under G64; none without P, under G61 or G61.1.
     const PathSegment& held = path.segments[job.walker().segment()];
-    const double tol =
-        held.path_control == PathControl::blend
-            ? std::max(held.blend_tolerance_mm.value_or(cfg.limits.blend_tolerance_mm), 0.0)
-            : 0.0;
+    const double tol = held.path_control == PathControl::blend
+                           ? std::max(held.blend_tolerance_mm.value_or(0.0), 0.0)
+                           : 0.0;
     const double dp = test::distance_to_path(program, sp.p, sp.s_mm, window);
     if (!(dp <= tol * (1.0 + 1e-9) + 1e-5)) {
       return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
