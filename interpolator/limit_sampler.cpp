@@ -44,6 +44,7 @@
 #include <limits>
 
 #include "core/quadrature.hpp"
+#include "interpolator/corner_blend.hpp"
 
 namespace ncd::interpolator {
 namespace {
@@ -157,11 +158,53 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   while (!stops_mm_.empty() && stops_mm_.back() >= total) stops_mm_.pop_back();
   std::erase_if(stops_mm_, [](double s) { return s <= 0.0; });
   breakpoints_.resize(n);  // here, so that walking the segments later allocates nothing
+  knot_edges_.resize(n);
+  // A jump of the limit by more than this factor gets nodes of its own (edge_speed).
+  constexpr double kJumpRatio = 1.5;
+  const auto jump = [&](double a, double b) {
+    const double lo = std::min(a, b), hi = std::max(a, b);
+    return lo > 0.0 && std::isfinite(lo) && hi > kJumpRatio * lo ? lo : kInf;
+  };
   for (std::size_t k = 0; k < n; ++k) {
     if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
       breakpoints_[k] = c->breakpoints();
+      for (const double u : breakpoints_[k]) {
+        const toolpath::CurvePoint cl = c->eval(std::nextafter(u, -kInf)), cr = c->eval(u);
+        const bool interior = u > c->u_begin() && u < c->u_end();
+        const double v = interior ? jump(limit_on_curve(k, std::nextafter(u, -kInf)).feed_mm_per_s,
+                                         limit_on_curve(k, u).feed_mm_per_s)
+                                  : kInf;
+        knot_edges_[k].push_back({v, cl.d1.norm(), cr.d1.norm()});
+      }
     }
   }
+  joint_edge_.assign(n + 1, kInf);
+  for (std::size_t k = 1; k < n; ++k) {
+    if (std::isfinite(joint_corner_[k].feed_mm_per_s)) {
+      joint_edge_[k] = joint_corner_[k].feed_mm_per_s;  // a corner: its zone
+    } else if (!std::binary_search(stops_mm_.begin(), stops_mm_.end(), starts_mm_[k])) {
+      joint_edge_[k] =
+          jump(side_limit(k - 1, true).feed_mm_per_s, side_limit(k, false).feed_mm_per_s);
+    }
+  }
+}
+
+FeedLimitResult LimitSampler::side_limit(std::size_t segment, bool at_end) const {
+  const auto& g = path_.segments[segment].geometry;
+  if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
+    return limit_on_curve(segment, at_end ? std::nextafter(c->u_end(), -kInf) : c->u_begin());
+  }
+  const auto& line = std::get<toolpath::Polyline>(g);
+  return limit_on_piece(segment, at_end ? line.points.size() - 2 : 0);
+}
+
+// The speed that places the nodes around vertex `vertex` of a polyline (next_zone_edge_mm):
+// its corner speed, or at a joint the corner's or the jump's (joint_edge_).
+double LimitSampler::edge_speed(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  if (vertex == 0) return joint_edge_[segment];
+  if (vertex + 1 == line.points.size()) return joint_edge_[segment + 1];
+  return corner_limit(segment, vertex).feed_mm_per_s;
 }
 
 double LimitSampler::stop_below_mm_per_s() const {
@@ -192,16 +235,7 @@ FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
                                            double curvature_per_mm) const {
   if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
   const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
-  if (phi < kMinTurnRad) return {kInf, FeedLimit::Corner};
-  const double eps = limits_.chord_tolerance_mm, t = limits_.period_s;
-  const double b = 0.5 * std::sin(0.5 * phi), qa = 0.125 * curvature_per_mm;
-  const double step =
-      qa > 0.0 && std::isfinite(qa) ? 2.0 * eps / (b + std::sqrt(b * b + 4.0 * qa * eps)) : eps / b;
-  const double chord = step / t;
-  const double c = std::cos(0.5 * phi);
-  const double junction =
-      c < 1.0 ? std::sqrt(limits_.max_accel_mm_per_s2 * eps * c / (1.0 - c)) : kInf;
-  return {std::min(chord, junction), FeedLimit::Corner};
+  return {polyline_corner_speed_mm_per_s(limits_, phi, curvature_per_mm), FeedLimit::Corner};
 }
 
 FeedLimitResult LimitSampler::segment_cap(std::size_t segment) const {
@@ -215,8 +249,17 @@ FeedLimitResult LimitSampler::segment_cap(std::size_t segment) const {
 
 FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) const {
   const auto& seg = path_.segments[segment];
-  if (seg.rapid) return segment_cap(segment);
   const auto& c = std::get<toolpath::NurbsCurve>(seg.geometry);
+  if (seg.rapid) {  // no cutting: the curve laws without the roughness law (a blended rapid)
+    const double kappa = curvature_per_mm(c.eval(u));
+    FeedLimitResult r = segment_cap(segment);
+    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                   FeedLimit::Chord});
+    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                   FeedLimit::CentripetalAccel});
+    return min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
+                      FeedLimit::CentripetalJerk});
+  }
   return min_of(feed_limit_at(limits_, cutting_, c.eval(u)), segment_cap(segment));
 }
 
@@ -296,12 +339,15 @@ FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vert
                       unit_or_zero(line.points[vertex + 1] - line.points[vertex]));
 }
 
-FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0,
-                                                    double u1) const {
+FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0, double u1,
+                                                    bool open_end) const {
   // Five samples; the minimum lies within one sample step of the lowest of them (the limit is
   // smooth over 0.05 mm), where Brent's method (parabolic steps, golden-section fallback)
   // finds it in a few evaluations.
+  // open_end: u1 is a knot where the limit jumps; it is left out, since the curve evaluates
+  // there to the span that starts at it, whose limit belongs to the next interval.
   constexpr int kSamples = 5;
+  if (open_end) u1 = std::max(u0, std::nextafter(u1, -kInf));
   const double step = (u1 - u0) / (kSamples - 1);
   FeedLimitResult best{std::numeric_limits<double>::infinity(), FeedLimit::MaxFeed};
   int at = 0;
@@ -445,8 +491,8 @@ bool LimitSampler::next_interval(Interval& iv) {
       const double remaining = end - s_;
       const double subs = std::max(1.0, std::ceil(remaining / config_.spacing_mm - 1e-9));
       double b = subs <= 1.0 ? end : s_ + remaining / subs;
-      b = std::min(b, next_zone_edge_mm(piece_s_, corner_limit(segment_, piece_).feed_mm_per_s, end,
-                                        corner_limit(segment_, piece_ + 1).feed_mm_per_s));
+      b = std::min(b, next_zone_edge_mm(piece_s_, edge_speed(segment_, piece_), end,
+                                        edge_speed(segment_, piece_ + 1)));
       iv.a_mm = s_;
       iv.b_mm = b;
       iv.v_mm_per_s = v.feed_mm_per_s;
@@ -474,8 +520,7 @@ bool LimitSampler::next_interval(Interval& iv) {
     // The corner zones at the joints get intervals of their own (their edges mapped to u at
     // the joint's parametric speed), so that a slow corner does not slow a whole interval.
     const double s0 = starts_mm_[segment_], s1 = starts_mm_[segment_ + 1];
-    const double edge = next_zone_edge_mm(s0, joint_corner_[segment_].feed_mm_per_s, s1,
-                                          joint_corner_[segment_ + 1].feed_mm_per_s);
+    const double edge = next_zone_edge_mm(s0, joint_edge_[segment_], s1, joint_edge_[segment_ + 1]);
     if (std::isfinite(edge)) {
       const bool near_start = edge - s0 < s1 - edge;
       const double speed_joint = c.eval(near_start ? c.u_begin() : c.u_end()).d1.norm();
@@ -486,9 +531,29 @@ bool LimitSampler::next_interval(Interval& iv) {
       }
     }
     u1 = inner_corner_edge_u(u1);
+    // A jump of the limit at a smooth knot (a blend arc meeting its lines): a node one period
+    // of travel at the lower speed before and after it.
+    {
+      const auto& edges = knot_edges_[segment_];
+      const double tiny = 1e-12 * std::max(1.0, std::abs(u1));
+      const auto consider = [&](double ue) {
+        if (ue > u_ + tiny && ue < u1) u1 = ue;
+      };
+      const double T = limits_.period_s;
+      if (knot_ > 0 && knot_ - 1 < edges.size() && std::isfinite(edges[knot_ - 1].v_mm_per_s) &&
+          edges[knot_ - 1].speed_out > 0.0) {
+        consider(knots[knot_ - 1] + edges[knot_ - 1].v_mm_per_s * T / edges[knot_ - 1].speed_out);
+      }
+      if (knot_ < edges.size() && std::isfinite(edges[knot_].v_mm_per_s) &&
+          edges[knot_].speed_in > 0.0) {
+        consider(knots[knot_] - edges[knot_].v_mm_per_s * T / edges[knot_].speed_in);
+      }
+    }
     const double arc =
         GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
-    const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1);
+    const bool open_end = knot_ < knots.size() && u1 == knots[knot_] &&
+                          std::isfinite(knot_edges_[segment_][knot_].v_mm_per_s);
+    const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1, open_end);
     iv.a_mm = s_;
     iv.b_mm = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + arc;
     iv.v_mm_per_s = v.feed_mm_per_s;

@@ -62,7 +62,8 @@ class LimitSampler {
   };
   bool next_interval(Interval& out);
   void enter_segment();
-  FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1) const;
+  FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1,
+                                        bool open_end) const;
   FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
   FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out,
                                double curvature_per_mm = 0.0) const;
@@ -88,6 +89,17 @@ class LimitSampler {
     FeedLimitResult corner;
   };
   std::vector<std::vector<InnerCorner>> inner_corners_;
+  // Where the limit jumps at a tangent joint or a smooth knot (a blend arc meets its lines):
+  // the lower side's speed, so that a node at v T from it keeps the slow stretch to one period
+  // (+inf: no jump, or a corner or stop handled elsewhere). Per joint, and per breakpoint of
+  // each curve with the parametric speed on each side.
+  std::vector<double> joint_edge_;
+  struct KnotEdge {
+    double v_mm_per_s, speed_in, speed_out;
+  };
+  std::vector<std::vector<KnotEdge>> knot_edges_;
+  FeedLimitResult side_limit(std::size_t segment, bool at_end) const;
+  double edge_speed(std::size_t segment, std::size_t vertex) const;
   // Cursor.
   std::size_t segment_ = 0;
   std::size_t piece_ = 0;                         // polyline piece

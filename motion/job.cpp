@@ -48,6 +48,13 @@ std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_
   return s;
 }
 
+// The limits are checked first: blending computes with them.
+toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
+                            interpolator::BlendReport* report) {
+  interpolator::validate(c.limits);
+  return interpolator::blend_corners(path, c.limits, report);
+}
+
 StepBounds step_bounds(const JobConfig& c) {
   StepBounds b;
   b.max_feed_mm_per_s = c.limits.max_feed_mm_per_min / 60.0;
@@ -94,10 +101,10 @@ const char* limit_name(std::uint8_t id) {
 }
 
 Job::Job(const toolpath::Path& path, const JobConfig& config)
-    : path_(path),
+    : path_(blended_path(path, config, &blend_)),
       config_(config),
-      walker_(path, walker_config(config)),
-      sampler_(path, segment_starts(walker_, path.segments.size()), config.limits, config.cutting,
+      walker_(path_, walker_config(config)),
+      sampler_(path_, segment_starts(walker_, path_.segments.size()), config.limits, config.cutting,
                config.sampler),
       bounds_(stretch_bounds(sampler_, walker_.length_mm())),
       planner_(planner_limits(config), bounds_[1] - bounds_[0]),

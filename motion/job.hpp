@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <string>
 
+#include "interpolator/corner_blend.hpp"
 #include "interpolator/limit_sampler.hpp"
 #include "interpolator/path_walker.hpp"
 #include "motion/planner.hpp"
@@ -48,7 +49,8 @@ const char* limit_name(std::uint8_t limit_id);
 
 class Job {
  public:
-  // Keeps a reference to path (it must outlive the job). Throws InputError on bad limits.
+  // Copies the path with its corners blended under G64 P (interpolator/corner_blend.hpp): the
+  // setpoints' arc length s runs along that blended path. Throws InputError on bad limits.
   Job(const toolpath::Path& path, const JobConfig& config);
 
   // Look-ahead: feeds the planner from the limit sampler as far as it wants (the planner
@@ -71,6 +73,9 @@ class Job {
   Planner& planner() { return planner_; }
   const Planner& planner() const { return planner_; }
   const interpolator::PathWalker& walker() const { return walker_; }
+  // The path walked (the program's, with its blended corners) and what the blending did.
+  const toolpath::Path& path() const { return path_; }
+  const interpolator::BlendReport& blend_report() const { return blend_; }
   // The feed limit of the continuous laws at the current position (no corners), mm/s.
   interpolator::FeedLimitResult limit_here() const;
   // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;
@@ -78,7 +83,8 @@ class Job {
   double roughness_here_um(double v_mm_per_s) const;
 
  private:
-  const toolpath::Path& path_;
+  interpolator::BlendReport blend_;
+  toolpath::Path path_;  // the program's, corners blended
   JobConfig config_;
   interpolator::PathWalker walker_;
   interpolator::LimitSampler sampler_;

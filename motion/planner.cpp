@@ -503,6 +503,17 @@ bool Planner::try_landing() {
   const double slack = 4.0 * x_.v_mm_per_s * T + 64.0 * j_max_ * T * T * T;
   if (length_mm_ - x_.s_mm > need_mm(x_, 0.0) + slack) return false;
   const std::size_t tail = plan_n_ - plan_pos_;
+  // Shorter landings than the plan's first: the earliest rest on L from here. None is shorter
+  // than the time-optimal stop from (v, a), whatever the distance; at most kShortLandings tries
+  // (bounded work per period).
+  constexpr std::size_t kShortLandings = 16;
+  const Profile stop = decrease_profile(x_.v_mm_per_s, x_.a_mm_per_s2, 0.0, a_max_, j_max_, j_max_);
+  const double t_stop = stop.t1 + stop.t2 + stop.t3;
+  const std::size_t n0 =
+      std::max<std::size_t>(3, t_stop > 0.0 ? static_cast<std::size_t>(t_stop / T) : 0);
+  for (std::size_t n = n0; n < tail && n < n0 + kShortLandings; ++n) {
+    if (land_with(n, false)) return true;
+  }
   if (tail >= 3 && land_with(tail, true)) return true;
   if (tail >= 2 && land_with(tail + 1, false)) return true;
   std::size_t n = std::max<std::size_t>(3, tail);

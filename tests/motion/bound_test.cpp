@@ -144,7 +144,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     }
     Path p;
     p.segments.push_back(line(pts, 6000.0));
-    EXPECT_LE(exact_stop("zig-zag 30 deg, 5 mm", p, 100.0, std::vector<double>(8, 5.0)), 1.07);
+    EXPECT_LE(exact_stop("zig-zag 30 deg, 5 mm", p, 100.0, std::vector<double>(8, 5.0)), 1.05);
   }
   {
     Path p;

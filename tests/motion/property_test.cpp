@@ -2,10 +2,11 @@
 // NCD_PROPERTY_PROGRAMS sets how many: 200 here, thousands under `make soak`). Each program
 // mixes lines with reversals, zero-length and 1 µm moves, dense runs of 0.01 mm moves,
 // NURBS of degree 1–5 (rational, repeated interior knots up to C¹), rapids, G61, G61.1, G64
-// and stops before events. For every program, checked from the setpoints alone against the
-// programmed geometry (tests/motion/reference.hpp):
+// (with and without P, P0 included) and stops before events. For every program, checked from the
+// setpoints alone against the programmed geometry (tests/motion/reference.hpp):
 //   - it ends at rest exactly at its end point;
-//   - every setpoint lies on the programmed geometry (nearest-point distance ≤ 1e-5 mm);
+//   - every setpoint lies on the walked geometry (nearest-point distance ≤ 1e-5 mm), and within
+//     the active blend tolerance (G64 P) of the programmed geometry;
 //   - every period's chord stays within the chord tolerance of the geometry it spans;
 //   - the speed |Δp|/T stays within the machine's maximum feed and the programs' F words;
 //     the tangential acceleration and jerk (differences of the planned s) within their limits;
@@ -55,6 +56,7 @@ struct Gen {
     s.path_control =
         m == 0 ? PathControl::exact_stop : (m == 1 ? PathControl::exact_path : PathControl::blend);
     s.stop_before = pick(10) == 0;
+    if (pick(3) == 0) s.blend_tolerance_mm = pick(2) == 0 ? 0.0 : uni(0.001, 0.5);  // G64 P
   }
 
   PathSegment lines() {
@@ -170,8 +172,14 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
   const double j_max = cfg.limits.max_jerk_mm_per_s3, eps = cfg.limits.chord_tolerance_mm;
   const double v_cap = cfg.limits.max_feed_mm_per_min / 60.0;
   (void)max_program_feed_mm_per_min;
-  const test::GeometryTable geo = test::tabulate(path);
   Job job(path, cfg);
+  // The programmed geometry, and the walked one (corners blended under G64 P): setpoints lie
+  // on the walked geometry, and within the active tolerance of the programmed one; the chord
+  // is checked against the walked one.
+  const test::GeometryTable program = test::tabulate(path);
+  // (sampled every 0.5 µm: a blend arc of radius 0.08 mm bows 1e-5 mm from a 2.5 µm chord)
+  const test::GeometryTable geo = test::tabulate(job.path(), 0.0005);
+  const double window = 0.5 + std::abs(program.s_mm.back() - geo.s_mm.back());
   std::vector<Vec3> p{geo.p.front()};
   std::vector<double> s{0.0};
   std::int64_t still = 0;
@@ -184,7 +192,19 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
     const double d = test::distance_to_path(geo, sp.p, sp.s_mm, 0.5);
     if (!(d <= 1e-5)) {
       return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
-             " is " + std::to_string(d) + " mm off the path";
+             " is " + std::to_string(d) + " mm off the walked path";
+    }
+    // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
+    // ends at its corner): its G64 P under G64; none without P, under G61 or G61.1.
+    const PathSegment& held = path.segments[job.walker().segment()];
+    const double tol = held.path_control == PathControl::blend
+                           ? std::max(held.blend_tolerance_mm.value_or(0.0), 0.0)
+                           : 0.0;
+    const double dp = test::distance_to_path(program, sp.p, sp.s_mm, window);
+    if (!(dp <= tol * (1.0 + 1e-9) + 1e-5)) {
+      return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
+             " is " + std::to_string(dp) + " mm off the programmed path (tolerance " +
+             std::to_string(tol) + " mm)";
     }
     // Chord: the geometry between the two setpoints against their chord.
     const auto lo = std::upper_bound(geo.s_mm.begin(), geo.s_mm.end(), s.back());

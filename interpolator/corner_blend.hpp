@@ -1,0 +1,30 @@
+// Corner blending under G64 P (path tolerance): the corners of straight moves are replaced by
+// circular arcs that stay within P of the programmed corner. The algorithm and its decisions
+// are explained in corner_blend.cpp and docs/planner.md §3a.
+#pragma once
+
+#include <cstddef>
+
+#include "interpolator/feed_limits.hpp"
+#include "toolpath/path.hpp"
+
+namespace ncd::interpolator {
+
+struct BlendReport {
+  std::size_t corners = 0;        // corners replaced by an arc
+  double max_deviation_mm = 0.0;  // largest distance of an arc from its programmed corner
+};
+
+// The path with its blendable corners rounded (see corner_blend.cpp). The segment count and
+// order are kept (an arc belongs to the move that ends at its corner, which then becomes a
+// rational quadratic NURBS; the next move starts where the arc ends), so that a segment index
+// still names the programmed move. Corners that are not blended are left exactly as given.
+toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& limits,
+                             BlendReport* report = nullptr);
+
+// The speed of the chord and junction rules at a corner turning by phi between two straight
+// pieces (docs/planner.md §2): what the limit sampler allows there without blending, mm/s.
+double polyline_corner_speed_mm_per_s(const MachineLimits& limits, double phi_rad,
+                                      double curvature_per_mm = 0.0);
+
+}  // namespace ncd::interpolator

@@ -1,0 +1,324 @@
+// Corner blending under G64 P (docs/planner.md §3a), checked against references written here:
+//   - the exact distance of every setpoint (and of the walked geometry, densely sampled) from
+//     the programmed polyline, by brute force over all its pieces: at most P;
+//   - the arc's radius in closed form, R = P / (1 − cos(φ/2)), against the curvature
+//     of the walked geometry;
+//   - a phase-plane bound built from that closed-form geometry (lines at the feed, arcs at the
+//     speed their curve laws allow, tangential acceleration only): ncd is never faster;
+//   - the same program under G61.1 (exact stop): G64 P is never slower, and faster where the
+//     corners are gentle enough or P large enough.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <vector>
+
+#include "interpolator/feed_limits.hpp"
+#include "motion/job.hpp"
+#include "tests/motion/reference.hpp"
+
+namespace ncd::motion {
+namespace {
+
+using toolpath::NurbsCurve;
+using toolpath::Path;
+using toolpath::PathControl;
+using toolpath::PathSegment;
+using toolpath::Polyline;
+
+constexpr double kT = 0.004, kA = 1000.0, kJ = 20000.0, kEps = 0.001;
+
+JobConfig machine() {
+  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
+  c.cutting.pick_feed_mm = 0.0;
+  c.cutting.roughness_target_um = 1000.0;
+  return c;
+}
+
+PathSegment move(std::vector<Vec3> pts, double f_mm_per_min, std::optional<double> p_mm,
+                 PathControl mode = PathControl::blend) {
+  PathSegment s;
+  s.geometry = Polyline{std::move(pts), {}};
+  s.feed_mm_per_min = f_mm_per_min;
+  s.path_control = mode;
+  s.blend_tolerance_mm = p_mm;
+  return s;
+}
+
+// The exact distance from q to the programmed polyline (every piece of every segment).
+double distance_to_program(const std::vector<Vec3>& pts, const Vec3& q) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
+    best = std::min(best, test::distance_to_segment(q, pts[i], pts[i + 1]));
+  }
+  return best;
+}
+
+struct Walk {
+  std::vector<Setpoint> sp;
+  double duration_s = 0.0;
+  std::size_t blended = 0;
+  Path walked;
+};
+
+Walk run(const Path& path) {
+  Job job(path, machine());
+  Walk r;
+  while (!job.done()) {
+    job.prepare();
+    r.sp.push_back(job.step());
+    if (r.sp.size() > 2'000'000) break;
+  }
+  r.duration_s = r.sp.back().t_s;
+  r.blended = job.blend_report().corners;
+  r.walked = job.path();
+  return r;
+}
+
+Path with_mode(Path p, PathControl mode) {
+  for (auto& s : p.segments) s.path_control = mode;
+  return p;
+}
+
+// Largest distance of the walked geometry, sampled every ~1 µm, from the programmed polyline,
+// and the largest curvature met on it.
+void sample_walked(const Path& walked, const std::vector<Vec3>& program, double& max_dev_mm,
+                   double& max_kappa) {
+  max_dev_mm = 0.0;
+  max_kappa = 0.0;
+  for (const auto& seg : walked.segments) {
+    if (const auto* line = std::get_if<Polyline>(&seg.geometry)) {
+      for (const auto& q : line->points) {
+        max_dev_mm = std::max(max_dev_mm, distance_to_program(program, q));
+      }
+      continue;
+    }
+    const auto& c = std::get<NurbsCurve>(seg.geometry);
+    const int n = static_cast<int>((c.u_end() - c.u_begin()) / 0.001) + 100;
+    for (int i = 0; i <= n; ++i) {
+      const auto p = c.eval(c.u_begin() + (c.u_end() - c.u_begin()) * i / n);
+      max_dev_mm = std::max(max_dev_mm, distance_to_program(program, p.p));
+      max_kappa = std::max(max_kappa, p.d1.cross(p.d2).norm() / std::pow(p.d1.norm(), 3));
+    }
+  }
+}
+
+// The arc of a corner turning by phi within p, in closed form, and the speed its curve laws
+// allow (centripetal acceleration and jerk, chord error of one period, the feed).
+double arc_radius_mm(double phi, double p_mm) {
+  return p_mm / (1.0 - std::cos(0.5 * phi));  // the midpoint R (1 − cos(φ/2)) off both legs
+}
+double arc_speed(double r_mm, double feed) {
+  const double chord = 2.0 * std::sqrt(2.0 * r_mm * kEps - kEps * kEps) / kT;
+  return std::min({feed, std::sqrt(kA * r_mm), std::cbrt(kJ * r_mm * r_mm), chord});
+}
+
+// Phase-plane bound (tangential acceleration only) over pieces (length, constant limit),
+// from rest to rest.
+double phase_plane_s(const std::vector<std::pair<double, double>>& pieces) {
+  std::vector<double> s{0.0}, v{0.0};
+  for (const auto& [len, lim] : pieces) {
+    const int n = std::max(4, static_cast<int>(len / 0.0005));
+    for (int i = 1; i <= n; ++i) {
+      s.push_back(s.back() + len / n);
+      v.push_back(lim);
+    }
+    // The node at a piece's start takes the lower limit of the two pieces.
+    const std::size_t first = s.size() - static_cast<std::size_t>(n) - 1;
+    v[first] = std::min(v[first], lim);
+  }
+  v.back() = 0.0;
+  const std::size_t m = s.size();
+  for (std::size_t i = 1; i < m; ++i) {
+    v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2 * kA * (s[i] - s[i - 1])));
+  }
+  for (std::size_t i = m - 1; i-- > 0;) {
+    v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * kA * (s[i + 1] - s[i])));
+  }
+  double t = 0.0;
+  for (std::size_t i = 0; i + 1 < m; ++i) t += 2.0 * (s[i + 1] - s[i]) / (v[i] + v[i + 1]);
+  return t;
+}
+
+// Jerk-limited S-curve estimate over the same pieces: each line from the speed of the piece
+// before to that of the piece after (0 at the path ends), rising towards its limit and
+// returning with a = 0 at both ends (closed form, peak by bisection); each arc at its constant
+// limit. Not a strict lower bound (a motion may enter an arc with a != 0), but the time the
+// jerk limit adds to the phase-plane bound.
+double scurve_pieces_s(const std::vector<std::pair<double, double>>& pieces) {
+  const auto ramp_t = [](double dv) {
+    return dv >= kA * kA / kJ ? dv / kA + kA / kJ : 2.0 * std::sqrt(std::max(dv, 0.0) / kJ);
+  };
+  double t = 0.0;
+  for (std::size_t i = 0; i < pieces.size(); ++i) {
+    const auto [len, lim] = pieces[i];
+    const bool arc = i % 2 == 1;
+    if (arc) {
+      t += len / lim;
+      continue;
+    }
+    const double w0 = i > 0 ? pieces[i - 1].second : 0.0;
+    const double w1 = i + 1 < pieces.size() ? pieces[i + 1].second : 0.0;
+    const auto dist = [&](double peak) {
+      return 0.5 * (w0 + peak) * ramp_t(peak - w0) + 0.5 * (peak + w1) * ramp_t(peak - w1);
+    };
+    double peak = lim;
+    if (dist(lim) > len) {
+      double lo = std::max(w0, w1), hi = lim;
+      for (int k = 0; k < 200; ++k) (dist(0.5 * (lo + hi)) < len ? lo : hi) = 0.5 * (lo + hi);
+      peak = 0.5 * (lo + hi);
+    }
+    t += ramp_t(peak - w0) + ramp_t(peak - w1) + std::max(len - dist(peak), 0.0) / peak;
+  }
+  return t;
+}
+
+// A zig-zag of `legs` legs of `leg` mm, turning by ±phi at each vertex.
+std::vector<Vec3> zigzag(int legs, double leg, double phi) {
+  std::vector<Vec3> pts{{0, 0, 0}};
+  for (int i = 0; i < legs; ++i) {
+    const double ang = (i % 2 ? -0.5 : 0.5) * phi;
+    pts.push_back(pts.back() + leg * Vec3(std::cos(ang), std::sin(ang), 0.0));
+  }
+  return pts;
+}
+
+TEST(Blend, GentleZigZagStaysWithinPAndBeatsExactStopAndTheSharpCorner) {
+  const double phi = 30.0 * M_PI / 180.0, p_mm = 0.01, leg = 10.0, feed = 100.0;
+  const std::vector<Vec3> pts = zigzag(12, leg, phi);
+  Path path;
+  path.segments.push_back(move(pts, 60.0 * feed, p_mm));
+  const Walk g64 = run(path);
+  EXPECT_EQ(g64.blended, 11U);
+  double worst = 0.0;
+  for (const auto& sp : g64.sp) worst = std::max(worst, distance_to_program(pts, sp.p));
+  EXPECT_LE(worst, p_mm * (1.0 + 1e-9));
+  double dev = 0.0, kappa = 0.0;
+  sample_walked(g64.walked, pts, dev, kappa);
+  EXPECT_LE(dev, p_mm * (1.0 + 1e-9));
+  EXPECT_GE(dev, 0.999 * p_mm);  // the corner is rounded by all of P, no less
+  const double r_mm = arc_radius_mm(phi, p_mm);
+  EXPECT_NEAR(kappa, 1.0 / r_mm, 1e-6 / r_mm);
+  EXPECT_LT((g64.sp.back().p - pts.back()).norm(), 1e-9);
+  // Bound: lines at the feed, arcs at their closed-form speed.
+  const double v_arc = arc_speed(r_mm, feed), tangent = r_mm * std::tan(0.5 * phi);
+  std::vector<std::pair<double, double>> pieces;
+  for (int i = 0; i < 12; ++i) {
+    pieces.push_back({leg - (i > 0 ? tangent : 0.0) - (i < 11 ? tangent : 0.0), feed});
+    if (i < 11) pieces.push_back({r_mm * phi, v_arc});
+  }
+  const double bound = phase_plane_s(pieces), estimate = scurve_pieces_s(pieces);
+  const Walk stop = run(with_mode(path, PathControl::exact_stop));
+  Path sharp = path;
+  sharp.segments[0].blend_tolerance_mm = 0.0;  // G64 P0: no rounding
+  const Walk p0 = run(sharp);
+  std::printf(
+      "zig-zag 30 deg 10 mm, G64 P0.01: %.3f s (%zu corners, deviation %.5f mm, arc %.2f "
+      "mm/s); phase-plane bound %.3f s (ratio %.3f), S-curve estimate %.3f s (ratio "
+      "%.3f); G61.1 %.3f s; G64 P0 %.3f s\n",
+      g64.duration_s, g64.blended, dev, v_arc, bound, g64.duration_s / bound, estimate,
+      g64.duration_s / estimate, stop.duration_s, p0.duration_s);
+  EXPECT_GE(g64.duration_s, bound);
+  EXPECT_LE(g64.duration_s, 1.05 * estimate);
+  EXPECT_LT(g64.duration_s, 0.97 * stop.duration_s);
+  EXPECT_LT(g64.duration_s, p0.duration_s);
+  // Through every corner the speed reaches the arc's speed and never exceeds it on the arc.
+  double v_min_arc = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 1; i < g64.sp.size(); ++i) {
+    const Vec3& q = g64.sp[i].p;
+    for (int k = 1; k < 12; ++k) {
+      if ((q - pts[static_cast<std::size_t>(k)]).norm() < 0.5 * r_mm) {  // near the midpoint
+        EXPECT_LE(g64.sp[i].v_mm_per_s, v_arc * (1.0 + 1e-6));
+        v_min_arc = std::min(v_min_arc, g64.sp[i].v_mm_per_s);
+      }
+    }
+  }
+  EXPECT_GE(v_min_arc, 0.5 * v_arc);
+}
+
+TEST(Blend, LargeToleranceRoundsTheSquareFasterThanExactStop) {
+  const std::vector<Vec3> pts{{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}};
+  Path path;
+  path.segments.push_back(move(pts, 6000.0, 0.5));
+  const Walk g64 = run(path);
+  EXPECT_EQ(g64.blended, 3U);
+  double worst = 0.0;
+  for (const auto& sp : g64.sp) worst = std::max(worst, distance_to_program(pts, sp.p));
+  EXPECT_LE(worst, 0.5 * (1.0 + 1e-9));
+  const Walk stop = run(with_mode(path, PathControl::exact_stop));
+  const double r_mm = arc_radius_mm(0.5 * M_PI, 0.5), tangent = r_mm;
+  const double v_arc = arc_speed(r_mm, 100.0);
+  std::vector<std::pair<double, double>> pieces;
+  for (int i = 0; i < 4; ++i) {
+    pieces.push_back({10.0 - (i > 0 ? tangent : 0.0) - (i < 3 ? tangent : 0.0), 100.0});
+    if (i < 3) pieces.push_back({r_mm * 0.5 * M_PI, v_arc});
+  }
+  const double bound = phase_plane_s(pieces), estimate = scurve_pieces_s(pieces);
+  std::printf(
+      "square 10 mm, G64 P0.5: %.3f s (max deviation %.4f mm); phase-plane bound %.3f s "
+      "(ratio %.3f), S-curve estimate %.3f s (ratio %.3f); G61.1 %.3f s\n",
+      g64.duration_s, worst, bound, g64.duration_s / bound, estimate, g64.duration_s / estimate,
+      stop.duration_s);
+  EXPECT_GE(g64.duration_s, bound);
+  EXPECT_LE(g64.duration_s, 1.05 * estimate);
+  EXPECT_LT(g64.duration_s, stop.duration_s - kT);
+}
+
+TEST(Blend, SharpCornersWithASmallToleranceStopRatherThanCrawl) {
+  // At P0.01 a 90° arc allows 2.3 mm/s: crossing it costs more than stopping, so the square
+  // keeps its exact stops (never slower than G61.1).
+  const std::vector<Vec3> pts{{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}};
+  Path path;
+  path.segments.push_back(move(pts, 6000.0, 0.01));
+  const Walk g64 = run(path);
+  const Walk stop = run(with_mode(path, PathControl::exact_stop));
+  EXPECT_EQ(g64.blended, 0U);
+  EXPECT_LE(g64.duration_s, stop.duration_s + 1e-9);
+}
+
+TEST(Blend, ReversalAndExactPathAreNeverRounded) {
+  Path rev;
+  rev.segments.push_back(move({{0, 0, 0}, {10, 0, 0}, {3, 0.0, 0}}, 3000.0, 1.0));
+  const Walk r = run(rev);
+  EXPECT_EQ(r.blended, 0U);
+  bool at_turn = false;
+  for (const auto& sp : r.sp) {
+    at_turn |= sp.v_mm_per_s == 0.0 && (sp.p - Vec3(10, 0, 0)).norm() < 1e-9;
+  }
+  EXPECT_TRUE(at_turn);
+  const std::vector<Vec3> pts = zigzag(6, 10.0, 30.0 * M_PI / 180.0);
+  Path g61;
+  g61.segments.push_back(move(pts, 6000.0, 0.5, PathControl::exact_path));
+  const Walk e = run(g61);
+  EXPECT_EQ(e.blended, 0U);
+  for (const auto& sp : e.sp) ASSERT_LE(distance_to_program(pts, sp.p), 1e-9);
+}
+
+TEST(Blend, JointBetweenMovesKeepsTheSegmentsAndTheirFeeds) {
+  // Two G1 moves at different feeds meeting at 45°: the arc belongs to the first move.
+  const std::vector<Vec3> pts{{0, 0, 0}, {20, 0, 0}, {20 + 10 * M_SQRT1_2, 10 * M_SQRT1_2, 0}};
+  Path path;
+  path.segments.push_back(move({pts[0], pts[1]}, 6000.0, 0.05));
+  path.segments.push_back(move({pts[1], pts[2]}, 1200.0, 0.05));
+  Job job(path, machine());
+  ASSERT_EQ(job.path().segments.size(), 2U);
+  EXPECT_EQ(job.blend_report().corners, 1U);
+  EXPECT_TRUE(std::holds_alternative<NurbsCurve>(job.path().segments[0].geometry));
+  EXPECT_TRUE(std::holds_alternative<Polyline>(job.path().segments[1].geometry));
+  double worst = 0.0, v_max_second = 0.0;
+  Vec3 last = Vec3::Zero();
+  while (!job.done()) {
+    job.prepare();
+    const Setpoint sp = job.step();
+    worst = std::max(worst, distance_to_program(pts, sp.p));
+    if (job.walker().segment() == 1) v_max_second = std::max(v_max_second, sp.v_mm_per_s);
+    last = sp.p;
+  }
+  EXPECT_LE(worst, 0.05 * (1.0 + 1e-9));
+  EXPECT_LE(v_max_second, 20.0 * (1.0 + 1e-9));
+  EXPECT_LT((last - pts[2]).norm(), 1e-9);
+}
+
+}  // namespace
+}  // namespace ncd::motion
