@@ -550,8 +550,10 @@ class Session {
     }
     const bool held = st.state.rfind("Hold:0", 0) == 0;  // a finished hold re-plans: no lag
     std::size_t done = left ? (held ? *left : *left - std::min(*left, kGrblSegments)) : 0;
-    // The move the position lies on (strictly before its end), if exactly one of the moves that
-    // may be executing: the ones before it are done.
+    // The move the position lies on, if exactly one of the moves that may be executing: the
+    // ones before it are done. "On" means past its start by more than the tolerance (and short
+    // of its end): grbl rounds the position to 3 decimals, so a machine 0.4 µm before the end of
+    // a move can report that end, which is the next move's start.
     const std::size_t window = left ? std::min(moves, *left + 1) : moves;
     std::size_t k = 0, hit = 0;
     int hits = 0;
@@ -559,7 +561,8 @@ class Session {
       if (!it.geo.motion) continue;
       if (k >= window) break;
       double u = 0.0;
-      if (to_segment(pos, it.geo.from_mm, it.geo.to_mm, u) <= kPositionTolMm && u < 1.0) {
+      if (to_segment(pos, it.geo.from_mm, it.geo.to_mm, u) <= kPositionTolMm && u < 1.0 &&
+          dist(pos, it.geo.from_mm) > kPositionTolMm) {
         ++hits;
         hit = k;
       }
