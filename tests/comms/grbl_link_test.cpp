@@ -246,11 +246,17 @@ TEST(GrblBf, ABlockLeavesThePlannerWhenItsLastSegmentIsPreparedNotWhenItEnds) {
 
 // The sender against that controller: every time it counts a block executed, the controller
 // has executed at least as many. Short moves (5 ms, one segment) make Bf: run up to 5 moves
-// ahead of the motion; counting executed from Bf: alone would be ahead of the controller.
-TEST(GrblBf, SenderNeverCountsABlockExecutedBeforeTheControllerHas) {
+// ahead of the motion; counting executed from Bf: alone would be ahead of the controller. The
+// same with Ln: (grbl built with USE_LINE_NUMBERS), which names the planner's first block not
+// prepared, as far ahead.
+class GrblTracking : public ::testing::TestWithParam<bool> {};
+
+TEST_P(GrblTracking, SenderNeverCountsABlockExecutedBeforeTheControllerHas) {
   TempDir dir;
   auto clock = std::make_shared<ManualClock>();
-  Running run(grbl_config(dir / "cnc", clock), clock);
+  SimControllerConfig cfg = grbl_config(dir / "cnc", clock);
+  cfg.report_line_numbers = GetParam();
+  Running run(cfg, clock);
   std::string text = "G21 G90 G94\n";
   double x = 0.0;
   const int moves = 160;
@@ -313,6 +319,11 @@ TEST(GrblBf, SenderNeverCountsABlockExecutedBeforeTheControllerHas) {
   for (std::string line; std::getline(in, line);) want.push_back(line);
   EXPECT_EQ(ran, want);  // every block once, in order
 }
+
+INSTANTIATE_TEST_SUITE_P(GrblBf, GrblTracking, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& p) {
+                           return std::string(p.param ? "Ln" : "Bf");
+                         });
 
 }  // namespace
 }  // namespace ncd::comms
