@@ -518,6 +518,8 @@ TEST_P(ByteExact, ProgramArrivesWithItsChecksum) {
     }
     EXPECT_EQ(peer.replies, std::vector<std::string>(want, "ok"));
   }
+  // M30 ends the program before the closing `%` has come off the wire: wait for it.
+  EXPECT_TRUE(run.wait([&](const SimProgress& p) { return p.bytes_received >= wire.size(); }));
   peer.pump();
   const SimLog& log = run.stop();
   EXPECT_EQ(log.program_sha256, prog.sha());
