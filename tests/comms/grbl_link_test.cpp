@@ -327,3 +327,64 @@ INSTANTIATE_TEST_SUITE_P(GrblBf, GrblTracking, ::testing::Values(false, true),
 
 }  // namespace
 }  // namespace ncd::comms
+
+namespace ncd::comms {
+namespace {
+
+// The half line a cut leaves in grbl's line buffer, in-process (the same case as
+// Stream.AckHalfLineAfterACutNeverMergesWithTheNextBlock, here so that it also runs under ASan
+// with the comms tests): the link is cut inside X's number of N30, then inside its `;` comment.
+// The sender's flush is refused whole in the first case and completes the block in the second;
+// either way every block runs once, none cut short.
+TEST(GrblHalfLine, ACutLineNeverRunsCutShortNorTwice) {
+  for (const bool in_comment : {false, true}) {
+    SCOPED_TRACE(in_comment ? "cut in the comment" : "cut in the number");
+    TempDir dir;
+    std::string text;
+    std::vector<std::string> code;  // what grbl runs of each line
+    for (int i = 1; i <= 60; ++i) {
+      char line[80];
+      std::snprintf(line, sizeof line, "N%d G1 X%.3f Y0.5 F20000 ; pass %d", i, 0.25 * i, i);
+      text += std::string(line) + "\n";
+      code.push_back(std::string(line).substr(0, std::string(line).find(';')));
+    }
+    const std::string n30 = "N30 G1 X7.500 Y0.5 F20000 ; pass 30";
+    const std::size_t offset = in_comment ? n30.find(';') + 3 : n30.find('X') + 3;
+    const fs::path path = dir / "prog.ngc";
+    std::ofstream(path) << text;
+    SimControllerConfig cfg;
+    cfg.line.device = (dir / "cnc").string();
+    cfg.line.baud = 115200;
+    parse_frame("8N1", cfg.line);
+    cfg.line.protocol = Protocol::Ack;
+    cfg.faults.drop_link_after_chars =
+        static_cast<long>(3 + text.find(n30) + offset);  // after the wake-up line "))" LF
+    cfg.faults.down_s = 0.5;
+    SimController sim(cfg);
+    std::thread controller([&] { sim.run(); });
+    SenderSettings s;
+    s.line = cfg.line;
+    s.banner_wait_s = 0.3;
+    s.reconnect_max_s = 10.0;
+    ProgramFile source(path.string());
+    DncSender sender(s, source);
+    std::atomic<bool> stop{false};
+    const SenderReport report = sender.run(stop);
+    sim.request_stop();
+    controller.join();
+    const SimLog& log = sim.log();
+    EXPECT_TRUE(report.completed) << report.failure;
+    EXPECT_EQ(report.reconnects, 1);
+    EXPECT_EQ(log.link_drops, 1);
+    std::vector<std::string> ran;
+    for (const SimExecuted& e : log.executed) ran.push_back(e.text.substr(0, e.text.find(';')));
+    EXPECT_EQ(ran, code);
+    bool refused = false;
+    for (const SimErrorReply& e : log.errors)
+      refused = refused || e.text == n30.substr(0, offset) + "))";
+    EXPECT_EQ(refused, !in_comment);
+  }
+}
+
+}  // namespace
+}  // namespace ncd::comms
