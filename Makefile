@@ -14,6 +14,9 @@ SYSCONFDIR ?= /etc
 UNITDIR ?= $(SYSCONFDIR)/systemd/system
 SYSUSERSDIR ?= /usr/lib/sysusers.d
 DOCDIR ?= $(PREFIX)/share/doc/ncd
+# What install builds first; `make install INSTALL_NEEDS= NCD=path/to/ncd` installs a binary
+# already built (tests/install/make_install_test.sh).
+INSTALL_NEEDS ?= release
 
 all: release
 
@@ -65,9 +68,9 @@ format-check: deps
 	@files=$$(git ls-files '*.cpp' '*.hpp'); \
 	if [ -n "$$files" ]; then clang-format --dry-run -Werror $$files; fi
 
-install: release
+install: $(INSTALL_NEEDS)
 	install -D -m 0755 $(NCD) $(DESTDIR)$(PREFIX)/bin/ncd
-	install -d $(DESTDIR)$(UNITDIR) $(DESTDIR)$(SYSCONFDIR)/ncd $(DESTDIR)$(DOCDIR)
+	install -d $(DESTDIR)$(UNITDIR) $(DESTDIR)$(SYSCONFDIR)/ncd $(DESTDIR)$(DOCDIR)/docs
 	sed -e 's|/usr/local/bin/ncd|$(PREFIX)/bin/ncd|' \
 	    -e 's|/usr/local/share/doc/ncd|$(DOCDIR)|' \
 	    -e 's|/etc/ncd/|$(SYSCONFDIR)/ncd/|' deploy/ncd.service > $(DESTDIR)$(UNITDIR)/ncd.service
@@ -77,7 +80,8 @@ install: release
 	    $(DESTDIR)$(SYSCONFDIR)/ncd/
 	[ -e $(DESTDIR)$(SYSCONFDIR)/ncd/serve.toml ] || \
 	    install -m 0644 config/serve.example.toml $(DESTDIR)$(SYSCONFDIR)/ncd/serve.toml
-	install -m 0644 README.md docs/*.md $(DESTDIR)$(DOCDIR)/
+	install -m 0644 README.md $(DESTDIR)$(DOCDIR)/
+	install -m 0644 docs/*.md $(DESTDIR)$(DOCDIR)/docs/
 	@if [ -z "$(DESTDIR)" ] && [ "$$(id -u)" = 0 ]; then \
 	    systemd-sysusers $(SYSUSERSDIR)/ncd.conf 2>/dev/null || \
 	    { getent passwd ncd >/dev/null || useradd --system --home-dir /var/lib/ncd \
@@ -85,9 +89,11 @@ install: release
 	    systemctl daemon-reload 2>/dev/null || true; \
 	fi
 
+# Removes what install put there; keeps serve.toml (the user's configuration).
 uninstall:
 	rm -f $(DESTDIR)$(PREFIX)/bin/ncd $(DESTDIR)$(UNITDIR)/ncd.service \
-	    $(DESTDIR)$(SYSUSERSDIR)/ncd.conf
+	    $(DESTDIR)$(SYSUSERSDIR)/ncd.conf $(DESTDIR)$(SYSCONFDIR)/ncd/serve.example.toml \
+	    $(DESTDIR)$(SYSCONFDIR)/ncd/machine.example.toml
 	rm -rf $(DESTDIR)$(DOCDIR)
 
 clean:

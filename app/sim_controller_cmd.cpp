@@ -182,6 +182,9 @@ void register_sim_controller(CLI::App& app, Runner& run) {
   c->add_option("--drop-link-after-blocks", f.drop_link_after_blocks,
                 "fault: link cut, the controller keeps running: after N blocks close the pty, "
                 "remove the link, relink a new pty after --down-s");
+  c->add_option("--drop-link-after-chars", f.drop_link_after_chars,
+                "fault: the same cut in the middle of a line: after N characters of lines "
+                "(real-time bytes and NULs not counted)");
   c->add_option("--reset-after-blocks", f.reset_after_blocks,
                 "fault: controller reset after N blocks: the block executing is aborted, the "
                 "buffers are lost, the position is kept, the banner is sent again (drip: DC3 "

@@ -21,10 +21,12 @@
 // LF and waits for its `ok`, up to startup_timeout_s. Each line is answered `ok` (queued) or
 // `error:N`; character counting keeps the sum of unanswered lines within the receive buffer.
 // `?` is polled at status_hz; each status report says which of the queued blocks are done:
-//   Ln:n      the block numbered n executes: all before it are done;
-//   Bf:b,r    the planner holds planner_blocks − b moves: all older queued moves are done;
-//   neither   Idle: all done; else the block whose segment holds the reported position
-//             executes, if exactly one queued move's segment holds it.
+//   Idle      all done;
+//   Ln:n      the moves before block n have left grbl's planner;
+//   Bf:b,r    the planner holds planner_blocks − b moves: the older queued moves have left it;
+// a move leaves grbl's planner when its last segment is prepared, and up to kGrblSegments (5)
+// of those may still run, so all but the last 5 that left are done (all, in Hold:0); and if the
+// reported position lies on exactly one of the moves that may run, the ones before it are done.
 // A block without motion takes effect when the moves before it are done. A report that
 // comes after an `ok` in the stream was made after that block was queued, so the counts agree.
 // A banner, `[MSG:Reset to continue]` or ALARM mid-program is a reset: the job is interrupted,
@@ -39,10 +41,11 @@
 // either the planner is empty and the position is the end point of exactly one candidate move
 // (queued or sent), or the position lies inside exactly one candidate move's segment and the
 // planner holds that move and the P − 1 after it. The moves up to the last one held are then
-// queued; the ones sent after it were lost and go again, after a line of 80 characters that
-// grbl must refuse with error:11, which discards a partial line the cut may have left in its
-// line buffer. Anything else (no Bf, a non-empty buffer, a position that matches none or
-// several, a block without motion right after the last one held) stops as interrupted.
+// queued; the ones sent after it were lost and go again, after the half-line flush (kFlushText)
+// and its answer: a half line the cut left in grbl's line buffer is refused whole with it, or,
+// cut inside its `;` comment, queued (ok), and then not sent again. Anything else (no Bf, a
+// non-empty buffer, a full planner, a position that matches none or several, a block without
+// motion right after the last one held) stops as interrupted.
 //
 // Faults. A hang-up or I/O error closes the port. A hold (XOFF or CTS) longer than
 // xoff_timeout_s is reported and raises the hold callback, which a live job uses to bring the
@@ -78,6 +81,15 @@ constexpr std::int64_t kFraming = -1;     // % and NUL leader
 constexpr std::int64_t kPreamble = -2;    // restart lines
 constexpr std::int64_t kFlush = -3;       // ack: the line grbl must refuse (error:11)
 constexpr double kPositionTolMm = 0.002;  // grbl reports 3 decimals
+// grbl 1.1's step segment buffer holds 5 segments (stepper.c, SEGMENT_BUFFER_SIZE − 1), each of
+// one block: up to 5 moves that left the planner (Bf:, Ln:) may still be running.
+constexpr std::size_t kGrblSegments = 5;
+// The line that ends a half line an earlier connection may have left in grbl's line buffer
+// without letting it run: grbl stores `)` as a character (after closing an open `(` comment),
+// and a block holding `)` is refused whole (error:1, or error:2 after a letter, error:11 at the
+// limit), so nothing of the half line runs. Only a half line inside a `;` comment, whose code
+// arrived whole, swallows it and is queued (ok). docs/dnc-link.md, "A half line".
+constexpr const char* kFlushText = "))";
 
 struct Item {
   std::int64_t index = kFraming;  // program block, or one of the negative kinds
@@ -101,6 +113,21 @@ std::optional<long> n_word(const std::string& text) {
   const auto r = std::from_chars(text.data() + p, text.data() + text.size(), v);
   if (r.ec != std::errc()) return std::nullopt;
   return v;
+}
+
+// A `;` that grbl reads as a comment to the end of the line (not inside `( )`).
+bool has_semicolon_comment(std::string_view text) {
+  bool paren = false;
+  for (const char c : text) {
+    if (paren) {
+      paren = c != ')';
+    } else if (c == '(') {
+      paren = true;
+    } else if (c == ';') {
+      return true;
+    }
+  }
+  return false;
 }
 
 double dist(const Vec3& a, const Vec3& b) {
@@ -173,6 +200,8 @@ class Session {
       report_.execution_basis = "not known: status polling is off";
     }
   }
+
+  void on_executed(DncSender::ExecutedFn fn) { on_executed_ = std::move(fn); }
 
   SenderReport run(const std::atomic<bool>& stop) {
     t0_ = Clock::now();
@@ -342,8 +371,15 @@ class Session {
         track_ok_ = true;  // the banner that opens the job, not a reset in it
         emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
         phase_ = Phase::Ready;
-      } else if (line == "ok" && woke_) {
+      } else if ((line == "ok" || line.rfind("error:", 0) == 0) && woke_) {
+        // The wake-up line is the half-line flush: refused (error:N) as it should be, or `ok`
+        // when it completed a half line ending in a `;` comment an earlier connection left.
         report_.startup = "woken";
+        if (line == "ok") {
+          report_.notes.push_back(
+              "the wake-up line completed a half line ending in a ';' comment that an earlier "
+              "connection had left in the controller's line buffer; the controller queued it");
+        }
         emit(SenderEvent::Kind::Opened, resume_point(), "the controller answered the wake-up line");
         phase_ = Phase::Ready;
       } else {
@@ -367,9 +403,7 @@ class Session {
         return;
       }
       if (items_.front().index == kFlush) {
-        interrupt(
-            "the controller accepted the line that should have cleared its line buffer "
-            "after the link came back; not sending more");
+        half_line_queued();
         return;
       }
       take_ok();
@@ -392,6 +426,30 @@ class Session {
     } else {
       noise(line.size() + 1, '\0');
     }
+  }
+
+  // The flush after a lost link was answered ok: it completed a half line that was inside a `;`
+  // comment, so the code of that line had all arrived and is now queued. That line can only be
+  // the first one the controller did not receive whole, which heads the lines to send again.
+  void half_line_queued() {
+    unacked_bytes_ -= static_cast<int>(items_.front().bytes.size());
+    items_.pop_front();
+    --sent_items_;
+    if (sent_items_ != 0 || items_.empty() || items_.front().index < 0 ||
+        !has_semicolon_comment(items_.front().bytes)) {
+      interrupt(
+          "the controller accepted the line that should have ended a half line after the link "
+          "came back, and the first line to send again has no ';' comment that would explain it; "
+          "not sending more");
+      return;
+    }
+    Item it = std::move(items_.front());
+    items_.pop_front();
+    --report_.blocks_resent;
+    report_.notes.push_back("block " + std::to_string(it.index + 1) +
+                            " was cut inside its ';' comment by the lost link; the controller "
+                            "completed and queued it, so it was not sent again");
+    queue_item(std::move(it));
   }
 
   static std::string trim_eob(std::string s) {
@@ -422,6 +480,7 @@ class Session {
     if (it.index >= 0) {
       ++executed_count_;
       last_executed_ = it.index;
+      if (on_executed_) on_executed_(executed_count_, last_executed_);
     }
   }
 
@@ -462,39 +521,55 @@ class Session {
   }
 
   void track(const GrblStatus& st, const Vec3& pos) {
+    const std::size_t moves = queued_moves();
     if (st.state == "Idle") {
-      pop_done(queued_moves());
+      pop_done(moves);
       basis("Bf");
-    } else if (st.line_number) {
+      confirm_journal();
+      return;
+    }
+    // Ln: and Bf: count the planner's blocks, and grbl drops a block from its planner when the
+    // stepper has prepared its last segment, up to kGrblSegments segments before the motion
+    // gets there: the moves that left the planner are prepared, not known done. Only the last
+    // kGrblSegments of them may still run; which one does, the position tells.
+    std::optional<std::size_t> left;  // queued moves that have left the planner
+    if (st.line_number) {
       const auto at = std::find_if(queued_.begin(), queued_.end(),
                                    [&](const Item& it) { return it.n == st.line_number; });
       if (at != queued_.end()) {
-        pop_done(static_cast<std::size_t>(
-            std::count_if(queued_.begin(), at, [](const Item& it) { return it.geo.motion; })));
+        left = static_cast<std::size_t>(
+            std::count_if(queued_.begin(), at, [](const Item& it) { return it.geo.motion; }));
       }
       basis("Ln");
     } else if (st.free_blocks) {
       const auto held = static_cast<std::size_t>(std::max(0, s_.planner_blocks - *st.free_blocks));
-      const std::size_t moves = queued_moves();
-      if (moves > held) pop_done(moves - held);
+      left = moves > held ? moves - held : 0;
       basis("Bf");
     } else {
-      std::optional<std::size_t> hit;
-      std::size_t moves_before = 0, before_hit = 0;
-      int hits = 0;
-      for (const Item& it : queued_) {
-        if (!it.geo.motion) continue;
-        double u = 0.0;
-        if (to_segment(pos, it.geo.from_mm, it.geo.to_mm, u) <= kPositionTolMm && u < 1.0) {
-          ++hits;
-          before_hit = moves_before;
-          hit = moves_before;
-        }
-        ++moves_before;
-      }
-      if (hits == 1) pop_done(before_hit);
       basis("position");
     }
+    const bool held = st.state.rfind("Hold:0", 0) == 0;  // a finished hold re-plans: no lag
+    std::size_t done = left ? (held ? *left : *left - std::min(*left, kGrblSegments)) : 0;
+    // The move the position lies on, if exactly one of the moves that may be executing: the
+    // ones before it are done. "On" means past its start by more than the tolerance (and short
+    // of its end): grbl rounds the position to 3 decimals, so a machine 0.4 µm before the end of
+    // a move can report that end, which is the next move's start.
+    const std::size_t window = left ? std::min(moves, *left + 1) : moves;
+    std::size_t k = 0, hit = 0;
+    int hits = 0;
+    for (const Item& it : queued_) {
+      if (!it.geo.motion) continue;
+      if (k >= window) break;
+      double u = 0.0;
+      if (to_segment(pos, it.geo.from_mm, it.geo.to_mm, u) <= kPositionTolMm && u < 1.0 &&
+          dist(pos, it.geo.from_mm) > kPositionTolMm) {
+        ++hits;
+        hit = k;
+      }
+      ++k;
+    }
+    if (hits == 1) done = std::max(done, hit);
+    pop_done(done);
     confirm_journal();
   }
 
@@ -536,8 +611,8 @@ class Session {
         woke_ = true;
         emit(SenderEvent::Kind::Opened, resume_point(),
              "no banner within " + fixed(s_.banner_wait_s, 1) +
-                 " s: waking the controller with an empty line");
-        write_raw("\n");
+                 " s: waking the controller with a line it must refuse");
+        write_raw(std::string(kFlushText) + "\n");
       }
       if (since >= s_.startup_timeout_s) {
         report_.failure = "the controller on " + s_.line.device + " did not speak within " +
@@ -599,6 +674,15 @@ class Session {
     for (const Item& it : queued_) cands.push_back(&it);
     const std::size_t n_queued = cands.size();
     const std::size_t written = sent_items_ + (cur_off_ > 0 ? 1 : 0);
+    if (*st.free_blocks == 0 && written > 0) {
+      // grbl's protocol loop takes a whole line out of the receive ring and then waits for a
+      // free planner block: such a line is in neither count of Bf:, and runs when room frees.
+      interrupt(
+          "after the lost link the controller's planner is full, so a line it received may "
+          "be waiting for room, counted nowhere: which blocks it holds cannot be told" +
+          where);
+      return;
+    }
     for (std::size_t i = 0; i < written && i < items_.size(); ++i) cands.push_back(&items_[i]);
     const auto held = static_cast<std::size_t>(std::max(0, s_.planner_blocks - *st.free_blocks));
     // The last candidate the controller received: index into cands, or -1 for "none".
@@ -689,7 +773,7 @@ class Session {
     if (moves > held) pop_done(moves - held);
     Item flush;
     flush.index = kFlush;
-    flush.bytes = ")" + std::string(80, 'X') + "\n";
+    flush.bytes = std::string(kFlushText) + eob_text(s_.line.eob);
     items_.push_front(std::move(flush));
     ++report_.reconnects;
     phase_ = Phase::Ready;
@@ -904,6 +988,8 @@ class Session {
   void write_ack() {
     if (s_.line.flow == Flow::XonXoff && !xon_) return;
     while (true) {
+      // Nothing after the half-line flush until its reply says whether it completed a block.
+      if (sent_items_ > 0 && items_.front().index == kFlush) return;
       if (sent_items_ == items_.size() && !pull()) return;
       Item& it = items_[sent_items_];
       const int size = static_cast<int>(it.bytes.size());
@@ -1128,6 +1214,7 @@ class Session {
   BlockSource& source_;
   const DncSender::EventFn& on_event_;
   const DncSender::HoldFn& on_hold_;
+  DncSender::ExecutedFn on_executed_;
   TransferJournal* journal_;
   const bool ack_;
   const double cps_;
@@ -1187,6 +1274,7 @@ void DncSender::resume_from(std::int64_t first_block) {
 
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_);
+  session.on_executed(on_executed_);
   return session.run(stop);
 }
 

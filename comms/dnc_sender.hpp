@@ -114,6 +114,9 @@ class DncSender {
  public:
   using EventFn = std::function<void(const SenderEvent&)>;
   using HoldFn = std::function<void(bool hold)>;
+  // Told each time a program block becomes known executed (ack with status): how many are known
+  // executed, and the last one's index (0-based). On the sender's thread.
+  using ExecutedFn = std::function<void(std::int64_t executed, std::int64_t last_index)>;
 
   DncSender(const SenderSettings& settings, BlockSource& source, EventFn on_event = {});
   // Resume after a restart: skip (but checksum) the first `first_block` blocks, send no opening
@@ -122,6 +125,7 @@ class DncSender {
   void set_journal(TransferJournal* journal) { journal_ = journal; }
   // Called when the link holds the motion (a long XOFF, CTS low, a lost port) and frees it.
   void on_hold(HoldFn fn) { on_hold_ = std::move(fn); }
+  void on_executed(ExecutedFn fn) { on_executed_ = std::move(fn); }
   // Sends until the program is confirmed, an alarm, the link is given up, or stop is set.
   SenderReport run(const std::atomic<bool>& stop);
 
@@ -130,6 +134,7 @@ class DncSender {
   BlockSource& source_;
   EventFn on_event_;
   HoldFn on_hold_;
+  ExecutedFn on_executed_;
   TransferJournal* journal_ = nullptr;
   std::int64_t first_block_ = 0;
 };

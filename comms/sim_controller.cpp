@@ -32,7 +32,11 @@
 //    characters are left after removing spaces and comments. A sender counting characters
 //    never overflows the buffer; one that does broke the rule: alarm. No DC1/DC3 in ack mode.
 //    Real-time bytes are taken out of the stream as they arrive, like grbl's serial interrupt:
-//    `?` answers `<State|MPos:x,y,z|Bf:free blocks,free bytes[|Ln:n]|FS:feed,0>`, `!` holds
+//    `?` answers `<State|MPos:x,y,z|Bf:free blocks,free bytes[|Ln:n]|FS:feed,0>` as grbl counts
+//    (stepper.c, planner.c, serial.c): a move leaves the planner, and Bf:'s count and Ln:, when
+//    its last 10 ms segment is prepared, up to 5 segments before the motion gets there (this
+//    also frees its slot for the next line); the byte count is grbl's serial ring, which holds
+//    only the bytes behind a line waiting for the planner (docs/dnc-link.md). `!` holds
 //    (the motion stops at once where it is: Hold:0), `~` resumes, 0x18 resets. A reset (also
 //    the injected fault, and with reset_on_open a sender opening the port) aborts the block
 //    executing, throws away the planner, the receive buffer and a partial line, keeps the
@@ -61,8 +65,10 @@
 // 6. Connections. The slave is watched with inotify. When the last sender closes it, what it
 //    wrote is still read at line speed, then its unfinished line is discarded and replies owed
 //    to it are dropped; a sender that connects gets a clean input queue and the flow state
-//    first. A link drop (fault injection) does the same at once, and the bytes in flight are
-//    lost with the old pty.
+//    first. A link drop (fault injection, after N blocks or N characters of lines) does the
+//    same at once, and the bytes in flight are lost with the old pty. In ack (grbl) mode the
+//    unfinished line is kept instead: grbl's UART knows nothing of the PC's port, and the next
+//    characters, from any connection, complete it.
 #include "comms/sim_controller.hpp"
 
 #include <fcntl.h>
@@ -98,6 +104,10 @@ constexpr int kMaxBlockChars = 255;
 constexpr double kLoopPeriodS = 0.001;      // longest wait of the loop
 constexpr std::size_t kMaxOutQueue = 4096;  // beyond this, noise is not generated
 constexpr double kReceivingS = 0.1;         // "while receiving": a byte within this long
+// grbl 1.1's step segment buffer (stepper.c): SEGMENT_BUFFER_SIZE 6, of which 5 hold segments,
+// each at most DT_SEGMENT = 1/(ACCELERATION_TICKS_PER_SECOND·60) min = 10 ms of motion.
+constexpr int kGrblSegments = 5;
+constexpr double kGrblSegmentS = 0.01;
 
 // "12.5" for messages.
 std::string num(double v) {
@@ -194,7 +204,7 @@ SimControllerConfig checked(SimControllerConfig c) {
         "use --protocol drip, or leave it out");
   }
   if (f.drop_link_after_blocks < 0 || f.hold_after_blocks < 0 || f.alarm_after_blocks < 0 ||
-      f.reset_after_blocks < 0) {
+      f.reset_after_blocks < 0 || f.drop_link_after_chars < 0) {
     bad("a fault's block count is negative", "use a count of 1 or more, or 0 for none");
   }
   if (!std::isfinite(f.down_s) || f.down_s < 0.0 || f.down_s > 3600.0) {
@@ -501,7 +511,9 @@ struct SimController::Impl {
 
   // The bytes of a sender that went away have all been read: forget its unfinished line.
   void apply_marker() {
-    discard_partial();
+    // grbl's UART knows nothing of the other end: a half line stays in its line buffer, and the
+    // next bytes, from whichever connection, complete it (docs/dnc-link.md, "A half line").
+    if (drip) discard_partial();
     rx_epoch = reply_epoch;
     blocks_in_epoch = 0;
     marker.reset();
@@ -637,6 +649,10 @@ struct SimController::Impl {
     }
     partial += c;
     ++fill;
+    ++ring_in;
+    if (cfg.faults.drop_link_after_chars == static_cast<long>(ring_in) && log.link_drops == 0) {
+      drop_pending = true;  // after this character: the rest of the line is lost in the cut
+    }
     log.max_buffer_fill = std::max(log.max_buffer_fill, fill);
     if (c == '\n') {
       complete_line(t);
@@ -779,6 +795,41 @@ struct SimController::Impl {
   // Blocks in grbl's planner: the queue and the move executing.
   std::size_t planner_count() const { return planner.size() + (busy && !sync_busy ? 1 : 0); }
 
+  // grbl's stepper prepares up to kGrblSegments segments of kGrblSegmentS ahead of the motion
+  // and discards a planner block once its last segment is prepared (st_prep_buffer): the blocks
+  // counted here (the executing one first, then the queue) have left the planner while their
+  // motion still runs. None while held (grbl re-plans a hold's remainder) or idle.
+  std::size_t prepared(double t) const {
+    if (!busy || sync_busy || held || !current.move) return 0;
+    const auto segments = [](double s) {
+      return std::max(1, static_cast<int>(std::ceil(s / kGrblSegmentS - 1e-9)));
+    };
+    int used = segments(busy_end - t);
+    if (used > kGrblSegments) return 0;
+    std::size_t n = 1;
+    for (const Line& l : planner) {
+      used += l.block.move ? segments(l.block.duration_s) : 0;
+      if (used > kGrblSegments) break;
+      ++n;
+    }
+    return n;
+  }
+  // Blocks in grbl's planner ring (what Bf: counts and what bounds it): not yet prepared.
+  std::size_t planner_held(double t) const { return planner_count() - prepared(t); }
+  // grbl's serial ring (serial.c): the protocol loop takes characters out as they come, into its
+  // line buffer, except while a complete line waits for room in the planner (or for it to run
+  // empty): the bytes behind that line stay in the ring. A line being assembled is not in it.
+  int ring_used() const { return rx.empty() ? 0 : std::max(0, fill - rx.front().size); }
+  // serial_get_rx_buffer_available(): RX_BUFFER_SIZE − used with the head at or past the tail,
+  // one less once the head has wrapped behind it.
+  int ring_available() const {
+    const int size = cfg.buffer_bytes;
+    const auto head = static_cast<int>(ring_in % static_cast<std::uint64_t>(size));
+    const auto tail = static_cast<int>((ring_in - static_cast<std::uint64_t>(ring_used())) %
+                                       static_cast<std::uint64_t>(size));
+    return head >= tail ? size - (head - tail) : tail - head - 1;
+  }
+
   void pump_planner(double t) {
     while (!rx.empty() && !alarmed) {
       Line& line = rx.front();
@@ -805,13 +856,13 @@ struct SimController::Impl {
         continue;
       }
       if (line.kind == Kind::Block || line.kind == Kind::End) {
-        if (planner_count() >= static_cast<std::size_t>(cfg.planner_blocks)) return;
+        if (planner_held(t) >= static_cast<std::size_t>(cfg.planner_blocks)) return;
         line.ready_t = t;
         reply(line, "ok\r\n");
         fill -= line.size;
         planner.push_back(std::move(line));
         log.max_planner_blocks =
-            std::max(log.max_planner_blocks, static_cast<long>(planner_count()));
+            std::max(log.max_planner_blocks, static_cast<long>(planner_held(t)));
       } else {
         reply(line, line.kind == Kind::Error ? "error:" + std::to_string(line.error) + "\r\n"
                                              : std::string("ok\r\n"));
@@ -868,10 +919,14 @@ struct SimController::Impl {
     const auto p = position_at(t);
     std::array<char, 96> text{};
     std::snprintf(text.data(), text.size(), "|MPos:%.3f,%.3f,%.3f|Bf:%d,%d", p[0], p[1], p[2],
-                  cfg.planner_blocks - static_cast<int>(planner_count()), cfg.buffer_bytes - fill);
+                  cfg.planner_blocks - static_cast<int>(planner_held(t)), ring_available());
     s += text.data();
-    if (cfg.report_line_numbers && busy && current.n && *current.n > 0) {
-      s += "|Ln:" + std::to_string(*current.n);
+    // grbl reports the line number of the planner's current block: the first not prepared.
+    if (cfg.report_line_numbers && planner_held(t) > 0) {
+      const std::size_t k = prepared(t);
+      const bool executing = busy && !sync_busy;
+      const SimBlock& b = k == 0 && executing ? current : planner[k - (executing ? 1 : 0)].block;
+      if (b.n && *b.n > 0) s += "|Ln:" + std::to_string(*b.n);
     }
     std::snprintf(text.data(), text.size(), "|FS:%.0f,0>\r\n",
                   busy && !held && current.move ? current.feed_mm_per_min : 0.0);
@@ -1259,6 +1314,7 @@ struct SimController::Impl {
   int partial_chars = 0;  // without CR
   bool discarding_long = false;
   int fill = 0;
+  std::uint64_t ring_in = 0;  // ack: characters put into grbl's serial ring, ever
   std::deque<Line> rx, planner;
   SimModal modal;
   bool end_received = false;
@@ -1378,6 +1434,7 @@ Json settings_json(const SimControllerConfig& c) {
               {"clock", c.clock ? "injected" : "wall"},
               {"faults",
                {{"drop_link_after_blocks", f.drop_link_after_blocks},
+                {"drop_link_after_chars", f.drop_link_after_chars},
                 {"down_s", f.down_s},
                 {"xoff_storm", f.xoff_storm},
                 {"hold_after_blocks", f.hold_after_blocks},

@@ -35,7 +35,10 @@ namespace ncd::comms {
 struct SimFaults {
   // Link cut, the controller keeps running: close the pty, unlink the path, relink a new pty.
   long drop_link_after_blocks = 0;
-  double down_s = 1.0;         // ... after this long
+  double down_s = 1.0;  // ... after this long
+  // The same cut after this many characters of lines (not real-time bytes, not NULs): it can
+  // land in the middle of a block, leaving a half line (grbl keeps it; docs/dnc-link.md).
+  long drop_link_after_chars = 0;
   bool xoff_storm = false;     // random DC3, held 20–300 ms, DC1, while receiving
   long hold_after_blocks = 0;  // then assert DC3 once for hold_s
   double hold_s = 10.0;

@@ -177,8 +177,9 @@ TEST_F(Stream, AckSendsNothingBeforeTheBanner) {
   EXPECT_EQ(m.status, 3) << m.err;
   EXPECT_NE(m.out.find("did not speak within 1.5 s"), std::string::npos) << m.out;
   const auto mlog = stopped_log(*mute);
-  // Only the wake-up line went out, into a controller still booting.
-  EXPECT_EQ(mlog["bytes_before_banner"], 1);
+  // Only the wake-up line ("))" and LF, which grbl must refuse) went out, into a controller
+  // still booting.
+  EXPECT_EQ(mlog["bytes_before_banner"], 3);
   EXPECT_TRUE(mlog["executed"].empty());
 }
 
@@ -275,6 +276,68 @@ TEST_F(Stream, AckLinkCutWhileMovingResumesFromTheHeldPosition) {
   EXPECT_EQ(rep["transfer"]["reconnects"], 1);
   std::cout << "[ measured ] link cut while moving: " << ran.size() << " of " << blocks.size()
             << " blocks executed once each; " << rep["blocks_resent"] << " resent\n";
+}
+
+// A link cut in the middle of a line, with `;` comments in the program. grbl keeps a half line
+// in its line buffer and the next bytes complete it, from whatever connection: a line end alone
+// would run "N50 G1 X2" for "N50 G1 X24.118 …", and a resent block would merge with it. ncd
+// first sends "))" and a line end, which grbl refuses whole (error:1) unless the half line was
+// inside its `;` comment, its code whole: then grbl queues that block (ok), and ncd must not
+// send it again. The cut lands (1) in the number after X, (2) inside the comment. Either way the
+// controller runs every block once, in order, and never a cut one.
+TEST_F(Stream, AckHalfLineAfterACutNeverMergesWithTheNextBlock) {
+  std::string text = "(ncd half-line test)\n";
+  double x = 0.0;
+  for (int i = 1; i <= 120; ++i) {
+    x += 0.2 + 0.001 * (i % 7);
+    char line[96];
+    std::snprintf(line, sizeof line, "N%d G1 X%.3f Y%.3f F20000 ; pass %d", i, x, 0.1 * (i % 3), i);
+    text += std::string(line) + "\n";
+  }
+  text += "M2\n";
+  const std::string prog = write("half.ngc", text);
+  const auto blocks = blocks_of(prog);
+  const std::string cut_block = blocks[50];  // N50
+  const std::size_t at = text.find(cut_block);
+  struct Case {
+    std::string where;
+    std::size_t offset;  // in the block
+    std::string reply;   // grbl's answer to the half line and the flush
+  };
+  for (const Case& k : {Case{"in X's number", cut_block.find('X') + 3, "error"},
+                        Case{"in the ; comment", cut_block.find(';') + 3, "ok"}}) {
+    SCOPED_TRACE(k.where);
+    // The wake-up line "))\n" (3 characters: this controller sends no banner) comes first.
+    const std::size_t chars = 3 + at + k.offset;
+    auto cnc = controller(
+        "--baud 115200 --frame 8N1 --protocol ack --down-s 0.5 "
+        "--drop-link-after-chars " +
+        std::to_string(chars));
+    const auto r = ncd("stream " + prog + " --port " + link_ +
+                       " --baud 115200 --frame 8N1 --protocol ack -q --no-journal "
+                       "--banner-wait 0.3 --reconnect-max 5 --report " +
+                       (dir_ / "r.json").string());
+    EXPECT_EQ(r.status, 0) << r.out << r.err;
+    const auto log = controller_log(*cnc);
+    EXPECT_EQ(log["link_drops"], 1);
+    // Every block once, in order, none cut short. What grbl runs of a line is its code: the
+    // half line completed inside its comment is logged with the flush after the `;`.
+    const auto code = [](std::vector<std::string> lines) {
+      for (auto& l : lines) l = l.substr(0, l.find(';'));
+      return lines;
+    };
+    EXPECT_EQ(code(executed(log)), code(blocks));
+    // The half line the cut left, completed by the flush.
+    const std::string half = cut_block.substr(0, k.offset) + "))";
+    bool refused = false;
+    for (const auto& e : log["errors"]) refused = refused || e["text"] == half;
+    EXPECT_EQ(refused, k.reply == "error") << log["errors"];
+    const auto rep = nlohmann::json::parse(slurp(dir_ / "r.json"));
+    EXPECT_EQ(rep["transfer"]["reconnects"], 1);
+    std::cout << "[ measured ] cut " << k.where << " of " << cut_block << ": '" << half
+              << "' answered " << k.reply << "; the controller executed " << executed(log).size()
+              << " of " << blocks.size() << " blocks, each once\n";
+  }
 }
 
 // A controller reset mid-program (power cycle, watchdog): the job is interrupted, names the
