@@ -189,6 +189,32 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   return j;
 }
 
+// The walk moves the ball centre of a chamfer (its JSON holds the centre); the blocks drive the
+// machine file's programmed point, so the tip is the centre less R_B in Z, as in the chamfer's
+// NGC program (docs/whole-program.md, "One programmed point"). Other paths are written in the
+// point their source program drives.
+Vec3 programmed_point_shift(const toolpath::Path& path, const MachineConfig& m) {
+  if (!path.chamfer || m.tool.programmed_point == toolpath::ProgramPoint::Centre) {
+    return Vec3::Zero();
+  }
+  return Vec3(0.0, 0.0, -m.cutting.ball_radius_mm);
+}
+
+std::string programmed_point_comment(const toolpath::Path& path, const MachineConfig& m) {
+  if (!path.chamfer) return "(programmed point: as in the source program " + path.source + ")";
+  char text[160];
+  if (m.tool.programmed_point == toolpath::ProgramPoint::Tip) {
+    std::snprintf(text, sizeof text,
+                  "(programmed point: ball TIP = centre - %.4f mm in Z; tool length set to the "
+                  "tip)",
+                  m.cutting.ball_radius_mm);
+  } else {
+    std::snprintf(text, sizeof text,
+                  "(programmed point: ball CENTRE; tool length set to the ball centre)");
+  }
+  return text;
+}
+
 // The encoder's lines of the summary.
 void print_blocks(const comms::EncoderStats& b, const std::string& file) {
   std::fprintf(stderr,
@@ -250,6 +276,7 @@ int run_replay(const ReplayArgs& a) {
   PlotBuckets plot;
   // The block encoder, when a program is asked for: checked before the walk starts.
   std::unique_ptr<ProgramFile> program;
+  const Vec3 point_shift = programmed_point_shift(path, machine);
   std::unique_ptr<comms::BlockEncoder> encoder;
   PlotBuckets block_plot;
   if (!a.blocks.empty()) {
@@ -265,6 +292,7 @@ int run_replay(const ReplayArgs& a) {
           "(ncd: the chamfer failed its interference checks; written because of "
           "--allow-interference)");
     }
+    program->write(programmed_point_comment(path, machine));
     encoder = std::make_unique<comms::BlockEncoder>(
         machine.encoder, [&program, &block_plot](const comms::EncodedBlock& b) {
           program->write(b.text);
@@ -274,7 +302,7 @@ int run_replay(const ReplayArgs& a) {
         });
     // The start of the path, where the machine stands at rest before the first period.
     motion::Setpoint start;
-    start.p = job.walker().position();
+    start.p = job.walker().position() + point_shift;
     encoder->push(start);
   }
   motion::RunStats st;
@@ -299,7 +327,11 @@ int run_replay(const ReplayArgs& a) {
     motion::record(st, cfg, sp, limit, rough,
                    static_cast<double>(std::chrono::nanoseconds(t1 - t0).count()));
     sink.write(sp);
-    if (encoder) encoder->push(sp);
+    if (encoder) {
+      motion::Setpoint written = sp;
+      written.p += point_shift;
+      encoder->push(written);
+    }
     plot.add(sp.t_s, sp.v_mm_per_s * 60.0, limit * 60.0, rough);
     if (sp.done) break;
     if (sp.t_s > kMaxSimulatedS) {
