@@ -22,7 +22,7 @@ std::string number(double v, int decimals) {
 
 }  // namespace
 
-std::string event_words(const toolpath::Event& event, int decimals) {
+std::string event_words(const toolpath::Event& event, int decimals, bool length_offset) {
   using namespace toolpath;
   return std::visit(
       [&](const auto& e) -> std::string {
@@ -37,7 +37,7 @@ std::string event_words(const toolpath::Event& event, int decimals) {
           return "G4P" + number(e.seconds, decimals);
         } else if constexpr (std::is_same_v<T, ToolChangeEvent>) {
           const std::string t = std::to_string(e.tool);
-          return "T" + t + "M6G43H" + t;
+          return "T" + t + "M6" + (length_offset ? "G43H" + t : std::string());
         } else if constexpr (std::is_same_v<T, StopEvent>) {
           return e.kind == StopKind::program_stop    ? "M0"
                  : e.kind == StopKind::optional_stop ? "M1"
@@ -106,7 +106,7 @@ void ProgramBlocks::write_event(const toolpath::Event& e) {
     encoder_.comment("MSG, " + msg->text);
     return;
   }
-  const std::string w = event_words(e, decimals_);
+  const std::string w = event_words(e, decimals_, length_offset_);
   if (w.empty()) return;
   const double dwell = std::holds_alternative<toolpath::DwellEvent>(e)
                            ? std::get<toolpath::DwellEvent>(e).seconds

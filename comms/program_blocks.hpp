@@ -21,11 +21,14 @@
 
 namespace ncd::comms {
 
-// The words of an event as a block writes them (no N): "M3S3000", "G4P1.5", "T1M6G43H1", "M5",
+// The words of an event as a block writes them (no N): "M3S3000", "G4P1.5", "T1M6", "M5",
 // "M2"; empty for events the blocks carry otherwise (units: the blocks are always G21; tool
 // offsets: the planned coordinates already hold them; path control: the blocks are within
 // the encoder's chord tolerance).
-std::string event_words(const toolpath::Event& event, int decimals = 3);
+// A tool change is "T n M6", followed by "G43 H n" when length_offset is set (the controller
+// then applies the tool table's length; LinuxCNC and ISO controls take it, grbl and the simulated
+// controller do not, and an operator who touches off the tool's programmed point needs none).
+std::string event_words(const toolpath::Event& event, int decimals = 3, bool length_offset = false);
 
 class ProgramBlocks {
  public:
@@ -37,6 +40,8 @@ class ProgramBlocks {
   void push(const motion::Setpoint& sp);
   // What follows the last planned move (M5, M2), finish(), "%".
   void end();
+  // Write "G43 H n" after each tool change (event_words); off by default.
+  void set_length_offset(bool on) { length_offset_ = on; }
 
  private:
   enum class Kind { Event, Rapid, Pre };
@@ -60,6 +65,7 @@ class ProgramBlocks {
   double pushed_s_mm_ = 0.0, pushed_t_s_ = 0.0;  // the last setpoint handed to the encoder
   double seen_s_mm_ = 0.0, seen_t_s_ = 0.0;      // the last setpoint received
   int decimals_ = 3;
+  bool length_offset_ = false;
 };
 
 }  // namespace ncd::comms

@@ -34,7 +34,7 @@ echo "-- 2. the whole program: plan and walk it at 4 ms, roughness-bounded feed;
   --blocks "$out/exp3-dnc.ngc" 2>&1
 # The order a machinist checks before loading it: spindle at speed, then the clearance plane and
 # the approach, and only then the first cutting move; the same programmed point as exp3.ngc.
-first_cut=$(grep -n 'G1' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+first_cut=$(grep -nE 'G1([^0-9]|$)' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
 spindle=$(grep -n 'M3S' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
 clearance=$(grep -n 'G0Z' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
 if [ -z "$spindle" ] || [ -z "$clearance" ] || [ "$spindle" -ge "$first_cut" ] ||
@@ -46,7 +46,7 @@ point=$(grep -o 'programmed point: ball [A-Z]*' "$out/exp3-dnc.ngc")
 grep -q "$point" "$out/exp3.ngc" || { echo "the programs drive different points" >&2; exit 1; }
 echo "  program           $(grep -c . "$out/exp3-dnc.ngc") lines: M3 on line $spindle, G0 to the" \
   "clearance plane on line $clearance, first G1 on line $first_cut; $point, as exp3.ngc"
-echo "  its events        $(grep -v '^(' "$out/exp3-dnc.ngc" | grep -oE '(M[0-9]+(S[0-9.]+)?|G4P[0-9.]+|T[0-9]+M6G43H[0-9]+)' | tr '\n' ' ')"
+echo "  its events        $(grep -v '^(' "$out/exp3-dnc.ngc" | grep -oE '(M[0-9]+(S[0-9.]+)?|G4P[0-9.]+|T[0-9]+M6(G43H[0-9]+)?)' | tr '\n' ' ')"
 echo
 echo "-- 3. stream it to a simulated controller: 19200 baud 7E2, XON/XOFF, drip feed --"
 "$ncd" sim-controller --link "$out/cnc" "${line[@]}" --buffer 256 --log "$out/controller.json" \
@@ -71,7 +71,7 @@ if events:
 else:
     print("  (this simulated controller logs no events yet; its log holds: "
           + ", ".join(sorted(log.keys())) + ")")
-for key in ("alarms", "blocks", "underruns"):
+for key in ("alarms", "blocks_executed", "dwell_s", "program_end_executed", "underruns"):
     if key in log:
         v = log[key]
         print("  %-16s %s" % (key, len(v) if isinstance(v, list) else v))

@@ -1,8 +1,9 @@
 // Generated jobs as whole programs (whole_program.hpp, docs/whole-program.md).
 //
 // The sequence, in the program's frame and programmed point (Z up, the part below):
-//   G21 (UnitsEvent), T M6 + G43 H (ToolChangeEvent), M3 S (SpindleEvent), G4 P (DwellEvent);
-//   G0 to the clearance plane over the approach point: a rapid from an unknown position, which
+//   G21 (UnitsEvent), T M6 (ToolChangeEvent; G43 H as the writer is told), M3 S (SpindleEvent), G4
+//   P (DwellEvent); G0 to the clearance plane over the approach point: a rapid from an unknown
+//   position, which
 //     the writers split into "rise to Z first, then X Y" (the tool never moves sideways below
 //     the clearance plane from wherever it stands);
 //   G0 down to approach_gap_mm above the feed's start (skipped when that is not below the plane);
