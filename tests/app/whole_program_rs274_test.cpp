@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -157,6 +158,29 @@ TEST_F(Rs274, BlocksOfAnInterpretedSampleParseAndFollowThePlan) {
   const std::string sample = std::string(NCD_SOURCE_DIR) + "/tests/ngc/stops_dwell.ngc";
   ASSERT_TRUE(fs::exists(sample));
   blocks_deviation(sample, "blocks of stops_dwell.ngc");
+}
+
+TEST_F(Rs274, TeachProgramAndItsBlocksParseAndFollowThePlan) {
+  const std::string ex = std::string(NCD_SOURCE_DIR) + "/examples/";
+  const std::string ngc = (dir_ / "teach.ngc").string();
+  const CmdResult t = ncd("teach " + ex + "teach-burr.txt --frame-points " + ex +
+                          "teach-burr-frame.txt --tool-diameter 10 --depth 0.2 --feed 300 "
+                          "--spindle 2000 -q -o " +
+                          ngc);
+  ASSERT_EQ(t.status, 0) << t.err;
+  expect_clean(canonical(ngc), "teach program");
+  const double worst = blocks_deviation(ngc, "blocks of the teach job");
+  EXPECT_GE(worst, 0.0);
+  // Its events travel into the blocks: the spindle at its speed before the first G1, M5, M30.
+  const std::string blocks = slurp(dir_ / "b.ngc");
+  const std::size_t m3 = blocks.find("M3S2000");
+  std::smatch first_g1;
+  ASSERT_TRUE(std::regex_search(blocks, first_g1, std::regex("G1[XYZF]")));
+  const auto g1 = static_cast<std::size_t>(first_g1.position(0));
+  EXPECT_NE(m3, std::string::npos);
+  EXPECT_LT(m3, g1);
+  EXPECT_NE(blocks.find("M5\n"), std::string::npos);
+  EXPECT_NE(blocks.find("M30\n"), std::string::npos);
 }
 
 TEST_F(Rs274, ChamferProgramsOfEveryEdgeAndSideParseAndHoldTheLoop) {
