@@ -163,3 +163,46 @@ TEST(ProgramBlocks, ClearancePlaneBelowTheCutIsRefused) {
 
 }  // namespace
 }  // namespace ncd::comms
+
+namespace ncd::comms {
+namespace {
+
+// The chamfer job of experiment 3 (defaults of ChamferSpec): the loop in the tip as
+// chamfer_program() writes it, the approach down the drill axis (X0 Y0) from options.safe_z_mm.
+TEST(ChamferJob, Exp3IsTheNgcLoopWithItsApproach) {
+  toolpath::ChamferSpec spec;  // R 18, r 13, R_B 3, W 0.7: paper 000's experiment 3
+  const toolpath::ChamferPath path = toolpath::generate_chamfer(spec);
+  toolpath::NgcOptions o;
+  o.safe_z_mm = toolpath::default_safe_z_mm(spec);
+  const toolpath::Program p = toolpath::chamfer_job(path, o, 1.0, 2);
+  std::vector<toolpath::Motion> moves;
+  for (const auto& step : p.steps) {
+    if (const auto* m = std::get_if<toolpath::Motion>(&step.item)) moves.push_back(*m);
+  }
+  ASSERT_GE(moves.size(), 6u);
+  const Vec3 first = toolpath::program_point(spec, path.points[0], toolpath::ProgramPoint::Tip);
+  EXPECT_NEAR(first.z(), path.points[0].cl.z() - 3.0, 1e-12);  // the tip: centre less R_B
+  // Rapid over the axis at the clearance plane, rapid down to 1 mm above, feed down, feed out.
+  EXPECT_TRUE(moves[0].rapid && !moves[0].start_known);
+  EXPECT_NEAR((toolpath::motion_end(moves[0]) - Vec3(0, 0, o.safe_z_mm)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((toolpath::motion_end(moves[1]) - Vec3(0, 0, first.z() + 1.0)).norm(), 0.0, 1e-12);
+  EXPECT_FALSE(moves[2].rapid);
+  EXPECT_NEAR((toolpath::motion_end(moves[2]) - Vec3(0, 0, first.z())).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((toolpath::motion_end(moves[3]) - first).norm(), 0.0, 1e-12);
+  // The loop closes at its start, then back to the axis and up.
+  EXPECT_NEAR((toolpath::motion_end(moves[4]) - first).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((toolpath::motion_end(moves[5]) - Vec3(0, 0, first.z())).norm(), 0.0, 1e-12);
+  EXPECT_TRUE(moves.back().rapid);
+  EXPECT_NEAR(toolpath::motion_end(moves.back()).z(), o.safe_z_mm, 1e-12);
+  // Events: G21, T2, M3 at the NGC's spindle speed, the dwell; M5 and M2 at the end.
+  const auto& ev = [&](std::size_t i) { return std::get<toolpath::Event>(p.steps[i].item); };
+  EXPECT_EQ(std::get<toolpath::ToolChangeEvent>(ev(1)).tool, 2);
+  EXPECT_EQ(std::get<toolpath::SpindleEvent>(ev(2)).rpm, o.spindle_rpm);
+  EXPECT_EQ(std::get<toolpath::DwellEvent>(ev(3)).seconds, 1.0);
+  EXPECT_EQ(std::get<toolpath::EndEvent>(ev(p.steps.size() - 1)).m, 2);
+  EXPECT_EQ(std::get<toolpath::SpindleEvent>(ev(p.steps.size() - 2)).dir,
+            toolpath::SpindleDir::off);
+}
+
+}  // namespace
+}  // namespace ncd::comms
