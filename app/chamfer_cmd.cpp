@@ -5,6 +5,7 @@
 
 #include "app/chamfer_report.hpp"
 #include "app/commands.hpp"
+#include "app/machine_config.hpp"
 #include "app/output.hpp"
 #include "core/error.hpp"
 
@@ -13,13 +14,33 @@ namespace {
 
 struct ChamferArgs {
   toolpath::ChamferSpec spec;
-  std::string edge = "inner", side = "upper", format = "json", point = "tip", frame = "drill";
+  std::string edge = "inner", side = "upper", format = "json", frame = "drill";
+  std::optional<std::string> point;  // --program-point; default: the machine file's, else tip
+  std::string machine;
   std::optional<double> rod_radius_mm, non_knife_angle_deg, safe_z_mm, pipe_thickness_mm;
   double tilt_deg = 0.0, azimuth_deg = 0.0, half_angle_deg = 0.0;
   bool no_avoid = false, quiet = false;
   double feed_mm_per_min = 300.0, spindle_rpm = 3000.0;
   std::string output, plot;
 };
+
+// One programmed point (docs/whole-program.md): the machine file's [tool] programmed_point,
+// unless --program-point says otherwise; both given and different is a contradiction.
+toolpath::ProgramPoint programmed_point(const ChamferArgs& a) {
+  const auto parse = [](const std::string& p) {
+    return p == "centre" ? toolpath::ProgramPoint::Centre : toolpath::ProgramPoint::Tip;
+  };
+  if (a.machine.empty()) return parse(a.point.value_or("tip"));
+  const MachineConfig m = load_machine_config(a.machine);
+  if (a.point && parse(*a.point) != m.tool.programmed_point) {
+    throw InputError("--program-point " + *a.point + " contradicts the machine file " + a.machine +
+                     ", whose [tool] programmed_point is " +
+                     (m.tool.programmed_point == toolpath::ProgramPoint::Tip ? "tip" : "centre") +
+                     ": every program for that machine drives one point; drop --program-point "
+                     "or change the machine file");
+  }
+  return m.tool.programmed_point;
+}
 
 int run_chamfer(const ChamferArgs& a) {
   toolpath::ChamferSpec spec = a.spec;
@@ -43,7 +64,7 @@ int run_chamfer(const ChamferArgs& a) {
   ngc.frame = a.frame == "drill" ? toolpath::ProgramFrame::Drill : toolpath::ProgramFrame::Pipe;
   ngc.feed_mm_per_min = a.feed_mm_per_min;
   ngc.spindle_rpm = a.spindle_rpm;
-  ngc.point = a.point == "tip" ? toolpath::ProgramPoint::Tip : toolpath::ProgramPoint::Centre;
+  ngc.point = programmed_point(a);
   ngc.safe_z_mm = a.safe_z_mm.value_or(toolpath::default_safe_z_mm(spec));
   require_positive("feed (--feed, mm/min)", ngc.feed_mm_per_min);
   require_positive("spindle speed (--spindle, rpm)", ngc.spindle_rpm);
@@ -149,9 +170,11 @@ void register_chamfer(CLI::App& app, Runner& run) {
   c->add_option("--spindle", a->spindle_rpm, "spindle speed for the NC program, rpm")
       ->capture_default_str();
   c->add_option("--program-point", a->point,
-                "what the NC program drives: the ball tip (tool length to the tip) or centre")
-      ->check(CLI::IsMember({"tip", "centre"}))
-      ->capture_default_str();
+                "what the NC program drives: the ball tip (tool length to the tip) or centre "
+                "(default: the --machine file's [tool] programmed_point, else tip)")
+      ->check(CLI::IsMember({"tip", "centre"}));
+  c->add_option("--machine", a->machine,
+                "machine file whose [tool] programmed_point the NC program follows");
   c->add_option("--safe-z", a->safe_z_mm,
                 "clearance height of the NC program, mm (default: pipe radius + 4 R_B; for an "
                 "inner edge it must clear the outer surface too)");

@@ -244,6 +244,33 @@ void parse_envelope(const toml::value& table, const std::string& name, Envelope&
   }
 }
 
+void parse_tool(const toml::value& table, const std::string& name, ToolConfig& t) {
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": tool." + key;
+    if (key == "programmed_point") {
+      const std::string p = as_text(v, where);
+      if (p == "tip") {
+        t.programmed_point = toolpath::ProgramPoint::Tip;
+      } else if (p == "centre") {
+        t.programmed_point = toolpath::ProgramPoint::Centre;
+      } else {
+        throw InputError(where + " = \"" + p +
+                         "\" is neither \"tip\" (the tool length set to the ball tip) nor "
+                         "\"centre\" (set to the ball centre)");
+      }
+    } else if (key == "number") {
+      t.number = static_cast<int>(as_int_in(v, where, 0, 99999));
+    } else if (key == "spindle_dwell_s") {
+      t.spindle_dwell_s = as_real(v, where);
+      checked_range(t.spindle_dwell_s, 0.0, 600.0, where, "s",
+                    "give the spin-up time of the spindle, or 0 for no dwell");
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [tool] takes programmed_point, number, spindle_dwell_s");
+    }
+  }
+}
+
 }  // namespace
 
 MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
@@ -302,12 +329,15 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
     } else if (key == "envelope") {
       if (!value.is_table()) throw InputError(where + " must be a table: [envelope]");
       parse_envelope(value, name, c.envelope);
+    } else if (key == "tool") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [tool]");
+      parse_tool(value, name, c.tool);
     } else {
       throw InputError("unknown key " + where +
                        "; the machine file takes period_s, max_feed_mm_per_min, "
                        "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
                        "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s and the tables "
-                       "[cutting], [link], [encoder], [envelope], [program]");
+                       "[cutting], [link], [encoder], [envelope], [program], [tool]");
     }
   }
   c.encoder.line = c.link.line;
@@ -371,6 +401,10 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                   {"number_step", e.number_step},
                   {"max_setpoints_per_block", e.max_setpoints_per_block},
                   {"max_block_s", e.max_block_s}};
+  j["tool"] = {{"programmed_point",
+                c.tool.programmed_point == toolpath::ProgramPoint::Tip ? "tip" : "centre"},
+               {"number", c.tool.number},
+               {"spindle_dwell_s", c.tool.spindle_dwell_s}};
   const toolpath::InterpretOptions& p = c.program;
   j["program"] = {{"default_units", p.default_units == toolpath::Units::inch ? "inch" : "mm"},
                   {"machine_units", p.machine_units == toolpath::Units::inch ? "inch" : "mm"},

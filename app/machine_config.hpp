@@ -12,6 +12,7 @@
 #include "core/geometry.hpp"
 #include "interpolator/feed_limits.hpp"
 #include "interpolator/roughness.hpp"
+#include "toolpath/chamfer_ngc.hpp"
 #include "toolpath/ngc_interpreter.hpp"
 
 namespace ncd::app {
@@ -35,11 +36,21 @@ struct Envelope {
   Vec3 max_mm = Vec3::Constant(kDefaultTravelMm);
 };
 
+// [tool]: the cutter in the spindle as the programs ncd writes address it (docs/whole-program.md).
+struct ToolConfig {
+  // What every program ncd writes drives: the ball tip (the tool length set to the tip, the
+  // default) or the ball centre. The chamfer NGC, the --blocks program and the whole job agree.
+  toolpath::ProgramPoint programmed_point = toolpath::ProgramPoint::Tip;
+  int number = 1;                // T word of the tool change and H word of its length offset
+  double spindle_dwell_s = 0.0;  // G4 after M3 for the spindle to reach its speed; 0: none
+};
+
 struct MachineConfig {
   interpolator::MachineLimits limits;
   interpolator::CuttingParams cutting;
   LinkConfig link;
   Envelope envelope;
+  ToolConfig tool;
   // [encoder]; its line and rx_buffer_bytes are copies of [link]'s, set by the parser.
   comms::EncoderSettings encoder;
   // [program]: how RS-274/NGC programs are read (default_units, machine_units, tool_table,

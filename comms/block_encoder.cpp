@@ -163,6 +163,12 @@ const char* to_string(BlockClose reason) {
       return "duration";
     case BlockClose::End:
       return "end";
+    case BlockClose::Rapid:
+      return "rapid";
+    case BlockClose::Words:
+      return "words";
+    case BlockClose::Comment:
+      return "comment";
   }
   return "?";
 }
@@ -461,32 +467,150 @@ bool BlockEncoder::close(BlockClose reason) {
   return true;
 }
 
+void BlockEncoder::close_open() {
+  if (pending_.empty()) return;
+  std::int64_t q[3];
+  quantize(end_.p, q);
+  if (q[0] == anchor_.q[0] && q[1] == anchor_.q[1] && q[2] == anchor_.q[2]) {
+    // The stretch ends within the rounding of the last written point.
+    stats_.unwritten_tail_s += end_.t_s - anchor_.t_s;
+    for (const Vec3& p : pending_) {
+      stats_.chord_error_max_mm = std::max(stats_.chord_error_max_mm, (p - anchor_.written).norm());
+    }
+    pending_.clear();
+    anchor_.t_s = end_.t_s;
+    anchor_.s_mm = end_.s_mm;
+  } else {
+    emit(BlockClose::End, q);
+  }
+}
+
 void BlockEncoder::finish() {
   if (finished_) return;
   finished_ = true;
-  if (!pending_.empty()) {
-    std::int64_t q[3];
-    quantize(end_.p, q);
-    if (q[0] == anchor_.q[0] && q[1] == anchor_.q[1] && q[2] == anchor_.q[2]) {
-      // The path ends within the rounding of the last written point.
-      stats_.unwritten_tail_s = end_.t_s - anchor_.t_s;
-      for (const Vec3& p : pending_) {
-        stats_.chord_error_max_mm =
-            std::max(stats_.chord_error_max_mm, (p - anchor_.written).norm());
-      }
-      pending_.clear();
-    } else {
-      emit(BlockClose::End, q);
+  close_open();
+  flush_lowered_range();
+}
+
+void BlockEncoder::check_line_length(const std::string& text) const {
+  if (settings_.max_line_chars > 0 && text.size() > settings_.max_line_chars) {
+    throw InputError("the line \"" + text + "\" has " + std::to_string(text.size()) +
+                     " characters, more than the controller's " +
+                     std::to_string(settings_.max_line_chars) +
+                     "; use fewer decimals or leave out N numbers and comments");
+  }
+}
+
+void BlockEncoder::deliver_line(BlockClose kind, double duration_s, bool numbered) {
+  check_line_length(block_.text);
+  EncodedBlock& b = block_;
+  b.number = numbered ? next_number_ : 0;
+  b.closed_by = kind;
+  b.start_t_s = b.end_t_s = anchor_.t_s;
+  b.start_s_mm = b.end_s_mm = anchor_.s_mm;
+  b.length_mm = b.feed_mm_per_min = b.planned_feed_mm_per_min = 0.0;
+  b.duration_s = b.planned_duration_s = duration_s;
+  b.chord_error_mm = 0.0;
+  b.chars = static_cast<int>(b.text.size()) + eob_chars_;
+  b.setpoints = 0;
+  b.end = anchor_.written;
+  b.end_v_mm_per_s = 0.0;
+  b.positioning = false;
+  b.feed_lowered = false;
+  if (numbered) {
+    if (!numbered_) stats_.first_number = b.number;
+    numbered_ = true;
+    stats_.last_number = b.number;
+    next_number_ += settings_.number_step;
+  }
+  ++stats_.blocks;
+  ++stats_.closed_by[static_cast<int>(kind)];
+  stats_.chars += b.chars;
+  stats_.wire_s += static_cast<double>(b.chars * bits_) / settings_.line.baud;
+  stats_.duration_s += duration_s;
+  stats_.planned_duration_s += duration_s;
+  flush_lowered_range();
+  queue_model(b);
+  sink_(b);
+}
+
+void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm) {
+  if (finished_) throw std::logic_error("BlockEncoder::rapid after finish()");
+  for (int a = 0; a < 3; ++a) {
+    if (!std::isfinite(end[a]) || std::abs(end[a]) > kMaxCoordMm) {
+      throw InputError("rapid to a coordinate " + general(end[a]) +
+                       " mm: the block encoder needs finite positions within 1e9 mm");
     }
   }
-  flush_lowered_range();
+  close_open();
+  std::int64_t q[3];
+  quantize(end, q);
+  std::string& t = block_.text;
+  t.clear();
+  if (settings_.numbers) {
+    t.push_back('N');
+    append_number(t, next_number_);
+  }
+  t += "G0";
+  for (int a = 0; a < 3; ++a) {
+    if (started_ && q[a] == written_q_[a]) continue;
+    t.push_back("XYZ"[a]);
+    append_fixed(t, q[a], settings_.decimals);
+  }
+  const double from_t_s = anchor_.t_s;
+  for (int a = 0; a < 3; ++a) written_q_[a] = anchor_.q[a] = q[a];
+  anchor_.exact = end;
+  anchor_.written = written(q);
+  anchor_.rounding_mm = (anchor_.written - end).norm();
+  anchor_.t_s = t_s;
+  anchor_.s_mm = s_mm;
+  end_ = {end, t_s, s_mm, 0.0};
+  v_min_ = v_max_ = 0.0;
+  last_p_ = end;
+  last_step_ = Vec3::Zero();
+  g1_written_ = false;  // the next feed block says G1 again
+  started_ = true;
+  deliver_line(BlockClose::Rapid, std::max(0.0, t_s - from_t_s), settings_.numbers);
+}
+
+void BlockEncoder::words(const std::string& text, double duration_s) {
+  if (finished_) throw std::logic_error("BlockEncoder::words after finish()");
+  close_open();
+  std::string& t = block_.text;
+  t.clear();
+  if (settings_.numbers) {
+    t.push_back('N');
+    append_number(t, next_number_);
+  }
+  t += text;
+  deliver_line(BlockClose::Words, duration_s, settings_.numbers);
+}
+
+void BlockEncoder::comment(const std::string& text) {
+  if (finished_) throw std::logic_error("BlockEncoder::comment after finish()");
+  if (!settings_.comments) return;
+  close_open();
+  std::string& t = block_.text;
+  t = "(";
+  for (char c : text) t.push_back(c == '(' ? '[' : c == ')' ? ']' : c);
+  t.push_back(')');
+  deliver_line(BlockClose::Comment, 0.0, false);
+}
+
+void BlockEncoder::percent_line() {
+  if (!settings_.percent) return;
+  close_open();
+  block_.text = "%";
+  deliver_line(BlockClose::Comment, 0.0, false);
 }
 
 int BlockEncoder::format_motion(const std::int64_t q[3], std::int64_t feed_units) {
   std::string& t = block_.text;
   t.clear();
-  t.push_back('N');
-  append_number(t, next_number_);
+  if (settings_.numbers) {
+    t.push_back('N');
+    append_number(t, next_number_);
+  }
   if (!g1_written_) t += "G1";
   for (int a = 0; a < 3; ++a) {
     if (q[a] == written_q_[a]) continue;
@@ -505,8 +629,10 @@ void BlockEncoder::emit_positioning(const motion::Setpoint& sp) {
   quantize(sp.p, q);
   std::string& t = block_.text;
   t.clear();
-  t.push_back('N');
-  append_number(t, next_number_);
+  if (settings_.numbers) {
+    t.push_back('N');
+    append_number(t, next_number_);
+  }
   t += "G21G90G94G0";
   for (int a = 0; a < 3; ++a) {
     t.push_back("XYZ"[a]);
@@ -536,7 +662,10 @@ void BlockEncoder::emit_positioning(const motion::Setpoint& sp) {
   b.end_v_mm_per_s = sp.v_mm_per_s;
   b.positioning = true;
   b.feed_lowered = false;
-  stats_.first_number = stats_.last_number = b.number;
+  check_line_length(t);
+  if (!numbered_) stats_.first_number = b.number;
+  numbered_ = true;
+  stats_.last_number = b.number;
   stats_.chord_error_max_mm = std::max(stats_.chord_error_max_mm, b.chord_error_mm);
   ++stats_.blocks;
   ++stats_.closed_by[static_cast<int>(BlockClose::Start)];
@@ -556,6 +685,7 @@ void BlockEncoder::emit(BlockClose reason, const std::int64_t q[3]) {
   const double length = (wend - aw).norm();
   const double planned_s = end_.t_s - anchor_.t_s;
   const Feed f = feed_for(q, length, planned_s);  // leaves the text in block_.text
+  check_line_length(block_.text);
   EncodedBlock& b = block_;
   b.number = next_number_;
   b.closed_by = reason;
@@ -679,9 +809,12 @@ void BlockEncoder::flush_lowered_range() {
         causes += "the longest block of " + general(settings_.max_block_s) + " s";
         break;
       case BlockClose::End:
-        causes += "the end of the path";
+        causes += "the end of a stretch (an event or a rapid follows)";
         break;
       case BlockClose::Start:
+      case BlockClose::Rapid:
+      case BlockClose::Words:
+      case BlockClose::Comment:
         break;
     }
     causes += " (" + std::to_string(range_reasons_[k]) + ")";

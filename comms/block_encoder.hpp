@@ -48,6 +48,11 @@ struct EncoderSettings {
   LineSettings line;                      // baud, frame and end of block set the budget
   int rx_buffer_bytes = 256;              // the controller's receive buffer, for the queue model
   std::size_t max_lowered_ranges = 1000;  // ranges kept in the stats (all are counted)
+  // Framing knobs (docs/block-encoder.md, "Whole programs"); a controller dialect maps onto them.
+  bool numbers = true;             // N words on the blocks
+  bool comments = true;            // comment lines "(...)"; false: comments are left out
+  bool percent = false;            // "%" lines open and close the program (begin() and end())
+  std::size_t max_line_chars = 0;  // longest line without end of block; 0: no limit
 };
 
 // Largest distance between a point and its rounding to `decimals`: √3/2 · 10^-decimals mm.
@@ -68,8 +73,11 @@ enum class BlockClose : std::uint8_t {
   Cap,       // the buffer of the open block is full
   Duration,  // the block would last longer than max_block_s
   End,       // finish(): the end of the path
+  Rapid,     // rapid(): a G0 move at the machine's rapid rate, never merged with feed blocks
+  Words,     // words(): a block of its own (M3 S…, G4 P…, M5, M2), the tool at rest
+  Comment,   // comment() and the % lines: no motion, no N
 };
-inline constexpr int kBlockCloseCount = 7;
+inline constexpr int kBlockCloseCount = 10;
 const char* to_string(BlockClose reason);
 
 struct EncodedBlock {
@@ -169,6 +177,17 @@ class BlockEncoder {
   // InputError on a non-finite position or a time that goes back, std::logic_error after
   // finish().
   void push(const motion::Setpoint& setpoint);
+  // Whole programs (docs/whole-program.md). Each closes the open block first (its setpoints end
+  // where the tool stands), then writes its own line. Throw InputError on a line longer than
+  // max_line_chars or a non-finite position, std::logic_error after finish().
+  // A G0 to `end` (mm), reached at t_s / s_mm of the plan; the next push() starts from there.
+  void rapid(const Vec3& end, double t_s, double s_mm);
+  // A block of words other than motion, e.g. "M3S3000", "G4P1.5", "M5", "M2"; N numbered.
+  void words(const std::string& text, double duration_s = 0.0);
+  // "(text)" when comments are on; parentheses in text become brackets.
+  void comment(const std::string& text);
+  // "%" when percent is on: at the start of the program and after its end.
+  void percent_line();
   // Closes the open block. Idempotent.
   void finish();
   bool finished() const { return finished_; }
@@ -209,6 +228,11 @@ class BlockEncoder {
   // written length and may go on.
   bool close(BlockClose reason);
   void emit_positioning(const motion::Setpoint& sp);
+  // Closes the open block at its last setpoint (or drops a tail within the rounding).
+  void close_open();
+  // Hands a non-feed line in block_.text to the sink with its stats.
+  void deliver_line(BlockClose kind, double duration_s, bool numbered);
+  void check_line_length(const std::string& text) const;
   void emit(BlockClose reason, const std::int64_t q[3]);
   // The text of a motion block to q at feed units into block_.text; its length with end of
   // block.
@@ -226,6 +250,7 @@ class BlockEncoder {
   int bits_ = 11;
   int eob_chars_ = 1;
   bool started_ = false, finished_ = false;
+  bool numbered_ = false;  // a block with an N word was written
   long next_number_ = 1;
   // What the controller holds modally after the blocks written so far.
   std::int64_t written_q_[3] = {0, 0, 0};

@@ -232,6 +232,7 @@ double Job::roughness_here_um(double v_mm_per_s) const {
   const auto r_um = [&](double alpha) {
     return 1000.0 * interpolator::roughness_mm(k.ball_radius_mm, k.pick_feed_mm, ft_mm, alpha);
   };
+  if (path_.segments[walker_.segment()].rapid) return 0.0;  // a G0 does not cut
   const auto& g = path_.segments[walker_.segment()].geometry;
   if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
     return r_um(

@@ -5,8 +5,10 @@
 # Algorithm 1.
 #
 #   1. generate the chamfer path (paper 000);
-#   2. plan and walk it at 4 ms with the roughness-bounded feed (paper 004) and encode the
-#      setpoints into NC blocks that fit the link;
+#   2. make it a whole program (docs/whole-program.md: preamble, tool, spindle at speed, the
+#      clearance plane, the approach down the drill axis, the cut, the retract, M5, M2), plan
+#      and walk it at 4 ms with the roughness-bounded feed (paper 004) and encode the setpoints
+#      and the events into NC blocks that fit the link;
 #   3. start a simulated controller on a pseudo-terminal (19 200 baud, 7E2, XON/XOFF, 256-byte
 #      buffer) and drip-feed the blocks to it; it executes them in real time (about 20 s).
 set -euo pipefail
@@ -22,13 +24,29 @@ echo "== ncd demo: chamfer a drilled hole, walk it at 4 ms, stream it over RS-23
 echo
 echo "-- 1. the chamfer path (paper 000, experiment 3) --"
 "$ncd" chamfer "${geometry[@]}" --format json -o "$out/exp3.json" --plot "$out/exp3.svg" 2>&1
-"$ncd" chamfer "${geometry[@]}" --format ngc --feed 300 --spindle 3000 -o "$out/exp3.ngc" -q
+"$ncd" chamfer "${geometry[@]}" --format ngc --feed 300 --spindle 3000 \
+  --machine config/chamfer-exp3.toml -o "$out/exp3.ngc" -q
 echo "  wrote             $out/exp3.ngc (the path as a plain NC program, for reference)"
 echo
-echo "-- 2. plan and walk it at 4 ms, roughness-bounded feed; encode blocks for the link --"
+echo "-- 2. the whole program: plan and walk it at 4 ms, roughness-bounded feed; encode blocks --"
 "$ncd" replay "$out/exp3.json" --machine config/chamfer-exp3.toml \
   --setpoints "$out/setpoints.csv" --report "$out/replay.json" --plot "$out/feed.svg" \
   --blocks "$out/exp3-dnc.ngc" 2>&1
+# The order a machinist checks before loading it: spindle at speed, then the clearance plane and
+# the approach, and only then the first cutting move; the same programmed point as exp3.ngc.
+first_cut=$(grep -nE 'G1([^0-9]|$)' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+spindle=$(grep -n 'M3S' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+clearance=$(grep -n 'G0Z' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+if [ -z "$spindle" ] || [ -z "$clearance" ] || [ "$spindle" -ge "$first_cut" ] ||
+  [ "$clearance" -ge "$first_cut" ]; then
+  echo "the streamed program cuts before the spindle runs or before the approach" >&2
+  exit 1
+fi
+point=$(grep -o 'programmed point: ball [A-Z]*' "$out/exp3-dnc.ngc")
+grep -q "$point" "$out/exp3.ngc" || { echo "the programs drive different points" >&2; exit 1; }
+echo "  program           $(grep -c . "$out/exp3-dnc.ngc") lines: M3 on line $spindle, G0 to the" \
+  "clearance plane on line $clearance, first G1 on line $first_cut; $point, as exp3.ngc"
+echo "  its events        $(grep -v '^(' "$out/exp3-dnc.ngc" | grep -oE '(M[0-9]+(S[0-9.]+)?|G4P[0-9.]+|T[0-9]+M6(G43H[0-9]+)?)' | tr '\n' ' ')"
 echo
 echo "-- 3. stream it to a simulated controller: 19200 baud 7E2, XON/XOFF, drip feed --"
 "$ncd" sim-controller --link "$out/cnc" "${line[@]}" --buffer 256 --log "$out/controller.json" \
@@ -41,6 +59,23 @@ for _ in $(seq 100); do [ -e "$out/cnc" ] && break; sleep 0.05; done
 wait $sim
 trap - EXIT
 sed "s/^/  /" "$out/controller.out" "$out/controller.err"
+echo
+echo "-- 4. what the controller executed (its log, $out/controller.json) --"
+python3 - "$out/controller.json" <<'PY'
+import json, sys
+log = json.load(open(sys.argv[1]))
+events = log.get("events")
+if events:
+    for e in events:
+        print("  " + json.dumps(e))
+else:
+    print("  (this simulated controller logs no events yet; its log holds: "
+          + ", ".join(sorted(log.keys())) + ")")
+for key in ("alarms", "blocks_executed", "dwell_s", "program_end_executed", "underruns"):
+    if key in log:
+        v = log[key]
+        print("  %-16s %s" % (key, len(v) if isinstance(v, list) else v))
+PY
 echo
 sent=$(grep -o '"program_sha256": *"[0-9a-f]*"' "$out/stream.json" | grep -o '[0-9a-f]\{64\}')
 got=$(grep -o '"program_sha256": *"[0-9a-f]*"' "$out/controller.json" | grep -o '[0-9a-f]\{64\}')

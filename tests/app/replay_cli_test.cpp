@@ -191,13 +191,21 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   const std::string program = slurp(ngc);
   EXPECT_EQ(program.find('%'), std::string::npos);
   EXPECT_EQ(program.find('\r'), std::string::npos);
-  EXPECT_EQ(program.rfind("N1G21G90G94G0", 0), 0u) << program.substr(0, 80);
+  // A whole program (docs/whole-program.md): header comments that state the programmed point,
+  // then N-numbered blocks from the preamble to M2; comment lines carry no N.
+  EXPECT_EQ(program.rfind("(ncd replay of the chamfer", 0), 0u) << program.substr(0, 100);
+  EXPECT_NE(program.find("(programmed point: ball TIP = centre - 3.0000 mm in Z"),
+            std::string::npos);
+  EXPECT_NE(program.find("\nN1G21G90G94G17G40G49\n"), std::string::npos) << program.substr(0, 300);
+  EXPECT_NE(program.find("M2\n"), std::string::npos);
   std::istringstream in(program);
   std::string line;
-  std::int64_t lines = 0;
+  std::int64_t lines = 0, numbered = 0;
   while (std::getline(in, line)) {
     ++lines;
-    EXPECT_EQ(line.rfind("N" + std::to_string(lines), 0), 0u) << line;
+    if (line.rfind("(", 0) == 0) continue;
+    ++numbered;
+    EXPECT_EQ(line.rfind("N" + std::to_string(numbered), 0), 0u) << line;
   }
   const auto j = nlohmann::json::parse(slurp(report));
   ASSERT_TRUE(j.contains("blocks"));
@@ -205,7 +213,10 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   EXPECT_EQ(b["file"].get<std::string>(), ngc.string());
   EXPECT_EQ(b["blocks"].get<std::int64_t>(), lines);
   EXPECT_EQ(b["chars"].get<std::int64_t>(), static_cast<std::int64_t>(program.size()));
-  EXPECT_EQ(b["setpoints"].get<std::int64_t>(), j["cycles"].get<std::int64_t>() + 1);
+  // Setpoints inside rapids are not encoded (a G0 is written instead); one is added where each
+  // event or rapid begins and ends.
+  EXPECT_LE(b["setpoints"].get<std::int64_t>(), j["cycles"].get<std::int64_t>() + 1 + lines);
+  EXPECT_GT(b["setpoints"].get<std::int64_t>(), j["cycles"].get<std::int64_t>() / 2);
   EXPECT_LE(b["chord_error_max_mm"].get<double>(), 0.002 * (1 + 1e-9));
   EXPECT_EQ(b["link"]["line"].get<std::string>(), "19200 7E2 xonxoff drip LF");
   EXPECT_LE(b["link"]["use_peak"].get<double>(), 0.8 * (1 + 1e-9));
@@ -215,11 +226,14 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   EXPECT_EQ(j["machine"]["encoder"]["chord_tolerance_mm"].get<double>(), 0.002);
   EXPECT_NE(slurp(plot).find("feed written in the blocks"), std::string::npos);
   // The program is a path replay reads: the same loop, to within the tolerance.
+  // Its T1 M6 needs the tool in a tool table (length 0: the tool length is the controller's).
+  const std::string table = write("tool.tbl", "T1 P1 Z0 D6 ;ball\n");
+  const std::string with_table =
+      write("m.toml", slurp(kMachine) + "\n[program]\ntool_table = \"" + table + "\"\n");
   const fs::path back = dir_ / "back.json";
-  ASSERT_EQ(
-      ncd("replay " + ngc.string() + " --machine " + kMachine + " -q --report " + back.string())
-          .status,
-      0);
+  const CmdResult rb =
+      ncd("replay " + ngc.string() + " --machine " + with_table + " -q --report " + back.string());
+  ASSERT_EQ(rb.status, 0) << rb.err;
   EXPECT_NEAR(nlohmann::json::parse(slurp(back))["path_length_mm"].get<double>(),
               j["path_length_mm"].get<double>(), 0.01);
   // Deterministic: the same inputs, the same program.

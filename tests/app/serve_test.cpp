@@ -121,7 +121,9 @@ class Serve : public Cli {
 
 TEST_F(Serve, JobOverTheSocketGivesReplaysSetpoints) {
   const std::string cubic = write("cubic.json", kCubic);
-  ASSERT_EQ(ncd("replay " + cubic + " -q --setpoints " + (dir_ / "replay.csv").string()).status, 0);
+  ASSERT_EQ(ncd("replay " + cubic + " -q --path-only --setpoints " + (dir_ / "replay.csv").string())
+                .status,
+            0);
   launch("simulated");
   Client c(socket_);
   json r = c.request({{"cmd", "submit"},
@@ -258,7 +260,7 @@ TEST_F(Serve, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
   const std::string cubic = write("cubic.json", kCubic);
   const std::string link = (dir_ / "cnc").string();
   const std::string machine = write("machine.toml", link_machine(link, 5.0));
-  ASSERT_EQ(ncd("replay " + cubic + " -q --machine " + machine + " --blocks " +
+  ASSERT_EQ(ncd("replay " + cubic + " -q --path-only --machine " + machine + " --blocks " +
                 (dir_ / "replay.ngc").string())
                 .status,
             0);

@@ -1,0 +1,71 @@
+// A whole program through the block encoder (docs/whole-program.md, "Events travel"): the
+// setpoints of the planned path become G1 blocks as before, and the program's events and rapids
+// come out at their place: M3 S, G4 P, T M6 G43 H, M0/M1, M5, M2 as blocks of their own, each
+// rapid as one G0 block at the machine's rapid rate (never merged with the feed blocks), the
+// rapids from an unknown position before the first planned move as "G0 Z" then "G0 X Y".
+//
+// Where an event or a rapid begins is known from the program: the arc length of the planned path
+// up to it (the motions to_path() keeps, in the same order) and the end point of the move before
+// it. The setpoints do not land there (the tool passes it within one period unless it rests
+// there, as it does before every event that needs rest: to_path sets stop_before), so the block
+// before it is closed at a setpoint made at that exact place and arc length, its time
+// interpolated between the setpoints on either side.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "comms/block_encoder.hpp"
+#include "motion/job.hpp"
+#include "toolpath/program.hpp"
+
+namespace ncd::comms {
+
+// The words of an event as a block writes them (no N): "M3S3000", "G4P1.5", "T1M6", "M5",
+// "M2"; empty for events the blocks carry otherwise (units: the blocks are always G21; tool
+// offsets: the planned coordinates already hold them; path control: the blocks are within
+// the encoder's chord tolerance).
+// A tool change is "T n M6", followed by "G43 H n" when length_offset is set (the controller
+// then applies the tool table's length; LinuxCNC and ISO controls take it, grbl and the simulated
+// controller do not, and an operator who touches off the tool's programmed point needs none).
+std::string event_words(const toolpath::Event& event, int decimals = 3, bool length_offset = false);
+
+class ProgramBlocks {
+ public:
+  // Keeps references to both; the program's motions must be those the job plans (to_path of it).
+  ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder);
+  // "%", the header comments, the preamble "G21G90G94G17G40G49", then what comes before the first
+  // planned move.
+  void begin(const std::vector<std::string>& header);
+  void push(const motion::Setpoint& sp);
+  // What follows the last planned move (M5, M2), finish(), "%".
+  void end();
+  // Write "G43 H n" after each tool change (event_words); off by default.
+  void set_length_offset(bool on) { length_offset_ = on; }
+
+ private:
+  enum class Kind { Event, Rapid, Pre };
+  struct Mark {
+    Kind kind = Kind::Event;
+    double s0_mm = 0.0, s1_mm = 0.0;
+    Vec3 at = Vec3::Zero();   // where the tool is at s0 (mm)
+    Vec3 end = Vec3::Zero();  // rapids: where they go
+    bool rapid = false;       // a Pre mark that is a rapid from an unknown position
+    toolpath::Event event;
+  };
+  void push_at(const Vec3& p, double s_mm, double t_s);
+  double time_at(double s_mm, const motion::Setpoint& sp) const;
+  void write_event(const toolpath::Event& e);
+
+  BlockEncoder& encoder_;
+  std::vector<Mark> marks_;
+  std::size_t next_ = 0;
+  bool in_rapid_ = false;
+  bool first_ = true;
+  double pushed_s_mm_ = 0.0, pushed_t_s_ = 0.0;  // the last setpoint handed to the encoder
+  double seen_s_mm_ = 0.0, seen_t_s_ = 0.0;      // the last setpoint received
+  int decimals_ = 3;
+  bool length_offset_ = false;
+};
+
+}  // namespace ncd::comms

@@ -1,0 +1,226 @@
+// Every NC program ncd writes is read by LinuxCNC's own interpreter, `rs274 -g FILE OUT`
+// (docs/whole-program.md, "Checked by rs274"): it must parse with no error and no warning and
+// end with PROGRAM_END, and the canonical moves rs274 prints must match what ncd planned:
+//   - the blocks of `ncd replay --blocks`: every end point of a canonical move lies within the
+//     encoder's chord tolerance (plus rs274's 4-decimal print) of the setpoint polyline ncd
+//     walked (the --setpoints file of the same run);
+//   - the chamfer's NGC program: every point of the loop (the chamfer JSON's ball centres,
+//     turned over for a lower edge, less R_B for the tip) is the end of a canonical feed.
+// Without /usr/bin/rs274 (linuxcnc-uspace) the suite is skipped.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/app/cli_fixture.hpp"
+
+namespace {
+
+using ncd::test::Cli;
+using ncd::test::CmdResult;
+using ncd::test::slurp;
+namespace fs = std::filesystem;
+
+constexpr const char* kRs274 = "/usr/bin/rs274";
+// A point written or printed with 4 decimals is within half a unit of the last digit on each
+// axis: √3 · 5e-5 mm in space (plus 1e-6 for the arithmetic).
+const double kPrintMm = std::sqrt(3.0) * 5e-5 + 1e-6;
+constexpr double kChordMm = 0.002;  // config/chamfer-exp3.toml [encoder]
+const std::string kMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
+const std::string kGeometry =
+    "--pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01 "
+    "--rod-radius 1.8 --non-knife-angle 93";
+
+struct P3 {
+  double x, y, z;
+};
+double dist(const P3& a, const P3& b) {
+  return std::hypot(a.x - b.x, a.y - b.y, a.z - b.z);
+}
+double dist_to_segment(const P3& p, const P3& a, const P3& b) {
+  const P3 ab{b.x - a.x, b.y - a.y, b.z - a.z};
+  const double l2 = ab.x * ab.x + ab.y * ab.y + ab.z * ab.z;
+  double t = l2 > 0 ? ((p.x - a.x) * ab.x + (p.y - a.y) * ab.y + (p.z - a.z) * ab.z) / l2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return dist(p, {a.x + t * ab.x, a.y + t * ab.y, a.z + t * ab.z});
+}
+
+struct Canonical {
+  int status = -1;
+  std::string out, log;
+  std::vector<P3> moves;     // STRAIGHT_TRAVERSE / STRAIGHT_FEED end points, in order
+  std::vector<bool> feed;    // true for STRAIGHT_FEED
+  bool program_end = false;  // PROGRAM_END seen
+};
+
+class Rs274 : public Cli {
+ protected:
+  void SetUp() override {
+    Cli::SetUp();
+    if (!fs::exists(kRs274)) GTEST_SKIP() << kRs274 << " not installed (linuxcnc-uspace)";
+  }
+  Canonical canonical(const std::string& file) {
+    const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
+    const std::string cmd = "printf '\\n\\n\\n' | " + std::string(kRs274) + " -g " + file + " " +
+                            out.string() + " >" + log.string() + " 2>&1";
+    const int raw = std::system(cmd.c_str());
+    Canonical c;
+    c.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    c.out = slurp(out);
+    c.log = slurp(log);
+    std::istringstream in(c.out);
+    std::string line;
+    while (std::getline(in, line)) {
+      const bool traverse = line.find("STRAIGHT_TRAVERSE(") != std::string::npos;
+      const bool feed = line.find("STRAIGHT_FEED(") != std::string::npos;
+      if (line.find("PROGRAM_END") != std::string::npos) c.program_end = true;
+      if (!traverse && !feed) continue;
+      P3 p{};
+      const std::size_t open = line.find('(');
+      if (std::sscanf(line.c_str() + open + 1, "%lf, %lf, %lf", &p.x, &p.y, &p.z) != 3) continue;
+      c.moves.push_back(p);
+      c.feed.push_back(feed);
+    }
+    return c;
+  }
+  static void expect_clean(const Canonical& c, const std::string& what) {
+    EXPECT_EQ(c.status, 0) << what << "\n" << c.log;
+    for (const char* bad : {"rror", "arning", "ended with no percent"}) {
+      EXPECT_EQ(c.log.find(bad), std::string::npos) << what << ": " << c.log;
+      EXPECT_EQ(c.out.find(bad), std::string::npos) << what;
+    }
+    EXPECT_TRUE(c.program_end) << what << ": no PROGRAM_END";
+  }
+  // The setpoints CSV of a replay: x, y, z of each row.
+  static std::vector<P3> setpoints(const std::string& csv) {
+    std::vector<P3> pts;
+    std::istringstream in(csv);
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      P3 p{};
+      double t = 0;
+      if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &t, &p.x, &p.y, &p.z) == 4) pts.push_back(p);
+    }
+    return pts;
+  }
+  // replay --blocks and --setpoints of `path`; rs274 on the blocks; the largest distance of a
+  // canonical end point (after the first, the rise from wherever the tool stands) from the
+  // setpoint polyline.
+  double blocks_deviation(const std::string& path, const std::string& what) {
+    const std::string blocks = (dir_ / "b.ngc").string(), csv = (dir_ / "sp.csv").string();
+    const CmdResult r = ncd("replay " + path + " --machine " + kMachine + " -q --blocks " + blocks +
+                            " --setpoints " + csv);
+    EXPECT_EQ(r.status, 0) << r.err;
+    const Canonical c = canonical(blocks);
+    expect_clean(c, what);
+    const std::vector<P3> sp = setpoints(slurp(csv));
+    EXPECT_GT(sp.size(), 10u);
+    EXPECT_GT(c.moves.size(), 3u) << what;
+    double worst = 0.0;
+    for (std::size_t i = 1; i < c.moves.size(); ++i) {
+      double d = std::numeric_limits<double>::infinity();
+      for (std::size_t k = 0; k + 1 < sp.size(); ++k) {
+        d = std::min(d, dist_to_segment(c.moves[i], sp[k], sp[k + 1]));
+      }
+      worst = std::max(worst, d);
+    }
+    std::printf(
+        "rs274 %-28s %3zu canonical moves, max distance from the planned setpoints "
+        "%.5f mm (tolerance %.5f)\n",
+        what.c_str(), c.moves.size(), worst, kChordMm + kPrintMm);
+    EXPECT_LE(worst, kChordMm + kPrintMm) << what;
+    return worst;
+  }
+};
+
+TEST_F(Rs274, BlocksOfTheExp3ChamferParseAndFollowThePlan) {
+  const std::string json = (dir_ / "exp3.json").string();
+  ASSERT_EQ(ncd("chamfer " + kGeometry + " -q -o " + json).status, 0);
+  blocks_deviation(json, "blocks of the exp3 chamfer");
+}
+
+TEST_F(Rs274, BlocksOfANurbsParseAndFollowThePlan) {
+  const std::string cubic = write("cubic.json", R"({"nurbs": {"degree": 3,
+    "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+    "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
+    "feed_mm_per_min": 1200})");
+  blocks_deviation(cubic, "blocks of a NURBS");
+}
+
+TEST_F(Rs274, BlocksOfAnInterpretedSampleParseAndFollowThePlan) {
+  const std::string sample = std::string(NCD_SOURCE_DIR) + "/tests/ngc/stops_dwell.ngc";
+  ASSERT_TRUE(fs::exists(sample));
+  blocks_deviation(sample, "blocks of stops_dwell.ngc");
+}
+
+TEST_F(Rs274, TeachProgramAndItsBlocksParseAndFollowThePlan) {
+  const std::string ex = std::string(NCD_SOURCE_DIR) + "/examples/";
+  const std::string ngc = (dir_ / "teach.ngc").string();
+  const CmdResult t = ncd("teach " + ex + "teach-burr.txt --frame-points " + ex +
+                          "teach-burr-frame.txt --tool-diameter 10 --depth 0.2 --feed 300 "
+                          "--spindle 2000 -q -o " +
+                          ngc);
+  ASSERT_EQ(t.status, 0) << t.err;
+  expect_clean(canonical(ngc), "teach program");
+  const double worst = blocks_deviation(ngc, "blocks of the teach job");
+  EXPECT_GE(worst, 0.0);
+  // Its events travel into the blocks: the spindle at its speed before the first G1, M5, M30.
+  const std::string blocks = slurp(dir_ / "b.ngc");
+  const std::size_t m3 = blocks.find("M3S2000");
+  std::smatch first_g1;
+  ASSERT_TRUE(std::regex_search(blocks, first_g1, std::regex("G1[XYZF]")));
+  const auto g1 = static_cast<std::size_t>(first_g1.position(0));
+  EXPECT_NE(m3, std::string::npos);
+  EXPECT_LT(m3, g1);
+  EXPECT_NE(blocks.find("M5\n"), std::string::npos);
+  EXPECT_NE(blocks.find("M30\n"), std::string::npos);
+}
+
+TEST_F(Rs274, ChamferProgramsOfEveryEdgeAndSideParseAndHoldTheLoop) {
+  for (const char* edge : {"inner", "outer"}) {
+    for (const char* side : {"upper", "lower"}) {
+      const std::string what = std::string("chamfer ") + edge + " " + side;
+      // Outer edges need a pipe radius on the outside (36 mm bore, 3 mm wall).
+      const std::string geometry =
+          std::string(edge) == "outer"
+              ? "--pipe-radius 21 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01"
+              : kGeometry;
+      const std::string args = "chamfer " + geometry + " --edge " + edge + " --side " + side +
+                               " --machine " + kMachine + " -q";
+      const std::string ngc = (dir_ / "c.ngc").string(), json = (dir_ / "c.json").string();
+      const CmdResult g = ncd(args + " --format ngc -o " + ngc);
+      ASSERT_EQ(g.status, 0) << what << "\n" << g.err;
+      ASSERT_EQ(ncd(args + " --format json -o " + json).status, 0);
+      const Canonical c = canonical(ngc);
+      expect_clean(c, what);
+      const auto doc = nlohmann::json::parse(slurp(json));
+      const bool lower = std::string(side) == "lower";
+      double worst = 0.0;
+      std::size_t n = 0;
+      for (const auto& pt : doc["points"]) {
+        const auto cl = pt["cl"];
+        P3 q{cl[0].get<double>(), cl[1].get<double>(), cl[2].get<double>()};
+        if (lower) q = {-q.x, q.y, -q.z};  // turned over (docs/chamfer.md)
+        q.z -= 3.0;                        // the tip, as the machine file says
+        double d = std::numeric_limits<double>::infinity();
+        for (std::size_t i = 0; i < c.moves.size(); ++i) {
+          if (c.feed[i]) d = std::min(d, dist(q, c.moves[i]));
+        }
+        worst = std::max(worst, d);
+        ++n;
+      }
+      std::printf("rs274 %-28s %3zu canonical moves, %zu loop points, max distance %.6f mm\n",
+                  what.c_str(), c.moves.size(), n, worst);
+      EXPECT_LE(worst, kPrintMm) << what;
+    }
+  }
+}
+
+}  // namespace

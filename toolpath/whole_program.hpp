@@ -1,0 +1,46 @@
+// A generated job as a whole NC program (docs/whole-program.md): around the cut, what a
+// machinist's program has — units and modes, the tool and its length offset, the spindle at its
+// speed (and a dwell for it to get there), the clearance plane reached by rising first, the
+// approach (over the start, or down the drill axis and then out to the edge for an inner edge),
+// the cut, the retract the same way back, spindle stop and program end. The result is a
+// toolpath::Program, so the planner (to_path), the block encoder and the NGC writers all see the
+// same events in the same order.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "toolpath/chamfer.hpp"
+#include "toolpath/chamfer_ngc.hpp"
+#include "toolpath/path.hpp"
+#include "toolpath/program.hpp"
+
+namespace ncd::toolpath {
+
+struct JobFrame {
+  double feed_mm_per_min = 300.0;  // the cut's feed where its segments give none, and the approach
+  double spindle_rpm = 3000.0;
+  double spindle_dwell_s = 0.0;  // G4 after M3; 0: none
+  int tool = 1;                  // T and H
+  double clearance_z_mm = 0.0;   // the clearance plane, in the program's frame and point
+  double approach_gap_mm = 1.0;  // the rapid descent stops this far above the feed's start
+  // Inner edges: the approach goes down this vertical (the drill axis, X Y) and then feeds out
+  // to the cut's start; the retract comes back the same way. None: straight down onto the start.
+  std::optional<Vec3> axis_xy;
+};
+
+// The whole program around `cut` (its segments in the program's frame and point, mm; feed
+// moves at their own feed or frame.feed_mm_per_min). Throws InputError when the clearance plane
+// is not above every point of the cut, or a value is out of range.
+Program whole_job(const Path& cut, const JobFrame& frame);
+
+// The chamfer job: the loop as chamfer_program() writes it (program frame, programmed point),
+// its clearance plane options.safe_z_mm, inner edges approached down the drill axis.
+Program chamfer_job(const ChamferPath& path, const NgcOptions& options,
+                    double spindle_dwell_s = 0.0, int tool = 1);
+
+// Header lines of a job (without parentheses): the programmed point and the frame.
+std::string programmed_point_text(ProgramPoint point, double ball_radius_mm);
+
+}  // namespace ncd::toolpath
