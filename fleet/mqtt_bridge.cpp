@@ -104,6 +104,16 @@ class Listener : public mqtt::iaction_listener {
   }
 };
 
+// The "id" of a refused request, to match the refusal to it: the top level only is kept while
+// parsing (nested values are dropped as they are read), so no depth is built up.
+json request_id(const std::string& payload) {
+  const json top = json::parse(
+      payload, [](int depth, json::parse_event_t, json&) { return depth <= 1; }, false);
+  if (!top.is_object()) return json();
+  const auto it = top.find("id");
+  return it != top.end() && (it->is_string() || it->is_number()) ? *it : json();
+}
+
 json error_reply(const std::string& message) {
   return json{{"ok", false}, {"error", message}};
 }
@@ -408,6 +418,7 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
                             t_status);
       } else if (!check.to_handler) {
         reply = std::move(check.reply);
+        id = request_id(payload);
       } else {
         if (const auto it = check.request.find("id"); it != check.request.end()) {
           id = *it;
