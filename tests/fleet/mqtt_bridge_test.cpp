@@ -18,6 +18,7 @@
 
 #include "fleet/mqtt_bridge.hpp"
 #include "tests/fleet/broker.hpp"
+#include "tests/fleet/watcher.hpp"
 
 namespace {
 
@@ -26,51 +27,11 @@ using ncd::fleet::MqttBridge;
 using ncd::fleet::MqttConfig;
 using ncd::test::Broker;
 using ncd::test::BrokerUser;
+using ncd::test::Watcher;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
 const std::string kRoot = "ncd/cell1/m1/";
-
-// A subscriber (or a publisher) on the broker, as a watching screen or an operator would be.
-// `persistent`: a session the broker keeps while the client is away (clean session off).
-class Watcher {
- public:
-  Watcher(const std::string& url, const std::string& id, const BrokerUser& user,
-          const std::vector<std::string>& topics, bool persistent = false)
-      : client_(url, id, static_cast<mqtt::iclient_persistence*>(nullptr)) {
-    client_.start_consuming();
-    auto opts = mqtt::connect_options_builder()
-                    .clean_session(!persistent)
-                    .user_name(user.name)
-                    .password(user.password)
-                    .automatic_reconnect(100ms, 400ms)
-                    .finalize();
-    client_.connect(opts)->wait_for(10s);
-    for (const auto& t : topics) client_.subscribe(t, 1)->wait_for(10s);
-  }
-  ~Watcher() {
-    try {
-      client_.disconnect()->wait_for(2s);
-    } catch (const std::exception&) {
-    }
-  }
-  // The next message, or nullptr after timeout_s.
-  mqtt::const_message_ptr next(double timeout_s) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (std::chrono::steady_clock::now() < end) {
-      mqtt::const_message_ptr m;
-      if (client_.try_consume_message_for(&m, 50ms) && m) return m;
-    }
-    return nullptr;
-  }
-  void publish(const std::string& topic, const json& payload) {
-    client_.publish(topic, payload.dump(), 1, false)->wait_for(10s);
-  }
-  mqtt::async_client& client() { return client_; }
-
- private:
-  mqtt::async_client client_;
-};
 
 // The bridge on its own io_context thread, with a status and a command handler of the test.
 class Host {
