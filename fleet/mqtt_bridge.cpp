@@ -470,7 +470,12 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
       // the broker went away meanwhile: its last will says offline
     }
     up = false;
-    client->disable_callbacks();
+    try {
+      client->disable_callbacks();
+    } catch (const std::exception&) {
+      // A connection attempt is under way (Paho refuses then): destroying the client ends it,
+      // and until then the callbacks only post to the io_context through a weak pointer.
+    }
   }
 
   boost::asio::io_context& io;
@@ -479,7 +484,6 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
   CommandFn command_fn;
   comms::ServerOptions options;
   std::string t_status, t_state, t_events, t_online, t_cmd, t_reply;
-  std::unique_ptr<mqtt::async_client> client;
   mqtt::connect_options connect_opts;
   Listener connect_listener, publish_listener;
   boost::asio::steady_timer status_timer, pump_timer, reconnect_timer;
@@ -493,6 +497,9 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
   std::atomic<std::uint64_t> next_seq{1}, dropped{0};
   std::atomic<std::uint64_t> published{0}, resent{0}, status_n{0}, state_n{0}, commands{0},
       connects{0}, losses{0};
+  // Last, so destroyed first: while Paho winds down (and may still call back) every member it
+  // can reach, the listeners included, is alive.
+  std::unique_ptr<mqtt::async_client> client;
 };
 
 MqttBridge::MqttBridge(boost::asio::io_context& io, const MqttConfig& config, StatusFn status,

@@ -2,7 +2,9 @@
 // the running job (seen on the control socket), a wrong token is refused as on the socket, the
 // state topic follows the job, and the machine is marked offline, retained, both when it stops
 // and when it is killed (the last will). Skipped when mosquitto is not installed.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <sys/socket.h>
@@ -216,6 +218,68 @@ TEST_F(ServeFleet, TheLastWillMarksAKilledServiceOffline) {
   ASSERT_TRUE(m);
   EXPECT_TRUE(m->is_retained());  // a screen that comes later sees it too
   EXPECT_EQ(json::parse(m->to_string())["online"], false);
+}
+
+}  // namespace
+
+namespace {
+
+// A "broker" that takes the TCP connection and never answers: the MQTT connection attempt stays
+// pending (CONNECT sent, no CONNACK) for the client's connect timeout.
+class SilentListener {
+ public:
+  SilentListener() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    ::listen(fd_, 8);
+    socklen_t n = sizeof a;
+    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &n);
+    port_ = ntohs(a.sin_port);
+  }
+  ~SilentListener() { ::close(fd_); }
+  int port() const { return port_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
+// The service keeps serving while the broker does not answer, and SIGTERM in the middle of a
+// connection attempt still ends it cleanly (exit 0).
+TEST(ServeFleetNoBroker, ServesWithoutTheBrokerAndStopsCleanlyWhileConnecting) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("ncd_fleet_nobroker_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  SilentListener silent;
+  std::ofstream(dir / "serve.toml")
+      << "clock = \"simulated\"\nrealtime = false\ntoken = \"" << kToken
+      << "\"\n[mqtt]\nbroker = \"tcp://127.0.0.1:" << silent.port() << "\"\ntopic_root = \""
+      << kRoot << "\"\n";
+  const std::string socket = (dir / "ncd.sock").string();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string err = (dir / "serve.err").string();
+    if (!std::freopen(err.c_str(), "w", stderr)) _exit(126);
+    execl(NCD_EXE, NCD_EXE, "serve", "--config", (dir / "serve.toml").c_str(), "--listen",
+          ("unix:" + socket).c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  {
+    SocketClient c(socket);
+    EXPECT_EQ(c.request({{"cmd", "status"}}).value("state", ""), "idle");
+  }
+  std::this_thread::sleep_for(300ms);  // the first attempt waits for a CONNACK that never comes
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  std::ifstream in(dir / "serve.err");
+  const std::string log((std::istreambuf_iterator<char>(in)), {});
+  fs::remove_all(dir);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
 }
 
 }  // namespace
