@@ -194,6 +194,15 @@ TEST_F(Fleet, EventsArriveInOrder) {
   EXPECT_EQ(n.events_dropped, 0u);
 }
 
+// Waits until the broker has acknowledged `n` events (the queue has room again).
+bool wait_published(MqttBridge& b, std::uint64_t n) {
+  for (int i = 0; i < 3000; ++i) {
+    if (b.counters().events_published >= n) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
 // Pushes `count` events numbered from `from` (the event's own "i" is the expected seq).
 void push(MqttBridge& b, int from, int count, int& accepted) {
   for (int i = from; i < from + count; ++i) accepted += b.push_event({{"type", "tick"}, {"i", i}});
@@ -222,6 +231,7 @@ TEST_F(Fleet, BrokerKilledAndRestartedMidJobLosesNoEventWithinTheBound) {
   std::this_thread::sleep_for(500ms);
   ASSERT_TRUE(broker_->start()) << broker_->log();
   ASSERT_TRUE(host.wait_connected(true));
+  ASSERT_TRUE(wait_published(host.bridge(), 70));  // the 70 so far, before the next 30
   push(host.bridge(), 71, 30, accepted);
   collect(w, seqs, seen, 100, duplicates, 30);
   const auto n = host.bridge().counters();
@@ -264,6 +274,7 @@ TEST_F(Fleet, PastTheBoundEventsAreDroppedAndCountedNeverWaitedFor) {
   EXPECT_EQ(host.bridge().counters().events_dropped, 30u);
   ASSERT_TRUE(broker_->start()) << broker_->log();
   ASSERT_TRUE(host.wait_connected(true));
+  ASSERT_TRUE(wait_published(host.bridge(), 30));  // the 30 accepted, before the next 5
   push(host.bridge(), 61, 5, accepted);
   collect(w, seqs, seen, 35, duplicates, 30);
   std::set<std::uint64_t> expected;
