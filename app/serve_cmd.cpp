@@ -10,6 +10,8 @@
 #include "app/commands.hpp"
 #include "app/service.hpp"
 #include "comms/control_server.hpp"
+#include "core/input_file.hpp"
+#include "fleet/mqtt_bridge.hpp"
 
 namespace ncd::app {
 namespace {
@@ -20,7 +22,13 @@ struct ServeArgs {
 
 int run_serve(const ServeArgs& a) {
   ServiceConfig cfg;
-  if (!a.config.empty()) cfg = load_service_config(a.config);
+  std::optional<fleet::MqttConfig> mqtt;  // [mqtt]: the fleet's broker (docs/fleet-mqtt.md)
+  if (!a.config.empty()) {
+    fleet::ServeTomlSplit split =
+        fleet::split_mqtt_config(read_input_file(a.config, "service config, --config"), a.config);
+    cfg = parse_service_config(split.service_text, a.config);
+    mqtt = std::move(split.mqtt);
+  }
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
   Service service(io, cfg);
@@ -33,6 +41,13 @@ int run_serve(const ServeArgs& a) {
             << " (machine: " << cfg.machine.source
             << ", clock: " << (cfg.clock == motion::ClockKind::Wall ? "wall" : "simulated") << ")"
             << std::endl;
+  std::unique_ptr<fleet::MqttBridge> bridge;
+  if (mqtt) {
+    bridge = std::make_unique<fleet::MqttBridge>(
+        io, *mqtt, [&service] { return service.status(); },
+        [&service](const nlohmann::json& request) { return service.handle(request); }, cfg.token);
+    bridge->start();
+  }
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
@@ -66,7 +81,7 @@ void register_serve(CLI::App& app, Runner& run) {
       "Run as a service: newline-delimited JSON requests on a control socket (see README). "
       "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
   c->add_option("--config", a->config,
-                "service config (TOML): listen, token, machine, clock, realtime; see "
+                "service config (TOML): listen, token, machine, clock, realtime, [mqtt]; see "
                 "config/serve.example.toml");
   c->add_option(
       "--listen", a->listen,

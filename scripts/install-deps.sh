@@ -6,6 +6,7 @@ pkgs=(build-essential cmake ninja-build clang-format pkg-config
       libeigen3-dev libboost-dev libserial-dev libgtest-dev libgmock-dev libbenchmark-dev
       libcli11-dev nlohmann-json3-dev libtoml11-dev libfmt-dev libspdlog-dev libssl-dev rt-tests
       zlib1g-dev                    # zlib: the PNG writer of ncd simulate
+      libpaho-mqttpp-dev libpaho-mqtt-dev mosquitto mosquitto-clients  # MQTT: ncd serve [mqtt], tests/fleet
       clang-14 libclang-rt-14-dev   # clang-14, libclang-rt: the libFuzzer harnesses (make fuzz)
       "$@")                         # more packages a caller asks for (scripts/install-judges.sh)
 missing=()

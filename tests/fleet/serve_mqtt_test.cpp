@@ -1,0 +1,285 @@
+// `ncd serve` as a real process with [mqtt] against a real mosquitto: a command over MQTT holds
+// the running job (seen on the control socket), a wrong token is refused as on the socket, the
+// state topic follows the job, and the machine is marked offline, retained, both when it stops
+// and when it is killed (the last will). Skipped when mosquitto is not installed.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "tests/fleet/broker.hpp"
+#include "tests/fleet/watcher.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using ncd::test::Broker;
+using ncd::test::Watcher;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+const std::string kRoot = "ncd/cell1/m1/";
+const std::string kToken = "t0k-serve";
+
+// A line client on the control socket (Unix).
+class SocketClient {
+ public:
+  explicit SocketClient(const std::string& path) {
+    fd_ = ::socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+    for (int i = 0; i < 400; ++i) {  // the service may still be starting
+      if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) return;
+      std::this_thread::sleep_for(25ms);
+    }
+    ADD_FAILURE() << "cannot connect to " << path;
+  }
+  ~SocketClient() { ::close(fd_); }
+  json request(json req) {
+    req["token"] = kToken;
+    const std::string line = req.dump() + "\n";
+    if (::write(fd_, line.data(), line.size()) != static_cast<ssize_t>(line.size())) return {};
+    for (;;) {
+      const auto nl = buf_.find('\n');
+      if (nl != std::string::npos) {
+        const std::string reply = buf_.substr(0, nl);
+        buf_.erase(0, nl + 1);
+        return json::parse(reply);
+      }
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 10000) <= 0) return {};
+      char tmp[4096];
+      const ssize_t n = ::read(fd_, tmp, sizeof tmp);
+      if (n <= 0) return {};
+      buf_.append(tmp, static_cast<std::size_t>(n));
+    }
+  }
+
+ private:
+  int fd_ = -1;
+  std::string buf_;
+};
+
+class ServeFleet : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (const std::string why = Broker::missing(); !why.empty()) GTEST_SKIP() << why;
+    dir_ = fs::temp_directory_path() /
+           ("ncd_fleet_serve_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    broker_ = std::make_unique<Broker>(dir_);
+    ASSERT_TRUE(broker_->start()) << broker_->log();
+  }
+  void TearDown() override {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    broker_.reset();
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+  // `ncd serve` in real time (a job long enough for commands to arrive while it moves).
+  void launch() {
+    socket_ = (dir_ / "ncd.sock").string();
+    std::ofstream(dir_ / "serve.toml")
+        << "clock = \"wall\"\nrealtime = false\ntoken = \"" << kToken << "\"\n[mqtt]\n"
+        << "broker = \"" << broker_->url() << "\"\nusername = \"" << ncd::test::kMachine.name
+        << "\"\npassword = \"" << ncd::test::kMachine.password << "\"\ntopic_root = \"" << kRoot
+        << "\"\nstatus_hz = 10\nreconnect_min_s = 0.1\nreconnect_max_s = 0.5\n";
+    pid_ = fork();
+    if (pid_ == 0) {
+      const std::string err = (dir_ / "serve.err").string();
+      if (!std::freopen(err.c_str(), "w", stderr)) _exit(126);
+      execl(NCD_EXE, NCD_EXE, "serve", "--config", (dir_ / "serve.toml").c_str(), "--listen",
+            ("unix:" + socket_).c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  // The next message on `topic` whose payload satisfies `want`, within timeout_s.
+  template <class F>
+  json wait_message(Watcher& w, const std::string& topic, F want, double timeout_s = 20) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      auto m = w.next(0.2);
+      if (!m || m->get_topic() != topic) continue;
+      const json p = json::parse(m->to_string());
+      if (want(p)) return p;
+    }
+    return json();
+  }
+  json wait_state(SocketClient& c, const std::string& state) {
+    json s;
+    for (int i = 0; i < 500; ++i) {
+      s = c.request({{"cmd", "status"}});
+      if (s.value("state", "") == state) return s;
+      std::this_thread::sleep_for(10ms);
+    }
+    ADD_FAILURE() << "the state never became " << state << ": " << s.dump();
+    return s;
+  }
+  std::string serve_log() const {
+    std::ifstream in(dir_ / "serve.err");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+
+  fs::path dir_;
+  std::unique_ptr<Broker> broker_;
+  std::string socket_;
+  pid_t pid_ = -1;
+};
+
+// The clamped cubic of the serve tests, 20 times larger: tens of seconds at the default feed.
+const char* kLongCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+  "points": [[0,0,0],[200,500,0],[600,-200,40],[900,600,80],[1200,0,60],[1600,400,0],
+             [2000,0,0]]}})";
+
+TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
+  Watcher ops(broker_->url(), "ops-serve", ncd::test::kOperator,
+              {kRoot + "reply", kRoot + "state", kRoot + "online"});
+  launch();
+  const json online =
+      wait_message(ops, kRoot + "online", [](const json& p) { return p.value("online", false); });
+  ASSERT_EQ(online.value("online", false), true) << serve_log();
+  std::ofstream(dir_ / "long.json") << kLongCubic;
+  SocketClient c(socket_);
+  json r = c.request({{"cmd", "submit"}, {"job", {{"path", (dir_ / "long.json").string()}}}});
+  ASSERT_TRUE(r.value("ok", false)) << r.dump();
+  ASSERT_TRUE(c.request({{"cmd", "start"}}).value("ok", false));
+  wait_state(c, "running");
+  EXPECT_FALSE(wait_message(ops, kRoot + "state", [](const json& p) {
+                 return p["state"] == "running";
+               }).is_null());
+
+  ops.publish(kRoot + "cmd", {{"cmd", "hold"}, {"token", kToken}, {"id", "h1"}});
+  const json held =
+      wait_message(ops, kRoot + "reply", [](const json& p) { return p.value("id", "") == "h1"; });
+  ASSERT_TRUE(held.value("ok", false)) << held.dump();
+  wait_state(c, "holding");  // seen on the socket
+  EXPECT_FALSE(wait_message(ops, kRoot + "state", [](const json& p) {
+                 return p["state"] == "holding";
+               }).is_null());
+
+  // The socket's token check: a wrong token is refused and changes nothing.
+  ops.publish(kRoot + "cmd", {{"cmd", "resume"}, {"token", "wrong"}, {"id", "r1"}});
+  const json refused =
+      wait_message(ops, kRoot + "reply", [](const json& p) { return p.value("id", "") == "r1"; });
+  EXPECT_EQ(refused.value("ok", true), false) << refused.dump();
+  EXPECT_NE(refused.value("error", "").find("token"), std::string::npos) << refused.dump();
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(c.request({{"cmd", "status"}})["state"], "holding");
+
+  ops.publish(kRoot + "cmd", {{"cmd", "stop"}, {"token", kToken}, {"id", "s1"}});
+  const json stopped =
+      wait_message(ops, kRoot + "reply", [](const json& p) { return p.value("id", "") == "s1"; });
+  EXPECT_TRUE(stopped.value("ok", false)) << stopped.dump();
+
+  // SIGTERM: the service says it goes offline (retained), then exits 0.
+  ::kill(pid_, SIGTERM);
+  int status = 0;
+  ::waitpid(pid_, &status, 0);
+  pid_ = -1;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << serve_log();
+  Watcher late(broker_->url(), "ops-late", ncd::test::kOperator, {kRoot + "online"});
+  const auto m = late.next(10);
+  ASSERT_TRUE(m);
+  EXPECT_TRUE(m->is_retained());
+  EXPECT_EQ(json::parse(m->to_string())["online"], false);
+}
+
+TEST_F(ServeFleet, TheLastWillMarksAKilledServiceOffline) {
+  Watcher ops(broker_->url(), "ops-will", ncd::test::kOperator, {kRoot + "online"});
+  launch();
+  ASSERT_EQ(
+      wait_message(ops, kRoot + "online", [](const json& p) { return p.value("online", false); })
+          .value("online", false),
+      true)
+      << serve_log();
+  ::kill(pid_, SIGKILL);  // no DISCONNECT: the broker publishes the will
+  ::waitpid(pid_, nullptr, 0);
+  pid_ = -1;
+  const json will = wait_message(ops, kRoot + "online", [](const json&) { return true; });
+  EXPECT_EQ(will, json({{"online", false}}));
+  Watcher late(broker_->url(), "ops-late", ncd::test::kOperator, {kRoot + "online"});
+  const auto m = late.next(10);
+  ASSERT_TRUE(m);
+  EXPECT_TRUE(m->is_retained());  // a screen that comes later sees it too
+  EXPECT_EQ(json::parse(m->to_string())["online"], false);
+}
+
+}  // namespace
+
+namespace {
+
+// A "broker" that takes the TCP connection and never answers: the MQTT connection attempt stays
+// pending (CONNECT sent, no CONNACK) for the client's connect timeout.
+class SilentListener {
+ public:
+  SilentListener() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    ::listen(fd_, 8);
+    socklen_t n = sizeof a;
+    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &n);
+    port_ = ntohs(a.sin_port);
+  }
+  ~SilentListener() { ::close(fd_); }
+  int port() const { return port_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
+// The service keeps serving while the broker does not answer, and SIGTERM in the middle of a
+// connection attempt still ends it cleanly (exit 0).
+TEST(ServeFleetNoBroker, ServesWithoutTheBrokerAndStopsCleanlyWhileConnecting) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("ncd_fleet_nobroker_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  SilentListener silent;
+  std::ofstream(dir / "serve.toml")
+      << "clock = \"simulated\"\nrealtime = false\ntoken = \"" << kToken
+      << "\"\n[mqtt]\nbroker = \"tcp://127.0.0.1:" << silent.port() << "\"\ntopic_root = \""
+      << kRoot << "\"\n";
+  const std::string socket = (dir / "ncd.sock").string();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string err = (dir / "serve.err").string();
+    if (!std::freopen(err.c_str(), "w", stderr)) _exit(126);
+    execl(NCD_EXE, NCD_EXE, "serve", "--config", (dir / "serve.toml").c_str(), "--listen",
+          ("unix:" + socket).c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  {
+    SocketClient c(socket);
+    EXPECT_EQ(c.request({{"cmd", "status"}}).value("state", ""), "idle");
+  }
+  std::this_thread::sleep_for(300ms);  // the first attempt waits for a CONNACK that never comes
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  std::ifstream in(dir / "serve.err");
+  const std::string log((std::istreambuf_iterator<char>(in)), {});
+  fs::remove_all(dir);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
+}
+
+}  // namespace
