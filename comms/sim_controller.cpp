@@ -768,6 +768,7 @@ struct SimController::Impl {
     } else if (end_received) {
       ++log.lines_after_end;
       line.kind = Kind::AfterEnd;
+      grbl_state = grbl_after;  // grbl reads on after M2/M30; its verdicts follow its state
     } else {
       modal = modal_after;
       grbl_state = grbl_after;
@@ -871,7 +872,9 @@ struct SimController::Impl {
   std::size_t planner_count() const { return planner.size() + (busy && !sync_busy ? 1 : 0); }
 
   void pump_planner(double t) {
-    while (!rx.empty() && !alarmed) {
+    // grbl executes G4 and M0 inside gc_execute_line (mc_dwell, the suspend loop): it reads no
+    // further line until they are over.
+    while (!rx.empty() && !alarmed && !(busy && sync_busy)) {
       Line& line = rx.front();
       if (line.kind == Kind::Block && !line.block.move) {
         // grbl synchronises: the block waits for the planner to run empty, then takes effect.
@@ -891,6 +894,7 @@ struct SimController::Impl {
         current = line.block;
         current_text = line.text;
         current_seq = line.seq;
+        block_events(line, t);
         finish(t);
         reply(line, "ok\r\n");
         rx.pop_front();
@@ -1116,7 +1120,10 @@ struct SimController::Impl {
     block_events(line, start);
   }
 
-  bool pauses(const SimBlock& b) const { return b.pause || (b.optional_stop && cfg.optional_stop); }
+  // M0, or M1 with the optional-stop switch on (grbl ignores M1: "not supported" in gcode.c).
+  bool pauses(const SimBlock& b) const {
+    return b.pause || (b.optional_stop && cfg.optional_stop && cfg.dialect != Dialect::grbl);
+  }
 
   // The events a block executes before its motion (and, for a stop, after it).
   void block_events(const Line& line, double t) {
