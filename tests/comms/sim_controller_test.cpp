@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -21,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <random>
 #include <thread>
 #include <vector>
@@ -1383,6 +1385,41 @@ TEST(SimGrblDialect, RandomLinesPrecheckAndControllerAgree) {
   std::printf("random grbl lines: %zu lines (%d refused, %zu taken), verdicts compared\n",
               lines.size(), errors, lines.size() - static_cast<std::size_t>(errors));
   run.stop();
+}
+
+// `ncd stream --dialect grbl` refuses the program (G64 P0.0100 on line 3) before it
+// opens the port: exit 2, the line and the word named, not one byte on the controller's wire.
+TEST(SimGrblDialect, StreamRefusesBeforeTheFirstByte) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  cfg.dialect = Dialect::grbl;
+  Running run(cfg);
+  const fs::path program = dir / "chamfer.ngc";
+  std::ofstream(program) << "G21 G90 G94\nG17\nG64 P0.0100\nM3 S12000\nG1 X1 F100\nM2\n";
+  const fs::path err = dir / "stderr.txt";
+  const std::string command = std::string(NCD_EXE) + " stream " + program.string() + " --port " +
+                              cfg.line.device + " --protocol ack --baud 115200 --frame 8N1 " +
+                              "--flow none --dialect grbl --no-journal -q 2>" + err.string();
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  std::ifstream in(err);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("line 3"), std::string::npos) << text;
+  EXPECT_NE(text.find("'G64'"), std::string::npos) << text;
+  EXPECT_NE(text.find("error:20"), std::string::npos) << text;
+  std::this_thread::sleep_for(100ms);
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.bytes_received, 0U);
+  EXPECT_EQ(log.sender_connects, 0);
+  // The same program without G64 streams: the check passes it.
+  std::ofstream(program) << "G21 G90 G94\nG17\nM3 S12000\nG1 X1 F100\nM2\n";
+  EXPECT_FALSE(check_program_file(program.string(), Dialect::grbl));
+  // iso refuses a macro variable, naming its line.
+  std::ofstream(program) << "%\nN1 G0 X0\nN2 #1=3\n%\n";
+  const auto v = check_program_file(program.string(), Dialect::iso);
+  ASSERT_TRUE(v);
+  EXPECT_EQ(v->line, 3);
 }
 
 }  // namespace
