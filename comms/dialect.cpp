@@ -748,6 +748,9 @@ std::optional<Violation> check_grbl_line(std::string_view line, GrblState& state
         angle += 2.0 * std::numbers::pi;
       }
       b.path_mm = std::hypot(std::fabs(angle) * std::hypot(sx, sy), target[ul] - from[ul]);
+      // An R arc whose end differs from its start only along the linear axis divides by a
+      // zero chord; grbl's float arithmetic is then undefined. Time it as a straight move.
+      if (!std::isfinite(b.path_mm)) b.path_mm = dist3(from, target);
     } else {
       b.path_mm = dist3(from, target);
     }

@@ -63,6 +63,15 @@
 //    to it are dropped; a sender that connects gets a clean input queue and the flow state
 //    first. A link drop (fault injection) does the same at once, and the bytes in flight are
 //    lost with the old pty.
+// 7. Dialects (config.dialect, docs/dnc-link.md "Dialects"). grbl: each line's verdict and
+//    error number come from comms/dialect's check_grbl_line on the controller's own grbl state
+//    (the sender's pre-check runs the same function), and the block executes as grbl would
+//    (arcs timed by their helix length, G91, G20, offsets, G28/G30, G93); grbl reads no line
+//    while a G4 or an M0 runs. iso/linuxcnc: a refused line is an alarm. Events (S, T, M6,
+//    M3/M4/M5, M8/M9, G4 before the motion; M0/M1 after it; the program end) are logged at the
+//    controller's times. M0 holds until cycle start (`~`, or cycle_start()); M6 takes
+//    tool_change_s. Machine safety: a feed move with the spindle stopped is an alarm when it is
+//    received (grbl has no such check).
 #include "comms/sim_controller.hpp"
 
 #include <fcntl.h>

@@ -240,6 +240,12 @@ TEST(GrblDialect, StateFollowsGrblsExecution) {
   EXPECT_FALSE(s.incremental);      // G90
   EXPECT_EQ(s.motion, 10);          // G1
   EXPECT_EQ(s.spindle_rpm, 12000);  // S is not reset
+  // An R arc straight up the linear axis (zero chord): accepted as grbl does, timed as the
+  // straight move, never a NaN.
+  GrblState up;
+  up.feed = 100.0;
+  ASSERT_FALSE(check_grbl_line("G2 X0 Z5 R3", up, &b));
+  EXPECT_DOUBLE_EQ(b.path_mm, 5.0);
   // The feed survives the end: G1 needs no new F.
   EXPECT_FALSE(check_grbl_line("X0", s, &b));
 }
