@@ -816,7 +816,7 @@ struct SimController::Impl {
       b.to = g.to;
       b.path_mm = g.path_mm;
       b.g = g.motion >= 380 && g.motion < 390 ? 38 : g.motion / 10;
-      b.feed_move = !g.rapid;
+      b.feed_move = !g.rapid && b.g != 38;  // a probe moves at F but cuts nothing
       b.probe_must_touch = g.motion == 382 || g.motion == 384;
       if (g.rapid) {
         b.feed_mm_per_min = cfg.rapid_mm_per_min;

@@ -163,7 +163,7 @@ struct SimBlock {
   bool tool_change = false;           // M6: takes tool_change_s (in duration_s)
   bool pause = false;                 // M0 (or M1 with optional_stop): waits for cycle start
   bool optional_stop = false;         // M1
-  bool feed_move = false;             // G1 G2 G3 or a probe: the spindle must turn
+  bool feed_move = false;             // G1 G2 G3: the spindle must turn (not probes)
   bool probe_must_touch = false;      // grbl G38.2/G38.4: no contact in a simulation, ALARM:5
   double path_mm = 0.0;               // length of the move (arcs: the helix)
 };
