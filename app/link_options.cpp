@@ -26,6 +26,18 @@ void add_link_flags(CLI::App& sub, LinkFlags& flags) {
   sub.add_flag("--no-percent", flags.no_percent, "do not frame the program with % lines");
   sub.add_option("--nul-leader", flags.nul_leader, "NUL characters sent before the program")
       ->capture_default_str();
+  sub.add_option("--dialect", flags.dialect,
+                 "the controller's dialect: iso | grbl | linuxcnc (docs/dnc-link.md, Dialects); "
+                 "a program it cannot take is refused before the first byte");
+}
+
+std::optional<comms::Dialect> dialect_of(const LinkFlags& flags) {
+  if (flags.dialect.empty()) return std::nullopt;
+  try {
+    return comms::parse_dialect(flags.dialect);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--dialect: ") + e.what());
+  }
 }
 
 comms::LineSettings line_settings(const LinkFlags& flags, const std::string& device) {

@@ -3,8 +3,10 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <optional>
 #include <string>
 
+#include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
 
 namespace ncd::app {
@@ -17,12 +19,15 @@ struct LinkFlags {
   std::string eob = "lf";
   bool no_percent = false;
   int nul_leader = 0;
+  std::string dialect;  // iso | grbl | linuxcnc; empty: none (no dialect check)
 };
 
 // Adds the line flags to a subcommand, with the defaults above.
 void add_link_flags(CLI::App& sub, LinkFlags& flags);
 // Checks the flags and turns them into line settings for `device`; throws InputError.
 comms::LineSettings line_settings(const LinkFlags& flags, const std::string& device);
+// The controller's dialect given by --dialect (comms/dialect.hpp); nullopt when not given.
+std::optional<comms::Dialect> dialect_of(const LinkFlags& flags);
 // Checks, before any transfer, that device is a terminal (a serial port or a pseudo-terminal):
 // a missing file is "no such file" at once (no reconnect attempts), anything else that is not
 // a tty (a regular file, /dev/full, a FIFO) is refused. Throws InputError naming the device and

@@ -138,11 +138,14 @@ void parse_link(const toml::value& table, const std::string& name, LinkConfig& l
       l.reconnect_max_s = as_positive(v, where);
     } else if (key == "journal") {
       l.journal = as_text(v, where);
+    } else if (key == "dialect") {
+      const std::string text = as_text(v, where);
+      l.dialect = with_where(where, [&] { return comms::parse_dialect(text); });
     } else {
       throw InputError("unknown key " + where +
                        "; [link] takes device, baud, frame, flow, protocol, eob, percent, "
                        "nul_leader, rx_buffer_bytes, max_queued_chars, xoff_timeout_s, "
-                       "reconnect_max_s, journal");
+                       "reconnect_max_s, journal, dialect");
     }
   }
 }
@@ -386,7 +389,9 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                {"max_queued_chars", c.link.max_queued_chars},
                {"xoff_timeout_s", c.link.xoff_timeout_s},
                {"reconnect_max_s", c.link.reconnect_max_s},
-               {"journal", c.link.journal}};
+               {"journal", c.link.journal},
+               {"dialect", c.link.dialect ? nlohmann::json(comms::to_string(*c.link.dialect))
+                                          : nlohmann::json(nullptr)}};
   j["envelope"] = {{"x_min_mm", c.envelope.min_mm.x()}, {"x_max_mm", c.envelope.max_mm.x()},
                    {"y_min_mm", c.envelope.min_mm.y()}, {"y_max_mm", c.envelope.max_mm.y()},
                    {"z_min_mm", c.envelope.min_mm.z()}, {"z_max_mm", c.envelope.max_mm.z()}};

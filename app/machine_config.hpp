@@ -5,9 +5,11 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "comms/block_encoder.hpp"
+#include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
 #include "core/geometry.hpp"
 #include "interpolator/feed_limits.hpp"
@@ -25,6 +27,7 @@ struct LinkConfig {
   double xoff_timeout_s = 5.0;    // XOFF longer than this holds the motion and is reported
   double reconnect_max_s = 30.0;  // longest backoff between attempts to reopen a lost port
   std::string journal;            // transfer journal file; empty: none
+  std::optional<comms::Dialect> dialect;  // the controller's dialect (comms/dialect.hpp)
 };
 
 // [envelope]: the machine's travel per axis, mm, in the frame of the programs it runs. Every

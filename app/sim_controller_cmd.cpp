@@ -1,6 +1,7 @@
 // `ncd sim-controller`: a simulated CNC controller on a pseudo-terminal linked at --link PATH,
 // for `ncd stream` to send to. Runs until SIGTERM or SIGINT (or, with --exit-at-end, until the
-// program end has been executed), then writes --log FILE.json and exits 0.
+// program end has been executed), then writes --log FILE.json and exits 0. SIGUSR1 is the
+// cycle-start button: it resumes a program stopped by M0 (on the grbl link `~` does the same).
 #include <sched.h>
 #include <signal.h>
 #include <cerrno>
@@ -44,14 +45,22 @@ struct SimArgs {
   long long seed = -1;  // -1: random
   bool skip_duplicate_n = false, reset_on_open = false, report_line_numbers = false;
   double boot_s = 0.0;
+  bool no_machine_safety = false, optional_stop = false;
+  double tool_change_s = 5.0;
   comms::SimFaults faults;
 };
 
 // The controller a signal stops; set while run() runs.
 std::atomic<comms::SimController*> g_running{nullptr};
 
-extern "C" void sim_controller_on_signal(int) {
-  if (comms::SimController* c = g_running.load()) c->request_stop();
+extern "C" void sim_controller_on_signal(int signal) {
+  comms::SimController* c = g_running.load();
+  if (c == nullptr) return;
+  if (signal == SIGUSR1) {
+    c->cycle_start();
+  } else {
+    c->request_stop();
+  }
 }
 
 // SIGINT and SIGTERM stop the controller while this lives; the old handlers come back after.
@@ -64,10 +73,12 @@ class StopSignals {
     sigemptyset(&sa.sa_mask);
     ::sigaction(SIGINT, &sa, &old_int_);
     ::sigaction(SIGTERM, &sa, &old_term_);
+    ::sigaction(SIGUSR1, &sa, &old_usr1_);
   }
   ~StopSignals() {
     ::sigaction(SIGINT, &old_int_, nullptr);
     ::sigaction(SIGTERM, &old_term_, nullptr);
+    ::sigaction(SIGUSR1, &old_usr1_, nullptr);
     g_running.store(nullptr);
   }
   StopSignals(const StopSignals&) = delete;
@@ -76,6 +87,7 @@ class StopSignals {
  private:
   struct sigaction old_int_ {};
   struct sigaction old_term_ {};
+  struct sigaction old_usr1_ {};
 };
 
 std::string fixed(double v, int decimals) {
@@ -97,6 +109,10 @@ int run_sim_controller(const SimArgs& a) {
   cfg.reset_on_open = a.reset_on_open;
   cfg.report_line_numbers = a.report_line_numbers;
   cfg.boot_s = a.boot_s;
+  cfg.dialect = dialect_of(a.flags);
+  cfg.machine_safety = !a.no_machine_safety;
+  cfg.tool_change_s = a.tool_change_s;
+  cfg.optional_stop = a.optional_stop;
   if (a.seed < -1) {
     throw InputError("--seed " + std::to_string(a.seed) + " is invalid: use 0 or more");
   }
@@ -134,6 +150,16 @@ int run_sim_controller(const SimArgs& a) {
             << fixed(log.bytes_per_s, 0) << " B/s, link use " << fixed(log.link_use, 3)
             << "), underruns " << log.underruns << ", alarms " << log.alarms.size() << ", sha256 "
             << log.program_sha256 << std::endl;
+  if (c.dialect) {
+    std::cout << "ncd sim-controller: " << log.events.size() << " events executed ("
+              << comms::to_string(*c.dialect) << " dialect)";
+    for (const comms::SimEvent& e : log.events) {
+      std::cout << (&e == &log.events.front() ? ": " : ", ") << e.kind;
+      if (e.kind == "speed" || e.kind == "dwell" || e.kind == "tool") std::cout << " " << e.value;
+      std::cout << " @" << fixed(e.t_s, 3) << " s";
+    }
+    std::cout << std::endl;
+  }
   if (!a.log.empty()) write_output(a.log, comms::to_json(log).dump(2) + "\n");
   return 0;
 }
@@ -178,6 +204,14 @@ void register_sim_controller(CLI::App& app, Runner& run) {
       ->capture_default_str();
   c->add_flag("--report-line-numbers", a->report_line_numbers,
               "ack: status reports carry Ln: (grbl built with USE_LINE_NUMBERS)");
+  c->add_flag("--no-machine-safety", a->no_machine_safety,
+              "with --dialect: no alarm for a feed move (G1 G2 G3) with the spindle stopped "
+              "(grbl itself has no such check; the simulation's default is to alarm)");
+  c->add_option("--tool-change-s", a->tool_change_s,
+                "with --dialect iso or linuxcnc: an M6 tool change takes this long, s")
+      ->capture_default_str();
+  c->add_flag("--optional-stop", a->optional_stop,
+              "M1 stops as M0 does (the operator's optional-stop switch on); grbl ignores M1");
   comms::SimFaults& f = a->faults;
   c->add_option("--drop-link-after-blocks", f.drop_link_after_blocks,
                 "fault: link cut, the controller keeps running: after N blocks close the pty, "

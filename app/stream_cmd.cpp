@@ -165,6 +165,12 @@ int run_stream(const StreamArgs& a) {
   require_positive("--startup-timeout (s)", a.startup_timeout_s);
   const int max_block = ack ? a.rx_buffer_bytes - 2 : 4096;
   const comms::ProgramSummary program = comms::scan_program(a.program, line.data_bits, max_block);
+  const std::optional<comms::Dialect> dialect = dialect_of(a.link);
+  if (dialect) {  // before the port is opened: nothing is sent
+    if (const auto v = comms::check_program_file(a.program, *dialect)) {
+      throw InputError(a.program + ": " + comms::describe(*v, *dialect) + "; nothing was sent");
+    }
+  }
   if (ack && program.longest_kept > comms::kGrblLineChars) {
     throw InputError(a.program + ":" + std::to_string(program.longest_kept_line) + ": a block of " +
                      std::to_string(program.longest_kept) +
@@ -265,6 +271,7 @@ int run_stream(const StreamArgs& a) {
   settings.startup_timeout_s = a.startup_timeout_s;
   settings.controller_skips_repeated_n = a.skips_repeated_n;
   settings.preamble = preamble;
+  settings.dialect = dialect;
   comms::ProgramFile source(a.program);
   const bool quiet = a.quiet;
   comms::DncSender sender(settings, source, [quiet](const comms::SenderEvent& e) {

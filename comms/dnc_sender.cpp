@@ -62,14 +62,18 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <thread>
 
+#include "comms/program_file.hpp"
 #include "comms/program_modal.hpp"
 #include "comms/serial_link.hpp"
 #include "comms/sha256.hpp"
 #include "comms/transfer_journal.hpp"
+#include "core/error.hpp"
 
 namespace ncd::comms {
 namespace {
@@ -932,6 +936,14 @@ class Session {
         }
         return false;
       }
+      if (s_.dialect) {
+        if (const auto v = check_line(*s_.dialect, text, dialect_state_)) {
+          report_.failure = "block " + std::to_string(next_index_ + 1) +
+                            " refused before it was sent: " + describe(*v, *s_.dialect);
+          source_done_ = true;
+          return false;
+        }
+      }
       sha_.update(text);
       sha_.update("\n");
       const std::int64_t index = next_index_++;
@@ -1260,6 +1272,7 @@ class Session {
   double next_progress_s_ = 1.0;
   Clock::time_point t0_, last_tick_;
   Sha256 sha_;
+  DialectState dialect_state_;
   SenderReport report_;
 };
 
@@ -1328,6 +1341,32 @@ std::optional<GrblStatus> parse_grbl_status(std::string_view line) {
   }
   if (!st.mpos && !st.wpos) return std::nullopt;
   return st;
+}
+
+std::optional<Violation> check_program_file(const std::string& path, Dialect dialect) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError("cannot read the program " + path + ": give a readable NC file");
+  if (dialect == Dialect::linuxcnc) {
+    std::ostringstream text;
+    text << in.rdbuf();
+    return check_program(dialect, text.str());
+  }
+  DialectState state;
+  std::string raw;
+  long number = 0;
+  while (std::getline(in, raw)) {
+    ++number;
+    const std::string block = block_of_line(line_text(raw));
+    if (block.empty()) continue;  // framing: not sent as a block
+    if (auto v = check_line(dialect, block, state)) {
+      // The column in the raw line: the block is the line trimmed at its start.
+      const auto lead = raw.find_first_not_of(std::string(" \t\0", 3));
+      v->column += static_cast<int>(lead == std::string::npos ? 0 : lead);
+      v->line = number;
+      return v;
+    }
+  }
+  return std::nullopt;
 }
 
 }  // namespace ncd::comms

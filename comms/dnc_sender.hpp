@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
 
 namespace ncd::comms {
@@ -43,7 +44,17 @@ struct SenderSettings {
   bool reset_on_error = true;       // on error:N or ALARM: feed hold, then soft reset (0x18)
   // Lines sent before the first block (a restart's modal state and re-entry), without N.
   std::vector<std::string> preamble;
+  // The controller's dialect: each block is checked (comms/dialect) before it is written; the
+  // first one the dialect refuses ends the job with the block and word named. A program file
+  // is checked whole before the first byte with check_program_file.
+  std::optional<Dialect> dialect;
 };
+
+// The blocks of a program file (as ProgramFile gives them: `%` and empty lines are framing)
+// checked against the dialect before anything is sent: the first violation, its `line` the
+// file's line (1-based), or nullopt. linuxcnc: the interpreter reads the whole file. Throws
+// InputError if the file cannot be read.
+std::optional<Violation> check_program_file(const std::string& path, Dialect dialect);
 
 // A grbl 1.1 status report, `<Run|MPos:1.000,2.000,0.000|Bf:14,120|Ln:40|FS:500,0>`.
 struct GrblStatus {

@@ -69,6 +69,15 @@
 //    same at once, and the bytes in flight are lost with the old pty. In ack (grbl) mode the
 //    unfinished line is kept instead: grbl's UART knows nothing of the PC's port, and the next
 //    characters, from any connection, complete it.
+// 7. Dialects (config.dialect, docs/dnc-link.md "Dialects"). grbl: each line's verdict and
+//    error number come from comms/dialect's check_grbl_line on the controller's own grbl state
+//    (the sender's pre-check runs the same function), and the block executes as grbl would
+//    (arcs timed by their helix length, G91, G20, offsets, G28/G30, G93); grbl reads no line
+//    while a G4 or an M0 runs. iso/linuxcnc: a refused line is an alarm. Events (S, T, M6,
+//    M3/M4/M5, M8/M9, G4 before the motion; M0/M1 after it; the program end) are logged at the
+//    controller's times. M0 holds until cycle start (`~`, or cycle_start()); M6 takes
+//    tool_change_s. Machine safety: a feed move with the spindle stopped is an alarm when it is
+//    received (grbl has no such check).
 #include "comms/sim_controller.hpp"
 
 #include <fcntl.h>
@@ -198,6 +207,14 @@ SimControllerConfig checked(SimControllerConfig c) {
     bad(std::string(c.reset_on_open ? "--reset-on-open" : "--report-line-numbers") +
             " is a grbl behaviour",
         "use --protocol ack");
+  }
+  if (c.dialect && (*c.dialect == Dialect::grbl) != ack) {
+    bad(std::string("--dialect ") + to_string(*c.dialect) + " does not go with --protocol " +
+            (ack ? "ack" : "drip"),
+        "use --dialect grbl with --protocol ack, iso or linuxcnc with --protocol drip");
+  }
+  if (!std::isfinite(c.tool_change_s) || c.tool_change_s < 0.0 || c.tool_change_s > 600.0) {
+    bad("--tool-change-s " + num(c.tool_change_s) + " is out of range", "use 0 to 600 s");
   }
   if (c.skip_duplicate_n && ack) {
     bad("--skip-duplicate-n is not a grbl behaviour (grbl ignores N numbers)",
@@ -329,9 +346,19 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
         const int m = static_cast<int>(w.value);
         if (m == 2 || m == 30) {
           b.program_end = true;
-        } else if (m != 3 && m != 4 && m != 5 && m != 6 && m != 8 && m != 9) {
-          return fail(kErrUnsupported,
-                      "M" + std::to_string(m) + " is not supported: use M2 M3 M4 M5 M6 M8 M9 M30");
+        } else if (m == 0) {
+          b.pause = true;
+        } else if (m == 1) {
+          b.optional_stop = true;
+        } else if (m == 3 || m == 4 || m == 5) {
+          b.spindle = m;
+        } else if (m == 6) {
+          b.tool_change = true;
+        } else if (m == 8 || m == 9) {
+          b.coolant = m == 8;
+        } else {
+          return fail(kErrUnsupported, "M" + std::to_string(m) +
+                                           " is not supported: use M0 M1 M2 M3 M4 M5 M6 M8 M9 M30");
         }
         break;
       }
@@ -346,10 +373,12 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
         break;
       case 'S':
         if (w.value < 0.0) return fail(kErrNegative, "S " + num(w.value) + " is negative");
+        b.spindle_rpm = w.value;
         break;
       case 'T':
         if (!integer) return fail(kErrNotInteger, "T " + num(w.value) + " is not an integer");
         if (w.value < 0.0) return fail(kErrNegative, "T " + num(w.value) + " is negative");
+        b.tool = static_cast<int>(w.value);
         break;
       case 'P':
         if (w.value < 0.0) return fail(kErrNegative, "P " + num(w.value) + " is negative");
@@ -364,6 +393,8 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
     return fail(kErrUnsupported, "a P word needs G4 (dwell) or G64 (blending tolerance)");
   }
   if (motion) next.motion = *motion;
+  if (b.spindle) next.spindle = *b.spindle;
+  if (b.program_end) next.spindle = 5;
   const bool has_axis = axis[0] || axis[1] || axis[2];
   if (dwell) {
     if (motion || has_axis) return fail(kErrModalGroup, "G4 with a motion in the same block");
@@ -374,6 +405,7 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
     for (std::size_t k = 0; k < 3; ++k) b.to[k] = axis[k].value_or(modal.position[k]);
     b.move = true;
     b.g = next.motion;
+    b.feed_move = b.g == 1;
     if (b.g == 1) {
       if (next.feed_mm_per_min <= 0.0) {
         return fail(kErrUndefinedFeed, "G1 without a feed: give F in mm/min");
@@ -709,13 +741,24 @@ struct SimController::Impl {
       return;
     }
     SimModal modal_after = modal;
+    GrblState grbl_after = grbl_state;
     SimParse p;
-    if (!drip && grbl_line_chars(text) > kGrblLineChars) {  // grbl checks this before parsing
+    if (cfg.dialect == Dialect::grbl) {
+      p = parse_grbl(text, grbl_after);
+    } else if (!drip && grbl_line_chars(text) > kGrblLineChars) {  // grbl checks this first
       p.error = kErrLineOverflow;
       p.message = std::to_string(grbl_line_chars(text)) + " characters without spaces and " +
                   "comments, more than grbl's " + std::to_string(kGrblLineChars);
     } else {
-      p = parse_sim_block(text, modal_after, cfg.rapid_mm_per_min);
+      DialectState ds;
+      const auto v = cfg.dialect ? check_line(*cfg.dialect, text, ds) : std::nullopt;
+      if (v) {
+        p.error = kErrUnsupported;
+        p.message = describe(*v, *cfg.dialect);
+      } else {
+        p = parse_sim_block(text, modal_after, cfg.rapid_mm_per_min);
+        if (p.block.tool_change) p.block.duration_s += cfg.tool_change_s;
+      }
     }
     if (p.error != 0) {
       ++log.blocks_rejected;
@@ -729,6 +772,20 @@ struct SimController::Impl {
       queue_line(std::move(line), t);
       return;
     }
+    if (cfg.dialect && !end_received) {
+      const int spindle = cfg.dialect == Dialect::grbl ? grbl_after.spindle : modal_after.spindle;
+      if (cfg.machine_safety && p.block.feed_move && spindle == 5) {
+        raise_alarm(t, "spindle_stopped",
+                    "'" + text + "': a feed move with the spindle stopped (machine safety; " +
+                        "start it with M3 S… first)");
+        return;
+      }
+      if (p.block.probe_must_touch) {
+        raise_alarm(t, "probe_fail",
+                    "'" + text + "': the probe found no contact (a simulation has no probe)");
+        return;
+      }
+    }
     if (drip && cfg.skip_duplicate_n && p.block.n && log.last_n && *p.block.n <= *log.last_n) {
       ++log.duplicates_discarded;
       ++blocks_in_epoch;
@@ -736,14 +793,58 @@ struct SimController::Impl {
     } else if (end_received) {
       ++log.lines_after_end;
       line.kind = Kind::AfterEnd;
+      grbl_state = grbl_after;  // grbl reads on after M2/M30; its verdicts follow its state
     } else {
       modal = modal_after;
+      grbl_state = grbl_after;
       line.block = p.block;
       line.text = text;
       accept(text, p.block, t);
       line.seq = log.blocks_received;
     }
     queue_line(std::move(line), t);
+  }
+
+  // grbl's verdict on a line (comms/dialect) and what it executes, as a SimBlock.
+  SimParse parse_grbl(const std::string& text, GrblState& st) const {
+    SimParse r;
+    GrblBlock g;
+    if (const auto v = check_grbl_line(text, st, &g)) {
+      r.error = v->grbl_error;
+      r.message = describe(*v, Dialect::grbl);
+      return r;
+    }
+    SimBlock& b = r.block;
+    b.n = g.n;
+    b.spindle_rpm = g.spindle_rpm;
+    b.spindle = g.spindle;
+    b.coolant = g.flood;
+    b.tool = g.tool;
+    b.pause = g.pause;
+    b.optional_stop = g.optional_stop;
+    b.program_end = g.program_end;
+    if (g.dwell_s) {
+      b.dwell = true;
+      b.duration_s = *g.dwell_s;
+    }
+    if (g.motion >= 0) {
+      b.move = true;
+      b.to = g.to;
+      b.path_mm = g.path_mm;
+      b.g = g.motion >= 380 && g.motion < 390 ? 38 : g.motion / 10;
+      b.feed_move = !g.rapid && b.g != 38;  // a probe moves at F but cuts nothing
+      b.probe_must_touch = g.motion == 382 || g.motion == 384;
+      if (g.rapid) {
+        b.feed_mm_per_min = cfg.rapid_mm_per_min;
+      } else if (g.inverse_time_min > 0.0) {
+        b.feed_mm_per_min = g.path_mm / g.inverse_time_min;
+      } else {
+        b.feed_mm_per_min = g.feed_mm_per_min;
+      }
+      b.duration_s += g.inverse_time_min > 0.0 ? g.inverse_time_min * 60.0
+                                               : g.path_mm / (b.feed_mm_per_min / 60.0);
+    }
+    return r;
   }
 
   void accept(const std::string& text, const SimBlock& b, double t) {
@@ -831,17 +932,20 @@ struct SimController::Impl {
   }
 
   void pump_planner(double t) {
-    while (!rx.empty() && !alarmed) {
+    // grbl executes G4 and M0 inside gc_execute_line (mc_dwell, the suspend loop): it reads no
+    // further line until they are over.
+    while (!rx.empty() && !alarmed && !(busy && sync_busy)) {
       Line& line = rx.front();
       if (line.kind == Kind::Block && !line.block.move) {
         // grbl synchronises: the block waits for the planner to run empty, then takes effect.
-        if (!planner.empty() || busy || held) return;
+        if (!planner.empty() || busy || held || pausing) return;
         if (!started) {
           started = true;
           log.execution_start_t_s = t;
         }
         fill -= line.size;
-        if (line.block.dwell) {  // answered once the dwell is over
+        if (line.block.dwell || pauses(line.block) || line.block.tool_change) {
+          // answered once the dwell, the stop or the tool change is over
           start_block(line, t);
           sync_busy = true;
           rx.pop_front();
@@ -850,6 +954,7 @@ struct SimController::Impl {
         current = line.block;
         current_text = line.text;
         current_seq = line.seq;
+        block_events(line, t);
         finish(t);
         reply(line, "ok\r\n");
         rx.pop_front();
@@ -883,10 +988,14 @@ struct SimController::Impl {
       send_flow(true);
       send(std::string(1, kNak));
     } else {
-      send(std::string("ALARM:") + (code == "injected" ? "9" : "1") + "\r\n");
+      // grbl's numbers where grbl has the alarm (ALARM:5 probe fail); 9 for an injected one, 1
+      // for the simulation's own (overflow, spindle_stopped), which grbl does not raise.
+      const char* number = code == "injected" ? "9" : code == "probe_fail" ? "5" : "1";
+      send(std::string("ALARM:") + number + "\r\n");
     }
     event("alarm (" + code + "): " + detail + "; stopped");
     busy = false;
+    pausing = false;
     rx.clear();
     planner.clear();
     partial.clear();
@@ -911,7 +1020,7 @@ struct SimController::Impl {
     std::string s = "<";
     if (alarmed || grbl_locked) {
       s += "Alarm";
-    } else if (held) {
+    } else if (held || (busy && pausing && busy_end <= t)) {
       s += "Hold:0";  // the simulated hold stops at once: complete, ready to resume
     } else {
       s += busy || !planner.empty() ? "Run" : "Idle";
@@ -943,6 +1052,14 @@ struct SimController::Impl {
   }
 
   void cycle_start(double t) {
+    if (pausing && !held) {  // M0: the program goes on
+      ++log.cycle_starts;
+      pausing = false;
+      busy_end = cur_t1 = std::max(busy_end, t);
+      log.events.push_back({t, current_seq, current.n, "resume", 0.0});
+      event("cycle start: resumed after the program stop");
+      return;
+    }
     if (!held) return;
     ++log.cycle_starts;
     held = false;
@@ -971,7 +1088,7 @@ struct SimController::Impl {
     r.position = position;
     for (const Line& l : planner) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
     for (const Line& l : rx) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
-    busy = sync_busy = held = false;
+    busy = sync_busy = held = pausing = false;
     rx.clear();
     planner.clear();
     partial.clear();
@@ -1026,7 +1143,7 @@ struct SimController::Impl {
     if (!drip) pump_planner(t);
     for (;;) {
       if (busy) {
-        if (held || busy_end > t) return;
+        if (held || busy_end > t || pausing) return;
         const bool answer = sync_busy;
         finish(busy_end);
         if (answer) send("ok\r\n");  // a dwell is answered when it is over
@@ -1064,6 +1181,42 @@ struct SimController::Impl {
     cur_from = position;
     cur_t0 = start;
     cur_t1 = busy_end;
+    block_events(line, start);
+  }
+
+  // M0, or M1 with the optional-stop switch on (grbl ignores M1: "not supported" in gcode.c).
+  bool pauses(const SimBlock& b) const {
+    return b.pause || (b.optional_stop && cfg.optional_stop && cfg.dialect != Dialect::grbl);
+  }
+
+  // The events a block executes before its motion (and, for a stop, after it).
+  void block_events(const Line& line, double t) {
+    const SimBlock& b = line.block;
+    const auto add = [&](const char* kind, double value, double at) {
+      log.events.push_back({at, line.seq, b.n, kind, value});
+    };
+    if (b.spindle_rpm) {
+      exec_rpm = *b.spindle_rpm;
+      add("speed", exec_rpm, t);
+    }
+    if (b.tool) add("tool", *b.tool, t);
+    if (b.tool_change) add("tool_change", cfg.tool_change_s, t);
+    if (b.spindle && *b.spindle != exec_spindle) {
+      exec_spindle = *b.spindle;
+      add(exec_spindle == 3   ? "spindle_cw"
+          : exec_spindle == 4 ? "spindle_ccw"
+                              : "spindle_stop",
+          exec_rpm, t);
+    }
+    if (b.coolant) add(*b.coolant ? "coolant_on" : "coolant_off", 0.0, t);
+    if (b.dwell) add("dwell", b.duration_s, t);
+    if (pauses(b)) {
+      pausing = true;
+      add("pause", 0.0, busy_end);
+      event("program stop (M" + std::string(b.pause ? "0" : "1") + "): waiting for cycle start");
+    } else if (b.optional_stop) {
+      add("optional_stop_skipped", 0.0, busy_end);
+    }
   }
 
   void finish(double t) {
@@ -1073,8 +1226,14 @@ struct SimController::Impl {
     ++log.blocks_executed;
     log.executed.push_back({current_seq, current.n, current_text, t});
     if (current.n) last_exec_n = current.n;
+    if (current.program_end) {
+      if (exec_spindle != 5) log.events.push_back({t, current_seq, current.n, "spindle_stop", 0.0});
+      exec_spindle = 5;
+      log.events.push_back({t, current_seq, current.n, "program_end", 0.0});
+    }
     if (current.move) {
-      log.path_length_mm += distance(position, current.to);
+      log.path_length_mm +=
+          current.path_mm > 0.0 ? current.path_mm : distance(position, current.to);
       position = current.to;
       log.moves.push_back({current.to, current.feed_mm_per_min, current.g, current.n, t});
     }
@@ -1205,6 +1364,7 @@ struct SimController::Impl {
       if (should_exit(t)) break;
       if (down_until && t >= *down_until) restore_link(t);
       if (booting_until && t >= *booting_until) boot_done();
+      if (cycle_start_request.exchange(false)) cycle_start(t);
       if (pty.is_open()) on_slave_events(t);
       receive(t, readable);
       flow();  // DC3 when the fill reached high water, before a block starting now frees room
@@ -1288,6 +1448,7 @@ struct SimController::Impl {
   Pty pty;
   std::array<int, 2> wake{-1, -1};
   std::atomic<bool> stop{false};
+  std::atomic<bool> cycle_start_request{false};
   Clock::time_point t0 = Clock::now();
   double clock_t0 = 0.0;
   SimLog log;
@@ -1317,6 +1478,7 @@ struct SimController::Impl {
   std::uint64_t ring_in = 0;  // ack: characters put into grbl's serial ring, ever
   std::deque<Line> rx, planner;
   SimModal modal;
+  GrblState grbl_state;
   bool end_received = false;
   double end_received_t = 0.0;
   long blocks_in_epoch = 0;
@@ -1338,8 +1500,11 @@ struct SimController::Impl {
   long current_seq = 0;
   std::array<double, 3> cur_from{}, hold_pos{};  // the move executing: from, and where held
   double cur_t0 = 0.0, cur_t1 = 0.0, remaining_s = 0.0;
-  bool sync_busy = false;    // ack: the executor runs a dwell outside the planner
-  bool held = false;         // ack: feed hold (!)
+  bool sync_busy = false;  // ack: the executor runs a dwell outside the planner
+  bool held = false;       // ack: feed hold (!)
+  bool pausing = false;    // a program stop (M0) waits for cycle start
+  int exec_spindle = 5;    // the spindle as executed: 3, 4 or 5
+  double exec_rpm = 0.0;
   bool grbl_locked = false;  // ack: alarm state after a reset in motion, until $X
   std::optional<double> booting_until;
 
@@ -1373,6 +1538,12 @@ void SimController::run() {
 void SimController::request_stop() noexcept {
   impl_->stop.store(true);
   const char c = 's';
+  [[maybe_unused]] const ssize_t n = ::write(impl_->wake[1], &c, 1);
+}
+
+void SimController::cycle_start() noexcept {
+  impl_->cycle_start_request.store(true);
+  const char c = 'c';
   [[maybe_unused]] const ssize_t n = ::write(impl_->wake[1], &c, 1);
 }
 
@@ -1431,6 +1602,10 @@ Json settings_json(const SimControllerConfig& c) {
               {"reset_on_open", c.reset_on_open},
               {"boot_s", c.boot_s},
               {"report_line_numbers", c.report_line_numbers},
+              {"dialect", c.dialect ? Json(to_string(*c.dialect)) : Json(nullptr)},
+              {"machine_safety", c.machine_safety},
+              {"tool_change_s", c.tool_change_s},
+              {"optional_stop", c.optional_stop},
               {"clock", c.clock ? "injected" : "wall"},
               {"faults",
                {{"drop_link_after_blocks", f.drop_link_after_blocks},
@@ -1478,6 +1653,14 @@ Json to_json(const SimLog& l) {
   for (const SimExecuted& e : l.executed) {
     executed.push_back(
         {{"seq", e.seq}, {"n", optional_json(e.n)}, {"text", e.text}, {"t_s", e.t_s}});
+  }
+  Json events = Json::array();
+  for (const SimEvent& e : l.events) {
+    events.push_back({{"t_s", e.t_s},
+                      {"seq", e.seq},
+                      {"n", optional_json(e.n)},
+                      {"kind", e.kind},
+                      {"value", e.value}});
   }
   Json resets = Json::array();
   for (const SimReset& r : l.resets) {
@@ -1539,6 +1722,7 @@ Json to_json(const SimLog& l) {
               {"path_length_mm", l.path_length_mm},
               {"moves", moves},
               {"executed", executed},
+              {"events", events},
               {"resets", resets},
               {"status_reports", l.status_reports},
               {"feed_holds", l.feed_holds},

@@ -25,6 +25,7 @@
 #include <string_view>
 #include <vector>
 
+#include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
 #include "comms/program_file.hpp"
 
@@ -91,7 +92,17 @@ struct SimControllerConfig {
   // then boots for boot_s, losing what it receives meanwhile, and sends its banner.
   bool reset_on_open = false;
   double boot_s = 0.0;
-  bool report_line_numbers = false;       // ack: status reports carry Ln: (grbl's USE_LINE_NUMBERS)
+  bool report_line_numbers = false;  // ack: status reports carry Ln: (grbl's USE_LINE_NUMBERS)
+  // The controller's dialect (comms/dialect.hpp). grbl (ack only): every line gets grbl 1.1's
+  // verdict and error number from check_grbl_line, and is executed as grbl would (arcs, G91,
+  // G20, offsets, G28/G30, G4, M0, M2/M30). iso or linuxcnc (drip): a line the dialect refuses
+  // is an alarm. Unset: the transport-test parser (G0/G1/G4, absolute mm, parse_sim_block).
+  std::optional<Dialect> dialect;
+  // With a dialect, machine safety: a feed move (G1 G2 G3) with the spindle stopped raises the
+  // alarm spindle_stopped, as a machine's interlock would. grbl itself does not check this.
+  bool machine_safety = true;
+  double tool_change_s = 5.0;  // M6 (drip dialects; grbl refuses M6): the change takes this long
+  bool optional_stop = false;  // M1 stops as M0 does (the operator's optional-stop switch)
   std::shared_ptr<const SimClock> clock;  // null: the wall clock
   SimFaults faults;
   // Told of link events and alarms as they happen (on the thread of run()); may be empty.
@@ -134,6 +145,7 @@ struct SimModal {
   std::array<double, 3> position{0.0, 0.0, 0.0};  // mm
   int motion = 0;                                 // 0 (G0), 1 (G1) or 80 (G80: none)
   double feed_mm_per_min = 0.0;                   // 0: not yet set
+  int spindle = 5;                                // 3, 4 (turning) or 5 (stopped)
 };
 
 struct SimBlock {
@@ -145,6 +157,18 @@ struct SimBlock {
   double feed_mm_per_min = 0.0;  // feed of the move (the rapid rate for G0)
   double duration_s = 0.0;       // move or dwell (G4) time
   bool program_end = false;      // M2 or M30
+  // Events, in the order a controller executes them: before the motion (S, T, M6, M3/M4/M5,
+  // M8/M9, G4), then the motion, then the stops (M0, M1, M2/M30).
+  std::optional<double> spindle_rpm;  // S
+  std::optional<int> spindle;         // 3, 4 or 5
+  std::optional<bool> coolant;        // M8 on, M9 off
+  std::optional<int> tool;            // T
+  bool tool_change = false;           // M6: takes tool_change_s (in duration_s)
+  bool pause = false;                 // M0 (or M1 with optional_stop): waits for cycle start
+  bool optional_stop = false;         // M1
+  bool feed_move = false;             // G1 G2 G3: the spindle must turn (not probes)
+  bool probe_must_touch = false;      // grbl G38.2/G38.4: no contact in a simulation, ALARM:5
+  double path_mm = 0.0;               // length of the move (arcs: the helix)
 };
 
 struct SimParse {
@@ -209,6 +233,17 @@ struct SimReset {
   long blocks_lost = 0;                // in the planner and the receive buffer
 };
 
+// An event the controller executed (spindle, coolant, tool, dwell, stops, program end), at its
+// simulated time: spindle_cw | spindle_ccw | spindle_stop | speed | coolant_on | coolant_off |
+// tool | tool_change | dwell | pause | resume | optional_stop_skipped | program_end.
+struct SimEvent {
+  double t_s = 0.0;
+  long seq = 0;  // the block (1-based, blocks accepted)
+  std::optional<long> n;
+  std::string kind;
+  double value = 0.0;  // rpm, tool number or seconds
+};
+
 struct SimLinkEvent {
   double t_s = 0.0;
   std::string event;  // created | sender_connected | sender_disconnected | down | up
@@ -245,6 +280,7 @@ struct SimLog {
   std::vector<SimMove> moves;
   double path_length_mm = 0.0;
   std::vector<SimExecuted> executed;
+  std::vector<SimEvent> events;
   std::vector<SimReset> resets;
   long status_reports = 0, feed_holds = 0, cycle_starts = 0;
   std::uint64_t bytes_before_banner = 0;  // ack: received while booting, before the banner
@@ -286,6 +322,9 @@ class SimController {
   void run();
   // Makes run() return soon. Async-signal-safe; callable from any thread.
   void request_stop() noexcept;
+  // The cycle-start button: resumes a program stopped by M0 (and M1 with optional_stop), as `~`
+  // does on the grbl link. Async-signal-safe; callable from any thread.
+  void cycle_start() noexcept;
   SimProgress progress() const noexcept;
   // What the run did; complete once run() has returned.
   const SimLog& log() const;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -16,15 +17,19 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <iterator>
 #include <optional>
+#include <random>
 #include <thread>
 #include <vector>
 
+#include "comms/dnc_sender.hpp"
 #include "comms/pty.hpp"
 #include "comms/sha256.hpp"
 #include "core/error.hpp"
@@ -1101,6 +1106,375 @@ TEST(SimController, ExitAtEndReturnsAfterTheProgram) {
   EXPECT_EQ(log.stop_reason, "program_end");
   EXPECT_TRUE(log.program_end_executed);
   EXPECT_FALSE(fs::is_symlink(cfg.line.device));
+}
+
+// ---- the grbl dialect and the events ----
+
+// Streams lines with grbl's character counting (each line with LF) while the controller's clock
+// advances dt_s a turn; returns the answers (ok, error:N, ALARM:N) in order. Stops at an ALARM,
+// when every line is answered, or after max_sim_s of controller time.
+std::vector<std::string> stream_grbl(Peer& peer, Running& run, ManualClock& clock,
+                                     const std::vector<std::string>& lines, int buffer, double dt_s,
+                                     double max_sim_s) {
+  std::vector<std::string> answers;
+  std::deque<int> sizes;
+  int used = 0;
+  std::size_t next = 0, seen = peer.replies.size();
+  for (double t = 0.0; (next < lines.size() || !sizes.empty()) && t < max_sim_s; t += dt_s) {
+    peer.pump();
+    while (seen < peer.replies.size()) {
+      const std::string& r = peer.replies[seen++];
+      if (r == "ok" || r.rfind("error:", 0) == 0) {
+        answers.push_back(r);
+        if (!sizes.empty()) {
+          used -= sizes.front();
+          sizes.pop_front();
+        }
+      } else if (r.rfind("ALARM", 0) == 0) {
+        answers.push_back(r);
+        return answers;
+      }
+    }
+    while (next < lines.size() && used + static_cast<int>(lines[next].size()) + 1 <= buffer) {
+      peer.write_all(lines[next] + "\n");
+      used += static_cast<int>(lines[next].size()) + 1;
+      sizes.push_back(static_cast<int>(lines[next].size()) + 1);
+      ++next;
+    }
+    if (!run.step(clock, dt_s)) break;
+  }
+  return answers;
+}
+
+SimControllerConfig grbl_config(const fs::path& link, const std::shared_ptr<ManualClock>& clock) {
+  SimControllerConfig cfg = config(link, Protocol::Ack);
+  cfg.dialect = Dialect::grbl;
+  cfg.clock = clock;
+  return cfg;
+}
+
+const SimEvent* find_event(const SimLog& log, const std::string& kind) {
+  for (const SimEvent& e : log.events) {
+    if (e.kind == kind) return &e;
+  }
+  return nullptr;
+}
+
+// A whole program with spindle, dwell, a line, an arc, spindle stop and program end: grbl mode
+// answers ok on every line, and the events and moves run at the times the program implies
+// (10 mm at 600 mm/min: 1 s; a half circle of radius 5 at 600 mm/min: 5π/10 s).
+TEST(SimGrblDialect, WholeProgramOkOnEveryLineWithTimedEvents) {
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  const SimControllerConfig cfg = grbl_config(dir / "cnc", clock);
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  run.start_clock(*clock);
+  const std::vector<std::string> program = {
+      "G21 G90 G94", "G17 (plane) ; header", "M3 S12000", "G4 P0.5",
+      "G1 X10 F600", "G2 X20 Y0 I5 J0",      "M5",        "G0 Z5",
+      "M2"};
+  const auto answers = stream_grbl(peer, run, *clock, program, cfg.buffer_bytes, 0.002, 20.0);
+  EXPECT_EQ(answers, std::vector<std::string>(program.size(), "ok"));
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(run.step(*clock, 0.002));
+  ASSERT_TRUE(run.wait_end());
+  const SimLog& log = run.stop();
+  EXPECT_TRUE(log.alarms.empty());
+  EXPECT_TRUE(log.errors.empty());
+  const SimEvent* speed = find_event(log, "speed");
+  const SimEvent* cw = find_event(log, "spindle_cw");
+  const SimEvent* dwell = find_event(log, "dwell");
+  const SimEvent* stop = find_event(log, "spindle_stop");
+  const SimEvent* end = find_event(log, "program_end");
+  ASSERT_TRUE(speed && cw && dwell && stop && end);
+  EXPECT_EQ(speed->value, 12000.0);
+  EXPECT_EQ(cw->t_s, speed->t_s);
+  EXPECT_EQ(dwell->value, 0.5);
+  EXPECT_GE(dwell->t_s, cw->t_s);
+  ASSERT_EQ(log.moves.size(), 3U);
+  EXPECT_NEAR(log.moves[0].t_s, dwell->t_s + 0.5 + 1.0, 1e-9);
+  EXPECT_NEAR(log.moves[1].t_s, log.moves[0].t_s + 5.0 * M_PI / 10.0, 1e-9);
+  EXPECT_EQ(log.moves[1].g, 2);
+  EXPECT_NEAR(stop->t_s, log.moves[1].t_s, 1e-9);  // M5 waits for the arc
+  EXPECT_NEAR(log.moves[2].t_s, stop->t_s + 5.0 / (5000.0 / 60.0), 1e-9);
+  EXPECT_NEAR(end->t_s, log.moves[2].t_s, 1e-9);
+  EXPECT_NEAR(log.path_length_mm, 10.0 + 5.0 * M_PI + 5.0, 1e-9);
+  // Only one spindle stop: M2 finds the spindle already stopped.
+  EXPECT_EQ(std::count_if(log.events.begin(), log.events.end(),
+                          [](const SimEvent& e) { return e.kind == "spindle_stop"; }),
+            1);
+  const auto json = to_json(log);
+  EXPECT_EQ(json["events"].size(), log.events.size());
+  EXPECT_EQ(json["settings"]["dialect"], "grbl");
+  std::printf("grbl program: %zu lines ok, %zu events, end at %.4f s (simulated)\n", answers.size(),
+              log.events.size(), end->t_s);
+}
+
+// A feed move with the spindle stopped: the machine-safety alarm (grbl itself would move).
+TEST(SimGrblDialect, FeedMoveWithTheSpindleStoppedAlarms) {
+  for (const bool safety : {true, false}) {
+    TempDir dir;
+    auto clock = std::make_shared<ManualClock>();
+    SimControllerConfig cfg = grbl_config(dir / "cnc", clock);
+    cfg.machine_safety = safety;
+    Running run(cfg);
+    Peer peer(cfg.line.device, run.sim);
+    run.start_clock(*clock);
+    const std::vector<std::string> program = {"G21 G90", "G0 X1", "G1 X10 F600", "M2"};
+    const auto answers = stream_grbl(peer, run, *clock, program, cfg.buffer_bytes, 0.002, 5.0);
+    const SimLog& log = run.stop();
+    if (safety) {
+      EXPECT_EQ(answers, (std::vector<std::string>{"ok", "ok", "ALARM:1"}));
+      ASSERT_EQ(log.alarms.size(), 1U);
+      EXPECT_EQ(log.alarms[0].code, "spindle_stopped");
+      EXPECT_NE(log.alarms[0].detail.find("G1 X10 F600"), std::string::npos);
+      EXPECT_LE(log.moves.size(), 1U);  // the rapid at most; never the cut
+      for (const SimMove& m : log.moves) EXPECT_EQ(m.g, 0);
+    } else {
+      EXPECT_EQ(answers, std::vector<std::string>(4, "ok"));
+      EXPECT_TRUE(log.alarms.empty());
+    }
+  }
+}
+
+// M0 holds the program until cycle start (`~` on the grbl link); its ok comes after the resume,
+// as grbl's suspend loop in gc_execute_line does.
+TEST(SimGrblDialect, M0WaitsForCycleStart) {
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  const SimControllerConfig cfg = grbl_config(dir / "cnc", clock);
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  run.start_clock(*clock);
+  const std::vector<std::string> program = {"M3 S1000", "G1 X5 F600", "M0", "G1 X10", "M30"};
+  auto answers = stream_grbl(peer, run, *clock, program, cfg.buffer_bytes, 0.002, 3.0);
+  EXPECT_EQ(answers, (std::vector<std::string>{"ok", "ok"}));  // M0 unanswered, the rest waits
+  EXPECT_EQ(run.sim.progress().blocks_executed, 2);
+  const std::size_t before = peer.replies.size();
+  peer.write_all("?");
+  for (int i = 0; i < 50 && peer.replies.size() == before; ++i) {
+    ASSERT_TRUE(run.step(*clock, 0.001));
+    peer.pump();
+  }
+  ASSERT_GT(peer.replies.size(), before);
+  EXPECT_EQ(peer.replies.back().substr(0, 8), "<Hold:0|") << peer.replies.back();
+  peer.write_all("~");
+  for (int i = 0; i < 1000 && !run.sim.progress().program_end_executed; ++i) {
+    ASSERT_TRUE(run.step(*clock, 0.002));
+    peer.pump();
+  }
+  const SimLog& log = run.stop();
+  const SimEvent* pause = find_event(log, "pause");
+  const SimEvent* resume = find_event(log, "resume");
+  ASSERT_TRUE(pause && resume);
+  ASSERT_EQ(log.moves.size(), 2U);
+  EXPECT_NEAR(pause->t_s, log.moves[0].t_s, 1e-9);  // stops when X5 is reached
+  EXPECT_GT(resume->t_s - pause->t_s, 2.0);         // held while nobody pressed start
+  EXPECT_NEAR(log.moves[1].t_s, resume->t_s + 0.5, 1e-9);
+  EXPECT_EQ(log.cycle_starts, 1);
+  EXPECT_TRUE(log.program_end_executed);
+}
+
+// A drip (iso) controller: M6 takes the configured tool-change time, M0 waits for the control's
+// cycle-start button (SimController::cycle_start), and a line the iso dialect refuses alarms.
+TEST(SimIsoDialect, ToolChangeTimeAndCycleStartButton) {
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  SimControllerConfig cfg = config(dir / "cnc");
+  cfg.dialect = Dialect::iso;
+  cfg.clock = clock;
+  cfg.tool_change_s = 4.0;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  run.start_clock(*clock);
+  peer.write_all("%\nN1 T2 M6\nN2 S8000 M3\nN3 G1 X6 F600\nN4 M0\nN5 G1 X0\nN6 M30\n%\n");
+  for (int i = 0; i < 3000 && run.sim.progress().blocks_executed < 4; ++i) {
+    ASSERT_TRUE(run.step(*clock, 0.005));
+  }
+  for (int i = 0; i < 200; ++i) ASSERT_TRUE(run.step(*clock, 0.005));  // 1 s stopped
+  EXPECT_EQ(run.sim.progress().blocks_executed, 3);                    // N4 holds
+  run.sim.cycle_start();
+  for (int i = 0; i < 1000 && !run.sim.progress().program_end_executed; ++i) {
+    ASSERT_TRUE(run.step(*clock, 0.005));
+  }
+  const SimLog& log = run.stop();
+  EXPECT_TRUE(log.alarms.empty());
+  const SimEvent* change = find_event(log, "tool_change");
+  const SimEvent* cw = find_event(log, "spindle_cw");
+  const SimEvent* pause = find_event(log, "pause");
+  const SimEvent* resume = find_event(log, "resume");
+  ASSERT_TRUE(change && cw && pause && resume);
+  EXPECT_EQ(change->value, 4.0);
+  EXPECT_NEAR(cw->t_s, change->t_s + 4.0, 1e-9);  // N2 starts when the change is over
+  ASSERT_EQ(log.moves.size(), 2U);
+  EXPECT_NEAR(log.moves[0].t_s, cw->t_s + 0.6, 1e-9);
+  EXPECT_NEAR(pause->t_s, log.moves[0].t_s, 1e-9);
+  EXPECT_NEAR(log.moves[1].t_s, resume->t_s + 0.6, 1e-9);
+  EXPECT_TRUE(find_event(log, "program_end"));
+}
+
+TEST(SimIsoDialect, ARefusedLineAlarms) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc");
+  cfg.dialect = Dialect::iso;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  peer.send_drip("%\nN1 S100 M3\nN2 #1=5\nN3 M30\n%\n");  // false: the NAK of the alarm
+  ASSERT_TRUE(run.wait([](const SimProgress& p) { return p.alarms > 0; }));
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.alarms.size(), 1U);
+  EXPECT_EQ(log.alarms[0].code, "bad_block");
+  EXPECT_NE(log.alarms[0].detail.find("'#'"), std::string::npos) << log.alarms[0].detail;
+}
+
+// One random line of G-code, valid or not: words from grbl's set and outside it, numbers well
+// and badly formed, comments, spaces and case. Dwell, feed and coordinates are kept small so
+// the stream runs quickly (coordinates within ±2, feeds of 3000 to 6000); G38.2/G38.4 (the
+// simulation's probe never touches: an alarm) and M0 (a stop waiting for cycle start) are left out.
+std::string random_line(std::mt19937_64& rng) {
+  const auto pick = [&](int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); };
+  static const std::vector<std::string> codes = {
+      "G0",  "G1",    "G2",    "G3",    "G4",    "G10",   "G17", "G18", "G19",   "G20", "G21",
+      "G28", "G28.1", "G30",   "G30.1", "G38.3", "G38.1", "G40", "G43", "G43.1", "G49", "G53",
+      "G54", "G55",   "G59.1", "G61",   "G61.1", "G64",   "G80", "G90", "G90.1", "G91", "G91.1",
+      "G92", "G92.1", "G93",   "G94",   "G1.5",  "G5.2",  "M1",  "M2",  "M3",    "M4",  "M5",
+      "M6",  "M7",    "M8",    "M9",    "M30",   "M3.5",  "M56", "M99"};
+  static const std::string letters = "XYZXYZXYZXYZIJKFFFPRSTLNAQ";
+  std::string s;
+  const int words = 1 + pick(5);
+  for (int w = 0; w < words; ++w) {
+    if (pick(4) == 0) {
+      s += codes[static_cast<std::size_t>(pick(static_cast<int>(codes.size())))];
+    } else {
+      const char letter = letters[static_cast<std::size_t>(pick(static_cast<int>(letters.size())))];
+      s += letter;
+      double v = std::uniform_real_distribution<>(-2.0, 2.0)(rng);
+      if (letter == 'F') v = std::uniform_real_distribution<>(3000.0, 6000.0)(rng);
+      if (letter == 'P') v = pick(3) == 0 ? -1.0 : pick(8);
+      if (letter == 'L') v = pick(3) == 0 ? 20 : 2 + pick(2);
+      if (letter == 'N') v = pick(4) == 0 ? 10000001 : pick(1000);
+      if (letter == 'T') v = pick(250) + (pick(5) == 0 ? 100 : 0);
+      if (letter == 'S') v = pick(20000) - (pick(10) == 0 ? 20000 : 0);
+      if (letter == 'P' && v > 0) v = 0.01;  // dwells of 10 ms
+      const int form = pick(40);
+      if (form == 0) {
+        s += "1..2";
+      } else if (form == 1) {
+        s += ".";
+      } else if (form == 2) {
+        s += "-";
+      } else {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, form < 20 ? "%.0f" : "%.3f", v);
+        s += buf;
+      }
+    }
+    const int sep = pick(10);
+    if (sep < 3) s += ' ';
+    if (sep == 3) s += "(c)";
+  }
+  if (pick(10) == 0) s += " ; comment";
+  if (pick(15) == 0) {
+    s += "N";  // N0000…: a long line whose numbers stay small
+    while (s.size() < 78 + static_cast<std::size_t>(pick(5))) s += '0';
+  }
+  if (pick(20) == 0) s = "#" + s;
+  if (pick(20) == 0) {
+    for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return s;
+}
+
+// The sender's pre-check (check_line over the program, as DncSender and check_program_file run
+// it) and the grbl-mode controller's answer over a real pty agree on every line: the same
+// error number, or ok. Lines after an M2/M30 too (grbl reads on).
+TEST(SimGrblDialect, RandomLinesPrecheckAndControllerAgree) {
+  const char* forced = std::getenv("NCD_SEED");  // to replay a failure
+  const std::uint64_t seed = forced ? std::stoull(forced) : std::random_device{}();
+  std::printf("random grbl lines: seed %llu\n", static_cast<unsigned long long>(seed));
+  std::mt19937_64 rng(seed);
+  std::vector<std::string> lines;
+  std::vector<int> expected;
+  DialectState state;
+  for (int i = 0; i < 500; ++i) {
+    std::string line = random_line(rng);
+    if (line.size() > 120) line.resize(120);  // raw lines within grbl's 128-byte buffer
+    const auto v = check_line(Dialect::grbl, line, state);
+    lines.push_back(line);
+    expected.push_back(v ? v->grbl_error : 0);
+  }
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  SimControllerConfig cfg = grbl_config(dir / "cnc", clock);
+  cfg.machine_safety = false;  // verdicts only; the safety alarm is an execution matter
+  cfg.rapid_mm_per_min = 20000.0;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  run.start_clock(*clock);
+  const auto answers = stream_grbl(peer, run, *clock, lines, cfg.buffer_bytes, 0.05, 5000.0);
+  ASSERT_EQ(answers.size(), lines.size())
+      << "seed " << seed
+      << "; first unanswered line: " << (answers.size() < lines.size() ? lines[answers.size()] : "")
+      << "; executed " << run.sim.progress().blocks_executed << ", t " << run.sim.progress().t_s;
+  int errors = 0;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    const std::string want = expected[i] == 0 ? "ok" : "error:" + std::to_string(expected[i]);
+    EXPECT_EQ(answers[i], want) << "seed " << seed << ", line " << i + 1 << ": " << lines[i];
+    errors += expected[i] != 0;
+  }
+  // The whole-file check names the first refused line.
+  std::ofstream(dir / "p.nc") << [&] {
+    std::string text;
+    for (const auto& l : lines) text += l + "\n";
+    return text;
+  }();
+  const auto first = check_program_file((dir / "p.nc").string(), Dialect::grbl);
+  const auto it = std::find_if(expected.begin(), expected.end(), [](int e) { return e != 0; });
+  if (it == expected.end()) {
+    EXPECT_FALSE(first);
+  } else {
+    ASSERT_TRUE(first);
+    EXPECT_EQ(first->line, it - expected.begin() + 1);
+    EXPECT_EQ(first->grbl_error, *it);
+  }
+  std::printf("random grbl lines: %zu lines (%d refused, %zu taken), verdicts compared\n",
+              lines.size(), errors, lines.size() - static_cast<std::size_t>(errors));
+  run.stop();
+}
+
+// `ncd stream --dialect grbl` refuses the issue's program (G64 P0.0100 on line 3) before it
+// opens the port: exit 2, the line and the word named, not one byte on the controller's wire.
+TEST(SimGrblDialect, StreamRefusesBeforeTheFirstByte) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  cfg.dialect = Dialect::grbl;
+  Running run(cfg);
+  const fs::path program = dir / "chamfer.ngc";
+  std::ofstream(program) << "G21 G90 G94\nG17\nG64 P0.0100\nM3 S12000\nG1 X1 F100\nM2\n";
+  const fs::path err = dir / "stderr.txt";
+  const std::string command = std::string(NCD_EXE) + " stream " + program.string() + " --port " +
+                              cfg.line.device + " --protocol ack --baud 115200 --frame 8N1 " +
+                              "--flow none --dialect grbl --no-journal -q 2>" + err.string();
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  std::ifstream in(err);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("line 3"), std::string::npos) << text;
+  EXPECT_NE(text.find("'G64'"), std::string::npos) << text;
+  EXPECT_NE(text.find("error:20"), std::string::npos) << text;
+  std::this_thread::sleep_for(100ms);
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.bytes_received, 0U);
+  EXPECT_EQ(log.sender_connects, 0);
+  // The same program without G64 streams: the check passes it.
+  std::ofstream(program) << "G21 G90 G94\nG17\nM3 S12000\nG1 X1 F100\nM2\n";
+  EXPECT_FALSE(check_program_file(program.string(), Dialect::grbl));
+  // iso refuses a macro variable, naming its line.
+  std::ofstream(program) << "%\nN1 G0 X0\nN2 #1=3\n%\n";
+  const auto v = check_program_file(program.string(), Dialect::iso);
+  ASSERT_TRUE(v);
+  EXPECT_EQ(v->line, 3);
 }
 
 }  // namespace

@@ -1,0 +1,31 @@
+// `[link] dialect` in the machine file: read, written back in the config JSON, and refused
+// with the value and the choices named.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "app/machine_config.hpp"
+#include "core/error.hpp"
+
+namespace ncd::app {
+namespace {
+
+TEST(LinkDialect, ReadFromTheMachineFile) {
+  const MachineConfig none = parse_machine_config("[link]\nbaud = 19200\n", "m.toml");
+  EXPECT_FALSE(none.link.dialect);
+  const MachineConfig grbl = parse_machine_config("[link]\ndialect = \"grbl\"\n", "m.toml");
+  ASSERT_TRUE(grbl.link.dialect);
+  EXPECT_EQ(*grbl.link.dialect, comms::Dialect::grbl);
+  try {
+    (void)parse_machine_config("[link]\ndialect = \"fanuc\"\n", "m.toml");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("link.dialect"), std::string::npos) << what;
+    EXPECT_NE(what.find("'fanuc'"), std::string::npos) << what;
+    EXPECT_NE(what.find("linuxcnc"), std::string::npos) << what;
+  }
+}
+
+}  // namespace
+}  // namespace ncd::app
