@@ -354,3 +354,29 @@ TEST_F(ServeHardening, AJobThatBreaksTheStepRuleEndsInError) {
 }
 
 }  // namespace
+
+namespace {
+
+// [live_limits] in the serve config: each rule "error" or "report"; anything else is refused at
+// start (exit 2) naming the key and the two words.
+TEST_F(ServeHardening, LiveLimitActionsAreCheckedInTheConfig) {
+  const std::string bad = write("bad.toml", "[live_limits]\naccel = \"ignore\"\n");
+  auto r = ncd("serve --config " + bad + " --listen unix:" + (dir_ / "x.sock").string());
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("live_limits.accel"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("\"report\""), std::string::npos) << r.err;
+  const std::string unknown = write("unknown.toml", "[live_limits]\nspeed = \"error\"\n");
+  r = ncd("serve --config " + unknown + " --listen unix:" + (dir_ / "x.sock").string());
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("feed, accel, jerk, chord"), std::string::npos) << r.err;
+  // "report" on every rule is accepted: the service starts and answers.
+  launch("simulated",
+         "[live_limits]\nfeed = \"report\"\naccel = \"report\"\njerk = \"report\"\n"
+         "chord = \"report\"\n");
+  Client c(socket_);
+  const json s = c.request({{"cmd", "status"}});
+  EXPECT_TRUE(s["ok"].get<bool>()) << s.dump();
+  EXPECT_EQ(s["live_limit_violations"]["accel"], 0);
+}
+
+}  // namespace
