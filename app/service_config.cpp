@@ -5,7 +5,7 @@
 #include <string>
 #include <toml.hpp>
 
-#include "app/service.hpp"
+#include "app/service_config.hpp"
 #include "app/toml_text.hpp"
 #include "core/error.hpp"
 
@@ -38,14 +38,35 @@ ServiceConfig parse_service_config(const std::string& text, const std::string& p
       c.clock = v.as_string() == "wall" ? motion::ClockKind::Wall : motion::ClockKind::Simulated;
     } else if (key == "realtime" && v.is_boolean()) {
       c.realtime = v.as_boolean();
+    } else if (key == "live_limits" && v.is_table()) {
+      for (const auto& [rule, action] : v.as_table()) {
+        service::RuleAction* slot = rule == "feed"    ? &c.live_limits.feed
+                                    : rule == "accel" ? &c.live_limits.accel
+                                    : rule == "jerk"  ? &c.live_limits.jerk
+                                    : rule == "chord" ? &c.live_limits.chord
+                                                      : nullptr;
+        if (!slot) {
+          throw InputError("unknown key " + where + "." + rule +
+                           "; [live_limits] takes feed, accel, jerk, chord");
+        }
+        if (!action.is_string() ||
+            (action.as_string() != "error" && action.as_string() != "report")) {
+          throw InputError(where + "." + rule + " = " + toml::format(action) +
+                           " must be \"error\" (the job ends in error) or \"report\" (counted "
+                           "in the status only)");
+        }
+        *slot = action.as_string() == "error" ? service::RuleAction::Error
+                                              : service::RuleAction::Report;
+      }
     } else if (key == "listen" || key == "token" || key == "machine" || key == "clock" ||
-               key == "realtime") {
+               key == "realtime" || key == "live_limits") {
       throw InputError(where + " has the wrong type or value: " + toml::format(v) +
                        " (listen, token, machine: strings; clock: \"wall\" or \"simulated\"; "
-                       "realtime: true or false)");
+                       "realtime: true or false; live_limits: a table)");
     } else {
       throw InputError("unknown key " + where +
-                       "; the service config takes listen, token, machine, clock, realtime");
+                       "; the service config takes listen, token, machine, clock, realtime, "
+                       "[live_limits]");
     }
   }
   if (!c.machine_file.empty()) c.machine = load_machine_config(c.machine_file);

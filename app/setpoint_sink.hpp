@@ -8,18 +8,19 @@
 
 #include "app/output.hpp"
 #include "motion/job.hpp"
+#include "service/service.hpp"
 
 namespace ncd::app {
 
-class SetpointSink {
+class SetpointSink final : public service::SetpointSink {
  public:
   // An empty path writes nothing. Throws InputError if the file cannot be created.
   explicit SetpointSink(const std::string& path);
   SetpointSink(const SetpointSink&) = delete;
   SetpointSink& operator=(const SetpointSink&) = delete;
 
-  void write(const motion::Setpoint& sp);  // one row, fixed decimals, no allocation
-  void commit();                           // flush and rename; throws on failure
+  void write(const motion::Setpoint& sp) override;  // one row, fixed decimals, no allocation
+  void commit() override;                           // flush and rename; throws on failure
 
  private:
   std::unique_ptr<StreamedFile> file_;  // null when nothing is recorded

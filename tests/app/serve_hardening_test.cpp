@@ -15,121 +15,24 @@
 #include <random>
 #include <thread>
 
-#include "tests/app/cli_fixture.hpp"
+#include "tests/app/serve_fixture.hpp"
 #include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 
 namespace {
 
-using ncd::test::Cli;
 using ncd::test::slurp;
 using nlohmann::json;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-// A line-oriented client on a Unix socket.
-class Client {
- public:
-  explicit Client(const std::string& path) {
-    fd_ = socket(AF_UNIX, SOCK_STREAM, 0);
-    sockaddr_un addr{};
-    addr.sun_family = AF_UNIX;
-    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
-    for (int i = 0; i < 400; ++i) {  // the service may still be starting
-      if (connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) return;
-      std::this_thread::sleep_for(25ms);
-    }
-    ADD_FAILURE() << "cannot connect to " << path;
-  }
-  ~Client() { close(fd_); }
-  bool send_line(const std::string& line) {
-    const std::string s = line + "\n";
-    return write(fd_, s.data(), s.size()) == static_cast<ssize_t>(s.size());
-  }
-  // The next line, or "" after 20 s.
-  std::string read_line() {
-    for (;;) {
-      const auto nl = buf_.find('\n');
-      if (nl != std::string::npos) {
-        std::string line = buf_.substr(0, nl);
-        buf_.erase(0, nl + 1);
-        return line;
-      }
-      pollfd p{fd_, POLLIN, 0};
-      if (poll(&p, 1, 20000) <= 0) return "";
-      char tmp[4096];
-      const ssize_t n = read(fd_, tmp, sizeof tmp);
-      if (n <= 0) return "";
-      buf_.append(tmp, static_cast<std::size_t>(n));
-    }
-  }
-  json request(const json& req) { return request_line(req.dump()); }
-  json request_line(const std::string& line) {
-    if (!send_line(line)) return json{{"ok", false}, {"error", "send failed"}};
-    const std::string reply = read_line();
-    EXPECT_FALSE(reply.empty()) << "no reply to " << line;
-    return reply.empty() ? json{{"ok", false}, {"error", "no reply"}} : json::parse(reply);
-  }
-
- private:
-  int fd_ = -1;
-  std::string buf_;
-};
+using Client = ncd::test::ServeClient;
 
 const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
   "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
   "feed_mm_per_min": 3000})";
 
-class ServeHardening : public Cli {
- protected:
-  void launch(const std::string& clock, const std::string& extra = "") {
-    socket_ = (dir_ / "ncd.sock").string();
-    const std::string config =
-        write("serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n" + extra);
-    pid_ = fork();
-    if (pid_ == 0) {
-      const std::string err = (dir_ / "serve.err").string();
-      if (!freopen(err.c_str(), "w", stderr)) _exit(126);
-      execl(NCD_EXE, NCD_EXE, "serve", "--config", config.c_str(), "--listen",
-            ("unix:" + socket_).c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  bool alive() {
-    int status = 0;
-    return pid_ > 0 && waitpid(pid_, &status, WNOHANG) == 0;
-  }
-  int terminate() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  void TearDown() override {
-    if (pid_ > 0) terminate();
-    Cli::TearDown();
-  }
-  json wait_for(Client& c, const std::string& state, int tries = 3000) {
-    json s;
-    for (int i = 0; i < tries; ++i) {
-      s = c.request({{"cmd", "status"}});
-      if (s["state"] == state) return s;
-      std::this_thread::sleep_for(10ms);
-    }
-    ADD_FAILURE() << "state never became " << state << ": " << s.dump();
-    return s;
-  }
-  static void expect_error(const json& reply, const std::string& part, const std::string& what) {
-    EXPECT_FALSE(reply.value("ok", true)) << what << ": " << reply.dump();
-    const std::string error = reply.value("error", "");
-    EXPECT_NE(error.find(part), std::string::npos) << what << ": " << reply.dump();
-    EXPECT_EQ(error.find("internal error"), std::string::npos) << what << ": " << reply.dump();
-  }
-
-  std::string socket_;
-  pid_t pid_ = -1;
-};
+class ServeHardening : public ncd::test::ServeFixture {};
 
 TEST_F(ServeHardening, EveryRequestShapeThatCrashedOrHungItIsAnErrorReply) {
   const std::string cubic = write("cubic.json", kCubic);
@@ -448,6 +351,32 @@ TEST_F(ServeHardening, AJobThatBreaksTheStepRuleEndsInError) {
   // setpoints file of a job in error is not kept.
   EXPECT_FALSE(fs::exists(dir_ / "crawl.csv"));
   EXPECT_TRUE(alive());
+}
+
+}  // namespace
+
+namespace {
+
+// [live_limits] in the serve config: each rule "error" or "report"; anything else is refused at
+// start (exit 2) naming the key and the two words.
+TEST_F(ServeHardening, LiveLimitActionsAreCheckedInTheConfig) {
+  const std::string bad = write("bad.toml", "[live_limits]\naccel = \"ignore\"\n");
+  auto r = ncd("serve --config " + bad + " --listen unix:" + (dir_ / "x.sock").string());
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("live_limits.accel"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("\"report\""), std::string::npos) << r.err;
+  const std::string unknown = write("unknown.toml", "[live_limits]\nspeed = \"error\"\n");
+  r = ncd("serve --config " + unknown + " --listen unix:" + (dir_ / "x.sock").string());
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("feed, accel, jerk, chord"), std::string::npos) << r.err;
+  // "report" on every rule is accepted: the service starts and answers.
+  launch("simulated",
+         "[live_limits]\nfeed = \"report\"\naccel = \"report\"\njerk = \"report\"\n"
+         "chord = \"report\"\n");
+  Client c(socket_);
+  const json s = c.request({{"cmd", "status"}});
+  EXPECT_TRUE(s["ok"].get<bool>()) << s.dump();
+  EXPECT_EQ(s["live_limit_violations"]["accel"], 0);
 }
 
 }  // namespace

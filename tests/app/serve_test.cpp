@@ -13,111 +13,21 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "comms/sha256.hpp"
-#include "tests/app/cli_fixture.hpp"
-#include "tests/common/process.hpp"
+#include "tests/app/serve_fixture.hpp"
 
 namespace {
 
-using ncd::test::Cli;
 using ncd::test::slurp;
 using nlohmann::json;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-// A line-oriented client on a Unix socket.
-class Client {
- public:
-  explicit Client(const std::string& path) {
-    fd_ = socket(AF_UNIX, SOCK_STREAM, 0);
-    sockaddr_un addr{};
-    addr.sun_family = AF_UNIX;
-    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
-    for (int i = 0; i < 200; ++i) {  // the service may still be starting
-      if (connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) return;
-      std::this_thread::sleep_for(25ms);
-    }
-    ADD_FAILURE() << "cannot connect to " << path;
-  }
-  ~Client() { close(fd_); }
-  void send_line(const std::string& line) {
-    const std::string s = line + "\n";
-    ASSERT_EQ(write(fd_, s.data(), s.size()), static_cast<ssize_t>(s.size()));
-  }
-  // The next line, or "" after 10 s.
-  std::string read_line() {
-    for (;;) {
-      const auto nl = buf_.find('\n');
-      if (nl != std::string::npos) {
-        std::string line = buf_.substr(0, nl);
-        buf_.erase(0, nl + 1);
-        return line;
-      }
-      pollfd p{fd_, POLLIN, 0};
-      if (poll(&p, 1, 10000) <= 0) return "";
-      char tmp[4096];
-      const ssize_t n = read(fd_, tmp, sizeof tmp);
-      if (n <= 0) return "";
-      buf_.append(tmp, static_cast<std::size_t>(n));
-    }
-  }
-  json request(const json& req) {
-    send_line(req.dump());
-    const std::string line = read_line();
-    EXPECT_FALSE(line.empty()) << "no reply to " << req.dump();
-    return line.empty() ? json{{"ok", false}} : json::parse(line);
-  }
-
- private:
-  int fd_ = -1;
-  std::string buf_;
-};
+using Client = ncd::test::ServeClient;
 
 const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
   "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
-class Serve : public Cli {
- protected:
-  // Starts `ncd serve` with a config of `clock` on a socket in the test folder.
-  void launch(const std::string& clock, const std::string& extra = "") {
-    socket_ = (dir_ / "ncd.sock").string();
-    const std::string config =
-        write("serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n" + extra);
-    pid_ = fork();
-    if (pid_ == 0) {
-      const std::string err = (dir_ / "serve.err").string();
-      freopen(err.c_str(), "w", stderr);
-      execl(NCD_EXE, NCD_EXE, "serve", "--config", config.c_str(), "--listen",
-            ("unix:" + socket_).c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  // Sends SIGTERM and returns the exit status.
-  int terminate() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  void TearDown() override {
-    if (pid_ > 0) terminate();
-    Cli::TearDown();
-  }
-  json wait_for(Client& c, const std::string& state) {
-    json s;
-    for (int i = 0; i < 1000; ++i) {
-      s = c.request({{"cmd", "status"}});
-      if (s["state"] == state) return s;
-      std::this_thread::sleep_for(10ms);
-    }
-    ADD_FAILURE() << "state never became " << state << ": " << s.dump();
-    return s;
-  }
-
-  std::string socket_;
-  pid_t pid_ = -1;
-};
+class Serve : public ncd::test::ServeFixture {};
 
 TEST_F(Serve, JobOverTheSocketGivesReplaysSetpoints) {
   const std::string cubic = write("cubic.json", kCubic);
@@ -239,77 +149,40 @@ TEST_F(Serve, ClientLeavingDoesNotStopTheJobAndSigtermExitsZero) {
   EXPECT_NE(log.find("0 setpoints lost"), std::string::npos) << log;
 }
 
-// A machine file whose [link] names the simulated controller's port.
-std::string link_machine(const std::string& device, double xoff_timeout_s) {
-  return "[link]\ndevice = \"" + device +
-         "\"\nbaud = 115200\nframe = \"8N1\"\nflow = \"xonxoff\"\nxoff_timeout_s = " +
-         std::to_string(xoff_timeout_s) + "\n[encoder]\nmax_block_s = 0.5\n";
-}
+// The live link (a job streamed to the simulated controller, a hold by the link) is tested in
+// process and in simulated time: tests/service/live_link_test.cpp.
 
-// The SHA-256 of a program file's blocks, each ended by LF (the controller's checksum).
-std::string program_sha(const fs::path& file) {
-  std::istringstream in(slurp(file));
-  std::string all;
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty() && line != "%") all += line + "\n";
+TEST_F(Serve, RestartFromALineRunsTheProgramFromThereAndSaysSo) {
+  const std::string prog = write("prog.ngc",
+                                 "G21 G90 G54\nS1000 M3\nG0 Z5\nG0 X0 Y0\nG1 Z-1 F300\n"
+                                 "G1 X10 Y0\nG1 X10 Y10\nG1 X0 Y10\nM5\nM2\n");
+  launch("simulated");
+  Client c(socket_);
+  json r = c.request({{"cmd", "submit"}, {"job", {{"path", prog}}}, {"restart_from", 7}});
+  ASSERT_TRUE(r["ok"].get<bool>()) << r.dump();
+  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
+  const json s = wait_for(c, "done");
+  EXPECT_EQ(s["restart_from_line"], 7);
+  const auto end = s["position"].get<std::vector<double>>();
+  EXPECT_NEAR(end[0], 0.0, 1e-9);
+  EXPECT_NEAR(end[1], 10.0, 1e-9);
+  EXPECT_NEAR(end[2], -1.0, 1e-9);
+  // 10 + 10 mm from line 7's start (10, 0, -1): F300 for 20 mm is at least 4 s of motion.
+  EXPECT_GE(s["t_s"].get<double>(), 4.0);
+  EXPECT_LT(s["t_s"].get<double>(), 6.0);
+  // Refusals name the key.
+  for (const json& bad :
+       {json{{"cmd", "submit"}, {"job", {{"path", prog}}}, {"restart_from", 11}},
+        json{{"cmd", "submit"}, {"job", {{"path", prog}}}, {"restart_from", "7"}},
+        json{{"cmd", "submit"}, {"job", {{"path", prog}}}, {"clearance_z_mm", 5}},
+        json{{"cmd", "submit"},
+             {"job",
+              {{"pipe-radius", 18}, {"drill-radius", 13}, {"ball-radius", 3}, {"width", 0.7}}},
+             {"restart_from", 2}}}) {
+    r = c.request(bad);
+    EXPECT_FALSE(r["ok"].get<bool>()) << bad.dump();
+    EXPECT_NE(r["error"].get<std::string>().find("restart_from"), std::string::npos) << r.dump();
   }
-  return ncd::comms::sha256_hex(all);
-}
-
-TEST_F(Serve, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
-  const std::string cubic = write("cubic.json", kCubic);
-  const std::string link = (dir_ / "cnc").string();
-  const std::string machine = write("machine.toml", link_machine(link, 5.0));
-  ASSERT_EQ(ncd("replay " + cubic + " -q --path-only --machine " + machine + " --blocks " +
-                (dir_ / "replay.ngc").string())
-                .status,
-            0);
-  ncd::test::Process cnc({NCD_EXE, "sim-controller", "--link", link, "--baud", "115200", "--frame",
-                          "8N1", "--log", (dir_ / "cnc.json").string(), "--exit-at-end"},
-                         (dir_ / "cnc.out").string(), (dir_ / "cnc.err").string());
-  ASSERT_TRUE(ncd::test::wait_for_path(link, 5.0));
-  launch("simulated", "machine = \"" + machine + "\"\n");
-  Client c(socket_);
-  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
-  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
-  const json s = wait_for(c, "done");
-  const std::string sha = program_sha(dir_ / "replay.ngc");
-  ASSERT_TRUE(s["stream"].is_object()) << s.dump();
-  EXPECT_TRUE(s["stream"]["completed"].get<bool>()) << s.dump();
-  EXPECT_EQ(s["stream"]["program_sha256"], sha);
-  EXPECT_EQ(cnc.wait(30.0), 0) << slurp(dir_ / "cnc.err");
-  const json log = json::parse(slurp(dir_ / "cnc.json"));
-  EXPECT_EQ(log["program_sha256"], sha);
-  EXPECT_TRUE(log["alarms"].empty());
-}
-
-TEST_F(Serve, LinkHoldHoldsTheMotionAndResumes) {
-  const std::string cubic = write("cubic.json", kCubic);
-  const std::string link = (dir_ / "cnc").string();
-  const std::string machine = write("machine.toml", link_machine(link, 0.3));
-  ncd::test::Process cnc({NCD_EXE, "sim-controller", "--link", link, "--baud", "115200", "--frame",
-                          "8N1", "--log", (dir_ / "cnc.json").string(), "--exit-at-end",
-                          "--hold-after-blocks", "4", "--hold-s", "1.5"},
-                         (dir_ / "cnc.out").string(), (dir_ / "cnc.err").string());
-  ASSERT_TRUE(ncd::test::wait_for_path(link, 5.0));
-  launch("wall", "machine = \"" + machine + "\"\n");
-  Client c(socket_);
-  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
-  ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
-  const json held = wait_for(c, "holding");
-  EXPECT_TRUE(held["stream"]["held_by_link"].get<bool>()) << held.dump();
-  const json s = wait_for(c, "done");
-  EXPECT_TRUE(s["stream"]["completed"].get<bool>()) << s.dump();
-  EXPECT_GE(s["stream"]["xoff_timeouts"].get<int>(), 1);
-  EXPECT_LE(s["accel_max"].get<double>(), 1000.0 * (1 + 1e-9));
-  EXPECT_LE(s["jerk_max"].get<double>(), 20000.0 * (1 + 1e-9));
-  EXPECT_EQ(cnc.wait(30.0), 0);
-  const json log = json::parse(slurp(dir_ / "cnc.json"));
-  EXPECT_EQ(log["program_sha256"], s["stream"]["program_sha256"]);
-  EXPECT_TRUE(log["alarms"].empty());
-  const std::string err = slurp(dir_ / "serve.err");
-  EXPECT_NE(err.find("the link holds"), std::string::npos) << err;
-  EXPECT_NE(err.find("resuming the motion"), std::string::npos) << err;
 }
 
 }  // namespace

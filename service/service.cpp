@@ -1,0 +1,604 @@
+// The service's job state machine and its live pipeline (docs/service.md).
+//
+//              submit            start                 hold(operator | link)
+//   idle ─────────────► ready ─────────► running ───────────────────────► holding
+//    │                  ▲  │ submit       │   ▲   resume(by the holder)      │
+//    │                  │  └──(replaces)  │   └──────────────────────────────┘
+//    │                  │                 │ the motion ends: done; stop: stopped (a jerk-limited
+//    │                  │                 │ stop on the path, from running or holding); the step
+//    │                  │                 │ rule, a live limit rule or a fault: error
+//    │                  │                 ▼
+//    │                  │        a link? ──yes──► streaming ──the sender ends──┐
+//    │                  │                 │ no     (motion over, blocks still  │
+//    │                  │                 ▼         going to the controller)   │
+//    └──── submit ──── done / stopped / error ◄───────────────────────────────┘
+//
+// submit is refused while running, holding or streaming. A hold has one holder: the operator
+// (a client's hold) or the link (the sender saw XOFF or CTS held longer than xoff_timeout_s, or
+// lost its port). Only the holder releases it: the link's release does not resume a motion the
+// operator holds, and an operator's hold during a link hold takes it over (the operator must
+// resume). A resume by anyone else is refused naming the holder. `stopped` is kept apart from
+// `done` (a job that did not reach its end) and tells why and where it stopped.
+//
+// Threads: the commands, poll() and status() run on the owner's thread; the service's own state
+// needs no lock. The cycle thread is reached only through its atomic commands, its setpoint ring
+// and its seqlocked status; the sender's thread through the live block queue, one atomic for its
+// holds and a mutex-guarded list of its events (neither side is the cycle). poll() drains the
+// setpoints in order into: the live limit check (service/live_limits.hpp; a setpoint breaking an
+// Error rule is not emitted and the job ends in error), the statistics, the setpoint sink, the
+// block encoder, whose closed blocks queue for the sender. Observers get events through their
+// own bounded rings (service/events.hpp).
+#include "service/service.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <mutex>
+#include <thread>
+
+#include "comms/live_blocks.hpp"
+#include "comms/transfer_journal.hpp"
+#include "core/error.hpp"
+
+namespace ncd::service {
+
+const char* to_string(State s) {
+  switch (s) {
+    case State::Idle:
+      return "idle";
+    case State::Ready:
+      return "ready";
+    case State::Running:
+      return "running";
+    case State::Holding:
+      return "holding";
+    case State::Streaming:
+      return "streaming";
+    case State::Done:
+      return "done";
+    case State::Stopped:
+      return "stopped";
+    case State::Error:
+      return "error";
+  }
+  return "error";
+}
+
+const char* to_string(HoldHolder h) {
+  switch (h) {
+    case HoldHolder::None:
+      return "none";
+    case HoldHolder::Operator:
+      return "operator";
+    case HoldHolder::Link:
+      return "link";
+  }
+  return "none";
+}
+
+const char* to_string(EventKind k) {
+  switch (k) {
+    case EventKind::State:
+      return "state";
+    case EventKind::Job:
+      return "job";
+    case EventKind::Alarm:
+      return "alarm";
+    case EventKind::Overrun:
+      return "overrun";
+    case EventKind::Link:
+      return "link";
+    case EventKind::Violation:
+      return "violation";
+  }
+  return "state";
+}
+
+const char* to_string(LimitKind k) {
+  switch (k) {
+    case LimitKind::None:
+      return "none";
+    case LimitKind::Feed:
+      return "feed";
+    case LimitKind::Accel:
+      return "accel";
+    case LimitKind::Jerk:
+      return "jerk";
+    case LimitKind::Chord:
+      return "chord";
+  }
+  return "none";
+}
+
+const char* unit(LimitKind k) {
+  switch (k) {
+    case LimitKind::Feed:
+      return "mm/min";
+    case LimitKind::Accel:
+      return "mm/s2";
+    case LimitKind::Jerk:
+      return "mm/s3";
+    case LimitKind::Chord:
+    case LimitKind::None:
+      return "mm";
+  }
+  return "mm";
+}
+
+void Event::set_text(std::string_view s) {
+  const std::size_t n = std::min(s.size(), text.size() - 1);
+  std::copy_n(s.data(), n, text.data());
+  text[n] = '\0';
+}
+
+namespace {
+std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+}  // namespace
+
+// The encoder, the queue and the sender thread of a streamed job.
+struct Service::Live {
+  comms::LiveBlocks blocks;
+  std::unique_ptr<comms::BlockEncoder> encoder;
+  std::unique_ptr<comms::TransferJournal> journal;
+  std::unique_ptr<comms::DncSender> sender;
+  std::thread thread;
+  std::atomic<bool> stop{false};
+  std::atomic<bool> done{false};
+  std::atomic<int> hold_request{-1};    // the sender's last hold (1) or release (0); -1: none new
+  std::atomic<bool> link_holds{false};  // the sender's last hold state
+  std::int64_t blocks_encoded = 0, chars_encoded = 0;  // owner's thread
+  comms::SenderReport report;                          // written by the thread before done
+  comms::LineSettings line;
+  mutable std::mutex mutex;
+  std::string last_event;           // guarded by mutex
+  std::vector<std::string> events;  // guarded by mutex: not yet passed to the observers
+  ~Live() {
+    stop = true;
+    if (thread.joinable()) thread.join();
+  }
+};
+
+Service::Service(const ServiceOptions& options) : options_(options) {}
+
+Service::~Service() {
+  if (cycle_) {
+    cycle_->stop();
+    cycle_.reset();  // joins
+  }
+  if (live_) {
+    live_->blocks.close();
+    live_.reset();  // stops and joins the sender
+  }
+}
+
+void Service::log(const std::string& line) const {
+  if (options_.log) options_.log(line);
+}
+
+std::shared_ptr<Subscription> Service::subscribe(std::size_t capacity) {
+  std::size_t pow2 = 2;
+  while (pow2 < capacity) pow2 *= 2;
+  auto s = std::make_shared<Subscription>(pow2);
+  subscribers_.push_back(s);
+  return s;
+}
+
+void Service::emit(EventKind kind, const std::string& text, double value, double limit,
+                   std::int64_t count) {
+  Event e;
+  e.seq = ++event_seq_;
+  e.kind = kind;
+  e.state = state_;
+  e.holder = holder_;
+  e.job_t_s = last_.t_s;
+  e.value = value;
+  e.limit = limit;
+  e.count = count;
+  e.set_text(text);
+  std::erase_if(subscribers_, [](const auto& s) { return s->closed(); });
+  for (const auto& s : subscribers_) s->push(e);
+}
+
+void Service::set_state(State s, HoldHolder holder, const std::string& why) {
+  if (s == state_ && holder == holder_) return;
+  state_ = s;
+  holder_ = holder;
+  emit(EventKind::State, why);
+}
+
+void Service::require_active(const char* cmd) const {
+  if (state_ != State::Running && state_ != State::Holding) {
+    throw InputError(std::string(cmd) + ": no job is running (state " + to_string(state_) + ")");
+  }
+}
+
+bool Service::busy() const {
+  return state_ == State::Running || state_ == State::Holding || state_ == State::Streaming;
+}
+
+void Service::submit(JobSpec job) {
+  if (busy()) throw InputError("submit: a job is running; stop it first");
+  if (!job.path) throw InputError("submit: the job has no path");
+  // Build the job once now, so that a path the machine cannot run is refused at submit.
+  (void)motion::Job(*job.path, job.motion);
+  cycle_.reset();
+  live_.reset();
+  job_ = std::move(job);
+  error_.clear();
+  set_state(State::Ready, HoldHolder::None, "submitted");
+  emit(EventKind::Job, "submitted " + job_.name);
+}
+
+const std::string& Service::start() {
+  if (state_ != State::Ready) {
+    throw InputError(std::string("start: nothing to start (state ") + to_string(state_) +
+                     "); submit a job first");
+  }
+  auto job = std::make_unique<motion::Job>(*job_.path, job_.motion);
+  live_.reset();
+  start_mm_ = job->walker().position();
+  stop_why_.clear();
+  moving_s_ = 0.0;
+  held_time_left_s_.reset();
+  setpoints_ = 0;
+  accel_max_ = jerk_max_ = feed_max_ = 0.0;
+  override_percent_ = 100.0;
+  overruns_seen_ = 0;
+  last_ = {};
+  last_.p = start_mm_;
+  limits_.emplace(job_.rules);
+  if (job_.link) start_stream(start_mm_);
+  motion::CycleOptions o;
+  o.clock = options_.clock;
+  o.realtime = options_.realtime;
+  o.ring_capacity = options_.ring_capacity;
+  cycle_ = std::make_unique<motion::Cycle>(std::move(job), o);
+  realtime_ = cycle_->start().message;
+  log("job " + job_.name + " started; " + realtime_);
+  set_state(State::Running, HoldHolder::None, "started");
+  emit(EventKind::Job,
+       job_.restart ? "started " + job_.name + " from line " + std::to_string(job_.restart->line)
+                    : "started " + job_.name);
+  return realtime_;
+}
+
+void Service::hold(HoldHolder by) {
+  require_active("hold");
+  if (by == HoldHolder::None) throw InputError("hold: a hold needs a holder");
+  if (state_ != State::Holding) held_time_left_s_ = time_left_s();
+  cycle_->hold();
+  set_state(State::Holding, by, std::string("held by the ") + to_string(by));
+}
+
+void Service::resume(HoldHolder by) {
+  require_active("resume");
+  if (state_ == State::Holding && holder_ != by) {
+    throw InputError(std::string("resume: the motion is held by the ") + to_string(holder_) +
+                     (holder_ == HoldHolder::Link ? "; it resumes when the link is free again"
+                                                  : "; only the operator resumes it"));
+  }
+  cycle_->resume();
+  held_time_left_s_.reset();
+  set_state(State::Running, HoldHolder::None, std::string("resumed by the ") + to_string(by));
+}
+
+void Service::stop(const std::string& why) {
+  require_active("stop");
+  stop_why_ = why;
+  cycle_->stop();
+}
+
+void Service::set_override(double percent) {
+  require_active("override");
+  if (!(percent >= 0.0 && percent <= 200.0)) {
+    throw InputError("override: \"percent\" = " + fmt(percent) + " is outside 0..200 %");
+  }
+  cycle_->set_override(percent / 100.0);
+  if (limits_) limits_->set_override(percent / 100.0);
+  override_percent_ = percent;
+}
+
+void Service::shutdown(const std::string& why) {
+  if (state_ == State::Streaming && live_) {
+    log("stopping the transfer (the journal keeps where it stopped)");
+    live_->stop = true;
+  } else if (cycle_ && !cycle_->finished()) {
+    log("stopping the running job (a jerk-limited stop on the path)");
+    stop_why_ = why;
+    cycle_->stop();
+  }
+}
+
+bool Service::poll() {
+  try {
+    step();
+  } catch (const std::exception& e) {
+    fail_job(std::string("internal error: ") + e.what());
+  }
+  return busy();
+}
+
+void Service::step() {
+  if (live_) {
+    // The sender's events and holds, in the order it gave them.
+    std::vector<std::string> events;
+    {
+      std::lock_guard lock(live_->mutex);
+      events.swap(live_->events);
+    }
+    for (const std::string& e : events) emit(EventKind::Link, e);
+    const int request = live_->hold_request.exchange(-1);
+    if (request >= 0 && cycle_ && !cycle_->finished()) {
+      if (request == 1 && state_ == State::Running) {
+        log("the link holds: bringing the motion to a stop");
+        hold(HoldHolder::Link);
+      } else if (request == 0 && state_ == State::Holding && holder_ == HoldHolder::Link) {
+        log("the link is free again: resuming the motion");
+        resume(HoldHolder::Link);
+      }
+    }
+  }
+  if (cycle_ && (state_ == State::Running || state_ == State::Holding)) {
+    drain();
+    if (state_ == State::Error) return;
+    const motion::CycleStatus c = cycle_->status();
+    if (c.overruns > overruns_seen_) {
+      overruns_seen_ = c.overruns;
+      emit(EventKind::Overrun, "the cycle overran its period", static_cast<double>(c.late_wakeups),
+           0.0, c.overruns);
+    }
+    if (cycle_->finished()) {
+      drain();
+      if (state_ == State::Error) return;
+      finish_motion();
+    }
+  }
+  if (state_ == State::Streaming) follow_stream();
+}
+
+void Service::drain() {
+  motion::Setpoint sp;
+  const double period_s = job_.motion.limits.period_s;
+  while (cycle_->pop(sp)) {
+    if (limits_->check(sp) != LimitKind::None) {
+      const LiveViolations& v = limits_->violations();
+      const std::string what = std::string(to_string(v.fatal)) + " " + fmt(v.fatal_value) + " " +
+                               unit(v.fatal) + " against at most " + fmt(v.fatal_limit) + " " +
+                               unit(v.fatal) + " at t = " + fmt(v.fatal_t_s) +
+                               " s, s = " + fmt(v.fatal_s_mm) + " mm";
+      emit(EventKind::Violation, what, v.fatal_value, v.fatal_limit);
+      fail_job("live limit rule (" + what + "); the setpoint was not emitted");
+      return;
+    }
+    ++setpoints_;
+    if (sp.v_mm_per_s > 0.0) moving_s_ += period_s;
+    last_ = sp;
+    accel_max_ = std::max(accel_max_, std::abs(sp.a_mm_per_s2));
+    jerk_max_ = std::max(jerk_max_, std::abs(sp.j_mm_per_s3));
+    feed_max_ = std::max(feed_max_, sp.v_mm_per_s);
+    if (job_.sink) job_.sink->write(sp);
+    if (live_) live_->encoder->push(sp);
+  }
+}
+
+void Service::finish_motion() {
+  cycle_->join();
+  const motion::CycleState end = cycle_->status().state;
+  State s = State::Done;
+  std::string why = "the motion ended";
+  if (end == motion::CycleState::Error) {
+    s = State::Error;
+    error_ = cycle_->error();
+    why = error_;
+  } else if (end == motion::CycleState::Stopped) {
+    s = State::Stopped;
+    why = stop_why_.empty() ? "stopped" : stop_why_;
+  }
+  try {
+    if (s == State::Error) {
+      job_.sink.reset();  // a job in error keeps no setpoints file
+    } else if (job_.sink) {
+      job_.sink->commit();
+    }
+  } catch (const std::exception& e) {
+    s = State::Error;
+    error_ = e.what();
+    why = error_;
+  }
+  const motion::CycleStats& st = cycle_->stats();
+  log("job " + job_.name + " motion ended after " + std::to_string(setpoints_) + " setpoints; " +
+      std::to_string(st.late_wakeups) + " late wake-ups, " + std::to_string(st.overruns) +
+      " overruns, " + std::to_string(st.setpoints_lost) + " setpoints lost");
+  if (live_) {
+    live_->encoder->finish();
+    live_->blocks.close();
+    final_state_ = s;
+    set_state(State::Streaming, HoldHolder::None, "the motion ended; blocks still to send");
+    return;
+  }
+  if (s == State::Error) emit(EventKind::Alarm, error_);
+  set_state(s, HoldHolder::None, why);
+  end_job();
+}
+
+void Service::start_stream(const Vec3& start_mm) {
+  const LinkSpec& link = *job_.link;
+  auto ls = std::make_unique<Live>();
+  Live* raw = ls.get();
+  ls->line = link.sender.line;
+  comms::EncoderSettings enc = link.encoder;
+  enc.line = ls->line;
+  if (enc.max_block_s <= 0.0) enc.max_block_s = options_.live_max_block_s;
+  ls->encoder = std::make_unique<comms::BlockEncoder>(enc, [raw](const comms::EncodedBlock& b) {
+    ++raw->blocks_encoded;
+    raw->chars_encoded += b.chars;
+    raw->blocks.push(b.text);
+  });
+  motion::Setpoint start;
+  start.p = start_mm;
+  ls->encoder->push(start);
+  if (!link.journal.empty()) {
+    comms::JournalState js;
+    js.program_sha256 = "live job " + job_.name;
+    js.settings = comms::describe(ls->line);
+    ls->journal = std::make_unique<comms::TransferJournal>(link.journal, js);
+  }
+  comms::SenderSettings ss = link.sender;
+  if (job_.restart) ss.preamble = job_.restart->preamble;
+  ls->sender =
+      std::make_unique<comms::DncSender>(ss, ls->blocks, [raw](const comms::SenderEvent& e) {
+        std::lock_guard lock(raw->mutex);
+        raw->last_event = e.text;
+        if (e.kind != comms::SenderEvent::Kind::Progress) raw->events.push_back(e.text);
+      });
+  ls->sender->set_journal(ls->journal.get());
+  ls->sender->on_hold([raw](bool hold) {
+    raw->link_holds.store(hold);
+    raw->hold_request.store(hold ? 1 : 0);
+  });
+  // No exception may leave the thread: one becomes the report's failure, the job's error.
+  ls->thread = std::thread([raw] {
+    try {
+      raw->report = raw->sender->run(raw->stop);
+    } catch (const std::exception& e) {
+      raw->report.completed = false;
+      raw->report.failure = std::string("the sender failed: ") + e.what();
+    } catch (...) {
+      raw->report.completed = false;
+      raw->report.failure = "the sender failed (unknown exception)";
+    }
+    raw->done.store(true, std::memory_order_release);
+  });
+  log("streaming job " + job_.name + " to " + ls->line.device + " at " + comms::describe(ls->line));
+  live_ = std::move(ls);
+}
+
+void Service::follow_stream() {
+  if (!live_->done.load(std::memory_order_acquire)) return;
+  live_->thread.join();
+  {
+    std::vector<std::string> events;
+    {
+      std::lock_guard lock(live_->mutex);
+      events.swap(live_->events);
+    }
+    for (const std::string& e : events) emit(EventKind::Link, e);
+  }
+  const comms::SenderReport& r = live_->report;
+  State s = final_state_;
+  std::string why = s == State::Done ? "the motion ended and the controller has every block"
+                                     : (s == State::Error ? error_ : stop_why_);
+  if (!r.completed && s != State::Error) {
+    s = State::Error;
+    error_ = "the transfer to " + live_->line.device +
+             " did not complete: " + (r.stopped ? std::string("stopped") : r.failure);
+    why = error_;
+  }
+  log("sent " + std::to_string(r.blocks) + " blocks (" + std::to_string(r.bytes_written) +
+      " bytes) to " + live_->line.device + " in " + fmt(r.duration_s) + " s, " +
+      fmt(100.0 * r.link_use) + " % of the line; sha256 " + r.program_sha256);
+  if (s == State::Error) emit(EventKind::Alarm, error_);
+  set_state(s, HoldHolder::None, why);
+  end_job();
+}
+
+void Service::fail_job(const std::string& why) {
+  log("job " + job_.name + " failed: " + why);
+  cycle_.reset();  // leaves at once (even blocked on a full ring) and joins the cycle thread
+  if (live_) {
+    live_->blocks.close();
+    live_->stop = true;
+    if (live_->thread.joinable()) live_->thread.join();
+    live_->done.store(true);
+  }
+  job_.sink.reset();  // removes the setpoints' temporary file
+  error_ = why;
+  emit(EventKind::Alarm, why);
+  set_state(State::Error, HoldHolder::None, why);
+  end_job();
+}
+
+void Service::end_job() {
+  log("job " + job_.name + " " + to_string(state_));
+  emit(EventKind::Job, std::string("ended ") + job_.name + " " + to_string(state_));
+}
+
+// The time the job still needs: what is left of the path at the mean feed of the time spent
+// moving so far (a hold adds neither time nor path, so the estimate does not grow while held);
+// frozen at its value when the hold was asked for. None until the tool has moved.
+std::optional<double> Service::time_left_s() const {
+  if (state_ == State::Holding && held_time_left_s_) return held_time_left_s_;
+  if (!cycle_) return std::nullopt;
+  const motion::CycleStatus c = cycle_->status();
+  if (!(moving_s_ > 0.0) || !(c.s_mm > 0.0)) return std::nullopt;
+  const double mean_mm_per_s = c.s_mm / moving_s_;
+  return std::max(0.0, cycle_->length_mm() - c.s_mm) / mean_mm_per_s;
+}
+
+Status Service::status() const {
+  Status s;
+  s.state = state_;
+  s.holder = holder_;
+  s.job = job_.name;
+  s.error = error_;
+  s.realtime = realtime_;
+  if (cycle_) {
+    const motion::CycleStatus c = cycle_->status();
+    s.has_job_run = true;
+    s.length_mm = cycle_->length_mm();
+    // Before the first period the cycle has published nothing: the path's start.
+    s.position_mm = c.periods == 0 ? start_mm_ : Vec3(c.x_mm, c.y_mm, c.z_mm);
+    s.feed_mm_per_min = c.v_mm_per_s * 60.0;
+    s.progress = s.length_mm > 0.0 ? c.s_mm / s.length_mm : 1.0;
+    if (state_ == State::Done || state_ == State::Stopped || state_ == State::Streaming) {
+      s.time_left_s = 0.0;
+    } else {
+      s.time_left_s = time_left_s();
+    }
+    s.t_s = c.t_s;
+    s.overruns = c.overruns;
+    s.late_wakeups = c.late_wakeups;
+  }
+  s.override_percent = override_percent_;
+  s.setpoints = setpoints_;
+  s.accel_max_mm_per_s2 = accel_max_;
+  s.jerk_max_mm_per_s3 = jerk_max_;
+  s.feed_max_mm_per_min = feed_max_ * 60.0;
+  s.interference_allowed = job_.interference_allowed;
+  if (limits_) s.violations = limits_->violations();
+  if (job_.restart) s.restart_line = job_.restart->line;
+  if (state_ == State::Stopped && cycle_) {
+    StopReport r;
+    r.why = stop_why_.empty() ? "stopped" : stop_why_;
+    r.position_mm = last_.p;
+    r.s_mm = last_.s_mm;
+    r.length_mm = cycle_->length_mm();
+    const std::size_t seg = cycle_->job().walker().segment();
+    if (seg < job_.path->segments.size()) r.line = job_.path->segments[seg].source_line;
+    s.stopped = r;
+  }
+  if (live_) {
+    LinkStatus l;
+    l.port = live_->line.device;
+    l.settings = comms::describe(live_->line);
+    l.blocks_encoded = live_->blocks_encoded;
+    l.chars_encoded = live_->chars_encoded;
+    l.blocks_waiting = live_->blocks.waiting();
+    {
+      std::lock_guard lock(live_->mutex);
+      l.last_event = live_->last_event;
+    }
+    l.link_holds = live_->link_holds.load();
+    l.done = live_->done.load(std::memory_order_acquire);
+    if (l.done) l.report = live_->report;
+    s.link = std::move(l);
+  }
+  for (const auto& sub : subscribers_) s.events_dropped += sub->dropped();
+  return s;
+}
+
+}  // namespace ncd::service

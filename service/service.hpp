@@ -1,0 +1,177 @@
+// The ncd service as a library (docs/service.md): a job's lifecycle and its live pipeline,
+// without JSON, without a socket and without an event loop of its own. The owner (`ncd serve`'s
+// JSON mapping in app/service.cpp, or a test) calls the commands and poll() from one thread;
+// poll() is the one loop that drains the cycle's setpoints into the sinks, the block encoder,
+// the live block queue and the sender. The state machine is drawn at the top of service.cpp.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "comms/block_encoder.hpp"
+#include "comms/dnc_sender.hpp"
+#include "comms/line_settings.hpp"
+#include "core/geometry.hpp"
+#include "motion/cycle.hpp"
+#include "service/events.hpp"
+#include "service/live_limits.hpp"
+#include "toolpath/path.hpp"
+
+namespace ncd::service {
+
+// Where a job's setpoints go besides the encoder (the setpoints file, a test's capture). write()
+// runs on the owner's thread in poll(); commit() when the job ends done or stopped; a job in
+// error destroys its sink without commit().
+class SetpointSink {
+ public:
+  virtual ~SetpointSink() = default;
+  virtual void write(const motion::Setpoint& sp) = 0;
+  virtual void commit() = 0;
+};
+
+// The DNC link of a job that streams live.
+struct LinkSpec {
+  comms::EncoderSettings encoder;  // its line is replaced by sender.line
+  comms::SenderSettings sender;    // sender.line.device is the port
+  std::string journal;             // transfer journal file; empty: none
+};
+
+// Restart a job from a program line (docs/service.md, "Restart from a line").
+struct RestartSpec {
+  int line = 0;  // the job's path starts at the first segment opened on this source line
+  // Sent before the first live block: the modes in force at the line and the safe re-entry
+  // through the clearance plane (comms::restart_blocks).
+  std::vector<std::string> preamble;
+};
+
+// A job, checked and ready to run: what the owner made of a request.
+struct JobSpec {
+  std::string name;
+  std::shared_ptr<const toolpath::Path> path;
+  motion::JobConfig motion;
+  LiveLimitRules rules;                // LiveLimitRules::from(motion.limits) unless configured
+  std::optional<LinkSpec> link;        // none: no streaming
+  std::unique_ptr<SetpointSink> sink;  // may be null
+  bool interference_allowed = false;   // a chamfer whose checks failed, allowed by the user
+  std::optional<RestartSpec> restart;
+};
+
+struct ServiceOptions {
+  motion::ClockKind clock = motion::ClockKind::Wall;
+  bool realtime = true;
+  std::size_t ring_capacity = 8192;  // the cycle's setpoint ring
+  // The block encoder's longest block when streaming live, s, when the encoder settings give
+  // none: a block reaches the controller only when it closes.
+  double live_max_block_s = 0.5;
+  std::function<void(const std::string&)> log;  // one line for the log; may be empty
+};
+
+// A stopped job: why and where.
+struct StopReport {
+  std::string why;
+  Vec3 position_mm = Vec3::Zero();
+  double s_mm = 0.0, length_mm = 0.0;
+  int line = 0;  // source line of the segment it stopped in; 0 if none
+};
+
+// The link of a streaming job.
+struct LinkStatus {
+  std::string port, settings, last_event;
+  std::int64_t blocks_encoded = 0, chars_encoded = 0;
+  std::size_t blocks_waiting = 0;
+  bool link_holds = false;     // the sender's last word: the controller holds the line
+  bool done = false;           // the sender has finished; report is valid
+  comms::SenderReport report;  // valid when done
+};
+
+// The status snapshot (owner's thread; allocates, never touches the cycle's thread).
+struct Status {
+  State state = State::Idle;
+  HoldHolder holder = HoldHolder::None;
+  std::string job, error, realtime;
+  bool has_job_run = false;  // a cycle exists: the motion fields below are valid
+  Vec3 position_mm = Vec3::Zero();
+  double feed_mm_per_min = 0.0, progress = 0.0, t_s = 0.0, length_mm = 0.0;
+  std::optional<double> time_left_s;
+  std::int64_t overruns = 0, late_wakeups = 0, setpoints = 0;
+  double accel_max_mm_per_s2 = 0.0, jerk_max_mm_per_s3 = 0.0, feed_max_mm_per_min = 0.0;
+  double override_percent = 100.0;
+  bool interference_allowed = false;
+  LiveViolations violations;
+  std::optional<StopReport> stopped;
+  std::optional<LinkStatus> link;
+  int restart_line = 0;
+  std::uint64_t events_dropped = 0;  // summed over the subscribers
+};
+
+class Service {
+ public:
+  explicit Service(const ServiceOptions& options);
+  ~Service();  // stops any cycle and sender, joins their threads
+  Service(const Service&) = delete;
+  Service& operator=(const Service&) = delete;
+
+  // Commands. Each throws InputError naming the state when it does not apply there.
+  void submit(JobSpec job);           // idle, ready, done, stopped, error → ready
+  const std::string& start();         // ready → running; returns the real-time grant
+  void hold(HoldHolder by);           // running → holding (or a new holder while holding)
+  void resume(HoldHolder by);         // holding → running, by the holder only
+  void stop(const std::string& why);  // running, holding → a jerk-limited stop, then stopped
+  void set_override(double percent);  // running, holding; 0..200
+  // Stops any motion (a jerk-limited stop) or transfer; poll() until !busy().
+  void shutdown(const std::string& why);
+
+  // The loop: drains the setpoints, applies the link's holds, follows the sender, ends the job.
+  // Returns busy(). Never throws: an exception ends the job in error.
+  bool poll();
+  // A cycle or a sender is under way: poll again (1 ms while running, less often streaming).
+  bool busy() const;
+  State state() const { return state_; }
+  Status status() const;
+  // A new subscriber's event feed (capacity rounded up to a power of two, at least 2).
+  std::shared_ptr<Subscription> subscribe(std::size_t capacity);
+
+ private:
+  struct Live;  // the encoder, the queue and the sender thread (service.cpp)
+
+  void step();
+  void drain();
+  void finish_motion();
+  void start_stream(const Vec3& start_mm);
+  void follow_stream();
+  void fail_job(const std::string& why);
+  void end_job();
+  void set_state(State s, HoldHolder holder, const std::string& why);
+  void emit(EventKind kind, const std::string& text, double value = 0.0, double limit = 0.0,
+            std::int64_t count = 0);
+  void log(const std::string& line) const;
+  std::optional<double> time_left_s() const;
+  void require_active(const char* cmd) const;
+
+  ServiceOptions options_;
+  State state_ = State::Idle;
+  HoldHolder holder_ = HoldHolder::None;
+  JobSpec job_;
+  std::string error_, stop_why_, realtime_;
+  Vec3 start_mm_ = Vec3::Zero();
+  double moving_s_ = 0.0;
+  std::optional<double> held_time_left_s_;
+  std::unique_ptr<Live> live_;
+  State final_state_ = State::Done;
+  std::unique_ptr<motion::Cycle> cycle_;
+  std::optional<LiveLimitCheck> limits_;
+  std::int64_t setpoints_ = 0;
+  motion::Setpoint last_{};
+  double accel_max_ = 0.0, jerk_max_ = 0.0, feed_max_ = 0.0;
+  double override_percent_ = 100.0;
+  std::int64_t overruns_seen_ = 0;
+  std::uint64_t event_seq_ = 0;
+  std::vector<std::shared_ptr<Subscription>> subscribers_;
+};
+
+}  // namespace ncd::service

@@ -1,0 +1,294 @@
+// A service job streamed live to the simulated controller, in process. The controller runs on a
+// ManualClock that the test moves on, and the service's cycle on the simulated clock with a
+// 64-setpoint ring, so that the motion runs only as far as poll() drains it; the test drains it
+// only once the sender has taken every block queued so far. The controller's reception,
+// execution and injected hold are in its time. The sender, though, paces its writes by a model
+// of the wire on the wall clock (comms/dnc_sender.cpp, which takes no clock yet), so:
+//   - the controller's time is never let fall behind the wall clock: each step moves it on by
+//     5 ms, or to the wall time elapsed if that is later (a loaded machine makes the steps
+//     coarser, and the line never carries more than the sender's model allows);
+//   - before each step the test waits until the sender has read everything the controller wrote
+//     (FIONREAD on the controller's port is 0), so a DC3 is seen before time moves on;
+//   - the controller raises DC3 at 192 characters of a 4096-byte buffer: 3904 characters,
+//     0.34 s of the sender's output, instead of the 64 characters (5.6 ms) of a 256-byte one, so
+//     its thread may be kept from running that long before a batch of characters overflows it.
+// The hold test waits out the sender's xoff_timeout_s with the controller's time standing still.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "comms/block_encoder.hpp"
+#include "comms/sha256.hpp"
+#include "comms/sim_controller.hpp"
+#include "core/error.hpp"
+#include "service/service.hpp"
+#include "toolpath/path_io.hpp"
+
+namespace {
+
+using namespace ncd;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
+  "feed_mm_per_min": 1500})";
+
+class Capture : public service::SetpointSink {
+ public:
+  explicit Capture(std::vector<motion::Setpoint>& out) : out_(out) {}
+  void write(const motion::Setpoint& sp) override { out_.push_back(sp); }
+  void commit() override {}
+
+ private:
+  std::vector<motion::Setpoint>& out_;
+};
+
+comms::LineSettings line_at(const std::string& device) {
+  comms::LineSettings l;
+  l.device = device;
+  l.baud = 115200;
+  l.data_bits = 8;
+  l.parity = comms::Parity::None;
+  l.stop_bits = 1;
+  l.flow = comms::Flow::XonXoff;
+  return l;
+}
+
+class LiveLink : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("ncd_service_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (port_fd_ >= 0) ::close(port_fd_);
+    if (thread_.joinable()) {
+      sim_->request_stop();
+      thread_.join();
+    }
+    fs::remove_all(dir_);
+  }
+
+  void start_controller(const comms::SimFaults& faults) {
+    comms::SimControllerConfig c;
+    c.line = line_at((dir_ / "cnc").string());
+    c.clock = clock_;
+    c.exit_at_end = true;
+    c.seed = 1;
+    c.faults = faults;
+    c.buffer_bytes = 4096;
+    c.xoff_at = 192;
+    c.xon_at = 96;
+    sim_ = std::make_unique<comms::SimController>(c);
+    t0_ = clock_->now_s();
+    wall0_ = std::chrono::steady_clock::now();
+    // A descriptor on the controller's port that never reads: FIONREAD on it is what the sender
+    // has not read yet.
+    port_fd_ = ::open(c.line.device.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK);
+    ASSERT_GE(port_fd_, 0) << c.line.device;
+    thread_ = std::thread([this] {
+      sim_->run();
+      sim_done_ = true;
+    });
+  }
+
+  // Moves the controller's time on by dt_s and waits until its loop has run at the new time.
+  void step(double dt_s) {
+    const auto until = std::chrono::steady_clock::now() + 60s;
+    for (int unread = 1; !sim_done_;) {
+      ASSERT_EQ(::ioctl(port_fd_, FIONREAD, &unread), 0);
+      if (unread == 0) break;
+      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the sender stopped reading";
+      std::this_thread::sleep_for(100us);
+    }
+    const double wall_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
+    const double now_s = clock_->now_s() - t0_;
+    clock_->advance(std::max(dt_s, wall_s - now_s));
+    const double target = clock_->now_s() - t0_;
+    while (!sim_done_ && sim_->progress().t_s < target - 1e-12) {
+      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the controller's loop is stuck";
+      std::this_thread::sleep_for(100us);
+    }
+  }
+
+  service::JobSpec job(std::vector<motion::Setpoint>& out, double xoff_timeout_s) {
+    service::JobSpec j;
+    j.name = "cubic";
+    j.path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
+    j.rules = service::LiveLimitRules::from(j.motion.limits);
+    j.sink = std::make_unique<Capture>(out);
+    service::LinkSpec link;
+    link.sender.line = line_at((dir_ / "cnc").string());
+    link.sender.xoff_timeout_s = xoff_timeout_s;
+    link.encoder.max_block_s = 0.5;
+    j.link = link;
+    return j;
+  }
+
+  // One turn of the loop paced by the controller: the service drains the cycle only once the
+  // sender has taken every block queued so far, so the motion runs at most a ring (64 periods)
+  // and a block ahead of what the controller accepts, in the controller's time.
+  static void paced_poll(service::Service& s) {
+    const service::Status st = s.status();
+    if (!st.link || st.link->blocks_waiting == 0) s.poll();
+  }
+
+  // What the controller complained of, for a failure's message.
+  static std::string alarms_and_errors(const comms::SimLog& log) {
+    const nlohmann::json j = comms::to_json(log);
+    return "alarms " + j["alarms"].dump() + ", errors " + j["errors"].dump() + ", end executed " +
+           (log.program_end_executed ? "yes" : "no");
+  }
+
+  static service::ServiceOptions options() {
+    service::ServiceOptions o;
+    o.clock = motion::ClockKind::Simulated;
+    o.realtime = false;
+    o.ring_capacity = 64;
+    return o;
+  }
+
+  // The blocks a fresh encoder makes of the emitted setpoints (what `ncd replay --blocks`
+  // writes for them), each with its end of block: the program the controller must receive.
+  static std::string expected_program(const std::vector<motion::Setpoint>& sps,
+                                      const Vec3& start_mm) {
+    comms::EncoderSettings enc;
+    enc.max_block_s = 0.5;
+    enc.line = line_at("");
+    std::string text;
+    comms::BlockEncoder e(enc, [&](const comms::EncodedBlock& b) { text += b.text + "\n"; });
+    motion::Setpoint start;
+    start.p = start_mm;
+    e.push(start);
+    for (const auto& sp : sps) e.push(sp);
+    e.finish();
+    return text;
+  }
+
+  fs::path dir_;
+  std::shared_ptr<comms::ManualClock> clock_ = std::make_shared<comms::ManualClock>();
+  std::unique_ptr<comms::SimController> sim_;
+  std::thread thread_;
+  std::atomic<bool> sim_done_{false};
+  double t0_ = 0.0;
+  int port_fd_ = -1;
+  std::chrono::steady_clock::time_point wall0_;
+};
+
+TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
+  start_controller({});
+  service::Service s(options());
+  std::vector<motion::Setpoint> emitted;
+  s.submit(job(emitted, 600.0));
+  s.start();
+  for (int k = 0; k < 200000 && (s.busy() || !sim_done_); ++k) {
+    paced_poll(s);
+    step(0.005);
+  }
+  thread_.join();
+  ASSERT_EQ(s.state(), service::State::Done)
+      << s.status().error << "; controller: " << alarms_and_errors(sim_->log());
+  const service::Status st = s.status();
+  ASSERT_TRUE(st.link && st.link->done);
+  EXPECT_TRUE(st.link->report.completed) << st.link->report.failure;
+  const std::string program = expected_program(emitted, Vec3::Zero());
+  const std::string sha = comms::sha256_hex(program);
+  EXPECT_EQ(st.link->report.program_sha256, sha);
+  const comms::SimLog& log = sim_->log();
+  EXPECT_EQ(log.program_sha256, sha);
+  EXPECT_TRUE(log.alarms.empty());
+  EXPECT_TRUE(log.program_end_executed);
+  ASSERT_FALSE(log.moves.empty());
+  EXPECT_NEAR(log.moves.back().p[0], 100.0, 5e-4);  // the cubic's end, to the encoder's µm
+  EXPECT_NEAR(log.moves.back().p[1], 0.0, 5e-4);
+}
+
+TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
+  comms::SimFaults f;
+  f.hold_after_blocks = 4;
+  f.hold_s = 1.5;
+  start_controller(f);
+  service::Service s(options());
+  auto events = s.subscribe(4096);
+  std::vector<motion::Setpoint> emitted;
+  s.submit(job(emitted, 0.3));
+  s.start();
+  // Up to the controller's fourth block: from there it holds the line with DC3 for 1.5 s of
+  // its time.
+  for (int k = 0; k < 100000 && sim_->progress().blocks_received < 4; ++k) {
+    paced_poll(s);
+    step(0.005);
+  }
+  ASSERT_GE(sim_->progress().blocks_received, 4);
+  ASSERT_EQ(s.state(), service::State::Running);
+  // The controller's time stands still: the sender sees DC3 for longer than 0.3 s of wall time
+  // and says so; the next poll() applies the link's hold before it drains anything.
+  const auto until = std::chrono::steady_clock::now() + 60s;
+  while (!s.status().link->link_holds) {
+    ASSERT_LT(std::chrono::steady_clock::now(), until) << "the link never held the motion";
+    std::this_thread::sleep_for(1ms);
+  }
+  s.poll();
+  EXPECT_EQ(s.state(), service::State::Holding);
+  EXPECT_EQ(s.status().holder, service::HoldHolder::Link);
+  // An operator's resume does not release the link's hold.
+  EXPECT_THROW(s.resume(service::HoldHolder::Operator), InputError);
+  const std::size_t at_hold = emitted.size();
+  for (int k = 0; k < 200000 && (s.busy() || !sim_done_); ++k) {
+    if (s.state() == service::State::Holding) {
+      s.poll();  // the motion comes to rest while the link holds
+    } else {
+      paced_poll(s);
+    }
+    step(0.005);
+  }
+  thread_.join();
+  ASSERT_EQ(s.state(), service::State::Done)
+      << s.status().error << "; controller: " << alarms_and_errors(sim_->log());
+  const service::Status st = s.status();
+  ASSERT_TRUE(st.link && st.link->done);
+  EXPECT_TRUE(st.link->report.completed) << st.link->report.failure;
+  EXPECT_GE(st.link->report.xoff_timeouts, 1);
+  // The motion came to rest during the hold and went on to the end, within the limits.
+  bool rested = false;
+  for (std::size_t k = at_hold; k < emitted.size(); ++k) rested |= emitted[k].v_mm_per_s == 0.0;
+  EXPECT_TRUE(rested);
+  const motion::JobConfig c;
+  for (const auto& sp : emitted) {
+    ASSERT_LE(std::abs(sp.a_mm_per_s2), c.limits.max_accel_mm_per_s2 * (1 + 1e-9));
+    ASSERT_LE(std::abs(sp.j_mm_per_s3), c.limits.max_jerk_mm_per_s3 * (1 + 1e-9));
+  }
+  EXPECT_NEAR(emitted.back().p.x(), 100.0, 1e-9);
+  const std::string sha = comms::sha256_hex(expected_program(emitted, Vec3::Zero()));
+  EXPECT_EQ(st.link->report.program_sha256, sha);
+  EXPECT_EQ(sim_->log().program_sha256, sha);
+  EXPECT_TRUE(sim_->log().alarms.empty());
+  // The events: held by the link, then resumed by it.
+  std::vector<std::string> holds;
+  service::Event e;
+  while (events->pop(e)) {
+    if (e.kind == service::EventKind::State &&
+        (e.state == service::State::Holding || e.state == service::State::Running)) {
+      holds.push_back(std::string(service::to_string(e.state)) + "/" +
+                      service::to_string(e.holder));
+    }
+  }
+  const std::vector<std::string> want = {"running/none", "holding/link", "running/none"};
+  EXPECT_EQ(holds, want);
+}
+
+}  // namespace

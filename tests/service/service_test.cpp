@@ -1,0 +1,241 @@
+// The service library without a socket (service/service.hpp): the state machine, the holder of
+// a hold, the commands refused in the wrong state, the event feed and its drop count, and the
+// setpoints a job emits against a motion::Job stepped directly here (the slow reference: the
+// same job walked period by period with no cycle thread, no ring and no service).
+#include "service/service.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "toolpath/path_io.hpp"
+
+namespace {
+
+using namespace ncd;
+using service::EventKind;
+using service::HoldHolder;
+using service::State;
+
+const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
+
+std::shared_ptr<const toolpath::Path> cubic() {
+  return std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
+}
+
+// Keeps every setpoint it is given; says whether it was committed.
+class Capture : public service::SetpointSink {
+ public:
+  Capture(std::vector<motion::Setpoint>& out, bool& committed) : out_(out), committed_(committed) {}
+  void write(const motion::Setpoint& sp) override { out_.push_back(sp); }
+  void commit() override { committed_ = true; }
+
+ private:
+  std::vector<motion::Setpoint>& out_;
+  bool& committed_;
+};
+
+service::JobSpec job_of(std::shared_ptr<const toolpath::Path> path,
+                        std::vector<motion::Setpoint>& out, bool& committed) {
+  service::JobSpec j;
+  j.name = "cubic";
+  j.path = std::move(path);
+  j.rules = service::LiveLimitRules::from(j.motion.limits);
+  j.sink = std::make_unique<Capture>(out, committed);
+  return j;
+}
+
+service::ServiceOptions simulated(std::size_t ring = 8192) {
+  service::ServiceOptions o;
+  o.clock = motion::ClockKind::Simulated;
+  o.realtime = false;
+  o.ring_capacity = ring;
+  return o;
+}
+
+// The reference: the job stepped here, every setpoint up to the end.
+std::vector<motion::Setpoint> reference(const toolpath::Path& path, const motion::JobConfig& c) {
+  motion::Job job(path, c);
+  std::vector<motion::Setpoint> out;
+  for (;;) {
+    job.prepare();
+    const motion::Setpoint sp = job.step();
+    EXPECT_EQ(sp.fault, motion::StepFault::None);
+    out.push_back(sp);
+    if (sp.done || out.size() > 1000000) break;
+  }
+  return out;
+}
+
+// Polls until the service is no longer busy (at most `polls` times).
+void run_out(service::Service& s, int polls = 10000000) {
+  while (s.poll() && --polls > 0) {
+  }
+  ASSERT_GT(polls, 0) << "the job never ended";
+}
+
+std::vector<service::Event> drain(service::Subscription& sub) {
+  std::vector<service::Event> out;
+  service::Event e;
+  while (sub.pop(e)) out.push_back(e);
+  return out;
+}
+
+TEST(ServiceStates, AJobRunsFromIdleToDoneAndEmitsTheReferenceSetpoints) {
+  service::Service s(simulated());
+  auto feed = s.subscribe(256);
+  EXPECT_EQ(s.state(), State::Idle);
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  auto path = cubic();
+  s.submit(job_of(path, got, committed));
+  EXPECT_EQ(s.state(), State::Ready);
+  s.start();
+  EXPECT_EQ(s.state(), State::Running);
+  run_out(s);
+  EXPECT_EQ(s.state(), State::Done);
+  EXPECT_TRUE(committed);
+  const std::vector<motion::Setpoint> ref = reference(*path, motion::JobConfig{});
+  ASSERT_EQ(got.size(), ref.size());
+  for (std::size_t k = 0; k < ref.size(); ++k) {
+    ASSERT_EQ(got[k].p, ref[k].p) << "setpoint " << k;
+    ASSERT_EQ(got[k].t_s, ref[k].t_s) << "setpoint " << k;
+  }
+  EXPECT_NEAR(got.back().p.x(), 100.0, 1e-9);  // the last control point of the clamped cubic
+  const service::Status st = s.status();
+  EXPECT_EQ(st.setpoints, static_cast<std::int64_t>(ref.size()));
+  EXPECT_DOUBLE_EQ(st.progress, 1.0);
+  EXPECT_EQ(st.violations.total(), 0);
+  // The events, in order, numbered without a gap.
+  const auto ev = drain(*feed);
+  std::vector<std::pair<EventKind, State>> seen;
+  for (std::size_t k = 0; k < ev.size(); ++k) {
+    EXPECT_EQ(ev[k].seq, k + 1);
+    if (ev[k].kind == EventKind::State || ev[k].kind == EventKind::Job) {
+      seen.emplace_back(ev[k].kind, ev[k].state);
+    }
+  }
+  const std::vector<std::pair<EventKind, State>> want = {
+      {EventKind::State, State::Ready},   {EventKind::Job, State::Ready},
+      {EventKind::State, State::Running}, {EventKind::Job, State::Running},
+      {EventKind::State, State::Done},    {EventKind::Job, State::Done}};
+  EXPECT_EQ(seen, want);
+  EXPECT_EQ(feed->dropped(), 0u);
+}
+
+TEST(ServiceStates, CommandsInTheWrongStateAreRefusedNamingIt) {
+  service::Service s(simulated(64));
+  const auto refused = [](auto&& f, const std::string& part) {
+    try {
+      f();
+      ADD_FAILURE() << "accepted; expected an error with \"" << part << "\"";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  refused([&] { s.start(); }, "state idle");
+  refused([&] { s.hold(HoldHolder::Operator); }, "state idle");
+  refused([&] { s.resume(HoldHolder::Operator); }, "state idle");
+  refused([&] { s.stop("x"); }, "state idle");
+  refused([&] { s.set_override(50); }, "state idle");
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(cubic(), got, committed));
+  s.start();
+  refused([&] { s.submit(job_of(cubic(), got, committed)); }, "a job is running");
+  refused([&] { s.set_override(250); }, "outside 0..200");
+  refused([&] { s.set_override(-1); }, "outside 0..200");
+  s.hold(HoldHolder::Operator);
+  EXPECT_EQ(s.status().holder, HoldHolder::Operator);
+  // Only the holder releases a hold.
+  refused([&] { s.resume(HoldHolder::Link); }, "held by the operator");
+  s.resume(HoldHolder::Operator);
+  EXPECT_EQ(s.state(), State::Running);
+  EXPECT_EQ(s.status().holder, HoldHolder::None);
+  run_out(s);
+  EXPECT_EQ(s.state(), State::Done);
+  refused([&] { s.start(); }, "state done");
+}
+
+TEST(ServiceStates, AnOperatorHoldComesToRestOnThePathAndResumesWithinTheLimits) {
+  // A ring of 64 setpoints: the cycle (simulated clock) runs only as far ahead as poll() drains.
+  service::Service s(simulated(64));
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(cubic(), got, committed));
+  s.start();
+  while (got.size() < 100) s.poll();
+  s.hold(HoldHolder::Operator);
+  for (int k = 0;
+       k < 100000 && !(s.status().feed_mm_per_min == 0.0 && got.back().v_mm_per_s == 0.0); ++k) {
+    s.poll();
+  }
+  ASSERT_EQ(got.back().v_mm_per_s, 0.0);
+  const Vec3 rest = got.back().p;
+  const std::size_t n = got.size();
+  for (int k = 0; k < 200; ++k) s.poll();
+  for (std::size_t k = n; k < got.size(); ++k) EXPECT_EQ(got[k].p, rest);  // at rest, held
+  EXPECT_EQ(s.state(), State::Holding);
+  EXPECT_TRUE(s.status().time_left_s.has_value());
+  s.resume(HoldHolder::Operator);
+  run_out(s);
+  EXPECT_EQ(s.state(), State::Done);
+  const motion::JobConfig c;
+  for (const auto& sp : got) {
+    ASSERT_LE(std::abs(sp.a_mm_per_s2), c.limits.max_accel_mm_per_s2 * (1 + 1e-9));
+    ASSERT_LE(std::abs(sp.j_mm_per_s3), c.limits.max_jerk_mm_per_s3 * (1 + 1e-9));
+  }
+  EXPECT_NEAR(got.back().p.x(), 100.0, 1e-9);
+}
+
+TEST(ServiceStates, StopEndsAsStoppedWithWhyAndWhereAndCommitsTheSetpoints) {
+  service::Service s(simulated(64));
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(cubic(), got, committed));
+  s.start();
+  while (got.size() < 50) s.poll();
+  s.stop("the operator pressed stop");
+  run_out(s);
+  EXPECT_EQ(s.state(), State::Stopped);
+  EXPECT_TRUE(committed);
+  const service::Status st = s.status();
+  ASSERT_TRUE(st.stopped.has_value());
+  EXPECT_EQ(st.stopped->why, "the operator pressed stop");
+  EXPECT_EQ(st.stopped->position_mm, got.back().p);
+  EXPECT_EQ(got.back().v_mm_per_s, 0.0);
+  EXPECT_LT(st.stopped->s_mm, st.stopped->length_mm);
+  // A new job may follow.
+  std::vector<motion::Setpoint> again;
+  s.submit(job_of(cubic(), again, committed));
+  EXPECT_EQ(s.state(), State::Ready);
+}
+
+TEST(ServiceEvents, ALaggingSubscriberLosesEventsCountedNeverBlocksTheLoop) {
+  service::Service s(simulated());
+  auto slow = s.subscribe(2);  // never read until the end
+  auto fast = s.subscribe(1024);
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(cubic(), got, committed));
+  s.start();
+  run_out(s);
+  const auto all = drain(*fast);
+  const auto kept = drain(*slow);
+  ASSERT_GE(all.size(), 6u);
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(slow->dropped(), all.size() - 2);
+  EXPECT_EQ(kept[0].seq, 1u);  // the first two were kept, the rest dropped
+  EXPECT_EQ(kept[1].seq, 2u);
+  EXPECT_EQ(s.status().events_dropped, all.size() - 2);
+  // A closed subscriber is forgotten.
+  fast->close();
+  slow->close();
+  s.submit(job_of(cubic(), got, committed));
+  EXPECT_EQ(s.status().events_dropped, 0u);
+}
+
+}  // namespace
