@@ -9,6 +9,7 @@
 
 #include "app/commands.hpp"
 #include "app/service.hpp"
+#include "app/web_server.hpp"
 #include "comms/control_server.hpp"
 
 namespace ncd::app {
@@ -19,8 +20,9 @@ struct ServeArgs {
 };
 
 int run_serve(const ServeArgs& a) {
-  ServiceConfig cfg;
-  if (!a.config.empty()) cfg = load_service_config(a.config);
+  ServeConfig file;  // the service's keys and the dashboard's [http]
+  if (!a.config.empty()) file = load_serve_config(a.config);
+  ServiceConfig& cfg = file.service;
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
   Service service(io, cfg);
@@ -33,6 +35,11 @@ int run_serve(const ServeArgs& a) {
             << " (machine: " << cfg.machine.source
             << ", clock: " << (cfg.clock == motion::ClockKind::Wall ? "wall" : "simulated") << ")"
             << std::endl;
+  std::unique_ptr<WebServer> web;
+  if (file.http.listen) {
+    web = std::make_unique<WebServer>(io, file.http, service, cfg.token, cfg.machine.program);
+    std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
+  }
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
@@ -40,6 +47,7 @@ int run_serve(const ServeArgs& a) {
               << std::endl;
     service.shutdown([&] {
       server.close();
+      if (web) web->close();
       io.stop();
     });
   });
@@ -66,7 +74,8 @@ void register_serve(CLI::App& app, Runner& run) {
       "Run as a service: newline-delimited JSON requests on a control socket (see README). "
       "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
   c->add_option("--config", a->config,
-                "service config (TOML): listen, token, machine, clock, realtime; see "
+                "service config (TOML): listen, token, machine, clock, realtime, [http] (the web "
+                "dashboard); see "
                 "config/serve.example.toml");
   c->add_option(
       "--listen", a->listen,
