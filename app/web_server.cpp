@@ -420,7 +420,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
       std::make_shared<WsSession<Stream>>(state_, std::move(stream_))->run(std::move(request));
       return;
     }
-    if (request.method() != http::verb::get && request.method() != http::verb::head) {
+    if (request.method() != http::verb::get) {
       return respond(http::status::method_not_allowed, "text/plain",
                      "only GET is served here; commands go over the WebSocket at /ws\n",
                      request.keep_alive());

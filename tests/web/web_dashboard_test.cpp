@@ -13,10 +13,13 @@
 #include <unistd.h>
 
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/core/detail/base64.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 #include <boost/beast/websocket.hpp>
+#include <boost/beast/websocket/ssl.hpp>
 #include <chrono>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -433,6 +436,28 @@ TEST_F(WebDashboard, TlsWhenCertificateAndKeyAreGiven) {
                             .c_str()),
             0);
   EXPECT_EQ(slurp(out), slurp(fs::path(NCD_SOURCE_DIR) / "web" / "index.html"));
+  // The WebSocket over TLS (wss), the certificate checked against the one generated here.
+  {
+    asio::io_context io;
+    asio::ssl::context tls(asio::ssl::context::tls_client);
+    tls.load_verify_file(cert);
+    tls.set_verify_mode(asio::ssl::verify_peer);
+    websocket::stream<beast::ssl_stream<tcp::socket>> wss(io, tls);
+    beast::get_lowest_layer(wss).connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    wss.next_layer().handshake(asio::ssl::stream_base::client);
+    wss.handshake("127.0.0.1:" + std::to_string(port), "/ws");
+    wss.text(true);
+    wss.write(asio::buffer(json{{"cmd", "status"}}.dump()));
+    bool replied = false, status = false;
+    for (int i = 0; i < 10 && !(replied && status); ++i) {
+      beast::flat_buffer buffer;
+      wss.read(buffer);
+      const json m = json::parse(beast::buffers_to_string(buffer.data()));
+      replied = replied || (m.contains("reply") && m["reply"]["state"] == "idle");
+      status = status || (m.contains("status") && m["status"]["state"] == "idle");
+    }
+    EXPECT_TRUE(replied && status);
+  }
   // Plain HTTP on the TLS port gets no page.
   const int plain = std::system(
       (curl + " -s -m 5 -o /dev/null http://127.0.0.1:" + std::to_string(port) + "/").c_str());
