@@ -122,7 +122,8 @@ struct WebServer::State {
   toolpath::InterpretOptions ngc;
   std::filesystem::path upload_dir;  // private (0700), removed on close
   int uploads = 0;
-  Json program;  // the last programmed path known, with its "job"
+  std::filesystem::path last_upload;  // the file of the last upload submitted
+  Json program;                       // the last programmed path known, with its "job"
   std::uint64_t program_version = 0;
   bool closed = false;
 
@@ -214,8 +215,15 @@ struct WebServer::State {
       submit["token"] = *token;
     }
     Json reply = handle(submit);
-    reply["file"] = file.string();
-    if (reply.value("ok", false)) note_program(job, reply.value("job", std::string()));
+    // The service has read the file at submit: keep only the current job's upload.
+    std::error_code ignored;
+    if (reply.value("ok", false)) {
+      note_program(job, reply.value("job", std::string()));
+      if (!last_upload.empty()) std::filesystem::remove(last_upload, ignored);
+      last_upload = file;
+    } else {
+      std::filesystem::remove(file, ignored);
+    }
     return reply;
   }
 

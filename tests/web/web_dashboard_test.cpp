@@ -107,6 +107,7 @@ class WsClient {
     }
     json m = json::parse(beast::buffers_to_string(buffer_.data()));
     buffer_.consume(buffer_.size());
+    if (m.contains("program")) last_program_ = m["program"];
     return m;
   }
   // The next message with `key` ("reply", "status", "program"), skipping others.
@@ -125,6 +126,16 @@ class WsClient {
     return next_with("reply");
   }
   beast::error_code closed() const { return closed_; }
+  // The programmed path sent for `job` (messages read meanwhile are skipped).
+  json program_of(const std::string& job, double timeout_s = 20.0) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (last_program_.value("job", std::string()) != job &&
+           std::chrono::steady_clock::now() < end) {
+      next(0.1);
+    }
+    EXPECT_EQ(last_program_.value("job", std::string()), job);
+    return last_program_;
+  }
 
  private:
   asio::io_context io_;
@@ -133,6 +144,7 @@ class WsClient {
   beast::flat_buffer buffer_;
   bool reading_ = false;
   std::optional<beast::error_code> result_;
+  json last_program_ = json::object();
 };
 
 // The control socket client (a Unix socket).
@@ -326,8 +338,19 @@ TEST_F(WebDashboard, UploadSubmitsAndSendsTheProgrammedPath) {
   const json r = ws.request({{"cmd", "upload"}, {"name", "slow part.ngc"}, {"text", kProgram}});
   ASSERT_TRUE(r.value("ok", false)) << r.dump();
   EXPECT_EQ(r["state"], "ready");
-  const json program = ws.next_with("program");
-  EXPECT_EQ(program["job"], r["job"]);
+  EXPECT_EQ(slurp(r["job"].get<std::string>()), kProgram);  // the upload, byte for byte
+  // A second upload replaces the first's file; a refused one leaves none.
+  const json r2 = ws.request({{"cmd", "upload"}, {"name", "again.ngc"}, {"text", kProgram}});
+  ASSERT_TRUE(r2.value("ok", false)) << r2.dump();
+  EXPECT_FALSE(fs::exists(r["job"].get<std::string>()));
+  EXPECT_TRUE(fs::exists(r2["job"].get<std::string>()));
+  const json bad = ws.request({{"cmd", "upload"}, {"name", "bad.ngc"}, {"text", "G1 X1 F-5\n"}});
+  EXPECT_FALSE(bad.value("ok", true));
+  EXPECT_EQ(
+      std::distance(fs::directory_iterator(fs::path(r2["job"].get<std::string>()).parent_path()),
+                    fs::directory_iterator()),
+      1);
+  const json program = ws.program_of(r2["job"].get<std::string>());
   EXPECT_EQ(program["programmed_feed_max_mm_per_min"], 300.0);
   // The preview passes through the program's corners (a closed form: the G-code's own points).
   const auto has = [&](double x, double y, double z) {
