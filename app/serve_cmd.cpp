@@ -9,6 +9,7 @@
 
 #include "app/commands.hpp"
 #include "app/service.hpp"
+#include "app/web_server.hpp"
 #include "comms/control_server.hpp"
 #include "core/input_file.hpp"
 #include "fleet/mqtt_bridge.hpp"
@@ -21,14 +22,15 @@ struct ServeArgs {
 };
 
 int run_serve(const ServeArgs& a) {
-  ServiceConfig cfg;
+  ServeConfig file;                       // the service's keys and the dashboard's [http]
   std::optional<fleet::MqttConfig> mqtt;  // [mqtt]: the fleet's broker (docs/fleet-mqtt.md)
   if (!a.config.empty()) {
     fleet::ServeTomlSplit split =
         fleet::split_mqtt_config(read_input_file(a.config, "service config, --config"), a.config);
-    cfg = parse_service_config(split.service_text, a.config);
+    file = parse_serve_config(split.service_text, a.config);
     mqtt = std::move(split.mqtt);
   }
+  ServiceConfig& cfg = file.service;
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
   Service service(io, cfg);
@@ -48,6 +50,11 @@ int run_serve(const ServeArgs& a) {
         [&service](const nlohmann::json& request) { return service.handle(request); }, cfg.token);
     bridge->start();
   }
+  std::unique_ptr<WebServer> web;
+  if (file.http.listen) {
+    web = std::make_unique<WebServer>(io, file.http, service, cfg.token, cfg.machine.program);
+    std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
+  }
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
@@ -55,6 +62,7 @@ int run_serve(const ServeArgs& a) {
               << std::endl;
     service.shutdown([&] {
       server.close();
+      if (web) web->close();
       io.stop();
     });
   });
@@ -81,7 +89,8 @@ void register_serve(CLI::App& app, Runner& run) {
       "Run as a service: newline-delimited JSON requests on a control socket (see README). "
       "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
   c->add_option("--config", a->config,
-                "service config (TOML): listen, token, machine, clock, realtime, [mqtt]; see "
+                "service config (TOML): listen, token, machine, clock, realtime, [live_limits], "
+                "[http] (the web dashboard), [mqtt] (the fleet's broker); see "
                 "config/serve.example.toml");
   c->add_option(
       "--listen", a->listen,

@@ -8,6 +8,7 @@ pkgs=(build-essential cmake ninja-build clang-format pkg-config
       zlib1g-dev                    # zlib: the PNG writer of ncd simulate
       libpaho-mqttpp-dev libpaho-mqtt-dev mosquitto mosquitto-clients  # MQTT: ncd serve [mqtt], tests/fleet
       clang-14 libclang-rt-14-dev   # clang-14, libclang-rt: the libFuzzer harnesses (make fuzz)
+      chromium chromium-driver      # the web dashboard's browser test (tests/web)
       "$@")                         # more packages a caller asks for (scripts/install-judges.sh)
 missing=()
 for p in "${pkgs[@]}"; do

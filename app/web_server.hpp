@@ -1,0 +1,74 @@
+// The web dashboard of `ncd serve` (docs/web-dashboard.md): an HTTP server (Boost.Beast) on the
+// service's own io_context that serves the page (index.html, app.js, style.css, embedded in the
+// binary or read from a directory) and a WebSocket at /ws. Over the WebSocket the page sends
+// the socket protocol's requests, which take the same checks (comms::check_request: the token)
+// and the same comms::ControlHandler as the control socket; it receives status snapshots at a
+// set rate. Nothing here runs on the cycle thread.
+#pragma once
+
+#include <boost/asio/io_context.hpp>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "app/service.hpp"
+#include "comms/control_server.hpp"
+#include "toolpath/ngc_interpreter.hpp"
+
+namespace ncd::app {
+
+// The [http] table of the serve config. No table, or no listen: no web server.
+struct HttpConfig {
+  std::optional<std::string> listen;  // "tcp:HOST:PORT"; loopback unless a token is set
+  std::string certificate, key;       // PEM files: TLS (https, wss) when both are given
+  std::string assets;                 // a directory with index.html, app.js, style.css
+  double status_hz = 10.0;            // status snapshots per second to each page
+};
+
+// Limits of the [http] keys and of the page's messages (docs/web-dashboard.md).
+struct HttpLimits {
+  static constexpr double kMinStatusHz = 1.0;
+  static constexpr double kMaxStatusHz = 50.0;
+  static constexpr std::size_t kMaxMessageBytes = std::size_t{8} << 20;  // a WebSocket message
+  static constexpr std::size_t kMaxUploadNameBytes = 128;
+  static constexpr std::size_t kMaxPreviewPoints = 20000;  // of the programmed path sent
+};
+
+// The serve config with its [http] table: the service's keys go to parse_service_config.
+struct ServeConfig {
+  ServiceConfig service;
+  HttpConfig http;
+};
+// Throws InputError naming the file, the key, the value and the accepted values.
+ServeConfig parse_serve_config(const std::string& text, const std::string& name);
+ServeConfig load_serve_config(const std::string& path);
+
+// The programmed path of a path file as a polyline for the page: {"points": [[x,y,z], ...]},
+// NURBS sampled, at most HttpLimits::kMaxPreviewPoints points. Throws InputError.
+nlohmann::json path_preview(const std::string& file, const toolpath::InterpretOptions& ngc);
+
+class WebServer {
+ public:
+  // Binds and listens at once. Throws InputError for an address that is not tcp:, a
+  // non-loopback address without a token, unreadable TLS files, a port that cannot be bound.
+  WebServer(boost::asio::io_context& io, const HttpConfig& config, comms::ControlHandler& handler,
+            const std::optional<std::string>& token, const toolpath::InterpretOptions& ngc);
+  ~WebServer();
+  WebServer(const WebServer&) = delete;
+  WebServer& operator=(const WebServer&) = delete;
+
+  std::uint16_t port() const { return port_; }
+  // "http://127.0.0.1:PORT/" (https with TLS).
+  std::string url() const;
+  // Stops accepting; open pages are closed at their next status tick. Idempotent.
+  void close();
+
+  struct State;
+
+ private:
+  std::shared_ptr<State> state_;
+  std::uint16_t port_ = 0;
+};
+
+}  // namespace ncd::app

@@ -1,0 +1,648 @@
+// The web dashboard of `ncd serve` (docs/web-dashboard.md) against a real service process: the
+// page and its assets as in web/, the WebSocket's answers to bad messages (error replies, the
+// service goes on), the token and loopback rules, TLS, and a real headless Chromium driven
+// through chromedriver's W3C WebDriver protocol that submits, starts and holds a job from the
+// page and shows what the control socket reports.
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/core/detail/base64.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <boost/beast/websocket.hpp>
+#include <boost/beast/websocket/ssl.hpp>
+#include <chrono>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <thread>
+
+#include "tests/app/cli_fixture.hpp"
+#include "tests/common/process.hpp"
+
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using ncd::test::Cli;
+using ncd::test::slurp;
+using nlohmann::json;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+// A request and reply over HTTP/1.1 on 127.0.0.1:port; the status code and the body.
+std::pair<int, std::string> http_request(std::uint16_t port, http::verb verb,
+                                         const std::string& target, const std::string& body = "",
+                                         const std::string& origin = "") {
+  asio::io_context io;
+  beast::tcp_stream stream(io);
+  stream.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+  http::request<http::string_body> req{verb, target, 11};
+  req.set(http::field::host, "127.0.0.1:" + std::to_string(port));
+  if (!origin.empty()) req.set(http::field::origin, origin);
+  if (!body.empty()) {
+    req.set(http::field::content_type, "application/json");
+    req.body() = body;
+  }
+  req.prepare_payload();
+  http::write(stream, req);
+  beast::flat_buffer buffer;
+  http::response_parser<http::string_body> parser;
+  parser.body_limit(64 << 20);
+  http::read(stream, buffer, parser);
+  return {static_cast<int>(parser.get().result_int()), parser.get().body()};
+}
+
+// A WebSocket client of the dashboard with read time limits.
+class WsClient {
+ public:
+  WsClient(std::uint16_t port, const std::string& origin = "") : ws_(io_) {
+    ws_.next_layer().connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    if (!origin.empty()) {
+      ws_.set_option(websocket::stream_base::decorator(
+          [origin](websocket::request_type& r) { r.set(http::field::origin, origin); }));
+    }
+    ws_.read_message_max(64 << 20);
+    ws_.handshake("127.0.0.1:" + std::to_string(port), "/ws");
+  }
+  // Sends one message; false when the server has closed the connection meanwhile.
+  bool send(const std::string& text, bool binary = false) {
+    ws_.binary(binary);
+    beast::error_code ec;
+    ws_.write(asio::buffer(text), ec);
+    if (ec) closed_ = ec;
+    return !ec;
+  }
+  // The next message within timeout_s; none after it (the read stays pending for the next
+  // call: a cancelled read would end the WebSocket), or when the server closed.
+  std::optional<json> next(double timeout_s = 20.0) {
+    if (!reading_) {
+      reading_ = true;
+      result_.reset();
+      ws_.async_read(buffer_, [this](const beast::error_code& ec, std::size_t) { result_ = ec; });
+    }
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    io_.restart();
+    while (!result_ && std::chrono::steady_clock::now() < end) {
+      io_.run_one_for(std::chrono::duration_cast<std::chrono::nanoseconds>(
+          end - std::chrono::steady_clock::now()));
+    }
+    if (!result_) return std::nullopt;
+    reading_ = false;
+    if (*result_) {
+      closed_ = *result_;
+      return std::nullopt;
+    }
+    json m = json::parse(beast::buffers_to_string(buffer_.data()));
+    buffer_.consume(buffer_.size());
+    if (m.contains("program")) last_program_ = m["program"];
+    return m;
+  }
+  // The next message with `key` ("reply", "status", "program"), skipping others.
+  json next_with(const std::string& key, double timeout_s = 20.0) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      const auto m = next(timeout_s);
+      if (!m) break;
+      if (m->contains(key)) return (*m)[key];
+    }
+    ADD_FAILURE() << "no message with \"" << key << "\"";
+    return json::object();
+  }
+  json request(const json& req) {
+    send(req.dump());
+    return next_with("reply");
+  }
+  beast::error_code closed() const { return closed_; }
+  // The programmed path sent for `job` (messages read meanwhile are skipped).
+  json program_of(const std::string& job, double timeout_s = 20.0) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (last_program_.value("job", std::string()) != job &&
+           std::chrono::steady_clock::now() < end) {
+      next(0.1);
+    }
+    EXPECT_EQ(last_program_.value("job", std::string()), job);
+    return last_program_;
+  }
+
+ private:
+  asio::io_context io_;
+  websocket::stream<tcp::socket> ws_;
+  beast::error_code closed_;
+  beast::flat_buffer buffer_;
+  bool reading_ = false;
+  std::optional<beast::error_code> result_;
+  json last_program_ = json::object();
+};
+
+// The control socket client (a Unix socket).
+class SocketClient {
+ public:
+  explicit SocketClient(const std::string& path) {
+    fd_ = socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+    for (int i = 0; i < 400; ++i) {
+      if (connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) return;
+      std::this_thread::sleep_for(25ms);
+    }
+    ADD_FAILURE() << "cannot connect to " << path;
+  }
+  ~SocketClient() { close(fd_); }
+  json request(const json& req) {
+    const std::string s = req.dump() + "\n";
+    EXPECT_EQ(write(fd_, s.data(), s.size()), static_cast<ssize_t>(s.size()));
+    for (;;) {
+      const auto nl = buf_.find('\n');
+      if (nl != std::string::npos) {
+        const std::string line = buf_.substr(0, nl);
+        buf_.erase(0, nl + 1);
+        return json::parse(line);
+      }
+      pollfd p{fd_, POLLIN, 0};
+      if (poll(&p, 1, 10000) <= 0) return json{{"ok", false}, {"error", "no reply"}};
+      char tmp[4096];
+      const ssize_t n = read(fd_, tmp, sizeof tmp);
+      if (n <= 0) return json{{"ok", false}, {"error", "closed"}};
+      buf_.append(tmp, static_cast<std::size_t>(n));
+    }
+  }
+
+ private:
+  int fd_ = -1;
+  std::string buf_;
+};
+
+// A slow program (5 mm/s over about 110 mm): a job that is still moving when the page holds it.
+const char* kProgram =
+    "G21 G90 G17\nG0 X0 Y0 Z5\nG1 Z0 F200\nG1 X30 Y0 F300\nG2 X30 Y20 I0 J10\nG1 X0 Y20\n"
+    "G1 X0 Y0 Z-1\nM2\n";
+
+// A free TCP port on loopback (the kernel's choice, released at once).
+std::uint16_t free_port() {
+  asio::io_context io;
+  tcp::acceptor a(io, tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
+  return a.local_endpoint().port();
+}
+
+// The first executable of `names` found on PATH; empty if none.
+std::string find_program(std::initializer_list<const char*> names) {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "/usr/bin");
+  std::vector<std::string> list;
+  for (std::string d; std::getline(dirs, d, ':');) list.push_back(d);
+  for (const char* name : names) {
+    for (const auto& d : list) {
+      const fs::path p = fs::path(d) / name;
+      if (::access(p.c_str(), X_OK) == 0) return p.string();
+    }
+  }
+  return "";
+}
+
+class WebDashboard : public Cli {
+ protected:
+  // Starts `ncd serve` with [http] on a kernel-chosen port; returns the dashboard's port (0 if
+  // it did not come up within 30 s).
+  std::uint16_t launch(const std::string& http, const std::string& extra = "",
+                       const std::string& clock = "simulated") {
+    socket_ = (dir_ / "ncd.sock").string();
+    const std::string config = write(
+        "serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n" + extra + "[http]\n" + http);
+    err_ = dir_ / "serve.err";
+    pid_ = fork();
+    if (pid_ == 0) {
+      freopen(err_.c_str(), "w", stderr);
+      execl(NCD_EXE, NCD_EXE, "serve", "--config", config.c_str(), "--listen",
+            ("unix:" + socket_).c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const std::regex re("dashboard on https?://[^:]+:([0-9]+)/");
+    for (int i = 0; i < 3000; ++i) {
+      std::smatch m;
+      const std::string log = slurp(err_);
+      if (std::regex_search(log, m, re)) {
+        return static_cast<std::uint16_t>(std::stoi(m[1]));
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    ADD_FAILURE() << "the dashboard did not start: " << slurp(err_);
+    return 0;
+  }
+  int terminate() {
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  void TearDown() override {
+    if (pid_ > 0) terminate();
+    Cli::TearDown();
+  }
+
+  std::string socket_;
+  fs::path err_;
+  pid_t pid_ = -1;
+};
+
+TEST_F(WebDashboard, ServesThePageOfTheRepository) {
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\n");
+  ASSERT_NE(port, 0);
+  for (const char* name : {"index.html", "app.js", "style.css"}) {
+    const auto [code, body] = http_request(port, http::verb::get, std::string("/") + name);
+    EXPECT_EQ(code, 200) << name;
+    EXPECT_EQ(body, slurp(fs::path(NCD_SOURCE_DIR) / "web" / name)) << name;  // embedded as is
+  }
+  EXPECT_EQ(http_request(port, http::verb::get, "/").second,
+            slurp(fs::path(NCD_SOURCE_DIR) / "web" / "index.html"));
+  EXPECT_EQ(http_request(port, http::verb::get, "/../serve.toml").first, 404);
+  EXPECT_EQ(http_request(port, http::verb::get, "/nothing").first, 404);
+  EXPECT_EQ(http_request(port, http::verb::post, "/", "{}").first, 405);
+  EXPECT_EQ(terminate(), 0);
+}
+
+TEST_F(WebDashboard, AssetsFromAnInstalledDirectory) {
+  fs::create_directories(dir_ / "assets");
+  std::ofstream(dir_ / "assets" / "index.html") << "<p>installed</p>";
+  const std::uint16_t port =
+      launch("listen = \"tcp:127.0.0.1:0\"\nassets = \"" + (dir_ / "assets").string() + "\"\n");
+  ASSERT_NE(port, 0);
+  EXPECT_EQ(http_request(port, http::verb::get, "/").second, "<p>installed</p>");
+  const auto [code, body] = http_request(port, http::verb::get, "/app.js");
+  EXPECT_EQ(code, 500);  // named as missing, not served from elsewhere
+  EXPECT_NE(body.find("app.js"), std::string::npos) << body;
+}
+
+TEST_F(WebDashboard, WebSocketAnswersBadMessagesAndGoesOn) {
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\n");
+  ASSERT_NE(port, 0);
+  WsClient ws(port);
+  const std::vector<std::string> bad = {
+      "{not json",
+      "[1,2]",
+      "{\"cmd\":3}",
+      "{\"cmd\":\"fly\"}",
+      "{\"cmd\":\"override\",\"percent\":\"fast\"}",
+      "{\"cmd\":\"subscribe\",\"hz\":1e9}",
+      "{\"cmd\":\"upload\",\"name\":\"part.ngc\"}",
+      "{\"cmd\":\"upload\",\"name\":\"../../noextension\",\"text\":\"G0 X1\"}",
+      "{\"cmd\":\"upload\",\"name\":\"part.ngc\",\"text\":\"G1 X10 F-5\\n\"}",
+      "{\"cmd\":\"upload\",\"name\":\"part.json\",\"text\":\"{\\\"nurbs\\\": 3}\"}",
+      "{\"cmd\":\"upload\",\"name\":\"p.ngc\",\"text\":\"G0 X1\",\"colour\":1}",
+      "{\"cmd\":\"start\"}",
+      "{\"cmd\":\"hold\"}",
+      std::string(100, '{')};
+  for (const std::string& m : bad) {
+    ws.send(m);
+    const json r = ws.next_with("reply");
+    EXPECT_EQ(r.value("ok", true), false) << m << " → " << r.dump();
+    EXPECT_FALSE(r.value("error", std::string()).empty()) << m;
+  }
+  ws.send("\x01\x02", true);  // a binary frame
+  EXPECT_EQ(ws.next_with("reply").value("ok", true), false);
+  // The same checks as the socket: the socket's reply to the same bad request.
+  SocketClient sock(socket_);
+  EXPECT_EQ(ws.request({{"cmd", "fly"}})["error"], sock.request({{"cmd", "fly"}})["error"]);
+  // Status flows at the configured rate and agrees with the socket.
+  const json st = ws.next_with("status");
+  EXPECT_EQ(st["state"], sock.request({{"cmd", "status"}})["state"]);
+  // A message over the limit closes that WebSocket (1009), not the service.
+  ws.send(std::string(9u << 20, ' '));
+  for (int i = 0; i < 100 && ws.next(5.0); ++i) {
+  }
+  EXPECT_TRUE(ws.closed()) << "the oversized message did not close the WebSocket";
+  WsClient again(port);
+  EXPECT_TRUE(again.request({{"cmd", "status"}}).value("ok", false));
+  EXPECT_TRUE(sock.request({{"cmd", "status"}}).value("ok", false));
+  EXPECT_EQ(terminate(), 0);
+}
+
+TEST_F(WebDashboard, UploadSubmitsAndSendsTheProgrammedPath) {
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n");
+  ASSERT_NE(port, 0);
+  WsClient ws(port);
+  const json r = ws.request({{"cmd", "upload"}, {"name", "slow part.ngc"}, {"text", kProgram}});
+  ASSERT_TRUE(r.value("ok", false)) << r.dump();
+  EXPECT_EQ(r["state"], "ready");
+  EXPECT_EQ(slurp(r["job"].get<std::string>()), kProgram);  // the upload, byte for byte
+  // A second upload replaces the first's file; a refused one leaves none.
+  const json r2 = ws.request({{"cmd", "upload"}, {"name", "again.ngc"}, {"text", kProgram}});
+  ASSERT_TRUE(r2.value("ok", false)) << r2.dump();
+  EXPECT_FALSE(fs::exists(r["job"].get<std::string>()));
+  EXPECT_TRUE(fs::exists(r2["job"].get<std::string>()));
+  const json bad = ws.request({{"cmd", "upload"}, {"name", "bad.ngc"}, {"text", "G1 X1 F-5\n"}});
+  EXPECT_FALSE(bad.value("ok", true));
+  EXPECT_EQ(
+      std::distance(fs::directory_iterator(fs::path(r2["job"].get<std::string>()).parent_path()),
+                    fs::directory_iterator()),
+      1);
+  const json program = ws.program_of(r2["job"].get<std::string>());
+  EXPECT_EQ(program["programmed_feed_max_mm_per_min"], 300.0);
+  // The preview passes through the program's corners (a closed form: the G-code's own points).
+  const auto has = [&](double x, double y, double z) {
+    for (const auto& p : program["points"]) {
+      if (std::abs(p[0].get<double>() - x) < 1e-9 && std::abs(p[1].get<double>() - y) < 1e-9 &&
+          std::abs(p[2].get<double>() - z) < 1e-9) {
+        return true;
+      }
+    }
+    return false;
+  };
+  EXPECT_TRUE(has(30, 0, 0));
+  EXPECT_TRUE(has(30, 20, 0));
+  EXPECT_TRUE(has(0, 0, -1));
+  // The G2 arc from (30, 0) to (30, 20) about (30, 10) runs clockwise, through x = 20: its
+  // samples (the points strictly between the two straight cuts) stay on its circle.
+  int on_arc = 0;
+  for (const auto& p : program["points"]) {
+    const double x = p[0].get<double>(), y = p[1].get<double>();
+    if (x > 1e-9 && y > 1e-9 && y < 20 - 1e-9) {
+      EXPECT_NEAR(std::hypot(x - 30, y - 10), 10.0, 1e-6) << p.dump();
+      EXPECT_LE(x, 30 + 1e-9) << p.dump();
+      ++on_arc;
+    }
+  }
+  EXPECT_GE(on_arc, 10);
+  // The job runs to its end like a socket job (simulated clock).
+  ASSERT_TRUE(ws.request({{"cmd", "start"}}).value("ok", false));
+  SocketClient sock(socket_);
+  json s;
+  for (int i = 0; i < 2000; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["state"] == "done") break;
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_EQ(s["state"], "done") << s.dump();
+  EXPECT_NEAR(s["position"][0].get<double>(), 0.0, 1e-9);
+  EXPECT_NEAR(s["position"][2].get<double>(), -1.0, 1e-9);
+}
+
+TEST_F(WebDashboard, TokenAndLoopbackRules) {
+  // Not loopback and no token: refused, naming the value and the way out.
+  const std::string open = write("open.toml", "[http]\nlisten = \"tcp:0.0.0.0:0\"\n");
+  auto r = ncd("serve --config " + open + " --listen unix:" + (dir_ / "a.sock").string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("tcp:0.0.0.0:0"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("token"), std::string::npos) << r.err;
+  // Bad [http] keys: exit 2 with the key named.
+  for (const auto& [text, word] : std::vector<std::pair<std::string, std::string>>{
+           {"[http]\nlisten = \"unix:/tmp/x\"\n", "TCP only"},
+           {"[http]\nlisten = \"tcp:127.0.0.1:0\"\ncertificate = \"c.pem\"\n", "both"},
+           {"[http]\nlisten = \"tcp:127.0.0.1:0\"\nstatus_hz = 500\n", "at most 50"},
+           {"[http]\nlisten = \"tcp:127.0.0.1:0\"\nport = 80\n", "unknown key"},
+           {"[http]\nlisten = \"tcp:127.0.0.1:0\"\ncertificate = \"/nonexistent.pem\"\nkey = "
+            "\"/nonexistent.key\"\n",
+            "/nonexistent.pem"},
+           {"http = 3\n", "table"}}) {
+    r = ncd("serve --config " + write("bad.toml", text) +
+            " --listen unix:" + (dir_ / "b.sock").string());
+    EXPECT_EQ(r.status, 2) << text;
+    EXPECT_NE(r.err.find(word), std::string::npos) << text << " → " << r.err;
+  }
+  // Not loopback with a token: it serves; no status and no command without the token.
+  const std::uint16_t port = launch("listen = \"tcp:0.0.0.0:0\"\n", "token = \"s3cret\"\n");
+  ASSERT_NE(port, 0);
+  WsClient ws(port);
+  const json no = ws.request({{"cmd", "status"}});
+  EXPECT_FALSE(no.value("ok", true));
+  EXPECT_NE(no.value("error", std::string()).find("token"), std::string::npos) << no.dump();
+  EXPECT_FALSE(ws.request({{"cmd", "hold"}, {"token", "wrong"}}).value("ok", true));
+  for (int i = 0; i < 3; ++i) {  // 0.6 s: at 10 Hz, six snapshots would have come
+    const auto m = ws.next(0.2);
+    EXPECT_FALSE(m && m->contains("status")) << "status without the token: " << m->dump();
+  }
+  EXPECT_TRUE(ws.request({{"cmd", "status"}, {"token", "s3cret"}}).value("ok", false));
+  EXPECT_EQ(ws.next_with("status")["state"], "idle");
+  // A page from another site cannot open the WebSocket (403).
+  EXPECT_EQ(http_request(port, http::verb::get, "/", "", "http://evil.example").first, 200);
+  try {
+    WsClient foreign(port, "http://evil.example");
+    ADD_FAILURE() << "a WebSocket from another origin was accepted";
+  } catch (const beast::system_error& e) {
+    EXPECT_EQ(e.code(), websocket::error::upgrade_declined) << e.what();
+  }
+  WsClient same(port, "http://127.0.0.1:" + std::to_string(port));
+  EXPECT_TRUE(same.request({{"cmd", "status"}, {"token", "s3cret"}}).value("ok", false));
+}
+
+TEST_F(WebDashboard, TlsWhenCertificateAndKeyAreGiven) {
+  const std::string openssl = find_program({"openssl"});
+  const std::string curl = find_program({"curl"});
+  if (openssl.empty() || curl.empty()) GTEST_SKIP() << "needs openssl and curl on PATH";
+  const std::string cert = (dir_ / "cert.pem").string(), key = (dir_ / "key.pem").string();
+  ASSERT_EQ(std::system((openssl + " req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=ncd " +
+                         "-keyout " + key + " -out " + cert + " >/dev/null 2>&1")
+                            .c_str()),
+            0);
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\ncertificate = \"" + cert +
+                                    "\"\nkey = \"" + key + "\"\n");
+  ASSERT_NE(port, 0);
+  EXPECT_NE(slurp(err_).find("dashboard on https://"), std::string::npos);
+  const std::string out = (dir_ / "page.html").string();
+  ASSERT_EQ(std::system((curl + " -s --cacert " + cert + " -o " + out +
+                         " https://127.0.0.1:" + std::to_string(port) +
+                         "/ --resolve ncd:" + std::to_string(port) + ":127.0.0.1 -k")
+                            .c_str()),
+            0);
+  EXPECT_EQ(slurp(out), slurp(fs::path(NCD_SOURCE_DIR) / "web" / "index.html"));
+  // The WebSocket over TLS (wss), the certificate checked against the one generated here.
+  {
+    asio::io_context io;
+    asio::ssl::context tls(asio::ssl::context::tls_client);
+    tls.load_verify_file(cert);
+    tls.set_verify_mode(asio::ssl::verify_peer);
+    websocket::stream<beast::ssl_stream<tcp::socket>> wss(io, tls);
+    beast::get_lowest_layer(wss).connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    wss.next_layer().handshake(asio::ssl::stream_base::client);
+    wss.handshake("127.0.0.1:" + std::to_string(port), "/ws");
+    wss.text(true);
+    wss.write(asio::buffer(json{{"cmd", "status"}}.dump()));
+    bool replied = false, status = false;
+    for (int i = 0; i < 10 && !(replied && status); ++i) {
+      beast::flat_buffer buffer;
+      wss.read(buffer);
+      const json m = json::parse(beast::buffers_to_string(buffer.data()));
+      replied = replied || (m.contains("reply") && m["reply"]["state"] == "idle");
+      status = status || (m.contains("status") && m["status"]["state"] == "idle");
+    }
+    EXPECT_TRUE(replied && status);
+  }
+  // Plain HTTP on the TLS port gets no page.
+  const int plain = std::system(
+      (curl + " -s -m 5 -o /dev/null http://127.0.0.1:" + std::to_string(port) + "/").c_str());
+  EXPECT_NE(plain, 0);
+}
+
+// chromedriver's W3C WebDriver protocol over HTTP.
+class WebDriver {
+ public:
+  WebDriver(std::uint16_t port, const std::string& chromium, const std::string& profile)
+      : port_(port) {
+    for (int i = 0; i < 300; ++i) {  // chromedriver may still be starting
+      try {
+        if (get("/status")["value"]["ready"] == true) break;
+      } catch (const std::exception&) {
+      }
+      std::this_thread::sleep_for(100ms);
+    }
+    const json caps = {
+        {"capabilities",
+         {{"alwaysMatch",
+           {{"browserName", "chrome"},
+            {"goog:chromeOptions",
+             {{"binary", chromium},
+              {"args",
+               {"--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1400,1300", "--user-data-dir=" + profile}}}}}}}}};
+    const json r = post("/session", caps);
+    session_ = r["value"].value("sessionId", std::string());
+    if (session_.empty()) throw std::runtime_error("no WebDriver session: " + r.dump());
+  }
+  ~WebDriver() {
+    try {
+      call(http::verb::delete_, "/session/" + session_, "");
+    } catch (const std::exception&) {
+    }
+  }
+  void go(const std::string& url) { post(path("/url"), {{"url", url}}); }
+  std::string element(const std::string& css) {
+    const json r = post(path("/element"), {{"using", "css selector"}, {"value", css}});
+    const std::string id = r["value"].value("element-6066-11e4-a52e-4f735466cecf", std::string());
+    if (id.empty()) throw std::runtime_error("no element " + css + ": " + r.dump());
+    return id;
+  }
+  void click(const std::string& css) {
+    post(path("/element/" + element(css) + "/click"), json::object());
+  }
+  void type(const std::string& css, const std::string& text) {
+    post(path("/element/" + element(css) + "/value"), {{"text", text}});
+  }
+  json script(const std::string& body, const json& args = json::array()) {
+    return post(path("/execute/sync"), {{"script", body}, {"args", args}})["value"];
+  }
+  // The text of the element with this id (its DOM text, before CSS transforms).
+  std::string text(const std::string& id) {
+    const json v = script("return document.getElementById(arguments[0]).textContent;", {id});
+    return v.is_string() ? v.get<std::string>() : "";
+  }
+  // Waits up to timeout_s for the element's text to be `want`.
+  bool wait_text(const std::string& id, const std::string& want, double timeout_s = 30.0) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      if (text(id) == want) return true;
+      std::this_thread::sleep_for(50ms);
+    }
+    return false;
+  }
+  std::string screenshot_png() {
+    const std::string b64 = get(path("/screenshot"))["value"].get<std::string>();
+    std::string out(beast::detail::base64::decoded_size(b64.size()), '\0');
+    const auto n = beast::detail::base64::decode(out.data(), b64.data(), b64.size());
+    out.resize(n.first);
+    return out;
+  }
+
+ private:
+  std::string path(const std::string& tail) const { return "/session/" + session_ + tail; }
+  json call(http::verb verb, const std::string& target, const std::string& body) {
+    const auto [code, text] = http_request(port_, verb, target, body);
+    json r = json::parse(text);
+    if (code != 200) throw std::runtime_error(target + ": " + text.substr(0, 400));
+    return r;
+  }
+  json get(const std::string& target) { return call(http::verb::get, target, ""); }
+  json post(const std::string& target, const json& body) {
+    return call(http::verb::post, target, body.dump());
+  }
+  std::uint16_t port_;
+  std::string session_;
+};
+
+TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
+  const std::string chromium = find_program({"chromium", "chromium-browser", "google-chrome"});
+  const std::string driver = find_program({"chromedriver"});
+  if (chromium.empty() || driver.empty()) {
+    GTEST_SKIP() << "headless browser test skipped: chromium and chromedriver are not on PATH "
+                    "(apt-get install chromium chromium-driver)";
+  }
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n", "", "wall");
+  ASSERT_NE(port, 0);
+  const std::string program = write("slow.ngc", kProgram);
+  const std::uint16_t driver_port = free_port();
+  ncd::test::Process chromedriver({driver, "--port=" + std::to_string(driver_port)},
+                                  (dir_ / "driver.out").string(), (dir_ / "driver.err").string());
+  WebDriver page(driver_port, chromium, (dir_ / "profile").string());
+  page.go("http://127.0.0.1:" + std::to_string(port) + "/");
+  ASSERT_TRUE(page.wait_text("conn", "connected")) << page.text("conn");
+  ASSERT_TRUE(page.wait_text("state", "idle")) << page.text("state");
+  // Submit the program from the page (a real file upload), then start it with cycle start.
+  page.type("#program-file", program);
+  page.click("#submit-file");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  SocketClient sock(socket_);
+  json s = sock.request({{"cmd", "status"}});
+  EXPECT_EQ(s["state"], "ready");
+  EXPECT_EQ(page.text("job"), s["job"].get<std::string>());
+  EXPECT_NE(s["job"].get<std::string>().find("slow.ngc"), std::string::npos) << s.dump();
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message");
+  // Let it move a while (past the plunge, into the first cut), then hold from the page.
+  for (int i = 0; i < 400; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["position"][0].get<double>() > 12.0) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  page.click("#hold");
+  ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
+  EXPECT_EQ(sock.request({{"cmd", "status"}})["state"], "holding");
+  // At rest (the hold's jerk-limited stop), the page shows the socket's position to 0.001 mm.
+  for (int i = 0; i < 200; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["feed_mm_per_min"].get<double>() == 0.0) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(s["feed_mm_per_min"].get<double>(), 0.0);
+  std::this_thread::sleep_for(300ms);  // a few snapshots at 20 Hz
+  s = sock.request({{"cmd", "status"}});
+  const char* ids[] = {"pos-x", "pos-y", "pos-z"};
+  for (int k = 0; k < 3; ++k) {
+    const std::string shown = page.text(ids[k]);
+    ASSERT_FALSE(shown.empty() || shown == "-") << ids[k];
+    EXPECT_NEAR(std::stod(shown), s["position"][k].get<double>(), 0.0005 + 1e-12) << ids[k];
+  }
+  EXPECT_GT(s["position"][0].get<double>(), 12.0);
+  EXPECT_EQ(page.text("feed"), "0.0");
+  EXPECT_EQ(page.text("override"), "100");
+  // The page drew the programmed path and the tool's trace.
+  EXPECT_GT(page.script("return program.points.length;").get<int>(), 10);
+  EXPECT_GT(page.script("return trace.length;").get<int>(), 10);
+  const std::string png = page.screenshot_png();
+  ASSERT_GT(png.size(), 1000u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  const fs::path shot = fs::path(NCD_SOURCE_DIR) / "docs" / "img" / "dashboard.png";
+  std::ofstream(shot, std::ios::binary) << png;
+  std::cout << "screenshot: " << shot << " (" << png.size() << " bytes)\n";
+  // Cycle start resumes a held job; stop ends it on the path.
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message");
+  page.click("#stop");
+  ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
+  EXPECT_EQ(sock.request({{"cmd", "status"}})["state"], "stopped");
+  // `page` goes first: its session's DELETE quits the browser, then chromedriver is killed.
+}
+
+}  // namespace

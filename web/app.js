@@ -1,0 +1,261 @@
+// The ncd dashboard (docs/web-dashboard.md). One WebSocket to /ws: requests are the control
+// socket's (with the token when one is typed), replies arrive in order as {"reply": …}, status
+// snapshots as {"status": …}, the programmed path of a submitted job as {"program": …}.
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+const tokenInput = $('token');
+tokenInput.value = localStorage.getItem('ncd-token') || '';
+tokenInput.addEventListener('change', () => {
+  localStorage.setItem('ncd-token', tokenInput.value);
+  request({ cmd: 'status' });
+});
+
+let ws = null;
+const pending = [];  // reply callbacks, oldest first
+let program = null;  // {job, points: [[x,y,z]…], programmed_feed_max_mm_per_min}
+let trace = [];      // positions of the current job
+let traceJob = null;
+let feedHistory = [];  // {t_s, feed, limit} of the last minute (browser clock)
+let lastStatus = null;
+const kTraceMax = 50000;
+const kFeedWindowS = 60;
+
+function connect() {
+  const scheme = location.protocol === 'https:' ? 'wss' : 'ws';
+  ws = new WebSocket(`${scheme}://${location.host}/ws`);
+  ws.onopen = () => {
+    setConn('connected', true);
+    request({ cmd: 'status' });  // with a token, this lets status flow
+  };
+  ws.onclose = () => {
+    setConn('disconnected', false);
+    while (pending.length) pending.shift()({ ok: false, error: 'the connection closed' });
+    setTimeout(connect, 1000);
+  };
+  ws.onmessage = (event) => {
+    let m;
+    try { m = JSON.parse(event.data); } catch (e) { return; }
+    if (m.reply) {
+      const cb = pending.shift();
+      if (cb) cb(m.reply);
+    } else if (m.status) {
+      showStatus(m.status);
+    } else if (m.program) {
+      program = m.program;
+      draw();
+    }
+  };
+}
+
+function setConn(text, ok) {
+  $('conn').textContent = text;
+  $('conn').style.background = ok ? '#059669' : '#dc2626';
+}
+
+// Sends one request; shows and returns (through the promise) its reply.
+function request(req) {
+  if (tokenInput.value) req.token = tokenInput.value;
+  return new Promise((resolve) => {
+    if (!ws || ws.readyState !== WebSocket.OPEN) {
+      resolve({ ok: false, error: 'not connected' });
+      return;
+    }
+    pending.push((reply) => {
+      if (req.cmd !== 'status') {
+        $('message').textContent = reply.ok
+          ? `${req.cmd}: ok${reply.state ? ' (' + reply.state + ')' : ''}${reply.warning ? ' — ' + reply.warning : ''}`
+          : `${req.cmd}: ${reply.error}`;
+        $('message').className = reply.ok ? 'message' : 'message error';
+      }
+      resolve(reply);
+    });
+    ws.send(JSON.stringify(req));
+  });
+}
+
+const fixed = (v, n) => (typeof v === 'number' && isFinite(v) ? v.toFixed(n) : '-');
+
+function showStatus(s) {
+  lastStatus = s;
+  const state = s.state || '-';
+  $('state').textContent = state;
+  $('state').className = 'badge state ' + state;
+  $('job').textContent = s.job ?? '-';
+  $('line').textContent = s.line ?? (s.stopped && s.stopped.line) ?? '-';
+  const p = s.position;
+  $('pos-x').textContent = p ? fixed(p[0], 3) : '-';
+  $('pos-y').textContent = p ? fixed(p[1], 3) : '-';
+  $('pos-z').textContent = p ? fixed(p[2], 3) : '-';
+  $('feed').textContent = fixed(s.feed_mm_per_min, 1);
+  const limit = feedLimit(s);
+  $('feed-limit').textContent = limit !== null ? fixed(limit, 1) + ' (programmed F × override)' : '-';
+  $('override').textContent = fixed(s.override_percent, 0);
+  $('progress').textContent = typeof s.progress === 'number' ? (100 * s.progress).toFixed(1) + ' %' : '-';
+  $('progress-bar').value = s.progress || 0;
+  $('time-left').textContent = typeof s.time_left_s === 'number' ? formatDuration(s.time_left_s) : '-';
+  $('overruns').textContent = s.overruns ?? '-';
+  $('late').textContent = s.late_wakeups ?? '-';
+  $('error').textContent = s.job_error || '';
+  showLink(s.stream);
+  // The trace: a new job (or a restart of it) begins a new one.
+  if (s.job !== traceJob || (state === 'ready' && trace.length)) {
+    trace = [];
+    traceJob = s.job;
+  }
+  if (p && (state === 'running' || state === 'holding' || state === 'streaming' || state === 'done' || state === 'stopped')) {
+    const last = trace[trace.length - 1];
+    if (!last || last[0] !== p[0] || last[1] !== p[1] || last[2] !== p[2]) {
+      trace.push(p);
+      if (trace.length > kTraceMax) trace.splice(0, trace.length - kTraceMax);
+    }
+  }
+  const now = performance.now() / 1000;
+  feedHistory.push({ t: now, feed: s.feed_mm_per_min || 0, limit });
+  while (feedHistory.length && feedHistory[0].t < now - kFeedWindowS) feedHistory.shift();
+  draw();
+}
+
+// The ceiling the page knows: the program's highest F times the override (the status has no
+// binding limit yet; docs/web-dashboard.md).
+function feedLimit(s) {
+  if (!program || program.job !== s.job || !program.programmed_feed_max_mm_per_min) return null;
+  return program.programmed_feed_max_mm_per_min * (s.override_percent ?? 100) / 100;
+}
+
+function formatDuration(t) {
+  const m = Math.floor(t / 60);
+  const s = t - 60 * m;
+  return m > 0 ? `${m} min ${s.toFixed(0)} s` : `${s.toFixed(1)} s`;
+}
+
+function showLink(l) {
+  $('link-port').textContent = l ? `${l.port} (${l.settings})` : 'no streaming';
+  $('link-blocks').textContent = l ? l.blocks_encoded : '-';
+  $('link-waiting').textContent = l ? l.blocks_waiting : '-';
+  $('link-chars').textContent = l ? l.chars_encoded : '-';
+  $('link-held').textContent = l ? (l.held_by_link ? 'yes' : 'no') : '-';
+  $('link-event').textContent = l ? l.last_event || '-' : '-';
+  $('link-end').textContent = l && 'bytes_written' in l
+    ? `${l.bytes_written} · ${l.blocks_sent} · ${l.xoff_count}` : '-';
+}
+
+// Draws a projection (i, j: the axes) of the programmed path and the trace, same scale on both.
+function drawPath(canvas, i, j) {
+  const g = canvas.getContext('2d');
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  const prog = program && lastStatus && program.job === lastStatus.job ? program.points : [];
+  let lo = [Infinity, Infinity], hi = [-Infinity, -Infinity];
+  for (const set of [prog, trace]) {
+    for (const p of set) {
+      lo = [Math.min(lo[0], p[i]), Math.min(lo[1], p[j])];
+      hi = [Math.max(hi[0], p[i]), Math.max(hi[1], p[j])];
+    }
+  }
+  if (!isFinite(lo[0])) return;
+  const margin = 16;
+  const span = Math.max(hi[0] - lo[0], hi[1] - lo[1], 1e-3);
+  const k = Math.min((canvas.width - 2 * margin) / Math.max(hi[0] - lo[0], span * 1e-3),
+                     (canvas.height - 2 * margin) / Math.max(hi[1] - lo[1], span * 1e-3));
+  const cx = (lo[0] + hi[0]) / 2, cy = (lo[1] + hi[1]) / 2;
+  const X = (p) => canvas.width / 2 + (p[i] - cx) * k;
+  const Y = (p) => canvas.height / 2 - (p[j] - cy) * k;
+  const line = (pts, color, width) => {
+    if (pts.length < 2) return;
+    g.strokeStyle = color;
+    g.lineWidth = width;
+    g.beginPath();
+    g.moveTo(X(pts[0]), Y(pts[0]));
+    for (const p of pts) g.lineTo(X(p), Y(p));
+    g.stroke();
+  };
+  line(prog, '#9ca3af', 3);
+  line(trace, '#2563eb', 1.5);
+  const at = trace[trace.length - 1];
+  if (at) {
+    g.fillStyle = '#dc2626';
+    g.beginPath();
+    g.arc(X(at), Y(at), 4, 0, 2 * Math.PI);
+    g.fill();
+  }
+  g.fillStyle = '#555';
+  g.fillText(`${span.toFixed(1)} mm`, 4, 12);
+}
+
+function drawFeed() {
+  const canvas = $('feedplot');
+  const g = canvas.getContext('2d');
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  const now = performance.now() / 1000;
+  let top = 1;
+  for (const h of feedHistory) top = Math.max(top, h.feed, h.limit || 0);
+  top *= 1.1;
+  const X = (t) => 40 + (t - (now - kFeedWindowS)) / kFeedWindowS * (canvas.width - 50);
+  const Y = (v) => canvas.height - 20 - v / top * (canvas.height - 30);
+  g.strokeStyle = '#e5e7eb';
+  g.fillStyle = '#555';
+  for (let s = 0; s <= kFeedWindowS; s += 10) {
+    g.beginPath(); g.moveTo(X(now - s), 10); g.lineTo(X(now - s), canvas.height - 20); g.stroke();
+    g.fillText(`-${s} s`, X(now - s) - 12, canvas.height - 6);
+  }
+  g.fillText(`${top.toFixed(0)} mm/min`, 2, 12);
+  const series = (key, color) => {
+    g.strokeStyle = color;
+    g.lineWidth = 1.5;
+    g.beginPath();
+    let open = false;
+    for (const h of feedHistory) {
+      const v = h[key];
+      if (v === null || v === undefined) { open = false; continue; }
+      if (open) g.lineTo(X(h.t), Y(v)); else g.moveTo(X(h.t), Y(v));
+      open = true;
+    }
+    g.stroke();
+  };
+  series('limit', '#f59e0b');
+  series('feed', '#2563eb');
+}
+
+let drawQueued = false;
+function draw() {
+  if (drawQueued) return;
+  drawQueued = true;
+  requestAnimationFrame(() => {
+    drawQueued = false;
+    drawPath($('xy'), 0, 1);
+    drawPath($('xz'), 0, 2);
+    drawFeed();
+  });
+}
+
+// Controls.
+$('start').onclick = () => request({ cmd: 'start' });
+$('hold').onclick = () => request({ cmd: 'hold' });
+$('resume').onclick = () => request({ cmd: 'resume' });
+$('stop').onclick = () => request({ cmd: 'stop' });
+$('cycle-start').onclick = () => {
+  // A machine's cycle start: starts a job that is ready, resumes one that is held.
+  const state = lastStatus && lastStatus.state;
+  if (state === 'holding') request({ cmd: 'resume' });
+  else request({ cmd: 'start' });
+};
+$('override-input').oninput = () => { $('override-value').textContent = $('override-input').value; };
+$('override-set').onclick = () => request({ cmd: 'override', percent: Number($('override-input').value) });
+$('submit-file').onclick = async () => {
+  const file = $('program-file').files[0];
+  if (!file) {
+    $('message').textContent = 'choose a program file first';
+    return;
+  }
+  request({ cmd: 'upload', name: file.name, text: await file.text() });
+};
+$('chamfer').onsubmit = (event) => {
+  event.preventDefault();
+  const job = {};
+  for (const input of event.target.querySelectorAll('input')) {
+    if (input.value !== '') job[input.name] = Number(input.value);
+  }
+  request({ cmd: 'submit', job });
+};
+
+connect();
