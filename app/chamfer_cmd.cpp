@@ -2,11 +2,13 @@
 #include <chrono>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "app/chamfer_report.hpp"
 #include "app/commands.hpp"
 #include "app/machine_config.hpp"
 #include "app/output.hpp"
+#include "comms/dialect.hpp"
 #include "core/error.hpp"
 
 namespace ncd::app {
@@ -65,6 +67,14 @@ int run_chamfer(const ChamferArgs& a) {
   ngc.feed_mm_per_min = a.feed_mm_per_min;
   ngc.spindle_rpm = a.spindle_rpm;
   ngc.point = programmed_point(a);
+  // The controller's dialect ([link] dialect of --machine): what it cannot take is left out
+  // where a choice exists (G64 P), and the written program is checked against its rules.
+  std::optional<comms::Dialect> dialect;
+  if (!a.machine.empty()) dialect = load_machine_config(a.machine).link.dialect;
+  if (dialect) {
+    ngc.path_blending = comms::rules(*dialect).path_blending;
+    ngc.percent = comms::rules(*dialect).percent_framing;
+  }
   ngc.safe_z_mm = a.safe_z_mm.value_or(toolpath::default_safe_z_mm(spec));
   require_positive("feed (--feed, mm/min)", ngc.feed_mm_per_min);
   require_positive("spindle speed (--spindle, rpm)", ngc.spindle_rpm);
@@ -92,6 +102,12 @@ int run_chamfer(const ChamferArgs& a) {
           "cut");
     }
     text = toolpath::chamfer_program(path, ngc);
+    if (dialect) {
+      if (const auto v = comms::check_program(*dialect, text)) {
+        throw InputError("the chamfer program breaks the machine's controller dialect: " +
+                         comms::describe(*v, *dialect) + ". No NC program written.");
+      }
+    }
   }
   if (!a.plot.empty()) write_output(a.plot, render_svg(chamfer_figure(path)), "--plot");
   write_output(a.output, text);

@@ -244,6 +244,11 @@ WholeRun whole_run(const std::string& file, const toolpath::Path& input, const M
     f.spindle_rpm = m.cutting.spindle_rpm;
     f.spindle_dwell_s = m.tool.spindle_dwell_s;
     f.tool = m.tool.number;
+    f.tool_change = !m.link.dialect || comms::rules(*m.link.dialect).tool_change;
+    if (!f.tool_change) {
+      w.header.push_back("load tool " + std::to_string(f.tool) + " before the start: the " +
+                         comms::to_string(*m.link.dialect) + " dialect has no tool change (M6)");
+    }
     f.feed_mm_per_min = input.segments.front().feed_mm_per_min.value_or(300.0);
     toolpath::Path cut = input;
     double top = -1e300;
@@ -367,6 +372,19 @@ int run_replay(const ReplayArgs& a) {
   std::unique_ptr<comms::BlockEncoder> encoder;
   std::unique_ptr<comms::ProgramBlocks> program_blocks;
   PlotBuckets block_plot;
+  // Every written line against the controller's dialect ([link] dialect), as it is written: a
+  // program the controller cannot take is refused (exit 2) and nothing is written.
+  long written_lines = 0;
+  comms::DialectState dialect_state;
+  const auto dialect_check = [&](const std::string& line) {
+    ++written_lines;
+    if (!machine.link.dialect) return;
+    if (auto v = comms::check_line(*machine.link.dialect, line, dialect_state)) {
+      v->line = written_lines;
+      throw InputError("--blocks: the program breaks the machine's controller dialect: " +
+                       comms::describe(*v, *machine.link.dialect) + ". Nothing was written.");
+    }
+  };
   if (!a.blocks.empty()) {
     try {
       comms::validate(machine.encoder);
@@ -374,14 +392,18 @@ int run_replay(const ReplayArgs& a) {
       throw InputError(std::string(e.what()) +
                        " (--chord-tolerance or the machine file's [encoder])");
     }
+    if (machine.link.dialect) comms::apply_dialect(machine.encoder, *machine.link.dialect);
     program = std::make_unique<ProgramFile>(a.blocks);
     if (chamfer.interference_allowed) {
-      program->write(
+      const std::string note =
           "(ncd: the chamfer failed its interference checks; written because of "
-          "--allow-interference)");
+          "--allow-interference)";
+      dialect_check(note);
+      program->write(note);
     }
     encoder = std::make_unique<comms::BlockEncoder>(
-        machine.encoder, [&program, &block_plot](const comms::EncodedBlock& b) {
+        machine.encoder, [&program, &block_plot, &dialect_check](const comms::EncodedBlock& b) {
+          dialect_check(b.text);
           program->write(b.text);
           if (b.positioning || b.feed_mm_per_min <= 0.0) return;
           block_plot.add(b.start_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);

@@ -143,6 +143,13 @@ std::string general(double v, int digits = 6) {
 
 }  // namespace
 
+void apply_dialect(EncoderSettings& settings, Dialect dialect) {
+  const DialectRules& r = rules(dialect);
+  settings.numbers = r.n_numbers;
+  settings.comments = r.paren_comments;
+  if (r.max_line_chars > 0) settings.max_comment_chars = static_cast<std::size_t>(r.max_line_chars);
+}
+
 double rounding_error_mm(int decimals) {
   return 0.5 * std::sqrt(3.0) / pow10(decimals);
 }
@@ -590,11 +597,27 @@ void BlockEncoder::comment(const std::string& text) {
   if (finished_) throw std::logic_error("BlockEncoder::comment after finish()");
   if (!settings_.comments) return;
   close_open();
-  std::string& t = block_.text;
-  t = "(";
-  for (char c : text) t.push_back(c == '(' ? '[' : c == ')' ? ']' : c);
-  t.push_back(')');
-  deliver_line(BlockClose::Comment, 0.0, false);
+  // A comment longer than max_comment_chars (parentheses included) goes out as several, broken
+  // after a space where one is near the end of the piece.
+  const std::size_t room =
+      settings_.max_comment_chars > 2 ? settings_.max_comment_chars - 2 : std::string::npos;
+  std::size_t from = 0;
+  do {
+    std::size_t n = std::min(room, text.size() - from);
+    if (from + n < text.size()) {
+      const std::size_t space = text.rfind(' ', from + n);
+      if (space != std::string::npos && space > from + n / 2) n = space + 1 - from;
+    }
+    std::string& t = block_.text;
+    t = "(";
+    for (std::size_t i = from; i < from + n; ++i) {
+      const char c = text[i];
+      t.push_back(c == '(' ? '[' : c == ')' ? ']' : c);
+    }
+    t.push_back(')');
+    deliver_line(BlockClose::Comment, 0.0, false);
+    from += n;
+  } while (from < text.size());
 }
 
 void BlockEncoder::percent_line() {

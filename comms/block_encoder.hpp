@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
 #include "core/geometry.hpp"
 #include "core/histogram.hpp"
@@ -53,7 +54,16 @@ struct EncoderSettings {
   bool comments = true;            // comment lines "(...)"; false: comments are left out
   bool percent = false;            // "%" lines open and close the program (begin() and end())
   std::size_t max_line_chars = 0;  // longest line without end of block; 0: no limit
+  // Longest comment line; a longer comment is split over several lines. 0: no limit. grbl's
+  // character-counting link cannot send a line longer than its receive buffer.
+  std::size_t max_comment_chars = 0;
 };
+
+// The controller dialect's rules (comms/dialect.hpp, the one place for them) as the encoder's
+// framing knobs: N numbers and comments as the dialect takes them. `%` framing stays with the
+// streamer, and line lengths are checked on the written lines by check_line (grbl counts the
+// characters it keeps, without spaces and comments, which a raw length cannot).
+void apply_dialect(EncoderSettings& settings, Dialect dialect);
 
 // Largest distance between a point and its rounding to `decimals`: √3/2 · 10^-decimals mm.
 double rounding_error_mm(int decimals);

@@ -18,7 +18,7 @@ mkdir -p "$out"
 rm -f "$out/cnc" "$out"/*.journal
 geometry=(--pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01
           --rod-radius 1.8 --non-knife-angle 93 --edge inner --side upper)
-line=(--baud 19200 --frame 7E2 --flow xonxoff --protocol drip)
+line=(--baud 19200 --frame 7E2 --flow xonxoff --protocol drip --dialect iso)
 
 echo "== ncd demo: chamfer a drilled hole, walk it at 4 ms, stream it over RS-232 =="
 echo

@@ -94,7 +94,7 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   };
   const ChamferChecks& ck = path.checks;
   std::ostringstream g;
-  g << "%\n";
+  if (o.percent) g << "%\n";
   g << "(ncd chamfer: constant-width chamfer of a drilled hole in a pipe, Sato et al. 2016)\n";
   g << "(edge " << to_string(s.edge) << " " << to_string(s.side) << ", pipe surface radius "
     << num(s.pipe_radius_mm, 4) << " mm, drill radius " << num(s.drill_radius_mm, 4) << " mm)\n";
@@ -155,7 +155,11 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     << num(60.0 * length / o.feed_mm_per_min, 2) << " s at F" << num(o.feed_mm_per_min, 1)
     << ", safe Z " << num(o.safe_z_mm, 3) << " mm)\n";
   g << "G21 G90 G94 G17 G40 G49\n";
-  g << "G64 P" << num(s.tolerance_mm, 4) << "\n";
+  if (o.path_blending) {
+    g << "G64 P" << num(s.tolerance_mm, 4) << "\n";
+  } else {
+    g << "(no G64 P: this controller has no blending tolerance; its own path mode applies)\n";
+  }
   g << "S" << num(o.spindle_rpm, 0) << " M3\n";
   g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
   const Vec3 first = at(0);
@@ -174,7 +178,8 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   g << "G1 " << xyz(first) << " (loop closed)\n";
   if (s.edge == Edge::Inner) g << "G1 " << axis << "\n";
   g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
-  g << "M5\nM2\n%\n";
+  g << "M5\nM2\n";
+  if (o.percent) g << "%\n";
   return g.str();
 }
 

@@ -20,6 +20,12 @@ struct NgcOptions {
   double safe_z_mm = 0.0;  // clearance height in the program's frame, above the part
   int decimals = 4;        // digits after the point in coordinates (0.1 µm)
   ProgramFrame frame = ProgramFrame::Drill;
+  // G64 P (LinuxCNC's blending within the tolerance); false for a controller without it (grbl
+  // 1.1 answers error:20): the line is left out and the header says so.
+  bool path_blending = true;
+  // `%` lines open and close the program (LinuxCNC, ISO); false for grbl, which takes `%` for
+  // no word (error:1).
+  bool percent = true;
 };
 
 std::string to_string(ProgramFrame frame);

@@ -118,7 +118,7 @@ Program whole_job(const Path& cut, const JobFrame& f) {
   }
   Builder b(f);
   b.event(UnitsEvent{Units::mm});
-  b.event(ToolChangeEvent{f.tool, 0.0});
+  if (f.tool_change) b.event(ToolChangeEvent{f.tool, 0.0});
   b.event(SpindleEvent{SpindleDir::cw, f.spindle_rpm});
   b.spindle_on_ = true;
   if (f.spindle_dwell_s > 0.0) b.event(DwellEvent{f.spindle_dwell_s});

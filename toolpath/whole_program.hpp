@@ -23,6 +23,9 @@ struct JobFrame {
   double spindle_rpm = 3000.0;
   double spindle_dwell_s = 0.0;  // G4 after M3; 0: none
   int tool = 1;                  // T and H
+  // T n M6 at the start; false where the controller has no tool changer (grbl: M6 is its
+  // error:20): the operator loads tool n before the start, as the header says.
+  bool tool_change = true;
   double clearance_z_mm = 0.0;   // the clearance plane, in the program's frame and point
   double approach_gap_mm = 1.0;  // the rapid descent stops this far above the feed's start
   // Inner edges: the approach goes down this vertical (the drill axis, X Y) and then feeds out

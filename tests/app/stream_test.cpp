@@ -533,5 +533,46 @@ TEST_F(Stream, BadInputExitsTwoAndSendsNothing) {
   }
 }
 
+// The whole program of a job, written for a grbl machine ([link] dialect = "grbl"): the
+// simulated controller in grbl mode answers `ok` to every line, executes the spindle before the
+// first cut and the program end, with no alarm (issue: a whole, safe program in the controller's
+// own dialect). A short job (a 2 mm square, at the feed the roughness target allows) keeps the
+// real-time run brief.
+TEST_F(Stream, WholeJobForAGrblMachineIsTakenLineByLineAndExecuted) {
+  std::string machine = slurp(std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml");
+  const std::string iso = "dialect = \"iso\"";
+  ASSERT_NE(machine.find(iso), std::string::npos);
+  machine.replace(machine.find(iso), iso.size(), "dialect = \"grbl\"");
+  const std::string m = write("grbl.toml", machine);
+  const std::string path =
+      write("square.json",
+            R"({"polyline": {"points": [[0,0,0],[2,0,0],[2,2,0],[0,2,0],[0,0,0]]},
+          "feed_mm_per_min": 3000})");
+  const std::string blocks = (dir_ / "square.ngc").string();
+  const auto r = ncd("replay " + path + " --machine " + m + " -q --blocks " + blocks);
+  ASSERT_EQ(r.status, 0) << r.err;
+  auto cnc = controller(
+      "--baud 115200 --frame 8N1 --protocol ack --dialect grbl --reset-on-open --boot-s 0.2");
+  const auto s = ncd("stream " + blocks + " --port " + link_ +
+                     " --baud 115200 --frame 8N1 --protocol ack --dialect grbl -q --no-journal "
+                     "--banner-wait 3");
+  EXPECT_EQ(s.status, 0) << s.err << s.out;
+  const auto log = controller_log(*cnc);
+  EXPECT_TRUE(log["errors"].empty()) << log["errors"].dump();
+  EXPECT_TRUE(log["alarms"].empty()) << log["alarms"].dump();
+  EXPECT_TRUE(log["program_end_executed"].get<bool>());
+  // Every block of the program executed, once, in order.
+  EXPECT_EQ(executed(log), blocks_of(blocks));
+  std::vector<std::string> kinds;
+  for (const auto& e : log["events"]) kinds.push_back(e["kind"].get<std::string>());
+  const auto at = [&](const std::string& k) {
+    return std::find(kinds.begin(), kinds.end(), k) - kinds.begin();
+  };
+  ASSERT_LT(at("spindle_cw"), static_cast<long>(kinds.size())) << log["events"].dump();
+  EXPECT_LT(at("spindle_cw"), at("spindle_stop"));
+  EXPECT_LT(at("spindle_stop"), at("program_end"));
+  EXPECT_EQ(at("tool_change"), static_cast<long>(kinds.size())) << "grbl has no M6";
+}
+
 }  // namespace
 }  // namespace ncd::test

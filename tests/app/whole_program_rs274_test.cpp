@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "comms/dialect.hpp"
 #include "tests/app/cli_fixture.hpp"
 
 namespace {
@@ -113,9 +114,10 @@ class Rs274 : public Cli {
   // replay --blocks and --setpoints of `path`; rs274 on the blocks; the largest distance of a
   // canonical end point (after the first, the rise from wherever the tool stands) from the
   // setpoint polyline.
-  double blocks_deviation(const std::string& path, const std::string& what) {
+  double blocks_deviation(const std::string& path, const std::string& what,
+                          const std::string& machine = kMachine) {
     const std::string blocks = (dir_ / "b.ngc").string(), csv = (dir_ / "sp.csv").string();
-    const CmdResult r = ncd("replay " + path + " --machine " + kMachine + " -q --blocks " + blocks +
+    const CmdResult r = ncd("replay " + path + " --machine " + machine + " -q --blocks " + blocks +
                             " --setpoints " + csv);
     EXPECT_EQ(r.status, 0) << r.err;
     const Canonical c = canonical(blocks);
@@ -221,6 +223,69 @@ TEST_F(Rs274, ChamferProgramsOfEveryEdgeAndSideParseAndHoldTheLoop) {
       EXPECT_LE(worst, kPrintMm) << what;
     }
   }
+}
+
+// The exp3 machine with a grbl 1.1 controller on its link ([link] dialect = "grbl").
+std::string grbl_machine_text() {
+  std::string text = slurp(kMachine);
+  const std::string from = "dialect = \"iso\"";
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << "config/chamfer-exp3.toml names no iso dialect";
+  if (at != std::string::npos) text.replace(at, from.size(), "dialect = \"grbl\"");
+  return text;
+}
+
+// The blocks and the chamfer program written for a grbl machine: what grbl takes, line by line
+// (comms/dialect's grbl model: no %, no N, no M6, no G64), and still what LinuxCNC reads and
+// what ncd planned.
+TEST_F(Rs274, ProgramsForAGrblMachineAreWhatGrblTakesAndFollowThePlan) {
+  const std::string machine = write("grbl.toml", grbl_machine_text());
+  const std::string json = (dir_ / "exp3.json").string();
+  ASSERT_EQ(ncd("chamfer " + kGeometry + " -q -o " + json).status, 0);
+  blocks_deviation(json, "grbl blocks of exp3", machine);
+  const std::string blocks = slurp(dir_ / "b.ngc");
+  EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::grbl, blocks).has_value());
+  EXPECT_EQ(blocks.find('%'), std::string::npos);
+  EXPECT_EQ(blocks.find("T1M6"), std::string::npos);
+  EXPECT_EQ(blocks.find("\nN"), std::string::npos);
+  EXPECT_NE(blocks.find("load tool 1 before the start"), std::string::npos);
+  EXPECT_NE(blocks.find("M3S3000"), std::string::npos);
+  const std::string ngc = (dir_ / "c.ngc").string();
+  const CmdResult g =
+      ncd("chamfer " + kGeometry + " --machine " + machine + " -q --format ngc -o " + ngc);
+  ASSERT_EQ(g.status, 0) << g.err;
+  const std::string text = slurp(ngc);
+  EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::grbl, text).has_value());
+  EXPECT_EQ(text.find("\nG64"), std::string::npos);
+  EXPECT_EQ(text.find('%'), std::string::npos);
+  const Canonical c = canonical(ngc);
+  EXPECT_EQ(c.status, 0) << c.log;
+  EXPECT_TRUE(c.program_end);
+  // The same program for the iso machine keeps its G64 P and its % lines; both are accepted by
+  // the iso rules.
+  const std::string iso = (dir_ / "iso.ngc").string();
+  ASSERT_EQ(
+      ncd("chamfer " + kGeometry + " --machine " + kMachine + " -q --format ngc -o " + iso).status,
+      0);
+  const std::string iso_text = slurp(iso);
+  EXPECT_NE(iso_text.find("G64 P"), std::string::npos);
+  EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::iso, iso_text).has_value());
+}
+
+// A program the machine's dialect cannot take is refused before anything is written: an NGC
+// program replayed for a grbl machine keeps its events, and grbl's refusal of mist coolant (M7,
+// compiled out of grbl 1.1 by default: error:20) names the line and the word.
+TEST_F(Rs274, BlocksTheDialectCannotTakeAreRefusedAndNothingIsWritten) {
+  const std::string machine = write("grbl.toml", grbl_machine_text());
+  const std::string prog = write("tc.ngc",
+                                 "G21 G90 G94\nM3 S1000\nM7\nG0 Z5\nG0 X0 Y0\nG1 Z-1 F300\n"
+                                 "G1 X10\nG0 Z5\nM9\nM5\nM2\n");
+  const std::string blocks = (dir_ / "tc-blocks.ngc").string();
+  const CmdResult r = ncd("replay " + prog + " --machine " + machine + " -q --blocks " + blocks);
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("'M7'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("error:20"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(blocks));
 }
 
 }  // namespace

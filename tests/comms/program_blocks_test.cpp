@@ -149,6 +149,37 @@ TEST(ProgramBlocks, ALineLongerThanTheControllerTakesIsAnErrorNamingIt) {
   }
 }
 
+// A header longer than the dialect's line takes is split over comment lines that, joined,
+// give the text back; grbl's rules set the width (apply_dialect), and grbl takes every one.
+TEST(ProgramBlocks, LongCommentsAreSplitToTheDialectsWidth) {
+  EncoderSettings s;
+  apply_dialect(s, Dialect::grbl);
+  ASSERT_EQ(s.max_comment_chars, static_cast<std::size_t>(rules(Dialect::grbl).max_line_chars));
+  const toolpath::Program program = square_job(0.0);
+  const toolpath::Path path = toolpath::to_path(program);
+  motion::JobConfig cfg;
+  cfg.cutting.pick_feed_mm = 0.0;
+  motion::Job job(path, cfg);
+  std::vector<std::string> lines;
+  BlockEncoder enc(s, [&lines](const EncodedBlock& b) { lines.push_back(b.text); });
+  ProgramBlocks blocks(program, enc);
+  std::string header;
+  for (int i = 0; i < 30; ++i) header += "word" + std::to_string(i) + " ";
+  header += std::string(150, 'x');  // no space to break at: cut at the width
+  blocks.begin({header});
+  blocks.end();
+  std::string joined, program_text;
+  for (const std::string& l : lines) {
+    EXPECT_NE(l.front(), 'N') << l;
+    if (l.front() != '(') continue;
+    program_text += l + "\n";
+    EXPECT_LE(l.size(), s.max_comment_chars) << l;
+    joined += l.substr(1, l.size() - 2);
+  }
+  EXPECT_EQ(joined, header);
+  EXPECT_FALSE(check_program(Dialect::grbl, program_text).has_value()) << program_text;
+}
+
 TEST(ProgramBlocks, ClearancePlaneBelowTheCutIsRefused) {
   toolpath::Polyline cut;
   cut.points = {{0, 0, 5}, {1, 0, 5}};
