@@ -58,10 +58,16 @@ int run_serve(const ServeArgs& a) {
   }
   // The service's events to the observers, drained on this io_context (app/event_feed.hpp).
   std::unique_ptr<EventFeed> feed;
-  if (bridge) {
+  if (bridge || web) {
     feed = std::make_unique<EventFeed>(io, service.subscribe(EventFeed::kCapacity));
-    fleet::MqttBridge& b = *bridge;
-    feed->add_sink([&b](const nlohmann::json& event) { b.push_event(event); });
+    if (bridge) {
+      fleet::MqttBridge& b = *bridge;
+      feed->add_sink([&b](const nlohmann::json& event) { b.push_event(event); });
+    }
+    if (web) {
+      WebServer& w = *web;
+      feed->add_sink([&w](const nlohmann::json& event) { w.push_event(event); });
+    }
     feed->start();
   }
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
