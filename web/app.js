@@ -104,7 +104,8 @@ function showStatus(s) {
   $('pos-z').textContent = p ? fixed(p[2], 3) : '-';
   $('feed').textContent = fixed(s.feed_mm_per_min, 1);
   const limit = feedLimit(s);
-  $('feed-limit').textContent = limit !== null ? fixed(limit, 1) + ' (programmed F × override)' : '-';
+  $('feed-limit').textContent = (limit !== null ? fixed(limit, 1) + ' (programmed F × override)' : '-') +
+    (s.binding_limit ? ' · binding: ' + s.binding_limit : '');
   $('override').textContent = fixed(s.override_percent, 0);
   $('progress').textContent = typeof s.progress === 'number' ? (100 * s.progress).toFixed(1) + ' %' : '-';
   $('progress-bar').value = s.progress || 0;

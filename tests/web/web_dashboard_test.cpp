@@ -691,6 +691,14 @@ TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
     EXPECT_NEAR(std::stod(shown), s["position"][k].get<double>(), 0.0005 + 1e-12) << ids[k];
   }
   EXPECT_GT(s["position"][0].get<double>(), 12.0);
+  // Past x = 12 on y = 0 the tool is on "G1 X30 Y0 F300", line 4 of kProgram (its own segment:
+  // its feed differs from line 3's); at rest under the hold, the hold binds the feed.
+  EXPECT_NEAR(s["position"][1].get<double>(), 0.0, 1e-9);
+  EXPECT_EQ(s["line"], 4) << s.dump();
+  EXPECT_EQ(page.text("line"), "4");
+  EXPECT_EQ(s["binding_limit"], "hold") << s.dump();
+  EXPECT_NE(page.text("feed-limit").find("binding: hold"), std::string::npos)
+      << page.text("feed-limit");
   EXPECT_EQ(page.text("feed"), "0.0");
   EXPECT_EQ(page.text("override"), "100");
   // The page drew the programmed path and the tool's trace.
