@@ -21,7 +21,7 @@ namespace ncd::app {
 class EventFeed {
  public:
   using Sink = std::function<void(const nlohmann::json&)>;
-  // The events slots between two drains (docs/service.md: a power of two, at least 2).
+  // The subscription's ring: events that may wait between two drains (a power of two).
   static constexpr std::size_t kCapacity = 1024;
 
   EventFeed(boost::asio::io_context& io, std::shared_ptr<service::Subscription> feed,
