@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "app/commands.hpp"
+#include "app/event_feed.hpp"
 #include "app/service.hpp"
 #include "app/web_server.hpp"
 #include "comms/control_server.hpp"
@@ -55,12 +56,27 @@ int run_serve(const ServeArgs& a) {
     web = std::make_unique<WebServer>(io, file.http, service, cfg.token, cfg.machine.program);
     std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
   }
+  // The service's events to the observers, drained on this io_context (app/event_feed.hpp).
+  std::unique_ptr<EventFeed> feed;
+  if (bridge || web) {
+    feed = std::make_unique<EventFeed>(io, service.subscribe(EventFeed::kCapacity));
+    if (bridge) {
+      fleet::MqttBridge& b = *bridge;
+      feed->add_sink([&b](const nlohmann::json& event) { b.push_event(event); });
+    }
+    if (web) {
+      WebServer& w = *web;
+      feed->add_sink([&w](const nlohmann::json& event) { w.push_event(event); });
+    }
+    feed->start();
+  }
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
     std::cerr << "ncd serve: " << (signal == SIGTERM ? "SIGTERM" : "SIGINT") << ", shutting down"
               << std::endl;
     service.shutdown([&] {
+      if (feed) feed->close();  // hands the job's last events on
       server.close();
       if (web) web->close();
       io.stop();

@@ -307,6 +307,8 @@ json to_json(const service::Status& st) {
     s["progress"] = st.progress;
     s["time_left_s"] = st.time_left_s ? json(*st.time_left_s) : json();
     s["t_s"] = st.t_s;
+    s["line"] = st.line > 0 ? json(st.line) : json();
+    s["binding_limit"] = st.binding_limit.empty() ? json() : json(st.binding_limit);
     s["overruns"] = st.overruns;
     s["late_wakeups"] = st.late_wakeups;
   } else {
@@ -314,6 +316,8 @@ json to_json(const service::Status& st) {
     s["feed_mm_per_min"] = 0.0;
     s["progress"] = 0.0;
     s["time_left_s"] = json();
+    s["line"] = json();
+    s["binding_limit"] = json();
     s["overruns"] = 0;
   }
   s["override_percent"] = st.override_percent;

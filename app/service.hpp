@@ -28,6 +28,10 @@ class Service : public comms::ControlHandler {
   // SIGTERM/SIGINT: bring any motion to a jerk-limited stop, end the job cleanly, then call
   // done (on the io_context).
   void shutdown(std::function<void()> done);
+  // A new observer's event feed (service::Service::subscribe; app/event_feed.hpp drains it).
+  std::shared_ptr<service::Subscription> subscribe(std::size_t capacity) {
+    return core_.subscribe(capacity);
+  }
 
  private:
   nlohmann::json submit(const nlohmann::json& req);

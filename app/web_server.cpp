@@ -9,6 +9,7 @@
 //                                      ◄──      {"reply": {...}}
 //                                      ◄──      {"status": {...}}   every 1/status_hz s
 //                                      ◄──      {"program": {...}}  when a job's path is known
+//                                      ◄──      {"event": {...}}    the service's events, in order
 //   {"cmd":"upload","name":…,"text":…} ──►      written to a private folder, then "submit"
 //
 // The WebSocket takes the control socket's requests, checked by the same comms::check_request
@@ -127,6 +128,10 @@ struct WebServer::State {
   std::filesystem::path last_upload;  // the file of the last upload submitted
   Json program;                       // the last programmed path known, with its "job"
   std::uint64_t program_version = 0;
+  // The service's last events (WebServer::push_event), the oldest first, and how many were
+  // pushed in all: a page gets those it has not had at its next tick.
+  std::deque<Json> events;
+  std::uint64_t events_pushed = 0;
   bool closed = false;
 
   // The asset, from the configured directory or the binary; nullopt if there is none.
@@ -315,6 +320,12 @@ class WsSession : public std::enable_shared_from_this<WsSession<Stream>> {
         program_version_ = state_->program_version;
         send(to_text(Json{{"program", state_->program}}), false);
       }
+      // The events since the last tick (a new page: the last kRecentEvents), in order.
+      const std::uint64_t first = state_->events_pushed - state_->events.size();
+      for (std::uint64_t n = std::max(events_sent_, first); n < state_->events_pushed; ++n) {
+        send(to_text(Json{{"event", state_->events[static_cast<std::size_t>(n - first)]}}), true);
+      }
+      events_sent_ = state_->events_pushed;
       Json status;
       try {
         status = state_->handler.status();
@@ -368,6 +379,7 @@ class WsSession : public std::enable_shared_from_this<WsSession<Stream>> {
   bool authorised_ = false;
   double hz_ = 10.0;
   std::uint64_t program_version_ = 0;
+  std::uint64_t events_sent_ = 0;  // of State::events_pushed
   std::uint64_t generation_ = 0;
 };
 
@@ -585,6 +597,13 @@ std::string WebServer::url() const {
   const bool v6 = host.find(':') != std::string::npos;
   return std::string(state_->tls ? "https" : "http") + "://" + (v6 ? "[" + host + "]" : host) +
          ":" + std::to_string(port_) + "/";
+}
+
+void WebServer::push_event(const nlohmann::json& event) {
+  State& s = *state_;
+  s.events.push_back(event);
+  if (s.events.size() > HttpLimits::kRecentEvents) s.events.pop_front();
+  ++s.events_pushed;
 }
 
 void WebServer::close() {

@@ -33,6 +33,7 @@ struct HttpLimits {
   static constexpr std::size_t kMaxMessageBytes = std::size_t{8} << 20;  // a WebSocket message
   static constexpr std::size_t kMaxUploadNameBytes = 128;
   static constexpr std::size_t kMaxPreviewPoints = 20000;  // of the programmed path sent
+  static constexpr std::size_t kRecentEvents = 64;         // the service's events kept for pages
 };
 
 // The serve config with its [http] table: the service's keys go to parse_service_config.
@@ -61,6 +62,10 @@ class WebServer {
   std::uint16_t port() const { return port_; }
   // "http://127.0.0.1:PORT/" (https with TLS).
   std::string url() const;
+  // One of the service's events (app/event_feed.hpp), on the io_context's thread: each open
+  // page gets it as {"event": …} at its next status tick; the last kRecentEvents are kept for
+  // pages that open later.
+  void push_event(const nlohmann::json& event);
   // Stops accepting; open pages are closed at their next status tick. Idempotent.
   void close();
 

@@ -522,6 +522,24 @@ void Service::fail_job(const std::string& why) {
   end_job();
 }
 
+// The source line of the segment of the job's path (corners blended: the same segments as the
+// program's) at arc length s_mm. The walker's segment starts are fixed when the job is built, so
+// this reads nothing the cycle thread writes.
+int Service::line_at(double s_mm) const {
+  const motion::Job& job = cycle_->job();
+  const std::vector<toolpath::PathSegment>& segs = job.path().segments;
+  std::size_t lo = 0, hi = segs.size();  // the last segment starting at or before s_mm
+  while (hi - lo > 1) {
+    const std::size_t mid = (lo + hi) / 2;
+    if (job.walker().segment_start_mm(mid) <= s_mm) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return segs.empty() ? 0 : segs[lo].source_line;
+}
+
 void Service::end_job() {
   log("job " + job_.name + " " + to_string(state_));
   emit(EventKind::Job, std::string("ended ") + job_.name + " " + to_string(state_));
@@ -560,6 +578,10 @@ Status Service::status() const {
       s.time_left_s = time_left_s();
     }
     s.t_s = c.t_s;
+    if (setpoints_ > 0) {
+      s.line = line_at(last_.s_mm);
+      s.binding_limit = motion::limit_name(last_.limit_id);
+    }
     s.overruns = c.overruns;
     s.late_wakeups = c.late_wakeups;
   }

@@ -98,6 +98,11 @@ struct Status {
   Vec3 position_mm = Vec3::Zero();
   double feed_mm_per_min = 0.0, progress = 0.0, t_s = 0.0, length_mm = 0.0;
   std::optional<double> time_left_s;
+  // Of the last setpoint drained (none before the first): the source line of the segment it
+  // lies in (0: the path has no lines) and the feed limit that bound it (motion::limit_name:
+  // "roughness", …, "program", "tangential_accel", "hold", …).
+  int line = 0;
+  std::string binding_limit;
   std::int64_t overruns = 0, late_wakeups = 0, setpoints = 0;
   double accel_max_mm_per_s2 = 0.0, jerk_max_mm_per_s3 = 0.0, feed_max_mm_per_min = 0.0;
   double override_percent = 100.0;
@@ -151,6 +156,7 @@ class Service {
             std::int64_t count = 0);
   void log(const std::string& line) const;
   std::optional<double> time_left_s() const;
+  int line_at(double s_mm) const;
   void require_active(const char* cmd) const;
 
   ServiceOptions options_;

@@ -1,6 +1,7 @@
 // The ncd dashboard (docs/web-dashboard.md). One WebSocket to /ws: requests are the control
 // socket's (with the token when one is typed), replies arrive in order as {"reply": …}, status
-// snapshots as {"status": …}, the programmed path of a submitted job as {"program": …}.
+// snapshots as {"status": …}, the programmed path of a submitted job as {"program": …}, the
+// service's events as {"event": …} (the last few listed on the page).
 'use strict';
 
 const $ = (id) => document.getElementById(id);
@@ -44,8 +45,22 @@ function connect() {
     } else if (m.program) {
       program = m.program;
       draw();
+    } else if (m.event) {
+      showEvent(m.event);
     }
   };
+}
+
+// One of the service's events, at the top of the list of the last kEventsShown.
+const kEventsShown = 12;
+function showEvent(e) {
+  const li = document.createElement('li');
+  li.className = 'event ' + (e.kind || '');
+  const holder = e.holder && e.holder !== 'none' ? ' by the ' + e.holder : '';
+  li.textContent = `${fixed(e.job_t_s, 3)} s · ${e.kind} · ${e.state}${holder} · ${e.text || ''}`;
+  const list = $('events');
+  list.insertBefore(li, list.firstChild);
+  while (list.children.length > kEventsShown) list.removeChild(list.lastChild);
 }
 
 function setConn(text, ok) {
@@ -89,7 +104,8 @@ function showStatus(s) {
   $('pos-z').textContent = p ? fixed(p[2], 3) : '-';
   $('feed').textContent = fixed(s.feed_mm_per_min, 1);
   const limit = feedLimit(s);
-  $('feed-limit').textContent = limit !== null ? fixed(limit, 1) + ' (programmed F × override)' : '-';
+  $('feed-limit').textContent = (limit !== null ? fixed(limit, 1) + ' (programmed F × override)' : '-') +
+    (s.binding_limit ? ' · binding: ' + s.binding_limit : '');
   $('override').textContent = fixed(s.override_percent, 0);
   $('progress').textContent = typeof s.progress === 'number' ? (100 * s.progress).toFixed(1) + ' %' : '-';
   $('progress-bar').value = s.progress || 0;

@@ -17,6 +17,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <vector>
 
 #include "tests/fleet/broker.hpp"
 #include "tests/fleet/watcher.hpp"
@@ -198,6 +199,93 @@ TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
   ASSERT_TRUE(m);
   EXPECT_TRUE(m->is_retained());
   EXPECT_EQ(json::parse(m->to_string())["online"], false);
+}
+
+// The clamped cubic at a quarter of kLongCubic's size: a few seconds at the default feed.
+const char* kMediumCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
+  "points": [[0,0,0],[50,125,0],[150,-50,10],[225,150,20],[300,0,15],[400,100,0],[500,0,0]]}})";
+
+// A real job's events reach <root>events in order, each once with consecutive "seq" from 1
+// (QoS 1 may repeat one: the first of each seq is kept), and the hold sent over MQTT is a state
+// event whose holder is the operator.
+TEST_F(ServeFleet, AJobsEventsArriveInOrderWithConsecutiveSeq) {
+  Watcher ops(broker_->url(), "ops-events", ncd::test::kOperator,
+              {kRoot + "events", kRoot + "reply", kRoot + "online"});
+  launch();
+  ASSERT_EQ(
+      wait_message(ops, kRoot + "online", [](const json& p) { return p.value("online", false); })
+          .value("online", false),
+      true)
+      << serve_log();
+  const std::string file = (dir_ / "medium.json").string();
+  std::ofstream(file) << kMediumCubic;
+  SocketClient c(socket_);
+  ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", file}}}}).value("ok", false));
+  ASSERT_TRUE(c.request({{"cmd", "start"}}).value("ok", false));
+
+  // Every event up to the job's end, the first of each seq. The events drive the test: the
+  // "running" state event sends a hold over MQTT, the "holding" one a resume on the socket.
+  std::vector<json> events;
+  std::uint64_t last_seq = 0;
+  bool hold_sent = false, resume_sent = false;
+  json hold_reply;
+  const auto end = std::chrono::steady_clock::now() + 60s;
+  while (std::chrono::steady_clock::now() < end) {
+    auto m = ops.next(0.2);
+    if (!m) continue;
+    const json e = json::parse(m->to_string());
+    if (m->get_topic() == kRoot + "reply" && e.value("id", "") == "h1") hold_reply = e;
+    if (m->get_topic() != kRoot + "events") continue;
+    const std::uint64_t seq = e.at("seq").get<std::uint64_t>();
+    if (seq <= last_seq) continue;  // a repeat (at least once)
+    EXPECT_EQ(seq, last_seq + 1) << "a gap before " << e.dump();
+    last_seq = seq;
+    events.push_back(e);
+    if (e["kind"] == "state" && e["state"] == "running" && !hold_sent) {
+      ops.publish(kRoot + "cmd", {{"cmd", "hold"}, {"token", kToken}, {"id", "h1"}});
+      hold_sent = true;
+    }
+    if (e["kind"] == "state" && e["state"] == "holding" && !resume_sent) {
+      EXPECT_TRUE(c.request({{"cmd", "resume"}}).value("ok", false));
+      resume_sent = true;
+    }
+    if (e["kind"] == "job" && e["text"].get<std::string>().rfind("ended", 0) == 0) break;
+  }
+  EXPECT_TRUE(hold_reply.is_null() || hold_reply.value("ok", false)) << hold_reply.dump();
+  ASSERT_FALSE(events.empty()) << serve_log();
+  EXPECT_EQ(events.front()["seq"], 1);
+  // The lifecycle, in order (overrun, link or violation events may come between).
+  struct Want {
+    const char *kind, *state, *holder, *text;
+  };
+  const Want want[] = {{"state", "ready", "none", "submitted"},
+                       {"job", "ready", "none", "submitted "},
+                       {"state", "running", "none", "started"},
+                       {"job", "running", "none", "started "},
+                       {"state", "holding", "operator", "held by the operator"},
+                       {"state", "running", "none", "resumed by the operator"},
+                       {"state", "done", "none", ""},
+                       {"job", "done", "none", "ended "}};
+  std::vector<json> lifecycle;
+  for (const json& e : events) {
+    if (e["kind"] == "state" || e["kind"] == "job") lifecycle.push_back(e);
+  }
+  ASSERT_EQ(lifecycle.size(), std::size(want)) << json(lifecycle).dump(1);
+  for (std::size_t i = 0; i < lifecycle.size(); ++i) {
+    const json& e = lifecycle[i];
+    EXPECT_EQ(e["kind"], want[i].kind) << i << ": " << e.dump();
+    EXPECT_EQ(e["state"], want[i].state) << i << ": " << e.dump();
+    EXPECT_EQ(e["holder"], want[i].holder) << i << ": " << e.dump();
+    EXPECT_EQ(e["text"].get<std::string>().rfind(want[i].text, 0), 0u) << i << ": " << e.dump();
+    EXPECT_TRUE(e.contains("job_t_s") && e.contains("service_seq")) << e.dump();
+    if (i > 0) {  // the service's own order agrees with the bridge's
+      EXPECT_GT(e["service_seq"].get<std::uint64_t>(),
+                lifecycle[i - 1]["service_seq"].get<std::uint64_t>());
+    }
+  }
+  // The motion time grows from the resume to the end.
+  EXPECT_GT(lifecycle[6]["job_t_s"].get<double>(), lifecycle[5]["job_t_s"].get<double>());
+  EXPECT_EQ(c.request({{"cmd", "status"}})["state"], "done");
 }
 
 TEST_F(ServeFleet, TheLastWillMarksAKilledServiceOffline) {

@@ -214,6 +214,63 @@ TEST(ServiceStates, StopEndsAsStoppedWithWhyAndWhereAndCommitsTheSetpoints) {
   EXPECT_EQ(s.state(), State::Ready);
 }
 
+// The status's program line and binding limit, poll by poll, against what the drained setpoint's
+// position says independently: three sides of a square walked by G1 moves on source lines 3, 4
+// and 5 (y = 0 on line 3, x = 20 on line 4, y = 20 on line 5). Each has its own feed, so each
+// is its own segment (moves in a row at one feed make one polyline segment, whose line is the
+// first's). Cruising in the middle of the first side at F600 (10 mm/s, far below the machine's
+// limits) the program's F binds; held at rest, the hold.
+TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
+  const char* kSquare = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X20 F600\nG1 Y20 F480\nG1 X0 F600\nM2\n";
+  auto path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kSquare, "square.ngc"));
+  service::Service s(simulated(64));
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(path, got, committed));
+  EXPECT_EQ(s.status().line, 0);  // no setpoint yet
+  EXPECT_EQ(s.status().binding_limit, "");
+  s.start();
+  int checked[6] = {};
+  bool saw_program = false;
+  const auto expected_line = [](const Vec3& p) {
+    const double eps = 1e-6;  // the corners belong to either side: not checked
+    if (std::abs(p.y()) < eps && p.x() > eps && p.x() < 20 - eps) return 3;
+    if (std::abs(p.x() - 20) < eps && p.y() > eps && p.y() < 20 - eps) return 4;
+    if (std::abs(p.y() - 20) < eps && p.x() > eps && p.x() < 20 - eps) return 5;
+    return 0;
+  };
+  while (s.poll()) {
+    if (got.empty()) continue;
+    const service::Status st = s.status();
+    const Vec3 p = got.back().p;
+    if (const int want = expected_line(p); want > 0) {
+      ASSERT_EQ(st.line, want) << "at " << p.transpose();
+      ++checked[want];
+    }
+    // Mid-side, cruising: the F word binds.
+    if (std::abs(got.back().v_mm_per_s - 10.0) < 1e-9 && std::abs(p.y()) < 1e-9 &&
+        std::abs(p.x() - 10.0) < 2.0) {
+      EXPECT_EQ(st.binding_limit, "program") << "at " << p.transpose();
+      saw_program = true;
+    }
+    if (checked[4] == 10) {  // on the second side: hold, come to rest, resume
+      s.hold(HoldHolder::Operator);
+      while (s.poll() && !(got.back().v_mm_per_s == 0.0)) {
+      }
+      EXPECT_EQ(s.status().binding_limit, "hold");
+      EXPECT_EQ(s.status().line, 4);
+      s.resume(HoldHolder::Operator);
+      ++checked[4];
+    }
+  }
+  EXPECT_EQ(s.state(), State::Done);
+  EXPECT_GT(checked[3], 100);
+  EXPECT_GT(checked[4], 100);
+  EXPECT_GT(checked[5], 100);
+  EXPECT_TRUE(saw_program);
+  EXPECT_EQ(s.status().line, 5);  // the end of the last move
+}
+
 TEST(ServiceEvents, ALaggingSubscriberLosesEventsCountedNeverBlocksTheLoop) {
   service::Service s(simulated());
   auto slow = s.subscribe(2);  // never read until the end

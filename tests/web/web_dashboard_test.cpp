@@ -26,6 +26,7 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <thread>
+#include <vector>
 
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/process.hpp"
@@ -109,6 +110,7 @@ class WsClient {
     json m = json::parse(beast::buffers_to_string(buffer_.data()));
     buffer_.consume(buffer_.size());
     if (m.contains("program")) last_program_ = m["program"];
+    if (m.contains("event")) events.push_back(m["event"]);
     return m;
   }
   // The next message with `key` ("reply", "status", "program"), skipping others.
@@ -146,6 +148,9 @@ class WsClient {
   bool reading_ = false;
   std::optional<beast::error_code> result_;
   json last_program_ = json::object();
+
+ public:
+  std::vector<json> events;  // every {"event": …} read, in order (also those skipped)
 };
 
 // The control socket client (a Unix socket).
@@ -392,6 +397,58 @@ TEST_F(WebDashboard, UploadSubmitsAndSendsTheProgrammedPath) {
   EXPECT_NEAR(s["position"][2].get<double>(), -1.0, 1e-9);
 }
 
+// The service's events reach an open page as {"event": …}, in the service's order with no gap,
+// the hold as a state event held by the operator; a page opened later gets the last ones.
+TEST_F(WebDashboard, TheServicesEventsReachThePage) {
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n", "", "wall");
+  ASSERT_NE(port, 0);
+  WsClient ws(port);
+  ASSERT_TRUE(
+      ws.request({{"cmd", "upload"}, {"name", "slow.ngc"}, {"text", kProgram}}).value("ok", false));
+  ASSERT_TRUE(ws.request({{"cmd", "start"}}).value("ok", false));
+  const auto seen = [&](const std::string& kind, const std::string& state) {
+    for (int i = 0; i < 400; ++i) {
+      for (const json& e : ws.events) {
+        if (e["kind"] == kind && e["state"] == state) return true;
+      }
+      ws.next(0.05);
+    }
+    return false;
+  };
+  ASSERT_TRUE(seen("job", "running"));
+  ASSERT_TRUE(ws.request({{"cmd", "hold"}}).value("ok", false));
+  ASSERT_TRUE(seen("state", "holding"));
+  const std::vector<json> events = ws.events;
+  EXPECT_EQ(events.front()["service_seq"], 1);
+  for (std::size_t i = 1; i < events.size(); ++i) {
+    EXPECT_EQ(events[i]["service_seq"].get<std::uint64_t>(),
+              events[i - 1]["service_seq"].get<std::uint64_t>() + 1)
+        << events[i].dump();
+  }
+  std::vector<std::string> lifecycle;  // kind:state:holder of the state and job events
+  for (const json& e : events) {
+    if (e["kind"] == "state" || e["kind"] == "job") {
+      lifecycle.push_back(e["kind"].get<std::string>() + ":" + e["state"].get<std::string>() + ":" +
+                          e["holder"].get<std::string>());
+    }
+  }
+  const std::vector<std::string> want = {"state:ready:none", "job:ready:none", "state:running:none",
+                                         "job:running:none", "state:holding:operator"};
+  EXPECT_EQ(lifecycle, want);
+  EXPECT_EQ(events.back()["text"], "held by the operator");
+  // A page opened now gets the recent events, the hold among them.
+  WsClient late(port);
+  bool saw_hold = false;
+  for (int i = 0; i < 100 && !saw_hold; ++i) {
+    late.next(0.05);
+    for (const json& e : late.events) {
+      saw_hold = saw_hold || (e["state"] == "holding" && e["holder"] == "operator");
+    }
+  }
+  EXPECT_TRUE(saw_hold);
+  EXPECT_TRUE(ws.request({{"cmd", "stop"}}).value("ok", false));
+}
+
 TEST_F(WebDashboard, TokenAndLoopbackRules) {
   // Not loopback and no token: refused, naming the value and the way out.
   const std::string open = write("open.toml", "[http]\nlisten = \"tcp:0.0.0.0:0\"\n");
@@ -610,6 +667,14 @@ TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
   page.click("#hold");
   ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
   EXPECT_EQ(sock.request({{"cmd", "status"}})["state"], "holding");
+  // The page lists the service's events, the newest first: the hold, by the operator.
+  for (int i = 0;
+       i < 100 && page.text("events").find("holding by the operator") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_NE(page.text("events").find("holding by the operator · held by the operator"),
+            std::string::npos)
+      << page.text("events");
   // At rest (the hold's jerk-limited stop), the page shows the socket's position to 0.001 mm.
   for (int i = 0; i < 200; ++i) {
     s = sock.request({{"cmd", "status"}});
@@ -626,6 +691,14 @@ TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
     EXPECT_NEAR(std::stod(shown), s["position"][k].get<double>(), 0.0005 + 1e-12) << ids[k];
   }
   EXPECT_GT(s["position"][0].get<double>(), 12.0);
+  // Past x = 12 on y = 0 the tool is on "G1 X30 Y0 F300", line 4 of kProgram (its own segment:
+  // its feed differs from line 3's); at rest under the hold, the hold binds the feed.
+  EXPECT_NEAR(s["position"][1].get<double>(), 0.0, 1e-9);
+  EXPECT_EQ(s["line"], 4) << s.dump();
+  EXPECT_EQ(page.text("line"), "4");
+  EXPECT_EQ(s["binding_limit"], "hold") << s.dump();
+  EXPECT_NE(page.text("feed-limit").find("binding: hold"), std::string::npos)
+      << page.text("feed-limit");
   EXPECT_EQ(page.text("feed"), "0.0");
   EXPECT_EQ(page.text("override"), "100");
   // The page drew the programmed path and the tool's trace.
