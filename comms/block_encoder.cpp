@@ -605,7 +605,7 @@ void BlockEncoder::comment(const std::string& text) {
   do {
     std::size_t n = std::min(room, text.size() - from);
     if (from + n < text.size()) {
-      const std::size_t space = text.rfind(' ', from + n);
+      const std::size_t space = text.rfind(' ', from + n - 1);
       if (space != std::string::npos && space > from + n / 2) n = space + 1 - from;
     }
     std::string& t = block_.text;

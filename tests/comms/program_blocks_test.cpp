@@ -166,7 +166,9 @@ TEST(ProgramBlocks, LongCommentsAreSplitToTheDialectsWidth) {
   std::string header;
   for (int i = 0; i < 30; ++i) header += "word" + std::to_string(i) + " ";
   header += std::string(150, 'x');  // no space to break at: cut at the width
-  blocks.begin({header});
+  // A space just past a full piece: the piece keeps its width (the space starts the next one).
+  const std::string edge = std::string(s.max_comment_chars - 2, 'a') + " bbb";
+  blocks.begin({header, edge});
   blocks.end();
   std::string joined, program_text;
   for (const std::string& l : lines) {
@@ -176,7 +178,7 @@ TEST(ProgramBlocks, LongCommentsAreSplitToTheDialectsWidth) {
     EXPECT_LE(l.size(), s.max_comment_chars) << l;
     joined += l.substr(1, l.size() - 2);
   }
-  EXPECT_EQ(joined, header);
+  EXPECT_EQ(joined, header + edge);
   EXPECT_FALSE(check_program(Dialect::grbl, program_text).has_value()) << program_text;
 }
 
