@@ -26,6 +26,7 @@
 #include "comms/dnc_sender.hpp"
 #include "comms/program_file.hpp"
 #include "comms/sim_controller.hpp"
+#include "tests/common/temp_dir.hpp"
 
 namespace ncd::comms {
 namespace {
@@ -38,20 +39,9 @@ double since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("ncd_grbl_" + std::to_string(getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
+// A fresh folder per test (tests/common/temp_dir.hpp).
+struct TempDir : ncd::test::TempDir {
+  TempDir() : ncd::test::TempDir("ncd_grbl_") {}
 };
 
 SimControllerConfig grbl_config(const fs::path& link, std::shared_ptr<ManualClock> clock) {

@@ -3,6 +3,7 @@
 // sender library), and pairs DC1/DC3 with the controller's own count of bytes taken off the wire,
 // as a UART with a 16-character FIFO would. Checksums are computed here from the program text.
 #include "comms/sim_controller.hpp"
+#include "tests/common/temp_dir.hpp"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -45,21 +46,9 @@ double since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// A fresh folder per test, removed after.
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("ncd_sim_" + std::to_string(getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
+// A fresh folder per test (tests/common/temp_dir.hpp).
+struct TempDir : ncd::test::TempDir {
+  TempDir() : ncd::test::TempDir("ncd_sim_") {}
 };
 
 // A program of `count` numbered 1 mm G1 moves at `feed`, framed by % and ended by M30. blocks()
