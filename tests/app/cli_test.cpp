@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "tests/app/cli_fixture.hpp"
+#include "tests/common/rs274.hpp"
 
 namespace {
 
@@ -161,9 +162,9 @@ TEST_F(Cli, InclinedEccentricConeHoleIsWrittenInTheDrillFrame) {
   // approach down the axis, the closing move and the way back to the axis.
   const fs::path ngc = dir_ / "lateral.ngc", canon = dir_ / "lateral.canon";
   ASSERT_EQ(ncd(lateral + " --format ngc -o " + ngc.string()).status, 0);
-  if (fs::exists("/usr/bin/rs274")) {
+  if (fs::exists(ncd::test::kRs274)) {
     const std::string cmd =
-        "/usr/bin/rs274 -g " + ngc.string() + " < /dev/null > " + canon.string() + " 2>&1";
+        ncd::test::rs274_command(dir_, "-g " + ngc.string()) + " > " + canon.string() + " 2>&1";
     EXPECT_EQ(std::system(cmd.c_str()), 0) << slurp(canon);
     std::istringstream lines(slurp(canon));
     std::size_t feeds = 0;

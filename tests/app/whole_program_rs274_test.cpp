@@ -20,6 +20,7 @@
 
 #include "comms/dialect.hpp"
 #include "tests/app/cli_fixture.hpp"
+#include "tests/common/rs274.hpp"
 
 namespace {
 
@@ -28,7 +29,7 @@ using ncd::test::CmdResult;
 using ncd::test::slurp;
 namespace fs = std::filesystem;
 
-constexpr const char* kRs274 = "/usr/bin/rs274";
+using ncd::test::kRs274;
 // A point written or printed with 4 decimals is within half a unit of the last digit on each
 // axis: √3 · 5e-5 mm in space (plus 1e-6 for the arithmetic).
 const double kPrintMm = std::sqrt(3.0) * 5e-5 + 1e-6;
@@ -68,8 +69,8 @@ class Rs274 : public Cli {
   }
   Canonical canonical(const std::string& file) {
     const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
-    const std::string cmd = "printf '\\n\\n\\n' | " + std::string(kRs274) + " -g " + file + " " +
-                            out.string() + " >" + log.string() + " 2>&1";
+    const std::string cmd = ncd::test::rs274_command(dir_, "-g " + file + " " + out.string()) +
+                            " >" + log.string() + " 2>&1";
     const int raw = std::system(cmd.c_str());
     Canonical c;
     c.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;

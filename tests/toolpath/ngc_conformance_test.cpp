@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/common/rs274.hpp"
 #include "toolpath/ngc_interpreter.hpp"
 #include "toolpath/program.hpp"
 
@@ -29,7 +30,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kRs274 = "/usr/bin/rs274";
+using test::kRs274;
 constexpr const char* kSamples = "/usr/share/linuxcnc/ncfiles";
 constexpr double kTol = 5e-5 + 1e-6;
 
@@ -366,9 +367,10 @@ class Conformance : public ::testing::Test {
     if (!var.empty()) std::ofstream(dir_ / "p.var") << var;
     const fs::path out = dir_ / "out.txt", log = dir_ / "log.txt";
     fs::remove(out);
-    const std::string cmd = "cd '" + dir_.string() + "' && printf '\\n\\n\\n' | timeout 60 " +
-                            kRs274 + " -t tool.tbl -v p.var -g '" + program.string() +
-                            "' out.txt > log.txt 2>&1";
+    const std::string cmd =
+        "cd '" + dir_.string() + "' && " +
+        test::rs274_command(dir_, "-t tool.tbl -v p.var -g '" + program.string() + "' out.txt") +
+        " > log.txt 2>&1";
     const int rc = std::system(cmd.c_str());
     std::ifstream o(out), l(log);
     std::stringstream os, ls;
@@ -457,6 +459,10 @@ TEST_F(Conformance, LinuxCncSamplesMatchOrAreRefused) {
       "LinuxCNC samples: %d match, %d refused by ncd, %d refused by rs274 but read by ncd, %d "
       "mismatch\n%s",
       matched, refused, rs_err, mismatched, table.str().c_str());
+  // A judge that cannot run (no writable HOME, a shared tool-table file) turns every sample into
+  // "refused by rs274"; the figures measured when the interpreter landed keep that from passing.
+  EXPECT_GE(matched, 21) << table.str();
+  EXPECT_LE(rs_err, 2) << table.str();
 }
 
 }  // namespace
