@@ -12,7 +12,14 @@
 //    credit grows at chars_per_s while characters wait and drops to zero when the line goes
 //    idle, so an idle line banks nothing and the first character after a pause costs a whole
 //    character time; while the line is busy the credit is not capped, so a late wake-up of this
-//    loop catches up as a UART's FIFO would, and never exceeds the line's rate overall. A pty
+//    loop catches up as a UART's FIFO would, and never exceeds the line's rate overall. In drip
+//    mode each character of such a burst keeps its own arrival time and the executor and the
+//    flow control run between characters, as the controller's receive interrupt would have
+//    them. A DC3 that was due more than kLateFlowS before the loop could send it (xoff_late)
+//    holds what the sender wrote before it could see it (the rest of the burst and what waits in
+//    the kernel) until DC1, and those characters obey every DC3 until they have all been read,
+//    as the sender's flow control would have had them: the simulation's lateness is never
+//    blamed on the sender. A pty
 //    carries no framing, no parity and no CTS: parity and stop bits only lengthen the character
 //    time, 7-bit frames are emulated by masking the 8th bit, and --flow rtscts cannot stop the
 //    sender (there is no CTS line), so it behaves as --flow none and the buffer can overflow.
@@ -82,6 +89,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -110,7 +118,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 constexpr int kMaxBlockChars = 255;
-constexpr double kLoopPeriodS = 0.001;      // longest wait of the loop
+constexpr double kLoopPeriodS = 0.001;  // longest wait of the loop
+// A DC3 sent this much after it was due (a late wake-up of the loop) pauses the wire until it
+// has gone out (drip), so that the loop's own lateness is never blamed on the sender.
+constexpr double kLateFlowS = 0.002;
 constexpr std::size_t kMaxOutQueue = 4096;  // beyond this, noise is not generated
 constexpr double kReceivingS = 0.1;         // "while receiving": a byte within this long
 // grbl 1.1's step segment buffer (stepper.c): SEGMENT_BUFFER_SIZE 6, of which 5 hold segments,
@@ -568,6 +579,7 @@ struct SimController::Impl {
     down_until = t + cfg.faults.down_s;
     out.clear();
     backlog.clear();  // in flight when the line went down
+    late_written_end = 0;
     ++reply_epoch;
     open_count = 0;
     rx_idle = true;
@@ -587,6 +599,11 @@ struct SimController::Impl {
   void receive(double t, bool readable) {
     if (!pty.is_open()) return;
     if (marker && taken >= *marker) apply_marker();
+    if (told_xoff && taken < late_written_end) {  // held as the sender would have held it
+      credit = 0.0;
+      credit_t = t;
+      return;
+    }
     if (rx_idle) {
       if (!readable && backlog.empty()) return;
       rx_idle = false;  // the first character's frame starts now
@@ -595,6 +612,7 @@ struct SimController::Impl {
       if (log.bytes_received == 0) log.first_byte_t_s = t;
       return;
     }
+    const double credit_0 = credit, credit_t0 = credit_t;  // for each character's own time
     credit += (t - credit_t) * cps;
     credit_t = t;
     if (credit < 1.0) return;
@@ -615,7 +633,39 @@ struct SimController::Impl {
     }
     credit -= static_cast<double>(got);
     taken += got;
-    for (std::size_t i = 0; i < got && !drop_pending; ++i) on_byte(buf[i], t);
+    for (std::size_t i = 0; i < got && !drop_pending; ++i) {
+      if (!drip) {
+        on_byte(buf[i], t);
+        continue;
+      }
+      // Drip: the characters of a late wake-up arrived one frame apart, and the controller ran
+      // and flowed meanwhile, as a UART's interrupt would have had it (the jitter of this loop is
+      // the simulation's, not the controller's).
+      const double t_i = std::min(t, credit_t0 + (static_cast<double>(i) + 1.0 - credit_0) / cps);
+      execute(t_i);
+      on_byte(buf[i], t_i);
+      const bool was_xoff = told_xoff;
+      flow();
+      const std::uint64_t taken_here = taken - got + i + 1;
+      const bool late = t - t_i > kLateFlowS;
+      if (told_xoff && !was_xoff && (late || taken_here < late_written_end)) {
+        // The DC3 was due at t_i and goes out only now: the sender could not have stopped. What
+        // it wrote before it could see the DC3 waits, as its own flow control would have held
+        // it, and obeys each DC3 until it has all been read.
+        const std::size_t rest = got - i - 1;
+        backlog.insert(0, buf.data() + i + 1, rest);
+        taken = taken_here;
+        credit = 0.0;
+        if (late) {
+          int in_kernel = 0;
+          if (::ioctl(pty.master(), FIONREAD, &in_kernel) != 0) in_kernel = 0;
+          late_written_end = std::max(late_written_end,
+                                      taken + backlog.size() + static_cast<std::size_t>(in_kernel));
+          ++log.xoff_late;
+        }
+        break;
+      }
+    }
     if (drop_pending) {
       drop_link(t);
       return;
@@ -983,6 +1033,7 @@ struct SimController::Impl {
     if (alarmed) return;
     alarmed = true;
     alarm_t = t;
+    late_written_end = 0;  // what follows is read, and counted as after the alarm
     log.alarms.push_back({t, code, log.blocks_received, log.last_n, detail});
     if (drip) {
       send_flow(true);
@@ -1485,6 +1536,9 @@ struct SimController::Impl {
 
   // flow and faults
   bool fill_xoff = false, told_xoff = false;
+  // Drip: the end (in bytes taken) of what the sender wrote before it could see a DC3 the loop
+  // sent late; up to there the wire obeys DC3 as the sender would have.
+  std::uint64_t late_written_end = 0;
   std::optional<double> storm_until, hold_until;
   double next_storm = 0.0, next_noise = 0.0;
   bool alarmed = false;
@@ -1711,6 +1765,7 @@ Json to_json(const SimLog& l) {
               {"alarms", alarms},
               {"errors", errors},
               {"xoff_sent", l.xoff_sent},
+              {"xoff_late", l.xoff_late},
               {"xon_sent", l.xon_sent},
               {"xoff_storms", l.xoff_storms},
               {"holds", l.holds},

@@ -274,6 +274,7 @@ struct SimLog {
   std::vector<SimAlarm> alarms;
   std::vector<SimErrorReply> errors;
   long xoff_sent = 0, xon_sent = 0, xoff_storms = 0, holds = 0;
+  long xoff_late = 0;  // DC3s the loop sent late, with the wire paused till then (drip)
   std::uint64_t noise_bytes_sent = 0;
   long link_drops = 0, sender_connects = 0, sender_disconnects = 0;
   std::vector<SimLinkEvent> link_events;

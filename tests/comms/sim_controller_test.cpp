@@ -653,6 +653,43 @@ TEST(SimController, SenderIgnoringXoffOverflows) {
   }
 }
 
+// The controller's loop wakes late (its process starved on a loaded machine) while the line is
+// busy, after the sender wrote, no faster than the line, 500 more characters. The characters of
+// the burst the loop then reads keep their own arrival times: the executor runs between them,
+// and the DC3, due when the fill reaches 192, can only go out late, so what the sender wrote
+// meanwhile waits, as the sender would have held it, until DC1. Nothing overflows, with blocks
+// that run faster than the line carries them and with blocks much slower. Before, the burst
+// landed at one instant, the executor ran after it and the 256-byte buffer overflowed (NAK).
+TEST(SimController, LateWakeUpOfTheLoopIsNotBlamedOnTheSender) {
+  for (const double feed : {20000.0, 600.0}) {
+    SCOPED_TRACE(feed);
+    TempDir dir;
+    SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 38400, "7E2");  // 3490 char/s
+    auto clock = std::make_shared<ManualClock>();
+    cfg.clock = clock;
+    Running run(cfg);
+    Peer peer(cfg.line.device, run.sim);
+    run.start_clock(*clock);
+    const Program prog(40, feed);
+    const std::string text = prog.text("\n");
+    ASSERT_GT(text.size(), 900U);
+    peer.write_all(text.substr(0, 100));
+    for (int i = 0; i < 10; ++i) ASSERT_TRUE(run.step(*clock, 0.001));  // the line is busy
+    ASSERT_GT(run.sim.progress().bytes_received, 20U);
+    peer.write_all(text.substr(100, 500));  // 600 characters in 0.21 s: the line carries 730
+    ASSERT_TRUE(run.step(*clock, 0.2));     // the loop wakes 0.2 s late
+    peer.tick = [&] { return run.step(*clock, 0.0005); };
+    ASSERT_TRUE(peer.send_drip(text.substr(600)));
+    ASSERT_TRUE(run.run_to_end(*clock, 0.001, 60.0));
+    const SimLog& log = run.stop();
+    EXPECT_TRUE(log.alarms.empty()) << log.alarms.front().detail;
+    EXPECT_EQ(log.program_sha256, prog.sha());
+    EXPECT_EQ(log.blocks_executed, static_cast<long>(prog.blocks.size()));
+    EXPECT_EQ(log.xoff_late, 1);
+    EXPECT_LE(log.max_buffer_fill, 192 + 16);
+  }
+}
+
 // ---- underruns ----
 
 // In simulated time (0.2 ms steps): a sender stalled by the machine's load cannot starve it.
