@@ -202,7 +202,7 @@ int run_stream(const StreamArgs& a) {
                        std::to_string(a.restart_from) + "'s start at Z " +
                        fmt(at.position_mm[2], 3) + ": give a clearance plane above the part");
     }
-    preamble = comms::restart_blocks(at, clearance);
+    preamble = comms::restart_blocks(at, clearance, dialect);
   }
   require_serial_port(a.port, "--port");  // a file or a missing port: exit 2 now, no retries
 

@@ -140,7 +140,8 @@ BlockMotion ProgramModal::apply(std::string_view text) {
   return m;
 }
 
-std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z_mm) {
+std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z_mm,
+                                        std::optional<Dialect> dialect) {
   if (!at.feed) {
     throw InputError(
         "no feed is in force at the restart block: the re-entry moves down at "
@@ -168,6 +169,18 @@ std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z
   std::string modes = at.absolute ? "G90" : "G91";
   if (at.motion >= 0) modes += " G" + std::to_string(at.motion);
   out.push_back(modes + " F" + num(*at.feed));
+  if (dialect) {
+    DialectState state;
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      if (auto v = check_line(*dialect, out[i], state)) {
+        v->line = static_cast<long>(i) + 1;
+        throw InputError("the restart's line " + std::to_string(i + 1) + " '" + out[i] +
+                         "' is not for a " + to_string(*dialect) +
+                         " controller: " + describe(*v, *dialect) +
+                         "; restart from a block where the modes in force are ones it takes");
+      }
+    }
+  }
   return out;
 }
 

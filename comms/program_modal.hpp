@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include "comms/dialect.hpp"
+
 namespace ncd::comms {
 
 struct ModalState {
@@ -49,7 +51,10 @@ class ProgramModal {
 // The blocks that bring a controller into the state `at` (the modes in force before block N)
 // and re-enter the cut safely: up to clearance_z_mm at the rapid rate, over `start_mm` (block
 // N's start point), down at the program's feed, then the distance mode and motion of block N.
-// Throws InputError when the state cannot be written (no feed in force, unknown position).
-std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z_mm);
+// Throws InputError when the state cannot be written (no feed in force, unknown position), or,
+// given the controller's dialect, when a line of it is one that dialect refuses (checked as the
+// controller would receive them, from its power-on state).
+std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z_mm,
+                                        std::optional<Dialect> dialect = std::nullopt);
 
 }  // namespace ncd::comms

@@ -168,6 +168,34 @@ TEST(ProgramModal, EndPointsAndRestartBlocks) {
   EXPECT_THROW(restart_blocks(none.state(), 5.0), InputError);  // no feed in force
 }
 
+// The restart lines are checked against the controller's dialect as it receives them: for a
+// grbl machine the same state written with a tool change and a G43 H is refused (grbl 1.1 has
+// neither M6 nor G43 H: error:20), naming the line and the word; without them grbl takes every
+// line, and so does an iso control.
+TEST(ProgramModal, RestartBlocksAreCheckedAgainstTheDialect) {
+  ProgramModal m;
+  m.apply("G20 G90 G55 T3 M6 G43 H3");
+  m.apply("S12000 M3 G0 X1 Y2 Z0.5");
+  m.apply("G1 X2 F20");
+  EXPECT_NO_THROW(restart_blocks(m.state(), 25.4, Dialect::iso));
+  EXPECT_NO_THROW(restart_blocks(m.state(), 25.4, Dialect::linuxcnc));
+  try {
+    restart_blocks(m.state(), 25.4, Dialect::grbl);
+    ADD_FAILURE() << "a T3 M6 restart line was taken for grbl";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("line 3 'T3 M6'"), std::string::npos) << what;
+    EXPECT_NE(what.find("error:20"), std::string::npos) << what;
+  }
+  ProgramModal g;  // a grbl program: T without M6, no length offset
+  g.apply("G21 G90 T2");
+  g.apply("S8000 M3 G0 X10 Y5 Z2");
+  g.apply("G1 Z-1 F300");
+  const auto lines = restart_blocks(g.state(), 5.0, Dialect::grbl);
+  GrblState grbl;
+  for (const auto& line : lines) EXPECT_FALSE(check_grbl_line(line, grbl)) << line;
+}
+
 // Drip feed: after the controller's DC3 the sender stops within max_queued_chars characters,
 // give or take the DC3's own way across the pty,
 // and the program still arrives whole once DC1 comes.
