@@ -12,6 +12,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "core/number_text.hpp"
+
 namespace ncd::app {
 namespace {
 
@@ -64,12 +66,6 @@ std::array<std::uint8_t, 3> ramp(double u) {
         std::lround(stops[k][ch] + f * (stops[k + 1][ch] - stops[k][ch])));
   }
   return c;
-}
-
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", std::abs(v) < 1e-12 ? 0.0 : v);
-  return buf;
 }
 
 std::string esc(const std::string& s) {
@@ -170,37 +166,43 @@ std::string render_heatmap_svg(const HeatMap& m) {
   const double left = 80, top = 60 + 16.0 * static_cast<double>(m.notes.size());
   const double width = left + pw + 150, height = top + ph + 60;
   std::string s;
-  s += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + num(width) + "\" height=\"" +
-       num(height) + "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+  s += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + text::sig(width, 4) + "\" height=\"" +
+       text::sig(height, 4) + "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   s += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  s += "<text x=\"" + num(left) + "\" y=\"24\" font-size=\"15\">" + esc(m.title) + "</text>\n";
+  s += "<text x=\"" + text::sig(left, 4) + "\" y=\"24\" font-size=\"15\">" + esc(m.title) +
+       "</text>\n";
   for (std::size_t k = 0; k < m.notes.size(); ++k) {
-    s += "<text x=\"" + num(left) + "\" y=\"" + num(44 + 16.0 * static_cast<double>(k)) +
-         "\" fill=\"#444\">" + esc(m.notes[k]) + "</text>\n";
+    s += "<text x=\"" + text::sig(left, 4) + "\" y=\"" +
+         text::sig(44 + 16.0 * static_cast<double>(k), 4) + "\" fill=\"#444\">" + esc(m.notes[k]) +
+         "</text>\n";
   }
-  s += "<image x=\"" + num(left) + "\" y=\"" + num(top) + "\" width=\"" + num(pw) + "\" height=\"" +
-       num(ph) +
+  s += "<image x=\"" + text::sig(left, 4) + "\" y=\"" + text::sig(top, 4) + "\" width=\"" +
+       text::sig(pw, 4) + "\" height=\"" + text::sig(ph, 4) +
        "\" preserveAspectRatio=\"none\" style=\"image-rendering:pixelated\" "
        "href=\"data:image/png;base64," +
        base64(encode_png_rgb(w, h, rgb)) + "\"/>\n";
-  s += "<rect x=\"" + num(left) + "\" y=\"" + num(top) + "\" width=\"" + num(pw) + "\" height=\"" +
-       num(ph) + "\" fill=\"none\" stroke=\"black\"/>\n";
+  s += "<rect x=\"" + text::sig(left, 4) + "\" y=\"" + text::sig(top, 4) + "\" width=\"" +
+       text::sig(pw, 4) + "\" height=\"" + text::sig(ph, 4) +
+       "\" fill=\"none\" stroke=\"black\"/>\n";
   const double sx = tick_step(ax), sy = tick_step(ay);
   for (double t = std::ceil(m.x_min_mm / sx) * sx; t <= m.x_max_mm + 1e-9 * ax; t += sx) {
     const double x = left + (t - m.x_min_mm) * scale;
-    s += "<line x1=\"" + num(x) + "\" y1=\"" + num(top + ph) + "\" x2=\"" + num(x) + "\" y2=\"" +
-         num(top + ph + 5) + "\" stroke=\"black\"/><text x=\"" + num(x) + "\" y=\"" +
-         num(top + ph + 18) + "\" text-anchor=\"middle\">" + num(t) + "</text>\n";
+    s += "<line x1=\"" + text::sig(x, 4) + "\" y1=\"" + text::sig(top + ph, 4) + "\" x2=\"" +
+         text::sig(x, 4) + "\" y2=\"" + text::sig(top + ph + 5, 4) +
+         "\" stroke=\"black\"/><text x=\"" + text::sig(x, 4) + "\" y=\"" +
+         text::sig(top + ph + 18, 4) + "\" text-anchor=\"middle\">" + text::tick(t, sx, 4) +
+         "</text>\n";
   }
   for (double t = std::ceil(m.y_min_mm / sy) * sy; t <= m.y_max_mm + 1e-9 * ay; t += sy) {
     const double y = top + ph - (t - m.y_min_mm) * scale;
-    s += "<line x1=\"" + num(left - 5) + "\" y1=\"" + num(y) + "\" x2=\"" + num(left) + "\" y2=\"" +
-         num(y) + "\" stroke=\"black\"/><text x=\"" + num(left - 8) + "\" y=\"" + num(y + 4) +
-         "\" text-anchor=\"end\">" + num(t) + "</text>\n";
+    s += "<line x1=\"" + text::sig(left - 5, 4) + "\" y1=\"" + text::sig(y, 4) + "\" x2=\"" +
+         text::sig(left, 4) + "\" y2=\"" + text::sig(y, 4) + "\" stroke=\"black\"/><text x=\"" +
+         text::sig(left - 8, 4) + "\" y=\"" + text::sig(y + 4, 4) + "\" text-anchor=\"end\">" +
+         text::tick(t, sy, 4) + "</text>\n";
   }
-  s += "<text x=\"" + num(left + pw / 2) + "\" y=\"" + num(top + ph + 40) +
+  s += "<text x=\"" + text::sig(left + pw / 2, 4) + "\" y=\"" + text::sig(top + ph + 40, 4) +
        "\" text-anchor=\"middle\">" + esc(m.x_label) + "</text>\n";
-  s += "<text transform=\"translate(" + num(left - 55) + "," + num(top + ph / 2) +
+  s += "<text transform=\"translate(" + text::sig(left - 55, 4) + "," + text::sig(top + ph / 2, 4) +
        ") rotate(-90)\" text-anchor=\"middle\">" + esc(m.y_label) + "</text>\n";
   // Colour scale.
   const double bx = left + pw + 30, bh = std::min(ph, 300.0);
@@ -208,18 +210,20 @@ std::string render_heatmap_svg(const HeatMap& m) {
     const auto c = ramp((k + 0.5) / 64.0);
     char col[16];
     std::snprintf(col, sizeof col, "#%02x%02x%02x", c[0], c[1], c[2]);
-    s += "<rect x=\"" + num(bx) + "\" y=\"" + num(top + bh - (k + 1) * bh / 64.0) +
-         "\" width=\"18\" height=\"" + num(bh / 64.0 + 0.5) + "\" fill=\"" + col + "\"/>\n";
+    s += "<rect x=\"" + text::sig(bx, 4) + "\" y=\"" +
+         text::sig(top + bh - (k + 1) * bh / 64.0, 4) + "\" width=\"18\" height=\"" +
+         text::sig(bh / 64.0 + 0.5, 4) + "\" fill=\"" + col + "\"/>\n";
   }
-  s += "<rect x=\"" + num(bx) + "\" y=\"" + num(top) + "\" width=\"18\" height=\"" + num(bh) +
-       "\" fill=\"none\" stroke=\"black\"/>\n";
+  s += "<rect x=\"" + text::sig(bx, 4) + "\" y=\"" + text::sig(top, 4) +
+       "\" width=\"18\" height=\"" + text::sig(bh, 4) + "\" fill=\"none\" stroke=\"black\"/>\n";
   const double sv = tick_step(hi - lo);
   for (double t = std::ceil(lo / sv) * sv; t <= hi + 1e-9 * (hi - lo); t += sv) {
     const double y = top + bh - (t - lo) / (hi - lo) * bh;
-    s += "<text x=\"" + num(bx + 24) + "\" y=\"" + num(y + 4) + "\">" + num(t) + "</text>\n";
+    s += "<text x=\"" + text::sig(bx + 24, 4) + "\" y=\"" + text::sig(y + 4, 4) + "\">" +
+         text::tick(t, sv, 4) + "</text>\n";
   }
-  s += "<text x=\"" + num(bx) + "\" y=\"" + num(top + bh + 20) + "\">" + esc(m.value_label) +
-       "</text>\n";
+  s += "<text x=\"" + text::sig(bx, 4) + "\" y=\"" + text::sig(top + bh + 20, 4) + "\">" +
+       esc(m.value_label) + "</text>\n";
   s += "</svg>\n";
   return s;
 }

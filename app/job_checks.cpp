@@ -7,18 +7,13 @@
 #include <variant>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::app {
 namespace {
 
 constexpr double kBallRadiusMatchMm = 1e-9;
 constexpr int kSamplesPerSpan = 64;  // curve samples per knot span (envelope, length)
-
-std::string mm(double v) {
-  char text[48];
-  std::snprintf(text, sizeof text, "%.6g", v);
-  return text;
-}
 
 std::string where(const toolpath::Path& path, std::size_t k) {
   std::string w = path.source + ": segment " + std::to_string(k + 1);
@@ -49,8 +44,9 @@ std::string outside(const Vec3& p, const Envelope& e) {
   static const char* const kAxis[] = {"X", "Y", "Z"};
   for (int a = 0; a < 3; ++a) {
     if (!(p[a] >= e.min_mm[a] && p[a] <= e.max_mm[a])) {
-      return std::string(kAxis[a]) + " = " + mm(p[a]) + " mm is outside the machine's travel " +
-             mm(e.min_mm[a]) + " .. " + mm(e.max_mm[a]) + " mm";
+      return std::string(kAxis[a]) + " = " + text::sig(p[a]) +
+             " mm is outside the machine's travel " + text::sig(e.min_mm[a]) + " .. " +
+             text::sig(e.max_mm[a]) + " mm";
     }
   }
   return {};
@@ -101,12 +97,12 @@ ChamferAcceptance accept_chamfer(const toolpath::Path& path, MachineConfig& mach
       machine.cutting.ball_radius_mm = c.ball_radius_mm;
       machine.cutting.pick_feed_mm = 0.0;
     } else if (std::abs(machine_mm - c.ball_radius_mm) > kBallRadiusMatchMm) {
-      throw InputError(path.source + " was made for a ball radius of " + mm(c.ball_radius_mm) +
-                       " mm, but the machine file " + machine.source +
-                       " has [cutting] ball_radius_mm = " + mm(machine_mm) +
+      throw InputError(path.source + " was made for a ball radius of " +
+                       text::sig(c.ball_radius_mm) + " mm, but the machine file " + machine.source +
+                       " has [cutting] ball_radius_mm = " + text::sig(machine_mm) +
                        " mm; use the machine file of that tool, or regenerate the chamfer with "
                        "--ball-radius " +
-                       mm(machine_mm));
+                       text::sig(machine_mm));
     }
   }
   return out;
@@ -163,16 +159,17 @@ RunEstimate estimate_run(const toolpath::Path& path, const MachineConfig& machin
 
 void check_estimate(const RunEstimate& r, bool with_setpoints) {
   if (!(r.duration_s <= kMaxRunS)) {
-    throw InputError("the run would take at least " + mm(r.duration_s / 3600.0) + " h (" +
-                     mm(r.length_mm) + " mm at the programmed feeds), more than the limit of " +
-                     mm(kMaxRunS / 3600.0) +
+    throw InputError("the run would take at least " + text::sig(r.duration_s / 3600.0) + " h (" +
+                     text::sig(r.length_mm) +
+                     " mm at the programmed feeds), more than the limit of " +
+                     text::sig(kMaxRunS / 3600.0) +
                      " h for one job; check the program's coordinates and feeds (F), or split it");
   }
   if (with_setpoints && r.setpoint_bytes > kMaxSetpointBytes) {
     throw InputError("the setpoints file would hold " + std::to_string(r.periods) +
-                     " rows, about " + mm(static_cast<double>(r.setpoint_bytes) / 1e9) +
+                     " rows, about " + text::sig(static_cast<double>(r.setpoint_bytes) / 1e9) +
                      " GB, more than the limit of " +
-                     mm(static_cast<double>(kMaxSetpointBytes) / 1e9) +
+                     text::sig(static_cast<double>(kMaxSetpointBytes) / 1e9) +
                      " GB; leave out --setpoints or split the program");
   }
 }

@@ -17,6 +17,7 @@
 #include "app/output.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
+#include "core/number_text.hpp"
 #include "toolpath/robot.hpp"
 
 namespace ncd::app {
@@ -39,13 +40,6 @@ struct RobotArgs {
   double max_touch_residual_mm = 0.5;
   bool quiet = false;
 };
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
 
 std::string fixed(double v, int decimals) {
   std::ostringstream s;
@@ -182,19 +176,23 @@ std::string robot_text(const RobotPath& path, const RobotProgram& prog,
   t << "# ncd robot: chamfer of a hole through a cylinder, 6-axis robot with a rotary bar "
        "(paper 002)\n"
     << "# format: ncd-robot-text 1\n"
-    << "# cylinder radius R " << fmt(s.cylinder_radius_mm) << " mm, hole radius r "
-    << fmt(s.hole_radius_mm) << " mm, " << s.points << " points per loop (step "
-    << fmt(360.0 / s.points) << " deg), start angle " << fmt(rad_to_deg(s.start_angle_rad))
+    << "# cylinder radius R " << text::sig(s.cylinder_radius_mm) << " mm, hole radius r "
+    << text::sig(s.hole_radius_mm) << " mm, " << s.points << " points per loop (step "
+    << text::sig(360.0 / s.points) << " deg), start angle "
+    << text::sig(rad_to_deg(s.start_angle_rad))
     << " deg, travel clockwise seen from outside the hole\n"
-    << "# depth of cut " << fmt(s.depth_mm) << " mm per pass, " << s.passes
-    << " pass(es), chamfer width " << fmt(2.0 * s.depth_mm * s.passes) << " mm (45 deg to the "
+    << "# depth of cut " << text::sig(s.depth_mm) << " mm per pass, " << s.passes
+    << " pass(es), chamfer width " << text::sig(2.0 * s.depth_mm * s.passes)
+    << " mm (45 deg to the "
     << "hole wall), TCP "
-    << (s.bar_radius_mm > 0.0 ? "on the bar's axis, bar radius " + fmt(s.bar_radius_mm) + " mm"
-                              : std::string("on the bar's side"))
+    << (s.bar_radius_mm > 0.0
+            ? "on the bar's axis, bar radius " + text::sig(s.bar_radius_mm) + " mm"
+            : std::string("on the bar's side"))
     << "\n"
-    << "# spindle " << fmt(o.spindle_rpm) << " rpm on before the first line, off after the last; "
-    << "chamfering speed " << fmt(o.speed_mm_per_s) << " mm/s, moving speed "
-    << fmt(o.move_speed_mm_per_s) << " mm/s\n"
+    << "# spindle " << text::sig(o.spindle_rpm)
+    << " rpm on before the first line, off after the last; "
+    << "chamfering speed " << text::sig(o.speed_mm_per_s) << " mm/s, moving speed "
+    << text::sig(o.move_speed_mm_per_s) << " mm/s\n"
     << "# T_g rule: " << toolpath::to_string(s.rule) << "; attitude change (deg), "
     << "rotation angle of R_prev^T R_next:\n"
     << "#   " << attitude_line("paper       ", path.paper) << "\n"
@@ -213,12 +211,12 @@ std::string robot_text(const RobotPath& path, const RobotProgram& prog,
     t << "# workpiece to robot: identity (no touch points): the robot frame is the workpiece "
          "frame (hole axis z, cylinder axis y, origin where they cross)\n";
   }
-  t << "# checks: edge on both surfaces to " << fmt(ck.surface_residual_mm)
+  t << "# checks: edge on both surfaces to " << text::sig(ck.surface_residual_mm)
     << " mm; D and T_f to the hole wall " << fixed(rad_to_deg(ck.wall_angle_min_rad), 6) << ".."
     << fixed(rad_to_deg(ck.wall_angle_max_rad), 6) << " deg; T_f to the cylinder surface "
     << fixed(rad_to_deg(ck.tf_cylinder_angle_min_rad), 3) << ".."
     << fixed(rad_to_deg(ck.tf_cylinder_angle_max_rad), 3) << " deg; frames orthonormal to "
-    << fmt(ck.frame_error) << "; W,P,R round trip to " << fmt(prog.wpr_roundtrip_error)
+    << text::sig(ck.frame_error) << "; W,P,R round trip to " << text::sig(prog.wpr_roundtrip_error)
     << "; chord deviation " << fixed(ck.chord_deviation_mm, 4) << " mm\n"
     << "# cut length " << fixed(prog.cut_length_mm, 3) << " mm, duration "
     << fixed(prog.duration_s, 1) << " s from the approach pose\n"
@@ -235,7 +233,7 @@ std::string robot_text(const RobotPath& path, const RobotProgram& prog,
     t << (i + 1) << ' ' << toolpath::to_string(mv.mode) << ' ' << fixed(p.x(), d) << ' '
       << fixed(p.y(), d) << ' ' << fixed(p.z(), d) << ' ' << fixed(rad_to_deg(mv.wpr.w_rad), d)
       << ' ' << fixed(rad_to_deg(mv.wpr.p_rad), d) << ' ' << fixed(rad_to_deg(mv.wpr.r_rad), d)
-      << ' ' << fmt(mv.speed_mm_per_s) << '\n';
+      << ' ' << text::sig(mv.speed_mm_per_s) << '\n';
   }
   return t.str();
 }
@@ -244,9 +242,9 @@ std::string robot_summary(const RobotPath& path, const RobotProgram& prog,
                           const std::optional<TouchFit>& fit) {
   const auto& s = path.spec;
   std::ostringstream o;
-  o << "robot: R " << fmt(s.cylinder_radius_mm) << " mm, r " << fmt(s.hole_radius_mm) << " mm, "
-    << s.points << " points x " << s.passes << " pass(es), rule " << toolpath::to_string(s.rule)
-    << "\n";
+  o << "robot: R " << text::sig(s.cylinder_radius_mm) << " mm, r " << text::sig(s.hole_radius_mm)
+    << " mm, " << s.points << " points x " << s.passes << " pass(es), rule "
+    << toolpath::to_string(s.rule) << "\n";
   o << "  attitude change (deg):\n";
   o << "    " << attitude_line("paper       ", path.paper) << "\n";
   o << "    " << attitude_line("min-change  ", path.min_change) << "\n";
@@ -287,10 +285,10 @@ int run_robot(const RobotArgs& a) {
         if (fit->residual_mm[i] > fit->residual_mm[worst]) worst = i;
       }
       throw InputError("the touch points do not fit one rigid motion: touch " +
-                       std::to_string(worst + 1) + " is " + fmt(fit->max_mm) +
-                       " mm off the best fit (rms " + fmt(fit->rms_mm) + " mm), more than " +
-                       fmt(a.max_touch_residual_mm) + " mm; check that line of " + a.touch_points +
-                       ", touch again, or raise --max-touch-residual");
+                       std::to_string(worst + 1) + " is " + text::sig(fit->max_mm) +
+                       " mm off the best fit (rms " + text::sig(fit->rms_mm) + " mm), more than " +
+                       text::sig(a.max_touch_residual_mm) + " mm; check that line of " +
+                       a.touch_points + ", touch again, or raise --max-touch-residual");
     }
   }
   const RobotPath path = toolpath::generate_robot_path(spec);

@@ -21,6 +21,7 @@
 #include "comms/program_modal.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::app {
 namespace {
@@ -63,12 +64,6 @@ comms::ModalState state_before(const std::string& path, long n, double& max_z_mm
     if (m.motion) max_z_mm = std::max(max_z_mm, m.to_mm[2]);
   }
   return modal.state();
-}
-
-std::string fmt(double v, int decimals) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
 }
 
 nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettings& line,
@@ -154,7 +149,7 @@ int run_stream(const StreamArgs& a) {
         "counting would lose count; use --eob lf");
   }
   if (a.status_hz < 0.0 || a.status_hz > 10.0) {
-    throw InputError("--status-hz " + fmt(a.status_hz, 2) +
+    throw InputError("--status-hz " + text::fixed(a.status_hz, 2) +
                      " is out of range: use 0 (no polling) or up to 10 (grbl: 5 to 10)");
   }
   if (a.planner_blocks < 1 || a.planner_blocks > 1000) {
@@ -198,9 +193,10 @@ int run_stream(const StreamArgs& a) {
                        "--clearance-z MM (work coordinates)");
     }
     if (clearance < at.position_mm[2]) {
-      throw InputError("--clearance-z " + fmt(clearance, 3) + " is below block " +
+      throw InputError("--clearance-z " + text::fixed(clearance, 3) + " is below block " +
                        std::to_string(a.restart_from) + "'s start at Z " +
-                       fmt(at.position_mm[2], 3) + ": give a clearance plane above the part");
+                       text::fixed(at.position_mm[2], 3) +
+                       ": give a clearance plane above the part");
     }
     preamble = comms::restart_blocks(at, clearance, dialect);
   }
@@ -276,7 +272,7 @@ int run_stream(const StreamArgs& a) {
   const bool quiet = a.quiet;
   comms::DncSender sender(settings, source, [quiet](const comms::SenderEvent& e) {
     if (quiet && e.kind == comms::SenderEvent::Kind::Progress) return;
-    std::cerr << "ncd stream: [" << fmt(e.t_s, 3) << " s] " << e.text << std::endl;
+    std::cerr << "ncd stream: [" << text::fixed(e.t_s, 3) << " s] " << e.text << std::endl;
   });
   sender.set_journal(journal.get());
   sender.resume_from(first_block);
@@ -284,8 +280,8 @@ int run_stream(const StreamArgs& a) {
     std::cerr << "ncd stream: " << a.program << ": " << program.blocks << " blocks, "
               << program.bytes << " bytes, sha256 " << program.sha256 << "\n"
               << "ncd stream: " << comms::describe(line) << " carries "
-              << fmt(comms::chars_per_s(line), 0) << " characters/s; at least "
-              << fmt(static_cast<double>(program.bytes) / comms::chars_per_s(line), 1)
+              << text::fixed(comms::chars_per_s(line), 0) << " characters/s; at least "
+              << text::fixed(static_cast<double>(program.bytes) / comms::chars_per_s(line), 1)
               << " s on the wire"
               << (first_block > 0 ? "; resuming at block " + std::to_string(first_block + 1) : "")
               << std::endl;
@@ -316,9 +312,9 @@ int run_stream(const StreamArgs& a) {
   } else {
     std::cout << "; executed blocks not known (" << r.execution_basis << ")";
   }
-  std::cout << "; " << r.bytes_written << " bytes in " << fmt(r.duration_s, 2) << " s, "
-            << fmt(100.0 * r.link_use, 1) << " % of the line; XOFF " << r.xoff_count
-            << " times (longest " << fmt(r.xoff_longest_s, 2) << " s), " << r.link_losses
+  std::cout << "; " << r.bytes_written << " bytes in " << text::fixed(r.duration_s, 2) << " s, "
+            << text::fixed(100.0 * r.link_use, 1) << " % of the line; XOFF " << r.xoff_count
+            << " times (longest " << text::fixed(r.xoff_longest_s, 2) << " s), " << r.link_losses
             << " link losses, " << r.reconnects << " resumed, " << r.blocks_resent
             << " blocks resent, " << r.noise_bytes << " noise bytes ignored\n";
   for (const std::string& n : r.notes) std::cout << "note: " << n << "\n";

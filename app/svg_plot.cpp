@@ -8,6 +8,8 @@
 #include <limits>
 #include <sstream>
 
+#include "core/number_text.hpp"
+
 namespace ncd::app {
 namespace {
 
@@ -66,12 +68,6 @@ std::string esc(const std::string& s) {
   return out;
 }
 
-std::string num(double v) {
-  std::ostringstream s;
-  s << std::setprecision(6) << (std::abs(v) < 1e-12 ? 0.0 : v);
-  return s.str();
-}
-
 }  // namespace
 
 std::string render_svg(const Figure& fig) {
@@ -119,15 +115,15 @@ std::string render_svg(const Figure& fig) {
     for (double v = std::ceil(yr.lo / ys) * ys; v <= yr.hi; v += ys) {
       o << "<line x1=\"" << left << "\" x2=\"" << left + plot_w << "\" y1=\"" << py(v) << "\" y2=\""
         << py(v) << "\" stroke=\"#ddd\"/>\n";
-      o << "<text x=\"" << left - 6 << "\" y=\"" << py(v) + 4 << "\" text-anchor=\"end\">" << num(v)
-        << "</text>\n";
+      o << "<text x=\"" << left - 6 << "\" y=\"" << py(v) + 4 << "\" text-anchor=\"end\">"
+        << text::tick(v, ys) << "</text>\n";
     }
     const double xs = tick_step(xr.hi - xr.lo, 8);
     for (double v = std::ceil(xr.lo / xs) * xs; v <= xr.hi; v += xs) {
       o << "<line x1=\"" << px(v) << "\" x2=\"" << px(v) << "\" y1=\"" << y0 << "\" y2=\"" << y0 + h
         << "\" stroke=\"#eee\"/>\n";
       o << "<text x=\"" << px(v) << "\" y=\"" << y0 + h + 16 << "\" text-anchor=\"middle\">"
-        << num(v) << "</text>\n";
+        << text::tick(v, xs) << "</text>\n";
     }
     o << "<rect x=\"" << left << "\" y=\"" << y0 << "\" width=\"" << plot_w << "\" height=\"" << h
       << "\" fill=\"none\" stroke=\"black\"/>\n";

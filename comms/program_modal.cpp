@@ -11,21 +11,9 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::comms {
-namespace {
-
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4f", v);
-  std::string s = buf;
-  while (!s.empty() && s.back() == '0') s.pop_back();
-  if (!s.empty() && s.back() == '.') s.pop_back();
-  return s == "-0" ? "0" : s;
-}
-
-}  // namespace
-
 BlockMotion ProgramModal::apply(std::string_view text) {
   BlockMotion m;
   std::array<std::optional<double>, 3> axis;
@@ -148,7 +136,7 @@ std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z
         "feed; restart from a later block, after the program's first F");
   }
   const double unit = at.inch ? 25.4 : 1.0;
-  const auto x = [&](double mm) { return num(mm / unit); };
+  const auto x = [&](double mm) { return text::trimmed(mm / unit, 4); };
   std::vector<std::string> out;
   out.push_back("(ncd restart: the modes in force at the restart block)");
   out.push_back(std::string(at.inch ? "G20" : "G21") + " G90 G" + std::to_string(at.work_offset));
@@ -158,17 +146,17 @@ std::vector<std::string> restart_blocks(const ModalState& at, double clearance_z
   if (at.length_offset) out.push_back("G43 H" + std::to_string(*at.length_offset));
   out.push_back("G0 Z" + x(clearance_z_mm));
   if (at.spindle != 5) {
-    out.push_back((at.speed_rpm ? "S" + num(*at.speed_rpm) + " " : std::string()) + "M" +
-                  std::to_string(at.spindle));
+    out.push_back((at.speed_rpm ? "S" + text::trimmed(*at.speed_rpm, 4) + " " : std::string()) +
+                  "M" + std::to_string(at.spindle));
   }
   if (at.mist) out.push_back("M7");
   if (at.flood) out.push_back("M8");
   const auto& p = at.position_mm;
   out.push_back("G0 X" + x(p[0]) + " Y" + x(p[1]));
-  out.push_back("G1 Z" + x(p[2]) + " F" + num(*at.feed));
+  out.push_back("G1 Z" + x(p[2]) + " F" + text::trimmed(*at.feed, 4));
   std::string modes = at.absolute ? "G90" : "G91";
   if (at.motion >= 0) modes += " G" + std::to_string(at.motion);
-  out.push_back(modes + " F" + num(*at.feed));
+  out.push_back(modes + " F" + text::trimmed(*at.feed, 4));
   if (dialect) {
     DialectState state;
     for (std::size_t i = 0; i < out.size(); ++i) {

@@ -17,12 +17,12 @@
 //    flow control run between characters, as the controller's receive interrupt would have
 //    them. A DC3 that was due more than kLateFlowS before the loop could send it (xoff_late)
 //    holds what the sender wrote before it could see it (the rest of the burst and what waits in
-//    the kernel) until DC1, and those characters obey every DC3 until they have all been read,
-//    as the sender's flow control would have had them: the simulation's lateness is never
-//    blamed on the sender. A pty
-//    carries no framing, no parity and no CTS: parity and stop bits only lengthen the character
-//    time, 7-bit frames are emulated by masking the 8th bit, and --flow rtscts cannot stop the
-//    sender (there is no CTS line), so it behaves as --flow none and the buffer can overflow.
+//    the kernel, no more than the line could carry meanwhile) until DC1, and those characters obey
+//    every DC3 until they have all been read, as the sender's flow control would have had them: the
+//    simulation's lateness is never blamed on the sender. A pty carries no framing, no parity and
+//    no CTS: parity and stop bits only lengthen the character time, 7-bit frames are emulated by
+//    masking the 8th bit, and --flow rtscts cannot stop the sender (there is no CTS line), so it
+//    behaves as --flow none and the buffer can overflow.
 // 2. The receive buffer holds the line being received and the complete lines not yet taken out,
 //    CR and LF included; NULs (leader) are dropped on arrival, as a tape reader skips them. A
 //    character that finds the buffer full is an overflow: alarm. A line longer than
@@ -108,6 +108,7 @@
 #include "comms/pty.hpp"
 #include "comms/sha256.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::comms {
 
@@ -128,13 +129,6 @@ constexpr double kReceivingS = 0.1;         // "while receiving": a byte within 
 // each at most DT_SEGMENT = 1/(ACCELERATION_TICKS_PER_SECOND·60) min = 10 ms of motion.
 constexpr int kGrblSegments = 5;
 constexpr double kGrblSegmentS = 0.01;
-
-// "12.5" for messages.
-std::string num(double v) {
-  std::array<char, 32> buf{};
-  std::snprintf(buf.data(), buf.size(), "%g", v);
-  return buf.data();
-}
 
 // Throws the InputError for a setting out of range.
 [[noreturn]] void bad(const std::string& what, const std::string& way_out) {
@@ -202,7 +196,7 @@ SimControllerConfig checked(SimControllerConfig c) {
         "use 1 to 1000 (grbl 1.1 has 15)");
   }
   if (!std::isfinite(c.rapid_mm_per_min) || c.rapid_mm_per_min <= 0.0) {
-    bad("--rapid " + num(c.rapid_mm_per_min) + " mm/min is invalid", "use a rate above 0");
+    bad("--rapid " + text::sig(c.rapid_mm_per_min) + " mm/min is invalid", "use a rate above 0");
   }
   if (!(c.prime_idle_s > 0.0) || !(c.underrun_grace_s >= 0.0) || !(c.exit_quiet_s >= 0.0) ||
       !(c.alarm_linger_s >= 0.0)) {
@@ -211,7 +205,7 @@ SimControllerConfig checked(SimControllerConfig c) {
   SimFaults& f = c.faults;
   const bool xon_xoff = c.line.protocol == Protocol::Drip && c.line.flow == Flow::XonXoff;
   if (!std::isfinite(c.boot_s) || c.boot_s < 0.0 || c.boot_s > 60.0) {
-    bad("--boot-s " + num(c.boot_s) + " is out of range",
+    bad("--boot-s " + text::sig(c.boot_s) + " is out of range",
         "use 0 to 60 s (an Arduino's bootloader takes about 1 to 2 s)");
   }
   if ((c.reset_on_open || c.report_line_numbers) && !ack) {
@@ -225,7 +219,7 @@ SimControllerConfig checked(SimControllerConfig c) {
         "use --dialect grbl with --protocol ack, iso or linuxcnc with --protocol drip");
   }
   if (!std::isfinite(c.tool_change_s) || c.tool_change_s < 0.0 || c.tool_change_s > 600.0) {
-    bad("--tool-change-s " + num(c.tool_change_s) + " is out of range", "use 0 to 600 s");
+    bad("--tool-change-s " + text::sig(c.tool_change_s) + " is out of range", "use 0 to 600 s");
   }
   if (c.skip_duplicate_n && ack) {
     bad("--skip-duplicate-n is not a grbl behaviour (grbl ignores N numbers)",
@@ -236,10 +230,10 @@ SimControllerConfig checked(SimControllerConfig c) {
     bad("a fault's block count is negative", "use a count of 1 or more, or 0 for none");
   }
   if (!std::isfinite(f.down_s) || f.down_s < 0.0 || f.down_s > 3600.0) {
-    bad("--down-s " + num(f.down_s) + " is out of range", "use 0 to 3600 s");
+    bad("--down-s " + text::sig(f.down_s) + " is out of range", "use 0 to 3600 s");
   }
   if (f.hold_after_blocks > 0 && (!std::isfinite(f.hold_s) || f.hold_s <= 0.0)) {
-    bad("--hold-s " + num(f.hold_s) + " is invalid", "use a hold longer than 0 s");
+    bad("--hold-s " + text::sig(f.hold_s) + " is invalid", "use a hold longer than 0 s");
   }
   if ((f.xoff_storm || f.hold_after_blocks > 0) && !xon_xoff) {
     bad(std::string(f.xoff_storm ? "--xoff-storm" : "--hold-after-blocks") +
@@ -249,8 +243,8 @@ SimControllerConfig checked(SimControllerConfig c) {
   const double cps = chars_per_s(c.line);
   if (!std::isfinite(f.noise_bytes_per_s) || f.noise_bytes_per_s < 0.0 ||
       f.noise_bytes_per_s > cps) {
-    bad("--noise-bytes-per-s " + num(f.noise_bytes_per_s) + " is out of range",
-        "use 0 to the line's " + num(std::floor(cps)) + " characters per second");
+    bad("--noise-bytes-per-s " + text::sig(f.noise_bytes_per_s) + " is out of range",
+        "use 0 to the line's " + text::sig(std::floor(cps)) + " characters per second");
   }
   return c;
 }
@@ -317,16 +311,16 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
     }
     switch (w.letter) {
       case 'N':
-        if (!integer) return fail(kErrNotInteger, "N " + num(w.value) + " is not an integer");
+        if (!integer) return fail(kErrNotInteger, "N " + text::sig(w.value) + " is not an integer");
         if (w.value < 0.0 || w.value > 99999999.0) {
-          return fail(kErrBadLineNumber, "N " + num(w.value) + " is outside 0 … 99999999");
+          return fail(kErrBadLineNumber, "N " + text::sig(w.value) + " is outside 0 … 99999999");
         }
         b.n = static_cast<long>(w.value);
         break;
       case 'G': {
         const long code10 = std::lround(w.value * 10.0);
         if (std::abs(w.value * 10.0 - static_cast<double>(code10)) > 1e-6) {
-          return fail(kErrUnsupported, "G" + num(w.value) + " is not a G code");
+          return fail(kErrUnsupported, "G" + text::sig(w.value) + " is not a G code");
         }
         if (code10 == 0 || code10 == 10 || code10 == 800) {
           if (motion) return fail(kErrModalGroup, "two motion codes in one block");
@@ -346,14 +340,14 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
         } else if (code10 != 170 && code10 != 210 && code10 != 400 && code10 != 490 &&
                    code10 != 540 && code10 != 610 && code10 != 611 && code10 != 800 &&
                    code10 != 900 && code10 != 940) {
-          return fail(kErrUnsupported, "G" + num(w.value) +
+          return fail(kErrUnsupported, "G" + text::sig(w.value) +
                                            " is not supported: use G0 G1 G4, or the setup codes "
                                            "G17 G21 G40 G49 G54 G61 G61.1 G64 G80 G90 G94");
         }
         break;
       }
       case 'M': {
-        if (!integer) return fail(kErrNotInteger, "M" + num(w.value) + " is not an integer");
+        if (!integer) return fail(kErrNotInteger, "M" + text::sig(w.value) + " is not an integer");
         const int m = static_cast<int>(w.value);
         if (m == 2 || m == 30) {
           b.program_end = true;
@@ -379,20 +373,20 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
         axis[static_cast<std::size_t>(w.letter - 'X')] = w.value;
         break;
       case 'F':
-        if (w.value < 0.0) return fail(kErrNegative, "F " + num(w.value) + " is negative");
+        if (w.value < 0.0) return fail(kErrNegative, "F " + text::sig(w.value) + " is negative");
         next.feed_mm_per_min = w.value;
         break;
       case 'S':
-        if (w.value < 0.0) return fail(kErrNegative, "S " + num(w.value) + " is negative");
+        if (w.value < 0.0) return fail(kErrNegative, "S " + text::sig(w.value) + " is negative");
         b.spindle_rpm = w.value;
         break;
       case 'T':
-        if (!integer) return fail(kErrNotInteger, "T " + num(w.value) + " is not an integer");
-        if (w.value < 0.0) return fail(kErrNegative, "T " + num(w.value) + " is negative");
+        if (!integer) return fail(kErrNotInteger, "T " + text::sig(w.value) + " is not an integer");
+        if (w.value < 0.0) return fail(kErrNegative, "T " + text::sig(w.value) + " is negative");
         b.tool = static_cast<int>(w.value);
         break;
       case 'P':
-        if (w.value < 0.0) return fail(kErrNegative, "P " + num(w.value) + " is negative");
+        if (w.value < 0.0) return fail(kErrNegative, "P " + text::sig(w.value) + " is negative");
         p_word = w.value;
         break;
       default:
@@ -575,7 +569,7 @@ struct SimController::Impl {
     pty.close();
     ++log.link_drops;
     event("link down after " + std::to_string(log.blocks_received) + " blocks (fault injection); " +
-          cfg.line.device + " back in " + num(cfg.faults.down_s) + " s");
+          cfg.line.device + " back in " + text::sig(cfg.faults.down_s) + " s");
     down_until = t + cfg.faults.down_s;
     out.clear();
     backlog.clear();  // in flight when the line went down
@@ -659,8 +653,11 @@ struct SimController::Impl {
         if (late) {
           int in_kernel = 0;
           if (::ioctl(pty.master(), FIONREAD, &in_kernel) != 0) in_kernel = 0;
-          late_written_end = std::max(late_written_end,
-                                      taken + backlog.size() + static_cast<std::size_t>(in_kernel));
+          // No more than the line could have carried while the DC3 was late: a sender writing
+          // faster than the line gets no pass for the excess.
+          const std::size_t waiting = backlog.size() + static_cast<std::size_t>(in_kernel);
+          const auto could_send = static_cast<std::size_t>((t - t_i) * cps) + 1;
+          late_written_end = std::max(late_written_end, taken + std::min(waiting, could_send));
           ++log.xoff_late;
         }
         break;
@@ -913,7 +910,7 @@ struct SimController::Impl {
     if (f.hold_after_blocks == k && log.holds == 0) {
       ++log.holds;
       hold_until = t + f.hold_s;
-      event("holding the sender with DC3 for " + num(f.hold_s) + " s (fault injection)");
+      event("holding the sender with DC3 for " + text::sig(f.hold_s) + " s (fault injection)");
     }
     if (f.alarm_after_blocks == k) {
       alarm_pending = true;  // after the line is queued

@@ -24,18 +24,12 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::interpolator {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
 
 FeedLimitResult with_curvature(const MachineLimits& limits, double roughness_mm_per_s,
                                double curvature_per_mm) {
@@ -79,8 +73,8 @@ void validate(const MachineLimits& limits) {
   using R = MachineLimitRanges;
   require_positive("period_s", limits.period_s);
   if (limits.period_s < R::kMinPeriodS || limits.period_s > R::kMaxPeriodS) {
-    throw InputError("period_s = " + fmt(limits.period_s) + " is outside [" + fmt(R::kMinPeriodS) +
-                     ", " + fmt(R::kMaxPeriodS) +
+    throw InputError("period_s = " + text::sig(limits.period_s) + " is outside [" +
+                     text::sig(R::kMinPeriodS) + ", " + text::sig(R::kMaxPeriodS) +
                      "] s; interpolation periods are typically 0.001 to 0.01 s");
   }
   require_positive("max_feed_mm_per_min", limits.max_feed_mm_per_min);
@@ -91,14 +85,15 @@ void validate(const MachineLimits& limits) {
   require_positive("blend_tolerance_mm", limits.blend_tolerance_mm);
   require_positive("stall_timeout_s", limits.stall_timeout_s);
   if (limits.stall_timeout_s < 10.0 * limits.period_s) {
-    throw InputError("stall_timeout_s = " + fmt(limits.stall_timeout_s) +
-                     " is shorter than 10 periods (" + fmt(10.0 * limits.period_s) +
+    throw InputError("stall_timeout_s = " + text::sig(limits.stall_timeout_s) +
+                     " is shorter than 10 periods (" + text::sig(10.0 * limits.period_s) +
                      " s): the watchdog would fire at every stop; 2 s is the default");
   }
   if (limits.feed_tolerance_rel < R::kMinFeedToleranceRel ||
       limits.feed_tolerance_rel > R::kMaxFeedToleranceRel) {
-    throw InputError("feed_tolerance_rel = " + fmt(limits.feed_tolerance_rel) + " is outside [" +
-                     fmt(R::kMinFeedToleranceRel) + ", " + fmt(R::kMaxFeedToleranceRel) +
+    throw InputError("feed_tolerance_rel = " + text::sig(limits.feed_tolerance_rel) +
+                     " is outside [" + text::sig(R::kMinFeedToleranceRel) + ", " +
+                     text::sig(R::kMaxFeedToleranceRel) +
                      "]: below it double rounding cannot be corrected, above it the feed is "
                      "not controlled; 1e-10 is the default");
   }

@@ -41,16 +41,10 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::interpolator {
 namespace {
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
 
 double p_of(double pick_feed_mm) {
   return pick_feed_mm / (2.0 * kPi);
@@ -69,28 +63,28 @@ void validate(const CuttingParams& params) {
   const double r = params.ball_radius_mm;
   const double fp = params.pick_feed_mm;
   if (!std::isfinite(fp) || fp < 0.0) {
-    throw InputError("pick_feed_mm = " + fmt(fp) +
+    throw InputError("pick_feed_mm = " + text::sig(fp) +
                      " is invalid: it must be finite and at least 0 (0 for a single pass)");
   }
   if (fp >= 2.0 * r) {
-    throw InputError("pick_feed_mm = " + fmt(fp) + " is not below the ball diameter 2 * " +
-                     "ball_radius_mm = " + fmt(2.0 * r) +
+    throw InputError("pick_feed_mm = " + text::sig(fp) + " is not below the ball diameter 2 * " +
+                     "ball_radius_mm = " + text::sig(2.0 * r) +
                      " mm: the passes would leave uncut ribs; reduce the pick feed");
   }
   const double target_mm = params.roughness_target_um * 1e-3;
   if (target_mm >= r) {
-    throw InputError("roughness_target_um = " + fmt(params.roughness_target_um) +
-                     " is not below ball_radius_mm = " + fmt(r) +
+    throw InputError("roughness_target_um = " + text::sig(params.roughness_target_um) +
+                     " is not below ball_radius_mm = " + text::sig(r) +
                      " mm: the model holds for marks much smaller than the ball");
   }
   if (8.0 * r * target_mm < fp * fp) {
     const double cusp_um = fp * fp / (8.0 * r) * 1e3;
-    throw InputError("roughness_target_um = " + fmt(params.roughness_target_um) +
-                     " cannot be met: pick_feed_mm = " + fmt(fp) + " with ball_radius_mm = " +
-                     fmt(r) + " alone leaves cusps of f_p^2/(8r) = " + fmt(cusp_um) +
+    throw InputError("roughness_target_um = " + text::sig(params.roughness_target_um) +
+                     " cannot be met: pick_feed_mm = " + text::sig(fp) + " with ball_radius_mm = " +
+                     text::sig(r) + " alone leaves cusps of f_p^2/(8r) = " + text::sig(cusp_um) +
                      " um; reduce the pick feed to at most sqrt(8 r R) = " +
-                     fmt(std::sqrt(8.0 * r * target_mm)) + " mm or raise the target to at least " +
-                     fmt(cusp_um) + " um");
+                     text::sig(std::sqrt(8.0 * r * target_mm)) +
+                     " mm or raise the target to at least " + text::sig(cusp_um) + " um");
   }
 }
 

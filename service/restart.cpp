@@ -9,18 +9,9 @@
 #include "comms/program_file.hpp"
 #include "comms/program_modal.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::service {
-namespace {
-
-std::string mm(double v) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.4f", v);
-  return buf;
-}
-
-}  // namespace
-
 void restart_job(JobSpec& job, const toolpath::Program& program, std::string_view text, int line,
                  std::optional<double> clearance_z_mm, const toolpath::ToPathOptions& options) {
   const std::string at_line = "\"restart_from\" = " + std::to_string(line);
@@ -77,9 +68,10 @@ void restart_job(JobSpec& job, const toolpath::Program& program, std::string_vie
   const Vec3 modal_mm(at.position_mm[0], at.position_mm[1], at.position_mm[2]);
   if ((modal_mm - start_work_mm).norm() > 1e-6 * (1.0 + modal_mm.norm())) {
     throw InputError(at_line + ": the modal reader puts line " + std::to_string(restart_line) +
-                     "'s start at (" + mm(modal_mm.x()) + ", " + mm(modal_mm.y()) + ", " +
-                     mm(modal_mm.z()) + ") mm, the interpreter at (" + mm(start_work_mm.x()) +
-                     ", " + mm(start_work_mm.y()) + ", " + mm(start_work_mm.z()) +
+                     "'s start at (" + text::fixed(modal_mm.x(), 4) + ", " +
+                     text::fixed(modal_mm.y(), 4) + ", " + text::fixed(modal_mm.z(), 4) +
+                     ") mm, the interpreter at (" + text::fixed(start_work_mm.x(), 4) + ", " +
+                     text::fixed(start_work_mm.y(), 4) + ", " + text::fixed(start_work_mm.z(), 4) +
                      ") mm (work coordinates): restart from another line");
   }
   double clearance = 0.0;
@@ -93,9 +85,9 @@ void restart_job(JobSpec& job, const toolpath::Program& program, std::string_vie
                      "\"clearance_z_mm\" (work coordinates)");
   }
   if (clearance < at.position_mm[2]) {
-    throw InputError(at_line + ": \"clearance_z_mm\" " + mm(clearance) + " is below line " +
-                     std::to_string(restart_line) + "'s start at Z " + mm(at.position_mm[2]) +
-                     ": give a clearance plane above the part");
+    throw InputError(at_line + ": \"clearance_z_mm\" " + text::fixed(clearance, 4) +
+                     " is below line " + std::to_string(restart_line) + "'s start at Z " +
+                     text::fixed(at.position_mm[2], 4) + ": give a clearance plane above the part");
   }
   RestartSpec r;
   r.line = restart_line;

@@ -80,6 +80,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 #include "core/quadrature.hpp"
 
 namespace ncd::toolpath {
@@ -100,15 +101,8 @@ constexpr double kMinHalfGapMm = 1e-6;     // upper and lower roots at least 2 �
 constexpr double kMaxHalfAngleRad = kPi / 3.0;
 constexpr double kMinSplitTheta = 1e-9;  // a split below this cannot reach ε
 
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
 std::string fmt_deg(double rad) {
-  return fmt(rad_to_deg(rad)) + "°";
+  return text::sig(rad_to_deg(rad)) + "°";
 }
 
 // Positive root of ζ² + 2 q a ζ + δ² − 2 δ R_B = 0 (eqs. 23, 25), q = R_B − δ.
@@ -175,10 +169,10 @@ std::optional<double> generator_root(const PipeSurface& s, double r, double cos_
 // or meets the far nappe of a cone.
 void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::string& which) {
   const double r = spec.drill_radius_mm;
-  const std::string drill = "the drill (r = " + fmt(r) + " mm, tilt " +
+  const std::string drill = "the drill (r = " + text::sig(r) + " mm, tilt " +
                             fmt_deg(spec.drill_tilt_rad) + ", eccentricity " +
-                            fmt(spec.eccentricity_mm) + " mm)";
-  const std::string pipe = "the " + which + " pipe surface (radius " + fmt(surf.radius_mm) +
+                            text::sig(spec.eccentricity_mm) + " mm)";
+  const std::string pipe = "the " + which + " pipe surface (radius " + text::sig(surf.radius_mm) +
                            " mm at the reference point, half-angle " +
                            fmt_deg(spec.pipe_half_angle_rad) + ")";
   const double az = surf.axis_direction.z();
@@ -227,7 +221,7 @@ void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::
     // θ to 0.01°, in [0°, 360°).
     const double deg = std::round(rad_to_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) * 100.0) / 100.0;
     throw InputError(drill + " does not pierce " + pipe + " completely: the drill's generator at " +
-                     "θ = " + fmt(deg >= 360.0 ? 0.0 : deg + 0.0) + "°" +
+                     "θ = " + text::sig(deg >= 360.0 ? 0.0 : deg + 0.0) + "°" +
                      (worst_gap > -kMinHalfGapMm ? " only grazes it" : " misses it") +
                      ", so the edge is not a closed loop around the hole (for a cylinder pipe and "
                      "no tilt: r + |eccentricity| must stay below the radius); reduce "
@@ -294,7 +288,7 @@ std::string to_string(Side side) {
 }
 
 void validate(const ChamferSpec& s) {
-  require_positive("pipe radius (--pipe-radius) " + fmt(s.pipe_radius_mm) + " mm",
+  require_positive("pipe radius (--pipe-radius) " + text::sig(s.pipe_radius_mm) + " mm",
                    s.pipe_radius_mm);
   require_positive("drill radius (--drill-radius)", s.drill_radius_mm);
   require_positive("ball radius R_B (--ball-radius)", s.ball_radius_mm);
@@ -324,22 +318,22 @@ void validate(const ChamferSpec& s) {
     require_positive("pipe wall thickness (--pipe-thickness)", *s.pipe_thickness_mm);
     const double other = *companion_radius_mm(s);
     if (!(other > 0.0)) {
-      throw InputError("pipe wall thickness " + fmt(*s.pipe_thickness_mm) +
-                       " mm leaves no bore inside the outer radius " + fmt(s.pipe_radius_mm) +
+      throw InputError("pipe wall thickness " + text::sig(*s.pipe_thickness_mm) +
+                       " mm leaves no bore inside the outer radius " + text::sig(s.pipe_radius_mm) +
                        " mm; use a smaller --pipe-thickness");
     }
   }
   if (s.pipe_half_angle_rad == 0.0 && s.drill_radius_mm >= s.pipe_radius_mm) {
-    throw InputError("drill radius r = " + fmt(s.drill_radius_mm) +
-                     " mm must be smaller than the pipe radius " + fmt(s.pipe_radius_mm) +
+    throw InputError("drill radius r = " + text::sig(s.drill_radius_mm) +
+                     " mm must be smaller than the pipe radius " + text::sig(s.pipe_radius_mm) +
                      " mm (a drill as wide as the pipe cuts it in two, and the edge is not a "
                      "closed curve); use a smaller --drill-radius or the right --pipe-radius");
   }
   if (s.tolerance_mm < ChamferLimits::kMinToleranceMm ||
       s.tolerance_mm > ChamferLimits::kMaxToleranceMm) {
-    throw InputError("tolerance ε = " + fmt(s.tolerance_mm) + " mm is outside [" +
-                     fmt(ChamferLimits::kMinToleranceMm) + ", " +
-                     fmt(ChamferLimits::kMaxToleranceMm) +
+    throw InputError("tolerance ε = " + text::sig(s.tolerance_mm) + " mm is outside [" +
+                     text::sig(ChamferLimits::kMinToleranceMm) + ", " +
+                     text::sig(ChamferLimits::kMaxToleranceMm) +
                      "] mm; 0.01 mm is typical (--tolerance)");
   }
   if (s.initial_segments < ChamferLimits::kMinInitialSegments ||
@@ -349,16 +343,17 @@ void validate(const ChamferSpec& s) {
                      std::to_string(ChamferLimits::kMaxInitialSegments) + "]; the paper uses 60");
   }
   if (s.edge == Edge::Inner && s.ball_radius_mm >= s.drill_radius_mm) {
-    throw InputError("ball radius R_B = " + fmt(s.ball_radius_mm) +
-                     " mm must be smaller than the drill radius r = " + fmt(s.drill_radius_mm) +
-                     " mm to reach an inner edge through the hole; use a smaller --ball-radius");
+    throw InputError(
+        "ball radius R_B = " + text::sig(s.ball_radius_mm) +
+        " mm must be smaller than the drill radius r = " + text::sig(s.drill_radius_mm) +
+        " mm to reach an inner edge through the hole; use a smaller --ball-radius");
   }
   if (s.rod_radius_mm) {
     require_positive("rod radius R_od (--rod-radius)", *s.rod_radius_mm);
     if (*s.rod_radius_mm >= s.drill_radius_mm) {
-      throw InputError("rod radius R_od = " + fmt(*s.rod_radius_mm) +
-                       " mm must be smaller than the drill radius r = " + fmt(s.drill_radius_mm) +
-                       " mm, or the rod cannot enter the hole");
+      throw InputError("rod radius R_od = " + text::sig(*s.rod_radius_mm) +
+                       " mm must be smaller than the drill radius r = " +
+                       text::sig(s.drill_radius_mm) + " mm, or the rod cannot enter the hole");
     }
   }
   if (s.non_knife_angle_rad) {
@@ -368,9 +363,9 @@ void validate(const ChamferSpec& s) {
                        " must lie in (0°, 180°) (--non-knife-angle, degrees)");
     }
     if (s.ball_radius_mm * std::sin(0.5 * two_beta) >= s.drill_radius_mm) {
-      throw InputError(
-          "non-knife cap radius R_B sin β = " + fmt(s.ball_radius_mm * std::sin(0.5 * two_beta)) +
-          " mm reaches the drill radius r = " + fmt(s.drill_radius_mm) + " mm");
+      throw InputError("non-knife cap radius R_B sin β = " +
+                       text::sig(s.ball_radius_mm * std::sin(0.5 * two_beta)) +
+                       " mm reaches the drill radius r = " + text::sig(s.drill_radius_mm) + " mm");
     }
   }
   if (!paper_geometry) {
@@ -532,11 +527,12 @@ CutterPose ChamferModel::pose_at(double theta, double alpha) const {
   const auto delta = solve_delta(f, alpha);
   if (!delta) {
     const AlphaRange range = alpha_range(f);
-    throw InputError("no chamfer of width W = " + fmt(spec_.width_mm) + " mm at θ = " +
-                     fmt_deg(theta) + " with α = " + fmt(alpha) + ": the widest the wedge and a " +
-                     "ball of R_B = " + fmt(spec_.ball_radius_mm) + " mm allow there is " +
-                     fmt(max_width(f, alpha)) + " mm (α must also lie in (" + fmt(range.lo) + ", " +
-                     fmt(range.hi) + ")); use a smaller --width or a larger --ball-radius");
+    throw InputError(
+        "no chamfer of width W = " + text::sig(spec_.width_mm) + " mm at θ = " + fmt_deg(theta) +
+        " with α = " + text::sig(alpha) + ": the widest the wedge and a " +
+        "ball of R_B = " + text::sig(spec_.ball_radius_mm) + " mm allow there is " +
+        text::sig(max_width(f, alpha)) + " mm (α must also lie in (" + text::sig(range.lo) + ", " +
+        text::sig(range.hi) + ")); use a smaller --width or a larger --ball-radius");
   }
   return pose(f, alpha, *delta);
 }
@@ -691,8 +687,8 @@ std::vector<double> ChamferModel::segment() const {
       stack.pop_back();
       if (chord_deviation(a, b) > spec_.tolerance_mm) {
         if (b - a < kMinSplitTheta || out.size() + stack.size() > ChamferLimits::kMaxPoints) {
-          throw InputError("tolerance ε = " + fmt(spec_.tolerance_mm) + " mm needs more than " +
-                           std::to_string(ChamferLimits::kMaxPoints) +
+          throw InputError("tolerance ε = " + text::sig(spec_.tolerance_mm) +
+                           " mm needs more than " + std::to_string(ChamferLimits::kMaxPoints) +
                            " points; use a larger --tolerance");
         }
         const double m = 0.5 * (a + b);
@@ -729,8 +725,8 @@ std::vector<ThetaRange> fail_ranges(const std::vector<CutterPose>& pts, Bad bad)
 std::string ranges_text(const std::vector<ThetaRange>& ranges) {
   std::string out;
   for (std::size_t i = 0; i < ranges.size() && i < 4; ++i) {
-    out += (i ? ", " : "") + std::string("θ ∈ [") + fmt(rad_to_deg(ranges[i].from_rad)) + "°, " +
-           fmt(rad_to_deg(ranges[i].to_rad)) + "°]";
+    out += (i ? ", " : "") + std::string("θ ∈ [") + text::sig(rad_to_deg(ranges[i].from_rad)) +
+           "°, " + text::sig(rad_to_deg(ranges[i].to_rad)) + "°]";
   }
   if (ranges.size() > 4) out += " and " + std::to_string(ranges.size() - 4) + " more";
   return out;
@@ -744,7 +740,7 @@ std::string interference_reasons(const ChamferPath& path) {
   std::string out;
   if (!ck.local_ok) {
     out += "local: the edge curves more tightly than the ball (1/|k_e| down to " +
-           fmt(ck.min_inv_ke_mm) + " mm < R_B = " + fmt(s.ball_radius_mm) + " mm) at " +
+           text::sig(ck.min_inv_ke_mm) + " mm < R_B = " + text::sig(s.ball_radius_mm) + " mm) at " +
            ranges_text(ck.local_fail) + "; ";
   }
   if (!ck.global_ok) {
@@ -754,12 +750,12 @@ std::string interference_reasons(const ChamferPath& path) {
         ranges_text(ck.global_fail) + "; ";
   }
   if (!ck.rod_ok) {
-    out +=
-        "rod: the cutter location leaves the cylinder of radius R_R = " + fmt(*ck.limit_radius_mm) +
-        " mm about the drill axis (up to " + fmt(ck.max_cl_radius_mm) +
-        " mm), so the rod or the non-cutting cap touches the hole, "
-        "at " +
-        ranges_text(ck.rod_fail) + "; ";
+    out += "rod: the cutter location leaves the cylinder of radius R_R = " +
+           text::sig(*ck.limit_radius_mm) + " mm about the drill axis (up to " +
+           text::sig(ck.max_cl_radius_mm) +
+           " mm), so the rod or the non-cutting cap touches the hole, "
+           "at " +
+           ranges_text(ck.rod_fail) + "; ";
   }
   if (!out.empty()) out.resize(out.size() - 2);
   return out;
@@ -812,10 +808,10 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
     const double th = ck.uncleared_theta_rad.front();
     const EdgeFrame f = model.frame(th);
     const AlphaRange range = model.alpha_range(f);
-    throw InputError("the rod limit R_R = " + fmt(*ck.limit_radius_mm) +
+    throw InputError("the rod limit R_R = " + text::sig(*ck.limit_radius_mm) +
                      " mm cannot be met at θ = " + fmt_deg(th) + " (and " +
                      std::to_string(ck.uncleared_theta_rad.size() - 1) +
-                     " more points): no admissible α in [1, " + fmt(range.hi) +
+                     " more points): no admissible α in [1, " + text::sig(range.hi) +
                      ") keeps the cutter location that close to the drill axis; use a thinner rod "
                      "(--rod-radius), a smaller non-knife angle, a smaller ball, or --no-avoid to "
                      "report the interference instead");

@@ -30,21 +30,16 @@
 #include <utility>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
 namespace {
 
 constexpr std::size_t kMaxOrder = NurbsCurve::kMaxDegree + 1;
 
-// Shortest text that reads back to the same double ("nan", "inf" included).
-std::string num(double v) {
-  std::array<char, 32> buf{};
-  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), r.ptr);
-}
-
 std::string point_text(const Vec3& p) {
-  return "(" + num(p.x()) + ", " + num(p.y()) + ", " + num(p.z()) + ")";
+  return "(" + text::shortest(p.x()) + ", " + text::shortest(p.y()) + ", " + text::shortest(p.z()) +
+         ")";
 }
 
 void validate(int degree, const std::vector<double>& knots, const std::vector<Vec3>& points,
@@ -76,12 +71,13 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
   }
   for (std::size_t i = 0; i < knots.size(); ++i) {
     if (!std::isfinite(knots[i])) {
-      throw InputError("NURBS knot[" + std::to_string(i) + "] = " + num(knots[i]) +
+      throw InputError("NURBS knot[" + std::to_string(i) + "] = " + text::shortest(knots[i]) +
                        " is not finite; every knot must be a number");
     }
     if (i > 0 && knots[i] < knots[i - 1]) {
-      throw InputError("NURBS knot[" + std::to_string(i) + "] = " + num(knots[i]) +
-                       " is less than knot[" + std::to_string(i - 1) + "] = " + num(knots[i - 1]) +
+      throw InputError("NURBS knot[" + std::to_string(i) + "] = " + text::shortest(knots[i]) +
+                       " is less than knot[" + std::to_string(i - 1) +
+                       "] = " + text::shortest(knots[i - 1]) +
                        ": knots must be non-decreasing; sort the knot vector");
     }
   }
@@ -90,8 +86,8 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
     if (knots[i] != knots[0] || knots[m - i] != knots[m]) {
       const bool front = knots[i] != knots[0];
       const std::size_t k = front ? i : m - i;
-      throw InputError("NURBS knot[" + std::to_string(k) + "] = " + num(knots[k]) +
-                       " differs from the end knot " + num(front ? knots[0] : knots[m]) +
+      throw InputError("NURBS knot[" + std::to_string(k) + "] = " + text::shortest(knots[k]) +
+                       " differs from the end knot " + text::shortest(front ? knots[0] : knots[m]) +
                        ": the knot vector must be clamped, with degree + 1 = " +
                        std::to_string(p + 1) + " equal knots at each end; repeat the end knots");
     }
@@ -103,14 +99,14 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
     const std::size_t mult = j - i + 1;
     const bool end = i == 0 || j == m;
     if (end && mult > p + 1) {
-      throw InputError("NURBS knot " + num(knots[i]) + " is repeated " + std::to_string(mult) +
-                       " times at knot[" + std::to_string(i) + ".." + std::to_string(j) +
-                       "], more than degree + 1 = " + std::to_string(p + 1) +
+      throw InputError("NURBS knot " + text::shortest(knots[i]) + " is repeated " +
+                       std::to_string(mult) + " times at knot[" + std::to_string(i) + ".." +
+                       std::to_string(j) + "], more than degree + 1 = " + std::to_string(p + 1) +
                        " at an end: the curve would have an empty parameter span; drop the "
                        "extra knots and their control points");
     }
     if (!end && mult > p) {
-      throw InputError("NURBS interior knot " + num(knots[i]) + " is repeated " +
+      throw InputError("NURBS interior knot " + text::shortest(knots[i]) + " is repeated " +
                        std::to_string(mult) + " times at knot[" + std::to_string(i) + ".." +
                        std::to_string(j) + "], more than the degree " + std::to_string(p) +
                        ": the curve would break apart there; split it into two curves");
@@ -126,7 +122,7 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
     }
     for (std::size_t i = 0; i < weights.size(); ++i) {
       if (!std::isfinite(weights[i]) || weights[i] <= 0.0) {
-        throw InputError("NURBS weight[" + std::to_string(i) + "] = " + num(weights[i]) +
+        throw InputError("NURBS weight[" + std::to_string(i) + "] = " + text::shortest(weights[i]) +
                          " is invalid: weights must be finite and greater than 0; fix the "
                          "weight or drop the weights for a non-rational curve");
       }

@@ -7,18 +7,14 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
 namespace {
 
-std::string num(double v) {
-  std::array<char, 32> buf{};
-  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), r.ptr);
-}
-
 std::string point_text(const Vec3& p) {
-  return "(" + num(p.x()) + ", " + num(p.y()) + ", " + num(p.z()) + ")";
+  return "(" + text::shortest(p.x()) + ", " + text::shortest(p.y()) + ", " + text::shortest(p.z()) +
+         ")";
 }
 
 }  // namespace
@@ -48,8 +44,8 @@ void validate(const Polyline& pl, const std::string& what) {
     const double norm = pl.normals[i].norm();
     if (!std::isfinite(norm) || std::abs(norm - 1.0) > PolylineLimits::kUnitNormalTolerance) {
       throw InputError(what + " normal[" + std::to_string(i) + "] = " + point_text(pl.normals[i]) +
-                       " has length " + num(norm) + ", not 1 within " +
-                       num(PolylineLimits::kUnitNormalTolerance) + "; normalise it");
+                       " has length " + text::shortest(norm) + ", not 1 within " +
+                       text::shortest(PolylineLimits::kUnitNormalTolerance) + "; normalise it");
     }
   }
 }

@@ -16,6 +16,7 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
 
@@ -328,19 +329,9 @@ const char* plane_name(Plane p) {
   return p == Plane::xz ? "G18" : p == Plane::yz ? "G19" : "G17";
 }
 
-// Six decimals, trailing zeros trimmed to one digit after the point, no "-0.0".
-std::string num(double v) {
-  char buf[400];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 6);
-  if (r.ec != std::errc()) return "nan";
-  auto n = r.ptr - buf;
-  while (n > 2 && buf[n - 1] == '0' && buf[n - 2] != '.') --n;
-  if (n == 4 && buf[0] == '-' && buf[1] == '0' && buf[3] == '0') return "0.0";
-  return std::string(buf, static_cast<std::size_t>(n));
-}
-
 std::string xyz(const Vec3& p) {
-  return "X" + num(p.x()) + " Y" + num(p.y()) + " Z" + num(p.z());
+  return "X" + text::trimmed(p.x(), 6, 1) + " Y" + text::trimmed(p.y(), 6, 1) + " Z" +
+         text::trimmed(p.z(), 6, 1);
 }
 
 }  // namespace
@@ -359,8 +350,10 @@ void write_canonical(std::ostream& out, const Program& program) {
             } else if constexpr (std::is_same_v<T, ArcMove>) {
               const ArcGeometry a = arc_geometry(m->start, g);
               out << "ARC " << plane_name(g.plane) << ' ' << xyz(g.end) << " centre "
-                  << xyz(g.centre) << " turns " << g.turns << " radius " << num(a.radius)
-                  << " sweep_deg " << num(rad_to_deg(a.sweep_rad)) << " rise " << num(a.rise);
+                  << xyz(g.centre) << " turns " << g.turns << " radius "
+                  << text::trimmed(a.radius, 6, 1) << " sweep_deg "
+                  << text::trimmed(rad_to_deg(a.sweep_rad), 6, 1) << " rise "
+                  << text::trimmed(a.rise, 6, 1);
             } else if constexpr (std::is_same_v<T, NurbsMove>) {
               out << "NURBS degree " << g.curve.degree() << " points " << g.curve.points().size()
                   << " end " << xyz(g.curve.points().back());
@@ -371,11 +364,12 @@ void write_canonical(std::ostream& out, const Program& program) {
           },
           m->geometry);
       if (!m->rapid) {
-        out << (m->feed_mode == FeedMode::inverse_time ? " F1/min " : " F") << num(m->feed);
+        out << (m->feed_mode == FeedMode::inverse_time ? " F1/min " : " F")
+            << text::trimmed(m->feed, 6, 1);
       }
       out << ' ' << units_name(m->units);
       if (m->spindle != SpindleDir::off)
-        out << " S" << num(m->spindle_rpm) << ' ' << spindle_name(m->spindle);
+        out << " S" << text::trimmed(m->spindle_rpm, 6, 1) << ' ' << spindle_name(m->spindle);
       if (m->tool != 0) out << " T" << m->tool;
       if (!m->start_known) out << " from-unknown-position";
       out << '\n';
@@ -385,14 +379,14 @@ void write_canonical(std::ostream& out, const Program& program) {
         [&](const auto& e) {
           using T = std::decay_t<decltype(e)>;
           if constexpr (std::is_same_v<T, SpindleEvent>) {
-            out << "SPINDLE " << spindle_name(e.dir) << " S" << num(e.rpm);
+            out << "SPINDLE " << spindle_name(e.dir) << " S" << text::trimmed(e.rpm, 6, 1);
           } else if constexpr (std::is_same_v<T, CoolantEvent>) {
             out << "COOLANT mist " << (e.mist ? "on" : "off") << " flood "
                 << (e.flood ? "on" : "off");
           } else if constexpr (std::is_same_v<T, DwellEvent>) {
-            out << "DWELL " << num(e.seconds) << " s";
+            out << "DWELL " << text::trimmed(e.seconds, 6, 1) << " s";
           } else if constexpr (std::is_same_v<T, ToolChangeEvent>) {
-            out << "TOOL_CHANGE T" << e.tool << " length " << num(e.length);
+            out << "TOOL_CHANGE T" << e.tool << " length " << text::trimmed(e.length, 6, 1);
           } else if constexpr (std::is_same_v<T, ToolOffsetEvent>) {
             out << "TOOL_OFFSET " << xyz(e.offset);
           } else if constexpr (std::is_same_v<T, StopEvent>) {
@@ -407,8 +401,8 @@ void write_canonical(std::ostream& out, const Program& program) {
             out << (e.mode == PathControl::exact_path   ? "PATH_CONTROL G61"
                     : e.mode == PathControl::exact_stop ? "PATH_CONTROL G61.1"
                                                         : "PATH_CONTROL G64");
-            if (e.p) out << " P" << num(*e.p);
-            if (e.q) out << " Q" << num(*e.q);
+            if (e.p) out << " P" << text::trimmed(*e.p, 6, 1);
+            if (e.q) out << " Q" << text::trimmed(*e.q, 6, 1);
           } else {
             out << "UNITS " << units_name(e.units);
           }

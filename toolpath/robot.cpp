@@ -102,6 +102,7 @@
 
 #include "core/decimal.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
 namespace {
@@ -109,13 +110,6 @@ namespace {
 constexpr double kSqrtHalf = 0.70710678118654752440;
 constexpr int kChordSamples = 32;      // samples per piece for the chordal deviation
 constexpr double kGimbalLock = 1e-13;  // |(M00, M10)| below which P = ±90° is taken as exact
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
 
 // Angle between the vector v and the plane of unit normal n, in [0, π/2].
 double angle_to_plane_rad(const Vec3& v, const Vec3& n) {
@@ -157,8 +151,8 @@ void validate(const RobotSpec& s) {
   require_finite("start angle (--start-angle, deg)", s.start_angle_rad);
   if (s.hole_radius_mm >= s.cylinder_radius_mm) {
     throw InputError(
-        "hole radius r = " + fmt(s.hole_radius_mm) +
-        " mm must be smaller than the cylinder radius R = " + fmt(s.cylinder_radius_mm) +
+        "hole radius r = " + text::sig(s.hole_radius_mm) +
+        " mm must be smaller than the cylinder radius R = " + text::sig(s.cylinder_radius_mm) +
         " mm (a hole as wide as the cylinder cuts it in two, and the edge is not a "
         "closed curve); use a smaller --hole-radius or the right --cylinder-radius");
   }
@@ -173,8 +167,8 @@ void validate(const RobotSpec& s) {
   }
   if (!std::isfinite(s.bar_radius_mm) || s.bar_radius_mm < 0.0 ||
       s.bar_radius_mm >= s.hole_radius_mm) {
-    throw InputError("bar radius = " + fmt(s.bar_radius_mm) +
-                     " mm must lie in [0, r = " + fmt(s.hole_radius_mm) +
+    throw InputError("bar radius = " + text::sig(s.bar_radius_mm) +
+                     " mm must lie in [0, r = " + text::sig(s.hole_radius_mm) +
                      ") mm (--bar-radius; 0 when the TCP is taught on the bar's side)");
   }
   const double r = s.hole_radius_mm, big_r = s.cylinder_radius_mm;
@@ -183,9 +177,9 @@ void validate(const RobotSpec& s) {
   const double leg_mm = std::sqrt(2.0) * s.depth_mm * s.passes;
   if (leg_mm > limit_mm) {
     throw InputError(
-        "chamfer leg √2 × depth × passes = " + fmt(leg_mm) + " mm exceeds " +
-        fmt(RobotLimits::kMaxLegFraction) + " × min(hole radius " + fmt(r) +
-        " mm, edge height at θ = 0 " + fmt(wall_mm) + " mm) = " + fmt(limit_mm) +
+        "chamfer leg √2 × depth × passes = " + text::sig(leg_mm) + " mm exceeds " +
+        text::sig(RobotLimits::kMaxLegFraction) + " × min(hole radius " + text::sig(r) +
+        " mm, edge height at θ = 0 " + text::sig(wall_mm) + " mm) = " + text::sig(limit_mm) +
         " mm, beyond which the paper's planar edge model (§3.1) does not hold; use a smaller "
         "--depth or --chamfer-width, or fewer --passes");
   }
@@ -313,8 +307,8 @@ TouchFit fit_touch_points(const std::vector<TouchPoint>& touches) {
         const double dist = (get(touches[i]) - get(touches[j])).norm();
         if (!(dist >= TouchLimits::kMinSeparationMm)) {
           throw InputError("touch points " + std::to_string(i + 1) + " and " +
-                           std::to_string(j + 1) + " are " + fmt(dist) + " mm apart in the " +
-                           side + " frame, less than " + fmt(TouchLimits::kMinSeparationMm) +
+                           std::to_string(j + 1) + " are " + text::sig(dist) + " mm apart in the " +
+                           side + " frame, less than " + text::sig(TouchLimits::kMinSeparationMm) +
                            " mm: the same point twice; touch distinct points or remove one");
         }
       }
@@ -329,8 +323,9 @@ TouchFit fit_touch_points(const std::vector<TouchPoint>& touches) {
     const double spread_mm = std::sqrt(off_line / static_cast<double>(n));
     if (!(spread_mm >= TouchLimits::kMinSpreadMm)) {
       throw InputError("the touch points are collinear in the " + std::string(side) +
-                       " frame: their RMS distance from the best-fit line is " + fmt(spread_mm) +
-                       " mm, less than " + fmt(TouchLimits::kMinSpreadMm) +
+                       " frame: their RMS distance from the best-fit line is " +
+                       text::sig(spread_mm) + " mm, less than " +
+                       text::sig(TouchLimits::kMinSpreadMm) +
                        " mm, so the turn about that line is not determined; touch a point off "
                        "the line");
     }

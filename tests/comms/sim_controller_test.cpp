@@ -632,13 +632,23 @@ TEST(SimController, SenderIgnoringXoffOverflows) {
     TempDir dir;
     SimControllerConfig cfg = config(dir / "cnc", Protocol::Drip, 115200, "8N1");
     cfg.line.flow = flow;
+    // In simulated time (0.2 ms steps, about 2 characters each): the loop is never late, so the
+    // DC3 goes out when due and the sender alone broke the rule.
+    auto clock = std::make_shared<ManualClock>();
+    cfg.clock = clock;
     Running run(cfg);
     Peer peer(cfg.line.device, run.sim);
+    run.start_clock(*clock);
     const Program prog(100, 600.0);  // slow moves: the buffer cannot drain
     peer.send_drip(prog.text("\n"), /*obey=*/false);
-    peer.listen(0.2);
-    ASSERT_TRUE(run.wait([](const SimProgress& p) { return p.alarms > 0; }));
+    for (int i = 0; i < 20000 && run.sim.progress().alarms == 0; ++i) {
+      ASSERT_TRUE(run.step(*clock, 0.0002));
+    }
+    ASSERT_GT(run.sim.progress().alarms, 0);
+    for (int i = 0; i < 20; ++i) ASSERT_TRUE(run.step(*clock, 0.0002));  // the NAK goes out
+    peer.listen(0.05);
     const SimLog& log = run.stop();
+    EXPECT_EQ(log.xoff_late, 0);
     ASSERT_EQ(log.alarms.size(), 1U);
     EXPECT_EQ(log.alarms[0].code, "overflow");
     EXPECT_GT(log.alarms[0].block, 0);
@@ -677,7 +687,10 @@ TEST(SimController, LateWakeUpOfTheLoopIsNotBlamedOnTheSender) {
     for (int i = 0; i < 10; ++i) ASSERT_TRUE(run.step(*clock, 0.001));  // the line is busy
     ASSERT_GT(run.sim.progress().bytes_received, 20U);
     peer.write_all(text.substr(100, 500));  // 600 characters in 0.21 s: the line carries 730
-    ASSERT_TRUE(run.step(*clock, 0.2));     // the loop wakes 0.2 s late
+    // The clock stands still meanwhile: the kernel moves the characters to the controller's side
+    // of the pty (its flip buffer may take a while on a loaded machine), none is read yet.
+    std::this_thread::sleep_for(200ms);
+    ASSERT_TRUE(run.step(*clock, 0.2));  // the loop wakes 0.2 s late
     peer.tick = [&] { return run.step(*clock, 0.0005); };
     ASSERT_TRUE(peer.send_drip(text.substr(600)));
     ASSERT_TRUE(run.run_to_end(*clock, 0.001, 60.0));

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <mqtt/async_client.h>
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
@@ -246,8 +247,18 @@ TEST_F(Fleet, BrokerKilledAndRestartedMidJobLosesNoEventWithinTheBound) {
   ASSERT_EQ(seen.size(), 100u);
   EXPECT_EQ(*seen.begin(), 1u);
   EXPECT_EQ(*seen.rbegin(), 100u);
-  // In order: the first arrival of each seq comes after every smaller one's.
-  for (std::size_t i = 1; i < seqs.size(); ++i) EXPECT_LT(seqs[i - 1], seqs[i]) << "at " << i;
+  // In order: the first arrival of each seq comes after every smaller one's, except inside the
+  // window in flight around the broker's death (31-70). There QoS 1 redelivers what was not
+  // acknowledged when the broker died, after later messages it had already passed on (seen once
+  // under load: 32-40, then 31); a consumer orders by `seq`, which every event carries. Before
+  // the kill and after the reconnect the order is strict.
+  for (std::size_t i = 1; i < seqs.size(); ++i) {
+    const bool in_flight_window = seqs[i] > 30 && seqs[i] <= 70;
+    if (in_flight_window) continue;
+    EXPECT_LT(*std::max_element(seqs.begin(), seqs.begin() + static_cast<std::ptrdiff_t>(i)),
+              seqs[i])
+        << "at " << i;
+  }
   EXPECT_EQ(n.connects, 2u);
   EXPECT_GE(n.connection_losses, 1u);
 }

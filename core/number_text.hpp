@@ -1,0 +1,57 @@
+// Numbers as text: the one set of number formatters of the project, on the fmt library, for
+// messages, reports, plots and the programs ncd writes. None depends on the locale, and none
+// writes a negative zero ("-0", "-0.000"): a value that prints as zero prints without a sign.
+#pragma once
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <string>
+
+namespace ncd::text {
+
+namespace detail {
+// "-0.000" → "0.000", "-0" → "0": a negative value that rounded to zero.
+inline std::string unsigned_zero(std::string s) {
+  if (s.size() > 1 && s[0] == '-' && s.find_first_not_of("0.", 1) == std::string::npos) {
+    s.erase(0, 1);
+  }
+  return s;
+}
+}  // namespace detail
+
+// `digits` significant digits, as printf's %.Ng (6: as %g and an iostream's default), for
+// messages: 1.5, 0.000123, 1.23457e+06.
+inline std::string sig(double v, int digits = 6) {
+  return detail::unsigned_zero(fmt::format("{:.{}g}", v, digits));
+}
+
+// `decimals` decimals, as printf's %.Nf: 8.3920, 0.0000.
+inline std::string fixed(double v, int decimals) {
+  return detail::unsigned_zero(fmt::format("{:.{}f}", v, decimals));
+}
+
+// `decimals` decimals, then the trailing zeros removed down to `min_decimals` (and the point
+// with them when that is 0): G-code words X1.5 Z0, or 1.0 with min_decimals 1.
+inline std::string trimmed(double v, int decimals, int min_decimals = 0) {
+  std::string s = fixed(v, decimals);
+  const std::size_t point = s.find('.');
+  if (point == std::string::npos) return s;
+  const std::size_t keep = point + static_cast<std::size_t>(min_decimals) + 1;
+  while (s.size() > keep && s.back() == '0') s.pop_back();
+  if (s.back() == '.') s.pop_back();
+  return detail::unsigned_zero(s);
+}
+
+// A plot's tick label at v, ticks `step` apart: `digits` significant digits, and the tick that
+// the accumulated steps put a rounding error away from zero (1.4e-17) written 0.
+inline std::string tick(double v, double step, int digits = 6) {
+  return sig(std::abs(v) <= 1e-9 * std::abs(step) ? 0.0 : v, digits);
+}
+
+// The shortest text that reads back as exactly v (fmt's default, as std::to_chars).
+inline std::string shortest(double v) {
+  return detail::unsigned_zero(fmt::format("{}", v));
+}
+
+}  // namespace ncd::text
