@@ -4,13 +4,13 @@
 #pragma once
 
 #include <atomic>
+#include <boost/lockfree/spsc_queue.hpp>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <thread>
 
 #include "core/histogram.hpp"
-#include "core/spsc_ring.hpp"
 #include "motion/job.hpp"
 
 namespace ncd::motion {
@@ -91,7 +91,7 @@ class Cycle {
 
   std::unique_ptr<Job> job_;
   CycleOptions options_;
-  SpscRing<Setpoint> ring_;
+  boost::lockfree::spsc_queue<Setpoint> ring_;  // one producer, one consumer, no allocation
   std::thread thread_;
   CycleStats stats_;
   std::string error_;

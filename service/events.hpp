@@ -7,11 +7,10 @@
 
 #include <array>
 #include <atomic>
+#include <boost/lockfree/spsc_queue.hpp>
 #include <cstdint>
 #include <memory>
 #include <string_view>
-
-#include "core/spsc_ring.hpp"
 
 namespace ncd::service {
 
@@ -53,7 +52,7 @@ struct Event {
 // One subscriber's feed: the service pushes (its loop's thread), the subscriber pops (its own).
 class Subscription {
  public:
-  explicit Subscription(std::size_t capacity_pow2) : ring_(capacity_pow2) {}
+  explicit Subscription(std::size_t capacity) : ring_(capacity) {}
   // Subscriber side.
   bool pop(Event& out) { return ring_.pop(out); }
   std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
@@ -66,7 +65,7 @@ class Subscription {
   }
 
  private:
-  SpscRing<Event> ring_;
+  boost::lockfree::spsc_queue<Event> ring_;  // one producer, one consumer, no allocation
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<bool> closed_{false};
 };
