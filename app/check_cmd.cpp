@@ -25,6 +25,7 @@
 #include "app/machine_config.hpp"
 #include "app/output.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 #include "toolpath/ngc_interpreter.hpp"
 #include "toolpath/program.hpp"
 
@@ -130,12 +131,6 @@ Summary summarise(const Program& p, const MachineConfig& machine) {
   return s;
 }
 
-std::string fixed(double v, int decimals) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", decimals, v);
-  return b;
-}
-
 int run_check(const CheckArgs& a) {
   MachineConfig machine;
   if (!a.machine.empty()) machine = load_machine_config(a.machine);
@@ -190,24 +185,26 @@ int run_check(const CheckArgs& a) {
   if (any) {
     for (int i = 0; i < 3; ++i) {
       std::cout << "  "
-                << "XYZ"[i] << " from " << fixed(s.lo[i], 4) << " to " << fixed(s.hi[i], 4) << "\n";
+                << "XYZ"[i] << " from " << text::fixed(s.lo[i], 4) << " to "
+                << text::fixed(s.hi[i], 4) << "\n";
     }
   }
-  std::cout << "  cut length " << fixed(s.cut_mm, 3) << " mm, rapid length " << fixed(s.rapid_mm, 3)
-            << " mm\n";
-  std::cout << "  estimated time " << fixed(s.time_s, 1) << " s (feeds capped at "
-            << fixed(machine.limits.max_feed_mm_per_min, 0) << " mm/min, rapids at that rate, "
-            << fixed(s.dwell_s, 1) << " s of dwell)" << (s.capped ? "; some feeds were capped" : "")
-            << "\n";
+  std::cout << "  cut length " << text::fixed(s.cut_mm, 3) << " mm, rapid length "
+            << text::fixed(s.rapid_mm, 3) << " mm\n";
+  std::cout << "  estimated time " << text::fixed(s.time_s, 1) << " s (feeds capped at "
+            << text::fixed(machine.limits.max_feed_mm_per_min, 0)
+            << " mm/min, rapids at that rate, " << text::fixed(s.dwell_s, 1) << " s of dwell)"
+            << (s.capped ? "; some feeds were capped" : "") << "\n";
   std::cout << "  tools";
   if (s.tools.empty()) std::cout << " none";
   for (int t : s.tools) std::cout << " T" << t;
   std::cout << "\n  spindle";
   if (s.spindle_rpm.empty()) std::cout << " never on";
-  for (double r : s.spindle_rpm) std::cout << " " << fixed(r, 0) << " rpm";
+  for (double r : s.spindle_rpm) std::cout << " " << text::fixed(r, 0) << " rpm";
   std::cout << "\n  feeds";
   if (s.feed_max > 0.0) {
-    std::cout << " " << fixed(s.feed_min, 1) << " to " << fixed(s.feed_max, 1) << " mm/min\n";
+    std::cout << " " << text::fixed(s.feed_min, 1) << " to " << text::fixed(s.feed_max, 1)
+              << " mm/min\n";
   } else {
     std::cout << " none\n";
   }

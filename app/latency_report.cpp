@@ -7,14 +7,14 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "core/number_text.hpp"
+
 namespace ncd::app {
 
 std::string format_us(double us) {
   const double a = std::fabs(us);
   const int decimals = a >= 100.0 ? 0 : a >= 10.0 ? 1 : a >= 1.0 ? 2 : 3;
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, us);
-  return buf;
+  return text::fixed(us, decimals);
 }
 
 LatencyPercentiles percentiles_us_from_ns(const LogHistogram& histogram_ns) {

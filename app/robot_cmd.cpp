@@ -41,13 +41,6 @@ struct RobotArgs {
   bool quiet = false;
 };
 
-std::string fixed(double v, int decimals) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(decimals)
-    << (std::abs(v) < 0.5 * std::pow(10.0, -decimals) ? 0.0 : v);
-  return s.str();
-}
-
 // The touch-point file (--touch-points), read as toolpath::parse_touch_points() describes.
 std::vector<toolpath::TouchPoint> read_touch_points(const std::string& path) {
   return toolpath::parse_touch_points(read_input_file(path, "touch-point file, --touch-points"),
@@ -162,9 +155,9 @@ ordered_json robot_json(const RobotArgs& a, const RobotPath& path, const RobotPr
 }
 
 std::string attitude_line(const char* name, const AttitudeStats& s) {
-  return std::string(name) + "total " + fixed(rad_to_deg(s.total_rad), 3) + ", largest step " +
-         fixed(rad_to_deg(s.max_rad), 3) + ", largest from the first pose " +
-         fixed(rad_to_deg(s.excursion_max_rad), 3);
+  return std::string(name) + "total " + text::fixed(rad_to_deg(s.total_rad), 3) +
+         ", largest step " + text::fixed(rad_to_deg(s.max_rad), 3) +
+         ", largest from the first pose " + text::fixed(rad_to_deg(s.excursion_max_rad), 3);
 }
 
 std::string robot_text(const RobotPath& path, const RobotProgram& prog,
@@ -201,25 +194,26 @@ std::string robot_text(const RobotPath& path, const RobotProgram& prog,
   if (fit) {
     const toolpath::Wpr w = toolpath::matrix_to_wpr(fit->transform.rotation);
     t << "# workpiece to robot: " << fit->residual_mm.size() << " touch points, residual rms "
-      << fixed(fit->rms_mm, 4) << " mm, max " << fixed(fit->max_mm, 4) << " mm; translation "
-      << fixed(fit->transform.translation_mm.x(), 4) << " "
-      << fixed(fit->transform.translation_mm.y(), 4) << " "
-      << fixed(fit->transform.translation_mm.z(), 4) << " mm, rotation W P R "
-      << fixed(rad_to_deg(w.w_rad), 4) << " " << fixed(rad_to_deg(w.p_rad), 4) << " "
-      << fixed(rad_to_deg(w.r_rad), 4) << " deg\n";
+      << text::fixed(fit->rms_mm, 4) << " mm, max " << text::fixed(fit->max_mm, 4)
+      << " mm; translation " << text::fixed(fit->transform.translation_mm.x(), 4) << " "
+      << text::fixed(fit->transform.translation_mm.y(), 4) << " "
+      << text::fixed(fit->transform.translation_mm.z(), 4) << " mm, rotation W P R "
+      << text::fixed(rad_to_deg(w.w_rad), 4) << " " << text::fixed(rad_to_deg(w.p_rad), 4) << " "
+      << text::fixed(rad_to_deg(w.r_rad), 4) << " deg\n";
   } else {
     t << "# workpiece to robot: identity (no touch points): the robot frame is the workpiece "
          "frame (hole axis z, cylinder axis y, origin where they cross)\n";
   }
   t << "# checks: edge on both surfaces to " << text::sig(ck.surface_residual_mm)
-    << " mm; D and T_f to the hole wall " << fixed(rad_to_deg(ck.wall_angle_min_rad), 6) << ".."
-    << fixed(rad_to_deg(ck.wall_angle_max_rad), 6) << " deg; T_f to the cylinder surface "
-    << fixed(rad_to_deg(ck.tf_cylinder_angle_min_rad), 3) << ".."
-    << fixed(rad_to_deg(ck.tf_cylinder_angle_max_rad), 3) << " deg; frames orthonormal to "
+    << " mm; D and T_f to the hole wall " << text::fixed(rad_to_deg(ck.wall_angle_min_rad), 6)
+    << ".." << text::fixed(rad_to_deg(ck.wall_angle_max_rad), 6)
+    << " deg; T_f to the cylinder surface "
+    << text::fixed(rad_to_deg(ck.tf_cylinder_angle_min_rad), 3) << ".."
+    << text::fixed(rad_to_deg(ck.tf_cylinder_angle_max_rad), 3) << " deg; frames orthonormal to "
     << text::sig(ck.frame_error) << "; W,P,R round trip to " << text::sig(prog.wpr_roundtrip_error)
-    << "; chord deviation " << fixed(ck.chord_deviation_mm, 4) << " mm\n"
-    << "# cut length " << fixed(prog.cut_length_mm, 3) << " mm, duration "
-    << fixed(prog.duration_s, 1) << " s from the approach pose\n"
+    << "; chord deviation " << text::fixed(ck.chord_deviation_mm, 4) << " mm\n"
+    << "# cut length " << text::fixed(prog.cut_length_mm, 3) << " mm, duration "
+    << text::fixed(prog.duration_s, 1) << " s from the approach pose\n"
     << "# tool frame: +z along the bar's axis towards its tip (D), +x along T_g (the arm's "
        "last axis, away from the wrist)\n"
     << "# W P R: rotations about the fixed robot x, y, z axes in that order, "
@@ -230,10 +224,11 @@ std::string robot_text(const RobotPath& path, const RobotProgram& prog,
   for (std::size_t i = 0; i < prog.moves.size(); ++i) {
     const auto& mv = prog.moves[i];
     const Vec3& p = mv.pose.p_mm;
-    t << (i + 1) << ' ' << toolpath::to_string(mv.mode) << ' ' << fixed(p.x(), d) << ' '
-      << fixed(p.y(), d) << ' ' << fixed(p.z(), d) << ' ' << fixed(rad_to_deg(mv.wpr.w_rad), d)
-      << ' ' << fixed(rad_to_deg(mv.wpr.p_rad), d) << ' ' << fixed(rad_to_deg(mv.wpr.r_rad), d)
-      << ' ' << text::sig(mv.speed_mm_per_s) << '\n';
+    t << (i + 1) << ' ' << toolpath::to_string(mv.mode) << ' ' << text::fixed(p.x(), d) << ' '
+      << text::fixed(p.y(), d) << ' ' << text::fixed(p.z(), d) << ' '
+      << text::fixed(rad_to_deg(mv.wpr.w_rad), d) << ' ' << text::fixed(rad_to_deg(mv.wpr.p_rad), d)
+      << ' ' << text::fixed(rad_to_deg(mv.wpr.r_rad), d) << ' ' << text::sig(mv.speed_mm_per_s)
+      << '\n';
   }
   return t.str();
 }
@@ -251,13 +246,13 @@ std::string robot_summary(const RobotPath& path, const RobotProgram& prog,
   o << "    " << attitude_line("naive       ", path.naive) << "\n";
   if (fit) {
     o << "  touch fit         " << fit->residual_mm.size() << " points, residual rms "
-      << fixed(fit->rms_mm, 4) << " mm, max " << fixed(fit->max_mm, 4) << " mm\n";
+      << text::fixed(fit->rms_mm, 4) << " mm, max " << text::fixed(fit->max_mm, 4) << " mm\n";
   }
-  o << "  T_f to cylinder   " << fixed(rad_to_deg(path.checks.tf_cylinder_angle_min_rad), 3)
-    << " .. " << fixed(rad_to_deg(path.checks.tf_cylinder_angle_max_rad), 3)
+  o << "  T_f to cylinder   " << text::fixed(rad_to_deg(path.checks.tf_cylinder_angle_min_rad), 3)
+    << " .. " << text::fixed(rad_to_deg(path.checks.tf_cylinder_angle_max_rad), 3)
     << " deg (45 deg to the hole wall)\n";
-  o << "  moves             " << prog.moves.size() << ", cut " << fixed(prog.cut_length_mm, 3)
-    << " mm, " << fixed(prog.duration_s, 1) << " s\n";
+  o << "  moves             " << prog.moves.size() << ", cut " << text::fixed(prog.cut_length_mm, 3)
+    << " mm, " << text::fixed(prog.duration_s, 1) << " s\n";
   return o.str();
 }
 

@@ -19,6 +19,7 @@
 #include "app/output.hpp"
 #include "comms/sim_controller.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::app {
 namespace {
@@ -90,12 +91,6 @@ class StopSignals {
   struct sigaction old_usr1_ {};
 };
 
-std::string fixed(double v, int decimals) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
-}
-
 int run_sim_controller(const SimArgs& a) {
   comms::SimControllerConfig cfg;
   cfg.line = line_settings(a.flags, a.link);
@@ -132,7 +127,7 @@ int run_sim_controller(const SimArgs& a) {
   comms::SimController sim(cfg);
   const comms::SimControllerConfig& c = sim.config();
   std::cout << "ncd sim-controller: " << c.line.device << " -> " << sim.device() << ", "
-            << describe(c.line) << " (" << fixed(comms::chars_per_s(c.line), 1)
+            << describe(c.line) << " (" << text::fixed(comms::chars_per_s(c.line), 1)
             << " chars/s), buffer " << c.buffer_bytes << " B";
   if (c.line.protocol == comms::Protocol::Drip) {
     std::cout << ", XOFF at " << *c.xoff_at << ", XON at " << *c.xon_at;
@@ -145,18 +140,18 @@ int run_sim_controller(const SimArgs& a) {
     sim.run();
   }
   const comms::SimLog& log = sim.log();
-  std::cout << "ncd sim-controller: " << log.stop_reason << " after " << fixed(log.duration_s, 2)
-            << " s: " << log.blocks_received << " blocks (" << log.bytes_received << " bytes at "
-            << fixed(log.bytes_per_s, 0) << " B/s, link use " << fixed(log.link_use, 3)
-            << "), underruns " << log.underruns << ", alarms " << log.alarms.size() << ", sha256 "
-            << log.program_sha256 << std::endl;
+  std::cout << "ncd sim-controller: " << log.stop_reason << " after "
+            << text::fixed(log.duration_s, 2) << " s: " << log.blocks_received << " blocks ("
+            << log.bytes_received << " bytes at " << text::fixed(log.bytes_per_s, 0)
+            << " B/s, link use " << text::fixed(log.link_use, 3) << "), underruns " << log.underruns
+            << ", alarms " << log.alarms.size() << ", sha256 " << log.program_sha256 << std::endl;
   if (c.dialect) {
     std::cout << "ncd sim-controller: " << log.events.size() << " events executed ("
               << comms::to_string(*c.dialect) << " dialect)";
     for (const comms::SimEvent& e : log.events) {
       std::cout << (&e == &log.events.front() ? ": " : ", ") << e.kind;
       if (e.kind == "speed" || e.kind == "dwell" || e.kind == "tool") std::cout << " " << e.value;
-      std::cout << " @" << fixed(e.t_s, 3) << " s";
+      std::cout << " @" << text::fixed(e.t_s, 3) << " s";
     }
     std::cout << std::endl;
   }

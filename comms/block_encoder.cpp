@@ -76,6 +76,7 @@
 #include <stdexcept>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::comms {
 namespace {
@@ -129,18 +130,6 @@ void append_number(std::string& out, long n) {
   out.append(digits, static_cast<std::size_t>(k));
 }
 
-std::string fixed(double v, int decimals) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
-}
-
-std::string general(double v, int digits = 6) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
-
 }  // namespace
 
 void apply_dialect(EncoderSettings& settings, Dialect dialect) {
@@ -192,21 +181,21 @@ void validate(const EncoderSettings& s) {
   require_positive("encoder chord_tolerance_mm", s.chord_tolerance_mm);
   const double rho = rounding_error_mm(s.decimals);
   if (s.chord_tolerance_mm < rho) {
-    throw InputError("encoder chord_tolerance_mm = " + general(s.chord_tolerance_mm) +
+    throw InputError("encoder chord_tolerance_mm = " + text::sig(s.chord_tolerance_mm) +
                      " mm is below the rounding error of " + std::to_string(s.decimals) +
                      " decimals (sqrt(3)/2 * 10^-" + std::to_string(s.decimals) + " = " +
-                     general(rho) +
+                     text::sig(rho) +
                      " mm): the written end points alone may be that far from the path; raise the "
                      "tolerance to at least " +
-                     general(rho) + " mm or write more decimals");
+                     text::sig(rho) + " mm or write more decimals");
   }
   if (!std::isfinite(s.feed_band) || s.feed_band <= 0.0 || s.feed_band >= 1.0) {
-    throw InputError("encoder feed_band = " + general(s.feed_band) +
+    throw InputError("encoder feed_band = " + text::sig(s.feed_band) +
                      " is out of range: give the relative band around a block's mean feed, "
                      "greater than 0 and below 1 (0.05 for ±5 %)");
   }
   if (!std::isfinite(s.link_margin) || s.link_margin <= 0.0 || s.link_margin > 1.0) {
-    throw InputError("encoder link_margin = " + general(s.link_margin) +
+    throw InputError("encoder link_margin = " + text::sig(s.link_margin) +
                      " is out of range: give the share of the line's capacity the program may "
                      "use, greater than 0 and at most 1 (0.8 for 80 %)");
   }
@@ -219,12 +208,12 @@ void validate(const EncoderSettings& s) {
                      " is invalid: block numbers must grow, by 1 or more");
   }
   if (!std::isfinite(s.time_tolerance_s) || s.time_tolerance_s < 0.0) {
-    throw InputError("encoder time_tolerance_s = " + general(s.time_tolerance_s) +
+    throw InputError("encoder time_tolerance_s = " + text::sig(s.time_tolerance_s) +
                      " is invalid: give how far the controller's time may run from the plan "
                      "before F is written again, 0 or more (one period, 0.004 s, by default)");
   }
   if (!std::isfinite(s.max_block_s) || s.max_block_s < 0.0) {
-    throw InputError("encoder max_block_s = " + general(s.max_block_s) +
+    throw InputError("encoder max_block_s = " + text::sig(s.max_block_s) +
                      " is invalid: give the longest block in seconds, or 0 for no limit");
   }
   if (s.max_setpoints_per_block < 2 || s.max_setpoints_per_block > (1u << 20)) {
@@ -274,15 +263,15 @@ void BlockEncoder::push(const motion::Setpoint& sp) {
   if (finished_) throw std::logic_error("BlockEncoder::push after finish()");
   for (int a = 0; a < 3; ++a) {
     if (!std::isfinite(sp.p[a]) || std::abs(sp.p[a]) > kMaxCoordMm) {
-      throw InputError("setpoint at t = " + fixed(sp.t_s, 6) + " s has coordinate " +
-                       general(sp.p[a]) +
+      throw InputError("setpoint at t = " + text::fixed(sp.t_s, 6) + " s has coordinate " +
+                       text::sig(sp.p[a]) +
                        " mm: the block encoder needs finite positions "
                        "within 1e9 mm");
     }
   }
   if (!std::isfinite(sp.t_s) || (started_ && sp.t_s <= end_.t_s)) {
-    throw InputError("setpoint time " + general(sp.t_s, 9) + " s does not follow " +
-                     general(end_.t_s, 9) +
+    throw InputError("setpoint time " + text::sig(sp.t_s, 9) + " s does not follow " +
+                     text::sig(end_.t_s, 9) +
                      " s: the block encoder needs setpoints in strictly increasing time");
   }
   ++stats_.setpoints;
@@ -545,7 +534,7 @@ void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm) {
   if (finished_) throw std::logic_error("BlockEncoder::rapid after finish()");
   for (int a = 0; a < 3; ++a) {
     if (!std::isfinite(end[a]) || std::abs(end[a]) > kMaxCoordMm) {
-      throw InputError("rapid to a coordinate " + general(end[a]) +
+      throw InputError("rapid to a coordinate " + text::sig(end[a]) +
                        " mm: the block encoder needs finite positions within 1e9 mm");
     }
   }
@@ -817,7 +806,7 @@ void BlockEncoder::flush_lowered_range() {
     if (!causes.empty()) causes += ", ";
     switch (static_cast<BlockClose>(k)) {
       case BlockClose::Chord:
-        causes += "the chord tolerance of " + general(settings_.chord_tolerance_mm) + " mm";
+        causes += "the chord tolerance of " + text::sig(settings_.chord_tolerance_mm) + " mm";
         break;
       case BlockClose::FeedBand:
         causes += "the feed band";
@@ -829,7 +818,7 @@ void BlockEncoder::flush_lowered_range() {
         causes += "the cap of setpoints per block";
         break;
       case BlockClose::Duration:
-        causes += "the longest block of " + general(settings_.max_block_s) + " s";
+        causes += "the longest block of " + text::sig(settings_.max_block_s) + " s";
         break;
       case BlockClose::End:
         causes += "the end of a stretch (an event or a rapid follows)";
@@ -842,13 +831,14 @@ void BlockEncoder::flush_lowered_range() {
     }
     causes += " (" + std::to_string(range_reasons_[k]) + ")";
   }
-  range_.reason = "blocks cut to " + fixed(range_.length_min_mm, 4) + "-" +
-                  fixed(range_.length_max_mm, 4) + " mm by " + causes + ", but the link (" +
-                  stats_.line + ", at most " + fixed(100.0 * settings_.link_margin, 0) + " % of " +
-                  fixed(stats_.chars_per_s, 0) + " chars/s) needs blocks of up to " +
-                  fixed(range_.needed_length_mm, 4) + " mm at the planned feed of up to " +
-                  fixed(range_.planned_feed_mm_per_min, 1) + " mm/min; feed lowered to " +
-                  fixed(range_.lowered_feed_min_mm_per_min, 1) + " mm/min at the lowest";
+  range_.reason = "blocks cut to " + text::fixed(range_.length_min_mm, 4) + "-" +
+                  text::fixed(range_.length_max_mm, 4) + " mm by " + causes + ", but the link (" +
+                  stats_.line + ", at most " + text::fixed(100.0 * settings_.link_margin, 0) +
+                  " % of " + text::fixed(stats_.chars_per_s, 0) +
+                  " chars/s) needs blocks of up to " + text::fixed(range_.needed_length_mm, 4) +
+                  " mm at the planned feed of up to " +
+                  text::fixed(range_.planned_feed_mm_per_min, 1) + " mm/min; feed lowered to " +
+                  text::fixed(range_.lowered_feed_min_mm_per_min, 1) + " mm/min at the lowest";
   stats_.lowered.push_back(range_);
 }
 
