@@ -33,6 +33,24 @@
 // at c ± v_c T and c ± 2 v_c T, so that the node rule slows only 4 v_c T of path, not the
 // 0.2 mm intervals around it.
 //
+// Flat intervals (docs/planner.md §2a). On a long smooth curve the limit is mostly the cap
+// (machine maximum or program F) and the search above spends ~45 curve evaluations per interval
+// to find that. Where a bound proves every law above the cap over the whole interval, the
+// search is skipped: its result would be the cap at every point it evaluates, and ties keep
+// the first, so the node is the same bit for bit. The bound, for a non-rational curve of
+// degree p ≥ 2 whose interior knots have multiplicity ≤ p − 1 (C' continuous):
+//
+//     |C''(u)| ≤ M2 = max |R_i| over the spans touched (convex hull of the second hodograph,
+//                     R_i = (p−1)(Q_i+1 − Q_i)/(u_i+p+1 − u_i+2), Q_i = p(P_i+1 − P_i)/(u_i+p+1 −
+//                     u_i+1), Piegl and Tiller eq. 3.8)
+//     |C'(u)|  ≥ |C'(u0)| − M2 |u − u0|          (C' is continuous)
+//     κ(u) = |C' × C''| / |C'|³ ≤ M2 / min|C'|²
+//
+// with margins for the rounding of eval(); the curve laws are decreasing in κ, and the
+// roughness law is smallest at α = 0 (docs/feedrate.md §1), so the limit is at least
+// min(roughness(0), chord(κ_max), accel(κ_max), jerk(κ_max)). The interval is flat if that
+// exceeds the cap by 1e-6 (relative). Rational curves and corners at knots always search.
+//
 // Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
 // stretches between stops separately, and takes each node's left and right interval values
 // at a stop for the stretch on that side.
@@ -176,6 +194,46 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
                                   : kInf;
         knot_edges_[k].push_back({v, cl.d1.norm(), cr.d1.norm()});
       }
+    }
+  }
+  // Flat intervals: the bounds of every span of the curves that qualify (see the top).
+  span_bounds_.resize(n);
+  roughness_floor_mm_per_s_ = roughness_feed_mm_per_s(cutting_, 0.0);
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry);
+    if (c == nullptr || c->rational() || c->degree() < 2) continue;
+    const auto p = static_cast<std::size_t>(c->degree());
+    const auto& U = c->knots();
+    const auto& P = c->points();
+    bool c1 = true;  // every interior knot of multiplicity ≤ p − 1: C' is continuous
+    for (std::size_t i = p + 1, m = U.size() - p - 1; i < m && c1;) {
+      std::size_t j = i;
+      while (j + 1 < m && U[j + 1] == U[i]) ++j;
+      c1 = j - i + 1 <= p - 1;
+      i = j + 1;
+    }
+    if (!c1) continue;
+    // First and second hodographs (Piegl and Tiller eq. 3.8): Q_i = p (P_i+1 − P_i) /
+    // (u_i+p+1 − u_i+1), R_i = (p − 1)(Q_i+1 − Q_i) / (u_i+p+1 − u_i+2); on span s, C'' is a
+    // convex combination of R_s−p … R_s−2.
+    const std::size_t np = P.size();
+    std::vector<Vec3> q(np - 1), r(np - 2);
+    for (std::size_t i = 0; i + 1 < np; ++i) {
+      q[i] = static_cast<double>(p) * (P[i + 1] - P[i]) / (U[i + p + 1] - U[i + 1]);
+    }
+    bool finite = true;
+    for (std::size_t i = 0; i + 2 < np; ++i) {
+      r[i] = static_cast<double>(p - 1) * (q[i + 1] - q[i]) / (U[i + p + 1] - U[i + 2]);
+      finite = finite && r[i].allFinite();
+    }
+    if (!finite) continue;
+    auto& bounds = span_bounds_[k];
+    bounds.assign(U.size(), SpanBound{kInf, kInf});
+    for (std::size_t sp = p; sp < np; ++sp) {
+      double d2 = 0.0, pm = 0.0;
+      for (std::size_t i = sp - p; i + 2 <= sp; ++i) d2 = std::max(d2, r[i].norm());
+      for (std::size_t i = sp - p; i <= sp; ++i) pm = std::max(pm, P[i].norm());
+      bounds[sp] = {d2, pm};
     }
   }
   joint_edge_.assign(n + 1, kInf);
@@ -337,6 +395,47 @@ FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vert
   if (vertex_is_stop(segment, vertex)) return {kInf, FeedLimit::Corner};  // at rest there
   return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
                       unit_or_zero(line.points[vertex + 1] - line.points[vertex]));
+}
+
+bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
+                                    double speed_u0) const {
+  const auto& bounds = span_bounds_[segment];
+  if (bounds.empty() || !(speed_u0 > 0.0) || !(u1 > u0)) return false;
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  const auto& U = c.knots();
+  const auto p = static_cast<std::size_t>(c.degree());
+  // Every point the search may evaluate lies in [u0 − δ, u1 + δ] (its steps reach tol =
+  // 1e-9 (u1 − u0) past its bracket; the samples round by a few ulp).
+  const double delta = 1e-6 * (u1 - u0) + 1e-12 * std::max(1.0, std::abs(u1));
+  const double lo = std::max(u0 - delta, c.u_begin()), hi = std::min(u1 + delta, c.u_end());
+  const auto span = [&](double u) {  // as NurbsCurve::find_span
+    const auto it = std::upper_bound(U.begin() + static_cast<std::ptrdiff_t>(p),
+                                     U.end() - static_cast<std::ptrdiff_t>(p) - 1, u);
+    return std::max(p, static_cast<std::size_t>(it - U.begin()) - 1);
+  };
+  double d2 = 0.0, e1 = 0.0, e2 = 0.0;
+  for (std::size_t s = span(lo), last = span(hi); s <= last; ++s) {
+    const double h = U[s + 1] - U[s];
+    if (!(h > 0.0)) continue;
+    // Rounding of eval(): |N'| ≤ 2p / h and |N''| ≤ 4p(p − 1) / h² on the span, p + 1 terms,
+    // each off by far less than 1e-12 of its size.
+    const double pp = static_cast<double>(p), terms = pp + 1.0;
+    e1 = std::max(e1, 1e-12 * terms * 2.0 * pp / h * bounds[s].p_max);
+    e2 = std::max(e2, 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * bounds[s].p_max);
+    d2 = std::max(d2, bounds[s].d2_max);
+  }
+  // |C'(u)| ≥ |C'(u0)| − max|C''| |u − u0| (C' is continuous), and κ = |C' × C''| / |C'|³ ≤
+  // |C''| / |C'|².
+  const double d1_min = speed_u0 - (d2 + e2) * (hi - u0 + delta) - 2.0 * e1;
+  if (!(d1_min > 0.0)) return false;
+  const double kappa = (d2 + e2) / (d1_min * d1_min) * (1.0 + 1e-9);
+  const auto& seg = path_.segments[segment];
+  double floor_mm_per_s =
+      std::min({chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3)});
+  if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_);
+  return floor_mm_per_s > segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
 }
 
 FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0, double u1,
@@ -553,7 +652,15 @@ bool LimitSampler::next_interval(Interval& iv) {
         GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
     const bool open_end = knot_ < knots.size() && u1 == knots[knot_] &&
                           std::isfinite(knot_edges_[segment_][knot_].v_mm_per_s);
-    const FeedLimitResult v = interval_min_on_curve(segment_, u_, u1, open_end);
+    // A flat interval: every point the search would evaluate gives the cap, and ties keep the
+    // first, so its result is the limit at any one point with every law above the cap.
+    const bool flat = config_.skip_flat_intervals && interval_is_flat(segment_, u_, u1, speed);
+    const FeedLimitResult v = flat
+                                  ? min_of({limits_.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed},
+                                           segment_cap(segment_))
+                                  : interval_min_on_curve(segment_, u_, u1, open_end);
+    ++curve_intervals_;
+    if (flat) ++flat_intervals_;
     iv.a_mm = s_;
     iv.b_mm = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + arc;
     iv.v_mm_per_s = v.feed_mm_per_s;

@@ -24,6 +24,10 @@ struct LimitNode {
 
 struct SamplerConfig {
   double spacing_mm = 0.2;  // longest interval between nodes on a curve or a line
+  // Skip the search for an interval's minimum where a bound on the curvature proves that the
+  // limit is the segment's cap all along (the nodes are the same bit for bit, see
+  // limit_sampler.cpp, "Flat intervals"); false searches every interval (the reference).
+  bool skip_flat_intervals = true;
 };
 
 class LimitSampler {
@@ -48,6 +52,10 @@ class LimitSampler {
   // full acceleration gives (a crawl through the corner would take as long as a stop).
   double stop_below_mm_per_s() const;
 
+  // Curve intervals streamed so far, and how many of them were flat (no search needed).
+  std::size_t curve_intervals() const { return curve_intervals_; }
+  std::size_t flat_intervals() const { return flat_intervals_; }
+
   // The feed limit at a point of segment `segment` (curve parameter u, or polyline piece and
   // fraction), without corners: what a setpoint there is checked against.
   FeedLimitResult limit_on_curve(std::size_t segment, double u) const;
@@ -64,6 +72,7 @@ class LimitSampler {
   void enter_segment();
   FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1,
                                         bool open_end) const;
+  bool interval_is_flat(std::size_t segment, double u0, double u1, double speed_u0) const;
   FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
   FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out,
                                double curvature_per_mm = 0.0) const;
@@ -98,6 +107,14 @@ class LimitSampler {
     double v_mm_per_s, speed_in, speed_out;
   };
   std::vector<std::vector<KnotEdge>> knot_edges_;
+  // Per non-rational C¹ curve of degree ≥ 2 (empty otherwise), per knot span s: the largest
+  // |C''| the span can reach (the norm of its second-hodograph control points) and the largest
+  // |P_i| of its control points (the scale of the rounding error of eval()).
+  struct SpanBound {
+    double d2_max, p_max;
+  };
+  std::vector<std::vector<SpanBound>> span_bounds_;
+  double roughness_floor_mm_per_s_ = 0.0;  // the roughness law at α = 0, its minimum over α
   FeedLimitResult side_limit(std::size_t segment, bool at_end) const;
   double edge_speed(std::size_t segment, std::size_t vertex) const;
   // Cursor.
@@ -110,6 +127,7 @@ class LimitSampler {
   std::vector<std::vector<double>> breakpoints_;  // per segment (empty for polylines)
   double s_ = 0.0;                                // arc length reached
   bool started_ = false, finished_ = false;
+  std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
   LimitNode pending_;  // the node whose right-hand interval is not known yet
 };
 

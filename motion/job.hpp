@@ -73,6 +73,7 @@ class Job {
   Planner& planner() { return planner_; }
   const Planner& planner() const { return planner_; }
   const interpolator::PathWalker& walker() const { return walker_; }
+  const interpolator::LimitSampler& sampler() const { return sampler_; }
   // The path walked (the program's, with its blended corners) and what the blending did.
   const toolpath::Path& path() const { return path_; }
   const interpolator::BlendReport& blend_report() const { return blend_; }

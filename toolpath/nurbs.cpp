@@ -18,7 +18,8 @@
 //        C'  = (A'  − w' C) / w
 //        C'' = (A'' − 2 w' C' − w'' C) / w
 //
-// Every array is a std::array sized for degree 7, so eval() runs in the real-time cycle without
+// Every array is a std::array sized for the degree (one instance of steps 2–4 per degree 1–7,
+// chosen by a switch, so that the loops unroll), and eval() runs in the real-time cycle without
 // touching the heap.
 #include "toolpath/nurbs.hpp"
 
@@ -34,8 +35,6 @@
 
 namespace ncd::toolpath {
 namespace {
-
-constexpr std::size_t kMaxOrder = NurbsCurve::kMaxDegree + 1;
 
 std::string point_text(const Vec3& p) {
   return "(" + text::shortest(p.x()) + ", " + text::shortest(p.y()) + ", " + text::shortest(p.z()) +
@@ -154,18 +153,23 @@ std::size_t NurbsCurve::find_span(double u) const {
   return static_cast<std::size_t>(std::max(p, (it - knots_.begin()) - 1));
 }
 
-CurvePoint NurbsCurve::eval(double u) const {
-  u = std::clamp(u, u_begin(), u_end());
-  const auto p = static_cast<std::size_t>(degree_);
-  const std::size_t s = find_span(u);
+namespace {
 
+// Steps 2–4 for a degree P known at compile time: the loops unroll and the arrays shrink to
+// P + 1, but every operation and its order are those of the general algorithm, so the result
+// is the same bit for bit whatever the degree.
+template <std::size_t P>
+CurvePoint eval_on_span(double u, std::size_t s, const double* knots, const Vec3* weighted_points,
+                        const double* weights) {
+  constexpr std::size_t p = P;
+  constexpr std::size_t kOrder = P + 1;
   // A2.3: ndu[j][r] (r ≤ j) knot differences, ndu[r][j] (r < j) basis functions of degree j.
-  std::array<std::array<double, kMaxOrder>, kMaxOrder> ndu{};
-  std::array<double, kMaxOrder> left{}, right{};
+  std::array<std::array<double, kOrder>, kOrder> ndu{};
+  std::array<double, kOrder> left{}, right{};
   ndu[0][0] = 1.0;
   for (std::size_t j = 1; j <= p; ++j) {
-    left[j] = u - knots_[s + 1 - j];
-    right[j] = knots_[s + j] - u;
+    left[j] = u - knots[s + 1 - j];
+    right[j] = knots[s + j] - u;
     double saved = 0.0;
     for (std::size_t r = 0; r < j; ++r) {
       ndu[j][r] = right[r + 1] + left[j - r];
@@ -175,12 +179,12 @@ CurvePoint NurbsCurve::eval(double u) const {
     }
     ndu[j][j] = saved;
   }
-  std::array<std::array<double, kMaxOrder>, 3> ders{};  // ders[k][j] = d^k N_{s−p+j,p}/du^k
+  std::array<std::array<double, kOrder>, 3> ders{};  // ders[k][j] = d^k N_{s−p+j,p}/du^k
   for (std::size_t j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
-  const std::size_t nd = std::min<std::size_t>(2, p);  // derivatives above p vanish
-  const auto pi = static_cast<std::ptrdiff_t>(p);
+  constexpr std::size_t nd = std::min<std::size_t>(2, p);  // derivatives above p vanish
+  constexpr auto pi = static_cast<std::ptrdiff_t>(p);
   for (std::ptrdiff_t r = 0; r <= pi; ++r) {
-    std::array<std::array<double, kMaxOrder>, 2> a{};
+    std::array<std::array<double, kOrder>, 2> a{};
     std::size_t s1 = 0, s2 = 1;
     a[0][0] = 1.0;
     for (std::ptrdiff_t k = 1; k <= static_cast<std::ptrdiff_t>(nd); ++k) {
@@ -217,8 +221,8 @@ CurvePoint NurbsCurve::eval(double u) const {
   for (std::size_t j = 0; j <= p; ++j) {
     const std::size_t i = s - p + j;
     for (std::size_t k = 0; k < 3; ++k) {
-      A[k] += ders[k][j] * weighted_points_[i];
-      w[k] += ders[k][j] * weights_[i];
+      A[k] += ders[k][j] * weighted_points[i];
+      w[k] += ders[k][j] * weights[i];
     }
   }
   CurvePoint c;
@@ -226,6 +230,33 @@ CurvePoint NurbsCurve::eval(double u) const {
   c.d1 = (A[1] - w[1] * c.p) / w[0];
   c.d2 = (A[2] - 2.0 * w[1] * c.d1 - w[2] * c.p) / w[0];
   return c;
+}
+
+}  // namespace
+
+CurvePoint NurbsCurve::eval(double u) const {
+  u = std::clamp(u, u_begin(), u_end());
+  const std::size_t s = find_span(u);
+  const double* k = knots_.data();
+  const Vec3* wp = weighted_points_.data();
+  const double* w = weights_.data();
+  switch (degree_) {
+    case 1:
+      return eval_on_span<1>(u, s, k, wp, w);
+    case 2:
+      return eval_on_span<2>(u, s, k, wp, w);
+    case 3:
+      return eval_on_span<3>(u, s, k, wp, w);
+    case 4:
+      return eval_on_span<4>(u, s, k, wp, w);
+    case 5:
+      return eval_on_span<5>(u, s, k, wp, w);
+    case 6:
+      return eval_on_span<6>(u, s, k, wp, w);
+    default:
+      static_assert(kMaxDegree == 7, "one case per degree");
+      return eval_on_span<7>(u, s, k, wp, w);
+  }
 }
 
 std::vector<double> NurbsCurve::breakpoints() const {

@@ -9,10 +9,12 @@
 
 namespace ncd::test {
 inline std::atomic<long> g_allocations{0};
+inline std::atomic<long> g_allocated_bytes{0};  // requested, summed (frees not subtracted)
 }  // namespace ncd::test
 
 void* operator new(std::size_t size) {
   ncd::test::g_allocations.fetch_add(1, std::memory_order_relaxed);
+  ncd::test::g_allocated_bytes.fetch_add(static_cast<long>(size), std::memory_order_relaxed);
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }

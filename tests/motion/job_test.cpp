@@ -12,6 +12,7 @@
 #include "motion/run_stats.hpp"
 #include "toolpath/chamfer.hpp"
 #include "toolpath/path_io.hpp"
+#include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
 namespace {
@@ -188,6 +189,41 @@ TEST(Job, SameInputsGiveTheSameSetpoints) {
     ASSERT_EQ(x.limit_id, y.limit_id);
     if (x.done) break;
   }
+}
+
+// Skipping the search on flat intervals (docs/planner.md "Flat intervals") must not change a
+// single setpoint: the job with the skip against the job that searches every interval, on the
+// spiral of the replay benchmark and on the cubic (where the curvature laws bind in places).
+TEST(Job, FlatIntervalSkipGivesTheSameSetpoints) {
+  const auto compare = [](const toolpath::Path& path, const std::string& what) {
+    JobConfig fast_cfg;
+    JobConfig slow_cfg;
+    slow_cfg.sampler.skip_flat_intervals = false;
+    Job fast(path, fast_cfg), slow(path, slow_cfg);
+    int periods = 0, differing = 0;
+    for (;;) {
+      fast.prepare();
+      slow.prepare();
+      const Setpoint a = fast.step(), b = slow.step();
+      ++periods;
+      const bool same = a.t_s == b.t_s && a.p == b.p && a.s_mm == b.s_mm &&
+                        a.v_mm_per_s == b.v_mm_per_s && a.a_mm_per_s2 == b.a_mm_per_s2 &&
+                        a.j_mm_per_s3 == b.j_mm_per_s3 && a.limit_id == b.limit_id &&
+                        a.done == b.done;
+      if (!same && ++differing <= 3) {
+        ADD_FAILURE() << what << ": period " << periods << " differs: s " << a.s_mm << " / "
+                      << b.s_mm << ", v " << a.v_mm_per_s << " / " << b.v_mm_per_s;
+      }
+      if (a.done || b.done || periods > 2'000'000) {
+        EXPECT_TRUE(a.done && b.done) << what;
+        break;
+      }
+    }
+    EXPECT_EQ(differing, 0) << what << " over " << periods << " periods";
+    return periods;
+  };
+  EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, 2 turns"), 2000);
+  EXPECT_GT(compare(toolpath::read_path_text(kCubic, "cubic.json"), "cubic"), 100);
 }
 
 TEST(Job, TaylorAloneIsWorseThanTheCorrectedWalk) {

@@ -5,11 +5,13 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <iostream>
 #include <new>
 
 #include "motion/job.hpp"
 #include "tests/common/count_allocations.hpp"
 #include "toolpath/path_io.hpp"
+#include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
 namespace {
@@ -41,6 +43,44 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
   EXPECT_GE(job.stops_mm().size(), 3u);
   EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
       << "allocations during " << periods << " periods";
+}
+
+// Memory does not grow with the run, and grows with the path only by its own data: the spiral
+// of `ncd replay` at 10 and 40 turns (16 control points per turn). Every period of both runs
+// allocates nothing; the look-ahead window reaches the same size; what the job allocates when
+// it is built grows by a bounded amount per control point (the blended copy of the path, the
+// walker's and the sampler's per-knot tables).
+TEST(NoAllocation, ReplayMemoryIsFlatInPathLength) {
+  struct Run {
+    long build_bytes = 0, run_allocations = 0;
+    std::size_t window = 0;
+    int periods = 0;
+  };
+  const auto run = [](int turns) {
+    const toolpath::Path path = toolpath::spiral_path(turns);
+    Run r;
+    const long b0 = ncd::test::g_allocated_bytes.load();
+    Job job(path, JobConfig{});
+    r.build_bytes = ncd::test::g_allocated_bytes.load() - b0;
+    const long a0 = ncd::test::g_allocations.load();
+    for (;;) {
+      job.prepare();
+      ++r.periods;
+      if (job.step().done) break;
+    }
+    r.run_allocations = ncd::test::g_allocations.load() - a0;
+    r.window = job.planner().window_samples_high_water();
+    return r;
+  };
+  const Run short_run = run(10), long_run = run(40);
+  EXPECT_GT(long_run.periods, 3 * short_run.periods);
+  EXPECT_EQ(short_run.run_allocations, 0) << short_run.periods << " periods";
+  EXPECT_EQ(long_run.run_allocations, 0) << long_run.periods << " periods";
+  EXPECT_EQ(long_run.window, short_run.window);
+  const long per_point = (long_run.build_bytes - short_run.build_bytes) / (30 * 16);
+  std::cout << "[ memory   ] job built: " << short_run.build_bytes << " B (10 turns), "
+            << long_run.build_bytes << " B (40 turns), " << per_point << " B per control point\n";
+  EXPECT_LE(per_point, 512);
 }
 
 }  // namespace
