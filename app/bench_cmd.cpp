@@ -29,6 +29,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "app/bench_service_io.hpp"
 #include "app/commands.hpp"
 #include "app/cyclictest.hpp"
 #include "app/latency_report.hpp"
@@ -50,6 +51,11 @@ struct BenchLatencyArgs {
   double period_ms = 4.0;
   std::string json;
   bool stress = false, no_cyclictest = false;
+  // --with-service-io (app/bench_service_io.hpp): the service without and with its observers.
+  bool with_service_io = false;
+  int rounds = 2;
+  double status_hz = 50.0;
+  std::string mqtt_broker;
 };
 
 // Turns whose length (about 2π (100 k − 0.05 k²) mm for k turns) covers `seconds` at the
@@ -205,6 +211,21 @@ nlohmann::ordered_json percentiles_json(const LatencyPercentiles& p) {
 
 // The whole subcommand: ncd's run, then cyclictest's, the report on stdout and in --json.
 int run_bench_latency(const BenchLatencyArgs& a) {
+  if (a.with_service_io) {
+    if (a.stress) {
+      throw InputError(
+          "--stress and --with-service-io do not go together: the second compares the service "
+          "with and without its observers on the machine as it is; leave one out");
+    }
+    ServiceIoBenchArgs s;
+    s.seconds = a.seconds;
+    s.rounds = a.rounds;
+    s.period_ms = a.period_ms;
+    s.status_hz = a.status_hz;
+    s.broker = a.mqtt_broker;
+    s.json = a.json;
+    return run_bench_service_io(s);
+  }
   if (a.seconds <= 0) throw InputError("--seconds must be > 0, got " + std::to_string(a.seconds));
   const double period_us = a.period_ms * 1e3;
   if (!(std::isfinite(period_us) && period_us >= 10.0 && period_us <= 1e6)) {
@@ -351,7 +372,29 @@ void register_bench(CLI::App& app, Runner& run) {
   c->add_option("--json", a->json, "write the results as JSON to this file");
   c->add_flag("--stress", a->stress, "a busy thread on the highest-numbered CPU during both runs");
   c->add_flag("--no-cyclictest", a->no_cyclictest, "do not run cyclictest");
-  c->callback([a, &run] { run = [a] { return run_bench_latency(*a); }; });
+  c->add_flag("--with-service-io", a->with_service_io,
+              "instead: run the service's job in phases without and with its observers (the "
+              "dashboard's WebSocket read by a client, MQTT status to a broker), alternated, "
+              "--seconds each, and compare the lateness p99 of the two (no cyclictest)");
+  c->add_option("--rounds", a->rounds,
+                "--with-service-io: rounds of one phase without and one with (order swapped "
+                "every round)")
+      ->capture_default_str();
+  c->add_option("--status-hz", a->status_hz,
+                "--with-service-io: status frames per second to the page and MQTT status rate")
+      ->capture_default_str();
+  c->add_option("--mqtt-broker", a->mqtt_broker,
+                "--with-service-io: the broker's URL (anonymous clients); default: the bench "
+                "starts mosquitto on a free loopback port");
+  c->callback([a, c, &run] {
+    for (const char* name : {"--rounds", "--status-hz", "--mqtt-broker"}) {
+      if (!a->with_service_io && c->count(name) > 0) {
+        throw CLI::ValidationError(name, "goes with --with-service-io only; add it or leave " +
+                                             std::string(name) + " out");
+      }
+    }
+    run = [a] { return run_bench_latency(*a); };
+  });
 }
 
 }  // namespace ncd::app

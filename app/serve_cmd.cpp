@@ -23,15 +23,9 @@ struct ServeArgs {
 };
 
 int run_serve(const ServeArgs& a) {
-  ServeConfig file;                       // the service's keys and the dashboard's [http]
-  std::optional<fleet::MqttConfig> mqtt;  // [mqtt]: the fleet's broker (docs/fleet-mqtt.md)
-  if (!a.config.empty()) {
-    fleet::ServeTomlSplit split =
-        fleet::split_mqtt_config(read_input_file(a.config, "service config, --config"), a.config);
-    file = parse_serve_config(split.service_text, a.config);
-    mqtt = std::move(split.mqtt);
-  }
-  ServiceConfig& cfg = file.service;
+  // One parse: the service's keys, the dashboard's [http], the fleet's [mqtt].
+  ServiceConfig cfg;
+  if (!a.config.empty()) cfg = load_service_config(a.config);
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
   Service service(io, cfg);
@@ -45,15 +39,15 @@ int run_serve(const ServeArgs& a) {
             << ", clock: " << (cfg.clock == motion::ClockKind::Wall ? "wall" : "simulated") << ")"
             << std::endl;
   std::unique_ptr<fleet::MqttBridge> bridge;
-  if (mqtt) {
+  if (cfg.mqtt) {
     bridge = std::make_unique<fleet::MqttBridge>(
-        io, *mqtt, [&service] { return service.status(); },
+        io, *cfg.mqtt, [&service] { return service.status(); },
         [&service](const nlohmann::json& request) { return service.handle(request); }, cfg.token);
     bridge->start();
   }
   std::unique_ptr<WebServer> web;
-  if (file.http.listen) {
-    web = std::make_unique<WebServer>(io, file.http, service, cfg.token, cfg.machine.program);
+  if (cfg.http.listen) {
+    web = std::make_unique<WebServer>(io, cfg.http, service, cfg.token, cfg.machine.program);
     std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
   }
   // The service's events to the observers, drained on this io_context (app/event_feed.hpp).

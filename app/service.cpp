@@ -320,6 +320,16 @@ json to_json(const service::Status& st) {
     s["binding_limit"] = json();
     s["overruns"] = 0;
   }
+  // Non-empty bins only: [from_us, to_us) and the wake-ups that were that late.
+  json bins = json::array();
+  for (std::size_t g = 0; g < st.lateness_bins_ns.size(); ++g) {
+    if (st.lateness_bins_ns[g] == 0) continue;
+    const int coarse = static_cast<int>(g);
+    bins.push_back({{"from_us", LogHistogram::coarse_from(coarse) * 1e-3},
+                    {"to_us", LogHistogram::coarse_from(coarse + 1) * 1e-3},
+                    {"count", st.lateness_bins_ns[g]}});
+  }
+  s["lateness_histogram"] = bins;
   s["override_percent"] = st.override_percent;
   s["setpoints"] = st.setpoints;
   s["accel_max"] = st.accel_max_mm_per_s2;

@@ -1,10 +1,15 @@
-// The service config (`ncd serve --config FILE.toml`): every key optional.
+// The service config (`ncd serve --config FILE.toml`): every key optional. One parser reads the
+// whole file, the dashboard's [http] and the fleet's [mqtt] tables included; every error names
+// the file, the key (table.key), the value, the limit and a way out (docs/service.md,
+// "Configuration").
 #pragma once
 
 #include <optional>
 #include <string>
 
+#include "app/http_config.hpp"
 #include "app/machine_config.hpp"
+#include "fleet/mqtt_config.hpp"
 #include "motion/cycle.hpp"
 #include "service/live_limits.hpp"
 
@@ -31,6 +36,8 @@ struct ServiceConfig {
   motion::ClockKind clock = motion::ClockKind::Wall;  // "simulated": run jobs without sleeping
   bool realtime = true;                               // ask for SCHED_FIFO and locked memory
   LiveLimitActions live_limits;
+  HttpConfig http;                        // [http]: the web dashboard (docs/web-dashboard.md)
+  std::optional<fleet::MqttConfig> mqtt;  // [mqtt]: the fleet's broker (docs/fleet-mqtt.md)
   std::string source = "defaults";
 };
 

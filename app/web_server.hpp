@@ -12,38 +12,12 @@
 #include <optional>
 #include <string>
 
+#include "app/http_config.hpp"
 #include "app/service.hpp"
 #include "comms/control_server.hpp"
 #include "toolpath/ngc_interpreter.hpp"
 
 namespace ncd::app {
-
-// The [http] table of the serve config. No table, or no listen: no web server.
-struct HttpConfig {
-  std::optional<std::string> listen;  // "tcp:HOST:PORT"; loopback unless a token is set
-  std::string certificate, key;       // PEM files: TLS (https, wss) when both are given
-  std::string assets;                 // a directory with index.html, app.js, style.css
-  double status_hz = 10.0;            // status snapshots per second to each page
-};
-
-// Limits of the [http] keys and of the page's messages (docs/web-dashboard.md).
-struct HttpLimits {
-  static constexpr double kMinStatusHz = 1.0;
-  static constexpr double kMaxStatusHz = 50.0;
-  static constexpr std::size_t kMaxMessageBytes = std::size_t{8} << 20;  // a WebSocket message
-  static constexpr std::size_t kMaxUploadNameBytes = 128;
-  static constexpr std::size_t kMaxPreviewPoints = 20000;  // of the programmed path sent
-  static constexpr std::size_t kRecentEvents = 64;         // the service's events kept for pages
-};
-
-// The serve config with its [http] table: the service's keys go to parse_service_config.
-struct ServeConfig {
-  ServiceConfig service;
-  HttpConfig http;
-};
-// Throws InputError naming the file, the key, the value and the accepted values.
-ServeConfig parse_serve_config(const std::string& text, const std::string& name);
-ServeConfig load_serve_config(const std::string& path);
 
 // The programmed path of a path file as a polyline for the page: {"points": [[x,y,z], ...]},
 // NURBS sampled, at most HttpLimits::kMaxPreviewPoints points. Throws InputError.

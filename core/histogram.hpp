@@ -15,14 +15,30 @@ class LogHistogram {
   static constexpr int kDecades = 12;
   static constexpr int kBuckets = kPerDecade * kDecades + 1;  // the first holds values < 1
 
+  // The coarse view (a status page's histogram): kCoarsePerDecade buckets per decade, each the
+  // sum of kPerDecade / kCoarsePerDecade buckets, so that a coarse count kept on its own (by
+  // coarse_of(bucket_of(value))) equals the sum of the fine ones exactly. Coarse bucket 0 holds
+  // the values < 1; bucket g >= 1 holds [coarse_from(g), coarse_from(g + 1)).
+  static constexpr int kCoarsePerDecade = 8;
+  static constexpr int kCoarseBuckets = 1 + kDecades * kCoarsePerDecade;
+
+  // The bucket of a value: 0 below 1, else 1 + floor(64 log10(value)) (the last one above 1e12).
+  static int bucket_of(double value) {
+    return value < 1.0 ? 0
+                       : 1 + std::min(kBuckets - 2,
+                                      static_cast<int>(std::floor(std::log10(value) * kPerDecade)));
+  }
+  static int coarse_of(int bucket) {
+    return bucket == 0 ? 0 : 1 + (bucket - 1) / (kPerDecade / kCoarsePerDecade);
+  }
+  static double coarse_from(int coarse) {
+    return coarse == 0 ? 0.0 : std::pow(10.0, static_cast<double>(coarse - 1) / kCoarsePerDecade);
+  }
+
   void add(double value) {
     ++count_;
     if (value > max_) max_ = value;
-    const int i = value < 1.0
-                      ? 0
-                      : 1 + std::min(kBuckets - 2,
-                                     static_cast<int>(std::floor(std::log10(value) * kPerDecade)));
-    ++buckets_[static_cast<std::size_t>(i)];
+    ++buckets_[static_cast<std::size_t>(bucket_of(value))];
   }
   std::int64_t count() const { return count_; }
   double max() const { return max_; }

@@ -10,7 +10,6 @@
 #include <string>
 
 #include "core/error.hpp"
-#include "core/text_guard.hpp"
 
 namespace ncd::fleet {
 namespace {
@@ -167,28 +166,6 @@ MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where)
   }
   c.reconnect_max_s = std::max(c.reconnect_max_s, c.reconnect_min_s);
   return c;
-}
-
-ServeTomlSplit split_mqtt_config(const std::string& text, const std::string& name) {
-  ServeTomlSplit out;
-  out.service_text = text;
-  require_utf8_text(text, name, "service config");
-  require_toml_depth(text, name);
-  toml::value root;
-  try {
-    std::istringstream in(text);
-    root = toml::parse(in, name);
-  } catch (const std::exception& e) {
-    throw InputError("cannot read service config " + name + ": " + e.what());
-  }
-  if (!root.is_table()) return out;
-  auto& table = root.as_table();
-  const auto it = table.find("mqtt");
-  if (it == table.end()) return out;
-  out.mqtt = parse_mqtt_config(it->second, name + ": mqtt");
-  table.erase(it);
-  out.service_text = toml::format(root);
-  return out;
 }
 
 }  // namespace ncd::fleet

@@ -27,16 +27,9 @@ inline constexpr double kMinStatusHz = 0.1, kMaxStatusHz = 100.0;
 inline constexpr std::size_t kMaxQueueBound = 100000;
 inline constexpr double kMinReconnectS = 0.05, kMaxReconnectS = 3600.0;
 
-// Reads the [mqtt] table; `where` names the file in messages ("serve.toml: mqtt"). Throws
+// Reads the [mqtt] table (the service config's parser, app/service_config.cpp, hands it over);
+// `where` names it in messages ("serve.toml: mqtt"). Throws
 // InputError naming the key, the value, the limit and a way out.
 MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where);
-
-// The serve config split in two: the text without its [mqtt] table (for the service's own
-// parser) and the [mqtt] table read. A config without [mqtt] comes back unchanged.
-struct ServeTomlSplit {
-  std::string service_text;
-  std::optional<MqttConfig> mqtt;
-};
-ServeTomlSplit split_mqtt_config(const std::string& text, const std::string& name);
 
 }  // namespace ncd::fleet

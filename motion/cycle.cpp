@@ -9,7 +9,8 @@
 //     step       step       step         step d_4, d_5  step d_6     (catch up: back to back)
 //
 // Each wake-up sleeps with clock_nanosleep(TIMER_ABSTIME) until the next deadline, measures how
-// late it woke (the lateness histogram), and runs every period that is due by then, one job
+// late it woke (the lateness histogram; also kept bin by bin in relaxed atomics, the status's
+// live view), and runs every period that is due by then, one job
 // step each. A late wake-up therefore runs the periods it missed back to back: the time base
 // never stretches and no setpoint is skipped (each period is one setpoint, its t_s = k T). On
 // the simulated clock there is no sleeping at all; otherwise the code is the same.
@@ -166,6 +167,14 @@ void Cycle::publish(const Setpoint& sp, CycleState state) {
   seq_.store(s + 2, rel);
 }
 
+Cycle::LatenessBins Cycle::lateness_bins() const {
+  LatenessBins out{};
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = late_bins_[i].load(std::memory_order_relaxed);
+  }
+  return out;
+}
+
 CycleStatus Cycle::status() const {
   constexpr auto acq = std::memory_order_acquire;
   CycleStatus c;
@@ -262,6 +271,11 @@ void Cycle::run() {
       const std::int64_t woke = wall ? now_ns() : deadline;
       const std::int64_t late = std::max<std::int64_t>(0, woke - deadline);
       stats_.lateness_ns.add(static_cast<double>(late));
+      {  // the status's histogram: one writer (this thread), so a relaxed load and store
+        std::atomic<std::int64_t>& bin = late_bins_[static_cast<std::size_t>(
+            LogHistogram::coarse_of(LogHistogram::bucket_of(static_cast<double>(late))))];
+        bin.store(bin.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+      }
       const std::int64_t due = 1 + late / period_ns;
       if (due > 1) ++stats_.late_wakeups;
       const std::int64_t t0 = now_ns();

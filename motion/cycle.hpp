@@ -3,6 +3,7 @@
 // algorithm is explained in cycle.cpp.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <boost/lockfree/spsc_queue.hpp>
 #include <cstdint>
@@ -78,6 +79,12 @@ class Cycle {
   // The consumer side of the setpoint ring (one consumer thread only).
   bool pop(Setpoint& out) { return ring_.pop(out); }
   CycleStatus status() const;
+  // The wake-up lateness histogram so far, in ns, on LogHistogram's coarse buckets
+  // (LogHistogram::coarse_from); read while the cycle runs (relaxed atomics, one writer), it
+  // lags by at most the wake-up being counted. After join() it equals stats().lateness_ns
+  // regrouped.
+  using LatenessBins = std::array<std::int64_t, LogHistogram::kCoarseBuckets>;
+  LatenessBins lateness_bins() const;
   // Valid after join().
   const CycleStats& stats() const { return stats_; }
   const std::string& error() const { return error_; }
@@ -112,6 +119,7 @@ class Cycle {
   std::atomic<double> st_t_{0}, st_s_{0}, st_v_{0}, st_x_{0}, st_y_{0}, st_z_{0}, st_ovr_{1};
   std::atomic<int> st_state_{0};
   std::atomic<std::int64_t> st_periods_{0}, st_overruns_{0}, st_late_{0};
+  std::array<std::atomic<std::int64_t>, LogHistogram::kCoarseBuckets> late_bins_{};
 };
 
 }  // namespace ncd::motion

@@ -584,6 +584,7 @@ Status Service::status() const {
     }
     s.overruns = c.overruns;
     s.late_wakeups = c.late_wakeups;
+    s.lateness_bins_ns = cycle_->lateness_bins();
   }
   s.override_percent = override_percent_;
   s.setpoints = setpoints_;

@@ -104,6 +104,10 @@ struct Status {
   int line = 0;
   std::string binding_limit;
   std::int64_t overruns = 0, late_wakeups = 0, setpoints = 0;
+  // The cycle's wake-up lateness so far, ns on LogHistogram's coarse buckets
+  // (motion::Cycle::lateness_bins; bucket g from LogHistogram::coarse_from(g)); all zero before
+  // a job has run.
+  motion::Cycle::LatenessBins lateness_bins_ns{};
   double accel_max_mm_per_s2 = 0.0, jerk_max_mm_per_s3 = 0.0, feed_max_mm_per_min = 0.0;
   double override_percent = 100.0;
   bool interference_allowed = false;
@@ -138,6 +142,13 @@ class Service {
   bool busy() const;
   State state() const { return state_; }
   Status status() const;
+  // The statistics of the last job's cycle (every wake-up's lateness, compute time, overruns)
+  // once the cycle has ended; null before a job has run and while its cycle runs. Valid until
+  // the next submit or start.
+  const motion::CycleStats* cycle_stats() const {
+    return cycle_ && state_ != State::Running && state_ != State::Holding ? &cycle_->stats()
+                                                                          : nullptr;
+  }
   // A new subscriber's event feed (capacity rounded up to a power of two, at least 2).
   std::shared_ptr<Subscription> subscribe(std::size_t capacity);
 

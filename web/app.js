@@ -112,6 +112,7 @@ function showStatus(s) {
   $('time-left').textContent = typeof s.time_left_s === 'number' ? formatDuration(s.time_left_s) : '-';
   $('overruns').textContent = s.overruns ?? '-';
   $('late').textContent = s.late_wakeups ?? '-';
+  drawLateness(s.lateness_histogram || []);
   $('error').textContent = s.job_error || '';
   showLink(s.stream);
   // The trace: a new job (or a restart of it) begins a new one.
@@ -154,6 +155,34 @@ function showLink(l) {
   $('link-event').textContent = l ? l.last_event || '-' : '-';
   $('link-end').textContent = l && 'bytes_written' in l
     ? `${l.bytes_written} · ${l.blocks_sent} · ${l.xoff_count}` : '-';
+}
+
+// The status's lateness histogram ([{from_us, to_us, count}], non-empty bins): one bar per bin
+// from the first to the last non-empty one, heights linear in the count, µs on a log axis.
+function drawLateness(bins) {
+  const canvas = $('lateplot');
+  if (!canvas) return;
+  const g = canvas.getContext('2d');
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  if (!bins.length) return;
+  const total = bins.reduce((n, b) => n + b.count, 0);
+  const most = Math.max(...bins.map((b) => b.count));
+  const lo = Math.log10(Math.max(bins[0].from_us, 1e-3));
+  const hi = Math.log10(bins[bins.length - 1].to_us);
+  const margin = 24;
+  const X = (us) => margin + (Math.log10(Math.max(us, 1e-3)) - lo) / Math.max(hi - lo, 1e-9) *
+    (canvas.width - 2 * margin);
+  g.fillStyle = '#2563eb';
+  for (const b of bins) {
+    const h = (canvas.height - 2 * margin) * b.count / most;
+    const x0 = X(b.from_us), x1 = X(b.to_us);
+    g.fillRect(x0, canvas.height - margin - h, Math.max(1, x1 - x0 - 1), h);
+  }
+  g.fillStyle = '#555';
+  g.fillText(`${bins[0].from_us.toPrecision(3)} µs`, margin, canvas.height - 8);
+  const end = `${bins[bins.length - 1].to_us.toPrecision(3)} µs`;
+  g.fillText(end, canvas.width - margin - g.measureText(end).width, canvas.height - 8);
+  g.fillText(`${total} wake-ups, tallest bar ${most}`, margin, 14);
 }
 
 // Draws a projection (i, j: the axes) of the programmed path and the trace, same scale on both.

@@ -17,7 +17,6 @@ namespace {
 using ncd::InputError;
 using ncd::fleet::MqttConfig;
 using ncd::fleet::parse_mqtt_config;
-using ncd::fleet::split_mqtt_config;
 
 MqttConfig parse(const std::string& body) {
   std::istringstream in("[mqtt]\n" + body);
@@ -104,23 +103,6 @@ TEST(MqttConfig, BadValuesAreRefusedWithTheKeyTheValueAndTheLimit) {
     ASSERT_FALSE(why.empty()) << "accepted:\n" << c.body;
     for (const std::string& s : c.says) EXPECT_NE(why.find(s), std::string::npos) << why;
   }
-}
-
-TEST(MqttConfig, TheServeConfigIsSplitAndTheRestLeftAsItWas) {
-  const std::string plain = "clock = \"simulated\"\nrealtime = false\n";
-  const auto none = split_mqtt_config(plain, "serve.toml");
-  EXPECT_EQ(none.service_text, plain);  // byte for byte without [mqtt]
-  EXPECT_FALSE(none.mqtt);
-  const auto both = split_mqtt_config(plain + "[mqtt]\n" + kMinimal, "serve.toml");
-  ASSERT_TRUE(both.mqtt);
-  EXPECT_EQ(both.mqtt->topic_root, "ncd/c1/m1/");
-  std::istringstream in(both.service_text);
-  const toml::value rest = toml::parse(in, "rest");
-  EXPECT_FALSE(rest.contains("mqtt"));
-  EXPECT_EQ(toml::find<std::string>(rest, "clock"), "simulated");
-  EXPECT_EQ(toml::find<bool>(rest, "realtime"), false);
-  EXPECT_THROW(split_mqtt_config("mqtt = 3\n", "serve.toml"), InputError);
-  EXPECT_THROW(split_mqtt_config("[mqtt\n", "serve.toml"), InputError);
 }
 
 TEST(MqttConfig, ServeRefusesABadTableWithExitTwo) {

@@ -6,10 +6,13 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/histogram.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace {
@@ -296,3 +299,72 @@ TEST(ServiceEvents, ALaggingSubscriberLosesEventsCountedNeverBlocksTheLoop) {
 }
 
 }  // namespace
+
+namespace {
+
+// The fine histogram regrouped by hand to the coarse buckets: the slow reference of the live bins.
+motion::Cycle::LatenessBins regrouped(const LogHistogram& h) {
+  motion::Cycle::LatenessBins out{};
+  for (int i = 0; i < LogHistogram::kBuckets; ++i) {
+    const int g = i == 0 ? 0 : 1 + (i - 1) / (LogHistogram::kPerDecade / 8);
+    out[static_cast<std::size_t>(g)] += h.buckets()[static_cast<std::size_t>(i)];
+  }
+  return out;
+}
+
+std::int64_t total(const motion::Cycle::LatenessBins& b) {
+  std::int64_t n = 0;
+  for (const std::int64_t c : b) n += c;
+  return n;
+}
+
+}  // namespace
+
+TEST(ServiceStatus, TheLiveLatenessHistogramGrowsAndEndsAsTheCyclesOwn) {
+  // The wall clock (lateness > 0 happens): while the job runs every bin only grows and never
+  // holds more wake-ups than periods run; at the end the bins are the cycle's full histogram
+  // regrouped, and hold every wake-up (periods = wake-ups + periods caught up).
+  service::ServiceOptions o;
+  o.clock = motion::ClockKind::Wall;
+  o.realtime = false;
+  service::Service s(o);
+  EXPECT_EQ(total(s.status().lateness_bins_ns), 0);
+  EXPECT_EQ(s.cycle_stats(), nullptr);
+  std::vector<motion::Setpoint> out;
+  bool committed = false;
+  s.submit(job_of(cubic(), out, committed));
+  s.start();
+  EXPECT_EQ(s.cycle_stats(), nullptr);  // the cycle runs
+  motion::Cycle::LatenessBins last{};
+  int looks = 0;
+  while (s.poll()) {
+    if (++looks % 50 == 0) {
+      const service::Status st = s.status();
+      for (std::size_t g = 0; g < last.size(); ++g) {
+        ASSERT_GE(st.lateness_bins_ns[g], last[g]) << "bin " << g;
+      }
+      last = st.lateness_bins_ns;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_EQ(s.state(), State::Done);
+  const motion::CycleStats* stats = s.cycle_stats();
+  ASSERT_NE(stats, nullptr);
+  const service::Status st = s.status();
+  EXPECT_EQ(st.lateness_bins_ns, regrouped(stats->lateness_ns));
+  EXPECT_EQ(total(st.lateness_bins_ns), stats->periods - stats->caught_up);
+  EXPECT_GT(stats->periods, 100);
+}
+
+TEST(ServiceStatus, OnTheSimulatedClockEveryWakeUpIsOnTime) {
+  // No sleeping: every lateness is exactly 0, so all wake-ups fall in the first bin (< 1 ns).
+  service::Service s(simulated());
+  std::vector<motion::Setpoint> out;
+  bool committed = false;
+  s.submit(job_of(cubic(), out, committed));
+  s.start();
+  run_out(s);
+  const service::Status st = s.status();
+  EXPECT_EQ(st.lateness_bins_ns[0], static_cast<std::int64_t>(out.size()));
+  EXPECT_EQ(total(st.lateness_bins_ns), st.lateness_bins_ns[0]);
+}

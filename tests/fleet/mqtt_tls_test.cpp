@@ -1,0 +1,204 @@
+// The MQTT bridge against a real mosquitto that speaks only TLS (docs/fleet-mqtt.md, [mqtt]
+// broker = "ssl://…", ca_file). The test makes its own certificate authority with openssl, and a
+// server certificate for 127.0.0.1 signed by it, plus a second authority that signed nothing the
+// broker shows. With the right CA the bridge connects and a TLS subscriber of the test receives
+// its status; with the other CA, or in plain TCP on the TLS port, it never connects: the server's
+// certificate is really checked.
+#include <gtest/gtest.h>
+#include <mqtt/async_client.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "fleet/mqtt_bridge.hpp"
+#include "tests/common/process.hpp"
+#include "tests/fleet/broker.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using ncd::fleet::MqttBridge;
+using ncd::fleet::MqttConfig;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+const std::string kRoot = "ncd/cell1/tls/";
+
+// The bridge on its own io_context thread; its status is a fixed object.
+class Host {
+ public:
+  explicit Host(const MqttConfig& cfg) : guard_(boost::asio::make_work_guard(io_)) {
+    bridge_ = std::make_unique<MqttBridge>(
+        io_, cfg,
+        [] {
+          return json{{"ok", true}, {"state", "idle"}};
+        },
+        [](const json&) {
+          return json{{"ok", true}};
+        });
+    boost::asio::post(io_, [this] { bridge_->start(); });
+    thread_ = std::thread([this] { io_.run(); });
+  }
+  ~Host() {
+    boost::asio::post(io_, [this] { bridge_->stop(1.0); });
+    guard_.reset();
+    thread_.join();
+    bridge_.reset();
+  }
+  // Whether the bridge is connected within timeout_s.
+  bool connects_within(double timeout_s) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      if (bridge_->connected()) return true;
+      std::this_thread::sleep_for(10ms);
+    }
+    return false;
+  }
+  MqttBridge& bridge() { return *bridge_; }
+
+ private:
+  boost::asio::io_context io_;
+  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> guard_;
+  std::unique_ptr<MqttBridge> bridge_;
+  std::thread thread_;
+};
+
+class FleetTls : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (const std::string why = ncd::test::Broker::missing(); !why.empty()) GTEST_SKIP() << why;
+    if (ncd::test::find_program("openssl").empty()) {
+      GTEST_SKIP() << "openssl is not installed; the TLS test makes its certificates with it";
+    }
+    dir_ = fs::temp_directory_path() /
+           ("ncd_fleet_tls_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    make_certificates();
+    port_ = ncd::test::free_loopback_port();
+    std::ofstream conf(dir_ / "mosquitto.conf");
+    conf << "listener " << port_ << " 127.0.0.1\n"
+         << "cafile " << (dir_ / "ca.pem").string() << "\n"
+         << "certfile " << (dir_ / "server.pem").string() << "\n"
+         << "keyfile " << (dir_ / "server.key").string() << "\n"
+         << "allow_anonymous true\n"
+         << "log_dest stderr\n";
+    if (::geteuid() == 0) conf << "user root\n";  // keep access to the key in the test folder
+    conf.close();
+    broker_ = std::make_unique<ncd::test::Process>(
+        std::vector<std::string>{ncd::test::find_program("mosquitto"), "-c",
+                                 (dir_ / "mosquitto.conf").string()},
+        (dir_ / "mosquitto.out").string(), (dir_ / "mosquitto.err").string());
+    const auto end = std::chrono::steady_clock::now() + 10s;
+    while (!ncd::test::port_accepts(port_) && std::chrono::steady_clock::now() < end) {
+      std::this_thread::sleep_for(20ms);
+    }
+    ASSERT_TRUE(ncd::test::port_accepts(port_)) << log();
+  }
+  void TearDown() override {
+    if (broker_) {
+      broker_->signal(SIGTERM);
+      broker_->wait(10);
+      broker_.reset();
+    }
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+
+  void openssl(const std::string& args) {
+    const std::string cmd = "cd " + dir_.string() + " && openssl " + args + " >>openssl.log 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  }
+  // ca.pem signs server.pem (CN and subjectAltName 127.0.0.1); other-ca.pem signs nothing here.
+  void make_certificates() {
+    openssl(
+        "req -x509 -newkey rsa:2048 -nodes -keyout ca.key -out ca.pem -days 2 "
+        "-subj /CN=ncd-test-ca");
+    openssl(
+        "req -x509 -newkey rsa:2048 -nodes -keyout other-ca.key -out other-ca.pem -days 2 "
+        "-subj /CN=ncd-other-ca");
+    openssl(
+        "req -newkey rsa:2048 -nodes -keyout server.key -out server.csr "
+        "-subj /CN=127.0.0.1");
+    std::ofstream(dir_ / "san.ext") << "subjectAltName = IP:127.0.0.1\n";
+    openssl(
+        "x509 -req -in server.csr -CA ca.pem -CAkey ca.key -CAcreateserial -out server.pem "
+        "-days 2 -extfile san.ext");
+  }
+  std::string log() const {
+    std::ifstream in(dir_ / "mosquitto.err");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  MqttConfig config(const std::string& scheme, const std::string& ca) const {
+    MqttConfig c;
+    c.broker = scheme + "://127.0.0.1:" + std::to_string(port_);
+    c.client_id = "ncd-cell1-tls";
+    c.topic_root = kRoot;
+    c.status_hz = 20.0;
+    c.reconnect_min_s = 0.1;
+    c.reconnect_max_s = 0.4;
+    if (!ca.empty()) c.ca_file = (dir_ / ca).string();
+    return c;
+  }
+
+  fs::path dir_;
+  int port_ = 0;
+  std::unique_ptr<ncd::test::Process> broker_;
+};
+
+TEST_F(FleetTls, WithTheBrokersCaTheBridgeConnectsAndItsStatusArrives) {
+  Host host(config("ssl", "ca.pem"));
+  ASSERT_TRUE(host.connects_within(20.0)) << log();
+  // A subscriber of the test over TLS, checking the broker's certificate against the same CA.
+  mqtt::async_client watcher("ssl://127.0.0.1:" + std::to_string(port_), "watch-tls",
+                             static_cast<mqtt::iclient_persistence*>(nullptr));
+  watcher.start_consuming();
+  auto ssl = mqtt::ssl_options_builder()
+                 .enable_server_cert_auth(true)
+                 .trust_store((dir_ / "ca.pem").string())
+                 .finalize();
+  auto opts = mqtt::connect_options_builder().clean_session(true).ssl(ssl).finalize();
+  ASSERT_TRUE(watcher.connect(opts)->wait_for(10s)) << log();
+  ASSERT_TRUE(watcher.subscribe(kRoot + "status", 0)->wait_for(10s));
+  int status = 0;
+  const auto end = std::chrono::steady_clock::now() + 20s;
+  while (status < 3 && std::chrono::steady_clock::now() < end) {
+    mqtt::const_message_ptr m;
+    if (watcher.try_consume_message_for(&m, 100ms) && m && m->get_topic() == kRoot + "status") {
+      EXPECT_EQ(json::parse(m->to_string())["state"], "idle");
+      ++status;
+    }
+  }
+  EXPECT_EQ(status, 3) << log();
+  EXPECT_GE(host.bridge().counters().status_published, 3u);
+  watcher.disconnect()->wait_for(2s);
+}
+
+TEST_F(FleetTls, WithAnotherCaOrPlainTcpTheBridgeNeverConnects) {
+  {
+    Host host(config("ssl", "other-ca.pem"));  // the broker's certificate is not trusted
+    EXPECT_FALSE(host.connects_within(3.0));
+    EXPECT_EQ(host.bridge().counters().connects, 0u);
+  }
+  {
+    Host host(config("tcp", ""));  // plain MQTT on the TLS port
+    EXPECT_FALSE(host.connects_within(3.0));
+    EXPECT_EQ(host.bridge().counters().connects, 0u);
+  }
+  // The broker is still there for the right client: the refusals were the certificate's.
+  Host good(config("ssl", "ca.pem"));
+  EXPECT_TRUE(good.connects_within(20.0)) << log();
+}
+
+}  // namespace
