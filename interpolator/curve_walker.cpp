@@ -162,6 +162,11 @@ StepResult CurveWalker::step(double delta_s_mm) {
   if (!(u_predicted > u_) || !std::isfinite(u_predicted)) {
     u_predicted = u_ + delta_s_mm / speed;  // NaN/inf when P' = 0
   }
+  if (!std::isfinite(u_predicted) || speed <= kEps * cp.d2.norm()) {
+    // P' = 0 (a repeated control point): s ≈ |P''| (u − u_i)² / 2 there.
+    const double acc = cp.d2.norm();
+    if (acc > 0.0) u_predicted = u_ + std::sqrt(2.0 * delta_s_mm / acc);
+  }
   return config_.mode == StepMode::TaylorOnly ? taylor_only(u_predicted)
                                               : correct(delta_s_mm, u_predicted, speed);
 }
