@@ -36,6 +36,11 @@
 // Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
 // stretches between stops separately, and takes each node's left and right interval values
 // at a stop for the stretch on that side.
+//
+// Rest refinement (docs/planner.md §3): at a rest point where a curve's limit dips towards 0
+// (a repeated control point), the intervals double away from it from d₁ = J T³/6 and halve
+// towards it; the innermost one takes at least v_rest(d₁) = (4.5 J d₁²)^(1/3), a speed no
+// jerk-limited motion exceeds within d₁ of rest, so the dip at the point is no cap.
 #include "interpolator/limit_sampler.hpp"
 
 #include <algorithm>

@@ -118,7 +118,7 @@ class LimitSampler {
   double s_ = 0.0;                                // arc length reached
   bool started_ = false, finished_ = false;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
-  LimitNode pending_;  // the node whose right-hand interval is not known yet
+  LimitNode pending_;             // the node whose right-hand interval is not known yet
 };
 
 }  // namespace ncd::interpolator
