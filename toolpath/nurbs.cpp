@@ -146,7 +146,7 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
             " within one span (points " + std::to_string(first) + ".." + std::to_string(first + p) +
             "); the ratio may be at most " + num(NurbsCurve::kMaxSpanWeightRatio) +
             ": such a curve runs almost straight into a near-corner that cannot be walked at "
-            "speed (docs/feedrate.md, \"Weights\"); re-export the curve with weights nearer "
+            "speed (docs/feedrate.md §5.1); re-export the curve with weights nearer "
             "to 1, or as a polyline or a corner (G1 moves)");
       }
     }
