@@ -9,6 +9,8 @@
 //
 //     u* = u_i + Δs / |P'| − Δs² (P'·P'') / (2 |P'|⁴),
 //
+// (where P' = 0, at a repeated control point, the corrected walk predicts from P'' instead:
+// s ≈ |P''| (u − u_i)² / 2, so u* = u_i + √(2 Δs / |P''|); docs/feedrate.md §5.1),
 // which alone leaves a relative arc-length error (the feedrate fluctuation) of order
 // 1e-4–1e-3 at Δs = 0.4 mm, more where P'' jumps at a C¹ knot. If the quadratic term turns
 // the step backwards (a strongly accelerating parametrisation), the first-order step is used.
@@ -161,6 +163,13 @@ StepResult CurveWalker::step(double delta_s_mm) {
                        delta_s_mm * delta_s_mm * cp.d1.dot(cp.d2) / (2.0 * speed2 * speed2);
   if (!(u_predicted > u_) || !std::isfinite(u_predicted)) {
     u_predicted = u_ + delta_s_mm / speed;  // NaN/inf when P' = 0
+  }
+  if (config_.mode == StepMode::Corrected &&
+      (!std::isfinite(u_predicted) || speed <= kEps * cp.d2.norm())) {
+    // P' = 0 (a repeated control point): s ≈ |P''| (u − u_i)² / 2 there. (Eq. 7 alone, the
+    // TaylorOnly baseline, stalls there.)
+    const double acc = cp.d2.norm();
+    if (acc > 0.0) u_predicted = u_ + std::sqrt(2.0 * delta_s_mm / acc);
   }
   return config_.mode == StepMode::TaylorOnly ? taylor_only(u_predicted)
                                               : correct(delta_s_mm, u_predicted, speed);

@@ -54,6 +54,11 @@
 // Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
 // stretches between stops separately, and takes each node's left and right interval values
 // at a stop for the stretch on that side.
+//
+// Rest refinement (docs/planner.md §3): at a rest point where a curve's limit dips towards 0
+// (a repeated control point), the intervals double away from it from d₁ = J T³/6 and halve
+// towards it; the innermost one takes at least v_rest(d₁) = (4.5 J d₁²)^(1/3), a speed no
+// jerk-limited motion exceeds within d₁ of rest, so the dip at the point is no cap.
 #include "interpolator/limit_sampler.hpp"
 
 #include <algorithm>
@@ -648,19 +653,67 @@ bool LimitSampler::next_interval(Interval& iv) {
         consider(knots[knot_] - edges[knot_].v_mm_per_s * T / edges[knot_].speed_in);
       }
     }
-    const double arc =
-        GaussLegendre10::integrate([&c](double u) { return c.eval(u).d1.norm(); }, u_, u1);
-    const bool open_end = knot_ < knots.size() && u1 == knots[knot_] &&
-                          std::isfinite(knot_edges_[segment_][knot_].v_mm_per_s);
+    // Rest refinement: where the motion rests at a point whose limit dips towards 0 (a
+    // repeated control point), the intervals double away from it and halve towards it.
+    bool innermost = false;
+    double rest_d_mm = 0.0;
+    const double d1 = rest_first_mm();
+    const bool at_knot = u_ == c.u_begin() || (knot_ > 0 && knots[knot_ - 1] == u_);
+    if (rest_origin_mm_ < 0.0 && at_knot && is_rest_mm(s_) && needs_rest_refinement(segment_, u_)) {
+      rest_origin_mm_ = s_;
+      innermost = true;
+      rest_d_mm = d1;
+      const double ue = u_at_arc(c, u_, u1, d1);
+      if (ue < u1) {
+        u1 = ue;
+      } else {
+        rest_origin_mm_ = -1.0;
+      }
+    } else if (rest_origin_mm_ >= 0.0) {
+      const double ue = u_at_arc(c, u_, u1, s_ - rest_origin_mm_);
+      if (ue < u1) {
+        u1 = ue;
+      } else {
+        rest_origin_mm_ = -1.0;
+      }
+    }
+    const auto arc_to = [&c, this](double u) {
+      return GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u_, u);
+    };
+    const bool end_knot = u1 >= c.u_end() || (knot_ < knots.size() && u1 == knots[knot_]);
+    bool end_rest = false;  // the interval ends where the motion rests: its far side is not its
+    if (end_knot) {
+      const double d_mm = arc_to(u1);
+      const double s_end = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + d_mm;
+      end_rest = is_rest_mm(s_end);
+      if (end_rest && needs_rest_refinement(segment_, std::nextafter(u1, -kInf))) {
+        if (d_mm > 2.0 * d1) {
+          u1 = u_at_arc(c, u_, u1, 0.5 * d_mm);
+          end_rest = false;
+          rest_origin_mm_ = -1.0;
+        } else {
+          innermost = true;
+          rest_d_mm = std::max(rest_d_mm, d_mm);
+        }
+      }
+    }
+    const double arc = arc_to(u1);
+    const bool open_end = (knot_ < knots.size() && u1 == knots[knot_] &&
+                           std::isfinite(knot_edges_[segment_][knot_].v_mm_per_s)) ||
+                          (end_rest && u1 < c.u_end());
     // A flat interval: every point the search would evaluate gives the cap, and ties keep the
     // first, so its result is the limit at any one point with every law above the cap.
     const bool flat = config_.skip_flat_intervals && interval_is_flat(segment_, u_, u1, speed);
-    const FeedLimitResult v = flat
-                                  ? min_of({limits_.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed},
-                                           segment_cap(segment_))
-                                  : interval_min_on_curve(segment_, u_, u1, open_end);
+    FeedLimitResult v = flat ? min_of({limits_.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed},
+                                      segment_cap(segment_))
+                             : interval_min_on_curve(segment_, u_, u1, open_end);
     ++curve_intervals_;
     if (flat) ++flat_intervals_;
+    if (innermost) {
+      // The first (last) period's travel from (to) rest: no jerk-limited motion is faster
+      // there than the rest speed, so the limit's dip to 0 at the point itself is not a cap.
+      v.feed_mm_per_s = std::max(v.feed_mm_per_s, rest_speed_mm_per_s(rest_d_mm));
+    }
     iv.a_mm = s_;
     iv.b_mm = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + arc;
     iv.v_mm_per_s = v.feed_mm_per_s;
@@ -673,7 +726,53 @@ bool LimitSampler::next_interval(Interval& iv) {
   return false;
 }
 
+bool LimitSampler::is_rest_mm(double s_mm) const {
+  const double tol = 1e-7 * std::max(1.0, std::abs(s_mm));
+  const double total = starts_mm_.back();
+  if (std::abs(s_mm) <= tol || std::abs(s_mm - total) <= tol) return true;
+  const auto it = std::lower_bound(stops_mm_.begin(), stops_mm_.end(), s_mm - tol);
+  return it != stops_mm_.end() && *it <= s_mm + tol;
+}
+
+// The highest speed a motion with |jerk| ≤ J reaches at distance d from rest (or has at
+// distance d before coming to rest): full jerk from rest, v = J t²/2 and s = J t³/6, so
+// v = (4.5 J d²)^(1/3). The acceleration limit only lowers it.
+double LimitSampler::rest_speed_mm_per_s(double distance_mm) const {
+  return std::cbrt(4.5 * limits_.max_jerk_mm_per_s3 * distance_mm * distance_mm);
+}
+
+// The travel of the first period from rest at full jerk, J T³ / 6.
+double LimitSampler::rest_first_mm() const {
+  const double t = limits_.period_s;
+  return limits_.max_jerk_mm_per_s3 * t * t * t / 6.0;
+}
+
+// A rest point whose limit is below the speed two periods of full jerk give: the limit dips
+// towards 0 there (a repeated control point), and the plain 0.2 mm intervals would cap the
+// motion near 0 over their whole length.
+bool LimitSampler::needs_rest_refinement(std::size_t segment, double u) const {
+  return limit_on_curve(segment, u).feed_mm_per_s < rest_speed_mm_per_s(2.0 * rest_first_mm());
+}
+
+// The u in [u0, u_hi] at arc length arc_mm from u0 (bisection; [u0, u_hi] holds no knot, so
+// the 10-point rule is exact to rounding); u_hi if the arc to it is shorter.
+double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi,
+                              double arc_mm) const {
+  const auto arc = [&c, u0](double u) {
+    return GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u0, u);
+  };
+  if (arc(u_hi) <= arc_mm) return u_hi;
+  double lo = u0, hi = u_hi;
+  for (int it = 0; it < 200 && hi > std::nextafter(lo, kInf); ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (arc(mid) < arc_mm ? lo : hi) = mid;
+    if ((hi - lo) <= 1e-12 * (u_hi - u0)) break;
+  }
+  return hi;
+}
+
 void LimitSampler::enter_segment() {
+  rest_origin_mm_ = -1.0;
   s_ = starts_mm_[segment_];
   piece_s_ = s_;
   knot_ = 0;

@@ -82,6 +82,13 @@ class LimitSampler {
   double next_zone_edge_mm(double c0_mm, double v0, double c1_mm, double v1) const;
   void apply_zones(Interval& iv) const;
   double inner_corner_edge_u(double u1) const;
+  // Rest refinement at a point where the motion rests and the curve's limit dips towards 0
+  // (a repeated control point: zero parametric speed), see limit_sampler.cpp.
+  bool is_rest_mm(double s_mm) const;
+  double rest_speed_mm_per_s(double distance_mm) const;
+  double rest_first_mm() const;
+  bool needs_rest_refinement(std::size_t segment, double u) const;
+  double u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi, double arc_mm) const;
 
   const toolpath::Path& path_;
   std::vector<double> starts_mm_;
@@ -128,7 +135,8 @@ class LimitSampler {
   double s_ = 0.0;                                // arc length reached
   bool started_ = false, finished_ = false;
   std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
-  LimitNode pending_;  // the node whose right-hand interval is not known yet
+  double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
+  LimitNode pending_;             // the node whose right-hand interval is not known yet
 };
 
 }  // namespace ncd::interpolator

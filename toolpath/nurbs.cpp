@@ -126,6 +126,26 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
                          "weight or drop the weights for a non-rational curve");
       }
     }
+    // The weights of one span's p + 1 points (a sliding window): see kMaxSpanWeightRatio.
+    for (std::size_t first = 0; first + p < weights.size(); ++first) {
+      std::size_t lo = first, hi = first;
+      for (std::size_t i = first; i <= first + p; ++i) {
+        if (weights[i] < weights[lo]) lo = i;
+        if (weights[i] > weights[hi]) hi = i;
+      }
+      const double ratio = weights[hi] / weights[lo];
+      if (ratio > NurbsCurve::kMaxSpanWeightRatio) {
+        throw InputError(
+            "NURBS weight[" + std::to_string(hi) + "] = " + text::shortest(weights[hi]) + " is " +
+            text::shortest(ratio) + " times weight[" + std::to_string(lo) +
+            "] = " + text::shortest(weights[lo]) + " within one span (points " +
+            std::to_string(first) + ".." + std::to_string(first + p) +
+            "); the ratio may be at most " + text::shortest(NurbsCurve::kMaxSpanWeightRatio) +
+            ": such a curve runs almost straight into a near-corner that cannot be walked at "
+            "speed (docs/feedrate.md §5.1); re-export the curve with weights nearer "
+            "to 1, or as a polyline or a corner (G1 moves)");
+      }
+    }
   }
 }
 

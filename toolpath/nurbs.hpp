@@ -15,6 +15,11 @@ class NurbsCurve final : public ParametricCurve {
  public:
   static constexpr int kMinDegree = 1;
   static constexpr int kMaxDegree = 7;  // fixes the size of the scratch arrays of eval()
+  // The largest ratio of two weights among the p + 1 points of one span. Beyond it a span is
+  // a near-corner (a conic whose shape factor w₁²/(w₀w₂) is near 0), which the limit sampler
+  // does not resolve: ratio 424 breaks the chord limit, 1e3 crawls, 1e6 jumps (docs/feedrate.md
+  // "Weights"). A conic arc of up to 170° has a ratio below 12.
+  static constexpr double kMaxSpanWeightRatio = 100.0;
 
   // Validates and stores the curve; throws InputError naming the offending value, the limit and
   // a way out. knots: clamped (degree + 1 equal knots at each end), non-decreasing, interior

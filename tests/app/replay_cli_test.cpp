@@ -2,10 +2,13 @@
 // input format, and configurations that cannot be met.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "tests/app/cli_fixture.hpp"
 
@@ -158,12 +161,6 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
       {"period_s = 0\n", cubic, "period"},
       {"max_jerk_mm_per_s3 = \"fast\"\n", cubic, "must be a number"},
       {"", write("comp.ngc", "G21 G90\nG0 X0 Y0 Z0\nG41 G1 X10 Y0 F100\n"), "comp.ngc:3:"},
-      // A G5.2 block whose first point repeats the current position: a cusp at the start.
-      {"",
-       write("cusp.ngc",
-             "G21 G90\nG0 X0 Y0 Z1\nG1 F600\nG5.2 X0 Y0 P1 L4\nX10 Y20 P1\n"
-             "X30 Y-10 P1\nG5.3\nM2\n"),
-       "full stop"},
       {"", (dir_ / "missing.json").string(), "missing.json"},
   };
   for (const auto& c : cases) {
@@ -175,6 +172,37 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
     EXPECT_NE(r.err.find(c.message), std::string::npos) << c.machine << "\n" << r.err;
     EXPECT_FALSE(fs::exists(csv));
   }
+}
+
+// A G5.2 block whose first point repeats the current position (LinuxCNC accepts it; ncd refused
+// it as "a cusp"): walked from rest to rest, within F600, ending exactly at the last point.
+TEST_F(Replay, NurbsWithARepeatedFirstPointIsWalked) {
+  const std::string ngc = std::string(NCD_SOURCE_DIR) + "/tests/ngc/nurbs_repeated_point.ngc";
+  const fs::path csv = dir_ / "out.csv";
+  const CmdResult r = ncd("replay -q " + ngc + " --setpoints " + csv.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);  // header
+  double x = 0, y = 0, z = 0, feed = 0, feed_max = 0;
+  bool rest_at_curve_end = false;
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string cell;
+    std::vector<double> v;
+    for (int k = 0; k < 5 && std::getline(row, cell, ','); ++k) v.push_back(std::stod(cell));
+    ASSERT_EQ(v.size(), 5u) << line;
+    x = v[1], y = v[2], z = v[3], feed = v[4];
+    feed_max = std::max(feed_max, feed);
+    // The curve ends with a repeated point too: the motion rests there before the G1.
+    rest_at_curve_end |= feed == 0.0 && std::abs(x - 40.0) < 1e-9 && std::abs(y) < 1e-9;
+  }
+  EXPECT_LE(feed_max, 600.0 * (1.0 + 1e-9));
+  EXPECT_TRUE(rest_at_curve_end);
+  EXPECT_EQ(feed, 0.0);
+  EXPECT_NEAR(x, 45.0, 1e-9);
+  EXPECT_NEAR(y, 0.0, 1e-9);
+  EXPECT_NEAR(z, 1.0, 1e-9);
 }
 
 // --blocks: the program a DNC link would carry, within the machine file's [link] budget.

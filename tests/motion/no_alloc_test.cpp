@@ -19,11 +19,13 @@ namespace {
 TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
   // A G-code program: lines, a G5.2 NURBS block, more lines: segment changes and joints, and a
   // slow start, so that higher limits reach the planner only after the first window; square
-  // corners and a plunge and retract, where the job restarts its planner from rest.
+  // corners and a plunge and retract, where the job restarts its planner from rest; a second
+  // G5.2 whose first and last points repeat (rest refinement at both ends, docs/planner.md §3).
   const toolpath::Path path = toolpath::read_path_text(
       "G21 G90\nG0 X0 Y0 Z0\nG1 X20 Y0 F300\nG1 X20 Y10 F3000\n"
       "G5.2 X30 Y20 P1 L4\nX40 Y0 P2\nX50 Y15 P1\nX60 Y5 P1\nG5.3\n"
-      "G1 X70 Y5\nG1 X70 Y-20 F1200\nG1 Z-2 F300\nG1 Z0\nM2\n",
+      "G1 X70 Y5\nG5.2 X70 Y5 P1 L4\nX80 Y20 P1\nX90 Y0 P1\nX95 Y5 P1\nX95 Y5 P1\nG5.3\n"
+      "G1 X70 Y-20 F1200\nG1 Z-2 F300\nG1 Z0\nM2\n",
       "mixed.ngc");
   ASSERT_GE(path.segments.size(), 3u);
   JobConfig cfg;

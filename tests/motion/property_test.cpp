@@ -16,6 +16,7 @@
 
 #include <cstdlib>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "motion/job.hpp"
@@ -119,7 +120,17 @@ struct Gen {
       }
     }
     interior.resize(static_cast<std::size_t>(inner));
+    if (inner >= degree && degree >= 2 && pick(4) == 0) {
+      // One interior knot of full multiplicity (= degree): C⁰, a corner at a control point.
+      for (int r = 0; r < degree; ++r) interior[static_cast<std::size_t>(r)] = 1.0;
+    }
     std::sort(interior.begin(), interior.end());
+    // Repeated control points: the parametric speed vanishes at an end (or at the C⁰ knot).
+    // (Degree ≥ 2: at degree 1 a repeated point is a zero-length span, not yet walked.)
+    if (degree >= 2 && pick(4) == 0) pts[1] = pts[0];
+    if (degree >= 2 && pick(4) == 0) {
+      pts[static_cast<std::size_t>(n - 2)] = pts[static_cast<std::size_t>(n - 1)];
+    }
     knots.insert(knots.end(), interior.begin(), interior.end());
     knots.insert(knots.end(), static_cast<std::size_t>(degree + 1), inner + 1.0);
     std::vector<double> weights;
@@ -128,7 +139,12 @@ struct Gen {
     }
     NurbsCurve c =
         weights.empty() ? NurbsCurve(degree, knots, pts) : NurbsCurve(degree, knots, pts, weights);
-    heading = c.eval(c.u_end()).d1.normalized();
+    for (std::size_t i = pts.size() - 1; i > 0; --i) {  // the last leg that is not a point
+      if ((pts[i] - pts[i - 1]).norm() > 0.0) {
+        heading = (pts[i] - pts[i - 1]).normalized();
+        break;
+      }
+    }
     at = pts.back();
     PathSegment s;
     s.geometry = std::move(c);
@@ -163,6 +179,30 @@ Vec3 end_point(const Path& p) {
   if (const auto* l = std::get_if<Polyline>(&g)) return l->points.back();
   const auto& c = std::get<NurbsCurve>(g);
   return c.eval(c.u_end()).p;
+}
+
+// The program as text, for a failure's message.
+std::string describe(const Path& path) {
+  std::ostringstream o;
+  o.precision(17);
+  for (const auto& seg : path.segments) {
+    if (const auto* l = std::get_if<Polyline>(&seg.geometry)) {
+      o << "polyline";
+      for (const auto& q : l->points) o << " (" << q.x() << "," << q.y() << "," << q.z() << ")";
+    } else {
+      const auto& c = std::get<NurbsCurve>(seg.geometry);
+      o << "nurbs p" << c.degree() << " knots";
+      for (const double k : c.knots()) o << " " << k;
+      o << " points";
+      for (const auto& q : c.points()) o << " (" << q.x() << "," << q.y() << "," << q.z() << ")";
+      o << " weights";
+      for (const double w : c.weights()) o << " " << w;
+    }
+    o << " control " << static_cast<int>(seg.path_control) << " stop_before " << seg.stop_before
+      << " rapid " << seg.rapid << " P " << seg.blend_tolerance_mm.value_or(-1) << " F "
+      << seg.feed_mm_per_min.value_or(-1) << "\n";
+  }
+  return o.str();
 }
 
 // Checks one program; returns an empty string or the first failure.
@@ -272,7 +312,169 @@ TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
     } catch (const std::exception& e) {
       failure = std::string("exception: ") + e.what();
     }
-    ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << ": " << failure;
+    ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << ": " << failure
+                                 << "\n"
+                                 << describe(path);
+  }
+}
+
+}  // namespace
+}  // namespace ncd::motion
+
+namespace ncd::motion {
+namespace {
+
+// An independent evaluation of a NURBS point (Cox–de Boor recursion on the basis functions,
+// eq. 2.5 of The NURBS Book, written here without the library's algorithm A2.3), and its arc
+// length as the length of a fine inscribed polygon extrapolated with Richardson (the polygon's
+// shortfall is O(h²) on every smooth span; each span is sampled on its own).
+double basis(const std::vector<double>& U, std::size_t i, int p, double u) {
+  if (p == 0) {
+    const bool last = U[i + 1] == U.back() && u == U.back() && U[i] < U[i + 1];
+    return (U[i] <= u && u < U[i + 1]) || last ? 1.0 : 0.0;
+  }
+  const auto pz = static_cast<std::size_t>(p);
+  double b = 0.0;
+  if (U[i + pz] > U[i]) b += (u - U[i]) / (U[i + pz] - U[i]) * basis(U, i, p - 1, u);
+  if (U[i + pz + 1] > U[i + 1]) {
+    b += (U[i + pz + 1] - u) / (U[i + pz + 1] - U[i + 1]) * basis(U, i + 1, p - 1, u);
+  }
+  return b;
+}
+
+Vec3 de_boor_point(const NurbsCurve& c, double u) {
+  Vec3 a = Vec3::Zero();
+  double w = 0.0;
+  for (std::size_t i = 0; i < c.points().size(); ++i) {
+    const double b = basis(c.knots(), i, c.degree(), u) * c.weights()[i];
+    a += b * c.points()[i];
+    w += b;
+  }
+  return a / w;
+}
+
+double polygon_length(const NurbsCurve& c, int n_per_span) {
+  const auto bp = c.breakpoints();
+  double total = 0.0;
+  for (std::size_t k = 0; k + 1 < bp.size(); ++k) {
+    // Interior samples of the span, its end approached from inside (the span's own polynomial).
+    Vec3 prev = de_boor_point(c, bp[k]);
+    for (int i = 1; i <= n_per_span; ++i) {
+      const double u = i == n_per_span ? std::nextafter(bp[k + 1], bp[k])
+                                       : bp[k] + (bp[k + 1] - bp[k]) * i / n_per_span;
+      const Vec3 q = de_boor_point(c, u);
+      total += (q - prev).norm();
+      prev = q;
+    }
+  }
+  return total;
+}
+
+double reference_length_mm(const NurbsCurve& c) {
+  const double l1 = polygon_length(c, 4000), l2 = polygon_length(c, 8000);
+  return (4.0 * l2 - l1) / 3.0;
+}
+
+PathSegment curve_segment(int degree, std::vector<double> knots, std::vector<Vec3> pts,
+                          double feed_mm_per_min = 6000.0) {
+  PathSegment s;
+  s.geometry = NurbsCurve(degree, std::move(knots), std::move(pts));
+  s.feed_mm_per_min = feed_mm_per_min;
+  return s;
+}
+
+// Walks one curve: the property checks (at rest at the end, on the path, chord, speed,
+// acceleration, jerk from the setpoints' differences, no stall), the walked length against the
+// independent reference, and the rest inside where the curve stops.
+void expect_walked(const PathSegment& seg, const char* name) {
+  Path path;
+  path.segments.push_back(seg);
+  const NurbsCurve& c = std::get<NurbsCurve>(seg.geometry);
+  EXPECT_EQ(check(path, 6000.0), "") << name;
+  Job job(path, machine());
+  const double ref = reference_length_mm(c);
+  EXPECT_NEAR(job.walker().length_mm(), ref, 1e-7 * ref) << name;
+  double travelled = 0.0;
+  Setpoint sp;
+  std::size_t periods = 0;
+  while (!job.done()) {
+    job.prepare();
+    sp = job.step();
+    travelled += sp.travelled_mm;
+    ++periods;
+  }
+  EXPECT_NEAR(travelled, ref, 1e-7 * ref) << name;
+  EXPECT_LT((sp.p - c.points().back()).norm(), 1e-9) << name;
+  // Not a crawl: within 2 s per knot of a walk at the programmed feed (independent of the
+  // planner's figures; a crawl at the dip took hundreds of seconds).
+  const double bound_s =
+      ref / (*seg.feed_mm_per_min / 60.0) + 2.0 * static_cast<double>(c.breakpoints().size());
+  EXPECT_LT(static_cast<double>(periods) * machine().limits.period_s, bound_s) << name;
+  std::cout << name << ": " << periods << " periods, length " << ref << " mm\n";
+}
+
+TEST(Property, DegenerateNurbsAreWalkedToRestAtTheEnd) {
+  // A G5.2 whose first point repeats the current point (issue 13): P' = 0 at the start.
+  expect_walked(curve_segment(3, {0, 0, 0, 0, 0.5, 1, 1, 1, 1},
+                              {{0, 0, 0}, {0, 0, 0}, {10, 20, 0}, {30, -10, 0}, {40, 0, 0}}),
+                "repeated first point");
+  // Both ends at rest parametrically.
+  expect_walked(curve_segment(3, {0, 0, 0, 0, 0.5, 1, 1, 1, 1},
+                              {{0, 0, 0}, {0, 0, 0}, {10, 20, 0}, {40, 0, 0}, {40, 0, 0}}),
+                "repeated end points");
+  // A triple point of a quadratic: P' = 0 on both sides of the middle knot.
+  expect_walked(curve_segment(2, {0, 0, 0, 1, 2, 2, 2},
+                              {{0, 0, 0}, {10, 0, 0}, {10, 0, 0}, {10, 10, 5}}, 3000.0),
+                "double interior point");
+  // Interior knot of full multiplicity: a corner at the control point (20, 0).
+  expect_walked(
+      curve_segment(
+          3, {0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2},
+          {{0, 0, 0}, {5, 10, 0}, {15, 10, 0}, {20, 0, 0}, {30, 0, 0}, {35, 10, 0}, {40, 0, 0}}),
+      "full multiplicity, corner");
+  // Full multiplicity with the points around the knot repeated: P' = 0 on both sides.
+  expect_walked(
+      curve_segment(
+          3, {0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2},
+          {{0, 0, 0}, {5, 10, 0}, {20, 0, 0}, {20, 0, 0}, {20, 0, 0}, {35, -10, 0}, {40, 0, 0}}),
+      "full multiplicity at rest");
+  // Full multiplicity, tangent continuous: no stop needed, none made at rest.
+  expect_walked(
+      curve_segment(
+          3, {0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2},
+          {{0, 0, 0}, {5, 10, 0}, {15, 10, 0}, {20, 0, 0}, {25, -10, 0}, {35, -10, 0}, {40, 0, 0}}),
+      "full multiplicity, smooth");
+}
+
+// Random degenerate curves: repeated first and last points, full-multiplicity interior knots,
+// degrees 2–5, rational or not; each through the property checks and the length reference.
+TEST(Property, RandomDegenerateNurbsWalkTheirTrueLength) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  const auto uni = [&](double a, double b) {
+    return std::uniform_real_distribution<double>(a, b)(rng);
+  };
+  const int cases = ncd::test::sweep_cases(30);
+  for (int k = 0; k < cases; ++k) {
+    const int degree = 2 + static_cast<int>(rng() % 4);
+    const int n = 2 * degree + 1;
+    std::vector<Vec3> pts{Vec3::Zero()};
+    for (int i = 1; i < n; ++i) pts.push_back(pts.back() + Vec3(uni(1, 8), uni(-5, 5), uni(-1, 1)));
+    pts[1] = pts[0];
+    if (rng() % 2) pts[static_cast<std::size_t>(n - 2)] = pts.back();
+    std::vector<double> knots(static_cast<std::size_t>(degree + 1), 0.0);
+    for (int r = 0; r < degree; ++r) knots.push_back(1.0);  // full multiplicity
+    knots.insert(knots.end(), static_cast<std::size_t>(degree + 1), 2.0);
+    std::vector<double> weights;
+    if (rng() % 2) {
+      for (int i = 0; i < n; ++i) weights.push_back(uni(0.5, 2.0));
+    }
+    PathSegment s;
+    s.geometry = NurbsCurve(degree, knots, pts, weights);
+    s.feed_mm_per_min = uni(600.0, 6000.0);
+    const std::string name = "case " + std::to_string(k) + " of seed " + std::to_string(seed);
+    expect_walked(s, name.c_str());
+    if (HasFailure()) break;
   }
 }
 

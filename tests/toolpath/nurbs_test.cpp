@@ -356,3 +356,35 @@ TEST(NurbsCurve, RejectsInvalidInputNamingTheValue) {
 
 }  // namespace
 }  // namespace ncd::toolpath
+
+namespace ncd::toolpath {
+namespace {
+
+// Weights within one span may differ by at most 100 (a near-corner beyond, see
+// docs/feedrate.md §5.1); the rule is per span, not over the whole curve.
+TEST(NurbsCurve, WeightRatioWithinASpanIsLimitedAndNamed) {
+  const std::vector<Vec3> three = {Vec3(0, 0, 0), Vec3(10, 10, 0), Vec3(20, 0, 0)};
+  const std::vector<double> k = {0, 0, 0, 1, 1, 1};
+  EXPECT_NO_THROW(NurbsCurve(2, k, three, {1, 100, 1}));   // exactly the limit
+  EXPECT_NO_THROW(NurbsCurve(2, k, three, {0.5, 50, 1}));  // 100 again, from below
+  expect_error(
+      [&] {
+        NurbsCurve(2, k, three, {1, 100.5, 1});
+      },
+      "weight[1] = 100.5 is 100.5 times "
+      "weight[0] = 1");
+  expect_error([&] { NurbsCurve(2, k, three, {1, 0.7, 1576461}); }, "at most 100");
+  expect_error([&] { NurbsCurve(2, k, three, {1, 0.7, 1576461}); }, "points 0..2");
+  // 1 and 200 are never in one span's window of 3 points: accepted.
+  const std::vector<Vec3> five = {Vec3(0, 0, 0), Vec3(10, 10, 0), Vec3(20, 0, 0), Vec3(30, 10, 0),
+                                  Vec3(40, 0, 0)};
+  EXPECT_NO_THROW(NurbsCurve(2, {0, 0, 0, 1, 2, 3, 3, 3}, five, {1, 10, 10, 10, 200}));
+  expect_error(
+      [&] {
+        NurbsCurve(2, {0, 0, 0, 1, 2, 3, 3, 3}, five, {1, 10, 10, 1, 200});
+      },
+      "points 2..4");
+}
+
+}  // namespace
+}  // namespace ncd::toolpath
