@@ -68,12 +68,20 @@ int run_chamfer(const ChamferArgs& a) {
   ngc.spindle_rpm = a.spindle_rpm;
   ngc.point = programmed_point(a);
   // The controller's dialect ([link] dialect of --machine): what it cannot take is left out
-  // where a choice exists (G64 P), and the written program is checked against its rules.
+  // where a choice exists (G64 P, M6), and the written program is checked against its rules.
+  // The tool and the spindle's spin-up ([tool] number, spindle_dwell_s) as the whole job of the
+  // blocks writes them (docs/whole-program.md).
   std::optional<comms::Dialect> dialect;
-  if (!a.machine.empty()) dialect = load_machine_config(a.machine).link.dialect;
+  if (!a.machine.empty()) {
+    const MachineConfig m = load_machine_config(a.machine);
+    dialect = m.link.dialect;
+    ngc.tool = m.tool.number;
+    ngc.spindle_dwell_s = m.tool.spindle_dwell_s;
+  }
   if (dialect) {
     ngc.path_blending = comms::rules(*dialect).path_blending;
     ngc.percent = comms::rules(*dialect).percent_framing;
+    ngc.tool_change = comms::rules(*dialect).tool_change;
   }
   ngc.safe_z_mm = a.safe_z_mm.value_or(toolpath::default_safe_z_mm(spec));
   require_positive("feed (--feed, mm/min)", ngc.feed_mm_per_min);

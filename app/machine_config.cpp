@@ -345,6 +345,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
   }
   c.encoder.line = c.link.line;
   c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
+  c.program.machine_tools = {c.tool.number};  // the tool the programs ncd writes change to
   check_ranges(c, name);
   try {
     interpolator::validate(c.limits);

@@ -58,7 +58,12 @@ struct MachineConfig {
   comms::EncoderSettings encoder;
   // [program]: how RS-274/NGC programs are read (default_units, machine_units, tool_table,
   // parameter_file, subroutine_path); see docs/ngc-interpreter.md.
-  toolpath::InterpretOptions program;
+  // Its machine_tools hold [tool] number (the tool every program ncd writes changes to).
+  toolpath::InterpretOptions program = [] {
+    toolpath::InterpretOptions o;
+    o.machine_tools = {ToolConfig{}.number};
+    return o;
+  }();
   std::string source = "defaults";  // the file it was read from
 };
 

@@ -22,15 +22,14 @@
 #include "app/output.hpp"
 #include "app/setpoint_sink.hpp"
 #include "app/svg_plot.hpp"
+#include "app/whole_run.hpp"
 #include "comms/block_encoder.hpp"
 #include "comms/program_blocks.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
-#include "toolpath/ngc_interpreter.hpp"
 #include "toolpath/path_io.hpp"
-#include "toolpath/whole_program.hpp"
 
 namespace ncd::app {
 namespace {
@@ -43,7 +42,7 @@ struct ReplayArgs {
   std::optional<double> chord_tolerance_mm;  // overrides [encoder] chord_tolerance_mm
   bool quiet = false;
   bool allow_interference = false;
-  bool path_only = false;  // the path alone, as `ncd serve` walks it (no whole program)
+  bool path_only = false;  // the path alone (no whole program around it)
 };
 
 // The NC program of --blocks: one block a line, LF, no `%` (the streamer frames it), written
@@ -194,119 +193,6 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   return j;
 }
 
-// What replay walks and writes: a whole program (docs/whole-program.md). A chamfer JSON holds
-// the ball centre in the drill frame; its loop becomes the machine file's programmed point
-// (the tip is the centre less R_B in Z), turned over for a lower edge as the chamfer's NGC
-// program is, wrapped by toolpath::whole_job: preamble, tool, spindle, clearance plane, the
-// approach down the drill axis for an inner edge, the cut, the retract, M5, M2. A JSON path
-// file is wrapped the same way (straight down onto its start, the clearance plane 2 R_B + 5 mm
-// above its highest point). RS-274/NGC is the program as interpreted, its events in place.
-struct WholeRun {
-  toolpath::Program program;
-  toolpath::Path path;
-  std::vector<std::string> header;
-};
-
-WholeRun whole_run(const std::string& file, const toolpath::Path& input, const MachineConfig& m,
-                   bool path_only) {
-  WholeRun w;
-  if (path_only) {  // the path's own motions, no events: what the service walks today
-    w.path = input;
-    for (const toolpath::PathSegment& seg : input.segments) {
-      toolpath::Motion mo;
-      mo.rapid = seg.rapid;
-      mo.feed = seg.feed_mm_per_min.value_or(0.0);
-      if (const auto* pl = std::get_if<toolpath::Polyline>(&seg.geometry)) {
-        mo.start = pl->points.front();
-        mo.geometry = toolpath::PolylineMove{*pl};
-      } else {
-        const auto& c = std::get<toolpath::NurbsCurve>(seg.geometry);
-        mo.start = c.points().front();
-        mo.geometry = toolpath::NurbsMove{c};
-      }
-      w.program.steps.push_back({std::move(mo), {}});
-    }
-    w.header.push_back("ncd replay --path-only of " + file +
-                       ": the path alone, no preamble, "
-                       "spindle or program end");
-    return w;
-  }
-  const std::string text = read_input_file(file, "path file");
-  const std::size_t first = text.find_first_not_of(" \t\r\n");
-  const bool json = first != std::string::npos && text[first] == '{';
-  const bool tip = m.tool.programmed_point == toolpath::ProgramPoint::Tip;
-  const double r_mm = m.cutting.ball_radius_mm;
-  if (!json) {
-    w.program = toolpath::interpret_ngc(text, file, m.program);
-    w.header.push_back("ncd replay of " + file + " (programmed point: as in that program)");
-  } else {
-    toolpath::JobFrame f;
-    f.spindle_rpm = m.cutting.spindle_rpm;
-    f.spindle_dwell_s = m.tool.spindle_dwell_s;
-    f.tool = m.tool.number;
-    f.tool_change = !m.link.dialect || comms::rules(*m.link.dialect).tool_change;
-    if (!f.tool_change) {
-      w.header.push_back("load tool " + std::to_string(f.tool) + " before the start: the " +
-                         comms::to_string(*m.link.dialect) + " dialect has no tool change (M6)");
-    }
-    f.feed_mm_per_min = input.segments.front().feed_mm_per_min.value_or(300.0);
-    toolpath::Path cut = input;
-    double top = -1e300;
-    if (input.chamfer) {
-      const auto in = nlohmann::json::parse(text).value("input", nlohmann::json::object());
-      const bool lower = in.value("side", "upper") == "lower";
-      const bool inner = in.value("edge", "inner") == "inner";
-      for (toolpath::PathSegment& seg : cut.segments) {
-        auto& pl = std::get<toolpath::Polyline>(seg.geometry);
-        for (Vec3& p : pl.points) {
-          if (lower) p = Vec3(-p.x(), p.y(), -p.z());  // the part turned over (docs/chamfer.md)
-          if (tip) p.z() -= r_mm;
-          top = std::max(top, p.z());
-        }
-        if (lower) {
-          for (Vec3& n : pl.normals) n = Vec3(-n.x(), n.y(), -n.z());
-        }
-      }
-      // The chamfer's own clearance (for the point its NGC program drives), else 4 R_B above
-      // the loop; both in the machine's programmed point.
-      double clear = top + 4.0 * r_mm;
-      if (in.contains("safe_z_mm") && in["safe_z_mm"].is_number() &&
-          in.value("frame", "drill") == "drill") {
-        const bool json_tip = in.value("program_point", "tip") == "tip";
-        clear = in["safe_z_mm"].get<double>() + (json_tip == tip ? 0.0 : tip ? -r_mm : r_mm);
-      }
-      f.clearance_z_mm = clear;
-      if (inner) f.axis_xy = Vec3::Zero();
-      w.header.push_back(
-          "ncd replay of the chamfer " + file + ", " + std::string(inner ? "inner" : "outer") +
-          " " + (lower ? "lower edge: the part TURNED OVER (X -> -X, Z -> -Z)" : "upper edge") +
-          ", drill frame");
-      w.header.push_back(toolpath::programmed_point_text(m.tool.programmed_point, r_mm));
-    } else {
-      for (const auto& seg : cut.segments) {
-        if (const auto* pl = std::get_if<toolpath::Polyline>(&seg.geometry)) {
-          for (const Vec3& p : pl->points) top = std::max(top, p.z());
-        } else {
-          for (const Vec3& p : std::get<toolpath::NurbsCurve>(seg.geometry).points()) {
-            top = std::max(top, p.z());
-          }
-        }
-      }
-      f.clearance_z_mm = top + 2.0 * r_mm + 5.0;
-      w.header.push_back("ncd replay of " + file + " (programmed point: as in that path)");
-    }
-    char line[96];
-    std::snprintf(line, sizeof line, "clearance plane Z %.3f mm, spindle %.0f rpm",
-                  f.clearance_z_mm, f.spindle_rpm);
-    w.header.push_back(line);
-    w.program = toolpath::whole_job(cut, f);
-  }
-  w.path = toolpath::to_path(w.program);
-  w.path.source = input.source;
-  w.path.chamfer = input.chamfer;
-  return w;
-}
-
 // The encoder's lines of the summary.
 void print_blocks(const comms::EncoderStats& b, const std::string& file) {
   std::fprintf(stderr,
@@ -358,7 +244,7 @@ int run_replay(const ReplayArgs& a) {
   const ChamferAcceptance chamfer =
       accept_chamfer(path, machine, a.allow_interference, "--allow-interference");
   if (!chamfer.note.empty()) std::cerr << "replay: " << chamfer.note << "\n";
-  const WholeRun whole = whole_run(a.path, path, machine, a.path_only);
+  const WholeRun whole = whole_run("ncd replay", a.path, path, machine, a.path_only);
   check_envelope(whole.path, machine);
   check_estimate(estimate_run(whole.path, machine), !a.setpoints.empty());
   motion::JobConfig cfg;
@@ -410,7 +296,7 @@ int run_replay(const ReplayArgs& a) {
           block_plot.add(b.end_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
         });
     program_blocks = std::make_unique<comms::ProgramBlocks>(whole.program, *encoder);
-    if (!a.path_only) program_blocks->begin(whole.header);  // as the service: the blocks alone
+    if (!a.path_only) program_blocks->begin(whole.header);  // --path-only: the blocks alone
     // The start of the path, where the machine stands at rest before the first period.
     motion::Setpoint start;
     start.p = job.walker().position();
@@ -541,8 +427,7 @@ void register_replay(CLI::App& app, Runner& run) {
               "summary, the report and the blocks say so");
   c->add_flag("--path-only", a->path_only,
               "walk and encode the path alone, without the whole program around it (preamble, "
-              "tool, spindle, clearance plane, approach, retract, M5, M2): what `ncd serve` "
-              "walks");
+              "tool, spindle, clearance plane, approach, retract, M5, M2)");
   c->add_flag("-q,--quiet", a->quiet, "no progress or summary on standard error");
   c->callback([a, &run] { run = [a] { return run_replay(*a); }; });
 }

@@ -1,5 +1,6 @@
 // `ncd serve`'s JSON mapping (service.hpp). A request's job is checked here as `ncd replay`
 // checks a run (the chamfer's checks and tool, the envelope, the size of the run, the port),
+// wrapped into the whole program `ncd replay` walks (app/whole_run.hpp, docs/whole-program.md),
 // turned into a service::JobSpec and handed to the library, whose state machine is drawn at the
 // top of service/service.cpp. The library's loop runs on a timer of the io_context: every 1 ms
 // while the motion runs, every 20 ms while the controller is still receiving.
@@ -19,6 +20,7 @@
 #include "app/job_checks.hpp"
 #include "app/link_options.hpp"
 #include "app/setpoint_sink.hpp"
+#include "app/whole_run.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
 #include "core/json_input.hpp"
@@ -47,10 +49,10 @@ service::ChamferJob chamfer_job(const json& spec) {
     for (char& c : key) c = c == '-' ? '_' : c;
     j[key] = v;
   }
-  static const char* kKeys[] = {"pipe_radius",     "drill_radius", "ball_radius", "width",
-                                "tolerance",       "edge",         "side",        "rod_radius",
-                                "non_knife_angle", "no_avoid",     "feed",        "spindle",
-                                "initial_segments"};
+  static const char* kKeys[] = {"pipe_radius",      "drill_radius", "ball_radius", "width",
+                                "tolerance",        "edge",         "side",        "rod_radius",
+                                "non_knife_angle",  "no_avoid",     "feed",        "spindle",
+                                "initial_segments", "safe_z"};
   static const char* kHoleKeys[] = {"drill_tilt_deg", "drill_azimuth_deg", "eccentricity",
                                     "pipe_half_angle_deg", "pipe_thickness"};
   for (const auto& [k, v] : j.items()) {
@@ -102,6 +104,7 @@ service::ChamferJob chamfer_job(const json& spec) {
   if (j.contains("pipe_thickness")) s.pipe_thickness_mm = number(j, "pipe_thickness");
   if (j.contains("feed")) job.feed_mm_per_min = number(j, "feed");
   if (j.contains("spindle")) job.spindle_rpm = number(j, "spindle");
+  if (j.contains("safe_z")) job.safe_z_mm = number(j, "safe_z");
   return job;
 }
 
@@ -131,8 +134,7 @@ Service::~Service() {
   timer_.cancel();
 }
 
-json Service::submit(const json& req) {
-  if (core_.busy()) throw InputError("submit: a job is running; stop it first");
+SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   if (!req.contains("job") || !req["job"].is_object()) {
     throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
   }
@@ -144,8 +146,10 @@ json Service::submit(const json& req) {
     }
     allow_interference = allow->get<bool>();
   }
-  service::JobSpec spec;
+  SubmittedJob out;
+  service::JobSpec& spec = out.spec;
   std::shared_ptr<toolpath::Path> path;
+  std::string file;  // the path job's file; empty for a chamfer made from parameters
   if (job.contains("path")) {
     for (const auto& [key, value] : job.items()) {
       if (key != "path" && key != "allow_interference") {
@@ -154,19 +158,21 @@ json Service::submit(const json& req) {
       }
     }
     if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
-    path = std::make_shared<toolpath::Path>(
-        toolpath::read_path_file(job["path"], config_.machine.program));
-    spec.name = job["path"].get<std::string>();
+    file = job["path"].get<std::string>();
+    path = std::make_shared<toolpath::Path>(toolpath::read_path_file(file, config.machine.program));
+    spec.name = file;
   } else {
-    path = std::make_shared<toolpath::Path>(service::chamfer_job_path(chamfer_job(job)));
+    service::ChamferJob cj = chamfer_job(job);
+    cj.point = config.machine.tool.programmed_point;  // as `ncd chamfer --machine` writes it
+    path = std::make_shared<toolpath::Path>(service::chamfer_job_path(cj));
     spec.name = "chamfer";
   }
-  std::string port = config_.machine.link.line.device;
+  out.port = config.machine.link.line.device;
   if (req.contains("port")) {
     if (!req["port"].is_string()) {
       throw InputError("\"port\" must be a device name, or \"\" for no streaming");
     }
-    port = req["port"];
+    out.port = req["port"];
   }
   std::string setpoints;
   if (req.contains("setpoints")) {
@@ -174,24 +180,31 @@ json Service::submit(const json& req) {
     setpoints = req["setpoints"];
     check_output(setpoints, "\"setpoints\"");
   }
-  // Before any motion, as `ncd replay` does: the chamfer's checks and tool, the envelope, the
-  // size of the run, the port.
-  MachineConfig machine = config_.machine;
+  // Before any motion, as `ncd replay` does: the chamfer's checks and tool, then the whole
+  // program around the job (docs/whole-program.md), its envelope, the size of the run, the port.
+  MachineConfig machine = config.machine;
   const ChamferAcceptance chamfer =
       accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
+  const bool restart = req.contains("restart_from");
+  if (!restart) {
+    WholeRun whole = whole_run("ncd serve", file, *path, machine);
+    path = std::make_shared<toolpath::Path>(std::move(whole.path));
+    spec.program = std::make_shared<const toolpath::Program>(std::move(whole.program));
+    spec.header = std::move(whole.header);
+  }
   check_envelope(*path, machine);
   check_estimate(estimate_run(*path, machine), !setpoints.empty());
-  if (!port.empty()) require_serial_port(port, "\"port\"");
+  if (!out.port.empty()) require_serial_port(out.port, "\"port\"");
   spec.path = std::move(path);
   spec.motion.limits = machine.limits;
   spec.motion.cutting = machine.cutting;
   spec.rules = service::LiveLimitRules::from(machine.limits);
-  spec.rules.feed = config_.live_limits.feed;
-  spec.rules.accel = config_.live_limits.accel;
-  spec.rules.jerk = config_.live_limits.jerk;
-  spec.rules.chord = config_.live_limits.chord;
+  spec.rules.feed = config.live_limits.feed;
+  spec.rules.accel = config.live_limits.accel;
+  spec.rules.jerk = config.live_limits.jerk;
+  spec.rules.chord = config.live_limits.chord;
   spec.interference_allowed = chamfer.interference_allowed;
-  if (req.contains("restart_from")) {
+  if (restart) {
     if (!job.contains("path")) {
       throw InputError("\"restart_from\" needs a job {\"path\": FILE} of an NC program");
     }
@@ -205,19 +218,22 @@ json Service::submit(const json& req) {
           "\"restart_from\": the job's path has no program lines; only an NC "
           "program restarts from a line");
     }
-    const std::string file = job["path"];
     const std::string text = read_input_file(file, "\"job\".\"path\"");
-    service::restart_job(spec, toolpath::interpret_ngc(text, file, config_.machine.program), text,
+    service::restart_job(spec, toolpath::interpret_ngc(text, file, config.machine.program), text,
                          line, clearance);
   } else if (req.contains("clearance_z_mm")) {
     throw InputError("\"clearance_z_mm\" goes with \"restart_from\"");
   }
-  if (!port.empty()) {
+  if (!out.port.empty()) {
     service::LinkSpec link;
-    const LinkConfig& lc = config_.machine.link;
-    link.encoder = config_.machine.encoder;
+    const LinkConfig& lc = config.machine.link;
+    link.encoder = config.machine.encoder;
+    // The controller's dialect, as `ncd replay --blocks` and `ncd stream` apply it: the
+    // encoder's framing, and every block checked by the sender before it is written.
+    if (lc.dialect) comms::apply_dialect(link.encoder, *lc.dialect);
+    link.sender.dialect = lc.dialect;
     link.sender.line = lc.line;
-    link.sender.line.device = port;
+    link.sender.line.device = out.port;
     link.sender.max_queued_chars = lc.max_queued_chars;
     link.sender.rx_buffer_bytes = lc.rx_buffer_bytes;
     link.sender.xoff_timeout_s = lc.xoff_timeout_s;
@@ -226,12 +242,19 @@ json Service::submit(const json& req) {
     spec.link = std::move(link);
   }
   spec.sink = std::make_unique<SetpointSink>(setpoints);
-  if (!chamfer.note.empty()) std::cerr << "ncd serve: " << chamfer.note << "\n";
-  const std::string name = spec.name;
-  core_.submit(std::move(spec));
-  port_ = port;
+  if (chamfer.interference_allowed) out.warning = chamfer.note;
+  return out;
+}
+
+json Service::submit(const json& req) {
+  if (core_.busy()) throw InputError("submit: a job is running; stop it first");
+  SubmittedJob job = submitted_job(req, config_);
+  if (!job.warning.empty()) std::cerr << "ncd serve: " << job.warning << "\n";
+  const std::string name = job.spec.name;
+  core_.submit(std::move(job.spec));
+  port_ = job.port;
   json reply{{"ok", true}, {"state", service::to_string(core_.state())}, {"job", name}};
-  if (chamfer.interference_allowed) reply["warning"] = chamfer.note;
+  if (!job.warning.empty()) reply["warning"] = job.warning;
   return reply;
 }
 

@@ -18,6 +18,17 @@
 
 namespace ncd::app {
 
+// A submit request's job (docs/service.md, "Jobs"): checked as `ncd replay` checks a run (the
+// chamfer's checks and tool, the envelope, the size of the run, the port) and made into the
+// library's JobSpec: the whole program `ncd replay` walks for the same file and machine
+// (app/whole_run.hpp), or the path alone for a restart. Throws InputError naming the key.
+struct SubmittedJob {
+  service::JobSpec spec;
+  std::string port;     // the DNC port; empty: no streaming
+  std::string warning;  // a failed chamfer run anyway ("allow_interference"); empty otherwise
+};
+SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& config);
+
 class Service : public comms::ControlHandler {
  public:
   Service(boost::asio::io_context& io, const ServiceConfig& config);

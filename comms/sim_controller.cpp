@@ -1283,7 +1283,8 @@ struct SimController::Impl {
       log.path_length_mm +=
           current.path_mm > 0.0 ? current.path_mm : distance(position, current.to);
       position = current.to;
-      log.moves.push_back({current.to, current.feed_mm_per_min, current.g, current.n, t});
+      log.moves.push_back(
+          {current.to, current.feed_mm_per_min, current.g, current.n, t, current_seq});
     }
     if (current.program_end) end_executed(t);
   }
@@ -1677,7 +1678,8 @@ Json to_json(const SimLog& l) {
                      {"feed_mm_per_min", m.feed_mm_per_min},
                      {"g", m.g},
                      {"n", optional_json(m.n)},
-                     {"t_s", m.t_s}});
+                     {"t_s", m.t_s},
+                     {"seq", m.seq}});
   }
   Json underruns = Json::array();
   for (const SimUnderrun& u : l.underrun_events) {

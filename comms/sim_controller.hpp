@@ -190,6 +190,7 @@ struct SimMove {
   int g = 1;
   std::optional<long> n;
   double t_s = 0.0;  // when the move ended, seconds since the controller started
+  long seq = 0;      // the block (1-based, blocks accepted), as in SimExecuted and SimEvent
 };
 
 struct SimAlarm {

@@ -11,8 +11,8 @@
 
 namespace ncd::service {
 
-toolpath::Path chamfer_path(const toolpath::ChamferPath& chamfer, double feed_mm_per_min,
-                            double spindle_rpm) {
+toolpath::Path chamfer_path(const toolpath::ChamferPath& chamfer, const toolpath::NgcOptions& ngc) {
+  const double feed_mm_per_min = ngc.feed_mm_per_min, spindle_rpm = ngc.spindle_rpm;
   checked_range(feed_mm_per_min, ranges::kProgramFeedMmPerMin.lo, ranges::kProgramFeedMmPerMin.hi,
                 "the chamfer's feed", ranges::kProgramFeedMmPerMin.unit, "give the feed in mm/min");
   checked_range(spindle_rpm, ranges::kProgramSpindleRpm.lo, ranges::kProgramSpindleRpm.hi,
@@ -39,6 +39,10 @@ toolpath::Path chamfer_path(const toolpath::ChamferPath& chamfer, double feed_mm
   path.segments.push_back(std::move(seg));
   toolpath::ChamferOrigin origin;
   origin.ball_radius_mm = chamfer.spec.ball_radius_mm;
+  origin.inner_edge = chamfer.spec.edge == toolpath::Edge::Inner;
+  origin.lower_side = chamfer.spec.side == toolpath::Side::Lower;
+  origin.safe_z_mm = ngc.safe_z_mm;
+  origin.safe_z_for_tip = ngc.point == toolpath::ProgramPoint::Tip;
   const toolpath::ChamferChecks& ck = chamfer.checks;
   for (const auto& [name, ok] : {std::pair{"global", ck.global_ok}, std::pair{"local", ck.local_ok},
                                  std::pair{"rod", ck.rod_ok}}) {
@@ -52,7 +56,14 @@ toolpath::Path chamfer_path(const toolpath::ChamferPath& chamfer, double feed_mm
 
 toolpath::Path chamfer_job_path(const ChamferJob& job) {
   require_positive("feed", job.feed_mm_per_min);
-  return chamfer_path(toolpath::generate_chamfer(job.spec), job.feed_mm_per_min, job.spindle_rpm);
+  toolpath::NgcOptions ngc;
+  ngc.feed_mm_per_min = job.feed_mm_per_min;
+  ngc.spindle_rpm = job.spindle_rpm;
+  ngc.point = job.point;
+  if (job.safe_z_mm) require_finite("the chamfer's safe Z (mm)", *job.safe_z_mm);
+  const toolpath::ChamferPath chamfer = toolpath::generate_chamfer(job.spec);  // checks the spec
+  ngc.safe_z_mm = job.safe_z_mm.value_or(toolpath::default_safe_z_mm(job.spec));
+  return chamfer_path(chamfer, ngc);
 }
 
 }  // namespace ncd::service

@@ -104,6 +104,10 @@ void restart_job(JobSpec& job, const toolpath::Program& program, std::string_vie
   }
   path->source = job.path ? job.path->source : program.files.front();
   job.path = std::move(path);
+  // The restart's preamble stands for what comes before the line; the blocks from the line on
+  // are those of the path (the whole program's begin() would cancel the length offset).
+  job.program.reset();
+  job.header.clear();
   job.restart = std::move(r);
 }
 

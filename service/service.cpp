@@ -37,6 +37,7 @@
 #include <thread>
 
 #include "comms/live_blocks.hpp"
+#include "comms/program_blocks.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
 
@@ -143,6 +144,8 @@ std::string fmt(double v) {
 struct Service::Live {
   comms::LiveBlocks blocks;
   std::unique_ptr<comms::BlockEncoder> encoder;
+  std::unique_ptr<comms::ProgramBlocks>
+      program;  // the job's events around the encoder; may be null
   std::unique_ptr<comms::TransferJournal> journal;
   std::unique_ptr<comms::DncSender> sender;
   std::thread thread;
@@ -381,7 +384,13 @@ void Service::drain() {
     jerk_max_ = std::max(jerk_max_, std::abs(sp.j_mm_per_s3));
     feed_max_ = std::max(feed_max_, sp.v_mm_per_s);
     if (job_.sink) job_.sink->write(sp);
-    if (live_) live_->encoder->push(sp);
+    if (live_) {
+      if (live_->program) {
+        live_->program->push(sp);
+      } else {
+        live_->encoder->push(sp);
+      }
+    }
   }
 }
 
@@ -414,7 +423,14 @@ void Service::finish_motion() {
       std::to_string(st.late_wakeups) + " late wake-ups, " + std::to_string(st.overruns) +
       " overruns, " + std::to_string(st.setpoints_lost) + " setpoints lost");
   if (live_) {
-    live_->encoder->finish();
+    // A job that reached its end: what follows its last planned move (the retract's rapid, M5,
+    // M2). A stopped one ends where the motion stopped: the retract from there is the
+    // operator's (the program's own would move sideways from wherever the stop left the tool).
+    if (live_->program && s == State::Done) {
+      live_->program->end();
+    } else {
+      live_->encoder->finish();
+    }
     live_->blocks.close();
     final_state_ = s;
     set_state(State::Streaming, HoldHolder::None, "the motion ended; blocks still to send");
@@ -440,7 +456,15 @@ void Service::start_stream(const Vec3& start_mm) {
   });
   motion::Setpoint start;
   start.p = start_mm;
-  ls->encoder->push(start);
+  if (job_.program) {
+    // The program's blocks, as `ncd replay --blocks` writes them: the header, the preamble and
+    // the events and rapids before the first planned move, then the start of the path.
+    ls->program = std::make_unique<comms::ProgramBlocks>(*job_.program, *ls->encoder);
+    ls->program->begin(job_.header);
+    ls->program->push(start);
+  } else {
+    ls->encoder->push(start);
+  }
   if (!link.journal.empty()) {
     comms::JournalState js;
     js.program_sha256 = "live job " + job_.name;

@@ -21,6 +21,7 @@
 #include "service/events.hpp"
 #include "service/live_limits.hpp"
 #include "toolpath/path.hpp"
+#include "toolpath/program.hpp"
 
 namespace ncd::service {
 
@@ -53,6 +54,12 @@ struct RestartSpec {
 struct JobSpec {
   std::string name;
   std::shared_ptr<const toolpath::Path> path;
+  // The whole program the path was planned from (toolpath::to_path of it; docs/whole-program.md),
+  // and the comment lines that open its blocks. Set, a streamed job's blocks carry its events and
+  // rapids at their place (comms::ProgramBlocks, as `ncd replay --blocks` writes them): preamble,
+  // tool, spindle, the rapids as G0, M5, M2. None: the blocks of the path alone.
+  std::shared_ptr<const toolpath::Program> program;
+  std::vector<std::string> header;
   motion::JobConfig motion;
   LiveLimitRules rules;                // LiveLimitRules::from(motion.limits) unless configured
   std::optional<LinkSpec> link;        // none: no streaming

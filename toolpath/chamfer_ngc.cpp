@@ -1,5 +1,8 @@
 // RS-274/NGC writer for a chamfer loop (LinuxCNC dialect): a header comment that states every
-// parameter, G21 G90 G94, an approach, the closed loop of G1 moves, a retract, M2.
+// parameter, G21 G90 G94, the tool (T n M6, or a header line asking for it where the controller
+// has no tool change), the spindle (S M3, then G4 P for its spin-up when the machine file gives
+// one), an approach, the closed loop of G1 moves, a retract, M5, M2: the same sequence as the
+// whole job of the blocks (toolpath/whole_program.hpp, docs/whole-program.md).
 //
 // Frames (docs/chamfer.md): by default the drill frame, Z along the drill axis, X0 Y0 on it, Z0
 // at the foot of the common perpendicular with the pipe axis; the header says how the pipe axis
@@ -68,6 +71,14 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   require_positive("feed (--feed, mm/min)", o.feed_mm_per_min);
   require_positive("spindle speed (--spindle, rpm)", o.spindle_rpm);
   require_finite("safe Z (--safe-z, mm)", o.safe_z_mm);
+  if (o.tool < 0) {
+    throw InputError("tool number " + std::to_string(o.tool) +
+                     " must be 0 or more; set [tool] number in the machine file");
+  }
+  if (!(o.spindle_dwell_s >= 0.0) || !std::isfinite(o.spindle_dwell_s)) {
+    throw InputError("spindle dwell " + num(o.spindle_dwell_s, 3) +
+                     " s must be 0 or more; set [tool] spindle_dwell_s to the spin-up time");
+  }
   if (path.points.empty()) throw InputError("the chamfer path has no points");
   if (o.frame == ProgramFrame::Pipe && s.drill_tilt_rad != 0.0) {
     throw InputError("the pipe frame puts the machine's Z at the drill tilt τ = " +
@@ -145,6 +156,9 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
                                            " mm in Z; tool length set to the tip"
                                      : "ball CENTRE; tool length set to the ball centre")
     << ")\n";
+  if (!o.tool_change) {
+    g << "(load tool " << o.tool << " before the start: this controller has no tool change, M6)\n";
+  }
   g << "(checks: local " << (ck.local_ok ? "ok" : "INTERFERES") << ", global "
     << (ck.global_ok ? "ok" : "INTERFERES") << ", rod "
     << (!ck.limit_radius_mm ? "not checked"
@@ -160,7 +174,9 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   } else {
     g << "(no G64 P: this controller has no blending tolerance; its own path mode applies)\n";
   }
+  if (o.tool_change) g << "T" << o.tool << " M6\n";
   g << "S" << num(o.spindle_rpm, 0) << " M3\n";
+  if (o.spindle_dwell_s > 0.0) g << "G4 P" << num(o.spindle_dwell_s, 3) << "\n";
   g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
   const Vec3 first = at(0);
   const std::string axis = "X" + num(axis_xy.x(), d) + " Y" + num(axis_xy.y(), d);

@@ -26,6 +26,13 @@ struct NgcOptions {
   // `%` lines open and close the program (LinuxCNC, ISO); false for grbl, which takes `%` for
   // no word (error:1).
   bool percent = true;
+  // The tool ([tool] number of the machine file): "T n M6" before the spindle starts; false for
+  // a controller without a tool change (grbl: M6 is its error:20), whose header then asks the
+  // operator to load tool n before the start (docs/whole-program.md).
+  int tool = 1;
+  bool tool_change = true;
+  // "G4 P" after M3 for the spindle to reach its speed ([tool] spindle_dwell_s); 0: none.
+  double spindle_dwell_s = 0.0;
 };
 
 std::string to_string(ProgramFrame frame);
@@ -36,7 +43,7 @@ std::string to_string(ProgramFrame frame);
 double default_safe_z_mm(const ChamferSpec& spec);
 
 // Throws InputError when an option is out of range (feed, spindle, safe Z below the path, the
-// pipe frame for a tilted drill).
+// pipe frame for a tilted drill, a negative tool number or spindle dwell).
 std::string chamfer_program(const ChamferPath& path, const NgcOptions& options);
 
 // A point of the model (drill frame) in the program's frame: the pipe frame if asked, then the

@@ -384,6 +384,7 @@ class Interpreter {
 
   // LinuxCNC tool.tbl: "T<n> P<pocket> Z<offset> D<diameter> ; comment", values in machine units.
   void load_tool_table() {
+    for (const int t : opt_.machine_tools) tools_[t] = {0.0, 0.0};
     if (opt_.tool_table.empty()) return;
     const std::string text = read_file(opt_.tool_table, "tool table");
     std::istringstream in(text);

@@ -15,7 +15,10 @@ struct InterpretOptions {
   // Units of the tool table, the parameter file and the stored positions (LinuxCNC's machine
   // units). LinuxCNC's standalone `rs274` uses inches; a metric machine uses mm.
   Units machine_units = Units::mm;
-  std::string tool_table;                    // LinuxCNC tool.tbl; empty: no tools (T0 only)
+  std::string tool_table;  // LinuxCNC tool.tbl; empty: no tools (T0 only)
+  // Tools the machine holds besides the table's (the machine file's [tool] number, which every
+  // program ncd writes selects with T n M6): zero length and diameter, the table's entry wins.
+  std::vector<int> machine_tools;
   std::string parameter_file;                // LinuxCNC .var; empty: all parameters start at 0
   std::vector<std::string> subroutine_path;  // folders searched for o<name> call → name.ngc
   bool block_delete = false;                 // true: lines starting with '/' are skipped (rs274 -b)

@@ -40,6 +40,14 @@ struct ChamferOrigin {
   double ball_radius_mm = 0.0;
   bool checks_ok = true;
   std::string failed_checks;  // "local, rod" …; empty when checks_ok
+  // What the whole job around the loop needs (docs/whole-program.md): an inner edge is reached
+  // down the drill axis, a lower edge is cut with the part turned over, and the clearance plane
+  // is the chamfer's own (its "safe_z_mm", drill frame, for the point "program_point" names).
+  // A file without them: an upper inner edge, no clearance of its own.
+  bool inner_edge = true;
+  bool lower_side = false;
+  std::optional<double> safe_z_mm;
+  bool safe_z_for_tip = true;  // safe_z_mm is a height of the ball tip (false: of its centre)
 };
 
 struct Path {

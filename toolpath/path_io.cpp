@@ -128,6 +128,25 @@ class JsonReader {
     if (in != doc.end() && in->is_object() && in->contains("ball_radius_mm")) {
       o.ball_radius_mm = positive((*in)["ball_radius_mm"], "input.ball_radius_mm");
     }
+    if (in != doc.end() && in->is_object()) {
+      // One of two words, or absent (the default); anything else names the key.
+      const auto word = [&](const char* key, const char* a, const char* b, const char* def) {
+        const auto w = in->find(key);
+        if (w == in->end() || w->is_null()) return std::string(def);
+        if (!w->is_string() || (*w != a && *w != b)) {
+          fail(std::string("input.") + key,
+               std::string("must be \"") + a + "\" or \"" + b + "\"; regenerate the chamfer");
+        }
+        return w->get<std::string>();
+      };
+      o.inner_edge = word("edge", "inner", "outer", "inner") == "inner";
+      o.lower_side = word("side", "upper", "lower", "upper") == "lower";
+      o.safe_z_for_tip = word("program_point", "tip", "centre", "tip") == "tip";
+      const bool drill = word("frame", "drill", "pipe", "drill") == "drill";
+      if (const auto z = in->find("safe_z_mm"); drill && z != in->end() && !z->is_null()) {
+        o.safe_z_mm = number(*z, "input.safe_z_mm");
+      }
+    }
     const auto checks = doc.find("checks");
     if (checks == doc.end() || !checks->is_object() || checks->empty()) {
       o.checks_ok = false;

@@ -144,8 +144,7 @@ Program whole_job(const Path& cut, const JobFrame& f) {
   return std::move(b.p_);
 }
 
-Program chamfer_job(const ChamferPath& path, const NgcOptions& o, double spindle_dwell_s,
-                    int tool) {
+Program chamfer_job(const ChamferPath& path, const NgcOptions& o) {
   const ChamferSpec& s = path.spec;
   if (path.points.empty()) throw InputError("the chamfer path has no points");
   Polyline loop;
@@ -162,8 +161,9 @@ Program chamfer_job(const ChamferPath& path, const NgcOptions& o, double spindle
   JobFrame f;
   f.feed_mm_per_min = o.feed_mm_per_min;
   f.spindle_rpm = o.spindle_rpm;
-  f.spindle_dwell_s = spindle_dwell_s;
-  f.tool = tool;
+  f.spindle_dwell_s = o.spindle_dwell_s;
+  f.tool = o.tool;
+  f.tool_change = o.tool_change;
   f.clearance_z_mm = o.safe_z_mm;
   if (s.edge == Edge::Inner) f.axis_xy = program_frame_point(s, Vec3::Zero(), o.frame);
   return whole_job(cut, f);

@@ -39,9 +39,9 @@ struct JobFrame {
 Program whole_job(const Path& cut, const JobFrame& frame);
 
 // The chamfer job: the loop as chamfer_program() writes it (program frame, programmed point),
-// its clearance plane options.safe_z_mm, inner edges approached down the drill axis.
-Program chamfer_job(const ChamferPath& path, const NgcOptions& options,
-                    double spindle_dwell_s = 0.0, int tool = 1);
+// its clearance plane options.safe_z_mm, inner edges approached down the drill axis, the tool,
+// its change and the spindle dwell of the options.
+Program chamfer_job(const ChamferPath& path, const NgcOptions& options);
 
 // Header lines of a job (without parentheses): the programmed point and the frame.
 std::string programmed_point_text(ProgramPoint point, double ball_radius_mm);

@@ -32,6 +32,10 @@ void expect_same(const toolpath::Path& a, const toolpath::Path& b) {
   EXPECT_EQ(a.chamfer->ball_radius_mm, b.chamfer->ball_radius_mm);
   EXPECT_EQ(a.chamfer->checks_ok, b.chamfer->checks_ok);
   EXPECT_EQ(a.chamfer->failed_checks, b.chamfer->failed_checks);
+  EXPECT_EQ(a.chamfer->inner_edge, b.chamfer->inner_edge);
+  EXPECT_EQ(a.chamfer->lower_side, b.chamfer->lower_side);
+  EXPECT_EQ(a.chamfer->safe_z_mm, b.chamfer->safe_z_mm);
+  EXPECT_EQ(a.chamfer->safe_z_for_tip, b.chamfer->safe_z_for_tip);
 }
 
 service::ChamferJob experiment(double ball_radius_mm) {
@@ -53,12 +57,56 @@ TEST(ChamferJobPath, EqualsTheChamferJsonReadBack) {
     toolpath::NgcOptions ngc;
     ngc.feed_mm_per_min = job.feed_mm_per_min;
     ngc.spindle_rpm = job.spindle_rpm;
+    ngc.safe_z_mm = toolpath::default_safe_z_mm(job.spec);  // as `ncd chamfer` without --safe-z
     const toolpath::Path via_json = toolpath::read_path_text(
         app::chamfer_json(chamfer, ngc, std::nullopt, 0.0).dump(), "chamfer job");
     const toolpath::Path direct = service::chamfer_job_path(job);
     SCOPED_TRACE("ball radius " + std::to_string(ball));
     expect_same(direct, via_json);
     EXPECT_EQ(direct.chamfer->checks_ok, ball == 3.0);  // 12 mm: the failing case
+    EXPECT_TRUE(direct.chamfer->inner_edge);
+    EXPECT_FALSE(direct.chamfer->lower_side);
+  }
+}
+
+// The whole job around the loop needs the edge, the side and the clearance plane: an outer
+// lower edge with its own safe Z, for the ball centre, reads back as the job gives it.
+TEST(ChamferJobPath, EdgeSideAndClearanceEqualTheJsonReadBack) {
+  service::ChamferJob job = experiment(3.0);
+  job.spec.edge = toolpath::Edge::Outer;
+  job.spec.side = toolpath::Side::Lower;
+  job.spec.rod_radius_mm.reset();
+  job.point = toolpath::ProgramPoint::Centre;
+  job.safe_z_mm = 31.5;
+  const toolpath::ChamferPath chamfer = toolpath::generate_chamfer(job.spec);
+  toolpath::NgcOptions ngc;
+  ngc.feed_mm_per_min = job.feed_mm_per_min;
+  ngc.spindle_rpm = job.spindle_rpm;
+  ngc.point = job.point;
+  ngc.safe_z_mm = *job.safe_z_mm;
+  const toolpath::Path via_json = toolpath::read_path_text(
+      app::chamfer_json(chamfer, ngc, std::nullopt, 0.0).dump(), "chamfer job");
+  const toolpath::Path direct = service::chamfer_job_path(job);
+  expect_same(direct, via_json);
+  EXPECT_FALSE(direct.chamfer->inner_edge);
+  EXPECT_TRUE(direct.chamfer->lower_side);
+  EXPECT_EQ(direct.chamfer->safe_z_mm, 31.5);
+  EXPECT_FALSE(direct.chamfer->safe_z_for_tip);
+}
+
+// A chamfer JSON whose edge or side is neither of its two words is refused naming the key.
+TEST(ChamferJobPath, AnUnknownEdgeWordInTheJsonIsRefused) {
+  const service::ChamferJob job = experiment(3.0);
+  toolpath::NgcOptions ngc;
+  ngc.safe_z_mm = 40.0;
+  nlohmann::ordered_json j =
+      app::chamfer_json(toolpath::generate_chamfer(job.spec), ngc, std::nullopt, 0.0);
+  j["input"]["edge"] = "inside";
+  try {
+    toolpath::read_path_text(j.dump(), "bad.json");
+    ADD_FAILURE() << "edge \"inside\" was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("input.edge"), std::string::npos) << e.what();
   }
 }
 

@@ -235,10 +235,12 @@ TEST_F(ServeHardening, PositionBeforeTheFirstPeriodIsThePathsStartAndTimeLeftHol
   ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
   json s = c.request({{"cmd", "status"}});
   const auto p = s["position"].get<std::vector<double>>();
-  // From rest, the first periods move nanometres: the start within 0.01 mm, never [0,0,0].
+  // From rest, the first periods move nanometres: the start within 0.01 mm, never [0,0,0]. The
+  // whole job's planned motion starts over the path's start at its clearance plane, 2 R_B + 5 mm
+  // above the path's highest point (docs/whole-program.md; the default R_B is 5 mm).
   EXPECT_NEAR(p[0], 10.0, 0.01) << s.dump();
   EXPECT_NEAR(p[1], 20.0, 0.01) << s.dump();
-  EXPECT_NEAR(p[2], 5.0, 0.01) << s.dump();
+  EXPECT_NEAR(p[2], 5.0 + 2.0 * 5.0 + 5.0, 0.01) << s.dump();
   // Let it move, hold, and watch time_left_s while held: it must not grow.
   for (int i = 0; i < 500; ++i) {
     s = c.request({{"cmd", "status"}});

@@ -31,9 +31,8 @@ class Serve : public ncd::test::ServeFixture {};
 
 TEST_F(Serve, JobOverTheSocketGivesReplaysSetpoints) {
   const std::string cubic = write("cubic.json", kCubic);
-  ASSERT_EQ(ncd("replay " + cubic + " -q --path-only --setpoints " + (dir_ / "replay.csv").string())
-                .status,
-            0);
+  // The whole program around the path (docs/whole-program.md), as replay walks it.
+  ASSERT_EQ(ncd("replay " + cubic + " -q --setpoints " + (dir_ / "replay.csv").string()).status, 0);
   launch("simulated");
   Client c(socket_);
   json r = c.request({{"cmd", "submit"},
@@ -64,7 +63,18 @@ TEST_F(Serve, ChamferJobByParameterNames) {
   ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
   const json s = wait_for(c, "done");
   EXPECT_GT(s["setpoints"].get<int>(), 1000);
-  EXPECT_NEAR(s["feed_max_mm_per_min"].get<double>(), 300.0, 1e-6);  // the chamfer's F300
+  // The whole job ends back over the drill axis at the clearance plane `ncd chamfer` writes for
+  // the same chamfer (an inner edge: out of the bore along the axis).
+  ASSERT_EQ(ncd("chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 "
+                "--rod-radius 1.8 --non-knife-angle 93 -q -o " +
+                (dir_ / "c.json").string())
+                .status,
+            0);
+  const double safe_z = json::parse(slurp(dir_ / "c.json"))["input"]["safe_z_mm"].get<double>();
+  const auto end = s["position"].get<std::vector<double>>();
+  EXPECT_NEAR(end[0], 0.0, 1e-9);
+  EXPECT_NEAR(end[1], 0.0, 1e-9);
+  EXPECT_NEAR(end[2], safe_z, 1e-9);
 }
 
 TEST_F(Serve, InclinedChamferJobTakesTheFlagNames) {

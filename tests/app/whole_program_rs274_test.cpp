@@ -67,36 +67,27 @@ class Rs274 : public Cli {
     Cli::SetUp();
     if (!fs::exists(kRs274)) GTEST_SKIP() << kRs274 << " not installed (linuxcnc-uspace)";
   }
-  Canonical canonical(const std::string& file) {
+  // rs274 -g on `file`; `options` go before -g (e.g. "-t TOOL_TABLE").
+  Canonical canonical(const std::string& file, const std::string& options = "") {
     const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
-    const std::string cmd = ncd::test::rs274_command(dir_, "-g " + file + " " + out.string()) +
-                            " >" + log.string() + " 2>&1";
+    const std::string cmd =
+        ncd::test::rs274_command(dir_, options + " -g " + file + " " + out.string()) + " >" +
+        log.string() + " 2>&1";
     const int raw = std::system(cmd.c_str());
     Canonical c;
     c.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
     c.out = slurp(out);
     c.log = slurp(log);
-    std::istringstream in(c.out);
-    std::string line;
-    while (std::getline(in, line)) {
-      const bool traverse = line.find("STRAIGHT_TRAVERSE(") != std::string::npos;
-      const bool feed = line.find("STRAIGHT_FEED(") != std::string::npos;
-      if (line.find("PROGRAM_END") != std::string::npos) c.program_end = true;
-      if (!traverse && !feed) continue;
-      P3 p{};
-      const std::size_t open = line.find('(');
-      if (std::sscanf(line.c_str() + open + 1, "%lf, %lf, %lf", &p.x, &p.y, &p.z) != 3) continue;
-      c.moves.push_back(p);
-      c.feed.push_back(feed);
-    }
+    const ncd::test::CanonicalMoves m = ncd::test::canonical_moves(c.out);
+    for (const auto& p : m.end) c.moves.push_back({p[0], p[1], p[2]});
+    c.feed = m.feed;
+    c.program_end = m.program_end;
     return c;
   }
   static void expect_clean(const Canonical& c, const std::string& what) {
     EXPECT_EQ(c.status, 0) << what << "\n" << c.log;
-    for (const char* bad : {"rror", "arning", "ended with no percent"}) {
-      EXPECT_EQ(c.log.find(bad), std::string::npos) << what << ": " << c.log;
-      EXPECT_EQ(c.out.find(bad), std::string::npos) << what;
-    }
+    EXPECT_EQ(ncd::test::rs274_complaint(c.log), "") << what << ": " << c.log;
+    EXPECT_EQ(ncd::test::rs274_complaint(c.out), "") << what;
     EXPECT_TRUE(c.program_end) << what << ": no PROGRAM_END";
   }
   // The setpoints CSV of a replay: x, y, z of each row.
@@ -287,6 +278,83 @@ TEST_F(Rs274, BlocksTheDialectCannotTakeAreRefusedAndNothingIsWritten) {
   EXPECT_NE(r.err.find("'M7'"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("error:20"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(blocks));
+}
+
+// The exp3 machine with its tool numbered 4 and a 1.5 s spin-up ([tool] number,
+// spindle_dwell_s), for the dialect `dialect`.
+std::string tool_machine_text(const std::string& dialect) {
+  std::string text = dialect == "grbl" ? grbl_machine_text() : slurp(kMachine);
+  const std::string key = "programmed_point = \"tip\"";
+  const std::size_t at = text.find(key);
+  EXPECT_NE(at, std::string::npos) << "config/chamfer-exp3.toml has no [tool] programmed_point";
+  if (at != std::string::npos) {
+    text.insert(at + key.size(), "\nnumber = 4\nspindle_dwell_s = 1.5");
+  }
+  return text;
+}
+
+// Where `what` first appears in rs274's canonical output; npos if nowhere.
+std::size_t at(const Canonical& c, const std::string& what) {
+  return c.out.find(what);
+}
+
+// The chamfer's NGC program changes to the machine file's tool and waits for the spindle before
+// it cuts, as the whole job of the blocks does (docs/whole-program.md): rs274 reads T4 M6 (the
+// tool from a tool table in the test's folder), the spindle start and a 1.5 s dwell, in that
+// order, all before the first feed, with no error or warning. For grbl (no M6) the header asks
+// for tool 4 instead, and the program is still what grbl takes.
+TEST_F(Rs274, ChamferProgramChangesTheToolAndWaitsForTheSpindleAsTheBlocksDo) {
+  const std::string table = write("tool.tbl", "T4 P4 Z0 D6 ;6 mm ball\n");
+  for (const std::string dialect : {"iso", "grbl"}) {
+    SCOPED_TRACE(dialect);
+    const std::string machine = write(dialect + ".toml", tool_machine_text(dialect));
+    const std::string ngc = (dir_ / "c.ngc").string();
+    const CmdResult g =
+        ncd("chamfer " + kGeometry + " --machine " + machine + " -q --format ngc -o " + ngc);
+    ASSERT_EQ(g.status, 0) << g.err;
+    const std::string text = slurp(ngc);
+    const Canonical c = canonical(ngc, "-t " + table);
+    expect_clean(c, "chamfer program for tool 4 (" + dialect + ")");
+    const std::size_t spindle = at(c, "START_SPINDLE_CLOCKWISE"), dwell = at(c, "DWELL(1.5000)"),
+                      feed = at(c, "STRAIGHT_FEED(");
+    ASSERT_NE(spindle, std::string::npos) << c.out;
+    ASSERT_NE(dwell, std::string::npos) << c.out;
+    ASSERT_NE(feed, std::string::npos) << c.out;
+    EXPECT_LT(spindle, dwell);
+    EXPECT_LT(dwell, feed);
+    // The blocks of the same chamfer for the same machine: the same events in the same order.
+    const std::string json = (dir_ / "c.json").string(), blocks = (dir_ / "b.ngc").string();
+    ASSERT_EQ(ncd("chamfer " + kGeometry + " -q -o " + json).status, 0);
+    const CmdResult r = ncd("replay " + json + " --machine " + machine + " -q --blocks " + blocks);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string b = slurp(blocks);
+    std::smatch first_g1;
+    ASSERT_TRUE(std::regex_search(b, first_g1, std::regex("G1[XYZF]"))) << b;
+    const std::size_t b_spindle = b.find("M3S3000"), b_dwell = b.find("G4P1.5"),
+                      b_feed = static_cast<std::size_t>(first_g1.position(0));
+    ASSERT_NE(b_spindle, std::string::npos) << b;
+    EXPECT_LT(b_spindle, b_dwell);
+    EXPECT_LT(b_dwell, b_feed);
+    if (dialect == "grbl") {
+      EXPECT_EQ(text.find("T4 M6"), std::string::npos) << text;
+      EXPECT_NE(text.find("(load tool 4 before the start"), std::string::npos) << text;
+      EXPECT_EQ(b.find("T4M6"), std::string::npos);
+      EXPECT_NE(b.find("(load tool 4 before the start"), std::string::npos);
+      EXPECT_EQ(at(c, "CHANGE_TOOL"), std::string::npos);
+      EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::grbl, text).has_value());
+    } else {
+      const std::size_t select = at(c, "SELECT_TOOL(4)"), change = at(c, "CHANGE_TOOL(");
+      ASSERT_NE(select, std::string::npos) << c.out;
+      ASSERT_NE(change, std::string::npos) << c.out;
+      EXPECT_LT(select, change);
+      EXPECT_LT(change, spindle);
+      EXPECT_NE(text.find("\nT4 M6\n"), std::string::npos) << text;
+      const std::size_t b_tool = b.find("T4M6");
+      ASSERT_NE(b_tool, std::string::npos) << b;
+      EXPECT_LT(b_tool, b_spindle);
+      EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::iso, text).has_value());
+    }
+  }
 }
 
 }  // namespace

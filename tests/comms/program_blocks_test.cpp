@@ -207,7 +207,9 @@ TEST(ChamferJob, Exp3IsTheNgcLoopWithItsApproach) {
   const toolpath::ChamferPath path = toolpath::generate_chamfer(spec);
   toolpath::NgcOptions o;
   o.safe_z_mm = toolpath::default_safe_z_mm(spec);
-  const toolpath::Program p = toolpath::chamfer_job(path, o, 1.0, 2);
+  o.spindle_dwell_s = 1.0;
+  o.tool = 2;
+  const toolpath::Program p = toolpath::chamfer_job(path, o);
   std::vector<toolpath::Motion> moves;
   for (const auto& step : p.steps) {
     if (const auto* m = std::get_if<toolpath::Motion>(&step.item)) moves.push_back(*m);

@@ -201,9 +201,11 @@ TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
   EXPECT_EQ(json::parse(m->to_string())["online"], false);
 }
 
-// The clamped cubic at a quarter of kLongCubic's size: a few seconds at the default feed.
+// The clamped cubic at a quarter of kLongCubic's size: a few seconds at 6000 mm/min (a path
+// without F is walked as a whole job at 300 mm/min, docs/whole-program.md).
 const char* kMediumCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[50,125,0],[150,-50,10],[225,150,20],[300,0,15],[400,100,0],[500,0,0]]}})";
+  "points": [[0,0,0],[50,125,0],[150,-50,10],[225,150,20],[300,0,15],[400,100,0],[500,0,0]]},
+  "feed_mm_per_min": 6000})";
 
 // A real job's events reach <root>events in order, each once with consecutive "seq" from 1
 // (QoS 1 may repeat one: the first of each seq is kept), and the hold sent over MQTT is a state

@@ -1,22 +1,14 @@
 // A service job streamed live to the simulated controller, in process. The controller runs on a
-// ManualClock that the test moves on, and the service's cycle on the simulated clock with a
-// 64-setpoint ring, so that the motion runs only as far as poll() drains it; the test drains it
-// only once the sender has taken every block queued so far. The controller's reception,
-// execution and injected hold are in its time. The sender, though, paces its writes by a model
-// of the wire on the wall clock (comms/dnc_sender.cpp, which takes no clock yet), so:
-//   - the controller's time is never let fall behind the wall clock: each step moves it on by
-//     5 ms, or to the wall time elapsed if that is later (a loaded machine makes the steps
-//     coarser, and the line never carries more than the sender's model allows);
-//   - before each step the test waits until the sender has read everything the controller wrote
-//     (FIONREAD on the controller's port is 0), so a DC3 is seen before time moves on;
-//   - the controller raises DC3 at 192 characters of a 4096-byte buffer: 3904 characters,
-//     0.34 s of the sender's output, instead of the 64 characters (5.6 ms) of a 256-byte one, so
-//     its thread may be kept from running that long before a batch of characters overflows it.
+// ManualClock that the test moves on (tests/common/paced_controller.hpp: never behind the wall
+// clock, on which the sender paces its writes), and the service's cycle on the simulated clock
+// with a 64-setpoint ring, so that the motion runs only as far as poll() drains it; the test
+// drains it only once the sender has taken every block queued so far. The controller's
+// reception, execution and injected hold are in its time. The controller raises DC3 at 192
+// characters of a 4096-byte buffer: 3904 characters, 0.34 s of the sender's output, instead of
+// the 64 characters (5.6 ms) of a 256-byte one, so its thread may be kept from running that long
+// before a batch of characters overflows it.
 // The hold test waits out the sender's xoff_timeout_s with the controller's time standing still.
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <sys/ioctl.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -31,6 +23,7 @@
 #include "comms/sim_controller.hpp"
 #include "core/error.hpp"
 #include "service/service.hpp"
+#include "tests/common/paced_controller.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace {
@@ -74,56 +67,23 @@ class LiveLink : public ::testing::Test {
     fs::create_directories(dir_);
   }
   void TearDown() override {
-    if (port_fd_ >= 0) ::close(port_fd_);
-    if (thread_.joinable()) {
-      sim_->request_stop();
-      thread_.join();
-    }
+    ctl_.stop();
     fs::remove_all(dir_);
   }
 
   void start_controller(const comms::SimFaults& faults) {
     comms::SimControllerConfig c;
     c.line = line_at((dir_ / "cnc").string());
-    c.clock = clock_;
     c.exit_at_end = true;
     c.seed = 1;
     c.faults = faults;
     c.buffer_bytes = 4096;
     c.xoff_at = 192;
     c.xon_at = 96;
-    sim_ = std::make_unique<comms::SimController>(c);
-    t0_ = clock_->now_s();
-    wall0_ = std::chrono::steady_clock::now();
-    // A descriptor on the controller's port that never reads: FIONREAD on it is what the sender
-    // has not read yet.
-    port_fd_ = ::open(c.line.device.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK);
-    ASSERT_GE(port_fd_, 0) << c.line.device;
-    thread_ = std::thread([this] {
-      sim_->run();
-      sim_done_ = true;
-    });
+    ctl_.start(c);
   }
 
-  // Moves the controller's time on by dt_s and waits until its loop has run at the new time.
-  void step(double dt_s) {
-    const auto until = std::chrono::steady_clock::now() + 60s;
-    for (int unread = 1; !sim_done_;) {
-      ASSERT_EQ(::ioctl(port_fd_, FIONREAD, &unread), 0);
-      if (unread == 0) break;
-      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the sender stopped reading";
-      std::this_thread::sleep_for(100us);
-    }
-    const double wall_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
-    const double now_s = clock_->now_s() - t0_;
-    clock_->advance(std::max(dt_s, wall_s - now_s));
-    const double target = clock_->now_s() - t0_;
-    while (!sim_done_ && sim_->progress().t_s < target - 1e-12) {
-      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the controller's loop is stuck";
-      std::this_thread::sleep_for(100us);
-    }
-  }
+  void step(double dt_s) { ctl_.step(dt_s); }
 
   service::JobSpec job(std::vector<motion::Setpoint>& out, double xoff_timeout_s) {
     service::JobSpec j;
@@ -180,13 +140,7 @@ class LiveLink : public ::testing::Test {
   }
 
   fs::path dir_;
-  std::shared_ptr<comms::ManualClock> clock_ = std::make_shared<comms::ManualClock>();
-  std::unique_ptr<comms::SimController> sim_;
-  std::thread thread_;
-  std::atomic<bool> sim_done_{false};
-  double t0_ = 0.0;
-  int port_fd_ = -1;
-  std::chrono::steady_clock::time_point wall0_;
+  ncd::test::PacedController ctl_;
 };
 
 TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
@@ -195,20 +149,20 @@ TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
   std::vector<motion::Setpoint> emitted;
   s.submit(job(emitted, 600.0));
   s.start();
-  for (int k = 0; k < 200000 && (s.busy() || !sim_done_); ++k) {
+  for (int k = 0; k < 200000 && (s.busy() || !ctl_.done()); ++k) {
     paced_poll(s);
     step(0.005);
   }
-  thread_.join();
+  ctl_.stop();
   ASSERT_EQ(s.state(), service::State::Done)
-      << s.status().error << "; controller: " << alarms_and_errors(sim_->log());
+      << s.status().error << "; controller: " << alarms_and_errors(ctl_.log());
   const service::Status st = s.status();
   ASSERT_TRUE(st.link && st.link->done);
   EXPECT_TRUE(st.link->report.completed) << st.link->report.failure;
   const std::string program = expected_program(emitted, Vec3::Zero());
   const std::string sha = comms::sha256_hex(program);
   EXPECT_EQ(st.link->report.program_sha256, sha);
-  const comms::SimLog& log = sim_->log();
+  const comms::SimLog& log = ctl_.log();
   EXPECT_EQ(log.program_sha256, sha);
   EXPECT_TRUE(log.alarms.empty());
   EXPECT_TRUE(log.program_end_executed);
@@ -229,11 +183,11 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
   s.start();
   // Up to the controller's fourth block: from there it holds the line with DC3 for 1.5 s of
   // its time.
-  for (int k = 0; k < 100000 && sim_->progress().blocks_received < 4; ++k) {
+  for (int k = 0; k < 100000 && ctl_.sim().progress().blocks_received < 4; ++k) {
     paced_poll(s);
     step(0.005);
   }
-  ASSERT_GE(sim_->progress().blocks_received, 4);
+  ASSERT_GE(ctl_.sim().progress().blocks_received, 4);
   ASSERT_EQ(s.state(), service::State::Running);
   // The controller's time stands still: the sender sees DC3 for longer than 0.3 s of wall time
   // and says so; the next poll() applies the link's hold before it drains anything.
@@ -248,7 +202,7 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
   // An operator's resume does not release the link's hold.
   EXPECT_THROW(s.resume(service::HoldHolder::Operator), InputError);
   const std::size_t at_hold = emitted.size();
-  for (int k = 0; k < 200000 && (s.busy() || !sim_done_); ++k) {
+  for (int k = 0; k < 200000 && (s.busy() || !ctl_.done()); ++k) {
     if (s.state() == service::State::Holding) {
       s.poll();  // the motion comes to rest while the link holds
     } else {
@@ -256,9 +210,9 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
     }
     step(0.005);
   }
-  thread_.join();
+  ctl_.stop();
   ASSERT_EQ(s.state(), service::State::Done)
-      << s.status().error << "; controller: " << alarms_and_errors(sim_->log());
+      << s.status().error << "; controller: " << alarms_and_errors(ctl_.log());
   const service::Status st = s.status();
   ASSERT_TRUE(st.link && st.link->done);
   EXPECT_TRUE(st.link->report.completed) << st.link->report.failure;
@@ -275,8 +229,8 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
   EXPECT_NEAR(emitted.back().p.x(), 100.0, 1e-9);
   const std::string sha = comms::sha256_hex(expected_program(emitted, Vec3::Zero()));
   EXPECT_EQ(st.link->report.program_sha256, sha);
-  EXPECT_EQ(sim_->log().program_sha256, sha);
-  EXPECT_TRUE(sim_->log().alarms.empty());
+  EXPECT_EQ(ctl_.log().program_sha256, sha);
+  EXPECT_TRUE(ctl_.log().alarms.empty());
   // The events: held by the link, then resumed by it.
   std::vector<std::string> holds;
   service::Event e;

@@ -166,7 +166,12 @@ TEST(GcodeReader, ReadsBackTheChamferProgram) {
     const ChamferPath chamfer = generate_chamfer(spec);
     NgcOptions o;
     o.safe_z_mm = default_safe_z_mm(spec);
-    const Path p = read(chamfer_program(chamfer, o));
+    // It changes to its tool (T1 M6): a tool the machine holds, as a machine file's [tool]
+    // number makes it (app/machine_config.hpp).
+    InterpretOptions machine;
+    machine.machine_tools = {o.tool};
+    std::istringstream text(chamfer_program(chamfer, o));
+    const Path p = read_gcode(text, "test.ngc", machine);
     const std::size_t n = chamfer.points.size();
     const Vec3 first = program_point(spec, chamfer.points.front(), o.point);
     ASSERT_EQ(p.segments.size(), 2u);
@@ -202,6 +207,23 @@ void expect_error(const std::string& program, const std::string& line_tag,
     const std::string m = e.what();
     EXPECT_NE(m.find(line_tag), std::string::npos) << m;
     EXPECT_NE(m.find(needle), std::string::npos) << m;
+  }
+}
+
+// A tool the machine holds (InterpretOptions::machine_tools) is changed to with no table entry;
+// another tool is still refused, naming it.
+TEST(GcodeReader, MachineToolsAreKnownWithoutATable) {
+  InterpretOptions machine;
+  machine.machine_tools = {4};
+  std::istringstream ok("G21 G90\nT4 M6\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nM5\nM2\n");
+  EXPECT_FALSE(read_gcode(ok, "t4.ngc", machine).segments.empty());
+  std::istringstream other("G21 G90\nT5 M6\nG0 X0 Y0 Z5\nG1 Z0 F100\nM2\n");
+  try {
+    read_gcode(other, "t5.ngc", machine);
+    ADD_FAILURE() << "T5 was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("tool T5 is not in the tool table"), std::string::npos)
+        << e.what();
   }
 }
 

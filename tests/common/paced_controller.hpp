@@ -1,0 +1,100 @@
+// The simulated controller on its own thread in simulated time, for a live sender in the same
+// process (tests/service/live_link_test.cpp, tests/app/serve_whole_job_test.cpp). Its clock is a
+// ManualClock that the test moves on. The sender, though, paces its writes by a model of the
+// wire on the wall clock (comms/dnc_sender.cpp, which takes no clock yet), so:
+//   - the controller's time is never let fall behind the wall clock: each step moves it on by
+//     dt, or to the wall time elapsed if that is later (a loaded machine makes the steps
+//     coarser, and the line never carries more than the sender's model allows);
+//   - drip: before each step the test waits until the sender has read everything the controller
+//     wrote (FIONREAD on the controller's port is 0), so a DC3 is seen before time moves on. Not
+//     for ack (grbl): its character counting needs no such wait, and the extra descriptor on the
+//     port would count as a sender that never leaves (the controller waits for it before it
+//     exits at the program end) and, with reset_on_open, reset the controller.
+#pragma once
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <thread>
+
+#include "comms/sim_controller.hpp"
+
+namespace ncd::test {
+
+class PacedController {
+ public:
+  // Creates the controller's pseudo-terminal at config.line.device; config.clock is replaced by
+  // the controller's own ManualClock.
+  void start(comms::SimControllerConfig config) {
+    config.clock = clock_;
+    sim_ = std::make_unique<comms::SimController>(config);
+    t0_ = clock_->now_s();
+    wall0_ = std::chrono::steady_clock::now();
+    // A descriptor on the controller's port that never reads: FIONREAD on it is what the sender
+    // has not read yet.
+    if (config.line.protocol != comms::Protocol::Ack) {
+      port_fd_ = ::open(config.line.device.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK);
+      ASSERT_GE(port_fd_, 0) << config.line.device;
+    }
+    thread_ = std::thread([this] {
+      sim_->run();
+      done_ = true;
+    });
+  }
+  ~PacedController() { stop(); }
+
+  // Moves the controller's time on by dt_s (or to the wall time elapsed, if later) and waits
+  // until its loop has run at the new time.
+  void step(double dt_s) {
+    using namespace std::chrono_literals;
+    const auto until = std::chrono::steady_clock::now() + 60s;
+    for (int unread = 1; port_fd_ >= 0 && !done_;) {
+      ASSERT_EQ(::ioctl(port_fd_, FIONREAD, &unread), 0);
+      if (unread == 0) break;
+      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the sender stopped reading";
+      std::this_thread::sleep_for(100us);
+    }
+    const double wall_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
+    const double now_s = clock_->now_s() - t0_;
+    clock_->advance(std::max(dt_s, wall_s - now_s));
+    const double target = clock_->now_s() - t0_;
+    while (!done_ && sim_->progress().t_s < target - 1e-12) {
+      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the controller's loop is stuck";
+      std::this_thread::sleep_for(100us);
+    }
+  }
+
+  // run() has returned (exit_at_end: the program end executed and the line quiet).
+  bool done() const { return done_; }
+  comms::SimController& sim() { return *sim_; }
+  // Stops the controller and joins its thread; its log is complete after this.
+  void stop() {
+    if (port_fd_ >= 0) {
+      ::close(port_fd_);
+      port_fd_ = -1;
+    }
+    if (thread_.joinable()) {
+      sim_->request_stop();
+      thread_.join();
+    }
+  }
+  const comms::SimLog& log() const { return sim_->log(); }
+
+ private:
+  std::shared_ptr<comms::ManualClock> clock_ = std::make_shared<comms::ManualClock>();
+  std::unique_ptr<comms::SimController> sim_;
+  std::thread thread_;
+  std::atomic<bool> done_{false};
+  double t0_ = 0.0;
+  int port_fd_ = -1;
+  std::chrono::steady_clock::time_point wall0_;
+};
+
+}  // namespace ncd::test
