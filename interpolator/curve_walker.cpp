@@ -51,6 +51,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 #include "core/quadrature.hpp"
 
 namespace ncd::interpolator {
@@ -69,22 +70,15 @@ double gauss_legendre3(const F& f, double a, double b) {
   return half * (5.0 / 9.0 * (f(mid - x) + f(mid + x)) + 8.0 / 9.0 * f(mid));
 }
 
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 }  // namespace
 
 void validate(const WalkerConfig& config) {
   using L = WalkerLimits;
   if (!(config.tolerance_rel >= L::kMinToleranceRel &&
         config.tolerance_rel <= L::kMaxToleranceRel)) {
-    throw InputError("tolerance_rel = " + fmt(config.tolerance_rel) + " is outside [" +
-                     fmt(L::kMinToleranceRel) + ", " + fmt(L::kMaxToleranceRel) +
-                     "]; 1e-10 is the default");
+    throw InputError("tolerance_rel = " + text::sig(config.tolerance_rel, 17) + " is outside [" +
+                     text::sig(L::kMinToleranceRel, 17) + ", " +
+                     text::sig(L::kMaxToleranceRel, 17) + "]; 1e-10 is the default");
   }
   if (config.max_iterations < 1 || config.max_iterations > L::kMaxIterations) {
     throw InputError("max_iterations = " + std::to_string(config.max_iterations) +
@@ -102,15 +96,16 @@ CurveWalker::CurveWalker(const toolpath::ParametricCurve& curve, const WalkerCon
       u_(u_begin_) {
   validate(config_);
   if (!(std::isfinite(u_begin_) && std::isfinite(u_end_) && u_begin_ < u_end_)) {
-    throw InputError("curve parameter range [" + fmt(u_begin_) + ", " + fmt(u_end_) +
+    throw InputError("curve parameter range [" + text::sig(u_begin_, 17) + ", " +
+                     text::sig(u_end_, 17) +
                      "] is invalid: it must be finite with u_begin < u_end");
   }
   for (std::size_t k = 0; k < breakpoints_.size(); ++k) {
     const double b = breakpoints_[k];
     if (!(b >= u_begin_ && b <= u_end_) || (k > 0 && b < breakpoints_[k - 1])) {
-      throw InputError("curve breakpoint " + std::to_string(k) + " = " + fmt(b) +
-                       " is invalid: breakpoints must ascend within [" + fmt(u_begin_) + ", " +
-                       fmt(u_end_) + "]");
+      throw InputError("curve breakpoint " + std::to_string(k) + " = " + text::sig(b, 17) +
+                       " is invalid: breakpoints must ascend within [" + text::sig(u_begin_, 17) +
+                       ", " + text::sig(u_end_, 17) + "]");
     }
   }
 }

@@ -40,6 +40,7 @@
 #include "comms/program_blocks.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::service {
 
@@ -131,14 +132,6 @@ void Event::set_text(std::string_view s) {
   std::copy_n(s.data(), n, text.data());
   text[n] = '\0';
 }
-
-namespace {
-std::string fmt(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-}  // namespace
 
 // The encoder, the queue and the sender thread of a streamed job.
 struct Service::Live {
@@ -298,7 +291,7 @@ void Service::stop(const std::string& why) {
 void Service::set_override(double percent) {
   require_active("override");
   if (!(percent >= 0.0 && percent <= 200.0)) {
-    throw InputError("override: \"percent\" = " + fmt(percent) + " is outside 0..200 %");
+    throw InputError("override: \"percent\" = " + text::sig(percent) + " is outside 0..200 %");
   }
   cycle_->set_override(percent / 100.0);
   if (limits_) limits_->set_override(percent / 100.0);
@@ -369,10 +362,10 @@ void Service::drain() {
   while (cycle_->pop(sp)) {
     if (limits_->check(sp) != LimitKind::None) {
       const LiveViolations& v = limits_->violations();
-      const std::string what = std::string(to_string(v.fatal)) + " " + fmt(v.fatal_value) + " " +
-                               unit(v.fatal) + " against at most " + fmt(v.fatal_limit) + " " +
-                               unit(v.fatal) + " at t = " + fmt(v.fatal_t_s) +
-                               " s, s = " + fmt(v.fatal_s_mm) + " mm";
+      const std::string what =
+          std::string(to_string(v.fatal)) + " " + text::sig(v.fatal_value) + " " + unit(v.fatal) +
+          " against at most " + text::sig(v.fatal_limit) + " " + unit(v.fatal) +
+          " at t = " + text::sig(v.fatal_t_s) + " s, s = " + text::sig(v.fatal_s_mm) + " mm";
       emit(EventKind::Violation, what, v.fatal_value, v.fatal_limit);
       fail_job("live limit rule (" + what + "); the setpoint was not emitted");
       return;
@@ -523,8 +516,8 @@ void Service::follow_stream() {
     why = error_;
   }
   log("sent " + std::to_string(r.blocks) + " blocks (" + std::to_string(r.bytes_written) +
-      " bytes) to " + live_->line.device + " in " + fmt(r.duration_s) + " s, " +
-      fmt(100.0 * r.link_use) + " % of the line; sha256 " + r.program_sha256);
+      " bytes) to " + live_->line.device + " in " + text::sig(r.duration_s) + " s, " +
+      text::sig(100.0 * r.link_use) + " % of the line; sha256 " + r.program_sha256);
   if (s == State::Error) emit(EventKind::Alarm, error_);
   set_state(s, HoldHolder::None, why);
   end_job();

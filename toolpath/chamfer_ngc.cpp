@@ -20,19 +20,9 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
-namespace {
-
-std::string num(double v, int decimals) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(decimals)
-    << (std::abs(v) < 0.5 * std::pow(10.0, -decimals) ? 0.0 : v);
-  return s.str();
-}
-
-}  // namespace
-
 std::string to_string(ProgramFrame frame) {
   return frame == ProgramFrame::Drill ? "drill" : "pipe";
 }
@@ -76,13 +66,13 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
                      " must be 0 or more; set [tool] number in the machine file");
   }
   if (!(o.spindle_dwell_s >= 0.0) || !std::isfinite(o.spindle_dwell_s)) {
-    throw InputError("spindle dwell " + num(o.spindle_dwell_s, 3) +
+    throw InputError("spindle dwell " + text::fixed(o.spindle_dwell_s, 3) +
                      " s must be 0 or more; set [tool] spindle_dwell_s to the spin-up time");
   }
   if (path.points.empty()) throw InputError("the chamfer path has no points");
   if (o.frame == ProgramFrame::Pipe && s.drill_tilt_rad != 0.0) {
     throw InputError("the pipe frame puts the machine's Z at the drill tilt τ = " +
-                     num(rad_to_deg(s.drill_tilt_rad), 3) +
+                     text::fixed(rad_to_deg(s.drill_tilt_rad), 3) +
                      " deg to the hole, but a 3-axis machine cuts along +Z and the ball, its cap "
                      "and its rod are checked along the drill axis; use --frame drill and set up "
                      "the part with the drill axis vertical as the program's header says");
@@ -96,40 +86,45 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     length += (q - p).norm();
   }
   if (o.safe_z_mm <= top) {
-    throw InputError("safe Z = " + num(o.safe_z_mm, 3) + " mm is not above the top of the ball " +
-                     "along the loop (" + num(top, 3) + " mm); use a larger --safe-z");
+    throw InputError("safe Z = " + text::fixed(o.safe_z_mm, 3) +
+                     " mm is not above the top of the ball " + "along the loop (" +
+                     text::fixed(top, 3) + " mm); use a larger --safe-z");
   }
   const int d = o.decimals;
   const auto xyz = [d](const Vec3& p) {
-    return "X" + num(p.x(), d) + " Y" + num(p.y(), d) + " Z" + num(p.z(), d);
+    return "X" + text::fixed(p.x(), d) + " Y" + text::fixed(p.y(), d) + " Z" +
+           text::fixed(p.z(), d);
   };
   const ChamferChecks& ck = path.checks;
   std::ostringstream g;
   if (o.percent) g << "%\n";
   g << "(ncd chamfer: constant-width chamfer of a drilled hole in a pipe, Sato et al. 2016)\n";
   g << "(edge " << to_string(s.edge) << " " << to_string(s.side) << ", pipe surface radius "
-    << num(s.pipe_radius_mm, 4) << " mm, drill radius " << num(s.drill_radius_mm, 4) << " mm)\n";
-  g << "(ball radius " << num(s.ball_radius_mm, 4) << " mm, chamfer width " << num(s.width_mm, 4)
-    << " mm, chordal tolerance " << num(s.tolerance_mm, 5) << " mm, " << s.initial_segments
-    << " initial segments)\n";
-  g << "(rod radius " << (s.rod_radius_mm ? num(*s.rod_radius_mm, 4) + " mm" : "not given")
+    << text::fixed(s.pipe_radius_mm, 4) << " mm, drill radius " << text::fixed(s.drill_radius_mm, 4)
+    << " mm)\n";
+  g << "(ball radius " << text::fixed(s.ball_radius_mm, 4) << " mm, chamfer width "
+    << text::fixed(s.width_mm, 4) << " mm, chordal tolerance " << text::fixed(s.tolerance_mm, 5)
+    << " mm, " << s.initial_segments << " initial segments)\n";
+  g << "(rod radius " << (s.rod_radius_mm ? text::fixed(*s.rod_radius_mm, 4) + " mm" : "not given")
     << ", non-knife angle "
-    << (s.non_knife_angle_rad ? num(rad_to_deg(*s.non_knife_angle_rad), 3) + " deg" : "not given")
+    << (s.non_knife_angle_rad ? text::fixed(rad_to_deg(*s.non_knife_angle_rad), 3) + " deg"
+                              : "not given")
     << ", rod avoidance " << (s.avoid ? "on" : "off (alpha = 1)") << ")\n";
   const bool paper = s.drill_tilt_rad == 0.0 && s.eccentricity_mm == 0.0;
   if (!paper || s.pipe_half_angle_rad != 0.0 || s.pipe_thickness_mm) {
-    g << "(drill tilt " << num(rad_to_deg(s.drill_tilt_rad), 3) << " deg, azimuth "
-      << num(rad_to_deg(s.drill_azimuth_rad), 3) << " deg, eccentricity "
-      << num(s.eccentricity_mm, 4) << " mm, pipe half-angle "
-      << num(rad_to_deg(s.pipe_half_angle_rad), 3) << " deg, wall thickness "
-      << (s.pipe_thickness_mm ? num(*s.pipe_thickness_mm, 4) + " mm" : "not given") << ")\n";
+    g << "(drill tilt " << text::fixed(rad_to_deg(s.drill_tilt_rad), 3) << " deg, azimuth "
+      << text::fixed(rad_to_deg(s.drill_azimuth_rad), 3) << " deg, eccentricity "
+      << text::fixed(s.eccentricity_mm, 4) << " mm, pipe half-angle "
+      << text::fixed(rad_to_deg(s.pipe_half_angle_rad), 3) << " deg, wall thickness "
+      << (s.pipe_thickness_mm ? text::fixed(*s.pipe_thickness_mm, 4) + " mm" : "not given")
+      << ")\n";
   }
   const Vec3 axis_xy = program_frame_point(s, Vec3::Zero(), o.frame);  // drill axis at z = 0
   if (paper) {
     g << "(frame: X0 Y0 on the drill axis, Z0 on the pipe axis, pipe along Y, units mm)\n";
   } else if (o.frame == ProgramFrame::Pipe) {
     g << "(frame: PIPE frame: pipe axis along Y through X0 Z0, drill axis vertical through X"
-      << num(axis_xy.x(), d) << " Y0, units mm)\n";
+      << text::fixed(axis_xy.x(), d) << " Y0, units mm)\n";
   } else {
     const PipeSurface surf = pipe_surface(s, s.pipe_radius_mm);
     const Vec3 p0 = program_frame_point(s, surf.axis_point, o.frame);
@@ -139,9 +134,10 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
          "pipe axis, units mm)\n";
     g << "(set-up: clamp the part with the DRILL AXIS VERTICAL; the pipe axis then passes "
          "through X"
-      << num(p0.x(), d) << " Y" << num(p0.y(), d) << " Z" << num(p0.z(), d) << " with direction X"
-      << num(a.x(), 4) << " Y" << num(a.y(), 4) << " Z" << num(a.z(), 4) << ", rising "
-      << num(rad_to_deg(std::asin(std::abs(a.z()))), 3) << " deg out of the XY plane)\n";
+      << text::fixed(p0.x(), d) << " Y" << text::fixed(p0.y(), d) << " Z" << text::fixed(p0.z(), d)
+      << " with direction X" << text::fixed(a.x(), 4) << " Y" << text::fixed(a.y(), 4) << " Z"
+      << text::fixed(a.z(), 4) << ", rising "
+      << text::fixed(rad_to_deg(std::asin(std::abs(a.z()))), 3) << " deg out of the XY plane)\n";
     if (a.z() != 0.0) {
       g << "(safe Z clears the hole's rim; the inclined pipe rises higher away from the hole:"
            " start with the tool above the hole)\n";
@@ -152,7 +148,7 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
          " X -> -X, Z -> -Z)\n";
   }
   g << "(programmed point: "
-    << (o.point == ProgramPoint::Tip ? "ball TIP = centre - " + num(s.ball_radius_mm, 4) +
+    << (o.point == ProgramPoint::Tip ? "ball TIP = centre - " + text::fixed(s.ball_radius_mm, 4) +
                                            " mm in Z; tool length set to the tip"
                                      : "ball CENTRE; tool length set to the ball centre")
     << ")\n";
@@ -165,35 +161,35 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
         : ck.rod_ok         ? "ok"
                             : "INTERFERES")
     << "; alpha adjusted at " << ck.adjusted_points << " points)\n";
-  g << "(" << path.points.size() << " points, loop length " << num(length, 3) << " mm, "
-    << num(60.0 * length / o.feed_mm_per_min, 2) << " s at F" << num(o.feed_mm_per_min, 1)
-    << ", safe Z " << num(o.safe_z_mm, 3) << " mm)\n";
+  g << "(" << path.points.size() << " points, loop length " << text::fixed(length, 3) << " mm, "
+    << text::fixed(60.0 * length / o.feed_mm_per_min, 2) << " s at F"
+    << text::fixed(o.feed_mm_per_min, 1) << ", safe Z " << text::fixed(o.safe_z_mm, 3) << " mm)\n";
   g << "G21 G90 G94 G17 G40 G49\n";
   if (o.path_blending) {
-    g << "G64 P" << num(s.tolerance_mm, 4) << "\n";
+    g << "G64 P" << text::fixed(s.tolerance_mm, 4) << "\n";
   } else {
     g << "(no G64 P: this controller has no blending tolerance; its own path mode applies)\n";
   }
   if (o.tool_change) g << "T" << o.tool << " M6\n";
-  g << "S" << num(o.spindle_rpm, 0) << " M3\n";
-  if (o.spindle_dwell_s > 0.0) g << "G4 P" << num(o.spindle_dwell_s, 3) << "\n";
-  g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
+  g << "S" << text::fixed(o.spindle_rpm, 0) << " M3\n";
+  if (o.spindle_dwell_s > 0.0) g << "G4 P" << text::fixed(o.spindle_dwell_s, 3) << "\n";
+  g << "G0 Z" << text::fixed(o.safe_z_mm, d) << "\n";
   const Vec3 first = at(0);
-  const std::string axis = "X" + num(axis_xy.x(), d) + " Y" + num(axis_xy.y(), d);
+  const std::string axis = "X" + text::fixed(axis_xy.x(), d) + " Y" + text::fixed(axis_xy.y(), d);
   if (s.edge == Edge::Inner) {
     g << "G0 " << axis << "\n";
-    g << "G1 Z" << num(first.z(), d) << " F" << num(o.feed_mm_per_min, 1) << "\n";
+    g << "G1 Z" << text::fixed(first.z(), d) << " F" << text::fixed(o.feed_mm_per_min, 1) << "\n";
     g << "G1 " << xyz(first) << "\n";
   } else {
-    g << "G0 X" << num(first.x(), d) << " Y" << num(first.y(), d) << "\n";
-    g << "G1 Z" << num(first.z(), d) << " F" << num(o.feed_mm_per_min, 1) << "\n";
+    g << "G0 X" << text::fixed(first.x(), d) << " Y" << text::fixed(first.y(), d) << "\n";
+    g << "G1 Z" << text::fixed(first.z(), d) << " F" << text::fixed(o.feed_mm_per_min, 1) << "\n";
   }
   for (std::size_t i = 1; i < path.points.size(); ++i) {
     g << "G1 " << xyz(at(i)) << "\n";
   }
   g << "G1 " << xyz(first) << " (loop closed)\n";
   if (s.edge == Edge::Inner) g << "G1 " << axis << "\n";
-  g << "G0 Z" << num(o.safe_z_mm, d) << "\n";
+  g << "G0 Z" << text::fixed(o.safe_z_mm, d) << "\n";
   g << "M5\nM2\n";
   if (o.percent) g << "%\n";
   return g.str();

@@ -34,6 +34,7 @@
 #include <unordered_map>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
 namespace {
@@ -55,12 +56,6 @@ struct Fail {
 
 [[noreturn]] void fail(std::string what) {
   throw Fail{std::move(what)};
-}
-
-std::string fmt_num(double v) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
 }
 
 std::string g_name(int code10) {
@@ -824,11 +819,11 @@ class Interpreter {
     }
     if (name == "abs") return std::abs(a);
     if (name == "acos") {
-      if (a < -1.0 || a > 1.0) fail("argument " + fmt_num(a) + " of ACOS is out of [-1, 1]");
+      if (a < -1.0 || a > 1.0) fail("argument " + text::sig(a) + " of ACOS is out of [-1, 1]");
       return std::acos(a) * kDeg;
     }
     if (name == "asin") {
-      if (a < -1.0 || a > 1.0) fail("argument " + fmt_num(a) + " of ASIN is out of [-1, 1]");
+      if (a < -1.0 || a > 1.0) fail("argument " + text::sig(a) + " of ASIN is out of [-1, 1]");
       return std::asin(a) * kDeg;
     }
     if (name == "cos") return std::cos(a / kDeg);
@@ -839,11 +834,11 @@ class Interpreter {
     if (name == "fup") return std::ceil(a);
     if (name == "round") return std::round(a);
     if (name == "ln") {
-      if (a <= 0.0) fail("argument " + fmt_num(a) + " of LN is not greater than 0");
+      if (a <= 0.0) fail("argument " + text::sig(a) + " of LN is not greater than 0");
       return std::log(a);
     }
     if (name == "sqrt") {
-      if (a < 0.0) fail("argument " + fmt_num(a) + " of SQRT is negative");
+      if (a < 0.0) fail("argument " + text::sig(a) + " of SQRT is negative");
       return std::sqrt(a);
     }
     fail("unknown function '" + name +
@@ -855,7 +850,7 @@ class Interpreter {
     const double v = read_value(s, i);
     const double r = std::round(v);
     if (std::abs(v - r) > 1e-4 || r < 1 || r > kMaxParam) {
-      fail("parameter number " + fmt_num(v) + " is out of range; use #1 to #5602");
+      fail("parameter number " + text::sig(v) + " is out of range; use #1 to #5602");
     }
     return static_cast<int>(r);
   }
@@ -945,7 +940,7 @@ class Interpreter {
         const double scaled = v * 10.0;
         const double code = std::round(scaled);
         if (std::abs(scaled - code) > 1e-3 || code < 0 || code > 9999) {
-          fail("G" + fmt_num(v) + " is not a G code");
+          fail("G" + text::sig(v) + " is not a G code");
         }
         if (b.ng >= 16) fail("too many G codes on one line; split it");
         b.g[static_cast<std::size_t>(b.ng++)] = static_cast<int>(code);
@@ -954,7 +949,7 @@ class Interpreter {
       if (c == 'm') {
         const double code = std::round(v);
         if (std::abs(v - code) > 1e-3 || code < 0 || code > 9999) {
-          fail("M" + fmt_num(v) + " is not an M code");
+          fail("M" + text::sig(v) + " is not an M code");
         }
         if (b.nm >= 8) fail("too many M codes on one line; split it");
         b.m[static_cast<std::size_t>(b.nm++)] = static_cast<int>(code);
@@ -1281,7 +1276,7 @@ class Interpreter {
       std::size_t i = o.args_at;
       if (i >= norm_.size() || norm_[i] != '[') fail("o" + o.label + " repeat needs a count [n]");
       const double n = read_expression(norm_, i);
-      if (n > 1e9) fail("repeat count " + fmt_num(n) + " is absurd; at most 1e9");
+      if (n > 1e9) fail("repeat count " + text::sig(n) + " is absurd; at most 1e9");
       const long count = static_cast<long>(std::round(n));
       if (count <= 0) {
         next_line_ = seek(o.label, {"endrepeat"}, found) + 1;
@@ -1417,7 +1412,7 @@ class Interpreter {
     }
     for (const char c : {'a', 'b', 'c', 'u', 'v', 'w'}) {
       if (b.has(c) && b.v(c) != 0.0) {
-        fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) +
+        fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) +
              ": axes other than X, Y, Z are not supported; ncd drives three axes: remove the word");
       }
     }
@@ -1435,7 +1430,7 @@ class Interpreter {
     const bool g64 = b.has_g(640);
     const auto need = [&](char c, bool ok, const char* users) {
       if (b.has(c) && !ok) {
-        fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) +
+        fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) +
              " with no code that uses it (" + users + "); remove it");
       }
     };
@@ -1452,8 +1447,8 @@ class Interpreter {
   double len_word(const Block& b, char c) const {
     const double v = b.v(c) * k();
     if (std::abs(v) > kMaxCoordMm) {
-      fail(std::string(1, static_cast<char>(std::toupper(c))) + fmt_num(b.v(c)) + " is beyond ±" +
-           fmt_num(kMaxCoordMm) + " mm; check the number");
+      fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) + " is beyond ±" +
+           text::sig(kMaxCoordMm) + " mm; check the number");
     }
     return v;
   }
@@ -1536,11 +1531,11 @@ class Interpreter {
     // 3. F
     if (b.has('f')) {
       const double f = b.v('f');
-      if (f < 0.0) fail("negative feed F" + fmt_num(f) + "; F must be positive");
+      if (f < 0.0) fail("negative feed F" + text::sig(f) + "; F must be positive");
       const double f_mm = feed_mode_ == FeedMode::per_minute ? f * k() : f;
       if (f != 0.0 && (f_mm < kMinFeedMmPerMin || f_mm > kMaxFeedMmPerMin)) {
-        fail("feed F" + fmt_num(f) + " is outside " + fmt_num(kMinFeedMmPerMin) + " to " +
-             fmt_num(kMaxFeedMmPerMin) +
+        fail("feed F" + text::sig(f) + " is outside " + text::sig(kMinFeedMmPerMin) + " to " +
+             text::sig(kMaxFeedMmPerMin) +
              (feed_mode_ == FeedMode::per_minute ? " mm/min" : " 1/min") +
              "; check the number and the units (G20/G21)");
       }
@@ -1550,9 +1545,9 @@ class Interpreter {
     bool spindle_changed = false;
     if (b.has('s')) {
       double s = b.v('s');
-      if (s < 0.0) fail("negative spindle speed S" + fmt_num(s) + "; S must be 0 or more");
+      if (s < 0.0) fail("negative spindle speed S" + text::sig(s) + "; S must be 0 or more");
       if (s > kMaxSpindleRpm)
-        fail("spindle speed S" + fmt_num(s) + " is above " + fmt_num(kMaxSpindleRpm) + " rpm");
+        fail("spindle speed S" + text::sig(s) + " is above " + text::sig(kMaxSpindleRpm) + " rpm");
       s = s + 0.0;  // S-0 is 0
       if (s != speed_) spindle_changed = spindle_ != SpindleDir::off;
       speed_ = s;
@@ -1561,7 +1556,7 @@ class Interpreter {
     if (b.has('t')) {
       const double t = b.v('t');
       if (t < 0 || t != std::floor(t) || t > 99999)
-        fail("tool number T" + fmt_num(t) + " must be a whole number ≥ 0");
+        fail("tool number T" + text::sig(t) + " must be a whole number ≥ 0");
       const int tn = static_cast<int>(t);
       if (tn != 0 && !tools_.count(tn)) {
         fail("tool T" + std::to_string(tn) + " is not in the tool table" +
@@ -1604,7 +1599,7 @@ class Interpreter {
       if (!b.has('p')) fail("G4 without P; give the dwell time in seconds, P0.5");
       const double p = b.v('p');
       if (p < 0.0 || p > kMaxDwellS)
-        fail("dwell G4 P" + fmt_num(p) + " must be from 0 to " + fmt_num(kMaxDwellS) + " s");
+        fail("dwell G4 P" + text::sig(p) + " must be from 0 to " + text::sig(kMaxDwellS) + " s");
       emit(DwellEvent{p});
     }
     // 11. plane
@@ -1627,7 +1622,7 @@ class Interpreter {
         if (b.has('h')) {
           const double hv = b.v('h');
           if (hv < 0 || hv != std::floor(hv))
-            fail("G43 H" + fmt_num(hv) + ": H must be a tool number");
+            fail("G43 H" + text::sig(hv) + ": H must be a tool number");
           h = static_cast<int>(hv);
         }
         if (h != 0) {
@@ -1648,7 +1643,7 @@ class Interpreter {
       tool_offset_ = off;
       emit(ToolOffsetEvent{off / k()});
     } else if (b.has('h')) {
-      fail("H word without G43; write G43 H" + fmt_num(b.v('h')));
+      fail("H word without G43; write G43 H" + text::sig(b.v('h')));
     }
     // 15. coordinate system
     if (const int cs = group_code(12); cs >= 0) {
@@ -1667,14 +1662,14 @@ class Interpreter {
       if (pc == 640) {
         if (b.has('p')) {
           if (b.v('p') < 0.0)
-            fail("G64 P" + fmt_num(b.v('p')) +
+            fail("G64 P" + text::sig(b.v('p')) +
                  ": the blend tolerance must be 0 or more (LinuxCNC would take it as 0); write P0 "
                  "or a positive tolerance");
           e.p = b.v('p');
         }
         if (b.has('q')) {
           if (b.v('q') < 0.0)
-            fail("G64 Q" + fmt_num(b.v('q')) +
+            fail("G64 Q" + text::sig(b.v('q')) +
                  ": the naive-CAM tolerance must be 0 or more; write Q0 or a positive tolerance");
           if (!b.has('p')) fail("G64 Q without P; give P as well");
           e.q = b.v('q');
@@ -1862,7 +1857,7 @@ class Interpreter {
     if (b.has('p')) {
       const double pv = b.v('p');
       if (pv < 1 || pv > kMaxTurns || std::abs(pv - std::round(pv)) > 1e-6) {
-        fail("arc P" + fmt_num(pv) + " (turns) must be a whole number from 1 to " +
+        fail("arc P" + text::sig(pv) + " (turns) must be a whole number from 1 to " +
              std::to_string(kMaxTurns));
       }
       p = static_cast<int>(std::lround(pv));
@@ -1877,7 +1872,7 @@ class Interpreter {
       const double m1 = (e1 + c1) / 2.0, m2 = (e2 + c2) / 2.0;
       double half = std::hypot(m1 - e1, m2 - e2);
       if (half - abs_r > radius_tol) {
-        fail("arc radius R" + fmt_num(b.v('r')) +
+        fail("arc radius R" + text::sig(b.v('r')) +
              " is too small to reach the end point; increase R");
       }
       if (half / abs_r > 1 - 1e-12) half = abs_r;
@@ -1900,8 +1895,8 @@ class Interpreter {
       const double abs_err = std::abs(r1 - r2);
       const double rel_err = abs_err / std::max(r1, r2);
       if (abs_err > spiral_abs * 100.0 || (rel_err > 0.001 && abs_err > spiral_abs)) {
-        fail("radius to end of arc (" + fmt_num(r2 / kk) + ") differs from radius to start (" +
-             fmt_num(r1 / kk) + "); correct the end point or I, J, K");
+        fail("radius to end of arc (" + text::sig(r2 / kk) + ") differs from radius to start (" +
+             text::sig(r1 / kk) + "); correct the end point or I, J, K");
       }
     }
     Motion m = base_motion(false);
@@ -1941,7 +1936,7 @@ class Interpreter {
     if (b.has('l')) {
       const double l = b.v('l');
       if (l < 1 || l > 100000 || l != std::floor(l))
-        fail("cycle L" + fmt_num(l) + " must be a whole number from 1 to 100000");
+        fail("cycle L" + text::sig(l) + " must be a whole number from 1 to 100000");
       repeats = static_cast<long>(l);
     }
     if (motion_mode_ != code && !b.has(depth_word)) {
@@ -1956,14 +1951,14 @@ class Interpreter {
         fail(g_name(code) + " without P (dwell) the first time; add P");
       p_val = b.has('p') ? b.v('p') : cycle_p_;
       if (p_val < 0 || p_val > kMaxDwellS)
-        fail("dwell P" + fmt_num(p_val) + " must be from 0 to " + fmt_num(kMaxDwellS) + " s");
+        fail("dwell P" + text::sig(p_val) + " must be from 0 to " + text::sig(kMaxDwellS) + " s");
     }
     if (code == 730 || code == 830) {
       if (!b.has('q') && motion_mode_ != code)
         fail(g_name(code) + " without Q (peck) the first time; add Q");
       q_val = b.has('q') ? len_word(b, 'q') : cycle_q_;
       if (q_val <= 0.0)
-        fail(g_name(code) + " Q" + fmt_num(q_val / k()) + ": the peck must be positive");
+        fail(g_name(code) + " Q" + text::sig(q_val / k()) + ": the peck must be positive");
     }
     if (b.has('p') && code != 820 && code != 890) {
       // LinuxCNC ignores P there; so do we, silently as it does.
@@ -2079,11 +2074,11 @@ class Interpreter {
     if (!b.has('l')) fail("G10 without L; use G10 L2 or G10 L20");
     const double l = b.v('l');
     if (l != 2 && l != 20)
-      fail("G10 L" + fmt_num(l) + " is not supported; use L2 or L20 (tool table edits are not)");
-    if (!b.has('p')) fail("G10 L" + fmt_num(l) + " without P (coordinate system 0-9); add P");
+      fail("G10 L" + text::sig(l) + " is not supported; use L2 or L20 (tool table edits are not)");
+    if (!b.has('p')) fail("G10 L" + text::sig(l) + " without P (coordinate system 0-9); add P");
     const double pv = b.v('p');
     if (pv < 0 || pv > 9 || pv != std::floor(pv))
-      fail("G10 P" + fmt_num(pv) + ": P must be 0 (current) to 9");
+      fail("G10 P" + text::sig(pv) + ": P must be 0 (current) to 9");
     if (b.has('r') && b.v('r') != 0.0)
       fail("G10 R (rotation of the coordinate system) is not supported; remove R");
     const int n = pv == 0 ? coord_sys_ : static_cast<int>(pv);
@@ -2147,7 +2142,7 @@ class Interpreter {
     nurbs_open_ = true;
     if (b.has('p') && !b.has('x') && !b.has('y')) {
       if (b.v('p') <= 0.0)
-        fail("weight P" + fmt_num(b.v('p')) + " of the first control point must be > 0");
+        fail("weight P" + text::sig(b.v('p')) + " of the first control point must be > 0");
       nurbs_.weights[0] = b.v('p');
       if (b.has('l')) nurbs_order(b);
       return;
@@ -2158,7 +2153,8 @@ class Interpreter {
   void nurbs_order(const Block& b) {
     const double l = b.v('l');
     if (l != std::floor(l) || l < 3 || l > NurbsCurve::kMaxDegree + 1) {
-      fail("NURBS order L" + fmt_num(l) + " is out of range: L must be a whole number from 3 to " +
+      fail("NURBS order L" + text::sig(l) +
+           " is out of range: L must be a whole number from 3 to " +
            std::to_string(NurbsCurve::kMaxDegree + 1) + "; for straight moves use G1");
     }
     nurbs_.order = static_cast<int>(l);
@@ -2176,7 +2172,7 @@ class Interpreter {
       return;
     }
     if (!b.has('p')) fail("control point without a weight; add P (P1 for an ordinary point)");
-    if (b.v('p') <= 0.0) fail("weight P" + fmt_num(b.v('p')) + " must be greater than 0");
+    if (b.v('p') <= 0.0) fail("weight P" + text::sig(b.v('p')) + " must be greater than 0");
     Vec3 p(len_word(b, 'x'), len_word(b, 'y'), nurbs_.start.z());
     if (incremental_)
       p = Vec3(nurbs_.points.back().x() + p.x(), nurbs_.points.back().y() + p.y(), p.z());

@@ -19,6 +19,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::toolpath {
 namespace {
@@ -81,17 +82,11 @@ class Builder {
   const JobFrame& f_;
 };
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.4f", v);
-  return b;
-}
-
 }  // namespace
 
 std::string programmed_point_text(ProgramPoint point, double ball_radius_mm) {
   return point == ProgramPoint::Tip
-             ? "programmed point: ball TIP = centre - " + num(ball_radius_mm) +
+             ? "programmed point: ball TIP = centre - " + text::fixed(ball_radius_mm, 4) +
                    " mm in Z; tool length set to the tip"
              : "programmed point: ball CENTRE; tool length set to the ball "
                "centre";
@@ -102,18 +97,19 @@ Program whole_job(const Path& cut, const JobFrame& f) {
   require_positive("spindle speed (rpm)", f.spindle_rpm);
   require_finite("clearance Z (mm)", f.clearance_z_mm);
   if (!(f.spindle_dwell_s >= 0.0) || !std::isfinite(f.spindle_dwell_s)) {
-    throw InputError("spindle dwell " + num(f.spindle_dwell_s) +
+    throw InputError("spindle dwell " + text::fixed(f.spindle_dwell_s, 4) +
                      " s must be 0 or more; give the spindle's spin-up time");
   }
   if (!(f.approach_gap_mm > 0.0) || !std::isfinite(f.approach_gap_mm)) {
-    throw InputError("approach gap " + num(f.approach_gap_mm) + " mm must be greater than 0");
+    throw InputError("approach gap " + text::fixed(f.approach_gap_mm, 4) +
+                     " mm must be greater than 0");
   }
   if (cut.segments.empty()) throw InputError(cut.source + ": the job has no motion to wrap");
   double top = -1e300;
   for (const PathSegment& s : cut.segments) top = std::max(top, segment_top(s));
   if (f.clearance_z_mm <= top) {
-    throw InputError("the clearance plane Z " + num(f.clearance_z_mm) +
-                     " mm is not above the highest point of the cut (" + num(top) +
+    throw InputError("the clearance plane Z " + text::fixed(f.clearance_z_mm, 4) +
+                     " mm is not above the highest point of the cut (" + text::fixed(top, 4) +
                      " mm); give a larger safe Z");
   }
   Builder b(f);
