@@ -17,7 +17,9 @@ HttpConfig parse_http_config(const toml::value& table, const std::string& where)
     throw InputError(where + " = " + toml::format(table) +
                      " must be a table, such as [http] listen = \"tcp:127.0.0.1:8080\"");
   }
-  for (const auto& [key, v] : table.as_table()) {
+  for (const auto& entry : table.as_table()) {
+    const std::string& key = entry.first;
+    const auto& v = entry.second;  // a plain reference: clang 14 cannot capture a binding
     const std::string at = where + "." + key;
     const auto text = [&]() -> std::string {
       if (!v.is_string() || v.as_string().str.empty()) {
