@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "fleet/mqtt_bridge.hpp"
+#include "tests/fleet/bridge_host.hpp"
 #include "tests/fleet/broker.hpp"
 #include "tests/fleet/watcher.hpp"
 
@@ -34,53 +35,7 @@ namespace fs = std::filesystem;
 
 const std::string kRoot = "ncd/cell1/m1/";
 
-// The bridge on its own io_context thread, with a status and a command handler of the test.
-class Host {
- public:
-  explicit Host(const MqttConfig& cfg, std::optional<std::string> token = {})
-      : guard_(boost::asio::make_work_guard(io_)) {
-    bridge_ = std::make_unique<MqttBridge>(
-        io_, cfg,
-        [this] {
-          const int n = ++status_calls;
-          return json{{"ok", true},
-                      {"state", n < state_switch ? "idle" : "running"},
-                      {"position", {1.0, 2.0, 3.0}},
-                      {"feed_mm_per_min", 600.0}};
-        },
-        [this](const json& request) {
-          ++commands;
-          return json{{"cmd", request["cmd"]}};
-        },
-        std::move(token));
-    boost::asio::post(io_, [this] { bridge_->start(); });
-    thread_ = std::thread([this] { io_.run(); });
-  }
-  ~Host() {
-    boost::asio::post(io_, [this] { bridge_->stop(1.0); });
-    guard_.reset();
-    thread_.join();
-    bridge_.reset();
-  }
-  MqttBridge& bridge() { return *bridge_; }
-  bool wait_connected(bool up, double timeout_s = 20) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (std::chrono::steady_clock::now() < end) {
-      if (bridge_->connected() == up) return true;
-      std::this_thread::sleep_for(10ms);
-    }
-    return false;
-  }
-
-  std::atomic<int> status_calls{0}, commands{0};
-  int state_switch = 1 << 30;  // the status call from which the state is "running"
-
- private:
-  boost::asio::io_context io_;
-  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> guard_;
-  std::unique_ptr<MqttBridge> bridge_;
-  std::thread thread_;
-};
+using Host = ncd::test::BridgeHost;
 
 class Fleet : public ::testing::Test {
  protected:

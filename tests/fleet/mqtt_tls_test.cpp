@@ -23,6 +23,7 @@
 
 #include "fleet/mqtt_bridge.hpp"
 #include "tests/common/process.hpp"
+#include "tests/fleet/bridge_host.hpp"
 #include "tests/fleet/broker.hpp"
 
 namespace {
@@ -35,44 +36,7 @@ namespace fs = std::filesystem;
 
 const std::string kRoot = "ncd/cell1/tls/";
 
-// The bridge on its own io_context thread; its status is a fixed object.
-class Host {
- public:
-  explicit Host(const MqttConfig& cfg) : guard_(boost::asio::make_work_guard(io_)) {
-    bridge_ = std::make_unique<MqttBridge>(
-        io_, cfg,
-        [] {
-          return json{{"ok", true}, {"state", "idle"}};
-        },
-        [](const json&) {
-          return json{{"ok", true}};
-        });
-    boost::asio::post(io_, [this] { bridge_->start(); });
-    thread_ = std::thread([this] { io_.run(); });
-  }
-  ~Host() {
-    boost::asio::post(io_, [this] { bridge_->stop(1.0); });
-    guard_.reset();
-    thread_.join();
-    bridge_.reset();
-  }
-  // Whether the bridge is connected within timeout_s.
-  bool connects_within(double timeout_s) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (std::chrono::steady_clock::now() < end) {
-      if (bridge_->connected()) return true;
-      std::this_thread::sleep_for(10ms);
-    }
-    return false;
-  }
-  MqttBridge& bridge() { return *bridge_; }
-
- private:
-  boost::asio::io_context io_;
-  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> guard_;
-  std::unique_ptr<MqttBridge> bridge_;
-  std::thread thread_;
-};
+using Host = ncd::test::BridgeHost;
 
 class FleetTls : public ::testing::Test {
  protected:
@@ -159,7 +123,7 @@ class FleetTls : public ::testing::Test {
 
 TEST_F(FleetTls, WithTheBrokersCaTheBridgeConnectsAndItsStatusArrives) {
   Host host(config("ssl", "ca.pem"));
-  ASSERT_TRUE(host.connects_within(20.0)) << log();
+  ASSERT_TRUE(host.wait_connected(true, 20.0)) << log();
   // A subscriber of the test over TLS, checking the broker's certificate against the same CA.
   mqtt::async_client watcher("ssl://127.0.0.1:" + std::to_string(port_), "watch-tls",
                              static_cast<mqtt::iclient_persistence*>(nullptr));
@@ -188,17 +152,17 @@ TEST_F(FleetTls, WithTheBrokersCaTheBridgeConnectsAndItsStatusArrives) {
 TEST_F(FleetTls, WithAnotherCaOrPlainTcpTheBridgeNeverConnects) {
   {
     Host host(config("ssl", "other-ca.pem"));  // the broker's certificate is not trusted
-    EXPECT_FALSE(host.connects_within(3.0));
+    EXPECT_FALSE(host.wait_connected(true, 3.0));
     EXPECT_EQ(host.bridge().counters().connects, 0u);
   }
   {
     Host host(config("tcp", ""));  // plain MQTT on the TLS port
-    EXPECT_FALSE(host.connects_within(3.0));
+    EXPECT_FALSE(host.wait_connected(true, 3.0));
     EXPECT_EQ(host.bridge().counters().connects, 0u);
   }
   // The broker is still there for the right client: the refusals were the certificate's.
   Host good(config("ssl", "ca.pem"));
-  EXPECT_TRUE(good.connects_within(20.0)) << log();
+  EXPECT_TRUE(good.wait_connected(true, 20.0)) << log();
 }
 
 }  // namespace
