@@ -137,17 +137,6 @@ struct NcdRun {
   double wall_s = 0.0;
 };
 
-// Adds one Cycle's statistics to the sum of the run.
-void add_stats(motion::CycleStats& sum, const motion::CycleStats& s) {
-  merge_into(sum.lateness_ns, s.lateness_ns);
-  merge_into(sum.compute_ns, s.compute_ns);
-  sum.periods += s.periods;
-  sum.late_wakeups += s.late_wakeups;
-  sum.caught_up += s.caught_up;
-  sum.overruns += s.overruns;
-  sum.setpoints_lost += s.setpoints_lost;
-}
-
 // One Cycle after another on the wall clock until `seconds` have passed, setpoints discarded.
 NcdRun run_ncd(const toolpath::Path& path, const motion::JobConfig& cfg, int seconds) {
   NcdRun run;

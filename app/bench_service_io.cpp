@@ -396,16 +396,6 @@ struct KindSum {
   int phases = 0;
 };
 
-void add_stats(motion::CycleStats& sum, const motion::CycleStats& s) {
-  merge_into(sum.lateness_ns, s.lateness_ns);
-  merge_into(sum.compute_ns, s.compute_ns);
-  sum.periods += s.periods;
-  sum.late_wakeups += s.late_wakeups;
-  sum.caught_up += s.caught_up;
-  sum.overruns += s.overruns;
-  sum.setpoints_lost += s.setpoints_lost;
-}
-
 Json percentiles_json(const LatencyPercentiles& p) {
   return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}};
 }

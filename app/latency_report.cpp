@@ -47,6 +47,16 @@ void merge_into(LogHistogram& dst, const LogHistogram& src) {
   }
 }
 
+void add_stats(motion::CycleStats& sum, const motion::CycleStats& s) {
+  merge_into(sum.lateness_ns, s.lateness_ns);
+  merge_into(sum.compute_ns, s.compute_ns);
+  sum.periods += s.periods;
+  sum.late_wakeups += s.late_wakeups;
+  sum.caught_up += s.caught_up;
+  sum.overruns += s.overruns;
+  sum.setpoints_lost += s.setpoints_lost;
+}
+
 std::vector<HistogramBin> histogram_bins_us(const LogHistogram& histogram_ns, int per_decade) {
   if (per_decade <= 0 || LogHistogram::kPerDecade % per_decade != 0) {
     throw std::invalid_argument("histogram_bins_us: per_decade must divide " +

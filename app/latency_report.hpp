@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/histogram.hpp"
+#include "motion/cycle.hpp"
 
 namespace ncd::app {
 
@@ -28,6 +29,9 @@ LatencyPercentiles percentiles_us_from_ns(const LogHistogram& histogram_ns);
 
 // Adds every sample of src into dst: bucket counts and count exact, the maximum exact.
 void merge_into(LogHistogram& dst, const LogHistogram& src);
+
+// Adds one cycle's statistics to the sum of a run of several jobs or phases.
+void add_stats(motion::CycleStats& sum, const motion::CycleStats& s);
 
 // The non-empty buckets of a histogram of nanoseconds, regrouped to `per_decade` buckets per
 // decade (a divisor of LogHistogram::kPerDecade), in µs: [from_us, to_us); the first bin of
