@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "tests/app/cli_fixture.hpp"
+#include "tests/app/serve_fixture.hpp"
 #include "tests/common/process.hpp"
 
 namespace {
@@ -38,7 +39,7 @@ namespace beast = boost::beast;
 namespace http = beast::http;
 namespace websocket = beast::websocket;
 using tcp = asio::ip::tcp;
-using ncd::test::Cli;
+using ncd::test::ServeFixture;
 using ncd::test::slurp;
 using nlohmann::json;
 namespace fs = std::filesystem;
@@ -219,23 +220,14 @@ std::string find_program(std::initializer_list<const char*> names) {
   return "";
 }
 
-class WebDashboard : public Cli {
+class WebDashboard : public ServeFixture {
  protected:
   // Starts `ncd serve` with [http] on a kernel-chosen port; returns the dashboard's port (0 if
   // it did not come up within 30 s).
   std::uint16_t launch(const std::string& http, const std::string& extra = "",
                        const std::string& clock = "simulated") {
-    socket_ = (dir_ / "ncd.sock").string();
-    const std::string config = write(
-        "serve.toml", "clock = \"" + clock + "\"\nrealtime = false\n" + extra + "[http]\n" + http);
+    ServeFixture::launch(clock, extra + "[http]\n" + http);
     err_ = dir_ / "serve.err";
-    pid_ = fork();
-    if (pid_ == 0) {
-      freopen(err_.c_str(), "w", stderr);
-      execl(NCD_EXE, NCD_EXE, "serve", "--config", config.c_str(), "--listen",
-            ("unix:" + socket_).c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
     const std::regex re("dashboard on https?://[^:]+:([0-9]+)/");
     for (int i = 0; i < 3000; ++i) {
       std::smatch m;
@@ -248,21 +240,7 @@ class WebDashboard : public Cli {
     ADD_FAILURE() << "the dashboard did not start: " << slurp(err_);
     return 0;
   }
-  int terminate() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  void TearDown() override {
-    if (pid_ > 0) terminate();
-    Cli::TearDown();
-  }
-
-  std::string socket_;
   fs::path err_;
-  pid_t pid_ = -1;
 };
 
 TEST_F(WebDashboard, ServesThePageOfTheRepository) {
