@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "service/service.hpp"
+#include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace {
@@ -70,17 +71,6 @@ TEST(LiveLimits, EachBoundAndTheOverridesScaling) {
 const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
   "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
-class Capture : public service::SetpointSink {
- public:
-  Capture(std::vector<motion::Setpoint>& out, bool& committed) : out_(out), committed_(committed) {}
-  void write(const motion::Setpoint& sp) override { out_.push_back(sp); }
-  void commit() override { committed_ = true; }
-
- private:
-  std::vector<motion::Setpoint>& out_;
-  bool& committed_;
-};
-
 struct Outcome {
   service::State state;
   service::Status status;
@@ -104,7 +94,7 @@ Outcome run_with_accel_rule(double accel_mm_per_s2, service::RuleAction action) 
   j.rules = service::LiveLimitRules::from(j.motion.limits);
   j.rules.max_accel_mm_per_s2 = accel_mm_per_s2;
   j.rules.accel = action;
-  j.sink = std::make_unique<Capture>(out.emitted, out.committed);
+  j.sink = std::make_unique<test::CaptureSink>(out.emitted, &out.committed);
   s.submit(std::move(j));
   s.start();
   for (long k = 0; s.poll() && k < 100000000; ++k) {

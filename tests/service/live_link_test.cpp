@@ -24,6 +24,7 @@
 #include "core/error.hpp"
 #include "service/service.hpp"
 #include "tests/common/paced_controller.hpp"
+#include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace {
@@ -35,16 +36,6 @@ namespace fs = std::filesystem;
 const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
   "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
   "feed_mm_per_min": 1500})";
-
-class Capture : public service::SetpointSink {
- public:
-  explicit Capture(std::vector<motion::Setpoint>& out) : out_(out) {}
-  void write(const motion::Setpoint& sp) override { out_.push_back(sp); }
-  void commit() override {}
-
- private:
-  std::vector<motion::Setpoint>& out_;
-};
 
 comms::LineSettings line_at(const std::string& device) {
   comms::LineSettings l;
@@ -90,7 +81,7 @@ class LiveLink : public ::testing::Test {
     j.name = "cubic";
     j.path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
     j.rules = service::LiveLimitRules::from(j.motion.limits);
-    j.sink = std::make_unique<Capture>(out);
+    j.sink = std::make_unique<test::CaptureSink>(out);
     service::LinkSpec link;
     link.sender.line = line_at((dir_ / "cnc").string());
     link.sender.xoff_timeout_s = xoff_timeout_s;

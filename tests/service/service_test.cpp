@@ -13,6 +13,7 @@
 
 #include "core/error.hpp"
 #include "core/histogram.hpp"
+#include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace {
@@ -29,25 +30,13 @@ std::shared_ptr<const toolpath::Path> cubic() {
   return std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
 }
 
-// Keeps every setpoint it is given; says whether it was committed.
-class Capture : public service::SetpointSink {
- public:
-  Capture(std::vector<motion::Setpoint>& out, bool& committed) : out_(out), committed_(committed) {}
-  void write(const motion::Setpoint& sp) override { out_.push_back(sp); }
-  void commit() override { committed_ = true; }
-
- private:
-  std::vector<motion::Setpoint>& out_;
-  bool& committed_;
-};
-
 service::JobSpec job_of(std::shared_ptr<const toolpath::Path> path,
                         std::vector<motion::Setpoint>& out, bool& committed) {
   service::JobSpec j;
   j.name = "cubic";
   j.path = std::move(path);
   j.rules = service::LiveLimitRules::from(j.motion.limits);
-  j.sink = std::make_unique<Capture>(out, committed);
+  j.sink = std::make_unique<test::CaptureSink>(out, &committed);
   return j;
 }
 
