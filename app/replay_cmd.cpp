@@ -295,7 +295,8 @@ int run_replay(const ReplayArgs& a) {
           block_plot.add(b.start_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
           block_plot.add(b.end_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
         });
-    program_blocks = std::make_unique<comms::ProgramBlocks>(whole.program, *encoder);
+    program_blocks =
+        std::make_unique<comms::ProgramBlocks>(whole.program, *encoder, job.segment_starts_mm());
     if (!a.path_only) program_blocks->begin(whole.header);  // --path-only: the blocks alone
     // The start of the path, where the machine stands at rest before the first period.
     motion::Setpoint start;

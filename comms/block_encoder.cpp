@@ -136,6 +136,7 @@ void apply_dialect(EncoderSettings& settings, Dialect dialect) {
   const DialectRules& r = rules(dialect);
   settings.numbers = r.n_numbers;
   settings.comments = r.paren_comments;
+  settings.path_blending = r.path_blending;
   if (r.max_line_chars > 0) settings.max_comment_chars = static_cast<std::size_t>(r.max_line_chars);
 }
 

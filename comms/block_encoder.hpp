@@ -57,6 +57,9 @@ struct EncoderSettings {
   // Longest comment line; a longer comment is split over several lines. 0: no limit. grbl's
   // character-counting link cannot send a line longer than its receive buffer.
   std::size_t max_comment_chars = 0;
+  // The controller takes G64 P: the preamble bounds its blending by chord_tolerance_mm, so that
+  // a plain G64 (LinuxCNC: no bound) cannot round the written vertices further.
+  bool path_blending = true;
 };
 
 // The controller dialect's rules (comms/dialect.hpp, the one place for them) as the encoder's

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 namespace ncd::comms {
 namespace {
@@ -51,53 +52,46 @@ std::string event_words(const toolpath::Event& event, int decimals, bool length_
       event);
 }
 
-ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder)
+ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder,
+                             const std::vector<double>& segment_start_mm)
     : encoder_(encoder), decimals_(encoder.settings().decimals) {
   using namespace toolpath;
-  // The same walk as to_path(): planned motions add their length; rapids from an unknown
-  // position, and events before the first planned motion, are written by begin().
-  double s = 0.0;
-  bool planned = false;
-  Vec3 at = Vec3::Zero();
-  for (const Step& step : program.steps) {
+  // Where to_path() puts each step: an event at the start of a segment, a rapid as a segment
+  // of its own. Their places on the walked path are that segment's start and end there.
+  std::vector<std::size_t> place;
+  ToPathOptions options;
+  options.segment_of_step = &place;
+  const std::size_t segments = to_path(program, options).segments.size();
+  if (segment_start_mm.size() != segments + 1) {
+    throw std::logic_error("ProgramBlocks: " + std::to_string(segment_start_mm.size()) +
+                           " segment starts for a program of " + std::to_string(segments) +
+                           " segments");
+  }
+  for (std::size_t i = 0; i < program.steps.size(); ++i) {
+    const Step& step = program.steps[i];
+    const std::size_t k = place[i];
     if (const auto* ev = std::get_if<Event>(&step.item)) {
       Mark m;
-      m.kind = planned ? Kind::Event : Kind::Pre;
-      m.s0_mm = m.s1_mm = s;
-      m.at = at;
+      m.kind = k > 0 ? Kind::Event : Kind::Pre;  // events before the first planned motion: begin()
+      m.s0_mm = m.s1_mm = segment_start_mm[k];
       m.event = *ev;
       marks_.push_back(std::move(m));
       continue;
     }
     const Motion& mo = std::get<Motion>(step.item);
-    const double k = mm_per_unit(mo.units);
-    const Vec3 end = (motion_end(mo) + mo.offset) * k;
-    if (!mo.start_known) {
-      if (mo.rapid) {
-        Mark m;
-        m.kind = Kind::Pre;
-        m.at = at;
-        m.end = end;
-        m.rapid = true;
-        marks_.push_back(std::move(m));
-        at = end;
-      }
-      continue;
-    }
-    const double len = motion_length(mo) * k;
-    if (len < 1e-9) continue;  // to_path's kMinMoveMm
-    planned = true;
-    if (mo.rapid) {
-      Mark m;
+    if (!mo.rapid) continue;
+    Mark m;
+    m.end = (motion_end(mo) + mo.offset) * mm_per_unit(mo.units);
+    if (!mo.start_known) {  // from an unknown position: written by begin()
+      m.kind = Kind::Pre;
+      m.rapid = true;
+      marks_.push_back(std::move(m));
+    } else if (k != kNoSegment) {
       m.kind = Kind::Rapid;
-      m.s0_mm = s;
-      m.s1_mm = s + len;
-      m.at = (mo.start + mo.offset) * k;
-      m.end = end;
+      m.s0_mm = segment_start_mm[k];
+      m.s1_mm = segment_start_mm[k + 1];
       marks_.push_back(std::move(m));
     }
-    s += len;
-    at = end;
   }
 }
 
@@ -117,7 +111,9 @@ void ProgramBlocks::write_event(const toolpath::Event& e) {
 void ProgramBlocks::begin(const std::vector<std::string>& header) {
   encoder_.percent_line();
   for (const std::string& h : header) encoder_.comment(h);
-  encoder_.words("G21G90G94G17G40G49");
+  const EncoderSettings& e = encoder_.settings();
+  encoder_.words("G21G90G94G17G40G49" +
+                 (e.path_blending ? "G64P" + number(e.chord_tolerance_mm, 6) : std::string()));
   while (next_ < marks_.size() && marks_[next_].kind == Kind::Pre) {
     const Mark& m = marks_[next_++];
     if (m.rapid) {
@@ -130,16 +126,19 @@ void ProgramBlocks::begin(const std::vector<std::string>& header) {
   }
 }
 
-double ProgramBlocks::time_at(double s_mm, const motion::Setpoint& sp) const {
-  if (sp.s_mm - seen_s_mm_ <= 0.0) return sp.t_s;
-  const double f = std::clamp((s_mm - seen_s_mm_) / (sp.s_mm - seen_s_mm_), 0.0, 1.0);
-  return seen_t_s_ + f * (sp.t_s - seen_t_s_);
+// Where s_mm lies between the last setpoint received and sp, 0..1.
+double ProgramBlocks::fraction_at(double s_mm, const motion::Setpoint& sp) const {
+  if (sp.s_mm - seen_s_mm_ <= 0.0) return 1.0;
+  return std::clamp((s_mm - seen_s_mm_) / (sp.s_mm - seen_s_mm_), 0.0, 1.0);
 }
 
-void ProgramBlocks::push_at(const Vec3& p, double s_mm, double t_s) {
+// The walked point at s_mm (between the last setpoint and sp), unless the encoder has it.
+void ProgramBlocks::push_at(double s_mm, const motion::Setpoint& sp) {
+  const double f = fraction_at(s_mm, sp);
+  const double t_s = seen_t_s_ + f * (sp.t_s - seen_t_s_);
   if (s_mm <= pushed_s_mm_ + kAtMm || t_s <= pushed_t_s_) return;  // already there
   motion::Setpoint q;
-  q.p = p;
+  q.p = seen_p_ + f * (sp.p - seen_p_);
   q.s_mm = s_mm;
   q.t_s = t_s;
   encoder_.push(q);
@@ -157,6 +156,7 @@ void ProgramBlocks::push(const motion::Setpoint& sp) {
     if (!pre_rapid) encoder_.push(sp);
     pushed_s_mm_ = seen_s_mm_ = sp.s_mm;
     pushed_t_s_ = seen_t_s_ = sp.t_s;
+    seen_p_ = sp.p;
   }
   bool consumed = sp.t_s <= pushed_t_s_;
   while (next_ < marks_.size()) {
@@ -164,7 +164,7 @@ void ProgramBlocks::push(const motion::Setpoint& sp) {
     if (in_rapid_) {
       if (sp.s_mm < m.s1_mm - kAtMm && !sp.done) break;  // still on its way
       const bool here = std::abs(sp.s_mm - m.s1_mm) <= kAtMm;
-      const double t = here ? sp.t_s : time_at(m.s1_mm, sp);
+      const double t = here ? sp.t_s : seen_t_s_ + fraction_at(m.s1_mm, sp) * (sp.t_s - seen_t_s_);
       encoder_.rapid(m.end, t, m.s1_mm);
       pushed_s_mm_ = m.s1_mm;
       pushed_t_s_ = t;
@@ -181,7 +181,7 @@ void ProgramBlocks::push(const motion::Setpoint& sp) {
       pushed_t_s_ = sp.t_s;
       consumed = true;
     } else {
-      push_at(m.at, m.s0_mm, time_at(m.s0_mm, sp));
+      push_at(m.s0_mm, sp);
     }
     if (m.kind == Kind::Rapid) {
       in_rapid_ = true;
@@ -197,6 +197,7 @@ void ProgramBlocks::push(const motion::Setpoint& sp) {
   }
   seen_s_mm_ = sp.s_mm;
   seen_t_s_ = sp.t_s;
+  seen_p_ = sp.p;
 }
 
 void ProgramBlocks::end() {

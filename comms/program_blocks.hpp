@@ -33,8 +33,13 @@ std::string event_words(const toolpath::Event& event, int decimals = 3, bool len
 class ProgramBlocks {
  public:
   // Keeps references to both; the program's motions must be those the job plans (to_path of it).
-  ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder);
-  // "%", the header comments, the preamble "G21G90G94G17G40G49", then what comes before the first
+  // segment_start_mm: where each of the job's segments starts on the path it walks, and its
+  // length last (motion::Job::segment_starts_mm()); corner blending moves them off the
+  // programmed vertices, and the events and rapids go with them.
+  ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder,
+                const std::vector<double>& segment_start_mm);
+  // "%", the header comments, the preamble "G21G90G94G17G40G49" (and "G64P<chord tolerance>"
+  // where the dialect takes G64), then what comes before the first
   // planned move.
   void begin(const std::vector<std::string>& header);
   void push(const motion::Setpoint& sp);
@@ -48,13 +53,12 @@ class ProgramBlocks {
   struct Mark {
     Kind kind = Kind::Event;
     double s0_mm = 0.0, s1_mm = 0.0;
-    Vec3 at = Vec3::Zero();   // where the tool is at s0 (mm)
     Vec3 end = Vec3::Zero();  // rapids: where they go
     bool rapid = false;       // a Pre mark that is a rapid from an unknown position
     toolpath::Event event;
   };
-  void push_at(const Vec3& p, double s_mm, double t_s);
-  double time_at(double s_mm, const motion::Setpoint& sp) const;
+  void push_at(double s_mm, const motion::Setpoint& sp);
+  double fraction_at(double s_mm, const motion::Setpoint& sp) const;
   void write_event(const toolpath::Event& e);
 
   BlockEncoder& encoder_;
@@ -64,6 +68,7 @@ class ProgramBlocks {
   bool first_ = true;
   double pushed_s_mm_ = 0.0, pushed_t_s_ = 0.0;  // the last setpoint handed to the encoder
   double seen_s_mm_ = 0.0, seen_t_s_ = 0.0;      // the last setpoint received
+  Vec3 seen_p_ = Vec3::Zero();
   int decimals_ = 3;
   bool length_offset_ = false;
 };

@@ -2,7 +2,7 @@
 //
 // A corner between two straight pieces turning by φ (the angle between the directions d_in
 // and d_out) is replaced by the circular arc tangent to both pieces whose midpoint lies P off
-// the programmed path (P: the move's G64 P; a plain G64 keeps its corners, see below):
+// the programmed path (P: the move's G64 P, or blend_tolerance_mm under a plain G64; below):
 //
 //            V                     R = P / (1 − cos(φ/2))     (the arc's midpoint lies
 //      ─────●─────                 L = R tan(φ/2)              R (1 − cos(φ/2)) = P off both
@@ -70,11 +70,11 @@ double cap_mm_per_s(const PathSegment& s, const MachineLimits& l) {
   return c;
 }
 
-// Only a programmed G64 P rounds corners. The machine file's blend_tolerance_mm is not applied
-// to a plain G64: it would move every existing program off its vertices (a chamfer's block
-// program, written within a 2 µm chord tolerance, by up to 0.01 mm).
-double tolerance_mm(const PathSegment& s, const MachineLimits& /*limits*/) {
-  const double p = s.blend_tolerance_mm.value_or(0.0);
+// G64 P gives the tolerance; a plain G64 (no P) takes the machine file's blend_tolerance_mm
+// (the "without G64 P the machine file's blend_tolerance_mm applies"; LinuxCNC's plain
+// G64 has no bound at all). G64 P0 keeps the corners sharp.
+double tolerance_mm(const PathSegment& s, const MachineLimits& limits) {
+  const double p = s.blend_tolerance_mm.value_or(limits.blend_tolerance_mm);
   return std::isfinite(p) && p > 0.0 ? p : 0.0;
 }
 

@@ -82,7 +82,11 @@ void validate(const MachineLimits& limits) {
   require_positive("max_jerk_mm_per_s3", limits.max_jerk_mm_per_s3);
   require_positive("chord_tolerance_mm", limits.chord_tolerance_mm);
   require_positive("feed_tolerance_rel", limits.feed_tolerance_rel);
-  require_positive("blend_tolerance_mm", limits.blend_tolerance_mm);
+  if (!(limits.blend_tolerance_mm >= 0.0 && limits.blend_tolerance_mm <= 10.0)) {
+    throw InputError("blend_tolerance_mm = " + text::sig(limits.blend_tolerance_mm) +
+                     " is outside [0, 10] mm: it is the corner deviation a plain G64 allows "
+                     "(0: sharp corners); 0.01 is the default");
+  }
   require_positive("stall_timeout_s", limits.stall_timeout_s);
   if (limits.stall_timeout_s < 10.0 * limits.period_s) {
     throw InputError("stall_timeout_s = " + text::sig(limits.stall_timeout_s) +

@@ -103,8 +103,18 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       const auto& p = line->points;
       return unit_or_zero(at_end ? Vec3(p[p.size() - 1] - p[p.size() - 2]) : Vec3(p[1] - p[0]));
     }
+    // At an end whose control point repeats, the parametric speed vanishes and the curvature
+    // grows without bound (C = a u² + b u³: κ ~ 1/u): a stop. Rounding leaves d1 a few ulps
+    // off zero there (and a noise direction), so it is measured against the curve's mean
+    // parametric speed, its control polygon's length over its parameter range.
     const auto& c = std::get<toolpath::NurbsCurve>(g);
-    return unit_or_zero(c.eval(at_end ? c.u_end() : c.u_begin()).d1);
+    const Vec3 d1 = c.eval(at_end ? c.u_end() : c.u_begin()).d1;
+    double polygon_mm = 0.0;
+    for (std::size_t i = 0; i + 1 < c.points().size(); ++i) {
+      polygon_mm += (c.points()[i + 1] - c.points()[i]).norm();
+    }
+    const double mean_speed = polygon_mm / (c.u_end() - c.u_begin());
+    return d1.norm() > 1e-9 * mean_speed ? unit_or_zero(d1) : Vec3::Zero();
   };
   // The curvature next to a joint: the curve's, or on a polyline the discrete curvature of
   // the vertex next to the joint, 2 sin(φ/2) / min(l_in, l_out) (see limit_on_piece).

@@ -218,6 +218,10 @@ std::string Job::fault_message() const {
   return text;
 }
 
+std::vector<double> Job::segment_starts_mm() const {
+  return segment_starts(walker_, path_.segments.size());
+}
+
 interpolator::FeedLimitResult Job::limit_here() const {
   const std::size_t seg = walker_.segment();
   if (std::holds_alternative<toolpath::NurbsCurve>(path_.segments[seg].geometry)) {

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "interpolator/corner_blend.hpp"
 #include "interpolator/limit_sampler.hpp"
@@ -77,6 +78,8 @@ class Job {
   // The path walked (the program's, with its blended corners) and what the blending did.
   const toolpath::Path& path() const { return path_; }
   const interpolator::BlendReport& blend_report() const { return blend_; }
+  // Where each segment of path() starts on it, mm, and its length last (segments + 1 values).
+  std::vector<double> segment_starts_mm() const;
   // The feed limit of the continuous laws at the current position (no corners), mm/s.
   interpolator::FeedLimitResult limit_here() const;
   // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;

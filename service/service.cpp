@@ -247,7 +247,7 @@ const std::string& Service::start() {
   last_ = {};
   last_.p = start_mm_;
   limits_.emplace(job_.rules);
-  if (job_.link) start_stream(start_mm_);
+  if (job_.link) start_stream(*job);
   motion::CycleOptions o;
   o.clock = options_.clock;
   o.realtime = options_.realtime;
@@ -434,7 +434,8 @@ void Service::finish_motion() {
   end_job();
 }
 
-void Service::start_stream(const Vec3& start_mm) {
+void Service::start_stream(const motion::Job& job) {
+  const Vec3 start_mm = job.walker().position();
   const LinkSpec& link = *job_.link;
   auto ls = std::make_unique<Live>();
   Live* raw = ls.get();
@@ -452,7 +453,8 @@ void Service::start_stream(const Vec3& start_mm) {
   if (job_.program) {
     // The program's blocks, as `ncd replay --blocks` writes them: the header, the preamble and
     // the events and rapids before the first planned move, then the start of the path.
-    ls->program = std::make_unique<comms::ProgramBlocks>(*job_.program, *ls->encoder);
+    ls->program = std::make_unique<comms::ProgramBlocks>(*job_.program, *ls->encoder,
+                                                         job.segment_starts_mm());
     ls->program->begin(job_.header);
     ls->program->push(start);
   } else {

@@ -165,7 +165,7 @@ class Service {
   void step();
   void drain();
   void finish_motion();
-  void start_stream(const Vec3& start_mm);
+  void start_stream(const motion::Job& job);
   void follow_stream();
   void fail_job(const std::string& why);
   void end_job();

@@ -229,8 +229,15 @@ Path to_path(const Program& program, const ToPathOptions& options) {
   bool open = false;  // path.segments.back() is a Polyline the next line may extend
   PathControl control = PathControl::blend;
   std::optional<double> blend_mm, smooth_mm;
-  for (const Step& step : program.steps) {
+  std::vector<std::size_t>* place = options.segment_of_step;
+  if (place) place->assign(program.steps.size(), kNoSegment);
+  for (std::size_t i = 0; i < program.steps.size(); ++i) {
+    const Step& step = program.steps[i];
     if (const auto* ev = std::get_if<Event>(&step.item)) {
+      // Every event ends the run: it happens at a segment boundary, which corner blending
+      // moves with the corner (ProgramBlocks finds it there).
+      open = false;
+      if (place) (*place)[i] = path.segments.size();
       std::visit(
           [&](const auto& e) {
             using T = std::decay_t<decltype(e)>;
@@ -239,12 +246,10 @@ Path to_path(const Program& program, const ToPathOptions& options) {
               const double k = mm_per_unit(e.units);
               blend_mm = e.p ? std::optional<double>(*e.p * k) : std::nullopt;
               smooth_mm = e.q ? std::optional<double>(*e.q * k) : std::nullopt;
-              open = false;
             } else if constexpr (std::is_same_v<T, DwellEvent> ||
                                  std::is_same_v<T, ToolChangeEvent> ||
                                  std::is_same_v<T, StopEvent> || std::is_same_v<T, SpindleEvent>) {
               stop_pending = true;
-              open = false;
             }
           },
           *ev);
@@ -272,11 +277,12 @@ Path to_path(const Program& program, const ToPathOptions& options) {
     const Vec3 start_mm = (m.start + m.offset) * k;
     if (const auto* line = std::get_if<LineMove>(&m.geometry)) {
       const Vec3 end_mm = (line->end + m.offset) * k;
-      if (open && !stop_pending) {
+      if (open && !stop_pending && !m.rapid) {  // each rapid is its own segment (ProgramBlocks)
         PathSegment& last = path.segments.back();
         if (last.rapid == m.rapid && last.feed_mm_per_min == feed && last.spindle_rpm == spindle &&
             m.feed_mode == FeedMode::per_minute) {
           std::get<Polyline>(last.geometry).points.push_back(end_mm);
+          if (place) (*place)[i] = path.segments.size() - 1;
           continue;
         }
       }
@@ -304,6 +310,7 @@ Path to_path(const Program& program, const ToPathOptions& options) {
       open = false;
     }
     PathSegment& seg = path.segments.back();
+    if (place) (*place)[i] = path.segments.size() - 1;
     seg.feed_mm_per_min = feed;
     seg.spindle_rpm = spindle;
     seg.rapid = m.rapid;

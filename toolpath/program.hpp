@@ -157,7 +157,12 @@ struct ToPathOptions {
   // Helical arcs become rational quadratic pieces whose axis coordinate may deviate from the
   // exact helix; pieces are halved until the deviation is at most this (mm).
   double helix_tolerance_mm = 1e-4;
+  // When set, receives for each of program.steps: an event's place (the index of the segment
+  // that follows it; every event ends a polyline run, so it sits at a segment boundary), a
+  // planned motion's segment, or kNoSegment (a motion that adds nothing to the path).
+  std::vector<std::size_t>* segment_of_step = nullptr;
 };
+inline constexpr std::size_t kNoSegment = static_cast<std::size_t>(-1);
 
 // The planner's Path: lines → Polyline runs, arcs → rational quadratic NURBS (exact circles),
 // all in mm and machine coordinates (offset applied). Rapids before X, Y and Z are known add

@@ -49,7 +49,7 @@ Encoded encode(const toolpath::Program& program, EncoderSettings s = {}) {
   motion::Job job(path, cfg);
   Encoded run;
   BlockEncoder enc(s, [&run](const EncodedBlock& b) { run.lines.push_back(b.text); });
-  ProgramBlocks blocks(program, enc);
+  ProgramBlocks blocks(program, enc, job.segment_starts_mm());
   blocks.begin({"a header"});
   motion::Setpoint start;
   start.p = job.walker().position();
@@ -77,7 +77,7 @@ TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
   const Encoded r = encode(square_job(2.5));
   ASSERT_GT(r.lines.size(), 10u);
   EXPECT_EQ(r.lines[0], "(a header)");
-  EXPECT_EQ(r.lines[1], "N1G21G90G94G17G40G49");
+  EXPECT_EQ(r.lines[1], "N1G21G90G94G17G40G49G64P0.002");
   EXPECT_EQ(r.lines[2], "N2T3M6");
   EXPECT_EQ(r.lines[3], "N3M3S1000");
   EXPECT_EQ(r.lines[4], "N4G4P2.5");
@@ -129,7 +129,7 @@ TEST(ProgramBlocks, FramingKnobs) {
   const Encoded r = encode(square_job(0.0), s);
   EXPECT_EQ(r.lines.front(), "%");
   EXPECT_EQ(r.lines.back(), "%");
-  EXPECT_EQ(r.lines[1], "G21G90G94G17G40G49");
+  EXPECT_EQ(r.lines[1], "G21G90G94G17G40G49G64P0.002");
   for (const std::string& l : r.lines) {
     EXPECT_NE(l.front(), 'N') << l;
     EXPECT_NE(l.front(), '(') << l;
@@ -144,7 +144,8 @@ TEST(ProgramBlocks, ALineLongerThanTheControllerTakesIsAnErrorNamingIt) {
     encode(square_job(0.0), s);
     FAIL() << "a 20-character line passed a 12-character limit";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("N1G21G90G94G17G40G49"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("N1G21G90G94G17G40G49G64P0.002"), std::string::npos)
+        << e.what();
     EXPECT_NE(std::string(e.what()).find("12"), std::string::npos) << e.what();
   }
 }
@@ -162,7 +163,7 @@ TEST(ProgramBlocks, LongCommentsAreSplitToTheDialectsWidth) {
   motion::Job job(path, cfg);
   std::vector<std::string> lines;
   BlockEncoder enc(s, [&lines](const EncodedBlock& b) { lines.push_back(b.text); });
-  ProgramBlocks blocks(program, enc);
+  ProgramBlocks blocks(program, enc, job.segment_starts_mm());
   std::string header;
   for (int i = 0; i < 30; ++i) header += "word" + std::to_string(i) + " ";
   header += std::string(150, 'x');  // no space to break at: cut at the width

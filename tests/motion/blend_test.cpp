@@ -62,8 +62,8 @@ struct Walk {
   Path walked;
 };
 
-Walk run(const Path& path) {
-  Job job(path, machine());
+Walk run(const Path& path, const JobConfig& config = machine()) {
+  Job job(path, config);
   Walk r;
   while (!job.done()) {
     job.prepare();
@@ -235,6 +235,32 @@ TEST(Blend, GentleZigZagStaysWithinPAndBeatsExactStopAndTheSharpCorner) {
     }
   }
   EXPECT_GE(v_min_arc, 0.5 * v_arc);
+}
+
+// A plain G64 (no P) takes the machine file's blend_tolerance_mm; 0 there keeps the corners.
+TEST(Blend, PlainG64TakesTheMachinesBlendTolerance) {
+  // 30° turns, 10 mm legs: gentle enough to be rounded at 0.01 mm (as the test above).
+  const std::vector<Vec3> pts = zigzag(12, 10.0, 30.0 * M_PI / 180.0);
+  Path path;
+  path.segments.push_back(move(pts, 6000.0, std::nullopt));
+  for (const double tol_mm : {0.01, 0.05, 0.0}) {
+    JobConfig c = machine();
+    c.limits.blend_tolerance_mm = tol_mm;
+    const Walk w = run(path, c);
+    double dev = 0.0, kappa = 0.0;
+    sample_walked(w.walked, pts, dev, kappa);
+    for (const Setpoint& sp : w.sp) dev = std::max(dev, distance_to_program(pts, sp.p));
+    std::printf("plain G64, blend_tolerance_mm %.2f: %zu corners rounded, deviation %.5f mm\n",
+                tol_mm, w.blended, dev);
+    EXPECT_LE(dev, tol_mm + 1e-9);
+    if (tol_mm > 0.0) {
+      EXPECT_EQ(w.blended, 11u);
+      EXPECT_GE(dev, 0.999 * tol_mm);  // rounded by the whole tolerance, as G64 P would
+    } else {
+      EXPECT_EQ(w.blended, 0u);
+    }
+    EXPECT_LT((w.sp.back().p - pts.back()).norm(), 1e-9);
+  }
 }
 
 TEST(Blend, LargeToleranceRoundsTheSquareFasterThanExactStop) {

@@ -103,11 +103,13 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
              " is " + std::to_string(d) + " mm off the walked path";
     }
     // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
-    // ends at its corner): its G64 P under G64; none without P, under G61 or G61.1.
+    // ends at its corner): its G64 P under G64, the machine's blend_tolerance_mm under a plain
+    // G64; none under G61 or G61.1.
     const PathSegment& held = path.segments[job.walker().segment()];
-    const double tol = held.path_control == PathControl::blend
-                           ? std::max(held.blend_tolerance_mm.value_or(0.0), 0.0)
-                           : 0.0;
+    const double tol =
+        held.path_control == PathControl::blend
+            ? std::max(held.blend_tolerance_mm.value_or(cfg.limits.blend_tolerance_mm), 0.0)
+            : 0.0;
     const double dp = test::distance_to_path(program, sp.p, sp.s_mm, window);
     if (!(dp <= tol * (1.0 + 1e-9) + 1e-5)) {
       return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +

@@ -11,6 +11,7 @@
 #include "motion/cycle.hpp"
 #include "motion/job.hpp"
 #include "tests/motion/reference.hpp"
+#include "toolpath/nurbs.hpp"
 
 namespace ncd::motion {
 namespace {
@@ -201,6 +202,42 @@ TEST(Stops, ZeroLengthMoveIsAStop) {
   ASSERT_EQ(at_rest.size(), 2U);
   EXPECT_LT((r.sp[at_rest[0]].p - Vec3(3, 0, 0)).norm(), 1e-9);
   EXPECT_LT((r.sp[at_rest[1]].p - Vec3(6, 0, 0)).norm(), 1e-9);
+}
+
+// A NURBS whose first control point repeats has zero parametric speed and unbounded curvature
+// at its start (C = a u² + b u³: κ ~ 1/u): the joint into it is a stop. Found by the property
+// suite (seed 1337050818, program 4): rounding left the curve's first derivative a few ulps off
+// zero, so the joint was taken as a corner in a noise direction and the motion crawled at
+// 3e-5 mm/s before it until the stall check fired.
+TEST(Stops, JointIntoANurbsWithARepeatedFirstPointIsAStop) {
+  Path path;
+  const Vec3 joint(-14.305234174108218, 0, 0);
+  path.segments.push_back(line_segment({{0, 0, 0}, joint}, 5819.7061490395863));
+  PathSegment nurbs;
+  nurbs.geometry =
+      toolpath::NurbsCurve(2, {0, 0, 0, 1, 2, 3, 3, 3},
+                           {joint,
+                            joint,
+                            {-16.999016741964546, -2.7969141898254524, 2.9297403396583968},
+                            {-19.073612407750691, -10.419599862055808, 1.4608671514717062},
+                            {-19.073612407750691, -10.419599862055808, 1.4608671514717062}},
+                           {1.5185872632563802, 1.4333857695871282, 1.7735670960480514,
+                            1.054813254742849, 1.182959955725484});
+  nurbs.feed_mm_per_min = 1758.0660368489998;
+  path.segments.push_back(nurbs);
+  const Motion r = run(path, machine(), 100'000);
+  expect_at_rest_at(r, {-19.073612407750691, -10.419599862055808, 1.4608671514717062});
+  const auto at_rest = rests(r);
+  ASSERT_EQ(at_rest.size(), 1U);
+  EXPECT_LT((r.sp[at_rest[0]].p - joint).norm(), 1e-9);
+  // Never a crawl: every 0.25 s (62 periods) away from a rest the tool advances 0.1 µm.
+  for (std::size_t i = 62; i < r.sp.size(); ++i) {
+    if (r.sp[i].s_mm - r.sp[i - 62].s_mm < 1e-4) {
+      ADD_FAILURE() << "no progress from t = " << r.sp[i - 62].t_s << " s to " << r.sp[i].t_s
+                    << " s at s = " << r.sp[i].s_mm << " mm";
+      break;
+    }
+  }
 }
 
 TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {

@@ -84,13 +84,13 @@ TEST(GcodeReader, SplitsWhereFeedSpindleOrRapidStateChange) {
       "S800\n"     // speed change
       "X5\n"       //
       "G0 X6\n"    // rapid
-      "X7\n"       // still rapid, same segment
+      "X7\n"       // still rapid: each rapid is a segment of its own (comms::ProgramBlocks)
       "G1 X8\n"    // feed again (F200 is modal)
       "M5\n"       // spindle stops
       "X9\n");
-  ASSERT_EQ(p.segments.size(), 7u);
+  ASSERT_EQ(p.segments.size(), 8u);
   const std::vector<std::vector<double>> xs = {{0, 1, 2}, {2, 3}, {3, 4}, {4, 5},
-                                               {5, 6, 7}, {7, 8}, {8, 9}};
+                                               {5, 6},    {6, 7}, {7, 8}, {8, 9}};
   for (std::size_t i = 0; i < xs.size(); ++i) {
     const auto& pts = polyline(p, i).points;
     ASSERT_EQ(pts.size(), xs[i].size()) << "segment " << i;
@@ -102,9 +102,10 @@ TEST(GcodeReader, SplitsWhereFeedSpindleOrRapidStateChange) {
   EXPECT_EQ(p.segments[2].spindle_rpm, 500.0);
   EXPECT_EQ(p.segments[3].spindle_rpm, 800.0);
   EXPECT_TRUE(p.segments[4].rapid);
-  EXPECT_EQ(p.segments[5].feed_mm_per_min, 200.0);
-  EXPECT_FALSE(p.segments[6].spindle_rpm);
-  EXPECT_EQ(p.segments[6].source_line, 13);
+  EXPECT_TRUE(p.segments[5].rapid);
+  EXPECT_EQ(p.segments[6].feed_mm_per_min, 200.0);
+  EXPECT_FALSE(p.segments[7].spindle_rpm);
+  EXPECT_EQ(p.segments[7].source_line, 13);
 }
 
 TEST(GcodeReader, LinuxCncNurbsBlockOfTheManual) {
@@ -318,8 +319,9 @@ TEST(GcodeReader, LongAndZeroPaddedOWordNumbers) {
   expect_error("G0 X0 Y0 Z0\no" + digits + " repeat [2]\nG0 X1\n",
                "test.ngc:2:", "is not closed before the end of the file");
   const Path p = read("G21 G0 X0 Y0 Z0\no010 repeat [2]\nG91 G0 X1\no10 endrepeat\nM2\n");
-  ASSERT_EQ(p.segments.size(), 1u);
-  EXPECT_EQ(polyline(p, 0).points, (std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}));
+  ASSERT_EQ(p.segments.size(), 2u);  // two rapids, each a segment
+  EXPECT_EQ(polyline(p, 0).points, (std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}}));
+  EXPECT_EQ(polyline(p, 1).points, (std::vector<Vec3>{{1, 0, 0}, {2, 0, 0}}));
 }
 
 // Events in the path: those that need the machine at rest mark the next segment; coolant does
@@ -335,36 +337,37 @@ TEST(GcodeReader, EventsPathControlInchAndInverseTime) {
   std::istringstream in(
       "G21 G90 G0 X0 Y0 Z0\n"     // 1
       "G1 X1 F100\n"              // 2  seg 0
-      "M8\n"                      // 3  coolant: no stop
-      "G1 X2\n"                   // 4  (same segment)
+      "M8\n"                      // 3  coolant: no stop, but the run ends (an event's place)
+      "G1 X2\n"                   // 4  seg 1
       "M0\n"                      // 5
-      "G1 X3\n"                   // 6  seg 1: stop before
+      "G1 X3\n"                   // 6  seg 2: stop before
       "S1000 M3\n"                // 7
-      "G1 X4\n"                   // 8  seg 2: stop before (spindle starts)
+      "G1 X4\n"                   // 8  seg 3: stop before (spindle starts)
       "G4 P1\n"                   // 9
-      "G1 X5\n"                   // 10 seg 3: stop before (dwell)
+      "G1 X5\n"                   // 10 seg 4: stop before (dwell)
       "T3 M6\n"                   // 11
-      "G1 X6\n"                   // 12 seg 4: stop before (tool change stops the spindle)
+      "G1 X6\n"                   // 12 seg 5: stop before (tool change stops the spindle)
       "G20 G64 P0.001 Q0.0005\n"  // 13
-      "G1 X1 F10\n"               // 14 seg 5: inch, 25.4 mm, 254 mm/min, G64 P in mm
-      "G61.1 G93 G1 X2 F3\n"      // 15 seg 6: exact stop, 25.4 mm × 3/min
+      "G1 X1 F10\n"               // 14 seg 6: inch, 25.4 mm, 254 mm/min, G64 P in mm
+      "G61.1 G93 G1 X2 F3\n"      // 15 seg 7: exact stop, 25.4 mm × 3/min
       "M2\n");
   const Path p = read_gcode(in, "events.ngc", opt);
   std::remove(tools.c_str());
-  ASSERT_EQ(p.segments.size(), 7u);
-  const std::vector<bool> stops = {false, true, true, true, true, false, false};
+  ASSERT_EQ(p.segments.size(), 8u);
+  const std::vector<bool> stops = {false, false, true, true, true, true, false, false};
   for (std::size_t i = 0; i < stops.size(); ++i) {
     EXPECT_EQ(p.segments[i].stop_before, stops[i]) << "segment " << i;
   }
-  EXPECT_EQ(polyline(p, 0).points.size(), 3u);  // the coolant change did not split it
-  EXPECT_FALSE(p.segments[4].spindle_rpm);      // M6 stopped the spindle
-  const PathSegment& inch = p.segments[5];
-  EXPECT_EQ(polyline(p, 5).points.back(), Vec3(25.4, 0, 0));
+  EXPECT_EQ(polyline(p, 0).points.size(), 2u);  // the coolant change ends the run, no stop
+  EXPECT_EQ(polyline(p, 1).points.back(), Vec3(2, 0, 0));
+  EXPECT_FALSE(p.segments[5].spindle_rpm);  // M6 stopped the spindle
+  const PathSegment& inch = p.segments[6];
+  EXPECT_EQ(polyline(p, 6).points.back(), Vec3(25.4, 0, 0));
   EXPECT_NEAR(*inch.feed_mm_per_min, 254.0, 1e-9);
   EXPECT_EQ(inch.path_control, PathControl::blend);
   EXPECT_NEAR(*inch.blend_tolerance_mm, 0.0254, 1e-15);
   EXPECT_NEAR(*inch.smoothing_tolerance_mm, 0.0127, 1e-15);
-  const PathSegment& inverse = p.segments[6];
+  const PathSegment& inverse = p.segments[7];
   EXPECT_EQ(inverse.path_control, PathControl::exact_stop);
   EXPECT_NEAR(*inverse.feed_mm_per_min, 25.4 * 3.0, 1e-9);
 }
