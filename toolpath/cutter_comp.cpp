@@ -2,7 +2,8 @@
 // "Cutter radius compensation"; the manual's "G41, G42"). Written from a reading of LinuxCNC's
 // behaviour, not from its code; the conformance suite compares the moves with `rs274`.
 //
-// Names: r the tool radius, s = +1 for G41 (tool left of the path), −1 for G42; P the
+// Names (written for G17; G18 reads (Z, X) for (X, Y)): r the tool radius, s = +1 for G41
+// (tool left of the path), −1 for G42; P the
 // programmed point the last move ended at, T the tool's (compensated) position there,
 // u(φ) = (cos φ, sin φ). In the plane every programmed element is offset by r to side s.
 //
@@ -55,7 +56,9 @@
 // takes the programmed point as the current one (so an incremental exit move is measured from
 // the programmed point), and that move must be straight.
 //
-// Decisions: only the XY plane (G17); LinuxCNC's XZ compensation is for lathe tools. A concave
+// Planes: G17 works on (X, Y), G18 on (Z, X), as LinuxCNC does (its ARC_FEED axes); G19 is
+// refused, as in LinuxCNC. Decisions: mill tools only (a lathe tool orientation, which makes
+// LinuxCNC offset the tool's origin as well, is refused by the interpreter). A concave
 // corner found right after a stop (M0/M1/M60) that emptied the queue is refused: LinuxCNC reads
 // a queue entry that is not there in that case.
 #include "toolpath/cutter_comp.hpp"
@@ -106,7 +109,10 @@ bool inside_arc(CutterComp::Side side, int turns) {
 
 }  // namespace
 
-void CutterComp::start(Side side, double radius_mm, const Vec3& at_mm, double mm_per_unit) {
+void CutterComp::start(Side side, double radius_mm, const Vec3& at_mm, double mm_per_unit,
+                       Plane plane) {
+  plane_ = plane;
+  ax_ = plane_axes(plane);
   if (radius_mm < 0.0) {
     radius_mm = -radius_mm;
     side = side == Side::left ? Side::right : Side::left;
@@ -115,7 +121,7 @@ void CutterComp::start(Side side, double radius_mm, const Vec3& at_mm, double mm
   radius_mm_ = radius_mm;
   mm_per_unit_ = mm_per_unit;
   first_ = true;
-  prog_ = tool_ = written_ = at_mm;
+  prog_ = tool_ = written_ = to_local(at_mm);
 }
 
 Vec3 CutterComp::stop() {
@@ -125,7 +131,7 @@ Vec3 CutterComp::stop() {
   }
   side_ = Side::off;
   first_ = true;
-  return tool_;
+  return to_global(tool_);
 }
 
 void CutterComp::flush() {
@@ -180,16 +186,16 @@ void CutterComp::write_queue() {
     }
     Motion m = std::move(e.motion);
     const double k = mm_per_unit(m.units);
-    m.start = written_ / k;
+    m.start = to_global(written_) / k;
     if (e.arc) {
       ArcMove a;
-      a.end = e.end_mm / k;
-      a.centre = Vec3(e.cx, e.cy, written_.z()) / k;
-      a.plane = Plane::xy;
+      a.end = to_global(e.end_mm) / k;
+      a.centre = to_global(Vec3(e.cx, e.cy, written_.z())) / k;
+      a.plane = plane_;
       a.turns = e.turns;
       m.geometry = a;
     } else {
-      m.geometry = LineMove{e.end_mm / k};
+      m.geometry = LineMove{to_global(e.end_mm) / k};
     }
     written_ = e.end_mm;
     Step st;
@@ -235,7 +241,8 @@ void CutterComp::move_end_and_write(double x, double y) {
   set_anchor(x, y);
 }
 
-void CutterComp::line(const Vec3& end_mm, Motion m) {
+void CutterComp::line(const Vec3& end_global_mm, Motion m) {
+  const Vec3 end_mm = to_local(end_global_mm);
   const double r = radius_mm_;
   const double s = side_ == Side::left ? 1.0 : -1.0;
   const double px = end_mm.x(), py = end_mm.y();
@@ -331,7 +338,8 @@ void CutterComp::line(const Vec3& end_mm, Motion m) {
   prog_ = end_mm;
 }
 
-void CutterComp::arc(const Vec3& end_mm, double cx, double cy, int turns, Motion m) {
+void CutterComp::arc(const Vec3& end_global_mm, double cx, double cy, int turns, Motion m) {
+  const Vec3 end_mm = to_local(end_global_mm);
   const double r = radius_mm_;
   const double px = end_mm.x(), py = end_mm.y();
   const bool inside = inside_arc(side_, turns);

@@ -1,4 +1,4 @@
-// Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY plane, giving the same
+// Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY or XZ plane, giving the same
 // canonical moves as LinuxCNC 2.9's interpreter. The algorithm and the decisions taken are
 // explained at the top of cutter_comp.cpp and in docs/ngc-interpreter.md ("Cutter radius
 // compensation").
@@ -23,9 +23,10 @@ class CutterComp {
   // Moves and events leave through `out` (the program's steps), in LinuxCNC's canonical order.
   explicit CutterComp(std::vector<Step>& out) : out_(&out) {}
 
-  // G41/G42 at the tool position `at_mm` (program coordinates, mm). A negative radius switches
-  // the side, as LinuxCNC does. The tolerances depend on the program's units (mm per unit).
-  void start(Side side, double radius_mm, const Vec3& at_mm, double mm_per_unit);
+  // G41/G42 at the tool position `at_mm` (program coordinates, mm) in `plane` (XY or XZ). A
+  // negative radius switches the side, as LinuxCNC does. The tolerances depend on the program's
+  // units (mm per unit).
+  void start(Side side, double radius_mm, const Vec3& at_mm, double mm_per_unit, Plane plane);
   // G40: the pending move is written and compensation ends; returns where the tool is.
   Vec3 stop();
   // M0/M1/M60/M2/M30 and the end of the file: the pending moves and events are written.
@@ -37,13 +38,14 @@ class CutterComp {
   bool first_move() const { return first_; }
   bool pending() const { return !queue_.empty(); }
   // The programmed point (LinuxCNC's program_x/y/z) and the tool's compensated position (mm).
-  const Vec3& programmed() const { return prog_; }
-  const Vec3& tool() const { return tool_; }
+  Vec3 programmed() const { return to_global(prog_); }
+  Vec3 tool() const { return to_global(tool_); }
 
   // A straight move (G0/G1) to the programmed point `end_mm`. `m` carries the move's feed,
   // spindle, source line and so on; its geometry and start are set here.
   void line(const Vec3& end_mm, Motion m);
-  // An arc to the programmed `end_mm` about the programmed centre (cx, cy) with LinuxCNC's
+  // An arc to the programmed `end_mm` about the programmed centre (cx, cy: its coordinates on
+  // the plane's first and second axes, Z and X in G18) with LinuxCNC's
   // turns (+ counter-clockwise, − clockwise). For the first move the centre is the one through
   // the tool's position (the programmed one then).
   void arc(const Vec3& end_mm, double cx_mm, double cy_mm, int turns, Motion m);
@@ -73,10 +75,21 @@ class CutterComp {
     anchor_valid_ = true;
   }
   const Entry* front_move() const;
+  // Inside, points are (first, second, axis) of the plane: (X, Y, Z) in G17, (Z, X, Y) in G18.
+  Vec3 to_local(const Vec3& g) const { return Vec3(g[ax_.first], g[ax_.second], g[ax_.axis]); }
+  Vec3 to_global(const Vec3& l) const {
+    Vec3 g;
+    g[ax_.first] = l.x();
+    g[ax_.second] = l.y();
+    g[ax_.axis] = l.z();
+    return g;
+  }
 
   std::vector<Step>* out_;
   std::vector<Entry> queue_;
   Side side_ = Side::off;
+  Plane plane_ = Plane::xy;
+  PlaneAxes ax_{0, 1, 2};
   double radius_mm_ = 0.0;
   double mm_per_unit_ = 1.0;
   bool first_ = true;

@@ -1648,7 +1648,10 @@ class Interpreter {
       emit(DwellEvent{p});
     }
     // 11. plane
-    if (b.has_g(180) || b.has_g(190)) refuse_with_comp("change the plane");
+    if ((b.has_g(170) && plane_ != Plane::xy) || (b.has_g(180) && plane_ != Plane::xz) ||
+        b.has_g(190)) {
+      refuse_with_comp("change the plane (or use G19)");
+    }
     if (b.has_g(170)) plane_ = Plane::xy;
     if (b.has_g(180)) plane_ = Plane::xz;
     if (b.has_g(190)) plane_ = Plane::yz;
@@ -1851,10 +1854,10 @@ class Interpreter {
       return;
     }
     const std::string name = g_name(code);
-    if (plane_ != Plane::xy) {
+    if (plane_ == Plane::yz) {
       fail(name +
-           " outside the XY plane: ncd compensates in G17 only (LinuxCNC's G18 "
-           "compensation is for lathe tools); select G17 first");
+           " in the YZ plane: compensation works in G17 and G18 only (as in LinuxCNC); "
+           "select G17 or G18 first");
     }
     if (comp_.on()) fail(name + " with cutter radius compensation already on; add G40 first");
     if (feed_mode_ == FeedMode::inverse_time) {
@@ -1866,9 +1869,13 @@ class Interpreter {
     if (code == 411 || code == 421) {
       if (!b.has('d')) fail(name + " with no D word; give the tool diameter, D6 for 6 mm");
       if (b.has('l')) {
-        fail(name +
-             " with an L word, but the plane is not G18 (L is a lathe tool's orientation, "
-             "as LinuxCNC says); remove L");
+        fail(plane_ == Plane::xy
+                 ? name +
+                       " with an L word, but the plane is not G18 (L is a lathe tool's "
+                       "orientation, as LinuxCNC says); remove L"
+                 : name +
+                       " with an L word (a lathe tool's orientation): ncd compensates for mill "
+                       "tools only; remove L");
       }
       radius_mm = b.v('d') * k() / 2.0;
       if (std::abs(radius_mm) > kMaxCoordMm) {
@@ -1898,13 +1905,15 @@ class Interpreter {
         if (it->second.orientation != 0 && it->second.orientation != 9) {
           fail(name + " with lathe tool " + std::to_string(t) + " (orientation Q" +
                std::to_string(it->second.orientation) +
-               "), but the plane is not G18; use a mill tool");
+               (plane_ == Plane::xy ? "), but the plane is not G18 (as LinuxCNC says)"
+                                    : "): ncd compensates for mill tools only") +
+               "; use a mill tool");
         }
         radius_mm = it->second.diameter * machine_k_ / 2.0;
       }
     }
     comp_.start(code == 410 || code == 411 ? CutterComp::Side::left : CutterComp::Side::right,
-                radius_mm, pos_, k());
+                radius_mm, pos_, k(), plane_);
   }
 
   // With compensation moving the tool, positions are taken from the programmed point (as
@@ -2055,7 +2064,7 @@ class Interpreter {
       }
     }
     Motion m = base_motion(false);
-    if (comp_.offsetting()) {  // XY only: ax.first is X, ax.second Y
+    if (comp_.offsetting()) {
       m.src = src();
       comp_call([&] { comp_.arc(end, cx, cy, code == 20 ? -p : p, m); });
       pos_ = comp_.tool();

@@ -10,6 +10,7 @@
 // may mismatch); it prints the table. Without `rs274` the suite is skipped.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -376,6 +377,8 @@ class Conformance : public ::testing::Test {
     std::stringstream os, ls;
     os << o.rdbuf();
     ls << l.rdbuf();
+    rs274_rc_ = rc;
+    rs274_log_ = ls.str();
     InterpretOptions opt;
     opt.machine_units = Units::inch;
     opt.tool_table = (dir_ / "tool.tbl").string();
@@ -403,6 +406,8 @@ class Conformance : public ::testing::Test {
 
   fs::path dir_;
   std::string rs274_var_, ncd_var_;  // the parameter files written after the last run
+  int rs274_rc_ = 0;                 // rs274's exit status and output in the last run
+  std::string rs274_log_;
 };
 
 std::vector<fs::path> ngc_files(const fs::path& dir) {
@@ -423,6 +428,64 @@ TEST_F(Conformance, OwnProgramsMatchLinuxCnc) {
     EXPECT_EQ(o.kind, Outcome::match) << f.filename() << ": " << o.detail;
   }
   EXPECT_GE(files.size(), 40u);
+  // Cutter radius compensation (docs/ngc-interpreter.md): at least 8 programs of their own.
+  EXPECT_GE(
+      std::count_if(files.begin(), files.end(),
+                    [](const fs::path& f) { return f.filename().string().rfind("comp_", 0) == 0; }),
+      8);
+}
+
+// Cutter compensation errors: each program is refused by rs274 (its message checked) and by
+// ncd, naming the same line, with ncd's own message.
+TEST_F(Conformance, CutterCompensationErrorsAreRefusedByBoth) {
+  struct Case {
+    std::string program;
+    int line;
+    std::string rs274_says, ncd_says;
+  };
+  const std::string head = "G20 G90\nT4 M6\nG0 X0 Y0 Z1\n";  // tool 4: radius 0.1875 inch
+  const std::vector<Case> cases = {
+      // a too-tight concave corner: the short line would have to run backwards
+      {head + "G41 G1 X2 Y0 F10\nX2 Y0.2\nX0 Y0.2\nM2\n", 6,
+       "Straight feed in concave corner cannot be reached by the tool without gouging",
+       "straight feed in a concave corner cannot be reached by the tool without gouging"},
+      // the same after an arc: the short line after the arc is eaten
+      {"G20 G90\nT4 M6\nG0 X0 Y-1 Z1\nG41 G1 X0 Y0 F10\nG1 X2 Y0\nG3 X2.5 Y0.5 R0.5\n"
+       "G1 X2.5 Y0.6\nG1 X1 Y0.6\nM2\n",
+       8, "Straight feed in concave corner cannot be reached by the tool without gouging",
+       "straight feed in a concave corner"},
+      {head + "G41 G1 X0.1 Y0 F10\nM2\n", 4,
+       "Length of cutter compensation entry move is not greater than the tool radius",
+       "entry move is not longer than the tool radius"},
+      {head + "G41 G1 X2 Y0 F10\nG3 X2.15 Y0.15 I0 J0.15\nM2\n", 5,
+       "Tool radius not less than arc radius with comp", "is not less than the arc's radius"},
+      {head + "G41 G1 X2 Y0 F10\nY2\nG40\nG2 X1 Y4 I1 J0\nM2\n", 7,
+       "The move just after exiting cutter compensation mode must be straight",
+       "must be straight, not an arc"},
+      {head + "G41 G1 X2 Y0 F10\nG18\nM2\n", 5,
+       "Cannot change planes with cutter radius compensation on", "cannot change the plane"},
+      {head + "G41 G1 X2 Y0 F10\nG42 X3\nM2\n", 5, "Cannot turn cutter radius comp on when on",
+       "already on; add G40 first"},
+      {"G20 G90\nG0 X0 Y0 Z1\nG41.1 D0.2 L3 G1 X2 Y0 F10\nM2\n", 3,
+       "G41.1 with L word, but plane is not G18", "with an L word"},
+      {head + "G41 G1 X2 Y0 F10\nT1 M6\nM2\n", 5,
+       "Cannot change tools with cutter radius compensation on", "cannot change tools (M6)"},
+      {head + "G41 G1 X2 Y0 F10\nG55\nM2\n", 5,
+       "Cannot change coordinate systems with cutter radius compensation on",
+       "cannot change the coordinate system"},
+  };
+  int n = 0;
+  for (const Case& c : cases) {
+    const fs::path f = dir_ / ("comp_error_" + std::to_string(n++) + ".ngc");
+    std::ofstream(f) << c.program;
+    const Outcome o = run(f);
+    ASSERT_EQ(o.kind, Outcome::refused) << c.program;
+    const std::string at = f.string() + ":" + std::to_string(c.line) + ": ";
+    EXPECT_NE(o.detail.find(at), std::string::npos) << o.detail;
+    EXPECT_NE(o.detail.find(c.ncd_says), std::string::npos) << o.detail;
+    EXPECT_NE(rs274_rc_, 0) << c.program;
+    EXPECT_NE(rs274_log_.find(c.rs274_says), std::string::npos) << rs274_log_;
+  }
 }
 
 // LinuxCNC's samples: each matches or is refused with a message; none mismatches. The table is
@@ -461,7 +524,7 @@ TEST_F(Conformance, LinuxCncSamplesMatchOrAreRefused) {
       matched, refused, rs_err, mismatched, table.str().c_str());
   // A judge that cannot run (no writable HOME, a shared tool-table file) turns every sample into
   // "refused by rs274"; the figures measured when the interpreter landed keep that from passing.
-  EXPECT_GE(matched, 25) << table.str();
+  EXPECT_GE(matched, 26) << table.str();
   EXPECT_LE(rs_err, 2) << table.str();
 }
 
