@@ -1894,6 +1894,7 @@ class Interpreter {
         }
         if (d < 0) fail(name + " D" + text::sig(d) + ": D must be a tool number, 0 or more");
         t = static_cast<int>(std::lround(d));
+        if (t == 0) t = tool_;  // D0 is the tool in the spindle, as in LinuxCNC
         if (t != 0 && !tools_.count(t)) {
           fail(name + " D" + std::to_string(t) + ": tool " + std::to_string(t) +
                " is not in the tool table; add it ([program] tool_table) or give G" +

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -433,6 +434,93 @@ TEST_F(Conformance, OwnProgramsMatchLinuxCnc) {
       std::count_if(files.begin(), files.end(),
                     [](const fs::path& f) { return f.filename().string().rfind("comp_", 0) == 0; }),
       8);
+}
+
+// Random compensated contours (seeded; the seed is printed): lines and arcs both ways with
+// random ends, radii and tools, G41 or G42, inch or mm. Whenever rs274 reads a program, ncd
+// gives the same moves; whenever rs274 refuses it (gouges, tools too large), ncd refuses it.
+// NCD_COMP_SWEEP=n runs n programs instead of 40, NCD_COMP_SEED=s replays seed s.
+TEST_F(Conformance, RandomCompensatedContoursMatchOrAreRefusedByBoth) {
+  const char* seed_env = std::getenv("NCD_COMP_SEED");  // to replay a failure
+  const unsigned seed = seed_env ? static_cast<unsigned>(std::strtoul(seed_env, nullptr, 10))
+                                 : std::random_device{}();
+  const char* env = std::getenv("NCD_COMP_SWEEP");
+  const int count = env ? std::atoi(env) : 40;
+  std::printf("random compensated contours: seed %u, %d programs\n", seed, count);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int matched = 0, refused = 0;
+  for (int n = 0; n < count; ++n) {
+    const bool inch = unit(rng) < 0.5;
+    const double scale = inch ? 1.0 : 25.0;  // a contour of about 4 inch or 100 mm
+    std::ostringstream g;
+    g.setf(std::ios::fixed);
+    g.precision(6);
+    g << (inch ? "G20" : "G21") << " G90 G17\n";
+    const int tool = 1 + static_cast<int>(unit(rng) * 5.0);  // T1..T5: radius 0.05-0.25 inch
+    g << "T" << tool << " M6\nG0 X0 Y0 Z1\nF" << (inch ? 20 : 500) << "\n";
+    double x = scale * (1.0 + unit(rng)), y = scale * (unit(rng) - 0.5);
+    g << (unit(rng) < 0.5 ? "G41" : "G42");
+    if (unit(rng) < 0.3) g << ".1 D" << scale * (unit(rng) * 0.6 - 0.1);  // a diameter, maybe < 0
+    g << " G1 X" << x << " Y" << y << "\n";
+    const int moves = 3 + static_cast<int>(unit(rng) * 6.0);
+    double dx = 1.0, dy = 0.0;  // direction at the end of the last element
+    for (int m = 0; m < moves; ++m) {
+      const double pick = unit(rng);
+      if (pick < 0.1) {  // no XY motion: waits behind the compensated move
+        g << "G1 Z" << unit(rng) << "\n";
+      } else if (pick < 0.45) {  // a line: anywhere, or straight on (tangent)
+        const double ox = x, oy = y;
+        const double how = unit(rng);
+        if (how < 0.35) {  // straight on, or straight back (a 180° turn)
+          const double len = scale * (0.2 + unit(rng)) * (how < 0.2 ? 1.0 : -1.0);
+          x += dx * len;
+          y += dy * len;
+        } else {
+          x += scale * (unit(rng) * 2.0 - 1.0);
+          y += scale * (unit(rng) * 2.0 - 1.0);
+        }
+        const double len = std::hypot(x - ox, y - oy);
+        if (len > 0.0) {
+          dx = (x - ox) / len;
+          dy = (y - oy) / len;
+        }
+        g << (unit(rng) < 0.15 ? "G0" : "G1") << " X" << x << " Y" << y << "\n";
+      } else {  // an arc: centre anywhere, or tangent to the last direction
+        double i = scale * (unit(rng) * 1.6 - 0.8), j = scale * (unit(rng) * 1.6 - 0.8);
+        bool ccw = unit(rng) < 0.5;
+        if (unit(rng) < 0.4) {
+          const double r = scale * (0.1 + unit(rng) * 0.8);
+          ccw = unit(rng) < 0.5;  // centre on the left turns counter-clockwise
+          i = (ccw ? -dy : dy) * r;
+          j = (ccw ? dx : -dx) * r;
+        }
+        const double cx = x + i, cy = y + j, r = std::hypot(i, j);
+        const double sweep = (0.1 + unit(rng) * 2.9) * (ccw ? 1.0 : -1.0);
+        const double a = std::atan2(y - cy, x - cx) + sweep;
+        x = cx + r * std::cos(a);
+        y = cy + r * std::sin(a);
+        dx = ccw ? -std::sin(a) : std::sin(a);
+        dy = ccw ? std::cos(a) : -std::cos(a);
+        g << (ccw ? "G3" : "G2") << " X" << x << " Y" << y << " I" << i << " J" << j << "\n";
+      }
+    }
+    g << "G40 G1 X" << x + scale << " Y" << y << "\nM2\n";
+    const fs::path f = dir_ / ("comp_random_" + std::to_string(n) + ".ngc");
+    std::ofstream(f) << g.str();
+    const Outcome o = run(f);
+    if (o.kind == Outcome::match) {
+      ++matched;
+    } else if (o.kind == Outcome::refused && rs274_rc_ != 0) {
+      ++refused;
+    } else {
+      ADD_FAILURE() << "seed " << seed << ", program " << n << " (kind " << o.kind
+                    << "): " << o.detail << "\nrs274: " << rs274_log_ << "\n"
+                    << g.str();
+    }
+  }
+  std::printf("  %d match, %d refused by both\n", matched, refused);
+  EXPECT_GT(matched, 0);  // the sweep is not all refusals
 }
 
 // Cutter compensation errors: each program is refused by rs274 (its message checked) and by
