@@ -3,9 +3,9 @@
 // behaviour, not from its code; the conformance suite compares the moves with `rs274`.
 //
 // Names (written for G17; G18 reads (Z, X) for (X, Y)): r the tool radius, s = +1 for G41
-// (tool left of the path), −1 for G42; P the
-// programmed point the last move ended at, T the tool's (compensated) position there,
-// u(φ) = (cos φ, sin φ). In the plane every programmed element is offset by r to side s.
+// (tool left of the path), −1 for G42; P the programmed point the last move ended at, T the
+// tool's (compensated) position there, u(φ) = (cos φ, sin φ). In the plane every programmed
+// element is offset by r to side s. All lengths are mm.
 //
 // The one-move delay. A compensated move's end cannot be known until the next move is read
 // (an inside corner shortens it), so every compensated move waits in a queue; spindle, coolant
@@ -13,9 +13,10 @@
 // once). A later move either writes the queue as it is, or first moves the end of every queued
 // move to a new point and then writes it. Moving a queued end is checked against gouging: a
 // straight move must not reverse (its programmed direction · (new end − anchor) ≥ 0, the anchor
-// being the start of the first queued move), an arc's sweep must not grow by more than 0.001 rad
-// in inch programs, 0.0254 in mm programs (LinuxCNC adds its length tolerance to the angle). A move
-// with no XY motion (Z only) joins the queue behind the pending one and gets its new XY end too.
+// being the start of the first queued move), an arc's sweep must not grow by more than
+// 0.001 rad in inch programs, 0.0254 in mm programs (LinuxCNC adds its length tolerance to the
+// angle). A move with no motion in the plane (Z only in G17) joins the queue behind the
+// pending one and gets its new end in the plane too.
 //
 // Entry (first move after G41/G42, from T = P):
 // - straight: the end E = P' + r·u(α + s·π/2), α the direction from T to the programmed end P'
