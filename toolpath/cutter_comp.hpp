@@ -27,6 +27,9 @@ class CutterComp {
   // negative radius switches the side, as LinuxCNC does. The tolerances depend on the program's
   // units (mm per unit).
   void start(Side side, double radius_mm, const Vec3& at_mm, double mm_per_unit, Plane plane);
+  // The first move written starts at `at_mm` rather than at start()'s point: after G40 the
+  // tool stands at its compensated position while the programmed point is the current one.
+  void first_written_from(const Vec3& at_mm) { written_ = to_local(at_mm); }
   // G40: the pending move is written and compensation ends; returns where the tool is.
   Vec3 stop();
   // M0/M1/M60/M2/M30 and the end of the file: the pending moves and events are written.

@@ -1915,6 +1915,10 @@ class Interpreter {
     }
     comp_.start(code == 410 || code == 411 ? CutterComp::Side::left : CutterComp::Side::right,
                 radius_mm, pos_, k(), plane_);
+    if (start_override_mm_ && comp_.offsetting()) {  // G40 then G41 with no move between
+      comp_.first_written_from(*start_override_mm_);
+      start_override_mm_.reset();
+    }
   }
 
   // With compensation moving the tool, positions are taken from the programmed point (as

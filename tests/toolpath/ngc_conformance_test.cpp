@@ -711,3 +711,62 @@ TEST(NgcParameterFile, OutOfOrderFileIsRefusedAndNothingIsReturnedOnError) {
 
 }  // namespace
 }  // namespace ncd::toolpath
+
+namespace ncd::toolpath {
+namespace {
+
+// Without rs274: in compensated programs every move starts exactly where the one before ended
+// (rs274 prints only ends, so the starts ncd's arcs and lengths use are checked here): the
+// programs of tests/ngc/comp_*.ngc, and G40 directly followed by G41 (the new path starts at
+// the tool's compensated position, not at the programmed point LinuxCNC takes as current).
+TEST(NgcCutterComp, EveryMoveStartsWhereTheLastEnded) {
+  const fs::path dir = fs::temp_directory_path() / ("ncd_comp_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "tool.tbl") << kToolTable;
+  InterpretOptions opt;
+  opt.machine_units = Units::inch;
+  opt.tool_table = (dir / "tool.tbl").string();
+  std::vector<Program> programs;
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(NCD_SOURCE_DIR) / "tests" / "ngc")) {
+    if (e.path().filename().string().rfind("comp_", 0) != 0) continue;
+    programs.push_back(interpret_ngc_file(e.path().string(), opt));
+    ++files;
+  }
+  EXPECT_GE(files, 8);
+  programs.push_back(interpret_ngc(
+      "G21 G90\nT2 M6\nG0 X0 Y0 Z0\nG41 G1 X20 Y0 F100\nY20\nG40\nG42 G1 X40 Y20\nX40 Y0\n"
+      "G40 G1 X50 Y-10\nM2\n",
+      "again.ngc", opt));
+  int moves = 0;
+  for (const Program& p : programs) {
+    const Motion* last = nullptr;
+    for (const Step& st : p.steps) {
+      const auto* m = std::get_if<Motion>(&st.item);
+      if (!m) continue;
+      if (last) {
+        EXPECT_LE((m->start - motion_end(*last)).norm(), 1e-12)
+            << p.files[0] << ":" << m->src.line << " starts away from the last end";
+      }
+      last = m;
+      ++moves;
+    }
+  }
+  EXPECT_GT(moves, 100);
+  // The G42 path starts where the G41 path left the tool: left of the move up X20 by the
+  // radius (T2: 0.25 inch = 6.35 mm), at X13.65 Y20; not at the programmed X20 Y20.
+  const Program& again = programs.back();
+  const Motion* g42_first = nullptr;
+  int n = 0;
+  for (const Step& st : again.steps) {
+    if (const auto* m = std::get_if<Motion>(&st.item); m && ++n == 4) g42_first = m;
+  }
+  ASSERT_NE(g42_first, nullptr);
+  EXPECT_NEAR(g42_first->start.x(), 20.0 - 6.35, 1e-9);
+  EXPECT_NEAR(g42_first->start.y(), 20.0, 1e-9);
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+}
+
+}  // namespace
+}  // namespace ncd::toolpath
