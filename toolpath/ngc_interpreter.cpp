@@ -35,6 +35,7 @@
 
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "toolpath/cutter_comp.hpp"
 
 namespace ncd::toolpath {
 namespace {
@@ -239,13 +240,6 @@ int m_group(int c) {
 // Out-of-scope G codes: the refusal text (construct and way out); empty when supported.
 std::string g_refusal(int c) {
   switch (c) {
-    case 410:
-    case 411:
-    case 420:
-    case 421:
-      return g_name(c) +
-             " (cutter radius compensation) is not supported; post-process the program with "
-             "compensation computed by the CAM (tool centre path) and G40";
     case 330:
     case 331:
     case 760:
@@ -338,6 +332,7 @@ class Interpreter {
                                 : Vec3(0, 0, 0);
     pos_ = -(g5x() + g92_);  // the machine starts at its origin
     execute_all();
+    comp_call([&] { comp_.flush(); });  // a file that ends without M2 writes its last move
     return std::move(program_);
   }
 
@@ -379,7 +374,7 @@ class Interpreter {
 
   // LinuxCNC tool.tbl: "T<n> P<pocket> Z<offset> D<diameter> ; comment", values in machine units.
   void load_tool_table() {
-    for (const int t : opt_.machine_tools) tools_[t] = {0.0, 0.0};
+    for (const int t : opt_.machine_tools) tools_[t] = {0.0, 0.0, 0};
     if (opt_.tool_table.empty()) return;
     const std::string text = read_file(opt_.tool_table, "tool table");
     std::istringstream in(text);
@@ -392,7 +387,7 @@ class Interpreter {
       std::istringstream ws(line);
       std::string w;
       int tool = -1;
-      double z = 0.0, d = 0.0;
+      double z = 0.0, d = 0.0, q = 0.0;
       while (ws >> w) {
         const char c = static_cast<char>(std::toupper(static_cast<unsigned char>(w[0])));
         double v = 0.0;
@@ -406,9 +401,10 @@ class Interpreter {
         if (c == 'T') tool = static_cast<int>(v);
         if (c == 'Z') z = v;
         if (c == 'D') d = v;
+        if (c == 'Q') q = v;
       }
       if (tool < 0) continue;
-      tools_[tool] = {z, d};
+      tools_[tool] = {z, d, static_cast<int>(q)};
     }
   }
 
@@ -1417,7 +1413,11 @@ class Interpreter {
       }
     }
     if (b.has('e')) fail("E word is not supported (it belongs to G76/M66); remove it");
-    if (b.has('d')) fail("D word (cutter compensation) is not supported; remove it");
+    if (b.has('d') && !b.has_g(410) && !b.has_g(420) && !b.has_g(411) && !b.has_g(421)) {
+      fail("D" + text::sig(b.v('d')) +
+           " without G41/G42 (D is the cutter compensation tool or diameter); remove it or add "
+           "G41/G42");
+    }
   }
 
   // A word no code on the line (or the modal motion) reads is an error, as in LinuxCNC.
@@ -1441,7 +1441,8 @@ class Interpreter {
     need('p', arc || cyc || nurbs || g64 || nonmodal == 40 || nonmodal == 100,
          "G4, G10, G64, G82, G89, G2/G3 turns, G5.2 weights");
     need('q', g64 || mm == 730 || mm == 830, "G64, G73, G83");
-    need('l', cyc || nurbs || nonmodal == 100, "G10, canned cycles, G5.2");
+    need('l', cyc || nurbs || nonmodal == 100 || b.has_g(411) || b.has_g(421),
+         "G10, canned cycles, G5.2, G41.1/G42.1");
   }
 
   double len_word(const Block& b, char c) const {
@@ -1453,11 +1454,36 @@ class Interpreter {
     return v;
   }
 
+  // While a compensated move waits (docs/ngc-interpreter.md, "Cutter radius compensation"),
+  // events wait behind it, as LinuxCNC queues them; messages go out at once, as in LinuxCNC.
   void emit(Event e) {
+    const bool message = std::holds_alternative<MessageEvent>(e);
     Step st;
     st.item = std::move(e);
     st.src = src();
-    program_.steps.push_back(std::move(st));
+    if (comp_.pending() && !message) {
+      comp_.event(std::move(st));
+    } else {
+      program_.steps.push_back(std::move(st));
+    }
+  }
+
+  template <class F>
+  void comp_call(F&& f) {
+    try {
+      f();
+    } catch (const CutterCompError& e) {
+      fail(e.what);
+    }
+  }
+
+  // LinuxCNC refuses these while compensation is on (G41/G42 even with a radius of 0).
+  void refuse_with_comp(const std::string& what) const {
+    if (comp_.on()) {
+      fail("cannot " + what +
+           " with cutter radius compensation on (LinuxCNC refuses it too); turn it off with G40 "
+           "first");
+    }
   }
   SourceRef src() const {
     return SourceRef{static_cast<int>(cur_file_), static_cast<int>(cur_line_ + 1)};
@@ -1465,6 +1491,10 @@ class Interpreter {
 
   void emit_motion(Motion&& m) {
     m.src = src();
+    if (start_override_mm_) {  // the first move after G40 starts where the tool stands
+      m.start = *start_override_mm_ / k();
+      start_override_mm_.reset();
+    }
     Step st;
     st.src = m.src;
     st.item = std::move(m);
@@ -1496,6 +1526,14 @@ class Interpreter {
   }
 
   void line_to(const Vec3& end_mm, bool rapid) {
+    if (comp_.offsetting()) {
+      Motion m = base_motion(rapid);
+      m.src = src();
+      comp_call([&] { comp_.line(end_mm, m); });
+      pos_ = comp_.tool();
+      settle_known();
+      return;
+    }
     Motion m = base_motion(rapid);
     m.geometry = LineMove{end_mm / k()};
     emit_motion(std::move(m));
@@ -1523,7 +1561,13 @@ class Interpreter {
     // 1. message
     if (b.has_message) emit(MessageEvent{b.message});
     // 2. feed mode
-    if (b.has_g(930)) feed_mode_ = FeedMode::inverse_time;
+    if (b.has_g(930)) {
+      if (comp_.on())
+        fail(
+            "G93 (inverse time) with cutter radius compensation on is not supported: LinuxCNC "
+            "times the compensated moves by the programmed lengths; use G94");
+      feed_mode_ = FeedMode::inverse_time;
+    }
     if (b.has_g(940)) {
       feed_mode_ = FeedMode::per_minute;
       feed_ = 0.0;
@@ -1567,6 +1611,7 @@ class Interpreter {
     }
     // 6. M6
     if (b.has_m(6)) {
+      refuse_with_comp("change tools (M6)");
       if (selected_tool_ < 0) fail("M6 without a T word before it; select the tool with T");
       if (spindle_ != SpindleDir::off) {
         spindle_ = SpindleDir::off;
@@ -1603,19 +1648,27 @@ class Interpreter {
       emit(DwellEvent{p});
     }
     // 11. plane
+    if ((b.has_g(170) && plane_ != Plane::xy) || (b.has_g(180) && plane_ != Plane::xz) ||
+        b.has_g(190)) {
+      refuse_with_comp("change the plane (or use G19)");
+    }
     if (b.has_g(170)) plane_ = Plane::xy;
     if (b.has_g(180)) plane_ = Plane::xz;
     if (b.has_g(190)) plane_ = Plane::yz;
     // 12. units
     if (b.has_g(200) || b.has_g(210)) {
       const Units u = b.has_g(200) ? Units::inch : Units::mm;
+      if (u != units_) refuse_with_comp("change units");
       if (u != units_) {
         units_ = u;
         emit(UnitsEvent{u});
       }
     }
+    // 13. cutter radius compensation
+    if (const int cc = group_code(7); cc >= 0) cutter_comp(b, cc);
     // 14. tool length offset
     if (b.has_g(430) || b.has_g(431) || b.has_g(490)) {
+      refuse_with_comp("change the tool length offset");
       Vec3 off(0, 0, 0);
       if (b.has_g(430)) {
         int h = tool_;
@@ -1647,6 +1700,7 @@ class Interpreter {
     }
     // 15. coordinate system
     if (const int cs = group_code(12); cs >= 0) {
+      refuse_with_comp("change the coordinate system");
       const int n = cs < 590 ? (cs - 540) / 10 + 1 : 6 + (cs - 590);
       const Vec3 old = g5x();
       coord_sys_ = n;
@@ -1655,6 +1709,7 @@ class Interpreter {
     }
     // 16. path control
     if (const int pc = group_code(13); pc >= 0) {
+      refuse_with_comp("change the path control mode");
       PathControlEvent e;
       e.mode = pc == 610   ? PathControl::exact_path
                : pc == 611 ? PathControl::exact_stop
@@ -1685,14 +1740,17 @@ class Interpreter {
     if (b.has_g(901)) ijk_absolute_ = true;
     if (b.has_g(911)) ijk_absolute_ = false;
     // 18. retract mode
+    if (b.has_g(980) || b.has_g(990)) refuse_with_comp("change the retract mode (G98/G99)");
     if (b.has_g(980)) retract_r_ = false;
     if (b.has_g(990)) retract_r_ = true;
     if (b.has_g(970)) { /* rpm mode: the default */
     }
-    if (b.has_g(400)) { /* cutter compensation off: always */
-    }
     // 19. non-modal
     bool axes_used = b.has_g(431);
+    if (nonmodal == 100 || nonmodal == 280 || nonmodal == 300 || nonmodal == 281 ||
+        nonmodal == 301 || (nonmodal >= 920 && nonmodal <= 923)) {
+      refuse_with_comp("use " + g_name(nonmodal));
+    }
     switch (nonmodal) {
       case 100:
         g10(b);
@@ -1754,6 +1812,16 @@ class Interpreter {
     // 21. stops
     for (int n = 0; n < b.nm; ++n) {
       const int c = b.m[static_cast<std::size_t>(n)];
+      if (c == 0 || c == 1 || c == 60 || c == 2 || c == 30) {
+        // LinuxCNC writes the waiting compensated move before a stop; the end turns it off.
+        comp_call([&] {
+          if (c == 2 || c == 30) {
+            (void)comp_.stop();
+          } else {
+            comp_.flush();
+          }
+        });
+      }
       if (c == 0) emit(StopEvent{StopKind::program_stop});
       if (c == 1) emit(StopEvent{StopKind::optional_stop});
       if (c == 60) emit(StopEvent{StopKind::pallet_shuttle});
@@ -1768,8 +1836,100 @@ class Interpreter {
   }
 
   // Where X, Y, Z words take the position (incremental or absolute, G53 machine coordinates).
+  // G40, G41, G42, G41.1, G42.1 (LinuxCNC's convert_cutter_compensation; the algorithm:
+  // toolpath/cutter_comp.cpp).
+  void cutter_comp(const Block& b, int code) {
+    if (code == 400) {
+      if (comp_.offsetting() && !comp_.first_move()) {
+        Vec3 tool{0, 0, 0};
+        comp_call([&] { tool = comp_.stop(); });
+        // LinuxCNC takes the programmed point as the current one from here (an incremental
+        // exit move counts from it); the exit move itself starts where the tool stands.
+        pos_ = comp_.programmed();
+        if ((tool - pos_).norm() > 0.0) start_override_mm_ = tool;
+        arc_not_allowed_ = true;
+      } else {
+        (void)comp_.stop();
+      }
+      return;
+    }
+    const std::string name = g_name(code);
+    if (plane_ == Plane::yz) {
+      fail(name +
+           " in the YZ plane: compensation works in G17 and G18 only (as in LinuxCNC); "
+           "select G17 or G18 first");
+    }
+    if (comp_.on()) fail(name + " with cutter radius compensation already on; add G40 first");
+    if (feed_mode_ == FeedMode::inverse_time) {
+      fail(name +
+           " in inverse time mode (G93) is not supported: LinuxCNC times the compensated moves "
+           "by the programmed lengths; use G94");
+    }
+    double radius_mm = 0.0;
+    if (code == 411 || code == 421) {
+      if (!b.has('d')) fail(name + " with no D word; give the tool diameter, D6 for 6 mm");
+      if (b.has('l')) {
+        fail(plane_ == Plane::xy
+                 ? name +
+                       " with an L word, but the plane is not G18 (L is a lathe tool's "
+                       "orientation, as LinuxCNC says); remove L"
+                 : name +
+                       " with an L word (a lathe tool's orientation): ncd compensates for mill "
+                       "tools only; remove L");
+      }
+      radius_mm = b.v('d') * k() / 2.0;
+      if (std::abs(radius_mm) > kMaxCoordMm) {
+        fail(name + " D" + text::sig(b.v('d')) + " is beyond ±" + text::sig(kMaxCoordMm) +
+             " mm; check the number");
+      }
+    } else {
+      int t = tool_;
+      if (b.has('d')) {
+        const double d = b.v('d');
+        if (std::abs(d - std::round(d)) >= 1e-4) {
+          fail(name + " D" + text::sig(d) +
+               ": D must be a whole number (a tool of the tool table); write D" +
+               text::sig(std::round(d)) + ", or G" + std::to_string(code / 10) +
+               ".1 D for a diameter");
+        }
+        if (d < 0) fail(name + " D" + text::sig(d) + ": D must be a tool number, 0 or more");
+        t = static_cast<int>(std::lround(d));
+        if (t == 0) t = tool_;  // D0 is the tool in the spindle, as in LinuxCNC
+        if (t != 0 && !tools_.count(t)) {
+          fail(name + " D" + std::to_string(t) + ": tool " + std::to_string(t) +
+               " is not in the tool table; add it ([program] tool_table) or give G" +
+               std::to_string(code / 10) + ".1 D with the diameter");
+        }
+      }
+      const auto it = tools_.find(t);
+      if (it != tools_.end()) {
+        if (it->second.orientation != 0 && it->second.orientation != 9) {
+          fail(name + " with lathe tool " + std::to_string(t) + " (orientation Q" +
+               std::to_string(it->second.orientation) +
+               (plane_ == Plane::xy ? "), but the plane is not G18 (as LinuxCNC says)"
+                                    : "): ncd compensates for mill tools only") +
+               "; use a mill tool");
+        }
+        radius_mm = it->second.diameter * machine_k_ / 2.0;
+      }
+    }
+    comp_.start(code == 410 || code == 411 ? CutterComp::Side::left : CutterComp::Side::right,
+                radius_mm, pos_, k(), plane_);
+    if (start_override_mm_ && comp_.offsetting()) {  // G40 then G41 with no move between
+      comp_.first_written_from(*start_override_mm_);
+      start_override_mm_.reset();
+    }
+  }
+
+  // With compensation moving the tool, positions are taken from the programmed point (as
+  // LinuxCNC's find_ends does).
+  Vec3 from() const {
+    return comp_.offsetting() && !comp_.first_move() ? comp_.programmed() : pos_;
+  }
+
   Vec3 target(const Block& b, bool g53) {
-    Vec3 t = pos_;
+    const Vec3 base = from();
+    Vec3 t = base;
     for (int a = 0; a < 3; ++a) {
       const char c = static_cast<char>('x' + a);
       if (!b.has(c)) continue;
@@ -1777,7 +1937,7 @@ class Interpreter {
       if (g53) {
         t[a] = v - total_offset()[a];
       } else {
-        t[a] = incremental_ ? pos_[a] + v : v;
+        t[a] = incremental_ ? base[a] + v : v;
       }
       if (!incremental_ || g53) pending_known_[static_cast<std::size_t>(a)] = true;
     }
@@ -1790,9 +1950,17 @@ class Interpreter {
     if (g53 && code != 0 && code != 10)
       fail("G53 only works with G0 or G1; remove G53 or use G0/G1");
     if (g53 && incremental_) fail("G53 in incremental mode (G91); switch to G90 first");
+    if (g53 && comp_.offsetting())
+      fail("G53 with cutter radius compensation on (LinuxCNC refuses it too); G40 first");
+    if ((code == 20 || code == 30) && arc_not_allowed_) {
+      fail(
+          "the move just after turning cutter compensation off (G40) must be straight, not an arc "
+          "(as in LinuxCNC); program a G1 exit move first");
+    }
     switch (code) {
       case 0:
       case 10: {
+        arc_not_allowed_ = false;
         if (code == 10) require_feed(b, "G1");
         const Vec3 t = target(b, g53);
         line_to(t, code == 0);
@@ -1851,7 +2019,8 @@ class Interpreter {
     }
     const Vec3 end = target(b, false);
     const double kk = k();
-    const double c1 = pos_[ax.first], c2 = pos_[ax.second];
+    const Vec3 start = from();
+    const double c1 = start[ax.first], c2 = start[ax.second];
     const double e1 = end[ax.first], e2 = end[ax.second];
     int p = 1;
     if (b.has('p')) {
@@ -1900,6 +2069,13 @@ class Interpreter {
       }
     }
     Motion m = base_motion(false);
+    if (comp_.offsetting()) {
+      m.src = src();
+      comp_call([&] { comp_.arc(end, cx, cy, code == 20 ? -p : p, m); });
+      pos_ = comp_.tool();
+      settle_known();
+      return;
+    }
     ArcMove a;
     a.end = end / kk;
     Vec3 c = pos_;
@@ -1916,6 +2092,7 @@ class Interpreter {
 
   // ---- canned cycles (LinuxCNC's convert_cycle_xy and its plane variants) -------------------
   void cycle(Block& b, int code) {
+    refuse_with_comp("use canned cycles");
     if (code != 730 && code != 810 && code != 820 && code != 830 && code != 850 && code != 890) {
       fail(g_name(code) + " is not supported; use G73 G81 G82 G83 G85 G89");
     }
@@ -2133,6 +2310,7 @@ class Interpreter {
   // ---- G5.2 / G5.3 (the block format of the former reader, see docs) -----------------------
   void open_nurbs(const Block& b) {
     require_feed(b, "G5.2");
+    refuse_with_comp("use G5.2 NURBS");
     if (plane_ != Plane::xy) fail("G5.2 outside the XY plane; select G17 first");
     nurbs_ = {};
     nurbs_.line = static_cast<int>(cur_line_ + 1);
@@ -2248,6 +2426,7 @@ class Interpreter {
   struct Tool {
     double z = 0.0;  // machine units
     double diameter = 0.0;
+    int orientation = 0;  // Q: lathe tool orientation, 0 for mills
   };
   struct NurbsBlock {
     int line = 0;
@@ -2303,6 +2482,9 @@ class Interpreter {
   PathControlEvent control_{};
   bool nurbs_open_ = false;
   NurbsBlock nurbs_;
+  CutterComp comp_{program_.steps};
+  bool arc_not_allowed_ = false;           // right after G40 ended a compensated path
+  std::optional<Vec3> start_override_mm_;  // where the tool stands after G40
 };
 
 }  // namespace

@@ -63,11 +63,10 @@ TEST_F(Cli, CheckJsonNumbersMatchClosedForms) {
 }
 
 TEST_F(Cli, CheckRefusesOutOfScopeConstructsWithTheLine) {
-  const auto r = ncd("check " + write("comp.ngc", "G21\nG0 X0 Y0 Z0\nG41 G1 X5 F100\nM2\n"));
+  const auto r = ncd("check " + write("probe.ngc", "G21\nG0 X0 Y0 Z0\nG38.2 Z-1 F100\nM2\n"));
   EXPECT_EQ(r.status, 2);
   EXPECT_TRUE(r.out.empty()) << r.out;
-  EXPECT_NE(r.err.find("comp.ngc:3: G41 (cutter radius compensation) is not supported"),
-            std::string::npos)
+  EXPECT_NE(r.err.find("probe.ngc:3: G38.2 (probing) is not supported"), std::string::npos)
       << r.err;
   const auto m = ncd("check " + write("m.ngc", "G0 X1e3\n"));
   EXPECT_EQ(m.status, 2);
@@ -101,7 +100,7 @@ TEST_F(Cli, CheckSavesPersistentParametersOnlyAfterAProgramReadWhole) {
 
   const auto refused =
       ncd("check --save-parameters --parameter-file " + var + " " +
-          write("bad.ngc", "G21\nG10 L2 P2 X99\nG0 X0 Y0 Z0\nG41 G1 X5 F100\nM2\n"));
+          write("bad.ngc", "G21\nG10 L2 P2 X99\nG0 X0 Y0 Z0\nG38.2 Z-1 F100\nM2\n"));
   EXPECT_EQ(refused.status, 2);
   EXPECT_TRUE(refused.out.empty()) << refused.out;
   EXPECT_EQ(slurp(dir_ / "p.var"), saved);

@@ -163,7 +163,8 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
       {"max_accel_mm_per_s2 = -1000\n", cubic, "max_accel"},
       {"period_s = 0\n", cubic, "period"},
       {"max_jerk_mm_per_s3 = \"fast\"\n", cubic, "must be a number"},
-      {"", write("comp.ngc", "G21 G90\nG0 X0 Y0 Z0\nG41 G1 X10 Y0 F100\n"), "comp.ngc:3:"},
+      {"", write("comp.ngc", "G21 G90\nG0 X0 Y0 Z0\nG41.1 D40 G1 X10 Y0 F100\n"),
+       "comp.ngc:3: the cutter compensation entry move is not longer than the tool radius"},
       {"", (dir_ / "missing.json").string(), "missing.json"},
   };
   for (const auto& c : cases) {

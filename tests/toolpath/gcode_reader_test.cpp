@@ -231,7 +231,8 @@ TEST(GcodeReader, MachineToolsAreKnownWithoutATable) {
 TEST(GcodeReader, RejectsUnsupportedAndMalformedInputWithLineNumbers) {
   const std::string start = "G21 G90\nG0 X0 Y0 Z0\nF100\n";  // lines 1-3
   // Out of scope: refused with the construct and a way out.
-  expect_error(start + "G41 G1 X1\n", "test.ngc:4:", "G41 (cutter radius compensation)");
+  expect_error(start + "G41.1 D4 G1 X1\n",
+               "test.ngc:4:", "entry move is not longer than the tool radius");
   expect_error(start + "G33 Z-1 K1\n", "test.ngc:4:", "G33 (spindle-synchronised motion");
   expect_error(start + "G38.2 Z-1\n", "test.ngc:4:", "G38.2 (probing)");
   expect_error(start + "G1 A1\n", "test.ngc:4:", "A1: axes other than X, Y, Z");

@@ -10,12 +10,14 @@
 // may mismatch); it prints the table. Without `rs274` the suite is skipped.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -376,6 +378,8 @@ class Conformance : public ::testing::Test {
     std::stringstream os, ls;
     os << o.rdbuf();
     ls << l.rdbuf();
+    rs274_rc_ = rc;
+    rs274_log_ = ls.str();
     InterpretOptions opt;
     opt.machine_units = Units::inch;
     opt.tool_table = (dir_ / "tool.tbl").string();
@@ -403,6 +407,8 @@ class Conformance : public ::testing::Test {
 
   fs::path dir_;
   std::string rs274_var_, ncd_var_;  // the parameter files written after the last run
+  int rs274_rc_ = 0;                 // rs274's exit status and output in the last run
+  std::string rs274_log_;
 };
 
 std::vector<fs::path> ngc_files(const fs::path& dir) {
@@ -423,6 +429,151 @@ TEST_F(Conformance, OwnProgramsMatchLinuxCnc) {
     EXPECT_EQ(o.kind, Outcome::match) << f.filename() << ": " << o.detail;
   }
   EXPECT_GE(files.size(), 40u);
+  // Cutter radius compensation (docs/ngc-interpreter.md): at least 8 programs of their own.
+  EXPECT_GE(
+      std::count_if(files.begin(), files.end(),
+                    [](const fs::path& f) { return f.filename().string().rfind("comp_", 0) == 0; }),
+      8);
+}
+
+// Random compensated contours (seeded; the seed is printed): lines and arcs both ways with
+// random ends, radii and tools, G41 or G42, inch or mm. Whenever rs274 reads a program, ncd
+// gives the same moves; whenever rs274 refuses it (gouges, tools too large), ncd refuses it.
+// NCD_COMP_SWEEP=n runs n programs instead of 40, NCD_COMP_SEED=s replays seed s.
+TEST_F(Conformance, RandomCompensatedContoursMatchOrAreRefusedByBoth) {
+  const char* seed_env = std::getenv("NCD_COMP_SEED");  // to replay a failure
+  const unsigned seed = seed_env ? static_cast<unsigned>(std::strtoul(seed_env, nullptr, 10))
+                                 : std::random_device{}();
+  const char* env = std::getenv("NCD_COMP_SWEEP");
+  const int count = env ? std::atoi(env) : 40;
+  std::printf("random compensated contours: seed %u, %d programs\n", seed, count);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int matched = 0, refused = 0;
+  for (int n = 0; n < count; ++n) {
+    const bool inch = unit(rng) < 0.5;
+    const double scale = inch ? 1.0 : 25.0;  // a contour of about 4 inch or 100 mm
+    std::ostringstream g;
+    g.setf(std::ios::fixed);
+    g.precision(6);
+    g << (inch ? "G20" : "G21") << " G90 G17\n";
+    const int tool = 1 + static_cast<int>(unit(rng) * 5.0);  // T1..T5: radius 0.05-0.25 inch
+    g << "T" << tool << " M6\nG0 X0 Y0 Z1\nF" << (inch ? 20 : 500) << "\n";
+    double x = scale * (1.0 + unit(rng)), y = scale * (unit(rng) - 0.5);
+    g << (unit(rng) < 0.5 ? "G41" : "G42");
+    if (unit(rng) < 0.3) g << ".1 D" << scale * (unit(rng) * 0.6 - 0.1);  // a diameter, maybe < 0
+    g << " G1 X" << x << " Y" << y << "\n";
+    const int moves = 3 + static_cast<int>(unit(rng) * 6.0);
+    double dx = 1.0, dy = 0.0;  // direction at the end of the last element
+    for (int m = 0; m < moves; ++m) {
+      const double pick = unit(rng);
+      if (pick < 0.1) {  // no XY motion: waits behind the compensated move
+        g << "G1 Z" << unit(rng) << "\n";
+      } else if (pick < 0.45) {  // a line: anywhere, or straight on (tangent)
+        const double ox = x, oy = y;
+        const double how = unit(rng);
+        if (how < 0.35) {  // straight on, or straight back (a 180° turn)
+          const double len = scale * (0.2 + unit(rng)) * (how < 0.2 ? 1.0 : -1.0);
+          x += dx * len;
+          y += dy * len;
+        } else {
+          x += scale * (unit(rng) * 2.0 - 1.0);
+          y += scale * (unit(rng) * 2.0 - 1.0);
+        }
+        const double len = std::hypot(x - ox, y - oy);
+        if (len > 0.0) {
+          dx = (x - ox) / len;
+          dy = (y - oy) / len;
+        }
+        g << (unit(rng) < 0.15 ? "G0" : "G1") << " X" << x << " Y" << y << "\n";
+      } else {  // an arc: centre anywhere, or tangent to the last direction
+        double i = scale * (unit(rng) * 1.6 - 0.8), j = scale * (unit(rng) * 1.6 - 0.8);
+        bool ccw = unit(rng) < 0.5;
+        if (unit(rng) < 0.4) {
+          const double r = scale * (0.1 + unit(rng) * 0.8);
+          ccw = unit(rng) < 0.5;  // centre on the left turns counter-clockwise
+          i = (ccw ? -dy : dy) * r;
+          j = (ccw ? dx : -dx) * r;
+        }
+        const double cx = x + i, cy = y + j, r = std::hypot(i, j);
+        const double sweep = (0.1 + unit(rng) * 2.9) * (ccw ? 1.0 : -1.0);
+        const double a = std::atan2(y - cy, x - cx) + sweep;
+        x = cx + r * std::cos(a);
+        y = cy + r * std::sin(a);
+        dx = ccw ? -std::sin(a) : std::sin(a);
+        dy = ccw ? std::cos(a) : -std::cos(a);
+        g << (ccw ? "G3" : "G2") << " X" << x << " Y" << y << " I" << i << " J" << j << "\n";
+      }
+    }
+    g << "G40 G1 X" << x + scale << " Y" << y << "\nM2\n";
+    const fs::path f = dir_ / ("comp_random_" + std::to_string(n) + ".ngc");
+    std::ofstream(f) << g.str();
+    const Outcome o = run(f);
+    if (o.kind == Outcome::match) {
+      ++matched;
+    } else if (o.kind == Outcome::refused && rs274_rc_ != 0) {
+      ++refused;
+    } else {
+      ADD_FAILURE() << "seed " << seed << ", program " << n << " (kind " << o.kind
+                    << "): " << o.detail << "\nrs274: " << rs274_log_ << "\n"
+                    << g.str();
+    }
+  }
+  std::printf("  %d match, %d refused by both\n", matched, refused);
+  EXPECT_GT(matched, 0);  // the sweep is not all refusals
+}
+
+// Cutter compensation errors: each program is refused by rs274 (its message checked) and by
+// ncd, naming the same line, with ncd's own message.
+TEST_F(Conformance, CutterCompensationErrorsAreRefusedByBoth) {
+  struct Case {
+    std::string program;
+    int line;
+    std::string rs274_says, ncd_says;
+  };
+  const std::string head = "G20 G90\nT4 M6\nG0 X0 Y0 Z1\n";  // tool 4: radius 0.1875 inch
+  const std::vector<Case> cases = {
+      // a too-tight concave corner: the short line would have to run backwards
+      {head + "G41 G1 X2 Y0 F10\nX2 Y0.2\nX0 Y0.2\nM2\n", 6,
+       "Straight feed in concave corner cannot be reached by the tool without gouging",
+       "straight feed in a concave corner cannot be reached by the tool without gouging"},
+      // the same after an arc: the short line after the arc is eaten
+      {"G20 G90\nT4 M6\nG0 X0 Y-1 Z1\nG41 G1 X0 Y0 F10\nG1 X2 Y0\nG3 X2.5 Y0.5 R0.5\n"
+       "G1 X2.5 Y0.6\nG1 X1 Y0.6\nM2\n",
+       8, "Straight feed in concave corner cannot be reached by the tool without gouging",
+       "straight feed in a concave corner"},
+      {head + "G41 G1 X0.1 Y0 F10\nM2\n", 4,
+       "Length of cutter compensation entry move is not greater than the tool radius",
+       "entry move is not longer than the tool radius"},
+      {head + "G41 G1 X2 Y0 F10\nG3 X2.15 Y0.15 I0 J0.15\nM2\n", 5,
+       "Tool radius not less than arc radius with comp", "is not less than the arc's radius"},
+      {head + "G41 G1 X2 Y0 F10\nY2\nG40\nG2 X1 Y4 I1 J0\nM2\n", 7,
+       "The move just after exiting cutter compensation mode must be straight",
+       "must be straight, not an arc"},
+      {head + "G41 G1 X2 Y0 F10\nG18\nM2\n", 5,
+       "Cannot change planes with cutter radius compensation on", "cannot change the plane"},
+      {head + "G41 G1 X2 Y0 F10\nG42 X3\nM2\n", 5, "Cannot turn cutter radius comp on when on",
+       "already on; add G40 first"},
+      {"G20 G90\nG0 X0 Y0 Z1\nG41.1 D0.2 L3 G1 X2 Y0 F10\nM2\n", 3,
+       "G41.1 with L word, but plane is not G18", "with an L word"},
+      {head + "G41 G1 X2 Y0 F10\nT1 M6\nM2\n", 5,
+       "Cannot change tools with cutter radius compensation on", "cannot change tools (M6)"},
+      {head + "G41 G1 X2 Y0 F10\nG55\nM2\n", 5,
+       "Cannot change coordinate systems with cutter radius compensation on",
+       "cannot change the coordinate system"},
+  };
+  int n = 0;
+  for (const Case& c : cases) {
+    const fs::path f = dir_ / ("comp_error_" + std::to_string(n++) + ".ngc");
+    std::ofstream(f) << c.program;
+    const Outcome o = run(f);
+    ASSERT_EQ(o.kind, Outcome::refused) << c.program;
+    const std::string at = f.string() + ":" + std::to_string(c.line) + ": ";
+    EXPECT_NE(o.detail.find(at), std::string::npos) << o.detail;
+    EXPECT_NE(o.detail.find(c.ncd_says), std::string::npos) << o.detail;
+    EXPECT_NE(rs274_rc_, 0) << c.program;
+    EXPECT_NE(rs274_log_.find(c.rs274_says), std::string::npos) << rs274_log_;
+  }
 }
 
 // LinuxCNC's samples: each matches or is refused with a message; none mismatches. The table is
@@ -461,7 +612,7 @@ TEST_F(Conformance, LinuxCncSamplesMatchOrAreRefused) {
       matched, refused, rs_err, mismatched, table.str().c_str());
   // A judge that cannot run (no writable HOME, a shared tool-table file) turns every sample into
   // "refused by rs274"; the figures measured when the interpreter landed keep that from passing.
-  EXPECT_GE(matched, 21) << table.str();
+  EXPECT_GE(matched, 26) << table.str();
   EXPECT_LE(rs_err, 2) << table.str();
 }
 
@@ -545,7 +696,7 @@ TEST(NgcParameterFile, OutOfOrderFileIsRefusedAndNothingIsReturnedOnError) {
   std::ofstream(dir / "p.var") << "5161 1\n5161 2\n";
   EXPECT_THROW((void)interpret_ngc("M2\n", "a.ngc", opt), InputError);
   std::ofstream(dir / "p.var") << "5161 1\n";
-  EXPECT_THROW((void)interpret_ngc("G10 L2 P1 X5\nG41 G1 X1 F100\nM2\n", "b.ngc", opt), InputError);
+  EXPECT_THROW((void)interpret_ngc("G10 L2 P1 X5\nG38.2 Z-1 F100\nM2\n", "b.ngc", opt), InputError);
   const Program ok = interpret_ngc("#5161 = -0.0\nG10 L2 P1 X0.0000001\nM2\n", "c.ngc", opt);
   // -0 is written as 0; 1e-7 mm does not fit "%.6f" and is written exactly.
   EXPECT_NE(ok.parameter_file_text.find("5161\t0.000000\n"), std::string::npos);
@@ -554,6 +705,65 @@ TEST(NgcParameterFile, OutOfOrderFileIsRefusedAndNothingIsReturnedOnError) {
   EXPECT_TRUE(interpret_ngc("M2\n", "d.ngc", InterpretOptions{}).parameter_file_text.empty());
   opt.parameter_file = dir.string();  // a directory is no parameter file
   EXPECT_THROW((void)interpret_ngc("M2\n", "e.ngc", opt), InputError);
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+}
+
+}  // namespace
+}  // namespace ncd::toolpath
+
+namespace ncd::toolpath {
+namespace {
+
+// Without rs274: in compensated programs every move starts exactly where the one before ended
+// (rs274 prints only ends, so the starts ncd's arcs and lengths use are checked here): the
+// programs of tests/ngc/comp_*.ngc, and G40 directly followed by G41 (the new path starts at
+// the tool's compensated position, not at the programmed point LinuxCNC takes as current).
+TEST(NgcCutterComp, EveryMoveStartsWhereTheLastEnded) {
+  const fs::path dir = fs::temp_directory_path() / ("ncd_comp_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "tool.tbl") << kToolTable;
+  InterpretOptions opt;
+  opt.machine_units = Units::inch;
+  opt.tool_table = (dir / "tool.tbl").string();
+  std::vector<Program> programs;
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(NCD_SOURCE_DIR) / "tests" / "ngc")) {
+    if (e.path().filename().string().rfind("comp_", 0) != 0) continue;
+    programs.push_back(interpret_ngc_file(e.path().string(), opt));
+    ++files;
+  }
+  EXPECT_GE(files, 8);
+  programs.push_back(interpret_ngc(
+      "G21 G90\nT2 M6\nG0 X0 Y0 Z0\nG41 G1 X20 Y0 F100\nY20\nG40\nG42 G1 X40 Y20\nX40 Y0\n"
+      "G40 G1 X50 Y-10\nM2\n",
+      "again.ngc", opt));
+  int moves = 0;
+  for (const Program& p : programs) {
+    const Motion* last = nullptr;
+    for (const Step& st : p.steps) {
+      const auto* m = std::get_if<Motion>(&st.item);
+      if (!m) continue;
+      if (last) {
+        EXPECT_LE((m->start - motion_end(*last)).norm(), 1e-12)
+            << p.files[0] << ":" << m->src.line << " starts away from the last end";
+      }
+      last = m;
+      ++moves;
+    }
+  }
+  EXPECT_GT(moves, 100);
+  // The G42 path starts where the G41 path left the tool: left of the move up X20 by the
+  // radius (T2: 0.25 inch = 6.35 mm), at X13.65 Y20; not at the programmed X20 Y20.
+  const Program& again = programs.back();
+  const Motion* g42_first = nullptr;
+  int n = 0;
+  for (const Step& st : again.steps) {
+    if (const auto* m = std::get_if<Motion>(&st.item); m && ++n == 4) g42_first = m;
+  }
+  ASSERT_NE(g42_first, nullptr);
+  EXPECT_NEAR(g42_first->start.x(), 20.0 - 6.35, 1e-9);
+  EXPECT_NEAR(g42_first->start.y(), 20.0, 1e-9);
   std::error_code ec;
   fs::remove_all(dir, ec);
 }
