@@ -230,11 +230,13 @@ bool Service::busy() const {
 void Service::submit(JobSpec job) {
   if (busy()) throw InputError("submit: a job is running; stop it first");
   if (!job.path) throw InputError("submit: the job has no path");
-  // Build the job once now, so that a path the machine cannot run is refused at submit.
-  (void)motion::Job(*job.path, job.motion);
+  // Build the job now, so that a path the machine cannot run is refused at submit; start() runs
+  // this one (a long path is not built twice).
+  auto built = std::make_unique<motion::Job>(*job.path, job.motion);
   cycle_.reset();
   live_.reset();
   job_ = std::move(job);
+  built_ = std::move(built);
   error_.clear();
   set_state(State::Ready, HoldHolder::None, "submitted");
   emit(EventKind::Job, "submitted " + job_.name);
@@ -245,7 +247,9 @@ const std::string& Service::start() {
     throw InputError(std::string("start: nothing to start (state ") + to_string(state_) +
                      "); submit a job first");
   }
-  auto job = std::make_unique<motion::Job>(*job_.path, job_.motion);
+  // A start that threw (the first look-ahead window) leaves the state ready: build it again.
+  std::unique_ptr<motion::Job> job =
+      built_ ? std::move(built_) : std::make_unique<motion::Job>(*job_.path, job_.motion);
   live_.reset();
   start_mm_ = job->walker().position();
   stop_why_.clear();

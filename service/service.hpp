@@ -207,6 +207,7 @@ class Service {
   State state_ = State::Idle;
   HoldHolder holder_ = HoldHolder::None;
   JobSpec job_;
+  std::unique_ptr<motion::Job> built_;  // submit()'s, for start()
   std::string error_, stop_why_, realtime_;
   Vec3 start_mm_ = Vec3::Zero();
   double moving_s_ = 0.0;
