@@ -3,6 +3,11 @@
 // every setpoint also goes through the block encoder (comms/block_encoder.hpp), which writes
 // the NC program a DNC link would carry, within the budget of the machine file's [link].
 //
+// The job runs in the service library (service/service.hpp, docs/service.md), as `ncd serve`'s
+// jobs do, with the simulated clock and no cycle thread: Service::poll() runs each period and
+// hands its setpoint to ReplayRecorder (a SetpointSink) while the job still stands where that
+// setpoint left it, which is where replay reads the feed limit and the predicted roughness.
+//
 // Memory does not grow with the run: setpoints and blocks stream to their files, statistics
 // are running sums and fixed histograms, and the plot keeps at most kPlotBuckets time buckets,
 // merging neighbours pairwise when they fill up.
@@ -29,6 +34,7 @@
 #include "core/input_file.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
+#include "service/service.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace ncd::app {
@@ -101,6 +107,60 @@ class PlotBuckets {
   }
   std::vector<Bucket> buckets_;
   std::int64_t per_bucket_ = 1;
+};
+
+// What replay records of every setpoint, as the service's loop drains it: the statistics, the
+// setpoints file, the blocks and the plot, and the progress on standard error. The state lives
+// in the run (the service destroys its sink when the job fails); the files are committed by
+// the run once it has accepted the numbers, so commit() has nothing to do.
+struct ReplayRecord {
+  motion::JobConfig cfg;
+  motion::RunStats st;
+  PlotBuckets plot;
+  double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
+  SetpointSink* file = nullptr;
+  comms::ProgramBlocks* blocks = nullptr;  // --blocks; null without
+  bool quiet = false;
+  double length_mm = 0.0;
+  std::chrono::steady_clock::time_point next_progress;
+  std::int64_t n = 0;
+};
+
+class ReplayRecorder final : public service::SetpointSink {
+ public:
+  explicit ReplayRecorder(ReplayRecord& r) : r_(r) {}
+  void write(const motion::Setpoint& /*sp*/) override {
+    throw InputError("replay: the job ran on a cycle thread; replay needs it on its own thread");
+  }
+  void write_period(const motion::Setpoint& sp, const motion::Job& job,
+                    const motion::PeriodTimes& times) override {
+    r_.lookahead_ns += static_cast<double>(times.prepare_ns);
+    const double limit = job.limit_here().feed_mm_per_s;
+    const double rough = job.roughness_here_um(sp.v_mm_per_s);
+    motion::record(r_.st, r_.cfg, sp, limit, rough, static_cast<double>(times.step_ns));
+    r_.file->write(sp);
+    if (r_.blocks) r_.blocks->push(sp);
+    r_.plot.add(sp.t_s, sp.v_mm_per_s * 60.0, limit * 60.0, rough);
+    if (sp.done) return;
+    if (sp.t_s > kMaxSimulatedS) {
+      // Unreachable by a valid input: check_estimate refused runs of more than a quarter of it.
+      throw LimitError(
+          "the motion did not finish within 100 h of simulated time, though it was "
+          "estimated at most " +
+          std::to_string(kMaxRunS / 3600.0) + " h: the walk crawls; nothing was written");
+    }
+    if (r_.quiet || (++r_.n & 1023) != 0) return;  // the clock read every 1024 periods
+    const auto now = std::chrono::steady_clock::now();
+    if (now > r_.next_progress) {
+      std::cerr << "replay: " << static_cast<int>(100.0 * sp.s_mm / r_.length_mm) << " % ("
+                << sp.t_s << " s simulated)\n";
+      r_.next_progress = now + std::chrono::seconds(2);
+    }
+  }
+  void commit() override {}
+
+ private:
+  ReplayRecord& r_;
 };
 
 Figure replay_figure(const PlotBuckets& plot, const PlotBuckets* blocks, const MachineConfig& m,
@@ -247,12 +307,12 @@ int run_replay(const ReplayArgs& a) {
   const WholeRun whole = whole_run("ncd replay", a.path, path, machine, a.path_only);
   check_envelope(whole.path, machine);
   check_estimate(estimate_run(whole.path, machine), !a.setpoints.empty());
-  motion::JobConfig cfg;
-  cfg.limits = machine.limits;
-  cfg.cutting = machine.cutting;
-  motion::Job job(whole.path, cfg);
+  ReplayRecord rec;
+  rec.cfg.limits = machine.limits;
+  rec.cfg.cutting = machine.cutting;
+  rec.quiet = a.quiet;
   SetpointSink sink(a.setpoints);
-  PlotBuckets plot;
+  rec.file = &sink;
   // The block encoder, when a program is asked for: checked before the walk starts.
   std::unique_ptr<ProgramFile> program;
   std::unique_ptr<comms::BlockEncoder> encoder;
@@ -271,6 +331,24 @@ int run_replay(const ReplayArgs& a) {
                        comms::describe(*v, *machine.link.dialect) + ". Nothing was written.");
     }
   };
+  // The job, on the simulated clock and the owner's thread. Replay's acceptance rule judges the
+  // whole run from its statistics, so the live limit rules only count (Report).
+  service::ServiceOptions so;
+  so.clock = motion::ClockKind::Simulated;
+  so.realtime = false;
+  so.cycle_thread = false;
+  so.ring_capacity = 16;  // one setpoint in flight
+  service::Service svc(so);
+  service::JobSpec spec;
+  spec.name = path.source;
+  spec.path = std::make_shared<const toolpath::Path>(whole.path);
+  spec.motion = rec.cfg;
+  spec.rules = service::LiveLimitRules::from(rec.cfg.limits);
+  spec.rules.feed = spec.rules.accel = spec.rules.jerk = spec.rules.chord =
+      service::RuleAction::Report;
+  spec.interference_allowed = chamfer.interference_allowed;
+  spec.sink = std::make_unique<ReplayRecorder>(rec);
+  svc.submit(std::move(spec));  // builds the job once: a path the machine cannot run is refused
   if (!a.blocks.empty()) {
     try {
       comms::validate(machine.encoder);
@@ -298,49 +376,32 @@ int run_replay(const ReplayArgs& a) {
     program_blocks =
         std::make_unique<comms::ProgramBlocks>(whole.program, *encoder, job.segment_starts_mm());
     if (!a.path_only) program_blocks->begin(whole.header);  // --path-only: the blocks alone
+    rec.blocks = program_blocks.get();
+  }
+  const auto wall0 = std::chrono::steady_clock::now();
+  rec.next_progress = wall0 + std::chrono::seconds(2);
+  svc.start();  // the job and its first look-ahead window
+  const motion::Job& job = *svc.job();
+  rec.length_mm = job.length_mm();
+  rec.st.path_length_mm = job.length_mm();
+  if (program_blocks) {
     // The start of the path, where the machine stands at rest before the first period.
     motion::Setpoint start;
     start.p = job.walker().position();
     program_blocks->push(start);
   }
-  motion::RunStats st;
-  st.path_length_mm = job.length_mm();
-  double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
-  std::string fault;          // the step rule's message when it stopped the run
-  const auto wall0 = std::chrono::steady_clock::now();
-  auto next_progress = wall0 + std::chrono::seconds(2);
-  for (;;) {
-    const auto tp = std::chrono::steady_clock::now();
-    job.prepare();
-    const auto t0 = std::chrono::steady_clock::now();
-    const motion::Setpoint sp = job.step();
-    const auto t1 = std::chrono::steady_clock::now();
-    if (sp.fault != motion::StepFault::None) {
-      fault = job.fault_message();
-      break;  // the step rule: this setpoint is not emitted, the run ends here
-    }
-    lookahead_ns += static_cast<double>(std::chrono::nanoseconds(t0 - tp).count());
-    const double limit = job.limit_here().feed_mm_per_s;
-    const double rough = job.roughness_here_um(sp.v_mm_per_s);
-    motion::record(st, cfg, sp, limit, rough,
-                   static_cast<double>(std::chrono::nanoseconds(t1 - t0).count()));
-    sink.write(sp);
-    if (program_blocks) program_blocks->push(sp);
-    plot.add(sp.t_s, sp.v_mm_per_s * 60.0, limit * 60.0, rough);
-    if (sp.done) break;
-    if (sp.t_s > kMaxSimulatedS) {
-      // Unreachable by a valid input: check_estimate refused runs of more than a quarter of it.
-      throw LimitError(
-          "the motion did not finish within 100 h of simulated time, though it was "
-          "estimated at most " +
-          std::to_string(kMaxRunS / 3600.0) + " h: the walk crawls; nothing was written");
-    }
-    if (!a.quiet && t1 > next_progress) {
-      std::cerr << "replay: " << static_cast<int>(100.0 * sp.s_mm / job.length_mm()) << " % ("
-                << sp.t_s << " s simulated)\n";
-      next_progress = t1 + std::chrono::seconds(2);
-    }
+  while (svc.poll()) {
   }
+  const service::Status end = svc.status();
+  // The step rule (this setpoint is not emitted, the run ends there) or the no-progress
+  // watchdog: the cycle's message.
+  const std::string fault = end.state == service::State::Error ? end.error : std::string();
+  const motion::RunStats& st = rec.st;
+  const motion::JobConfig& cfg = rec.cfg;
+  const double lookahead_ns =
+      rec.lookahead_ns +
+      (svc.cycle_stats() ? static_cast<double>(svc.cycle_stats()->first_window_ns) : 0.0);
+  const PlotBuckets& plot = rec.plot;
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const std::string source = path.source;

@@ -3,9 +3,13 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <memory>
 
 #include "motion/job.hpp"
+#include "motion/run_stats.hpp"
+#include "service/service.hpp"
 #include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
@@ -49,6 +53,72 @@ BENCHMARK(BM_ReplaySpiral)
     ->Args({20, 0})
     ->Args({20, 1})
     ->Unit(benchmark::kMillisecond);
+
+// `ncd replay`'s loop with its per-setpoint statistics (the feed limit and the roughness at the
+// new position, motion::record), two ways on the 20-turn spiral: Arg 0, the job stepped
+// directly as replay did before it ran on the service library (the baseline); Arg 1, the same
+// work through service::Service on the simulated clock without a cycle thread, the statistics
+// in a SetpointSink (app/replay_cmd.cpp's ReplayRecorder without its files).
+class RecordSink final : public service::SetpointSink {
+ public:
+  RecordSink(RunStats& st, const JobConfig& cfg) : st_(st), cfg_(cfg) {}
+  void write(const Setpoint&) override {}
+  void write_period(const Setpoint& sp, const Job& job, const PeriodTimes& times) override {
+    record(st_, cfg_, sp, job.limit_here().feed_mm_per_s, job.roughness_here_um(sp.v_mm_per_s),
+           static_cast<double>(times.step_ns));
+  }
+  void commit() override {}
+
+ private:
+  RunStats& st_;
+  const JobConfig& cfg_;
+};
+
+void BM_ReplayLoop(benchmark::State& state) {
+  const auto path = std::make_shared<const toolpath::Path>(toolpath::spiral_path(20));
+  const JobConfig cfg;
+  const bool through_service = state.range(0) != 0;
+  std::int64_t periods = 0;
+  for (auto _ : state) {
+    RunStats st;
+    if (through_service) {
+      service::ServiceOptions o;
+      o.clock = ClockKind::Simulated;
+      o.realtime = false;
+      o.cycle_thread = false;
+      o.ring_capacity = 16;
+      service::Service svc(o);
+      service::JobSpec spec;
+      spec.path = path;
+      spec.motion = cfg;
+      spec.rules = service::LiveLimitRules::from(cfg.limits);
+      spec.rules.feed = spec.rules.accel = spec.rules.jerk = spec.rules.chord =
+          service::RuleAction::Report;
+      spec.sink = std::make_unique<RecordSink>(st, cfg);
+      svc.submit(std::move(spec));
+      svc.start();
+      while (svc.poll()) {
+      }
+    } else {
+      Job job(*path, cfg);
+      for (;;) {
+        const auto t0 = std::chrono::steady_clock::now();
+        job.prepare();
+        const auto t1 = std::chrono::steady_clock::now();
+        const Setpoint sp = job.step();
+        const auto t2 = std::chrono::steady_clock::now();
+        benchmark::DoNotOptimize(t1 - t0);
+        record(st, cfg, sp, job.limit_here().feed_mm_per_s, job.roughness_here_um(sp.v_mm_per_s),
+               static_cast<double>(std::chrono::nanoseconds(t2 - t1).count()));
+        if (sp.done) break;
+      }
+    }
+    periods += st.cycles;
+  }
+  state.counters["periods_per_s"] =
+      benchmark::Counter(static_cast<double>(periods), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_ReplayLoop)->ArgName("service")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_JobCycleStep(benchmark::State& state) {
   // The cycle's share of a period (planner step + path walk), the look-ahead sampling done

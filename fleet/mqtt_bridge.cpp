@@ -36,6 +36,7 @@
 #include <cstdint>
 #include <deque>
 #include <iostream>
+#include <mutex>
 #include <vector>
 
 #include "comms/control_server.hpp"
@@ -112,6 +113,33 @@ json request_id(const std::string& payload) {
   if (!top.is_object()) return json();
   const auto it = top.find("id");
   return it != top.end() && (it->is_string() || it->is_number()) ? *it : json();
+}
+
+// A failed connection attempt in words: Paho's return code, the broker's CONNACK refusals
+// (MQTT 3.1.1, 3.2.2.3) and what -1 means. (Paho C++ 1.2's ssl_options error handler cannot be
+// used for the TLS library's own words: the C library keeps a pointer to the options object that
+// the connect options copy leaves behind.)
+std::string connect_failure_text(int rc, bool tls) {
+  std::string why = "code " + std::to_string(rc);
+  switch (rc) {
+    case -1:
+      return why + (tls ? ": the TCP connection or the TLS handshake failed (no broker there, or "
+                          "a certificate refused: check ca_file against the broker's certificate, "
+                          "and cert_file, key_file against the broker's cafile)"
+                        : ": the TCP connection failed (no broker there)");
+    case 1:
+      return why + ": the broker refused the protocol version";
+    case 2:
+      return why + ": the broker refused the client id";
+    case 3:
+      return why + ": the broker is unavailable";
+    case 4:
+      return why + ": bad user name or password";
+    case 5:
+      return why + ": not authorised (the broker's ACL or its password file)";
+    default:
+      return why;
+  }
 }
 
 json error_reply(const std::string& message) {
@@ -272,8 +300,14 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
   void on_connect_failed(int rc) {
     connecting = false;
     if (up) return;
+    ++connect_failures;
+    const std::string why = connect_failure_text(rc, cfg.tls());
+    {
+      const std::lock_guard lock(failure_mutex);
+      last_failure = why;
+    }
     if (attempts == 0 || (attempts & (attempts - 1)) == 0) {  // the 1st, 2nd, 4th, 8th... only
-      std::cerr << "ncd serve: MQTT: cannot connect to " << cfg.broker << " (code " << rc
+      std::cerr << "ncd serve: MQTT: cannot connect to " << cfg.broker << " (" << why
                 << "); trying again with backoff up to " << cfg.reconnect_max_s << " s\n";
     }
     schedule_reconnect();
@@ -496,7 +530,9 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
   Clock::time_point t0{}, next_status{};
   std::atomic<std::uint64_t> next_seq{1}, dropped{0};
   std::atomic<std::uint64_t> published{0}, resent{0}, status_n{0}, state_n{0}, commands{0},
-      connects{0}, losses{0};
+      connects{0}, losses{0}, connect_failures{0};
+  mutable std::mutex failure_mutex;
+  std::string last_failure;  // guarded by failure_mutex
   // Last, so destroyed first: while Paho winds down (and may still call back) every member it
   // can reach, the listeners included, is alive.
   std::unique_ptr<mqtt::async_client> client;
@@ -539,7 +575,13 @@ BridgeCounters MqttBridge::counters() const {
   n.commands = c.commands.load();
   n.connects = c.connects.load();
   n.connection_losses = c.losses.load();
+  n.connect_failures = c.connect_failures.load();
   return n;
+}
+
+std::string MqttBridge::last_failure() const {
+  const std::lock_guard lock(core_->failure_mutex);
+  return core_->last_failure;
 }
 
 bool MqttBridge::connected() const {

@@ -34,8 +34,9 @@ struct BridgeCounters {
   std::uint64_t events_resent = 0;     // published again after a lost connection
   std::uint64_t status_published = 0;
   std::uint64_t state_published = 0;
-  std::uint64_t commands = 0;  // command messages answered
-  std::uint64_t connects = 0;  // successful connections
+  std::uint64_t commands = 0;          // command messages answered
+  std::uint64_t connects = 0;          // successful connections
+  std::uint64_t connect_failures = 0;  // attempts the broker or the TLS handshake refused
   std::uint64_t connection_losses = 0;
 };
 
@@ -67,6 +68,10 @@ class MqttBridge {
 
   BridgeCounters counters() const;
   bool connected() const;
+  // Why the last connection attempt failed ("" before any failure): Paho's return code and,
+  // with TLS, the TLS library's last error of that attempt (an unknown CA, a certificate the
+  // broker requires and did not get, ...). Also written to the log (standard error).
+  std::string last_failure() const;
 
   struct Core;
 

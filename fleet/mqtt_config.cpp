@@ -4,8 +4,12 @@
 #include "fleet/mqtt_config.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <sstream>
 #include <string>
 
@@ -44,6 +48,21 @@ double need_number(const toml::value& v, const std::string& where, double lo, do
     throw InputError(s.str());
   }
   return x;
+}
+
+// A TLS file (ca_file, cert_file, key_file) must be a file the service can read now: Paho would
+// only say "code -1" at every connection attempt.
+void check_readable(const std::optional<std::string>& path, const std::string& where) {
+  if (!path) return;
+  std::error_code ec;
+  const bool directory = std::filesystem::is_directory(*path, ec);
+  std::FILE* f = directory ? nullptr : std::fopen(path->c_str(), "rb");
+  const std::string why = directory ? "a directory" : (f ? "" : std::strerror(errno));
+  if (f) std::fclose(f);
+  if (why.empty()) return;
+  throw InputError(where + " = \"" + *path + "\" cannot be read (" + why +
+                   "); give the path of a PEM file the service can read (relative paths are "
+                   "from the folder ncd serve runs in)");
 }
 
 // A topic root: "a/b/c/", levels without the wildcards '+' and '#', none empty.
@@ -158,6 +177,9 @@ MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where)
         (c.cert_file ? "a cert_file without a key_file" : "a key_file without a cert_file") +
         "; a client certificate needs both");
   }
+  check_readable(c.ca_file, where + ".ca_file");
+  check_readable(c.cert_file, where + ".cert_file");
+  check_readable(c.key_file, where + ".key_file");
   if (have_max && c.reconnect_max_s < c.reconnect_min_s) {
     std::ostringstream s;
     s << where << ".reconnect_max_s = " << c.reconnect_max_s

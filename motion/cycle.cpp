@@ -22,6 +22,12 @@
 // inside the cycle is a few intervals per period. Stop is a feed hold followed by the end of
 // the job once the motion is at rest.
 //
+// On the owner's thread (CycleOptions::own_thread false, simulated clock only: `ncd replay`
+// through the service library), run_here() is one wake-up of the same loop with one period due:
+// the same period, counted the same way, with the look-ahead and the step timed apart for the
+// owner's report. The owner pops each setpoint before the next period, while the job stands
+// where that setpoint left it (Job::limit_here is then that setpoint's).
+//
 // No-progress watchdog: while the job runs (not held, not stopping, override above 0 %), its
 // arc length must advance by more than kProgressMm within the machine's stall_timeout_s.
 // Otherwise the cycle ends in state Error with a message naming the position and the limit in
@@ -38,6 +44,8 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+
+#include "core/error.hpp"
 
 namespace ncd::motion {
 namespace {
@@ -63,7 +71,10 @@ void sleep_until_ns(std::int64_t deadline_ns) {
 
 Cycle::Cycle(std::unique_ptr<Job> job, const CycleOptions& options)
     : job_(std::move(job)), options_(options), ring_(options.ring_capacity) {
+  const std::int64_t t0 = now_ns();
   job_->prepare();  // the first look-ahead window, outside the cycle
+  stats_.first_window_ns = now_ns() - t0;
+  period_ns_ = static_cast<std::int64_t>(std::llround(job_->config().limits.period_s * 1e9));
   // Until the first period, the status shows where the path starts (not the origin).
   const Vec3 start = job_->walker().position();
   st_x_.store(start.x(), std::memory_order_relaxed);
@@ -81,6 +92,14 @@ Cycle::~Cycle() {
 RealtimeGrant Cycle::start() {
   RealtimeGrant g;
   std::string why;
+  if (!options_.own_thread) {
+    if (options_.clock != ClockKind::Simulated) {
+      throw InputError("cycle: only the simulated clock runs on its owner's thread");
+    }
+    g.message = "cycle on the simulated clock, on the owner's thread (no sleeping)";
+    grant_ = g;
+    return g;
+  }
   if (options_.realtime && options_.clock == ClockKind::Wall) {
     if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
       g.memory_locked = true;
@@ -215,14 +234,23 @@ bool Cycle::run_period(CycleState& state) {
     job_->set_override(ovr);
     override_applied_ = ovr;
   }
-  job_->prepare();
-  const Setpoint sp = job_->step();
+  Setpoint sp;
+  if (options_.own_thread) {
+    job_->prepare();
+    sp = job_->step();
+  } else {
+    const std::int64_t t0 = now_ns();
+    job_->prepare();
+    const std::int64_t t1 = now_ns();
+    sp = job_->step();
+    times_ = {t1 - t0, now_ns() - t1};
+  }
   if (sp.fault != StepFault::None) {
     state = CycleState::Error;  // the step rule: not emitted; run() reports it
     return false;
   }
   ++stats_.periods;
-  if (options_.clock == ClockKind::Simulated && options_.block_when_full) {
+  if (options_.clock == ClockKind::Simulated && options_.block_when_full && options_.own_thread) {
     while (!ring_.push(sp)) {
       if (abort_.load(std::memory_order_acquire)) return false;
       std::this_thread::yield();  // the consumer is behind: simulated time can wait
@@ -258,51 +286,79 @@ bool Cycle::run_period(CycleState& state) {
   return state != CycleState::Done && state != CycleState::Stopped;
 }
 
+void Cycle::count_wakeup(std::int64_t late_ns) {
+  stats_.lateness_ns.add(static_cast<double>(late_ns));
+  // The status's histogram: one writer (the cycle), so a relaxed load and store.
+  std::atomic<std::int64_t>& bin = late_bins_[static_cast<std::size_t>(
+      LogHistogram::coarse_of(LogHistogram::bucket_of(static_cast<double>(late_ns))))];
+  bin.store(bin.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
+
+// Every period run is counted once: at its wake-up, or as caught up (periods = wake-ups +
+// caught_up, exactly, also when the job ends in the middle of a catch-up).
+void Cycle::count_work(std::int64_t work_ns, std::int64_t ran) {
+  stats_.caught_up += ran - 1;
+  stats_.compute_ns.add(static_cast<double>(work_ns) / static_cast<double>(ran));
+  if (work_ns > ran * period_ns_) ++stats_.overruns;
+}
+
+void Cycle::end_run() {
+  if (job_->fault().fault != StepFault::None) {
+    error_ = job_->fault_message();
+    st_state_.store(static_cast<int>(CycleState::Error), std::memory_order_release);
+  }
+}
+
+void Cycle::fail_run(const char* what, CycleState& state) {
+  error_ = what;
+  state = CycleState::Error;
+  st_state_.store(static_cast<int>(state), std::memory_order_release);
+}
+
 void Cycle::run() {
   CycleState state = CycleState::Running;
   try {
     const bool wall = options_.clock == ClockKind::Wall;
-    const auto period_ns =
-        static_cast<std::int64_t>(std::llround(job_->config().limits.period_s * 1e9));
-    std::int64_t deadline = now_ns() + period_ns;
+    std::int64_t deadline = now_ns() + period_ns_;
     bool running = true;
     while (running && !abort_.load(std::memory_order_acquire)) {
       if (wall) sleep_until_ns(deadline);
       const std::int64_t woke = wall ? now_ns() : deadline;
       const std::int64_t late = std::max<std::int64_t>(0, woke - deadline);
-      stats_.lateness_ns.add(static_cast<double>(late));
-      {  // the status's histogram: one writer (this thread), so a relaxed load and store
-        std::atomic<std::int64_t>& bin = late_bins_[static_cast<std::size_t>(
-            LogHistogram::coarse_of(LogHistogram::bucket_of(static_cast<double>(late))))];
-        bin.store(bin.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
-      }
-      const std::int64_t due = 1 + late / period_ns;
+      count_wakeup(late);
+      const std::int64_t due = 1 + late / period_ns_;
       if (due > 1) ++stats_.late_wakeups;
       const std::int64_t t0 = now_ns();
       std::int64_t ran = 0;  // fewer than due when the job ends during a catch-up
       for (; ran < due && running; ++ran) running = run_period(state);
-      // Every period run is counted once: at its wake-up, or as caught up (periods = wake-ups +
-      // caught_up, exactly, also when the job ends in the middle of a catch-up).
-      stats_.caught_up += ran - 1;
-      const std::int64_t work = now_ns() - t0;
-      stats_.compute_ns.add(static_cast<double>(work) / static_cast<double>(ran));
-      if (work > ran * period_ns) ++stats_.overruns;
-      deadline += due * period_ns;
+      count_work(now_ns() - t0, ran);
+      deadline += due * period_ns_;
     }
-    if (job_->fault().fault != StepFault::None) {
-      error_ = job_->fault_message();
-      st_state_.store(static_cast<int>(state), std::memory_order_release);
-    }
+    end_run();
   } catch (const std::exception& e) {
-    error_ = e.what();
-    state = CycleState::Error;
-    st_state_.store(static_cast<int>(state), std::memory_order_release);
+    fail_run(e.what(), state);
   } catch (...) {  // nothing may leave the thread
-    error_ = "unknown exception in the cycle";
-    state = CycleState::Error;
-    st_state_.store(static_cast<int>(state), std::memory_order_release);
+    fail_run("unknown exception in the cycle", state);
   }
   finished_.store(true, std::memory_order_release);
+}
+
+bool Cycle::run_here() {
+  if (options_.own_thread) throw InputError("cycle: run_here() needs own_thread = false");
+  if (finished()) return false;
+  bool running = false;
+  try {
+    count_wakeup(0);  // the simulated clock: every wake-up on time, one period due
+    running = run_period(here_state_);
+    count_work(times_.prepare_ns + times_.step_ns, 1);
+    if (!running) end_run();
+  } catch (const std::exception& e) {
+    fail_run(e.what(), here_state_);
+    finished_.store(true, std::memory_order_release);
+    throw;
+  }
+  if (!running) finished_.store(true, std::memory_order_release);
+  return running;
 }
 
 }  // namespace ncd::motion

@@ -1,6 +1,7 @@
 // The cycle: one thread per running job that wakes every period and runs one period of the
-// job, against the wall clock (the service) or a simulated clock (replay, tests). The
-// algorithm is explained in cycle.cpp.
+// job, against the wall clock (the service) or a simulated clock (tests, a simulated service);
+// on the simulated clock it may also run on its owner's thread, one period per run_here()
+// (`ncd replay`). The algorithm is explained in cycle.cpp.
 #pragma once
 
 #include <array>
@@ -24,17 +25,27 @@ struct CycleOptions {
   int fifo_priority = 80;            // SCHED_FIFO priority when granted
   std::size_t ring_capacity = 8192;  // setpoints the consumer may lag behind (32 s at 4 ms)
   bool block_when_full = true;       // simulated clock only: wait for the consumer, never drop
+  // false (simulated clock only): start() starts no thread; the owner runs each period with
+  // run_here() and pops its setpoint before the next (a full ring then loses, never waits).
+  bool own_thread = true;
+};
+
+// What one period cost, ns: the look-ahead sampling (Job::prepare) and the planner step and
+// path walk (Job::step). Measured only on the owner's thread (CycleOptions::own_thread false).
+struct PeriodTimes {
+  std::int64_t prepare_ns = 0, step_ns = 0;
 };
 
 // What the cycle measured; read it after the thread has stopped, or as a snapshot.
 struct CycleStats {
-  LogHistogram lateness_ns;         // wake-up time minus its deadline, every wake-up
-  LogHistogram compute_ns;          // work per period
-  std::int64_t periods = 0;         // periods run (each gives one setpoint)
-  std::int64_t late_wakeups = 0;    // wake-ups more than one period late
-  std::int64_t caught_up = 0;       // periods run back to back to catch up
-  std::int64_t overruns = 0;        // periods whose work alone took longer than a period
-  std::int64_t setpoints_lost = 0;  // setpoint ring full on the wall clock (must stay 0)
+  LogHistogram lateness_ns;          // wake-up time minus its deadline, every wake-up
+  LogHistogram compute_ns;           // work per period
+  std::int64_t periods = 0;          // periods run (each gives one setpoint)
+  std::int64_t late_wakeups = 0;     // wake-ups more than one period late
+  std::int64_t caught_up = 0;        // periods run back to back to catch up
+  std::int64_t overruns = 0;         // periods whose work alone took longer than a period
+  std::int64_t setpoints_lost = 0;   // setpoint ring full on the wall clock (must stay 0)
+  std::int64_t first_window_ns = 0;  // the constructor's filling of the first look-ahead window
 };
 
 // What the cycle got from the operating system when it started.
@@ -65,8 +76,16 @@ class Cycle {
   Cycle(const Cycle&) = delete;
   Cycle& operator=(const Cycle&) = delete;
 
-  // Starts the cycle thread; returns what real-time scheduling it got.
+  // Starts the cycle thread (none without own_thread); returns what real-time scheduling it
+  // got. Throws InputError for own_thread false on the wall clock.
   RealtimeGrant start();
+  // Without own_thread, after start(): runs the next period here, exactly as the thread would
+  // (commands, look-ahead, step, ring, status, watchdog, statistics). Returns false once the
+  // job has ended (finished(); that period's setpoint, if any, is in the ring). An exception of
+  // the job's (an InputError of the look-ahead) ends the cycle in Error and is rethrown.
+  bool run_here();
+  // The last period's times (run_here() only).
+  const PeriodTimes& last_times() const { return times_; }
   // Commands, read by the cycle at its next period (atomic flags, no locks).
   void hold();
   void resume();
@@ -95,6 +114,10 @@ class Cycle {
   void run();
   void publish(const Setpoint& sp, CycleState state);
   bool run_period(CycleState& state);
+  void count_wakeup(std::int64_t late_ns);
+  void count_work(std::int64_t work_ns, std::int64_t ran);
+  void end_run();
+  void fail_run(const char* what, CycleState& state);
 
   std::unique_ptr<Job> job_;
   CycleOptions options_;
@@ -111,6 +134,9 @@ class Cycle {
   int cpu_latency_fd_ = -1;         // held open while the cycle lives (PM QoS request)
   bool stopping_ = false;
   double override_applied_ = 1.0;
+  std::int64_t period_ns_ = 0;
+  CycleState here_state_ = CycleState::Running;  // run_here()'s state between periods
+  PeriodTimes times_;
   // No-progress watchdog: s at the last progress, and the periods since.
   double watch_s_mm_ = 0.0;
   std::int64_t watch_periods_ = 0;

@@ -13,12 +13,19 @@
 //    │                  │                 ▼         going to the controller)   │
 //    └──── submit ──── done / stopped / error ◄───────────────────────────────┘
 //
+// `ncd replay` (the cycle on the owner's thread, below) goes idle → ready → running → done or
+// error, with no link and no hold.
+//
 // submit is refused while running, holding or streaming. A hold has one holder: the operator
 // (a client's hold) or the link (the sender saw XOFF or CTS held longer than xoff_timeout_s, or
 // lost its port). Only the holder releases it: the link's release does not resume a motion the
 // operator holds, and an operator's hold during a link hold takes it over (the operator must
 // resume). A resume by anyone else is refused naming the holder. `stopped` is kept apart from
 // `done` (a job that did not reach its end) and tells why and where it stopped.
+//
+// Without a cycle thread (ServiceOptions::cycle_thread false, the simulated clock: `ncd replay`),
+// poll() runs the periods itself (motion::Cycle::run_here), each setpoint drained at once, so that
+// a sink sees the job as that setpoint left it; the states and transitions are the same.
 //
 // Threads: the commands, poll() and status() run on the owner's thread; the service's own state
 // needs no lock. The cycle thread is reached only through its atomic commands, its setpoint ring
@@ -158,7 +165,11 @@ struct Service::Live {
   }
 };
 
-Service::Service(const ServiceOptions& options) : options_(options) {}
+Service::Service(const ServiceOptions& options) : options_(options) {
+  if (!options_.cycle_thread && options_.clock != motion::ClockKind::Simulated) {
+    throw InputError("service: only the simulated clock runs without a cycle thread");
+  }
+}
 
 Service::~Service() {
   if (cycle_) {
@@ -219,11 +230,13 @@ bool Service::busy() const {
 void Service::submit(JobSpec job) {
   if (busy()) throw InputError("submit: a job is running; stop it first");
   if (!job.path) throw InputError("submit: the job has no path");
-  // Build the job once now, so that a path the machine cannot run is refused at submit.
-  (void)motion::Job(*job.path, job.motion);
+  // Build the job now, so that a path the machine cannot run is refused at submit; start() runs
+  // this one (a long path is not built twice).
+  auto built = std::make_unique<motion::Job>(*job.path, job.motion);
   cycle_.reset();
   live_.reset();
   job_ = std::move(job);
+  built_ = std::move(built);
   error_.clear();
   set_state(State::Ready, HoldHolder::None, "submitted");
   emit(EventKind::Job, "submitted " + job_.name);
@@ -234,7 +247,9 @@ const std::string& Service::start() {
     throw InputError(std::string("start: nothing to start (state ") + to_string(state_) +
                      "); submit a job first");
   }
-  auto job = std::make_unique<motion::Job>(*job_.path, job_.motion);
+  // A start that threw (the first look-ahead window) leaves the state ready: build it again.
+  std::unique_ptr<motion::Job> job =
+      built_ ? std::move(built_) : std::make_unique<motion::Job>(*job_.path, job_.motion);
   live_.reset();
   start_mm_ = job->walker().position();
   stop_why_.clear();
@@ -252,6 +267,7 @@ const std::string& Service::start() {
   o.clock = options_.clock;
   o.realtime = options_.realtime;
   o.ring_capacity = options_.ring_capacity;
+  o.own_thread = options_.cycle_thread;
   cycle_ = std::make_unique<motion::Cycle>(std::move(job), o);
   realtime_ = cycle_->start().message;
   log("job " + job_.name + " started; " + realtime_);
@@ -313,7 +329,12 @@ bool Service::poll() {
   try {
     step();
   } catch (const std::exception& e) {
-    fail_job(std::string("internal error: ") + e.what());
+    if (options_.cycle_thread) {
+      fail_job(std::string("internal error: ") + e.what());
+    } else {
+      fail_job(e.what());
+      throw;  // the owner's: an input error of the look-ahead, a sink's refusal
+    }
   }
   return busy();
 }
@@ -339,7 +360,11 @@ void Service::step() {
     }
   }
   if (cycle_ && (state_ == State::Running || state_ == State::Holding)) {
-    drain();
+    if (options_.cycle_thread) {
+      drain();
+    } else {
+      run_here();
+    }
     if (state_ == State::Error) return;
     const motion::CycleStatus c = cycle_->status();
     if (c.overruns > overruns_seen_) {
@@ -354,6 +379,13 @@ void Service::step() {
     }
   }
   if (state_ == State::Streaming) follow_stream();
+}
+
+void Service::run_here() {
+  for (std::int64_t k = 0; k < options_.periods_per_poll && cycle_->run_here(); ++k) {
+    drain();
+    if (state_ == State::Error) return;
+  }
 }
 
 void Service::drain() {
@@ -376,7 +408,13 @@ void Service::drain() {
     accel_max_ = std::max(accel_max_, std::abs(sp.a_mm_per_s2));
     jerk_max_ = std::max(jerk_max_, std::abs(sp.j_mm_per_s3));
     feed_max_ = std::max(feed_max_, sp.v_mm_per_s);
-    if (job_.sink) job_.sink->write(sp);
+    if (job_.sink) {
+      if (options_.cycle_thread) {
+        job_.sink->write(sp);
+      } else {
+        job_.sink->write_period(sp, cycle_->job(), cycle_->last_times());
+      }
+    }
     if (live_) {
       if (live_->program) {
         live_->program->push(sp);

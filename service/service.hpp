@@ -1,8 +1,9 @@
 // The ncd service as a library (docs/service.md): a job's lifecycle and its live pipeline,
 // without JSON, without a socket and without an event loop of its own. The owner (`ncd serve`'s
-// JSON mapping in app/service.cpp, or a test) calls the commands and poll() from one thread;
-// poll() is the one loop that drains the cycle's setpoints into the sinks, the block encoder,
-// the live block queue and the sender. The state machine is drawn at the top of service.cpp.
+// JSON mapping in app/service.cpp, `ncd replay` in app/replay_cmd.cpp, or a test) calls the
+// commands and poll() from one thread; poll() is the one loop that drains the cycle's setpoints
+// into the sinks, the block encoder, the live block queue and the sender. The state machine is
+// drawn at the top of service.cpp.
 #pragma once
 
 #include <atomic>
@@ -25,13 +26,22 @@
 
 namespace ncd::service {
 
-// Where a job's setpoints go besides the encoder (the setpoints file, a test's capture). write()
-// runs on the owner's thread in poll(); commit() when the job ends done or stopped; a job in
-// error destroys its sink without commit().
+// Where a job's setpoints go besides the encoder (the setpoints file, a test's capture, replay's
+// statistics). write() runs on the owner's thread in poll(); commit() when the job ends done or
+// stopped; a job in error destroys its sink without commit().
 class SetpointSink {
  public:
   virtual ~SetpointSink() = default;
   virtual void write(const motion::Setpoint& sp) = 0;
+  // With the cycle on the owner's thread (ServiceOptions::cycle_thread false), called instead
+  // of write(), right after sp's period: the job stands where sp left it (Job::limit_here and
+  // Job::roughness_here_um are sp's), and times is what that period cost.
+  virtual void write_period(const motion::Setpoint& sp, const motion::Job& job,
+                            const motion::PeriodTimes& times) {
+    (void)job;
+    (void)times;
+    write(sp);
+  }
   virtual void commit() = 0;
 };
 
@@ -71,6 +81,12 @@ struct JobSpec {
 struct ServiceOptions {
   motion::ClockKind clock = motion::ClockKind::Wall;
   bool realtime = true;
+  // false (the simulated clock only; `ncd replay`): no cycle thread. poll() runs the periods
+  // itself, up to periods_per_poll at a time, each drained before the next (the sinks'
+  // write_period), and an exception of a period or a sink ends the job in error and leaves
+  // poll() to the owner instead of becoming "internal error".
+  bool cycle_thread = true;
+  std::int64_t periods_per_poll = 1024;
   std::size_t ring_capacity = 8192;  // the cycle's setpoint ring
   // The block encoder's longest block when streaming live, s, when the encoder settings give
   // none: a block reaches the controller only when it closes.
@@ -156,6 +172,15 @@ class Service {
     return cycle_ && state_ != State::Running && state_ != State::Holding ? &cycle_->stats()
                                                                           : nullptr;
   }
+  // The job of the last start (its path as walked, its planner's high-water marks): null before
+  // a start and after a job failed on an exception. With a cycle thread, only once the cycle
+  // has ended (as cycle_stats()); without one, at any time between polls.
+  const motion::Job* job() const {
+    if (!cycle_ ||
+        (options_.cycle_thread && (state_ == State::Running || state_ == State::Holding)))
+      return nullptr;
+    return &cycle_->job();
+  }
   // A new subscriber's event feed (capacity rounded up to a power of two, at least 2).
   std::shared_ptr<Subscription> subscribe(std::size_t capacity);
 
@@ -163,6 +188,7 @@ class Service {
   struct Live;  // the encoder, the queue and the sender thread (service.cpp)
 
   void step();
+  void run_here();
   void drain();
   void finish_motion();
   void start_stream(const motion::Job& job);
@@ -181,6 +207,7 @@ class Service {
   State state_ = State::Idle;
   HoldHolder holder_ = HoldHolder::None;
   JobSpec job_;
+  std::unique_ptr<motion::Job> built_;  // submit()'s, for start()
   std::string error_, stop_why_, realtime_;
   Vec3 start_mm_ = Vec3::Zero();
   double moving_s_ = 0.0;

@@ -47,18 +47,36 @@ TEST(MqttConfig, TheMinimalTableTakesTheDefaults) {
   EXPECT_FALSE(c.tls());
 }
 
+// A folder with the three TLS files of a machine (their content is not read at config time).
+class TlsFiles {
+ public:
+  TlsFiles()
+      : dir_(std::filesystem::temp_directory_path() /
+             ("ncd_fleet_tlsfiles_" + std::to_string(::getpid()))) {
+    std::filesystem::create_directories(dir_);
+    for (const char* name : {"ca.pem", "m1.pem", "m1.key"}) std::ofstream(dir_ / name) << "PEM\n";
+  }
+  ~TlsFiles() { std::filesystem::remove_all(dir_); }
+  std::string operator()(const char* name) const { return (dir_ / name).string(); }
+
+ private:
+  std::filesystem::path dir_;
+};
+
 TEST(MqttConfig, EveryKeyIsRead) {
+  const TlsFiles f;
   const MqttConfig c = parse(
       "broker = \"ssl://broker.shop:8883\"\ntopic_root = \"ncd/c1/m1/\"\nclient_id = \"lathe-7\"\n"
-      "username = \"m1\"\npassword = \"pw\"\nca_file = \"/etc/ncd/ca.pem\"\n"
-      "cert_file = \"/etc/ncd/m1.pem\"\nkey_file = \"/etc/ncd/m1.key\"\nstatus_hz = 50\n"
-      "queue_bound = 20\nreconnect_min_s = 0.25\nreconnect_max_s = 10.0\n");
+      "username = \"m1\"\npassword = \"pw\"\nca_file = \"" +
+      f("ca.pem") + "\"\ncert_file = \"" + f("m1.pem") + "\"\nkey_file = \"" + f("m1.key") +
+      "\"\nstatus_hz = 50\nqueue_bound = 20\nreconnect_min_s = 0.25\nreconnect_max_s = 10.0\n");
   EXPECT_TRUE(c.tls());
   EXPECT_EQ(c.client_id, "lathe-7");
   EXPECT_EQ(*c.username, "m1");
   EXPECT_EQ(*c.password, "pw");
-  EXPECT_EQ(*c.ca_file, "/etc/ncd/ca.pem");
-  EXPECT_EQ(*c.key_file, "/etc/ncd/m1.key");
+  EXPECT_EQ(*c.ca_file, f("ca.pem"));
+  EXPECT_EQ(*c.cert_file, f("m1.pem"));
+  EXPECT_EQ(*c.key_file, f("m1.key"));
   EXPECT_EQ(c.status_hz, 50.0);
   EXPECT_EQ(c.queue_bound, 20u);
   EXPECT_EQ(c.reconnect_min_s, 0.25);
@@ -97,6 +115,34 @@ TEST(MqttConfig, BadValuesAreRefusedWithTheKeyTheValueAndTheLimit) {
       {kMinimal + "client_id = \"\"\n", {"client_id is empty"}},
       {kMinimal + "brokr = \"tcp://x\"\n", {"unknown key", "brokr", "broker, client_id"}},
       {kMinimal + "username = 7\n", {"username must be a string", "7"}},
+  };
+  for (const Case& c : cases) {
+    const std::string why = refusal(c.body);
+    ASSERT_FALSE(why.empty()) << "accepted:\n" << c.body;
+    for (const std::string& s : c.says) EXPECT_NE(why.find(s), std::string::npos) << why;
+  }
+}
+
+TEST(MqttConfig, TlsFilesThatCannotBeReadAreRefusedNamingTheKey) {
+  const TlsFiles f;
+  const std::string tls = "broker = \"ssl://x:8883\"\ntopic_root = \"a/\"\n";
+  const std::string pair =
+      "cert_file = \"" + f("m1.pem") + "\"\nkey_file = \"" + f("m1.key") + "\"\n";
+  EXPECT_EQ(refusal(tls + pair + "ca_file = \"" + f("ca.pem") + "\"\n"), "");
+  struct Case {
+    std::string body;
+    std::vector<std::string> says;
+  };
+  const std::string missing = f("nothing.pem");
+  const std::vector<Case> cases = {
+      {tls + "ca_file = \"" + missing + "\"\n",
+       {"serve.toml: mqtt.ca_file = \"" + missing + "\"", "No such file", "PEM file"}},
+      {tls + "cert_file = \"" + missing + "\"\nkey_file = \"" + f("m1.key") + "\"\n",
+       {"mqtt.cert_file = \"" + missing + "\"", "cannot be read", "No such file"}},
+      {tls + "cert_file = \"" + f("m1.pem") + "\"\nkey_file = \"" + missing + "\"\n",
+       {"mqtt.key_file = \"" + missing + "\"", "cannot be read"}},
+      {tls + pair + "ca_file = \"" + std::filesystem::temp_directory_path().string() + "\"\n",
+       {"mqtt.ca_file", "a directory"}},
   };
   for (const Case& c : cases) {
     const std::string why = refusal(c.body);
