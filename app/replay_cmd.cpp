@@ -226,6 +226,8 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["chord_error_max_mm"] = st.chord_error_max_mm;
   j["accel_max"] = st.accel_max_mm_per_s2;
   j["jerk_max"] = st.jerk_max_mm_per_s3;
+  j["jerk_vector_max"] = st.jerk_vector_max_mm_per_s3;
+  j["jerk_bound"] = motion::kJerkBoundInForce;
   j["feed_max_mm_per_min"] = st.feed_max_mm_per_s * 60.0;
   j["limit_violations"] = st.limit_violations();
   j["limit_violations_by_kind"] = {{"feed", st.violations_feed},
@@ -442,7 +444,8 @@ int run_replay(const ReplayArgs& a) {
                  "  feed error        max %.3g, rms %.3g (true arc against planned, steps >= 1 um);"
                  " max %.3g mm\n"
                  "  drift             %.3g mm; chord error max %.3g mm (tolerance %.3g mm)\n"
-                 "  accel, jerk max   %.1f mm/s2, %.0f mm/s3; limit violations %lld\n"
+                 "  accel, jerk max   %.1f mm/s2, %.0f mm/s3 (tangential); limit violations %lld\n"
+                 "  jerk vector max   %.0f mm/s3 (from the setpoints); bound in force: %s\n"
                  "  step time         median %.0f ns, p99 %.0f ns; replayed in %.2f s "
                  "(%.0f periods/s)\n",
                  source.c_str(), st.path_length_mm, static_cast<long long>(st.cycles),
@@ -451,6 +454,7 @@ int run_replay(const ReplayArgs& a) {
                  st.feed_error_rms_rel(), st.feed_error_max_abs_mm, st.drift_mm(),
                  st.chord_error_max_mm, machine.limits.chord_tolerance_mm, st.accel_max_mm_per_s2,
                  st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
+                 st.jerk_vector_max_mm_per_s3, motion::kJerkBoundInForce,
                  st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                  static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
     if (encoder) print_blocks(encoder->stats(), a.blocks);

@@ -37,6 +37,11 @@
 // 4. Landing. Near L, the committed plan (which stops at or before L) plus the minimum-norm
 //    jerk correction that puts the end state exactly at (L, 0, 0), or a minimum-norm landing of
 //    n periods from the current state, is checked as above and then executed as it stands.
+//    The shortest are tried first: zero-jerk bases from the time-optimal stop time up, then the
+//    plan cut short by 3, 2, 1 periods (its creep onto L folded into the correction), then the
+//    plan itself. A zero-jerk landing longer than cruising at v and then stopping
+//    time-optimally is not taken while v ≥ a_max T: committed early, it brakes softly all the
+//    way (docs/planner.md §4).
 // Override scales the limits; lowering it runs π towards the new limits while checking
 // against the old ones until the new ones hold. Hold makes π's target 0 from now on.
 //
@@ -511,13 +516,30 @@ bool Planner::try_landing() {
   const double t_stop = stop.t1 + stop.t2 + stop.t3;
   const std::size_t n0 =
       std::max<std::size_t>(3, t_stop > 0.0 ? static_cast<std::size_t>(t_stop / T) : 0);
+  // Nor is one taken that ends later than cruising at v and then stopping time-optimally
+  // would: committed early, a minimum-norm landing brakes softly all the way to L.
+  // (Not below a_max T, where cruising is no estimate: near rest any landing is taken.)
+  const double v = x_.v_mm_per_s;
+  double n_cruise = std::numeric_limits<double>::infinity();
+  if (v >= a_max_ * T) {
+    const double t_cruise = t_stop + std::max(length_mm_ - x_.s_mm - need_mm(x_, 0.0), 0.0) / v;
+    n_cruise = std::max(std::ceil(t_cruise / T) + 1.0, static_cast<double>(n0 + 2));
+  }
   for (std::size_t n = n0; n < tail && n < n0 + kShortLandings; ++n) {
+    if (static_cast<double>(n) > n_cruise) break;
     if (land_with(n, false)) return true;
   }
+  // The plan cut short: its last periods are often a creep onto L (the policy settles with
+  // margin), which the correction can fold into the earlier ones.
+  for (std::size_t cut = 3; cut > 0; --cut) {
+    if (tail >= 3 + cut && land_with(tail - cut, true)) return true;
+  }
   if (tail >= 3 && land_with(tail, true)) return true;
-  if (tail >= 2 && land_with(tail + 1, false)) return true;
+  if (tail >= 2 && static_cast<double>(tail + 1) <= n_cruise && land_with(tail + 1, false)) {
+    return true;
+  }
   std::size_t n = std::max<std::size_t>(3, tail);
-  for (int k = 0; k < 12 && n <= rollout_cap_; ++k) {
+  for (int k = 0; k < 12 && n <= rollout_cap_ && static_cast<double>(n) <= n_cruise; ++k) {
     if (land_with(n, false)) return true;
     n = n + std::max<std::size_t>(1, n / 4);
   }

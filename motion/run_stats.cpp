@@ -1,5 +1,6 @@
 // Run statistics: feed error against the true arc length, chord error, tangential
-// acceleration and jerk, limit violations beyond kViolationRel, roughness, binding limits.
+// acceleration and jerk, the jerk vector from the setpoints (third difference), limit
+// violations beyond kViolationRel, roughness, binding limits.
 #include "motion/run_stats.hpp"
 
 #include <cmath>
@@ -37,6 +38,12 @@ void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double li
   st.chord_error_max_mm = std::max(st.chord_error_max_mm, sp.chord_error_mm);
   st.accel_max_mm_per_s2 = std::max(st.accel_max_mm_per_s2, std::abs(sp.a_mm_per_s2));
   st.jerk_max_mm_per_s3 = std::max(st.jerk_max_mm_per_s3, std::abs(sp.j_mm_per_s3));
+  if (st.cycles >= 4) {
+    const double t3 = l.period_s * l.period_s * l.period_s;
+    const Vec3 d3 = sp.p - 3.0 * st.last_p_mm[2] + 3.0 * st.last_p_mm[1] - st.last_p_mm[0];
+    st.jerk_vector_max_mm_per_s3 = std::max(st.jerk_vector_max_mm_per_s3, d3.norm() / t3);
+  }
+  st.last_p_mm = {st.last_p_mm[1], st.last_p_mm[2], sp.p};
   st.feed_max_mm_per_s = std::max(st.feed_max_mm_per_s, sp.v_mm_per_s);
   st.roughness_max_um = std::max(st.roughness_max_um, roughness_um);
   const double k = 1.0 + kViolationRel;

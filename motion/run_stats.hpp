@@ -20,6 +20,11 @@ inline constexpr double kFeedErrorMinStepMm = 1e-3;
 // relative tolerance × length (docs/hardening.md, "Accepting a run").
 inline constexpr double kDriftToleranceMm = 1e-3;
 
+// Which jerk bound the planner enforces (docs/planner.md §3b), for the reports.
+inline constexpr const char* kJerkBoundInForce =
+    "tangential jerk |j_t| <= j_max and centripetal jerk v^3 kappa^2 <= j_max, each; the jerk "
+    "vector (jerk_vector_max) is measured, not bounded";
+
 struct RunStats {
   std::int64_t cycles = 0;
   double duration_s = 0.0;
@@ -32,7 +37,12 @@ struct RunStats {
   std::int64_t feed_error_steps = 0;
   double chord_error_max_mm = 0.0;
   double accel_max_mm_per_s2 = 0.0;  // tangential
-  double jerk_max_mm_per_s3 = 0.0;
+  double jerk_max_mm_per_s3 = 0.0;   // tangential (the planner's j, bounded by j_max)
+  // The jerk the axes feel: |p_k − 3 p_k−1 + 3 p_k−2 − p_k−3| / T³ from the setpoints, the
+  // largest so far. Not bounded by j_max (docs/planner.md §3b): on a curve it adds v³κ² and
+  // 3 v a κ to the tangential jerk. last_p_mm holds the three previous setpoints.
+  double jerk_vector_max_mm_per_s3 = 0.0;
+  std::array<Vec3, 3> last_p_mm{};
   double feed_max_mm_per_s = 0.0;
   double roughness_max_um = 0.0;
   std::int64_t violations_feed = 0, violations_accel = 0, violations_jerk = 0, violations_chord = 0;

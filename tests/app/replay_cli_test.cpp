@@ -58,14 +58,19 @@ TEST_F(Replay, ReportAndSetpointsOfTheChamfer) {
   const auto j = nlohmann::json::parse(slurp(report));
   for (const char* key :
        {"cycles", "duration_s", "path_length_mm", "feed_error", "arc_length_drift_mm",
-        "chord_error_max_mm", "accel_max", "jerk_max", "limit_violations", "roughness_max_um",
-        "active_limit_share", "step_time_ns"}) {
+        "chord_error_max_mm", "accel_max", "jerk_max", "jerk_vector_max", "jerk_bound",
+        "limit_violations", "roughness_max_um", "active_limit_share", "step_time_ns"}) {
     EXPECT_TRUE(j.contains(key)) << key;
   }
   for (const char* key : {"median", "p99", "max"}) EXPECT_TRUE(j["step_time_ns"].contains(key));
   EXPECT_TRUE(j["feed_error"].contains("max_rel"));
   EXPECT_TRUE(j["feed_error"].contains("rms_rel"));
   EXPECT_EQ(j["limit_violations"].get<int>(), 0);
+  // The jerk the axes feel (from the setpoints) and the bound in force, in the report and in
+  // the summary (docs/planner.md §3b).
+  EXPECT_GT(j["jerk_vector_max"].get<double>(), 0.0);
+  EXPECT_NE(j["jerk_bound"].get<std::string>().find("tangential"), std::string::npos);
+  EXPECT_NE(r.err.find("jerk vector max"), std::string::npos) << r.err;
   EXPECT_LE(std::abs(j["arc_length_drift_mm"].get<double>()), 1e-6);
   EXPECT_LE(j["chord_error_max_mm"].get<double>(), 0.001 * (1 + 1e-6));
   EXPECT_LE(j["roughness_max_um"].get<double>(), 0.05 * (1 + 1e-6));  // the machine's target
