@@ -19,6 +19,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "app/commands.hpp"
@@ -375,8 +376,10 @@ int run_replay(const ReplayArgs& a) {
           block_plot.add(b.start_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
           block_plot.add(b.end_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
         });
+    const motion::Job* built = svc.submitted_job();  // the events go where its segments start
+    if (!built) throw std::logic_error("replay: the service holds no submitted job");
     program_blocks =
-        std::make_unique<comms::ProgramBlocks>(whole.program, *encoder, job.segment_starts_mm());
+        std::make_unique<comms::ProgramBlocks>(whole.program, *encoder, built->segment_starts_mm());
     if (!a.path_only) program_blocks->begin(whole.header);  // --path-only: the blocks alone
     rec.blocks = program_blocks.get();
   }

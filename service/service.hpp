@@ -175,6 +175,9 @@ class Service {
   // The job of the last start (its path as walked, its planner's high-water marks): null before
   // a start and after a job failed on an exception. With a cycle thread, only once the cycle
   // has ended (as cycle_stats()); without one, at any time between polls.
+  // The job submit() built, until start() takes it (null otherwise): where its segments start
+  // on the path it will walk, for a caller that places program events on it before the start.
+  const motion::Job* submitted_job() const { return built_.get(); }
   const motion::Job* job() const {
     if (!cycle_ ||
         (options_.cycle_thread && (state_ == State::Running || state_ == State::Holding)))
