@@ -332,6 +332,7 @@ json to_json(const service::Status& st) {
     s["t_s"] = st.t_s;
     s["line"] = st.line > 0 ? json(st.line) : json();
     s["binding_limit"] = st.binding_limit.empty() ? json() : json(st.binding_limit);
+    s["feed_limit_mm_per_min"] = st.binding_limit.empty() ? json() : json(st.feed_limit_mm_per_min);
     s["overruns"] = st.overruns;
     s["late_wakeups"] = st.late_wakeups;
   } else {
@@ -341,6 +342,7 @@ json to_json(const service::Status& st) {
     s["time_left_s"] = json();
     s["line"] = json();
     s["binding_limit"] = json();
+    s["feed_limit_mm_per_min"] = json();
     s["overruns"] = 0;
   }
   // Non-empty bins only: [from_us, to_us) and the wake-ups that were that late.
@@ -386,16 +388,30 @@ json to_json(const service::Status& st) {
          {"blocks_waiting", l.blocks_waiting},
          {"held_by_link", st.holder == service::HoldHolder::Link},
          {"last_event", l.last_event}};
+  // The sender's live counters (docs/service.md, "Status"); at the end they equal the report's.
+  const comms::SenderCounts& c = l.counts;
+  k["bytes_written"] = c.bytes_written;
+  k["blocks_taken"] = c.blocks_taken;
+  k["blocks_written"] = c.blocks_written;
+  k["blocks_acked"] = c.blocks_acked >= 0 ? json(c.blocks_acked) : json();
+  k["blocks_executed"] = c.blocks_executed >= 0 ? json(c.blocks_executed) : json();
+  k["xoff_count"] = c.xoff_count;
+  k["xoff_held"] = c.xoff_held;
+  k["controller_buffer_bytes"] = c.buffer_bytes;
+  k["controller_buffer_limit_bytes"] = c.buffer_limit_bytes;
+  k["controller_buffer_basis"] =
+      c.blocks_acked >= 0 ? "unanswered lines (character counting)" : "wire model";
+  k["underruns"] = c.underruns;
+  k["reconnects"] = c.reconnects;
+  k["link_losses"] = c.link_losses;
+  k["done"] = l.done;
   if (l.done) {
     const comms::SenderReport& r = l.report;
     k["completed"] = r.completed;
     k["failure"] = r.failure;
     k["blocks_sent"] = r.blocks;
-    k["bytes_written"] = r.bytes_written;
     k["link_use"] = r.link_use;
-    k["xoff_count"] = r.xoff_count;
     k["xoff_timeouts"] = r.xoff_timeouts;
-    k["reconnects"] = r.reconnects;
     k["blocks_resent"] = r.blocks_resent;
     k["program_sha256"] = r.program_sha256;
   }

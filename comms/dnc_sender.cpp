@@ -52,6 +52,12 @@
 // motion to a planned stop. NAK or SYN (drip) stop the transfer with the block named. Other
 // bytes are noise: counted, logged, ignored. The journal records the first block not known
 // executed (ack) or sent (drip: carried by the line), so a restarted ncd resumes there.
+//
+// Live counters (docs/dnc-link.md, "Live counters"). After each pass of the loop, and at the
+// end, the session stores what it has done so far into relaxed atomics (SenderCounters), read
+// by the owner without a lock. An underrun is counted when a dry spell begins: everything
+// written, the source not ready and not over, the controller not holding, after the first
+// block.
 #include "comms/dnc_sender.hpp"
 
 #include <algorithm>
@@ -170,12 +176,14 @@ std::optional<Vec3> axes(std::string_view v) {
 class Session {
  public:
   Session(const SenderSettings& s, BlockSource& source, const DncSender::EventFn& on_event,
-          const DncSender::HoldFn& on_hold, TransferJournal* journal, std::int64_t first_block)
+          const DncSender::HoldFn& on_hold, TransferJournal* journal, std::int64_t first_block,
+          SenderCounters& counters)
       : s_(s),
         source_(source),
         on_event_(on_event),
         on_hold_(on_hold),
         journal_(journal),
+        counters_(counters),
         ack_(s.line.protocol == Protocol::Ack),
         cps_(chars_per_s(s.line)),
         window_(s.resend_window_chars >= 0
@@ -222,8 +230,10 @@ class Session {
       } catch (const LinkError& e) {
         lost_link(e.what());
       }
+      publish();
     }
     finish();
+    publish();
     return report_;
   }
 
@@ -231,6 +241,44 @@ class Session {
   enum class Phase { Startup, Ready, Recovering };
 
   double now_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
+
+  // The live counters (SenderCounts), stored once per pass: plain reads of the session's own
+  // state and relaxed atomic stores.
+  void publish() {
+    SenderCounts c;
+    c.bytes_written = report_.bytes_written;
+    c.blocks_taken = report_.blocks;
+    c.blocks_written = report_.blocks_sent;
+    c.blocks_acked = ack_ ? report_.blocks_queued : -1;
+    c.blocks_executed = ack_ && status_known() ? executed_count_ : -1;
+    c.xoff_count = report_.xoff_count;
+    c.xoff_held = !xon_ || cts_low_;
+    if (ack_) {
+      c.buffer_bytes = unacked_bytes_;
+      c.buffer_limit_bytes = s_.rx_buffer_bytes;
+    } else {
+      const double ahead =
+          std::max(static_cast<double>(outq_), static_cast<double>(conn_written_) - delivered());
+      c.buffer_bytes = link_ ? static_cast<int>(std::ceil(std::max(ahead, 0.0))) : 0;
+      c.buffer_limit_bytes = s_.max_queued_chars;
+    }
+    c.underruns = underruns_;
+    c.reconnects = report_.reconnects;
+    c.link_losses = report_.link_losses;
+    counters_.store(c);
+  }
+
+  // An underrun begins when the sender has written everything it has, the source has nothing
+  // yet and the program is not over, while the controller does not hold the line (a hold is
+  // the controller's own wish) and after the first block went out (before it, nothing runs).
+  void watch_underrun() {
+    const bool nothing = source_waiting_ && !source_done_ && sent_items_ == items_.size();
+    const bool held = !xon_ || cts_low_;
+    const bool dry =
+        nothing && !held && report_.blocks_sent > 0 && (!ack_ || phase_ == Phase::Ready);
+    if (dry && !dry_) ++underruns_;
+    dry_ = dry;
+  }
 
   void emit(SenderEvent::Kind kind, std::int64_t block, std::string text) {
     if (on_event_) on_event_(SenderEvent{kind, now_s(), block, std::move(text)});
@@ -262,6 +310,7 @@ class Session {
       confirm_drip();
     }
     if (over()) return false;
+    watch_underrun();
     progress();
     if (done()) {
       report_.completed = true;
@@ -1228,6 +1277,7 @@ class Session {
   const DncSender::HoldFn& on_hold_;
   DncSender::ExecutedFn on_executed_;
   TransferJournal* journal_;
+  SenderCounters& counters_;
   const bool ack_;
   const double cps_;
   const int window_;
@@ -1249,6 +1299,8 @@ class Session {
   ProgramModal modal_;
   bool source_done_ = false;
   bool source_waiting_ = false;
+  bool dry_ = false;  // in an underrun (watch_underrun)
+  std::int64_t underruns_ = 0;
   std::int64_t noise_events_ = 0;
   bool xon_ = true;
   double xoff_since_s_ = 0.0;
@@ -1279,14 +1331,55 @@ class Session {
 }  // namespace
 
 DncSender::DncSender(const SenderSettings& settings, BlockSource& source, EventFn on_event)
-    : settings_(settings), source_(source), on_event_(std::move(on_event)) {}
+    : settings_(settings), source_(source), on_event_(std::move(on_event)) {
+  // Before the run: nothing done yet, the buffer's limit and the protocol's unknowns already.
+  SenderCounts c;
+  const bool ack = settings.line.protocol == Protocol::Ack;
+  c.blocks_acked = ack ? 0 : -1;
+  c.buffer_limit_bytes = ack ? settings.rx_buffer_bytes : settings.max_queued_chars;
+  counters_.store(c);
+}
 
 void DncSender::resume_from(std::int64_t first_block) {
   first_block_ = first_block;
 }
 
+SenderCounts SenderCounters::load() const {
+  constexpr auto r = std::memory_order_relaxed;
+  SenderCounts c;
+  c.bytes_written = bytes_written_.load(r);
+  c.blocks_taken = blocks_taken_.load(r);
+  c.blocks_written = blocks_written_.load(r);
+  c.blocks_acked = blocks_acked_.load(r);
+  c.blocks_executed = blocks_executed_.load(r);
+  c.xoff_count = xoff_count_.load(r);
+  c.xoff_held = xoff_held_.load(r);
+  c.buffer_bytes = buffer_bytes_.load(r);
+  c.buffer_limit_bytes = buffer_limit_bytes_.load(r);
+  c.underruns = underruns_.load(r);
+  c.reconnects = reconnects_.load(r);
+  c.link_losses = link_losses_.load(r);
+  return c;
+}
+
+void SenderCounters::store(const SenderCounts& c) {
+  constexpr auto r = std::memory_order_relaxed;
+  bytes_written_.store(c.bytes_written, r);
+  blocks_taken_.store(c.blocks_taken, r);
+  blocks_written_.store(c.blocks_written, r);
+  blocks_acked_.store(c.blocks_acked, r);
+  blocks_executed_.store(c.blocks_executed, r);
+  xoff_count_.store(c.xoff_count, r);
+  xoff_held_.store(c.xoff_held, r);
+  buffer_bytes_.store(c.buffer_bytes, r);
+  buffer_limit_bytes_.store(c.buffer_limit_bytes, r);
+  underruns_.store(c.underruns, r);
+  reconnects_.store(c.reconnects, r);
+  link_losses_.store(c.link_losses, r);
+}
+
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
-  Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_);
+  Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_);
   session.on_executed(on_executed_);
   return session.run(stop);
 }

@@ -121,6 +121,45 @@ struct SenderReport {
   std::string program_sha256;   // of the blocks, each ended by one LF
 };
 
+// What the sender has done so far, published while it runs (docs/dnc-link.md, "Live counters"):
+// the sender's thread stores them once per pass of its loop and when it ends, with relaxed
+// atomic stores (no lock, no allocation); any thread reads them with load(). Each counter only
+// grows during a transfer, and once run() has returned they equal its SenderReport's.
+struct SenderCounts {
+  std::int64_t bytes_written = 0;     // SenderReport::bytes_written
+  std::int64_t blocks_taken = 0;      // program blocks taken from the source (report.blocks)
+  std::int64_t blocks_written = 0;    // written in full at least once (report.blocks_sent)
+  std::int64_t blocks_acked = -1;     // ack: answered ok, queued (report.blocks_queued); -1 drip
+  std::int64_t blocks_executed = -1;  // ack with status: known executed; -1 not known
+  int xoff_count = 0;                 // the controller's holds (DC3) seen (report.xoff_count)
+  bool xoff_held = false;             // the controller holds the line now (DC3, or CTS low)
+  // The controller's receive buffer as the sender knows it, bytes (characters): ack, the sum
+  // of the lines written and not yet answered (character counting) against rx_buffer_bytes;
+  // drip, the characters written and not yet carried by the line (the larger of the wire
+  // model and the kernel's output queue) against max_queued_chars, the sender's own bound.
+  int buffer_bytes = 0;
+  int buffer_limit_bytes = 0;
+  // Times the sender had nothing to write while the program was not over, the link was up and
+  // the controller was not holding, after the first block went out: the controller could
+  // starve. Counted once per dry spell (when it begins), not per pass of the loop.
+  std::int64_t underruns = 0;
+  int reconnects = 0;   // report.reconnects
+  int link_losses = 0;  // report.link_losses
+};
+
+class SenderCounters {
+ public:
+  SenderCounts load() const;
+  void store(const SenderCounts& c);
+
+ private:
+  std::atomic<std::int64_t> bytes_written_{0}, blocks_taken_{0}, blocks_written_{0},
+      blocks_acked_{-1}, blocks_executed_{-1}, underruns_{0};
+  std::atomic<int> xoff_count_{0}, buffer_bytes_{0}, buffer_limit_bytes_{0}, reconnects_{0},
+      link_losses_{0};
+  std::atomic<bool> xoff_held_{false};
+};
+
 class DncSender {
  public:
   using EventFn = std::function<void(const SenderEvent&)>;
@@ -139,6 +178,8 @@ class DncSender {
   void on_executed(ExecutedFn fn) { on_executed_ = std::move(fn); }
   // Sends until the program is confirmed, an alarm, the link is given up, or stop is set.
   SenderReport run(const std::atomic<bool>& stop);
+  // The live counters of the run under way (or the last one); readable from any thread.
+  const SenderCounters& counters() const { return counters_; }
 
  private:
   SenderSettings settings_;
@@ -148,6 +189,7 @@ class DncSender {
   ExecutedFn on_executed_;
   TransferJournal* journal_ = nullptr;
   std::int64_t first_block_ = 0;
+  SenderCounters counters_;
 };
 
 }  // namespace ncd::comms

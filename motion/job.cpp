@@ -182,6 +182,7 @@ Setpoint Job::step() {
   sp.a_mm_per_s2 = m.a_mm_per_s2;
   sp.j_mm_per_s3 = m.j_mm_per_s3;
   sp.limit_id = m.limit_id;
+  sp.feed_limit_mm_per_s = m.v_limit_mm_per_s;
   sp.planned_ds_mm = s_mm - last_s_mm_;
   last_s_mm_ = s_mm;
   const interpolator::WalkStep w = walker_.advance(sp.planned_ds_mm);

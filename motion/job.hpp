@@ -42,6 +42,9 @@ struct Setpoint {
   // The step rule (step_guard.hpp): not None, this setpoint broke it and must not be emitted;
   // the job is over (every later step repeats the fault).
   StepFault fault = StepFault::None;
+  // The feed laws' limit at s, at 100 % override, whichever limit binds (the planner's limit
+  // curve there, MotionSample::v_limit_mm_per_s): the feed's ceiling, mm/s.
+  double feed_limit_mm_per_s = 0.0;
 };
 
 // "roughness", …, "corner" for feed laws; "tangential_accel", "tangential_jerk", "path_end",

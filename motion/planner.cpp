@@ -551,7 +551,18 @@ void Planner::commit(double j, std::uint8_t limit_id) {
   x_ = advance(x_, j);
   ++periods_;
   t_s_ = static_cast<double>(periods_) * period_s_;
-  last_ = MotionSample{t_s_, x_.s_mm, x_.v_mm_per_s, x_.a_mm_per_s2, j, limit_id, false};
+  last_ = MotionSample{t_s_, x_.s_mm,  x_.v_mm_per_s, x_.a_mm_per_s2,
+                       j,    limit_id, false,         limit_at(x_.s_mm)};
+}
+
+// The limit curve at s (see MotionSample::v_limit_mm_per_s). The samples behind s were dropped
+// at the start of the step, so this passes at most the few samples one period crosses.
+double Planner::limit_at(double s_mm) const {
+  if (count_ == 0) return 0.0;
+  std::size_t i = 0;
+  while (i + 1 < count_ && sample(i + 1).s_mm <= s_mm) ++i;
+  const double here = sample(i).v_max_mm_per_s;
+  return i + 1 < count_ ? std::min(here, sample(i + 1).v_max_mm_per_s) : here;
 }
 
 MotionSample Planner::step() {
@@ -559,7 +570,7 @@ MotionSample Planner::step() {
   last_rollouts_ = 0;
   if (length_mm_ == 0.0) {
     done_ = true;
-    last_ = MotionSample{t_s_, 0.0, 0.0, 0.0, 0.0, kLimitIdPathEnd, true};
+    last_ = MotionSample{t_s_, 0.0, 0.0, 0.0, 0.0, kLimitIdPathEnd, true, limit_at(0.0)};
     return last_;
   }
   drop_passed_samples();

@@ -50,6 +50,10 @@ struct MotionSample {
   double j_mm_per_s3 = 0.0;
   std::uint8_t limit_id = 0;  // binding feed limit, or kLimitId* when the planner's own binds
   bool done = false;          // at rest exactly at L; further steps repeat this sample
+  // The limit curve at s, at 100 % override (the smaller of the two samples around s; at a
+  // sample, the interval after it): what the feed laws allow here whichever limit binds, mm/s.
+  // 0 before any sample.
+  double v_limit_mm_per_s = 0.0;
 };
 
 class Planner {
@@ -122,6 +126,7 @@ class Planner {
   double need_mm(const Kin& x, double w) const;
   Kin advance(const Kin& x, double j) const;
   void commit(double j, std::uint8_t limit_id);
+  double limit_at(double s_mm) const;
 
   // limits
   double a_max_, j_max_, period_s_, length_mm_;

@@ -30,7 +30,8 @@
 // Threads: the commands, poll() and status() run on the owner's thread; the service's own state
 // needs no lock. The cycle thread is reached only through its atomic commands, its setpoint ring
 // and its seqlocked status; the sender's thread through the live block queue, one atomic for its
-// holds and a mutex-guarded list of its events (neither side is the cycle). poll() drains the
+// holds, its live counters (relaxed atomics) and a mutex-guarded list of its events (neither
+// side is the cycle). poll() drains the
 // setpoints in order into: the live limit check (service/live_limits.hpp; a setpoint breaking an
 // Error rule is not emitted and the job ends in error), the statistics, the setpoint sink, the
 // block encoder, whose closed blocks queue for the sender. Observers get events through their
@@ -638,6 +639,7 @@ Status Service::status() const {
     if (setpoints_ > 0) {
       s.line = line_at(last_.s_mm);
       s.binding_limit = motion::limit_name(last_.limit_id);
+      s.feed_limit_mm_per_min = last_.feed_limit_mm_per_s * 60.0;
     }
     s.overruns = c.overruns;
     s.late_wakeups = c.late_wakeups;
@@ -674,6 +676,7 @@ Status Service::status() const {
     }
     l.link_holds = live_->link_holds.load();
     l.done = live_->done.load(std::memory_order_acquire);
+    l.counts = live_->sender->counters().load();
     if (l.done) l.report = live_->report;
     s.link = std::move(l);
   }

@@ -110,6 +110,10 @@ struct LinkStatus {
   bool link_holds = false;     // the sender's last word: the controller holds the line
   bool done = false;           // the sender has finished; report is valid
   comms::SenderReport report;  // valid when done
+  // The sender's live counters (comms::SenderCounts: bytes, blocks, XOFF, the controller's
+  // buffer, underruns, reconnects), read without a lock while it runs; equal to the report's
+  // once done.
+  comms::SenderCounts counts;
 };
 
 // The status snapshot (owner's thread; allocates, never touches the cycle's thread).
@@ -122,10 +126,12 @@ struct Status {
   double feed_mm_per_min = 0.0, progress = 0.0, t_s = 0.0, length_mm = 0.0;
   std::optional<double> time_left_s;
   // Of the last setpoint drained (none before the first): the source line of the segment it
-  // lies in (0: the path has no lines) and the feed limit that bound it (motion::limit_name:
-  // "roughness", …, "program", "tangential_accel", "hold", …).
+  // lies in (0: the path has no lines), the feed limit that bound it (motion::limit_name:
+  // "roughness", …, "program", "tangential_accel", "hold", …) and the feed laws' limit there at
+  // 100 % override, whichever binds (motion::Setpoint::feed_limit_mm_per_s; 0 before the first).
   int line = 0;
   std::string binding_limit;
+  double feed_limit_mm_per_min = 0.0;
   std::int64_t overruns = 0, late_wakeups = 0, setpoints = 0;
   // The cycle's wake-up lateness so far, ns on LogHistogram's coarse buckets
   // (motion::Cycle::lateness_bins; bucket g from LogHistogram::coarse_from(g)); all zero before

@@ -104,8 +104,11 @@ function showStatus(s) {
   $('pos-z').textContent = p ? fixed(p[2], 3) : '-';
   $('feed').textContent = fixed(s.feed_mm_per_min, 1);
   const limit = feedLimit(s);
-  $('feed-limit').textContent = (limit !== null ? fixed(limit, 1) + ' (programmed F × override)' : '-') +
-    (s.binding_limit ? ' · binding: ' + s.binding_limit : '');
+  $('feed-limit').textContent = limit !== null ? fixed(limit, 1) : '-';
+  $('feed-limit-note').textContent = typeof s.feed_limit_mm_per_min === 'number'
+    ? `(the limit ${fixed(s.feed_limit_mm_per_min, 1)} × override` +
+      (s.binding_limit ? ' · binding: ' + s.binding_limit : '') + ')'
+    : '';
   $('override').textContent = fixed(s.override_percent, 0);
   $('progress').textContent = typeof s.progress === 'number' ? (100 * s.progress).toFixed(1) + ' %' : '-';
   $('progress-bar').value = s.progress || 0;
@@ -133,11 +136,12 @@ function showStatus(s) {
   draw();
 }
 
-// The ceiling the page knows: the program's highest F times the override (the status has no
-// binding limit yet; docs/web-dashboard.md).
+// The feed's ceiling at the tool: the feed laws' limit there (the status's
+// feed_limit_mm_per_min, at 100 %) times the override; null before the first setpoint
+// (docs/web-dashboard.md).
 function feedLimit(s) {
-  if (!program || program.job !== s.job || !program.programmed_feed_max_mm_per_min) return null;
-  return program.programmed_feed_max_mm_per_min * (s.override_percent ?? 100) / 100;
+  if (typeof s.feed_limit_mm_per_min !== 'number') return null;
+  return s.feed_limit_mm_per_min * (s.override_percent ?? 100) / 100;
 }
 
 function formatDuration(t) {
@@ -153,8 +157,18 @@ function showLink(l) {
   $('link-chars').textContent = l ? l.chars_encoded : '-';
   $('link-held').textContent = l ? (l.held_by_link ? 'yes' : 'no') : '-';
   $('link-event').textContent = l ? l.last_event || '-' : '-';
-  $('link-end').textContent = l && 'bytes_written' in l
-    ? `${l.bytes_written} · ${l.blocks_sent} · ${l.xoff_count}` : '-';
+  // The sender's live counters (docs/web-dashboard.md, "The link").
+  $('link-bytes').textContent = l ? l.bytes_written : '-';
+  $('link-written').textContent = l ? l.blocks_written : '-';
+  $('link-acked').textContent = l && l.blocks_acked !== null ? l.blocks_acked : '-';
+  $('link-xoff').textContent = l ? `${l.xoff_count}${l.xoff_held ? ' (holding now)' : ''}` : '-';
+  $('link-buffer').textContent = l
+    ? `${l.controller_buffer_bytes} of ${l.controller_buffer_limit_bytes} (${l.controller_buffer_basis})` : '-';
+  $('link-underruns').textContent = l ? l.underruns : '-';
+  $('link-reconnects').textContent = l ? `${l.reconnects} · lost ${l.link_losses}` : '-';
+  $('link-end').textContent = l && l.done
+    ? (l.completed ? 'completed' : 'not completed: ' + (l.failure || '')) +
+      ` · ${fixed(100 * l.link_use, 0)} % of the line` : '-';
 }
 
 // The status's lateness histogram ([{from_us, to_us, count}], non-empty bins): one bar per bin

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -145,8 +146,33 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   service::Service s(o);
   s.submit(std::move(job.spec));
   s.start();
+  // The link's live counters in the socket's status (app::to_json), read during the transfer:
+  // each counter only grows, the controller's buffer stays within its limit.
+  const char* kGrowing[] = {"bytes_written", "blocks_taken",    "blocks_written",
+                            "blocks_acked",  "blocks_executed", "xoff_count",
+                            "underruns",     "reconnects",      "link_losses"};
+  json prev, mid;
+  int polled_live = 0;
   for (int k = 0; k < 100000 && (s.busy() || !ctl_.done()); ++k) {
     const service::Status st = s.status();
+    if (st.link) {
+      const json now = app::to_json(st)["stream"];
+      for (const char* key : kGrowing) {
+        if (!prev.is_null() && now[key].is_number() && prev[key].is_number()) {
+          ASSERT_GE(now[key].get<std::int64_t>(), prev[key].get<std::int64_t>())
+              << key << " went down: " << prev.dump() << " then " << now.dump();
+        }
+      }
+      ASSERT_EQ(now["blocks_acked"].is_null(), !grbl) << now.dump();
+      ASSERT_LE(now["controller_buffer_bytes"].get<int>(),
+                now["controller_buffer_limit_bytes"].get<int>())
+          << now.dump();
+      if (!st.link->done) {
+        ++polled_live;
+        if (mid.is_null() && now["blocks_written"].get<int>() >= 20) mid = app::to_json(st);
+      }
+      prev = now;
+    }
     if (!st.link || st.link->blocks_waiting == 0) s.poll();
     ctl_.step(0.005);
   }
@@ -159,6 +185,28 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   const service::Status st = s.status();
   ASSERT_TRUE(st.link && st.link->done);
   EXPECT_TRUE(st.link->report.completed) << st.link->report.failure;
+  // At the end the counters are the report's and the controller's own count.
+  ASSERT_FALSE(mid.is_null()) << "no status read while 20 blocks had gone and more were to go";
+  EXPECT_GT(polled_live, 100);
+  std::cout << "[ measured ] status mid-transfer: " << mid["stream"].dump() << "\n";
+  const comms::SenderReport& report = st.link->report;
+  const comms::SenderCounts& end = st.link->counts;
+  EXPECT_EQ(end.bytes_written, report.bytes_written);
+  EXPECT_EQ(end.blocks_taken, report.blocks);
+  EXPECT_EQ(end.blocks_written, report.blocks_sent);
+  EXPECT_EQ(end.xoff_count, report.xoff_count);
+  EXPECT_EQ(end.reconnects, report.reconnects);
+  EXPECT_FALSE(end.xoff_held);
+  EXPECT_EQ(end.blocks_written, log.blocks_received);
+  EXPECT_EQ(end.xoff_count, log.xoff_sent);
+  EXPECT_EQ(end.bytes_written, static_cast<std::int64_t>(log.bytes_received))
+      << log_json.dump().substr(0, 600);
+  EXPECT_EQ(app::to_json(st)["stream"]["bytes_written"], end.bytes_written);
+  if (grbl) {
+    EXPECT_EQ(end.blocks_acked, report.blocks_queued);
+    EXPECT_EQ(end.blocks_acked, log.blocks_received);
+    EXPECT_EQ(end.blocks_executed, report.blocks_executed);
+  }
   EXPECT_TRUE(log.alarms.empty()) << log_json["alarms"].dump();
   EXPECT_TRUE(log.errors.empty()) << log_json["errors"].dump();
   EXPECT_TRUE(log.program_end_executed);

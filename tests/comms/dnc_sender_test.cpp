@@ -13,9 +13,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -279,6 +281,135 @@ TEST(DncSender, DripStopsWithinTheQueueLimitAfterXoff) {
             << ", most " << after_xoff.back() << " (" << after_xoff.size() << " DC3s)\n";
   EXPECT_GT(report.xoff_count, 5);
   EXPECT_EQ(report.program_sha256, sha256_hex(expect));
+}
+
+// The live counters (SenderCounts) against what the test's own controller side sees on the
+// pty. The source gives its blocks in batches; the test gives the next batch only once the
+// counters show the sender dry after the last one, so every batch but the last (after which
+// the source is closed) ends in exactly one underrun. While the sender runs, the counters
+// only grow; the bytes it has written are at least what the test has read; a DC3 from the test
+// shows as xoff_held and one more xoff_count while the sender still runs; and at the end every
+// counter equals the report's and the bytes the test read.
+// A source whose blocks are released a batch at a time, atomically (so that the sender never
+// sees half a batch), and closed with the last.
+class BatchSource : public BlockSource {
+ public:
+  void release(std::vector<std::string> batch, bool last) {
+    std::lock_guard lock(mutex_);
+    for (auto& b : batch) queue_.push_back(std::move(b));
+    closed_ = last;
+  }
+  BlockStatus next(std::string& text) override {
+    std::lock_guard lock(mutex_);
+    if (queue_.empty()) return closed_ ? BlockStatus::End : BlockStatus::NotYet;
+    text = std::move(queue_.front());
+    queue_.pop_front();
+    return BlockStatus::Ready;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::deque<std::string> queue_;
+  bool closed_ = false;
+};
+
+TEST(DncSender, LiveCountersGrowCountEachUnderrunOnceAndEndAsTheReport) {
+  Pty pty(temp("live").string());
+  BatchSource blocks;
+  SenderSettings s;
+  s.line.device = pty.device();
+  s.line.baud = 115200;
+  s.line.percent_framing = false;
+  s.max_queued_chars = 16;
+  DncSender sender(s, blocks);
+  std::atomic<bool> stop{false};
+  SenderReport report;
+  std::thread t([&] { report = sender.run(stop); });
+
+  std::string got, expect;
+  const auto read_some = [&] {
+    pollfd p{pty.master(), POLLIN, 0};
+    if (::poll(&p, 1, 1) > 0) {
+      char buf[256];
+      const ssize_t r = ::read(pty.master(), buf, sizeof buf);
+      if (r > 0) got.append(buf, static_cast<std::size_t>(r));
+    }
+  };
+  SenderCounts last;
+  const auto check = [&](const SenderCounts& c) {
+    EXPECT_GE(c.bytes_written, last.bytes_written);
+    EXPECT_GE(c.blocks_taken, last.blocks_taken);
+    EXPECT_GE(c.blocks_written, last.blocks_written);
+    EXPECT_GE(c.xoff_count, last.xoff_count);
+    EXPECT_GE(c.underruns, last.underruns);
+    EXPECT_LE(c.blocks_written, c.blocks_taken);
+    EXPECT_EQ(c.blocks_acked, -1);  // drip: no answer
+    EXPECT_EQ(c.buffer_limit_bytes, 16);
+    EXPECT_GE(c.buffer_bytes, 0);
+    last = c;
+  };
+  // Waits (reading the line) until the counters satisfy `pred`; false after 20 s.
+  const auto wait_for = [&](auto pred) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (std::chrono::steady_clock::now() < until) {
+      read_some();
+      const SenderCounts c = sender.counters().load();
+      check(c);
+      if (pred(c)) return true;
+    }
+    return false;
+  };
+  constexpr int kBatches = 6, kPerBatch = 5;
+  int n = 0;
+  std::int64_t want_underruns = 0;
+  for (int b = 0; b < kBatches; ++b) {
+    std::vector<std::string> batch;
+    for (int i = 0; i < kPerBatch; ++i) {
+      ++n;
+      batch.push_back("N" + std::to_string(n) + "G1X" + std::to_string(n) + ".5");
+      expect += batch.back() + "\n";
+    }
+    blocks.release(std::move(batch), b + 1 == kBatches);
+    if (b + 1 == kBatches) break;
+    // The sender takes the batch, writes it, and runs dry: one underrun per batch.
+    ++want_underruns;
+    ASSERT_TRUE(wait_for([&](const SenderCounts& c) { return c.underruns == want_underruns; }))
+        << "batch " << b << ": " << last.underruns << " underruns, " << last.blocks_written
+        << " blocks written";
+    EXPECT_EQ(last.blocks_written, n);
+    EXPECT_EQ(last.blocks_taken, n);
+    if (b == 2) {  // a DC3 while it runs: held, counted; then DC1
+      const char xoff = kXoff, xon = kXon;
+      ASSERT_EQ(::write(pty.master(), &xoff, 1), 1);
+      ASSERT_TRUE(wait_for([](const SenderCounts& c) { return c.xoff_held; }));
+      EXPECT_EQ(last.xoff_count, 1);
+      ASSERT_EQ(::write(pty.master(), &xon, 1), 1);
+      // Released with nothing to send: a new dry spell, counted as such.
+      ++want_underruns;
+      ASSERT_TRUE(wait_for(
+          [&](const SenderCounts& c) { return !c.xoff_held && c.underruns == want_underruns; }));
+      EXPECT_EQ(last.blocks_written, n);
+    }
+  }
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (got.size() < expect.size() && std::chrono::steady_clock::now() < until) read_some();
+  t.join();
+  const SenderCounts c = sender.counters().load();
+  check(c);
+  EXPECT_TRUE(report.completed) << report.failure;
+  EXPECT_EQ(got, expect);
+  // kBatches − 1 dry spells after the batches, one more after the DC1.
+  EXPECT_EQ(c.underruns, kBatches);
+  EXPECT_EQ(c.bytes_written, report.bytes_written);
+  EXPECT_EQ(c.bytes_written, static_cast<std::int64_t>(got.size()));
+  EXPECT_EQ(c.blocks_taken, report.blocks);
+  EXPECT_EQ(c.blocks_written, report.blocks_sent);
+  EXPECT_EQ(c.blocks_written, kBatches * kPerBatch);
+  EXPECT_EQ(c.xoff_count, report.xoff_count);
+  EXPECT_EQ(c.xoff_count, 1);
+  EXPECT_FALSE(c.xoff_held);
+  EXPECT_EQ(c.reconnects, report.reconnects);
+  EXPECT_EQ(c.link_losses, report.link_losses);
 }
 
 }  // namespace

@@ -173,6 +173,17 @@ TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
   EXPECT_FALSE(wait_message(ops, kRoot + "state", [](const json& p) {
                  return p["state"] == "holding";
                }).is_null());
+  // At rest under the hold, the status on MQTT carries the socket's feed limit (mm/min).
+  Watcher screen(broker_->url(), "screen-serve", ncd::test::kOperator, {kRoot + "status"});
+  const json at_rest = wait_message(screen, kRoot + "status", [](const json& p) {
+    return p["state"] == "holding" && p["feed_mm_per_min"] == 0.0 &&
+           p["feed_limit_mm_per_min"].is_number();
+  });
+  ASSERT_FALSE(at_rest.is_null()) << "no status at rest under the hold on " << kRoot << "status";
+  const json socket_status = c.request({{"cmd", "status"}});
+  EXPECT_EQ(at_rest["feed_limit_mm_per_min"], socket_status["feed_limit_mm_per_min"])
+      << socket_status.dump();
+  EXPECT_GT(at_rest["feed_limit_mm_per_min"].get<double>(), 0.0);
 
   // The socket's token check: a wrong token is refused and changes nothing.
   ops.publish(kRoot + "cmd", {{"cmd", "resume"}, {"token", "wrong"}, {"id", "r1"}});

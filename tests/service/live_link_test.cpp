@@ -187,6 +187,13 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
     ASSERT_LT(std::chrono::steady_clock::now(), until) << "the link never held the motion";
     std::this_thread::sleep_for(1ms);
   }
+  // The live counters show the controller's hold while the transfer runs: its DC3 counted,
+  // the line held now, the program not yet all written.
+  const service::LinkStatus held = *s.status().link;
+  EXPECT_FALSE(held.done);
+  EXPECT_GE(held.counts.xoff_count, 1);
+  EXPECT_TRUE(held.counts.xoff_held);
+  EXPECT_GT(held.counts.bytes_written, 0);
   s.poll();
   EXPECT_EQ(s.state(), service::State::Holding);
   EXPECT_EQ(s.status().holder, service::HoldHolder::Link);

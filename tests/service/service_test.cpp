@@ -7,12 +7,15 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
+#include <iostream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "core/error.hpp"
 #include "core/histogram.hpp"
+#include "interpolator/feed_limits.hpp"
 #include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
@@ -261,6 +264,72 @@ TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
   EXPECT_GT(checked[5], 100);
   EXPECT_TRUE(saw_program);
   EXPECT_EQ(s.status().line, 5);  // the end of the last move
+}
+
+// The feed limit the status carries (Status::feed_limit_mm_per_min, the last setpoint's
+// motion::Setpoint::feed_limit_mm_per_s) against an evaluation written here: a line at F3000,
+// a semicircle of radius 2 mm, a line back. On the lines the limit is the F word (the machine's
+// 6000 mm/min and the roughness law at α = 0 are above it); on the arc the smallest of the F
+// word, the chord law 2 √(2ρε − ε²) / T (Yeh and Hsu), √(a ρ), (j ρ²)^(1/3) and the roughness
+// law at α = 0 (interpolator::feed_limit). Tolerance: at every setpoint the reported limit is
+// at most that value (1e-9 relative: the sampler's nodes are interval minima) and the feed at
+// most the reported limit (1e-9); more than 1 mm of path from a joint it equals the value to
+// 1e-6 (the planner's curve is the smaller of two nodes, each the minimum over the two 0.2 mm
+// intervals it bounds, so within 0.6 mm of a joint it may take the other side's value).
+TEST(ServiceStatus, TheFeedLimitIsTheLawsValueAtThePositionAndTheFeedNeverExceedsIt) {
+  const char* kProgram = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 F3000\nG3 X10 Y4 I0 J2\nG1 X0\nM2\n";
+  auto path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kProgram, "loop.ngc"));
+  service::Service s(simulated(64));
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(path, got, committed));
+  EXPECT_EQ(s.status().feed_limit_mm_per_min, 0.0);  // no setpoint yet
+  const motion::JobConfig c;                         // the job's limits (job_of's defaults)
+  const interpolator::MachineLimits& m = c.limits;
+  const double f_mm_per_s = 3000.0 / 60.0, rho_mm = 2.0, eps = m.chord_tolerance_mm;
+  const double laws_line = interpolator::feed_limit(m, c.cutting, 0.0, 0.0).feed_mm_per_s;
+  ASSERT_GT(laws_line, f_mm_per_s);  // the F word binds on the lines
+  const double line_mm_per_s = f_mm_per_s;
+  const double arc_mm_per_s = std::min(
+      {f_mm_per_s, 2.0 * std::sqrt(2.0 * rho_mm * eps - eps * eps) / m.period_s,
+       std::sqrt(m.max_accel_mm_per_s2 * rho_mm), std::cbrt(m.max_jerk_mm_per_s3 * rho_mm * rho_mm),
+       interpolator::feed_limit(m, c.cutting, 1.0 / rho_mm, 0.0).feed_mm_per_s});
+  ASSERT_LT(arc_mm_per_s, 0.9 * line_mm_per_s);  // the arc's laws bind there
+  s.start();
+  int middle_line = 0, middle_arc = 0;
+  std::size_t seen = 0;
+  while (s.poll()) {
+    if (got.empty()) continue;
+    EXPECT_EQ(s.status().feed_limit_mm_per_min, got.back().feed_limit_mm_per_s * 60.0);
+    for (; seen < got.size(); ++seen) {
+      const motion::Setpoint& sp = got[seen];
+      const Vec3 p = sp.p;
+      const bool on_arc = p.x() > 10.0 + 1e-9;
+      double want = line_mm_per_s, from_joint_mm = std::abs(p.x() - 10.0);
+      if (on_arc) {
+        const double theta = std::atan2(p.y() - 2.0, p.x() - 10.0) + M_PI / 2;  // 0 … π
+        want = arc_mm_per_s;
+        from_joint_mm = rho_mm * std::min(theta, M_PI - theta);
+      } else if (from_joint_mm < 1e-9) {
+        want = arc_mm_per_s;  // on the joint: either side's
+      }
+      ASSERT_LE(sp.feed_limit_mm_per_s, want * (1 + 1e-9))
+          << "t = " << sp.t_s << " s at " << p.transpose();
+      ASSERT_LE(sp.v_mm_per_s, sp.feed_limit_mm_per_s * (1 + 1e-9))
+          << "t = " << sp.t_s << " s at " << p.transpose();
+      if (from_joint_mm > 1.0) {
+        ASSERT_NEAR(sp.feed_limit_mm_per_s, want, 1e-6 * want)
+            << "t = " << sp.t_s << " s at " << p.transpose();
+        ++(on_arc ? middle_arc : middle_line);
+      }
+    }
+  }
+  EXPECT_EQ(s.state(), State::Done);
+  EXPECT_GT(middle_line, 40);
+  EXPECT_GT(middle_arc, 20);
+  std::cout << "[ measured ] limit on the lines " << line_mm_per_s * 60 << " mm/min, on the arc "
+            << arc_mm_per_s * 60 << " mm/min; " << middle_line << " + " << middle_arc
+            << " setpoints away from the joints checked\n";
 }
 
 TEST(ServiceEvents, ALaggingSubscriberLosesEventsCountedNeverBlocksTheLoop) {

@@ -675,8 +675,13 @@ TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
   EXPECT_EQ(s["line"], 4) << s.dump();
   EXPECT_EQ(page.text("line"), "4");
   EXPECT_EQ(s["binding_limit"], "hold") << s.dump();
-  EXPECT_NE(page.text("feed-limit").find("binding: hold"), std::string::npos)
-      << page.text("feed-limit");
+  EXPECT_NE(page.text("feed-limit-note").find("binding: hold"), std::string::npos)
+      << page.text("feed-limit-note");
+  // The feed's ceiling shown: the status's limit (the F word 300 here, at rest under the hold)
+  // times the override, to the page's 0.1 mm/min.
+  ASSERT_TRUE(s["feed_limit_mm_per_min"].is_number()) << s.dump();
+  EXPECT_NEAR(std::stod(page.text("feed-limit")), s["feed_limit_mm_per_min"].get<double>(),
+              0.05 + 1e-9);
   EXPECT_EQ(page.text("feed"), "0.0");
   EXPECT_EQ(page.text("override"), "100");
   // The page drew the programmed path and the tool's trace.
@@ -701,6 +706,81 @@ TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
   ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
   EXPECT_EQ(sock.request({{"cmd", "status"}})["state"], "stopped");
   // `page` goes first: its session's DELETE quits the browser, then chromedriver is killed.
+}
+
+// The link panel against the socket: a job streamed live (drip, iso) to `ncd sim-controller`
+// on a pseudo-terminal, both on the wall clock, held from the page once some blocks have gone.
+// Under the hold the sender runs dry and its counters stand still; the page then shows the
+// socket's bytes written, blocks written and underruns, and the feed ceiling the socket gives.
+TEST_F(WebDashboard, BrowserLinkPanelShowsTheSocketsLiveCounters) {
+  const std::string chromium = find_program({"chromium", "chromium-browser", "google-chrome"});
+  const std::string driver = find_program({"chromedriver"});
+  if (chromium.empty() || driver.empty()) {
+    GTEST_SKIP() << "headless browser test skipped: chromium and chromedriver are not on PATH "
+                    "(apt-get install chromium chromium-driver)";
+  }
+  const std::string port_path = (dir_ / "cnc").string();
+  ncd::test::Process controller({NCD_EXE, "sim-controller", "--link", port_path, "--baud", "115200",
+                                 "--frame", "8N1", "--flow", "xonxoff", "--protocol", "drip",
+                                 "--eob", "lf", "--dialect", "iso", "--no-machine-safety"},
+                                (dir_ / "controller.out").string(),
+                                (dir_ / "controller.err").string());
+  ASSERT_TRUE(ncd::test::wait_for_path(port_path, 10.0)) << slurp(dir_ / "controller.err");
+  const std::string machine = write(
+      "machine.toml",
+      "period_s = 0.004\nmax_feed_mm_per_min = 6000.0\n\n[link]\ndevice = \"" + port_path +
+          "\"\nbaud = 115200\nframe = \"8N1\"\nflow = \"xonxoff\"\nprotocol = \"drip\"\n"
+          "eob = \"lf\"\npercent = true\ndialect = \"iso\"\n\n[encoder]\nmax_block_s = 0.5\n");
+  const std::uint16_t port = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n",
+                                    "machine = \"" + machine + "\"\n", "wall");
+  ASSERT_NE(port, 0);
+  const std::string program = write("slow.ngc", kProgram);
+  const std::uint16_t driver_port = free_port();
+  ncd::test::Process chromedriver({driver, "--port=" + std::to_string(driver_port)},
+                                  (dir_ / "driver.out").string(), (dir_ / "driver.err").string());
+  WebDriver page(driver_port, chromium, (dir_ / "profile").string());
+  page.go("http://127.0.0.1:" + std::to_string(port) + "/");
+  ASSERT_TRUE(page.wait_text("conn", "connected")) << page.text("conn");
+  page.type("#program-file", program);
+  page.click("#submit-file");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message") << slurp(err_);
+  SocketClient sock(socket_);
+  json s;
+  for (int i = 0; i < 400; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["stream"].is_object() && s["stream"]["blocks_written"].get<int>() >= 3) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_TRUE(s["stream"].is_object() && s["stream"]["blocks_written"].get<int>() >= 3)
+      << s.dump() << slurp(err_);
+  page.click("#hold");
+  ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
+  // The motion at rest, the encoder's last block sent: the counters stand still.
+  json k;
+  for (int i = 0; i < 100; ++i) {
+    const json before = sock.request({{"cmd", "status"}})["stream"];
+    std::this_thread::sleep_for(300ms);
+    s = sock.request({{"cmd", "status"}});
+    k = s["stream"];
+    if (k == before && s["feed_mm_per_min"].get<double>() == 0.0) break;
+  }
+  ASSERT_EQ(s["state"], "holding") << s.dump();
+  EXPECT_FALSE(k["done"].get<bool>()) << k.dump();
+  EXPECT_GT(k["bytes_written"].get<std::int64_t>(), 0) << k.dump();
+  // The page, at 20 status snapshots a second, shows the same numbers.
+  EXPECT_TRUE(
+      page.wait_text("link-bytes", std::to_string(k["bytes_written"].get<std::int64_t>()), 10.0))
+      << page.text("link-bytes") << " against " << k.dump();
+  EXPECT_EQ(page.text("link-written"), std::to_string(k["blocks_written"].get<std::int64_t>()));
+  EXPECT_EQ(page.text("link-underruns"), std::to_string(k["underruns"].get<std::int64_t>()));
+  EXPECT_EQ(page.text("link-acked"), "-");  // drip: nothing is acknowledged
+  EXPECT_NE(page.text("link-buffer").find("wire model"), std::string::npos)
+      << page.text("link-buffer");
+  std::cout << "[ measured ] link under the hold: " << k.dump() << "\n";
+  page.click("#stop");
+  ASSERT_TRUE(page.wait_text("state", "stopped", 60.0)) << page.text("message") << slurp(err_);
 }
 
 }  // namespace
