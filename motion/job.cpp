@@ -48,11 +48,13 @@ std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_
   return s;
 }
 
-// The limits are checked first: blending computes with them.
+// The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
+// first (docs/planner.md §3b); the corners left between polyline parts are then blended.
 toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
-                            interpolator::BlendReport* report) {
+                            interpolator::FitReport* fit, interpolator::BlendReport* report) {
   interpolator::validate(c.limits);
-  return interpolator::blend_corners(path, c.limits, report);
+  return interpolator::blend_corners(interpolator::fit_polylines(path, c.limits, fit), c.limits,
+                                     report);
 }
 
 StepBounds step_bounds(const JobConfig& c) {
@@ -101,7 +103,7 @@ const char* limit_name(std::uint8_t id) {
 }
 
 Job::Job(const toolpath::Path& path, const JobConfig& config)
-    : path_(blended_path(path, config, &blend_)),
+    : path_(blended_path(path, config, &fit_, &blend_)),
       config_(config),
       walker_(path_, walker_config(config)),
       sampler_(path_, segment_starts(walker_, path_.segments.size()), config.limits, config.cutting,

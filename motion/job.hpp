@@ -11,6 +11,7 @@
 #include "interpolator/corner_blend.hpp"
 #include "interpolator/limit_sampler.hpp"
 #include "interpolator/path_walker.hpp"
+#include "interpolator/polyline_fit.hpp"
 #include "motion/planner.hpp"
 #include "motion/step_guard.hpp"
 
@@ -77,6 +78,9 @@ class Job {
   // The path walked (the program's, with its blended corners) and what the blending did.
   const toolpath::Path& path() const { return path_; }
   const interpolator::BlendReport& blend_report() const { return blend_; }
+  // What the smoothing of dense polylines under G64 Q did (interpolator/polyline_fit.hpp); a
+  // segment with fitted runs is split, fit_report().source_segment maps path() to the program's.
+  const interpolator::FitReport& fit_report() const { return fit_; }
   // The feed limit of the continuous laws at the current position (no corners), mm/s.
   interpolator::FeedLimitResult limit_here() const;
   // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;
@@ -85,7 +89,8 @@ class Job {
 
  private:
   interpolator::BlendReport blend_;
-  toolpath::Path path_;  // the program's, corners blended
+  interpolator::FitReport fit_;
+  toolpath::Path path_;  // the program's, dense runs fitted (G64 Q), corners blended
   JobConfig config_;
   interpolator::PathWalker walker_;
   interpolator::LimitSampler sampler_;

@@ -8,7 +8,9 @@
 //     stops at its constant limit (lines, and the circle, whose limit is constant).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "interpolator/feed_limits.hpp"
 #include "motion/job.hpp"
@@ -38,6 +40,30 @@ double ncd_duration_s(const Path& path) {
     t = job.step().t_s;
   }
   return t;
+}
+
+// The dense CAM program of issue 13: 20 000 G1 moves of 0.01 mm along an arc of radius 50 mm
+// at F3000, as a CAM system posts it (coordinates rounded to `digits` decimals, or exact).
+Path dense_cam(std::optional<double> q_mm, int digits) {
+  Polyline line;
+  const double r = 50.0, step = 0.01;
+  const double scale = std::pow(10.0, digits);
+  for (int i = 0; i <= 20000; ++i) {
+    const double phi = step * i / r;
+    Vec3 p(r * std::sin(phi), r * (1.0 - std::cos(phi)), 0.0);
+    if (digits > 0) {
+      for (int k = 0; k < 3; ++k) p[k] = std::round(p[k] * scale) / scale;
+    }
+    line.points.push_back(p);
+  }
+  Path p;
+  PathSegment s;
+  s.geometry = std::move(line);
+  s.feed_mm_per_min = 3000.0;
+  s.blend_tolerance_mm = 0.01;
+  s.smoothing_tolerance_mm = q_mm;
+  p.segments.push_back(std::move(s));
+  return p;
 }
 
 // Phase-plane bound on one NURBS segment at program feed f (mm/s), from rest to rest.
@@ -164,6 +190,15 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     const double t = ncd_duration_s(p);
     row("drilling 5 holes", t, b, "exact-stop S-curves");
     EXPECT_LE(t, 1.05 * b);
+  }
+  for (const int digits : {0, 4, 3}) {
+    const Path raw = dense_cam(std::nullopt, digits), fitted = dense_cam(0.01, digits);
+    const double t_raw = ncd_duration_s(raw), t_fit = ncd_duration_s(fitted);
+    Job job(fitted, machine());
+    std::printf(
+        "dense CAM digits %d: raw %.3f s fitted %.3f s (%.2fx) runs %zu spans %zu dev %.5f mm\n",
+        digits, t_raw, t_fit, t_raw / t_fit, job.fit_report().runs, job.fit_report().spans,
+        job.fit_report().max_deviation_mm);
   }
 }
 
