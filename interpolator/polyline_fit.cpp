@@ -16,7 +16,9 @@
 //    vertex is a real corner when it turns by more than φ_c = 30° both between its own pieces
 //    and between the chords to the points λ = 20 Q back and ahead along the polyline: noise of
 //    amplitude ≤ Q turns a 0.01 mm piece by up to 2Q/l but the λ-chords by at most 2Q/λ = 0.1
-//    rad, while a programmed corner turns both. A run is a maximal stretch of at least three
+//    rad, while a programmed corner turns both. A vertex turning by more than 90° (a
+//    reversal: a curve within Q would need a cusp there) is always a corner. A run is a
+//    maximal stretch of at least three
 //    short pieces with no corner inside; corners and long moves are left to G64 P (§3a).
 // 2. Fit: the run's distinct points P_k at chord-length parameters t_k (so that u is close to
 //    arc length, mm) are approximated by a clamped cubic B-spline C(u) = Σ N_{i,3}(u) C_i
@@ -40,8 +42,11 @@
 //      to C); between two samples every point is within (e_a + e_b + δ) / 2 of C.
 //    The largest of these bounds is the proven deviation. Spans where a bound exceeds Q get a
 //    knot in their middle and the run is refitted (up to 16 rounds, spans not below Q wide).
-//    A run that still fails is split at the vertex nearest its worst point and each half is
-//    fitted on its own; pieces that cannot be fitted stay a polyline.
+//    A curve whose parametric speed |C'| falls below 0.5 at a sample (u is chord length, so a
+//    good fit has |C'| ≈ 1; lower means the fit folds towards a cusp, which the walker's
+//    arc-length correction should not be given) is refused without refinement. A run that
+//    still fails is split at the vertex nearest its worst point (or its slowest sample) and
+//    each half is fitted on its own; pieces that cannot be fitted stay a polyline.
 // 4. Segments: a segment with fitted runs is split into its polyline parts and one NURBS
 //    segment per run, in order; each keeps the program segment's feed, mode, tolerances and
 //    source line (stop_before only on the first), so that the source line the service reports
@@ -72,8 +77,10 @@ constexpr std::size_t kMinRunPieces = 3;
 constexpr double kInitialSpanMm = 4.0;
 constexpr int kMaxRounds = 16;
 constexpr int kMaxSplitDepth = 12;
-constexpr double kSampleStepPerQ = 0.2;  // Δu M1 ≤ 0.2 Q and δ ≤ 0.2 Q
-constexpr double kRoundingMm = 1e-12;    // added to every bound for the rounding of the distances
+constexpr double kSampleStepPerQ = 0.2;   // Δu M1 ≤ 0.2 Q and δ ≤ 0.2 Q
+constexpr double kRoundingMm = 1e-12;     // added to every bound for the rounding of the distances
+constexpr double kReversalRad = kPi / 2;  // a vertex turning more is always a corner
+constexpr double kMinSpeed = 0.5;         // smallest |C'| accepted (u is chord length: ≈ 1)
 
 double point_piece_mm(const Vec3& x, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
@@ -228,7 +235,9 @@ std::vector<double> knots_of(const std::vector<double>& breaks) {
 }
 
 struct Check {
-  double bound_mm = 0.0;        // the proven two-sided deviation
+  double bound_mm = 0.0;   // the proven two-sided deviation
+  double min_speed = 1.0;  // smallest |C'| at the samples (≈ 1: u is chord length)
+  double min_speed_at_mm = 0.0;
   std::vector<char> span_fail;  // spans where a bound exceeds the tolerance
   double worst_at_mm = 0.0;     // chord-length position of the largest bound
 };
@@ -281,7 +290,12 @@ Check check(const NurbsCurve& c, const std::vector<double>& breaks, const Run& r
     double d_prev = 0.0;
     for (std::size_t q = 0; q <= n; ++q) {
       const double u = q == n ? breaks[j + 1] : breaks[j] + du * static_cast<double>(q);
-      const Vec3 x = c.eval(u).p;
+      const toolpath::CurvePoint e = c.eval(u);
+      const Vec3& x = e.p;
+      if (e.d1.norm() < out.min_speed) {
+        out.min_speed = e.d1.norm();
+        out.min_speed_at_mm = u;
+      }
       const double d = to_polyline(x, u);
       if (q > 0) note(0.5 * (d_prev + d + m1 * du), j, u);
       if (q > 0 || j == 0) cs.push_back({u, x, j});
@@ -354,6 +368,10 @@ Attempt fit_run(const std::vector<Vec3>& points, double tol) {
     NurbsCurve curve(3, knots_of(breaks), std::move(cp));
     const Check c = check(curve, breaks, run, tol);
     out.worst_at_mm = c.worst_at_mm;
+    if (c.min_speed < kMinSpeed) {  // a near-cusp: not refined (it would follow it closer)
+      out.worst_at_mm = c.min_speed_at_mm;
+      return out;
+    }
     if (c.bound_mm <= tol) {
       out.run = FittedRun{std::move(curve), c.bound_mm};
       return out;
@@ -477,11 +495,13 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
     std::vector<char> corner(m + 1, 0);
     std::size_t back = 0, ahead = 1;
     for (std::size_t v = 1; v < m; ++v) {
-      if (turn_rad(p[v] - p[v - 1], p[v + 1] - p[v]) <= kCornerTurnRad) continue;
+      const double fine = turn_rad(p[v] - p[v - 1], p[v + 1] - p[v]);
+      if (fine <= kCornerTurnRad) continue;
       while (back + 1 < v && t[v] - t[back + 1] >= lambda) ++back;
       ahead = std::max(ahead, v + 1);
       while (ahead < m && t[ahead] - t[v] < lambda) ++ahead;
-      corner[v] = turn_rad(p[v] - p[back], p[ahead] - p[v]) > kCornerTurnRad ? 1 : 0;
+      corner[v] =
+          fine > kReversalRad || turn_rad(p[v] - p[back], p[ahead] - p[v]) > kCornerTurnRad ? 1 : 0;
     }
     std::vector<Block> blocks;
     std::size_t a = 0;  // start of the current stretch of short pieces

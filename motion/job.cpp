@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include "core/error.hpp"
 
@@ -151,6 +152,11 @@ void Job::prepare() {
       sampler_done_ = true;
       break;
     }
+    // The sampler's node on a segment end can follow one that falls within tol short of it
+    // (its interval ends are summed apart from the walker's segment starts): that one ended
+    // the last stretch, and this twin on the stop would repeat s = 0 here. The next node's
+    // limit covers the interval after the stop.
+    if (std::exchange(stop_taken_early_, false) && node.s_mm - start <= tol) continue;
     if (!last && node.s_mm >= end - tol) {
       const double length = end - start;
       const double left = node.s_mm > end + tol ? node.feed_mm_per_s : node.left_mm_per_s;
@@ -159,6 +165,7 @@ void Job::prepare() {
       check(length, right, node.limit);
       carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit)};
       carry_n_ = 1;
+      stop_taken_early_ = node.s_mm < end;
       if (node.s_mm > end + tol) {  // no node fell on the stop: keep this one for the next
         carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit)};
         carry_n_ = 2;

@@ -96,8 +96,9 @@ class Job {
   interpolator::LimitSampler sampler_;
   std::vector<double> bounds_;  // 0, the stops, L: the planner plans one stretch at a time
   Planner planner_;
-  std::size_t run_ = 0;     // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
-  LimitSample carry_[2]{};  // samples of the next stretch read before it began
+  std::size_t run_ = 0;            // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
+  LimitSample carry_[2]{};         // samples of the next stretch read before it began
+  bool stop_taken_early_ = false;  // the last stretch ended on a node short of its stop
   std::size_t carry_n_ = 0;
   StepGuard guard_;
   bool sampler_done_ = false;

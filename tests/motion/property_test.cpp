@@ -2,12 +2,12 @@
 // NCD_PROPERTY_PROGRAMS sets how many: 200 here, thousands under `make soak`). Each program
 // (tests/common/random_program.hpp) mixes lines with reversals, zero-length and 1 µm moves,
 // dense runs of 0.01 mm moves, NURBS of degree 1–5 (rational, repeated interior knots up to
-// C¹), rapids, G61, G61.1, G64 (with and without P, P0 included) and stops before events. For
-// every program, checked from the setpoints alone against the programmed geometry
-// (tests/motion/reference.hpp):
+// C¹), rapids, G61, G61.1, G64 (with and without P, P0 included; with Q, whose dense runs are
+// rounded to 1 µm and fitted with a curve) and stops before events. For every program, checked from
+// the setpoints alone against the programmed geometry (tests/motion/reference.hpp):
 //   - it ends at rest exactly at its end point;
 //   - every setpoint lies on the walked geometry (nearest-point distance ≤ 1e-5 mm), and within
-//     the active blend tolerance (G64 P) of the programmed geometry;
+//     the active tolerance of the programmed geometry (G64 P; G64 Q on a fitted dense run);
 //   - every period's chord stays within the chord tolerance of the geometry it spans;
 //   - the speed |Δp|/T stays within the machine's maximum feed and the programs' F words;
 //     the tangential acceleration and jerk (differences of the planned s) within their limits;
@@ -67,8 +67,9 @@ std::string describe(const Path& path) {
       for (const double w : c.weights()) o << " " << w;
     }
     o << " control " << static_cast<int>(seg.path_control) << " stop_before " << seg.stop_before
-      << " rapid " << seg.rapid << " P " << seg.blend_tolerance_mm.value_or(-1) << " F "
-      << seg.feed_mm_per_min.value_or(-1) << "\n";
+      << " rapid " << seg.rapid << " P " << seg.blend_tolerance_mm.value_or(-1) << " Q "
+      << seg.smoothing_tolerance_mm.value_or(-1) << " F " << seg.feed_mm_per_min.value_or(-1)
+      << "\n";
   }
   return o.str();
 }
@@ -104,10 +105,16 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
     }
     // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
     // ends at its corner): its G64 P under G64; none without P, under G61 or G61.1.
-    const PathSegment& held = path.segments[job.walker().segment()];
-    const double tol = held.path_control == PathControl::blend
-                           ? std::max(held.blend_tolerance_mm.value_or(0.0), 0.0)
-                           : 0.0;
+    // A dense run fitted under G64 Q (docs/planner.md §3b) is a cubic in the walked path, in a
+    // polyline of the program: its tolerance is Q.
+    const std::size_t walked = job.walker().segment();
+    const PathSegment& held = path.segments[job.fit_report().source_segment[walked]];
+    const auto* walked_curve = std::get_if<NurbsCurve>(&job.path().segments[walked].geometry);
+    const bool fitted = walked_curve && walked_curve->degree() == 3 &&
+                        std::holds_alternative<Polyline>(held.geometry);
+    const double tol = held.path_control != PathControl::blend ? 0.0
+                       : fitted ? held.smoothing_tolerance_mm.value_or(0.0)
+                                : std::max(held.blend_tolerance_mm.value_or(0.0), 0.0);
     const double dp = test::distance_to_path(program, sp.p, sp.s_mm, window);
     if (!(dp <= tol * (1.0 + 1e-9) + 1e-5)) {
       return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
