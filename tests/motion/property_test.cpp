@@ -171,6 +171,46 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
   return {};
 }
 
+// A dense CAM run rounded to 1 µm with a 90° corner in the middle, under G64 P0.01 Q0.01 (random
+// radius, spacing and Q; seed printed): fitted on both sides of the corner, and walked through
+// every check above (setpoints within Q of the programmed moves, chord, limits, at rest exactly
+// at the end point).
+TEST(Property, FittedDenseRunWithACornerIsWalkedWithinQ) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  const auto uni = [&](double a, double b) {
+    return std::uniform_real_distribution<double>(a, b)(rng);
+  };
+  for (int k = 0; k < ncd::test::sweep_cases(4); ++k) {
+    const double r = uni(10.0, 100.0), step = uni(0.005, 0.05), q = uni(0.005, 0.02);
+    std::vector<Vec3> pts;
+    const int n = 200 + static_cast<int>(rng() % 200);
+    for (int i = 0; i <= n; ++i) {  // an arc, then a line turning 90° away from its end
+      const double phi = step * i / r;
+      pts.emplace_back(r * std::sin(phi), r * (1.0 - std::cos(phi)), 0.0);
+    }
+    const Vec3 corner = pts.back(), t(std::cos(step * n / r), std::sin(step * n / r), 0.0);
+    const Vec3 away(-t.y(), t.x(), 0.0);
+    for (int i = 1; i <= n; ++i) {
+      pts.push_back(corner + step * i * away + Vec3(0, 0, 0.2 * std::sin(step * i)));
+    }
+    for (std::size_t i = 1; i < pts.size(); ++i) {
+      for (int c = 0; c < 3; ++c) pts[i][c] = std::round(pts[i][c] * 1000.0) / 1000.0;
+    }
+    Path path;
+    PathSegment s;
+    s.geometry = Polyline{pts, {}};
+    s.feed_mm_per_min = 3000.0;
+    s.blend_tolerance_mm = 0.01;
+    s.smoothing_tolerance_mm = q;
+    path.segments.push_back(s);
+    const std::string what = "case " + std::to_string(k) + " of seed " + std::to_string(seed);
+    EXPECT_GE(Job(path, machine()).fit_report().runs, 2u) << what;
+    EXPECT_EQ(check(path, 3000.0), "") << what;
+    if (HasFailure()) break;
+  }
+}
+
 TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
   const std::uint64_t seed = test::seed();
   int programs = ncd::test::sweep_cases(200);  // a tenth under ASan
