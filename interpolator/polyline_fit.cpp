@@ -52,8 +52,8 @@
 //    source line (stop_before only on the first), so that the source line the service reports
 //    is the program's. FitReport::source_segment maps the new segments to the program's.
 //
-// Where: segments under G64 (PathControl::blend) with Q > 0, plain polylines (no contact
-// normals: the chamfer's roughness law needs them at the vertices). It runs before corner
+// Where: feed moves (G1, not G0) under G64 (PathControl::blend) with Q > 0, plain polylines (no
+// contact normals: the chamfer's roughness law needs them at the vertices). It runs before corner
 // blending (corner_blend.cpp), which then rounds the corners left between the polyline parts.
 #include "interpolator/polyline_fit.hpp"
 
@@ -405,7 +405,7 @@ double smoothing_mm(const PathSegment& s) {
 
 bool eligible(const PathSegment& s) {
   const auto* line = std::get_if<Polyline>(&s.geometry);
-  return line && line->normals.empty() && line->points.size() >= kMinRunPieces + 1 &&
+  return line && line->normals.empty() && line->points.size() >= kMinRunPieces + 1 && !s.rapid &&
          s.path_control == PathControl::blend && smoothing_mm(s) > 0.0;
 }
 

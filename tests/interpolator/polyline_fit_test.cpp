@@ -248,8 +248,8 @@ TEST(PolylineFit, RealCornerSplitsTheRun) {
   }
 }
 
-// Where the fit does not apply the path is copied: no Q, Q = 0, G61, contact normals, long
-// moves (every piece above the short-piece length), a rapid's length at its cap is no exception.
+// Where the fit does not apply the path is copied: no Q, Q = 0, G61, a rapid, contact normals,
+// long moves (every piece above the short-piece length).
 TEST(PolylineFit, IneligibleSegmentsAreCopied) {
   std::vector<Vec3> dense;
   for (int i = 0; i <= 200; ++i) dense.emplace_back(0.01 * i, 0.0001 * i * i, 0);
@@ -275,6 +275,10 @@ TEST(PolylineFit, IneligibleSegmentsAreCopied) {
   s = dense_segment(dense, 0.01);
   s.path_control = toolpath::PathControl::exact_path;
   copied(s, "G61");
+  s = dense_segment(dense, 0.01);
+  s.rapid = true;
+  s.feed_mm_per_min.reset();
+  copied(s, "G0");
   s = dense_segment(dense, 0.01);
   std::get<Polyline>(s.geometry).normals.assign(dense.size(), Vec3(0, 0, 1));
   copied(s, "normals");
