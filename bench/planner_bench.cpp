@@ -1,9 +1,14 @@
 // Look-ahead feed planner: one step() on a long path (cruise, braking and landing mixed), and
-// whole periods per second; the counter "rollouts" is the mean work per step.
+// whole periods per second; the counter "rollouts" is the mean work per step. The fit of dense
+// polylines under G64 Q (interpolator/polyline_fit.cpp) on the dense CAM program, against the
+// cost of building the job on the raw polyline in the same run.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <optional>
 
+#include "interpolator/polyline_fit.hpp"
+#include "motion/job.hpp"
 #include "motion/planner.hpp"
 
 namespace ncd::motion {
@@ -87,6 +92,63 @@ void BM_PlannerWholePath(benchmark::State& state) {
       static_cast<double>(periods * state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_PlannerWholePath)->Unit(benchmark::kMillisecond);
+
+// The dense CAM program of issue 13 (0.01 mm moves along an arc of radius 50 mm, coordinates
+// rounded to 3 decimals) with `points` vertices, at F3000 under G64 P0.01 and Q.
+toolpath::Path dense_cam(std::size_t points, std::optional<double> q_mm) {
+  toolpath::Polyline line;
+  for (std::size_t i = 0; i < points; ++i) {
+    const double phi = 0.01 * static_cast<double>(i) / 50.0;
+    Vec3 p(50.0 * std::sin(phi), 50.0 * (1.0 - std::cos(phi)), 0.0);
+    for (int k = 0; k < 3; ++k) p[k] = std::round(p[k] * 1000.0) / 1000.0;
+    line.points.push_back(p);
+  }
+  toolpath::Path path;
+  toolpath::PathSegment s;
+  s.geometry = std::move(line);
+  s.feed_mm_per_min = 3000.0;
+  s.blend_tolerance_mm = 0.01;
+  s.smoothing_tolerance_mm = q_mm;
+  path.segments.push_back(std::move(s));
+  return path;
+}
+
+// The fit alone (runs, least squares, proof); items are polyline points.
+void BM_PolylineFit(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  const toolpath::Path path = dense_cam(n, 0.01);
+  const interpolator::MachineLimits limits;
+  interpolator::FitReport rep;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(interpolator::fit_polylines(path, limits, &rep));
+  }
+  state.counters["spans"] = static_cast<double>(rep.spans);
+  state.counters["deviation_um"] = 1000.0 * rep.max_deviation_mm;
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_PolylineFit)
+    ->Arg(1000)
+    ->Arg(20000)
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true);
+
+// Baseline: building the job (walker, sampler) on the raw polyline, which the fit precedes.
+void BM_JobBuildRawDense(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  const toolpath::Path path = dense_cam(n, std::nullopt);
+  for (auto _ : state) {
+    Job job(path, JobConfig{});
+    benchmark::DoNotOptimize(job.walker().length_mm());
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_JobBuildRawDense)
+    ->Arg(1000)
+    ->Arg(20000)
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true);
 
 }  // namespace
 }  // namespace ncd::motion

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include "core/error.hpp"
 
@@ -48,11 +49,13 @@ std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_
   return s;
 }
 
-// The limits are checked first: blending computes with them.
+// The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
+// first (docs/planner.md §3b); the corners left between polyline parts are then blended.
 toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
-                            interpolator::BlendReport* report) {
+                            interpolator::FitReport* fit, interpolator::BlendReport* report) {
   interpolator::validate(c.limits);
-  return interpolator::blend_corners(path, c.limits, report);
+  return interpolator::blend_corners(interpolator::fit_polylines(path, c.limits, fit), c.limits,
+                                     report);
 }
 
 StepBounds step_bounds(const JobConfig& c) {
@@ -101,7 +104,7 @@ const char* limit_name(std::uint8_t id) {
 }
 
 Job::Job(const toolpath::Path& path, const JobConfig& config)
-    : path_(blended_path(path, config, &blend_)),
+    : path_(blended_path(path, config, &fit_, &blend_)),
       config_(config),
       walker_(path_, walker_config(config)),
       sampler_(path_, segment_starts(walker_, path_.segments.size()), config.limits, config.cutting,
@@ -149,6 +152,11 @@ void Job::prepare() {
       sampler_done_ = true;
       break;
     }
+    // The sampler's node on a segment end can follow one that falls within tol short of it
+    // (its interval ends are summed apart from the walker's segment starts): that one ended
+    // the last stretch, and this twin on the stop would repeat s = 0 here. The next node's
+    // limit covers the interval after the stop.
+    if (std::exchange(stop_taken_early_, false) && node.s_mm - start <= tol) continue;
     if (!last && node.s_mm >= end - tol) {
       const double length = end - start;
       const double left = node.s_mm > end + tol ? node.feed_mm_per_s : node.left_mm_per_s;
@@ -157,6 +165,7 @@ void Job::prepare() {
       check(length, right, node.limit);
       carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit)};
       carry_n_ = 1;
+      stop_taken_early_ = node.s_mm < end;
       if (node.s_mm > end + tol) {  // no node fell on the stop: keep this one for the next
         carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit)};
         carry_n_ = 2;
@@ -220,7 +229,14 @@ std::string Job::fault_message() const {
 }
 
 std::vector<double> Job::segment_starts_mm() const {
-  return segment_starts(walker_, path_.segments.size());
+  const std::vector<double> walked = segment_starts(walker_, path_.segments.size());
+  std::vector<double> starts;  // per segment of the path given: the first piece of each
+  for (std::size_t j = 0; j < path_.segments.size(); ++j) {
+    const std::size_t k = j < fit_.source_segment.size() ? fit_.source_segment[j] : j;
+    if (k == starts.size()) starts.push_back(walked[j]);
+  }
+  starts.push_back(walked.back());
+  return starts;
 }
 
 interpolator::FeedLimitResult Job::limit_here() const {

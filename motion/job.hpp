@@ -12,6 +12,7 @@
 #include "interpolator/corner_blend.hpp"
 #include "interpolator/limit_sampler.hpp"
 #include "interpolator/path_walker.hpp"
+#include "interpolator/polyline_fit.hpp"
 #include "motion/planner.hpp"
 #include "motion/step_guard.hpp"
 
@@ -81,8 +82,12 @@ class Job {
   // The path walked (the program's, with its blended corners) and what the blending did.
   const toolpath::Path& path() const { return path_; }
   const interpolator::BlendReport& blend_report() const { return blend_; }
-  // Where each segment of path() starts on it, mm, and its length last (segments + 1 values).
+  // Where each segment of the path given to the job starts on path(), mm, and its length last
+  // (segments + 1 values; a segment that the fit split starts where its first piece starts).
   std::vector<double> segment_starts_mm() const;
+  // What the smoothing of dense polylines under G64 Q did (interpolator/polyline_fit.hpp); a
+  // segment with fitted runs is split, fit_report().source_segment maps path() to the program's.
+  const interpolator::FitReport& fit_report() const { return fit_; }
   // The feed limit of the continuous laws at the current position (no corners), mm/s.
   interpolator::FeedLimitResult limit_here() const;
   // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;
@@ -91,14 +96,16 @@ class Job {
 
  private:
   interpolator::BlendReport blend_;
-  toolpath::Path path_;  // the program's, corners blended
+  interpolator::FitReport fit_;
+  toolpath::Path path_;  // the program's, dense runs fitted (G64 Q), corners blended
   JobConfig config_;
   interpolator::PathWalker walker_;
   interpolator::LimitSampler sampler_;
   std::vector<double> bounds_;  // 0, the stops, L: the planner plans one stretch at a time
   Planner planner_;
-  std::size_t run_ = 0;     // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
-  LimitSample carry_[2]{};  // samples of the next stretch read before it began
+  std::size_t run_ = 0;            // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
+  LimitSample carry_[2]{};         // samples of the next stretch read before it began
+  bool stop_taken_early_ = false;  // the last stretch ended on a node short of its stop
   std::size_t carry_n_ = 0;
   StepGuard guard_;
   bool sampler_done_ = false;

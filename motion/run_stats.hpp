@@ -20,7 +20,7 @@ inline constexpr double kFeedErrorMinStepMm = 1e-3;
 // relative tolerance × length (docs/hardening.md, "Accepting a run").
 inline constexpr double kDriftToleranceMm = 1e-3;
 
-// Which jerk bound the planner enforces (docs/planner.md §3b), for the reports.
+// Which jerk bound the planner enforces (docs/planner.md §3c), for the reports.
 inline constexpr const char* kJerkBoundInForce =
     "tangential jerk |j_t| <= j_max and centripetal jerk v^3 kappa^2 <= j_max, each; the jerk "
     "vector (jerk_vector_max) is measured, not bounded";

@@ -660,7 +660,10 @@ Status Service::status() const {
     r.s_mm = last_.s_mm;
     r.length_mm = cycle_->length_mm();
     const std::size_t seg = cycle_->job().walker().segment();
-    if (seg < job_.path->segments.size()) r.line = job_.path->segments[seg].source_line;
+    // The job's own path: fitted dense runs (G64 Q) split a program segment, each part keeps
+    // its source line.
+    const auto& segs = cycle_->job().path().segments;
+    if (seg < segs.size()) r.line = segs[seg].source_line;
     s.stopped = r;
   }
   if (live_) {

@@ -67,7 +67,7 @@ TEST_F(Replay, ReportAndSetpointsOfTheChamfer) {
   EXPECT_TRUE(j["feed_error"].contains("rms_rel"));
   EXPECT_EQ(j["limit_violations"].get<int>(), 0);
   // The jerk the axes feel (from the setpoints) and the bound in force, in the report and in
-  // the summary (docs/planner.md §3b).
+  // the summary (docs/planner.md §3c).
   EXPECT_GT(j["jerk_vector_max"].get<double>(), 0.0);
   EXPECT_NE(j["jerk_bound"].get<std::string>().find("tangential"), std::string::npos);
   EXPECT_NE(r.err.find("jerk vector max"), std::string::npos) << r.err;

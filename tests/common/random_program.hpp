@@ -1,11 +1,13 @@
 // The planner's random programs (tests/motion/property_test.cpp walks them; the block encoder's
 // rs274 suite writes them as blocks): lines with reversals, zero-length and 1 µm moves, dense runs
 // of 0.01 mm moves along arcs, NURBS of degree 1–5 (rational, repeated interior knots up to C¹),
-// rapids, G61, G61.1, G64 (with and without P, P0 included) and stops before events. One
+// rapids, G61, G61.1, G64 (with and without P, P0 included; with Q on some moves and on half of
+// the dense runs under G64, whose points are then rounded to 1 µm) and stops before events. One
 // generator for every suite that needs them; seed it from tests/common/seed.hpp.
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -39,6 +41,7 @@ struct RandomProgram {
                : (m == 1 ? toolpath::PathControl::exact_path : toolpath::PathControl::blend);
     s.stop_before = pick(10) == 0;
     if (pick(3) == 0) s.blend_tolerance_mm = pick(2) == 0 ? 0.0 : uni(0.001, 0.5);  // G64 P
+    if (pick(8) == 0) s.smoothing_tolerance_mm = uni(0.001, 0.05);                  // G64 Q
   }
 
   toolpath::PathSegment lines() {
@@ -75,12 +78,21 @@ struct RandomProgram {
       const double phi = -dphi * i;
       pts.push_back(center + std::cos(phi) * r0 + std::sin(phi) * n.cross(r0));
     }
-    heading = (pts.back() - pts[pts.size() - 2]).normalized();
-    at = pts.back();
     toolpath::PathSegment s;
-    s.geometry = toolpath::Polyline{pts, {}};
     common(s);
     if (s.feed_mm_per_min) s.feed_mm_per_min = std::min(*s.feed_mm_per_min, 3000.0);
+    // Half of the dense runs under G64 get a Q (the fit of docs/planner.md §3b), and then their
+    // points rounded to 1 µm as a CAM post writes them (the first stays where the last move
+    // ended): noise for the fit to smooth.
+    if (s.path_control == toolpath::PathControl::blend && pick(2) == 0) {
+      s.smoothing_tolerance_mm = uni(0.002, 0.05);
+      for (std::size_t i = 1; i < pts.size(); ++i) {
+        for (int k = 0; k < 3; ++k) pts[i][k] = std::round(pts[i][k] * 1000.0) / 1000.0;
+      }
+    }
+    heading = (pts.back() - pts[pts.size() - 2]).normalized();
+    at = pts.back();
+    s.geometry = toolpath::Polyline{pts, {}};
     return s;
   }
 

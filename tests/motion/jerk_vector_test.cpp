@@ -1,4 +1,4 @@
-// The jerk the axes feel (issue 13; docs/planner.md §3b), measured from the setpoints alone:
+// The jerk the axes feel (issue 13; docs/planner.md §3c), measured from the setpoints alone:
 //   J_k = (p_k − 3 p_k−1 + 3 p_k−2 − p_k−3) / T³,
 // the third difference, which for a motion whose jerk is constant in each period is the
 // average of p''' over [t_k−3, t_k] with the positive weights of the quadratic B-spline (they

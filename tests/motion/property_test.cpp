@@ -2,12 +2,12 @@
 // NCD_PROPERTY_PROGRAMS sets how many: 200 here, thousands under `make soak`). Each program
 // (tests/common/random_program.hpp) mixes lines with reversals, zero-length and 1 µm moves,
 // dense runs of 0.01 mm moves, NURBS of degree 1–5 (rational, repeated interior knots up to
-// C¹), rapids, G61, G61.1, G64 (with and without P, P0 included) and stops before events. For
-// every program, checked from the setpoints alone against the programmed geometry
-// (tests/motion/reference.hpp):
+// C¹), rapids, G61, G61.1, G64 (with and without P, P0 included; with Q, whose dense runs are
+// rounded to 1 µm and fitted with a curve) and stops before events. For every program, checked from
+// the setpoints alone against the programmed geometry (tests/motion/reference.hpp):
 //   - it ends at rest exactly at its end point;
 //   - every setpoint lies on the walked geometry (nearest-point distance ≤ 1e-5 mm), and within
-//     the active blend tolerance (G64 P) of the programmed geometry;
+//     the active tolerance of the programmed geometry (G64 P; G64 Q on a fitted dense run);
 //   - every period's chord stays within the chord tolerance of the geometry it spans;
 //   - the speed |Δp|/T stays within the machine's maximum feed and the programs' F words;
 //     the tangential acceleration and jerk (differences of the planned s) within their limits;
@@ -67,8 +67,9 @@ std::string describe(const Path& path) {
       for (const double w : c.weights()) o << " " << w;
     }
     o << " control " << static_cast<int>(seg.path_control) << " stop_before " << seg.stop_before
-      << " rapid " << seg.rapid << " P " << seg.blend_tolerance_mm.value_or(-1) << " F "
-      << seg.feed_mm_per_min.value_or(-1) << "\n";
+      << " rapid " << seg.rapid << " P " << seg.blend_tolerance_mm.value_or(-1) << " Q "
+      << seg.smoothing_tolerance_mm.value_or(-1) << " F " << seg.feed_mm_per_min.value_or(-1)
+      << "\n";
   }
   return o.str();
 }
@@ -104,12 +105,17 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
     }
     // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
     // ends at its corner): its G64 P under G64, the machine's blend_tolerance_mm under a plain
-    // G64; none under G61 or G61.1.
-    const PathSegment& held = path.segments[job.walker().segment()];
+    // G64; none under G61 or G61.1. A dense run fitted under G64 Q (docs/planner.md §3b) is a
+    // cubic in the walked path, in a polyline of the program: its tolerance is Q.
+    const std::size_t walked = job.walker().segment();
+    const PathSegment& held = path.segments[job.fit_report().source_segment[walked]];
+    const auto* walked_curve = std::get_if<NurbsCurve>(&job.path().segments[walked].geometry);
+    const bool fitted = walked_curve && walked_curve->degree() == 3 &&
+                        std::holds_alternative<Polyline>(held.geometry);
     const double tol =
-        held.path_control == PathControl::blend
-            ? std::max(held.blend_tolerance_mm.value_or(cfg.limits.blend_tolerance_mm), 0.0)
-            : 0.0;
+        held.path_control != PathControl::blend ? 0.0
+        : fitted                                ? held.smoothing_tolerance_mm.value_or(0.0)
+                 : std::max(held.blend_tolerance_mm.value_or(cfg.limits.blend_tolerance_mm), 0.0);
     const double dp = test::distance_to_path(program, sp.p, sp.s_mm, window);
     if (!(dp <= tol * (1.0 + 1e-9) + 1e-5)) {
       return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
@@ -164,6 +170,46 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
     }
   }
   return {};
+}
+
+// A dense CAM run rounded to 1 µm with a 90° corner in the middle, under G64 P0.01 Q0.01 (random
+// radius, spacing and Q; seed printed): fitted on both sides of the corner, and walked through
+// every check above (setpoints within Q of the programmed moves, chord, limits, at rest exactly
+// at the end point).
+TEST(Property, FittedDenseRunWithACornerIsWalkedWithinQ) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  const auto uni = [&](double a, double b) {
+    return std::uniform_real_distribution<double>(a, b)(rng);
+  };
+  for (int k = 0; k < ncd::test::sweep_cases(4); ++k) {
+    const double r = uni(10.0, 100.0), step = uni(0.005, 0.05), q = uni(0.005, 0.02);
+    std::vector<Vec3> pts;
+    const int n = 200 + static_cast<int>(rng() % 200);
+    for (int i = 0; i <= n; ++i) {  // an arc, then a line turning 90° away from its end
+      const double phi = step * i / r;
+      pts.emplace_back(r * std::sin(phi), r * (1.0 - std::cos(phi)), 0.0);
+    }
+    const Vec3 corner = pts.back(), t(std::cos(step * n / r), std::sin(step * n / r), 0.0);
+    const Vec3 away(-t.y(), t.x(), 0.0);
+    for (int i = 1; i <= n; ++i) {
+      pts.push_back(corner + step * i * away + Vec3(0, 0, 0.2 * std::sin(step * i)));
+    }
+    for (std::size_t i = 1; i < pts.size(); ++i) {
+      for (int c = 0; c < 3; ++c) pts[i][c] = std::round(pts[i][c] * 1000.0) / 1000.0;
+    }
+    Path path;
+    PathSegment s;
+    s.geometry = Polyline{pts, {}};
+    s.feed_mm_per_min = 3000.0;
+    s.blend_tolerance_mm = 0.01;
+    s.smoothing_tolerance_mm = q;
+    path.segments.push_back(s);
+    const std::string what = "case " + std::to_string(k) + " of seed " + std::to_string(seed);
+    EXPECT_GE(Job(path, machine()).fit_report().runs, 2u) << what;
+    EXPECT_EQ(check(path, 3000.0), "") << what;
+    if (HasFailure()) break;
+  }
 }
 
 TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
