@@ -148,10 +148,10 @@ int run_check(const CheckArgs& a) {
   const Program p = toolpath::interpret_ngc_file(a.file, opt);
   if (a.save_parameters) write_output(opt.parameter_file, p.parameter_file_text, "parameter file");
   const Summary s = summarise(p, machine);
-  std::ostringstream canonical;
-  if (!a.summary_only) toolpath::write_canonical(canonical, p);
   const bool any = s.moves > 0;
   if (a.json) {
+    std::ostringstream canonical;
+    if (!a.summary_only) toolpath::write_canonical(canonical, p);
     nlohmann::ordered_json j;
     j["program"] = a.file;
     j["files"] = p.files;
@@ -179,7 +179,7 @@ int run_check(const CheckArgs& a) {
     std::cout << j.dump(2) << "\n";
     return 0;
   }
-  std::cout << canonical.str();
+  if (!a.summary_only) toolpath::write_canonical(std::cout, p);  // straight out, no copy
   std::cout << "summary of " << a.file << " (mm, machine coordinates)\n";
   std::cout << "  moves " << s.moves << ", events " << s.events << "\n";
   if (any) {

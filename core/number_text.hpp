@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <iterator>
 #include <string>
 
 namespace ncd::text {
@@ -33,14 +34,37 @@ inline std::string fixed(double v, int decimals) {
 
 // `decimals` decimals, then the trailing zeros removed down to `min_decimals` (and the point
 // with them when that is 0): G-code words X1.5 Z0, or 1.0 with min_decimals 1.
+// append_trimmed writes the same text at the end of a buffer, without an allocation (for long
+// listings such as the canonical program of `ncd check`).
+template <typename Buffer>
+void append_trimmed(Buffer& out, double v, int decimals, int min_decimals = 0) {
+  const std::size_t start = out.size();
+  fmt::format_to(std::back_inserter(out), "{:.{}f}", v, decimals);
+  std::size_t point = start;
+  while (point < out.size() && out[point] != '.') ++point;
+  if (point < out.size()) {
+    const std::size_t keep = point + static_cast<std::size_t>(min_decimals) + 1;
+    std::size_t end = out.size();
+    while (end > keep && out[end - 1] == '0') --end;
+    if (out[end - 1] == '.') --end;
+    out.resize(end);
+  }
+  // "-0", "-0.0": a negative value that rounded to zero is written without its sign.
+  if (out.size() > start + 1 && out[start] == '-') {
+    bool zero = true;
+    for (std::size_t i = start + 1; i < out.size() && zero; ++i)
+      zero = out[i] == '0' || out[i] == '.';
+    if (zero) {
+      for (std::size_t i = start; i + 1 < out.size(); ++i) out[i] = out[i + 1];
+      out.resize(out.size() - 1);
+    }
+  }
+}
+
 inline std::string trimmed(double v, int decimals, int min_decimals = 0) {
-  std::string s = fixed(v, decimals);
-  const std::size_t point = s.find('.');
-  if (point == std::string::npos) return s;
-  const std::size_t keep = point + static_cast<std::size_t>(min_decimals) + 1;
-  while (s.size() > keep && s.back() == '0') s.pop_back();
-  if (s.back() == '.') s.pop_back();
-  return detail::unsigned_zero(s);
+  std::string s;
+  append_trimmed(s, v, decimals, min_decimals);
+  return s;
 }
 
 // A plot's tick label at v, ticks `step` apart: `digits` significant digits, and the tick that

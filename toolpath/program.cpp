@@ -341,14 +341,44 @@ std::string xyz(const Vec3& p) {
          text::trimmed(p.z(), 6, 1);
 }
 
+// A straight move's line, the common case of long programs, without an allocation per number.
+void write_line_move(std::string& line, const Motion& m, const LineMove& g) {
+  line += m.rapid ? "RAPID X" : "LINE X";
+  text::append_trimmed(line, g.end.x(), 6, 1);
+  line += " Y";
+  text::append_trimmed(line, g.end.y(), 6, 1);
+  line += " Z";
+  text::append_trimmed(line, g.end.z(), 6, 1);
+}
+
 }  // namespace
 
 void write_canonical(std::ostream& out, const Program& program) {
+  std::string line;
   for (const Step& step : program.steps) {
     const std::size_t f = static_cast<std::size_t>(step.src.file);
+    const auto* m = std::get_if<Motion>(&step.item);
+    const auto* straight = m ? std::get_if<LineMove>(&m->geometry) : nullptr;
+    if (straight && !m->rapid && m->spindle == SpindleDir::off && m->tool == 0 && m->start_known &&
+        m->feed_mode == FeedMode::per_minute) {
+      // The dense G1 of CAM programs: one buffer per line, the same text as below.
+      line.clear();
+      line += f < program.files.size() ? program.files[f] : std::string("?");
+      line += ':';
+      line += std::to_string(step.src.line);
+      line += ' ';
+      write_line_move(line, *m, *straight);
+      line += " F";
+      text::append_trimmed(line, m->feed, 6, 1);
+      line += ' ';
+      line += units_name(m->units);
+      line += '\n';
+      out.write(line.data(), static_cast<std::streamsize>(line.size()));
+      continue;
+    }
     out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':' << step.src.line
         << ' ';
-    if (const auto* m = std::get_if<Motion>(&step.item)) {
+    if (m) {
       std::visit(
           [&](const auto& g) {
             using T = std::decay_t<decltype(g)>;
