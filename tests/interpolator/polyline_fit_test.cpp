@@ -11,6 +11,7 @@
 #include "interpolator/polyline_fit.hpp"
 #include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
+#include "tests/motion/reference.hpp"
 
 namespace ncd::interpolator {
 namespace {
@@ -19,28 +20,6 @@ using toolpath::NurbsCurve;
 using toolpath::Path;
 using toolpath::PathSegment;
 using toolpath::Polyline;
-
-double basis(const std::vector<double>& U, std::size_t i, int p, double u) {
-  if (p == 0) {
-    const bool last = U[i + 1] == U.back() && u == U.back() && U[i] < U[i + 1];
-    return (U[i] <= u && u < U[i + 1]) || last ? 1.0 : 0.0;
-  }
-  const auto pz = static_cast<std::size_t>(p);
-  double b = 0.0;
-  if (U[i + pz] > U[i]) b += (u - U[i]) / (U[i + pz] - U[i]) * basis(U, i, p - 1, u);
-  if (U[i + pz + 1] > U[i + 1]) {
-    b += (U[i + pz + 1] - u) / (U[i + pz + 1] - U[i + 1]) * basis(U, i + 1, p - 1, u);
-  }
-  return b;
-}
-
-Vec3 cox_de_boor(const NurbsCurve& c, double u) {
-  Vec3 a = Vec3::Zero();
-  for (std::size_t i = 0; i < c.points().size(); ++i) {
-    a += basis(c.knots(), i, c.degree(), u) * c.points()[i];
-  }
-  return a;
-}
 
 double to_piece(const Vec3& x, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
@@ -56,7 +35,8 @@ double brute_deviation_mm(const NurbsCurve& c, const std::vector<Vec3>& pts, dou
   std::vector<Vec3> cs;
   const double u0 = c.u_begin(), u1 = c.u_end();
   const auto n = static_cast<int>(std::ceil((u1 - u0) / du));
-  for (int i = 0; i <= n; ++i) cs.push_back(cox_de_boor(c, i == n ? u1 : u0 + (u1 - u0) * i / n));
+  for (int i = 0; i <= n; ++i)
+    cs.push_back(test::nurbs_point(c, i == n ? u1 : u0 + (u1 - u0) * i / n));
   double worst = 0.0;
   for (const Vec3& x : cs) {
     double best = 1e300;
@@ -133,7 +113,7 @@ TEST(PolylineFit, DegenerateInputs) {
     ASSERT_TRUE(fit);
     for (int i = 0; i <= 100; ++i) {  // on the line itself (the proven bound has its slack)
       const double u = fit->curve.u_begin() + (fit->curve.u_end() - fit->curve.u_begin()) * i / 100;
-      EXPECT_LT(to_piece(cox_de_boor(fit->curve, u), pts[0], pts[1]), 1e-12);
+      EXPECT_LT(to_piece(test::nurbs_point(fit->curve, u), pts[0], pts[1]), 1e-12);
     }
   }
   // Collinear, unevenly spaced, with duplicates.

@@ -16,6 +16,7 @@
 
 #include "interpolator/feed_limits.hpp"
 #include "motion/job.hpp"
+#include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
 
 namespace ncd::motion {
@@ -28,13 +29,6 @@ using toolpath::PathSegment;
 using toolpath::Polyline;
 
 constexpr double kT = 0.004, kA = 1000.0, kJ = 20000.0, kEps = 0.001;
-
-JobConfig machine() {
-  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
-  c.cutting.pick_feed_mm = 0.0;
-  c.cutting.roughness_target_um = 1000.0;
-  return c;
-}
 
 PathSegment move(std::vector<Vec3> pts, double f_mm_per_min, std::optional<double> p_mm,
                  PathControl mode = PathControl::blend) {
@@ -62,7 +56,7 @@ struct Walk {
   Path walked;
 };
 
-Walk run(const Path& path, const JobConfig& config = machine()) {
+Walk run(const Path& path, const JobConfig& config = test::planner_machine()) {
   Job job(path, config);
   Walk r;
   while (!job.done()) {
@@ -244,7 +238,7 @@ TEST(Blend, PlainG64TakesTheMachinesBlendTolerance) {
   Path path;
   path.segments.push_back(move(pts, 6000.0, std::nullopt));
   for (const double tol_mm : {0.01, 0.05, 0.0}) {
-    JobConfig c = machine();
+    JobConfig c = test::planner_machine();
     c.limits.blend_tolerance_mm = tol_mm;
     const Walk w = run(path, c);
     double dev = 0.0, kappa = 0.0;
@@ -327,7 +321,7 @@ TEST(Blend, JointBetweenMovesKeepsTheSegmentsAndTheirFeeds) {
   Path path;
   path.segments.push_back(move({pts[0], pts[1]}, 6000.0, 0.05));
   path.segments.push_back(move({pts[1], pts[2]}, 1200.0, 0.05));
-  Job job(path, machine());
+  Job job(path, test::planner_machine());
   ASSERT_EQ(job.path().segments.size(), 2U);
   EXPECT_EQ(job.blend_report().corners, 1U);
   EXPECT_TRUE(std::holds_alternative<NurbsCurve>(job.path().segments[0].geometry));

@@ -22,6 +22,7 @@
 
 #include "interpolator/feed_limits.hpp"
 #include "motion/job.hpp"
+#include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
 #include "toolpath/chamfer.hpp"
 #include "toolpath/path_io.hpp"
@@ -34,15 +35,8 @@ using toolpath::Path;
 using toolpath::PathSegment;
 using toolpath::Polyline;
 
-JobConfig machine() {
-  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
-  c.cutting.pick_feed_mm = 0.0;
-  c.cutting.roughness_target_um = 1000.0;
-  return c;
-}
-
 double ncd_duration_s(const Path& path) {
-  Job job(path, machine());
+  Job job(path, test::planner_machine());
   double t = 0.0;
   while (!job.done()) {
     job.prepare();
@@ -60,7 +54,7 @@ struct Walk {
 };
 
 Walk walk(const Path& path) {
-  Job job(path, machine());
+  Job job(path, test::planner_machine());
   const test::GeometryTable program = test::tabulate(path);
   Walk w;
   w.fit = job.fit_report();
@@ -113,7 +107,7 @@ Path dense_cam(std::optional<double> q_mm, int digits) {
 
 // Phase-plane bound on one NURBS segment at program feed f (mm/s), from rest to rest.
 double phase_plane_s(const NurbsCurve& c, double feed_mm_per_s) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const int n = 200000;
   std::vector<double> s(n + 1, 0.0), v(n + 1, 0.0);
   const double du = (c.u_end() - c.u_begin()) / n;
@@ -292,7 +286,7 @@ double distance_to_polyline(const std::vector<Vec3>& pts, const Vec3& q) {
 }
 
 Measured measure(const Path& path, const std::vector<Vec3>& program) {
-  Job job(path, machine());
+  Job job(path, test::planner_machine());
   Measured m;
   while (!job.done()) {
     job.prepare();

@@ -20,6 +20,7 @@
 
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
+#include "tests/motion/planner_machine.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace ncd::motion {
@@ -29,13 +30,6 @@ using toolpath::Path;
 using toolpath::PathControl;
 using toolpath::PathSegment;
 using toolpath::Polyline;
-
-JobConfig machine() {
-  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
-  c.cutting.pick_feed_mm = 0.0;
-  c.cutting.roughness_target_um = 1000.0;
-  return c;
-}
 
 const char* kCircle = R"({"nurbs": {"degree": 2,
   "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
@@ -77,7 +71,7 @@ struct Walk {
 };
 
 Walk run(const Path& path) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const double t3 = std::pow(cfg.limits.period_s, 3);
   Job job(path, cfg);
   Walk r;
@@ -95,7 +89,7 @@ Walk run(const Path& path) {
 }
 
 TEST(JerkVector, RunStatsThirdDifferenceIsExactOnCubicMotion) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s;
   const Vec3 c(1000.0, -2000.0, 500.0), b(3.0, 1.0, -2.0), d(10.0, 0.0, 5.0);
   RunStats moving, resting;
@@ -116,7 +110,7 @@ TEST(JerkVector, RunStatsThirdDifferenceIsExactOnCubicMotion) {
 }
 
 TEST(JerkVector, CircleWithinTheFrenetDecompositionOfThePlannedMotion) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s, t3 = T * T * T, kappa = 1.0 / 20.0;
   const Walk r = run(toolpath::read_path_text(kCircle, "circle"));
   double worst_ratio = 0.0;
@@ -140,7 +134,7 @@ TEST(JerkVector, CircleWithinTheFrenetDecompositionOfThePlannedMotion) {
 }
 
 TEST(JerkVector, TableOfTheBoundPaths) {
-  const double j_max = machine().limits.max_jerk_mm_per_s3;
+  const double j_max = test::planner_machine().limits.max_jerk_mm_per_s3;
   std::printf(
       "| path | ncd s | max tangential jerk | max jerk vector (setpoints) | / j_max |\n"
       "|---|---|---|---|---|\n");

@@ -14,17 +14,11 @@
 #include <cstdio>
 
 #include "motion/job.hpp"
+#include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
 
 namespace ncd::motion {
 namespace {
-
-JobConfig machine() {
-  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
-  c.cutting.pick_feed_mm = 0.0;
-  c.cutting.roughness_target_um = 1000.0;
-  return c;
-}
 
 struct Landing {
   double duration_s = 0.0;
@@ -37,7 +31,7 @@ Landing walk_line(double length_mm) {
   s.feed_mm_per_min = 6000.0;
   toolpath::Path p;
   p.segments.push_back(s);
-  Job job(p, machine());
+  Job job(p, test::planner_machine());
   Landing r;
   double last_at_cap_s = 0.0;
   while (!job.done()) {
@@ -51,7 +45,7 @@ Landing walk_line(double length_mm) {
 }
 
 TEST(Landing, LinesWithinAFewPeriodsOfTheClosedFormSCurve) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s, a = cfg.limits.max_accel_mm_per_s2;
   const double j = cfg.limits.max_jerk_mm_per_s3, v = cfg.limits.max_feed_mm_per_min / 60.0;
   double worst = 0.0, sum = 0.0;
@@ -72,7 +66,7 @@ TEST(Landing, LinesWithinAFewPeriodsOfTheClosedFormSCurve) {
 
 TEST(Landing, StopFromCruiseWithinThreePeriodsOfTheTimeOptimalStop) {
   // From the cap at a = 0, the time-optimal stop takes v/a + a/j (0.15 s, 37.5 periods).
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s, a = cfg.limits.max_accel_mm_per_s2;
   const double j = cfg.limits.max_jerk_mm_per_s3, v = cfg.limits.max_feed_mm_per_min / 60.0;
   const double t_stop = v / a + a / j;

@@ -24,6 +24,7 @@
 #include "tests/common/random_program.hpp"
 #include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
+#include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
 
 namespace ncd::motion {
@@ -34,13 +35,6 @@ using toolpath::Path;
 using toolpath::PathControl;
 using toolpath::PathSegment;
 using toolpath::Polyline;
-
-JobConfig machine() {
-  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
-  c.cutting.pick_feed_mm = 0.0;
-  c.cutting.roughness_target_um = 1000.0;
-  return c;
-}
 
 Vec3 end_point(const Path& p) {
   const auto& g = p.segments.back().geometry;
@@ -76,7 +70,7 @@ std::string describe(const Path& path) {
 
 // Checks one program; returns an empty string or the first failure.
 std::string check(const Path& path, double max_program_feed_mm_per_min) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s, a_max = cfg.limits.max_accel_mm_per_s2;
   const double j_max = cfg.limits.max_jerk_mm_per_s3, eps = cfg.limits.chord_tolerance_mm;
   const double v_cap = cfg.limits.max_feed_mm_per_min / 60.0;
@@ -206,7 +200,7 @@ TEST(Property, FittedDenseRunWithACornerIsWalkedWithinQ) {
     s.smoothing_tolerance_mm = q;
     path.segments.push_back(s);
     const std::string what = "case " + std::to_string(k) + " of seed " + std::to_string(seed);
-    EXPECT_GE(Job(path, machine()).fit_report().runs, 2u) << what;
+    EXPECT_GE(Job(path, test::planner_machine()).fit_report().runs, 2u) << what;
     EXPECT_EQ(check(path, 3000.0), "") << what;
     if (HasFailure()) break;
   }
@@ -240,45 +234,19 @@ TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
 namespace ncd::motion {
 namespace {
 
-// An independent evaluation of a NURBS point (Cox–de Boor recursion on the basis functions,
-// eq. 2.5 of The NURBS Book, written here without the library's algorithm A2.3), and its arc
-// length as the length of a fine inscribed polygon extrapolated with Richardson (the polygon's
+// An independent arc length of a NURBS (its points by test::nurbs_point, Cox–de Boor): the
+// length of a fine inscribed polygon extrapolated with Richardson (the polygon's
 // shortfall is O(h²) on every smooth span; each span is sampled on its own).
-double basis(const std::vector<double>& U, std::size_t i, int p, double u) {
-  if (p == 0) {
-    const bool last = U[i + 1] == U.back() && u == U.back() && U[i] < U[i + 1];
-    return (U[i] <= u && u < U[i + 1]) || last ? 1.0 : 0.0;
-  }
-  const auto pz = static_cast<std::size_t>(p);
-  double b = 0.0;
-  if (U[i + pz] > U[i]) b += (u - U[i]) / (U[i + pz] - U[i]) * basis(U, i, p - 1, u);
-  if (U[i + pz + 1] > U[i + 1]) {
-    b += (U[i + pz + 1] - u) / (U[i + pz + 1] - U[i + 1]) * basis(U, i + 1, p - 1, u);
-  }
-  return b;
-}
-
-Vec3 de_boor_point(const NurbsCurve& c, double u) {
-  Vec3 a = Vec3::Zero();
-  double w = 0.0;
-  for (std::size_t i = 0; i < c.points().size(); ++i) {
-    const double b = basis(c.knots(), i, c.degree(), u) * c.weights()[i];
-    a += b * c.points()[i];
-    w += b;
-  }
-  return a / w;
-}
-
 double polygon_length(const NurbsCurve& c, int n_per_span) {
   const auto bp = c.breakpoints();
   double total = 0.0;
   for (std::size_t k = 0; k + 1 < bp.size(); ++k) {
     // Interior samples of the span, its end approached from inside (the span's own polynomial).
-    Vec3 prev = de_boor_point(c, bp[k]);
+    Vec3 prev = test::nurbs_point(c, bp[k]);
     for (int i = 1; i <= n_per_span; ++i) {
       const double u = i == n_per_span ? std::nextafter(bp[k + 1], bp[k])
                                        : bp[k] + (bp[k + 1] - bp[k]) * i / n_per_span;
-      const Vec3 q = de_boor_point(c, u);
+      const Vec3 q = test::nurbs_point(c, u);
       total += (q - prev).norm();
       prev = q;
     }
@@ -307,7 +275,7 @@ void expect_walked(const PathSegment& seg, const char* name) {
   path.segments.push_back(seg);
   const NurbsCurve& c = std::get<NurbsCurve>(seg.geometry);
   EXPECT_EQ(check(path, 6000.0), "") << name;
-  Job job(path, machine());
+  Job job(path, test::planner_machine());
   const double ref = reference_length_mm(c);
   EXPECT_NEAR(job.walker().length_mm(), ref, 1e-7 * ref) << name;
   double travelled = 0.0;
@@ -325,7 +293,8 @@ void expect_walked(const PathSegment& seg, const char* name) {
   // planner's figures; a crawl at the dip took hundreds of seconds).
   const double bound_s =
       ref / (*seg.feed_mm_per_min / 60.0) + 2.0 * static_cast<double>(c.breakpoints().size());
-  EXPECT_LT(static_cast<double>(periods) * machine().limits.period_s, bound_s) << name;
+  EXPECT_LT(static_cast<double>(periods) * test::planner_machine().limits.period_s, bound_s)
+      << name;
   std::cout << name << ": " << periods << " periods, length " << ref << " mm\n";
 }
 

@@ -1,7 +1,7 @@
 // Independent references for the planner tests, written here from first principles (not from
 // motion/ or interpolator/): the time-optimal jerk-limited rest-to-rest move along a line in
-// closed form, and the programmed geometry of a Path as a dense table of (s, point) for
-// nearest-point and chord checks.
+// closed form, a NURBS point by Cox–de Boor, and the programmed geometry of a Path as a dense table
+// of (s, point) for nearest-point and chord checks.
 #pragma once
 
 #include <algorithm>
@@ -13,6 +13,34 @@
 #include "toolpath/path.hpp"
 
 namespace ncd::test {
+
+// The B-spline basis function N_{i,p}(u) by the Cox–de Boor recursion (The NURBS Book, eq. 2.5),
+// written here without the library's algorithm A2.3; the last span is closed at its end.
+inline double nurbs_basis(const std::vector<double>& U, std::size_t i, int p, double u) {
+  if (p == 0) {
+    const bool last = U[i + 1] == U.back() && u == U.back() && U[i] < U[i + 1];
+    return (U[i] <= u && u < U[i + 1]) || last ? 1.0 : 0.0;
+  }
+  const auto pz = static_cast<std::size_t>(p);
+  double b = 0.0;
+  if (U[i + pz] > U[i]) b += (u - U[i]) / (U[i + pz] - U[i]) * nurbs_basis(U, i, p - 1, u);
+  if (U[i + pz + 1] > U[i + 1]) {
+    b += (U[i + pz + 1] - u) / (U[i + pz + 1] - U[i + 1]) * nurbs_basis(U, i + 1, p - 1, u);
+  }
+  return b;
+}
+
+// A NURBS point from the basis functions: Σ N_i w_i P_i / Σ N_i w_i.
+inline Vec3 nurbs_point(const toolpath::NurbsCurve& c, double u) {
+  Vec3 a = Vec3::Zero();
+  double w = 0.0;
+  for (std::size_t i = 0; i < c.points().size(); ++i) {
+    const double b = nurbs_basis(c.knots(), i, c.degree(), u) * c.weights()[i];
+    a += b * c.points()[i];
+    w += b;
+  }
+  return a / w;
+}
 
 // Shortest time of a rest-to-rest move of length d under |v| <= v, |a| <= a, |j| <= j (the
 // symmetric seven-phase S-curve; phases vanish when the distance is short).

@@ -10,6 +10,7 @@
 #include "core/error.hpp"
 #include "motion/cycle.hpp"
 #include "motion/job.hpp"
+#include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
 #include "toolpath/nurbs.hpp"
 
@@ -32,20 +33,13 @@ PathSegment line_segment(std::vector<Vec3> points, double feed_mm_per_min,
   return s;
 }
 
-JobConfig machine() {
-  JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm
-  c.cutting.pick_feed_mm = 0.0;
-  c.cutting.roughness_target_um = 1000.0;  // the roughness law does not bind here
-  return c;
-}
-
 struct Motion {
   std::vector<Setpoint> sp;
   double duration_s = 0.0;
 };
 
 // Runs a job to its end (at most max_periods) and records every setpoint.
-Motion run(const Path& path, const JobConfig& cfg = machine(),
+Motion run(const Path& path, const JobConfig& cfg = test::planner_machine(),
            std::size_t max_periods = 2'000'000) {
   Job job(path, cfg);
   Motion r;
@@ -225,7 +219,7 @@ TEST(Stops, JointIntoANurbsWithARepeatedFirstPointIsAStop) {
                             1.054813254742849, 1.182959955725484});
   nurbs.feed_mm_per_min = 1758.0660368489998;
   path.segments.push_back(nurbs);
-  const Motion r = run(path, machine(), 100'000);
+  const Motion r = run(path, test::planner_machine(), 100'000);
   expect_at_rest_at(r, {-19.073612407750691, -10.419599862055808, 1.4608671514717062});
   const auto at_rest = rests(r);
   ASSERT_EQ(at_rest.size(), 1U);
@@ -276,11 +270,11 @@ TEST(Stops, ExtremeLimitsAreRefusedNotAllocated) {
   Path path;
   path.segments.push_back(line_segment({{0, 0, 0}, {1, 0, 0}}, 6000.0));
   for (const double feed : {1e300, 1e12}) {
-    JobConfig c = machine();
+    JobConfig c = test::planner_machine();
     c.limits.max_feed_mm_per_min = feed;
     EXPECT_THROW(Job(path, c), InputError) << feed;
   }
-  JobConfig c = machine();
+  JobConfig c = test::planner_machine();
   c.limits.max_jerk_mm_per_s3 = 1e-300;
   EXPECT_THROW(Job(path, c), InputError);
   Planner p(PlannerLimits{}, 1.0);
@@ -293,7 +287,7 @@ TEST(Stops, ExtremeLimitsAreRefusedNotAllocated) {
 TEST(Stops, WatchdogStopsAJobThatDoesNotAdvance) {
   Path path;
   path.segments.push_back(line_segment({{0, 0, 0}, {1, 0, 0}}, 6e-4));
-  JobConfig c = machine();
+  JobConfig c = test::planner_machine();
   c.limits.stall_timeout_s = 0.1;
   CycleOptions o;
   o.clock = ClockKind::Simulated;
@@ -312,7 +306,7 @@ TEST(Stops, WatchdogDoesNotFireAtStops) {
   Path path;
   path.segments.push_back(line_segment({{0, 0, 5}, {0, 0, 0}}, 300.0));
   path.segments.push_back(line_segment({{0, 0, 0}, {0, 0, 5}, {3, 0, 5}, {3, 0, 0}}, 300.0));
-  JobConfig c = machine();
+  JobConfig c = test::planner_machine();
   c.limits.stall_timeout_s = 0.05;
   CycleOptions o;
   o.clock = ClockKind::Simulated;
