@@ -42,9 +42,10 @@
 //      to C); between two samples every point is within (e_a + e_b + δ) / 2 of C.
 //    The largest of these bounds is the proven deviation. Spans where a bound exceeds Q get a
 //    knot in their middle and the run is refitted (up to 16 rounds, spans not below Q wide).
-//    A curve whose parametric speed |C'| falls below 0.5 at a sample (u is chord length, so a
-//    good fit has |C'| ≈ 1; lower means the fit folds towards a cusp, which the walker's
-//    arc-length correction should not be given) is refused without refinement. A run that
+//    A curve whose parametric speed |C'| falls below 0.5 of its mean at a sample (the mean is
+//    the curve's length over the run's chord length: ≈ 1 for clean points, lower when noise
+//    lengthens the chords; a dip far below it means the fit folds towards a cusp, which the
+//    walker's arc-length correction should not be given) is refused without refinement. A run that
 //    still fails is split at the vertex nearest its worst point (or its slowest sample) and
 //    each half is fitted on its own; pieces that cannot be fitted stay a polyline.
 // 4. Segments: a segment with fitted runs is split into its polyline parts and one NURBS
@@ -60,6 +61,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 namespace ncd::interpolator {
@@ -80,7 +82,7 @@ constexpr int kMaxSplitDepth = 12;
 constexpr double kSampleStepPerQ = 0.2;   // Δu M1 ≤ 0.2 Q and δ ≤ 0.2 Q
 constexpr double kRoundingMm = 1e-12;     // added to every bound for the rounding of the distances
 constexpr double kReversalRad = kPi / 2;  // a vertex turning more is always a corner
-constexpr double kMinSpeed = 0.5;         // smallest |C'| accepted (u is chord length: ≈ 1)
+constexpr double kMinSpeed = 0.5;         // smallest |C'| accepted, over the mean |C'|
 
 double point_piece_mm(const Vec3& x, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
@@ -236,7 +238,8 @@ std::vector<double> knots_of(const std::vector<double>& breaks) {
 
 struct Check {
   double bound_mm = 0.0;   // the proven two-sided deviation
-  double min_speed = 1.0;  // smallest |C'| at the samples (≈ 1: u is chord length)
+  double min_speed = std::numeric_limits<double>::infinity();  // smallest |C'| at the samples
+  double mean_speed = 1.0;  // the curve's length (through its samples) over the run's chord length
   double min_speed_at_mm = 0.0;
   std::vector<char> span_fail;  // spans where a bound exceeds the tolerance
   double worst_at_mm = 0.0;     // chord-length position of the largest bound
@@ -302,6 +305,9 @@ Check check(const NurbsCurve& c, const std::vector<double>& breaks, const Run& r
       d_prev = d;
     }
   }
+  double curve_mm = 0.0;
+  for (std::size_t i = 1; i < cs.size(); ++i) curve_mm += (cs[i].p - cs[i - 1].p).norm();
+  out.mean_speed = curve_mm / (breaks.back() - breaks.front());
   // Polyline → curve: distance to the nearest curve sample around the parameter.
   std::size_t i0 = 0;
   const auto to_curve = [&](const Vec3& y, double t, std::size_t& span) {
@@ -368,7 +374,7 @@ Attempt fit_run(const std::vector<Vec3>& points, double tol) {
     NurbsCurve curve(3, knots_of(breaks), std::move(cp));
     const Check c = check(curve, breaks, run, tol);
     out.worst_at_mm = c.worst_at_mm;
-    if (c.min_speed < kMinSpeed) {  // a near-cusp: not refined (it would follow it closer)
+    if (c.min_speed < kMinSpeed * c.mean_speed) {  // a near-cusp: not refined (it would follow it closer)
       out.worst_at_mm = c.min_speed_at_mm;
       return out;
     }
