@@ -258,7 +258,18 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   EXPECT_LE(b["chord_error_max_mm"].get<double>(), 0.002 * (1 + 1e-9));
   EXPECT_EQ(b["link"]["line"].get<std::string>(), "19200 7E2 xonxoff drip LF");
   EXPECT_LE(b["link"]["use_peak"].get<double>(), 0.8 * (1 + 1e-9));
-  EXPECT_EQ(b["feed_lowered"]["blocks"].get<int>(), 0);
+  // The link carries the blocks at the planned feed, except where the chord tolerance cuts a
+  // block too short for it at a corner; there the feed is lowered, by little and in few blocks
+  // (the peak use sits near the 80 % margin: 78.6 % before the sampler's sliver fix, which then
+  // lowered one 0.0197 mm block from 98.5 to 86 mm/min).
+  EXPECT_LE(b["feed_lowered"]["blocks"].get<int>(), 3);
+  for (const auto& range : b["feed_lowered"]["range_list"]) {
+    EXPECT_NE(range["reason"].get<std::string>().find("the link"), std::string::npos) << range;
+    EXPECT_GE(range["lowered_feed_min_mm_per_min"].get<double>(),
+              0.8 * range["planned_feed_mm_per_min"].get<double>())
+        << range;
+  }
+  EXPECT_LE(b["duration_s"].get<double>(), b["planned_duration_s"].get<double>() + 0.02);
   EXPECT_EQ(b["queue_model"]["underruns"].get<int>(), 0);
   EXPECT_EQ(j["machine"]["link"]["frame"].get<std::string>(), "7E2");
   EXPECT_EQ(j["machine"]["encoder"]["chord_tolerance_mm"].get<double>(), 0.002);

@@ -333,11 +333,10 @@ TEST(Property, DegenerateNurbsAreWalkedToRestAtTheEnd) {
 
 // Random degenerate curves: repeated first and last points, full-multiplicity interior knots,
 // degrees 2–5, rational or not; each through the property checks and the length reference.
-// The seed is pinned: about one random seed in four draws a curve that walks slower than the
-// crawl bound below (issue 13, still open: e.g. NCD_TEST_SEED=7414150 takes 14.3 s against
-// 6.6 s, 3170137253 6.8 s against 6.5 s; slow, never a stall). NCD_TEST_SEED=<seed> explores.
+// NCD_TEST_SEED=7414150 (case 11) crawled for 14.3 s against the 6.6 s bound before the sampler
+// stopped leaving slivers before a breakpoint (limit_sampler.cpp).
 TEST(Property, RandomDegenerateNurbsWalkTheirTrueLength) {
-  const std::uint64_t seed = test::seed(1);
+  const std::uint64_t seed = test::seed();
   std::mt19937_64 rng(seed);
   const auto uni = [&](double a, double b) {
     return std::uniform_real_distribution<double>(a, b)(rng);
