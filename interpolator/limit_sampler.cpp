@@ -640,8 +640,8 @@ bool LimitSampler::next_interval(Interval& iv) {
     {
       const double u_next = knot_ < knots.size() ? std::min(knots[knot_], c.u_end()) : c.u_end();
       if (u1 < u_next && u_next - u1 < u1 - u_) {
-        const double to_next = GaussLegendre10::integrate(
-            [&c](double w) { return c.eval(w).d1.norm(); }, u_, u_next);
+        const double to_next =
+            GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u_, u_next);
         if (to_next <= config_.spacing_mm) {
           u1 = u_next;
         } else if (to_next <= 2.0 * config_.spacing_mm) {

@@ -45,9 +45,9 @@
 //    A curve whose parametric speed |C'| falls below 0.5 of its mean at a sample (the mean is
 //    the curve's length over the run's chord length: ≈ 1 for clean points, lower when noise
 //    lengthens the chords; a dip far below it means the fit folds towards a cusp, which the
-//    walker's arc-length correction should not be given) is refused without refinement. A run that
-//    still fails is split at the vertex nearest its worst point (or its slowest sample) and
-//    each half is fitted on its own; pieces that cannot be fitted stay a polyline.
+//    walker's arc-length correction should not be given) is refused without refinement. A
+//    run that still fails is split at the vertex nearest its worst point (or its slowest
+//    sample) and each half is fitted on its own; pieces that cannot be fitted stay a polyline.
 // 4. Segments: a segment with fitted runs is split into its polyline parts and one NURBS
 //    segment per run, in order; each keeps the program segment's feed, mode, tolerances and
 //    source line (stop_before only on the first), so that the source line the service reports
@@ -237,9 +237,11 @@ std::vector<double> knots_of(const std::vector<double>& breaks) {
 }
 
 struct Check {
-  double bound_mm = 0.0;   // the proven two-sided deviation
-  double min_speed = std::numeric_limits<double>::infinity();  // smallest |C'| at the samples
-  double mean_speed = 1.0;  // the curve's length (through its samples) over the run's chord length
+  double bound_mm = 0.0;  // the proven two-sided deviation
+  // The smallest |C'| at the samples, and the mean: the curve's length (through its samples)
+  // over the run's chord length.
+  double min_speed = std::numeric_limits<double>::infinity();
+  double mean_speed = 1.0;
   double min_speed_at_mm = 0.0;
   std::vector<char> span_fail;  // spans where a bound exceeds the tolerance
   double worst_at_mm = 0.0;     // chord-length position of the largest bound
@@ -374,7 +376,8 @@ Attempt fit_run(const std::vector<Vec3>& points, double tol) {
     NurbsCurve curve(3, knots_of(breaks), std::move(cp));
     const Check c = check(curve, breaks, run, tol);
     out.worst_at_mm = c.worst_at_mm;
-    if (c.min_speed < kMinSpeed * c.mean_speed) {  // a near-cusp: not refined (it would follow it closer)
+    // A near-cusp: not refined (it would follow it closer).
+    if (c.min_speed < kMinSpeed * c.mean_speed) {
       out.worst_at_mm = c.min_speed_at_mm;
       return out;
     }
