@@ -2,8 +2,9 @@
 // asserted with the margins the planner meets today):
 //   - phase-plane bound: forward and backward integration of v(s) under the velocity-limit
 //     curve (feed_limit_at sampled every 5 µm, the program feed, 0 at every stop) with the
-//     tangential acceleration limit only; jerk is ignored, so it is a lower bound of any
-//     jerk-limited motion;
+//     tangential acceleration limit, and the jerk only at the rest ends (no motion with
+//     |jerk| ≤ J is faster at distance d from rest than (4.5 J d²)^(1/3)); elsewhere jerk is
+//     ignored, so it is a lower bound of any jerk-limited motion;
 //   - S-curve bound: the closed-form jerk-limited rest-to-rest time of each stretch between
 //     stops at its constant limit (lines, and the circle, whose limit is constant).
 // The dense CAM rows (issue 13) walk 20 000 moves of 0.01 mm along an arc of radius 50 mm at
@@ -121,6 +122,13 @@ double phase_plane_s(const NurbsCurve& c, double feed_mm_per_s) {
                     interpolator::feed_limit_at(cfg.limits, cfg.cutting, p).feed_mm_per_s);
   }
   v[0] = v[n] = 0.0;
+  // Jerk near the rest ends: from rest (v = a = 0) with |jerk| ≤ J no motion is faster at
+  // distance d than full jerk, v = J t²/2 at s = J t³/6, so v ≤ (4.5 J d²)^(1/3) from both ends.
+  const double jerk = cfg.limits.max_jerk_mm_per_s3;
+  for (int i = 0; i <= n; ++i) {
+    const double d = std::min(s[i], s[n] - s[i]);
+    v[i] = std::min(v[i], std::cbrt(4.5 * jerk * d * d));
+  }
   const double a = cfg.limits.max_accel_mm_per_s2;
   for (int i = 1; i <= n; ++i)
     v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2 * a * (s[i] - s[i - 1])));
@@ -180,9 +188,9 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     const Path p = toolpath::read_path_text(kCubic, "cubic");
     const double t = ncd_duration_s(p);
     const double b = phase_plane_s(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
-    row("cubic", t, b, "phase plane (accel only)");
+    row("cubic", t, b, "phase plane (a; j at rest)");
     EXPECT_GE(t, b);
-    EXPECT_LE(t, 1.10 * b);
+    EXPECT_LE(t, 1.08 * b);
   }
   const auto exact_stop = [&](const char* name, const Path& p, double v_mm_per_s,
                               const std::vector<double>& legs) {
