@@ -473,7 +473,7 @@ void register_replay(CLI::App& app, Runner& run) {
       "replay",
       "Walk a path in simulated time at the roughness-bounded feed (paper 004) and report it. "
       "PATH: the JSON of `ncd chamfer`, a JSON path file ({\"nurbs\": …} or {\"polyline\": …}), "
-      "or RS-274/NGC with G0/G1 and G5.2/G5.3 NURBS blocks.");
+      "or an RS-274/NGC program, read as LinuxCNC reads it (docs/ngc-interpreter.md).");
   c->add_option("path", a->path, "path file")->required();
   c->add_option("--machine", a->machine,
                 "machine file (TOML: period, limits, tolerances, [cutting]); default: the "
