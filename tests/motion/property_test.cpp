@@ -331,6 +331,19 @@ TEST(Property, DegenerateNurbsAreWalkedToRestAtTheEnd) {
           3, {0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2},
           {{0, 0, 0}, {5, 10, 0}, {15, 10, 0}, {20, 0, 0}, {25, -10, 0}, {35, -10, 0}, {40, 0, 0}}),
       "full multiplicity, smooth");
+  // A repeated last point after a full-multiplicity knot (case 11 of seed 7414150 of the sweep
+  // below): the sampler's step stopped 2 µm short of the end and that sliver's rest speed
+  // slowed the whole 0.1 mm before it to 0.008 mm/s (14.3 s for 22.8 mm).
+  expect_walked(curve_segment(3, {0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2},
+                              {{0, 0, 0},
+                               {0, 0, 0},
+                               {4.0738981212241505, 0.88317184273403093, 0.84848618737429748},
+                               {10.905794610818592, 1.9815821634476221, 1.4155977748592283},
+                               {13.773056384302727, 0.80662929457206634, 0.93791277662501604},
+                               {22.391334983128978, 0.81449180893664064, 0.78011410604517195},
+                               {22.391334983128978, 0.81449180893664064, 0.78011410604517195}},
+                              3000.0),
+                "repeated last point after a full-multiplicity knot");
 }
 
 // Random degenerate curves: repeated first and last points, full-multiplicity interior knots,
