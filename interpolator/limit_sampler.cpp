@@ -631,21 +631,26 @@ bool LimitSampler::next_interval(Interval& iv) {
     while (knot_ < knots.size() && knots[knot_] <= u_) ++knot_;
     if (knot_ < knots.size()) u1 = std::min(u1, knots[knot_]);
     u1 = std::min(u1, c.u_end());
-    // No sliver before a breakpoint: where the step leaves less than another step's worth of
-    // parameter to the next breakpoint, the arc up to it becomes one interval or two equal
-    // ones. (Near a repeated end point the parametric speed falls to 0, the step u + d/|C'|
-    // stops short, and a sliver of 2 µm before the end took the rest point's low limit; the
-    // planner takes the smaller limit of an interval's two nodes, so the whole interval before
-    // it, 0.1 mm, crawled at 0.008 mm/s: seed 7414150 of Property.RandomDegenerateNurbs*.)
+    // No sliver before a rest point: where the step leaves less than another step's worth of
+    // parameter to the next breakpoint and the motion rests there, the arc up to it becomes
+    // one interval or two equal ones, so that the rest refinement below sees an interval that
+    // ends on the rest point. (Near a repeated end point the parametric speed falls to 0, the
+    // step u + d/|C'| stopped 2 µm short of the end, and that sliver took the rest speed of
+    // its length, 0.008 mm/s; the planner takes the smaller limit of an interval's two nodes,
+    // so the whole 0.1 mm interval before it crawled: seed 7414150 of
+    // Property.RandomDegenerateNurbs*.)
     {
       const double u_next = knot_ < knots.size() ? std::min(knots[knot_], c.u_end()) : c.u_end();
       if (u1 < u_next && u_next - u1 < u1 - u_) {
         const double to_next =
             GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u_, u_next);
-        if (to_next <= config_.spacing_mm) {
-          u1 = u_next;
-        } else if (to_next <= 2.0 * config_.spacing_mm) {
-          u1 = u_at_arc(c, u_, u_next, 0.5 * to_next);
+        const double s_next = u_next >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + to_next;
+        if (is_rest_mm(s_next)) {
+          if (to_next <= config_.spacing_mm) {
+            u1 = u_next;
+          } else if (to_next <= 2.0 * config_.spacing_mm) {
+            u1 = u_at_arc(c, u_, u_next, 0.5 * to_next);
+          }
         }
       }
     }

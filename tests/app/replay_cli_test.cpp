@@ -259,9 +259,9 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   EXPECT_EQ(b["link"]["line"].get<std::string>(), "19200 7E2 xonxoff drip LF");
   EXPECT_LE(b["link"]["use_peak"].get<double>(), 0.8 * (1 + 1e-9));
   // The link carries the blocks at the planned feed, except where the chord tolerance cuts a
-  // block too short for it at a corner; there the feed is lowered, by little and in few blocks
-  // (the peak use sits near the 80 % margin: 78.6 % before the sampler's sliver fix, which then
-  // lowered one 0.0197 mm block from 98.5 to 86 mm/min).
+  // block too short for it at a corner; there the feed is lowered, by little and in few blocks.
+  // (The peak use is 78.6 % against the 80 % margin: a sampler change that moved a few nodes
+  // once lowered one 0.0197 mm block from 98.5 to 86 mm/min.)
   EXPECT_LE(b["feed_lowered"]["blocks"].get<int>(), 3);
   for (const auto& range : b["feed_lowered"]["range_list"]) {
     EXPECT_NE(range["reason"].get<std::string>().find("the link"), std::string::npos) << range;
