@@ -10,6 +10,7 @@
 #include "interpolator/polyline_fit.hpp"
 #include "motion/job.hpp"
 #include "motion/planner.hpp"
+#include "tests/common/dense_cam.hpp"
 
 namespace ncd::motion {
 namespace {
@@ -93,30 +94,10 @@ void BM_PlannerWholePath(benchmark::State& state) {
 }
 BENCHMARK(BM_PlannerWholePath)->Unit(benchmark::kMillisecond);
 
-// The dense CAM program of issue 13 (0.01 mm moves along an arc of radius 50 mm, coordinates
-// rounded to 3 decimals) with `points` vertices, at F3000 under G64 P0.01 and Q.
-toolpath::Path dense_cam(std::size_t points, std::optional<double> q_mm) {
-  toolpath::Polyline line;
-  for (std::size_t i = 0; i < points; ++i) {
-    const double phi = 0.01 * static_cast<double>(i) / 50.0;
-    Vec3 p(50.0 * std::sin(phi), 50.0 * (1.0 - std::cos(phi)), 0.0);
-    for (int k = 0; k < 3; ++k) p[k] = std::round(p[k] * 1000.0) / 1000.0;
-    line.points.push_back(p);
-  }
-  toolpath::Path path;
-  toolpath::PathSegment s;
-  s.geometry = std::move(line);
-  s.feed_mm_per_min = 3000.0;
-  s.blend_tolerance_mm = 0.01;
-  s.smoothing_tolerance_mm = q_mm;
-  path.segments.push_back(std::move(s));
-  return path;
-}
-
 // The fit alone (runs, least squares, proof); items are polyline points.
 void BM_PolylineFit(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
-  const toolpath::Path path = dense_cam(n, 0.01);
+  const toolpath::Path path = test::dense_cam(n - 1, 3, 0.01);
   const interpolator::MachineLimits limits;
   interpolator::FitReport rep;
   for (auto _ : state) {
@@ -136,7 +117,7 @@ BENCHMARK(BM_PolylineFit)
 // Baseline: building the job (walker, sampler) on the raw polyline, which the fit precedes.
 void BM_JobBuildRawDense(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
-  const toolpath::Path path = dense_cam(n, std::nullopt);
+  const toolpath::Path path = test::dense_cam(n - 1, 3, std::nullopt);
   for (auto _ : state) {
     Job job(path, JobConfig{});
     benchmark::DoNotOptimize(job.walker().length_mm());

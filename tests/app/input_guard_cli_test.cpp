@@ -16,6 +16,7 @@
 
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/char_device.hpp"
+#include "tests/common/test_paths.hpp"
 
 namespace {
 
@@ -24,9 +25,6 @@ using ncd::test::CmdResult;
 using nlohmann::json;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
-
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
 class Guard : public Cli {
  protected:
@@ -41,7 +39,7 @@ class Guard : public Cli {
     EXPECT_FALSE(fs::exists(dir_ / "out.csv")) << what;
   }
   CmdResult replay_with(const std::string& machine_text) {
-    const std::string path = write("cubic.json", kCubic);
+    const std::string path = write("cubic.json", ncd::test::kCubicJson);
     const std::string machine = write("m.toml", machine_text);
     return ncd("replay " + path + " -q --machine " + machine + " --setpoints " +
                (dir_ / "out.csv").string());
@@ -94,7 +92,7 @@ TEST_F(Guard, MachineValuesOutsideTheirRangeNameValueRangeAndWayOut) {
     expect_refused(replay_with(c.text), says, c.text);
   }
   // The example file's values (the defaults) are all inside.
-  const CmdResult ok = ncd("replay " + write("c.json", kCubic) + " -q --machine " +
+  const CmdResult ok = ncd("replay " + write("c.json", ncd::test::kCubicJson) + " -q --machine " +
                            std::string(NCD_SOURCE_DIR) + "/config/machine.example.toml");
   EXPECT_EQ(ok.status, 0) << ok.err;
 }
@@ -102,7 +100,7 @@ TEST_F(Guard, MachineValuesOutsideTheirRangeNameValueRangeAndWayOut) {
 TEST_F(Guard, EveryInputFileMustBeARegularFile) {
   const std::string fifo = (dir_ / "fifo").string();
   ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   const std::string dir = dir_.string();
   const std::string csv = " --setpoints " + (dir_ / "out.csv").string();
   const std::string device = ncd::test::character_device();

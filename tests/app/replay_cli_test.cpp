@@ -13,6 +13,7 @@
 
 #include "core/geometry.hpp"
 #include "tests/app/cli_fixture.hpp"
+#include "tests/common/test_paths.hpp"
 
 namespace {
 
@@ -26,9 +27,6 @@ const std::string kChamfer =
     "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --rod-radius 1.8 "
     "--non-knife-angle 93 -q";
 const std::string kMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
-
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
 class Replay : public Cli {
  protected:
@@ -115,7 +113,7 @@ TEST_F(Replay, SameInputsGiveByteIdenticalOutputs) {
 }
 
 TEST_F(Replay, NurbsJsonAndGcodeInputs) {
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   CmdResult r = ncd("replay " + cubic + " -q --report " + (dir_ / "c.json").string());
   ASSERT_EQ(r.status, 0) << r.err;
   auto j = nlohmann::json::parse(slurp(dir_ / "c.json"));
@@ -160,7 +158,7 @@ struct BadReplay {
 };
 
 TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   const std::vector<BadReplay> cases = {
       {"max_feed_mm_per_min = 6000\nfeedrate = 3\n", cubic, "unknown key"},
       {"[cutting]\nball_radius_mm = 5\npick_feed_mm = 0.5\nroughness_target_um = 1\n", cubic,
@@ -358,7 +356,7 @@ TEST_F(Replay, ASlowLinkInTheMachineFileLowersTheFeedAndSaysWhere) {
 }
 
 TEST_F(Replay, LinkAndEncoderSettingsThatCannotBeMetAreClearErrors) {
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   const std::vector<BadReplay> cases = {
       {"[link]\nbaud = 19200\nparity = \"even\"\n", cubic, "unknown key"},
       {"[link]\nframe = \"9X1\"\n", cubic, "link.frame"},

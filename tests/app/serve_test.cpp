@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "tests/app/serve_fixture.hpp"
+#include "tests/common/test_paths.hpp"
 
 namespace {
 
@@ -24,13 +25,10 @@ using namespace std::chrono_literals;
 
 using Client = ncd::test::ServeClient;
 
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
-
 class Serve : public ncd::test::ServeFixture {};
 
 TEST_F(Serve, JobOverTheSocketGivesReplaysSetpoints) {
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   // The whole program around the path (docs/whole-program.md), as replay walks it.
   ASSERT_EQ(ncd("replay " + cubic + " -q --setpoints " + (dir_ / "replay.csv").string()).status, 0);
   launch("simulated");
@@ -93,7 +91,7 @@ TEST_F(Serve, InclinedChamferJobTakesTheFlagNames) {
 }
 
 TEST_F(Serve, HoldResumeAndOverrideKeepTheLimits) {
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   launch("wall");  // a 1.6 s job in real time, so that commands arrive while it moves
   Client c(socket_);
   ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
@@ -141,7 +139,7 @@ TEST_F(Serve, BadRequestsAreAnsweredNotFatal) {
 }
 
 TEST_F(Serve, ClientLeavingDoesNotStopTheJobAndSigtermExitsZero) {
-  const std::string cubic = write("cubic.json", kCubic);
+  const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   launch("wall");
   {
     Client c(socket_);

@@ -17,15 +17,16 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
 #include "interpolator/feed_limits.hpp"
 #include "motion/job.hpp"
+#include "tests/common/dense_cam.hpp"
+#include "tests/common/test_paths.hpp"
+#include "tests/motion/chamfer_exp3.hpp"
 #include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
-#include "toolpath/chamfer.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace ncd::motion {
@@ -68,44 +69,6 @@ Walk walk(const Path& path) {
   return w;
 }
 
-std::string chamfer_json() {
-  toolpath::ChamferSpec s;
-  s.rod_radius_mm = 1.8;
-  s.non_knife_angle_rad = deg_to_rad(93.0);
-  const toolpath::ChamferPath path = toolpath::generate_chamfer(s);
-  nlohmann::json j;
-  j["input"] = {{"feed_mm_per_min", 300.0}, {"spindle_rpm", 3000.0}};
-  for (const auto& p : path.points) {
-    j["points"].push_back(
-        {{"cl", {p.cl.x(), p.cl.y(), p.cl.z()}}, {"e", {p.e.x(), p.e.y(), p.e.z()}}});
-  }
-  return j.dump();
-}
-
-// The dense CAM program of issue 13: 20 000 G1 moves of 0.01 mm along an arc of radius 50 mm
-// at F3000, as a CAM system posts it (coordinates rounded to `digits` decimals, or exact).
-Path dense_cam(std::optional<double> q_mm, int digits) {
-  Polyline line;
-  const double r = 50.0, step = 0.01;
-  const double scale = std::pow(10.0, digits);
-  for (int i = 0; i <= 20000; ++i) {
-    const double phi = step * i / r;
-    Vec3 p(r * std::sin(phi), r * (1.0 - std::cos(phi)), 0.0);
-    if (digits > 0) {
-      for (int k = 0; k < 3; ++k) p[k] = std::round(p[k] * scale) / scale;
-    }
-    line.points.push_back(p);
-  }
-  Path p;
-  PathSegment s;
-  s.geometry = std::move(line);
-  s.feed_mm_per_min = 3000.0;
-  s.blend_tolerance_mm = 0.01;
-  s.smoothing_tolerance_mm = q_mm;
-  p.segments.push_back(std::move(s));
-  return p;
-}
-
 // Phase-plane bound on one NURBS segment at program feed f (mm/s), from rest to rest.
 double phase_plane_s(const NurbsCurve& c, double feed_mm_per_s) {
   const JobConfig cfg = test::planner_machine();
@@ -139,15 +102,6 @@ double phase_plane_s(const NurbsCurve& c, double feed_mm_per_s) {
   return t;
 }
 
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
-const char* kCircle = R"({"nurbs": {"degree": 2,
-  "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
-  "points": [[20,0,0],[20,20,0],[0,20,0],[-20,20,0],[-20,0,0],[-20,-20,0],[0,-20,0],
-             [20,-20,0],[20,0,0]],
-  "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
-              0.7071067811865476,1]}})";
-
 PathSegment line(std::vector<Vec3> pts, double f_mm_per_min,
                  toolpath::PathControl m = toolpath::PathControl::blend) {
   PathSegment s;
@@ -174,7 +128,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     EXPECT_GE(t, b - 0.004);
   }
   {
-    const Path p = toolpath::read_path_text(kCircle, "circle");
+    const Path p = toolpath::read_path_text(ncd::test::kCircleJson, "circle");
     const double t = ncd_duration_s(p);
     // The circle's limit is constant (100 mm/s: chord 0.4 mm per period at R = 20, above it
     // the centripetal laws): the S-curve at that level is the jerk-limited optimum.
@@ -185,7 +139,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     EXPECT_GE(t, pp);
   }
   {
-    const Path p = toolpath::read_path_text(kCubic, "cubic");
+    const Path p = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
     const double t = ncd_duration_s(p);
     const double b = phase_plane_s(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
     row("cubic", t, b, "phase plane (a; j at rest)");
@@ -241,7 +195,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
   {
     // The chamfer of experiment 3 (a closed loop of 0.0x mm moves with contact normals: not
     // fitted) at its program feed F300: no motion under |v| ≤ F is faster than the S-curve.
-    const Path p = toolpath::read_path_text(chamfer_json(), "chamfer");
+    const Path p = toolpath::read_path_text(test::chamfer_exp3_json(), "chamfer");
     const auto& pts = std::get<Polyline>(p.segments[0].geometry).points;
     double len = 0.0;
     for (std::size_t i = 0; i + 1 < pts.size(); ++i) len += (pts[i + 1] - pts[i]).norm();
@@ -258,11 +212,11 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     row(name, w.t_s, b, "S-curve (jerk-limited)");
     return w;
   };
-  dense_row("dense CAM exact, raw", dense_cam(std::nullopt, 0));
-  const Walk raw4 = dense_row("dense CAM 4 dp, raw", dense_cam(std::nullopt, 4));
-  const Walk raw3 = dense_row("dense CAM 3 dp, raw", dense_cam(std::nullopt, 3));
-  const Walk fit4 = dense_row("dense CAM 4 dp, P Q0.01", dense_cam(0.01, 4));
-  const Walk fit3 = dense_row("dense CAM 3 dp, P Q0.01", dense_cam(0.01, 3));
+  dense_row("dense CAM exact, raw", test::dense_cam(20000, 0, std::nullopt));
+  const Walk raw4 = dense_row("dense CAM 4 dp, raw", test::dense_cam(20000, 4, std::nullopt));
+  const Walk raw3 = dense_row("dense CAM 3 dp, raw", test::dense_cam(20000, 3, std::nullopt));
+  const Walk fit4 = dense_row("dense CAM 4 dp, P Q0.01", test::dense_cam(20000, 4, 0.01));
+  const Walk fit3 = dense_row("dense CAM 3 dp, P Q0.01", test::dense_cam(20000, 3, 0.01));
   for (const Walk* w : {&fit4, &fit3}) {
     std::printf(
         "  fitted: %zu run(s), %zu spans, proven deviation %.5f mm, setpoints within "

@@ -12,13 +12,11 @@
 #include <thread>
 #include <vector>
 
+#include "tests/common/test_paths.hpp"
 #include "toolpath/path_io.hpp"
 
 namespace ncd::motion {
 namespace {
-
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
 JobConfig machine() {
   JobConfig c;
@@ -60,7 +58,7 @@ std::vector<Setpoint> drain(Cycle& cycle, F&& during) {
 }
 
 TEST(Cycle, SimulatedClockGivesExactlyTheReplaySetpoints) {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   const std::vector<Setpoint> want = direct(path);
   CycleOptions o;
   o.clock = ClockKind::Simulated;
@@ -147,7 +145,7 @@ void expect_within_limits(const std::vector<Setpoint>& sps) {
 }
 
 TEST(Cycle, HoldThenResumeReachesTheSameEndWithinLimits) {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   const std::vector<Setpoint> want = direct(path);
   CycleOptions o;
   o.clock = ClockKind::Simulated;
@@ -178,7 +176,7 @@ TEST(Cycle, HoldThenResumeReachesTheSameEndWithinLimits) {
 }
 
 TEST(Cycle, OverrideChangesNeverBreakTheLimits) {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   CycleOptions o;
   o.clock = ClockKind::Simulated;
   o.ring_capacity = 2;  // the cycle stays within two periods of the consumer's commands
@@ -199,7 +197,7 @@ TEST(Cycle, OverrideChangesNeverBreakTheLimits) {
 }
 
 TEST(Cycle, StopComesToRestOnThePathBeforeItsEnd) {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   CycleOptions o;
   o.clock = ClockKind::Simulated;
   o.ring_capacity = 2;  // the cycle stays within two periods of the consumer's commands

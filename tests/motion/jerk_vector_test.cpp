@@ -20,6 +20,7 @@
 
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
+#include "tests/common/test_paths.hpp"
 #include "tests/motion/planner_machine.hpp"
 #include "toolpath/path_io.hpp"
 
@@ -30,15 +31,6 @@ using toolpath::Path;
 using toolpath::PathControl;
 using toolpath::PathSegment;
 using toolpath::Polyline;
-
-const char* kCircle = R"({"nurbs": {"degree": 2,
-  "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
-  "points": [[20,0,0],[20,20,0],[0,20,0],[-20,20,0],[-20,0,0],[-20,-20,0],[0,-20,0],
-             [20,-20,0],[20,0,0]],
-  "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
-              0.7071067811865476,1]}})";
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
 Path polyline(std::vector<Vec3> pts, PathControl mode, std::optional<double> p_mm = {}) {
   PathSegment s;
@@ -123,7 +115,7 @@ TEST(JerkVector, RunStatsThirdDifferenceIsExactOnCubicMotion) {
 TEST(JerkVector, CircleWithinTheFrenetDecompositionOfThePlannedMotion) {
   const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s, t3 = T * T * T, kappa = 1.0 / 20.0;
-  const Walk r = run(toolpath::read_path_text(kCircle, "circle"));
+  const Walk r = run(toolpath::read_path_text(ncd::test::kCircleJson, "circle"));
   double worst_ratio = 0.0;
   for (std::size_t k = 3; k < r.sp.size(); ++k) {
     const Vec3 d = r.sp[k].p - 3.0 * r.sp[k - 1].p + 3.0 * r.sp[k - 2].p - r.sp[k - 3].p;
@@ -154,8 +146,8 @@ TEST(JerkVector, TableOfTheBoundPaths) {
     Path path;
     bool lines_with_stops;  // straight legs, rest at every corner
   } cases[] = {
-      {"circle R20", toolpath::read_path_text(kCircle, "circle"), false},
-      {"cubic", toolpath::read_path_text(kCubic, "cubic"), false},
+      {"circle R20", toolpath::read_path_text(ncd::test::kCircleJson, "circle"), false},
+      {"cubic", toolpath::read_path_text(ncd::test::kCubicJson, "cubic"), false},
       {"square 10 mm (G64)", polyline(square(), PathControl::blend), true},
       {"square 10 mm (G61.1)", polyline(square(), PathControl::exact_stop), true},
       {"square 10 mm (G64 P0.01)", polyline(square(), PathControl::blend, 0.01), false},

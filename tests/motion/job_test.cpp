@@ -7,40 +7,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <nlohmann/json.hpp>
 
 #include "motion/run_stats.hpp"
-#include "toolpath/chamfer.hpp"
+#include "tests/common/test_paths.hpp"
+#include "tests/motion/chamfer_exp3.hpp"
 #include "toolpath/path_io.hpp"
 #include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
 namespace {
-
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
-
-const char* kCircle = R"({"nurbs": {"degree": 2,
-  "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
-  "points": [[20,0,0],[20,20,0],[0,20,0],[-20,20,0],[-20,0,0],[-20,-20,0],[0,-20,0],
-             [20,-20,0],[20,0,0]],
-  "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
-              0.7071067811865476,1]}})";
-
-// The experiment-3 chamfer as `ncd chamfer` writes it (only the fields the reader takes).
-std::string chamfer_json() {
-  toolpath::ChamferSpec s;
-  s.rod_radius_mm = 1.8;
-  s.non_knife_angle_rad = deg_to_rad(93.0);
-  const toolpath::ChamferPath path = toolpath::generate_chamfer(s);
-  nlohmann::json j;
-  j["input"] = {{"feed_mm_per_min", 300.0}, {"spindle_rpm", 3000.0}};
-  for (const auto& p : path.points) {
-    j["points"].push_back(
-        {{"cl", {p.cl.x(), p.cl.y(), p.cl.z()}}, {"e", {p.e.x(), p.e.y(), p.e.z()}}});
-  }
-  return j.dump();
-}
 
 JobConfig fast_machine() {
   JobConfig c;  // 100 mm/s, 1000 mm/s², 2e4 mm/s³, 4 ms, chord 1 µm: the defaults
@@ -123,7 +98,7 @@ void expect_clean_run(const Outcome& o, const JobConfig& cfg, double end_mm_tole
 }
 
 TEST(Job, CubicNurbsAcrossKnotsAndRamps) {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   const JobConfig cfg = fast_machine();
   const Outcome o = run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
@@ -135,7 +110,7 @@ TEST(Job, CubicNurbsAcrossKnotsAndRamps) {
 }
 
 TEST(Job, RationalCircleWithDoubleKnots) {
-  const toolpath::Path path = toolpath::read_path_text(kCircle, "circle");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCircleJson, "circle");
   const JobConfig cfg = fast_machine();
   const Outcome o = run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
@@ -148,7 +123,7 @@ TEST(Job, RationalCircleWithDoubleKnots) {
 }
 
 TEST(Job, ChamferPathOfExperiment3) {
-  const toolpath::Path path = toolpath::read_path_text(chamfer_json(), "exp3");
+  const toolpath::Path path = toolpath::read_path_text(test::chamfer_exp3_json(), "exp3");
   JobConfig cfg;
   cfg.cutting.ball_radius_mm = 3.0;
   cfg.cutting.pick_feed_mm = 0.0;
@@ -166,7 +141,7 @@ TEST(Job, ChamferPathOfExperiment3) {
 }
 
 TEST(Job, ProgramFeedBindsOnTheChamfer) {
-  const toolpath::Path path = toolpath::read_path_text(chamfer_json(), "exp3");
+  const toolpath::Path path = toolpath::read_path_text(test::chamfer_exp3_json(), "exp3");
   JobConfig cfg;
   cfg.cutting.ball_radius_mm = 3.0;
   cfg.cutting.pick_feed_mm = 0.0;
@@ -178,7 +153,7 @@ TEST(Job, ProgramFeedBindsOnTheChamfer) {
 }
 
 TEST(Job, SameInputsGiveTheSameSetpoints) {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   Job a(path, fast_machine()), b(path, fast_machine());
   for (;;) {
     a.prepare();
@@ -223,13 +198,13 @@ TEST(Job, FlatIntervalSkipGivesTheSameSetpoints) {
     return periods;
   };
   EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, 2 turns"), 2000);
-  EXPECT_GT(compare(toolpath::read_path_text(kCubic, "cubic.json"), "cubic"), 100);
+  EXPECT_GT(compare(toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"), "cubic"), 100);
 }
 
 TEST(Job, TaylorAloneIsWorseThanTheCorrectedWalk) {
   // The baseline the correction is measured against: eq. (7) alone at Δs = 0.4 mm on the cubic
   // drifts from the commanded arc by far more than 1e-9.
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   const auto& c = std::get<toolpath::NurbsCurve>(path.segments[0].geometry);
   interpolator::WalkerConfig w;
   w.mode = interpolator::StepMode::TaylorOnly;

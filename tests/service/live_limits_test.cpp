@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "service/service.hpp"
+#include "tests/common/test_paths.hpp"
 #include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
@@ -68,9 +69,6 @@ TEST(LiveLimits, EachBoundAndTheOverridesScaling) {
   EXPECT_EQ(n.check(sp_with(std::nan(""), 0, 0, 0)), LimitKind::Feed);
 }
 
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
-
 struct Outcome {
   service::State state;
   service::Status status;
@@ -90,7 +88,8 @@ Outcome run_with_accel_rule(double accel_mm_per_s2, service::RuleAction action) 
   Outcome out;
   service::JobSpec j;
   j.name = "cubic";
-  j.path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
+  j.path = std::make_shared<toolpath::Path>(
+      toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"));
   j.rules = service::LiveLimitRules::from(j.motion.limits);
   j.rules.max_accel_mm_per_s2 = accel_mm_per_s2;
   j.rules.accel = action;
@@ -110,7 +109,7 @@ Outcome run_with_accel_rule(double accel_mm_per_s2, service::RuleAction action) 
 
 // The reference walk: every setpoint of the cubic, stepped here.
 std::vector<motion::Setpoint> reference() {
-  const toolpath::Path path = toolpath::read_path_text(kCubic, "cubic.json");
+  const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json");
   motion::Job job(path, motion::JobConfig{});
   std::vector<motion::Setpoint> out;
   do {

@@ -11,6 +11,7 @@
 
 #include "core/error.hpp"
 #include "service/service.hpp"
+#include "tests/common/test_paths.hpp"
 #include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
@@ -18,9 +19,6 @@ namespace {
 
 using namespace ncd;
 using service::State;
-
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
 
 // A square of G1 moves at one feed: corners where the limit and the rest points change.
 const char* kSquare = "G21 G90 G94\nG0 X0 Y0 Z0\nG1 F3000 X20\nY20\nX0\nY0\nM2\n";
@@ -91,7 +89,8 @@ service::JobSpec spec_of(std::shared_ptr<const toolpath::Path> path,
 }
 
 TEST(ServiceOwnerThread, TheSinkSeesTheReferenceSetpointsWithTheJobAsEachLeftIt) {
-  for (const auto& [text, name] : {std::pair{kCubic, "cubic.json"}, {kSquare, "square.ngc"}}) {
+  for (const auto& [text, name] :
+       {std::pair{ncd::test::kCubicJson, "cubic.json"}, {kSquare, "square.ngc"}}) {
     SCOPED_TRACE(name);
     const auto path = path_of(text, name);
     std::vector<Seen> got;
@@ -156,7 +155,7 @@ TEST(ServiceOwnerThread, TheSameSetpointsAsWithACycleThread) {
 }
 
 TEST(ServiceOwnerThread, HoldAndStopBetweenPollsActAtTheNextPeriod) {
-  const auto path = path_of(kCubic, "cubic.json");
+  const auto path = path_of(ncd::test::kCubicJson, "cubic.json");
   std::vector<Seen> got;
   service::Service s(owner_thread(10));
   s.submit(spec_of(path, std::make_unique<JobStateSink>(got)));
@@ -180,7 +179,8 @@ TEST(ServiceOwnerThread, HoldAndStopBetweenPollsActAtTheNextPeriod) {
 TEST(ServiceOwnerThread, AnExceptionOfTheSinkEndsTheJobInErrorAndReachesTheOwner) {
   std::vector<Seen> got;
   service::Service s(owner_thread());
-  s.submit(spec_of(path_of(kCubic, "cubic.json"), std::make_unique<JobStateSink>(got, 300)));
+  s.submit(spec_of(path_of(ncd::test::kCubicJson, "cubic.json"),
+                   std::make_unique<JobStateSink>(got, 300)));
   s.start();
   try {
     while (s.poll()) {

@@ -16,6 +16,7 @@
 #include "core/error.hpp"
 #include "core/histogram.hpp"
 #include "interpolator/feed_limits.hpp"
+#include "tests/common/test_paths.hpp"
 #include "tests/service/capture_sink.hpp"
 #include "toolpath/path_io.hpp"
 
@@ -26,11 +27,9 @@ using service::EventKind;
 using service::HoldHolder;
 using service::State;
 
-const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
-  "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]}})";
-
 std::shared_ptr<const toolpath::Path> cubic() {
-  return std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
+  return std::make_shared<toolpath::Path>(
+      toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"));
 }
 
 service::JobSpec job_of(std::shared_ptr<const toolpath::Path> path,
