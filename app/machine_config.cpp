@@ -300,7 +300,17 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
       l.blend_tolerance_mm = as_real(value, where);
     else if (key == "stall_timeout_s")
       l.stall_timeout_s = as_real(value, where);
-    else if (key == "cutting") {
+    else if (key == "jerk_bound") {
+      const std::string b = as_text(value, where);
+      if (b != "tangential" && b != "vector") {
+        throw InputError(where + " = \"" + b +
+                         "\" is not a jerk bound; use \"tangential\" (|j_t| and v^3 kappa^2 "
+                         "each <= max_jerk, the default) or \"vector\" (the jerk vector <= "
+                         "max_jerk; docs/planner.md section 3c)");
+      }
+      l.jerk_bound = b == "vector" ? interpolator::JerkBound::vector
+                                   : interpolator::JerkBound::tangential;
+    } else if (key == "cutting") {
       if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
       for (const auto& [ck, cv] : value.as_table()) {
         const std::string cwhere = name + ": cutting." + ck;
@@ -339,7 +349,8 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
       throw InputError("unknown key " + where +
                        "; the machine file takes period_s, max_feed_mm_per_min, "
                        "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
-                       "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s and the tables "
+                       "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the "
+                       "tables "
                        "[cutting], [link], [encoder], [envelope], [program], [tool]");
     }
   }
@@ -372,6 +383,7 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   j["feed_tolerance_rel"] = c.limits.feed_tolerance_rel;
   j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
   j["stall_timeout_s"] = c.limits.stall_timeout_s;
+  j["jerk_bound"] = interpolator::to_string(c.limits.jerk_bound);
   j["cutting"] = {{"ball_radius_mm", c.cutting.ball_radius_mm},
                   {"pick_feed_mm", c.cutting.pick_feed_mm},
                   {"teeth", c.cutting.teeth},

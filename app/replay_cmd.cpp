@@ -228,7 +228,7 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["accel_max"] = st.accel_max_mm_per_s2;
   j["jerk_max"] = st.jerk_max_mm_per_s3;
   j["jerk_vector_max"] = st.jerk_vector_max_mm_per_s3;
-  j["jerk_bound"] = motion::kJerkBoundInForce;
+  j["jerk_bound"] = motion::jerk_bound_in_force(m.limits.jerk_bound);
   j["feed_max_mm_per_min"] = st.feed_max_mm_per_s * 60.0;
   j["limit_violations"] = st.limit_violations();
   j["limit_violations_by_kind"] = {{"feed", st.violations_feed},
@@ -457,7 +457,7 @@ int run_replay(const ReplayArgs& a) {
                  st.feed_error_rms_rel(), st.feed_error_max_abs_mm, st.drift_mm(),
                  st.chord_error_max_mm, machine.limits.chord_tolerance_mm, st.accel_max_mm_per_s2,
                  st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
-                 st.jerk_vector_max_mm_per_s3, motion::kJerkBoundInForce,
+                 st.jerk_vector_max_mm_per_s3, motion::jerk_bound_in_force(machine.limits.jerk_bound),
                  st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                  static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
     if (encoder) print_blocks(encoder->stats(), a.blocks);

@@ -140,7 +140,9 @@ Corner plan_corner(const Vec3& a, const Vec3& v, const Vec3& b, double p_mm, dou
   const double v_arc =
       std::min({cap_in, cap, chord_feed_mm_per_s(kappa, l.chord_tolerance_mm, l.period_s),
                 centripetal_accel_feed_mm_per_s(kappa, l.max_accel_mm_per_s2),
-                centripetal_jerk_feed_mm_per_s(kappa, l.max_jerk_mm_per_s3)});
+                centripetal_jerk_feed_mm_per_s(kappa, l.max_jerk_mm_per_s3),
+                l.jerk_bound == JerkBound::vector ? jump_feed_mm_per_s(l, 0.0, kappa)
+                                                  : std::numeric_limits<double>::infinity()});
   double v_sharp = std::min(cap, polyline_corner_speed_mm_per_s(l, c.phi_rad));
   if (v_sharp < l.max_accel_mm_per_s2 * l.period_s) v_sharp = 0.0;  // the sampler stops there
   // The time each way costs near the corner, from cruising at the caps on both sides (see the
@@ -179,7 +181,9 @@ double polyline_corner_speed_mm_per_s(const MachineLimits& limits, double phi_ra
   const double c = std::cos(0.5 * phi_rad);
   const double junction = c < 1.0 ? std::sqrt(limits.max_accel_mm_per_s2 * eps * c / (1.0 - c))
                                   : std::numeric_limits<double>::infinity();
-  return std::min(step / t, junction);
+  const double v = std::min(step / t, junction);
+  if (limits.jerk_bound != JerkBound::vector) return v;
+  return std::min(v, jump_feed_mm_per_s(limits, phi_rad, 0.0));
 }
 
 toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& limits,

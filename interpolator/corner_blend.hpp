@@ -24,6 +24,7 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
 
 // The speed of the chord and junction rules at a corner turning by phi between two straight
 // pieces (docs/planner.md §2): what the limit sampler allows there without blending, mm/s.
+// Under JerkBound::vector also the direction change's law, jump_feed_mm_per_s (§3c).
 double polyline_corner_speed_mm_per_s(const MachineLimits& limits, double phi_rad,
                                       double curvature_per_mm = 0.0);
 

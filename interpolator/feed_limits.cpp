@@ -19,6 +19,7 @@
 // reported with the speed; ties go to the first in enum order, so the report is deterministic.
 #include "interpolator/feed_limits.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -65,8 +66,14 @@ const char* to_string(FeedLimit limit) {
       return "program";
     case FeedLimit::Corner:
       return "corner";
+    case FeedLimit::JerkVector:
+      return "jerk_vector";
   }
   return "unknown";
+}
+
+const char* to_string(JerkBound bound) {
+  return bound == JerkBound::vector ? "vector" : "tangential";
 }
 
 void validate(const MachineLimits& limits) {
@@ -129,6 +136,61 @@ FeedLimitResult feed_limit(const MachineLimits& limits, const CuttingParams& cut
                            double curvature_per_mm, double inclination_rad) {
   return with_curvature(limits, roughness_feed_mm_per_s(cutting, inclination_rad),
                         curvature_per_mm);
+}
+
+// (σJ + c1)² + (σb + c2)² = (βJ)² with c1 = v³κ², b = 3 v A κ, c2 = v³ g: the larger root in σ.
+double tangential_scale(const MachineLimits& limits, double kappa, double g, double v,
+                        double budget) {
+  if (!(kappa > 0.0) && !(g > 0.0)) return std::clamp(budget, 0.0, 1.0);
+  if (!std::isfinite(v)) return 0.0;
+  const double J = limits.max_jerk_mm_per_s3, A = limits.max_accel_mm_per_s2;
+  const double v3 = v * v * v;
+  const double c1 = v3 * kappa * kappa, b = 3.0 * v * A * kappa, c2 = v3 * g;
+  const double r2 = budget * budget * J * J;
+  const double qa = J * J + b * b, qb = J * c1 + b * c2, qc = c1 * c1 + c2 * c2 - r2;
+  if (qc >= 0.0) return 0.0;
+  const double sigma = (-qb + std::sqrt(qb * qb - qa * qc)) / qa;
+  return std::clamp(sigma, 0.0, 1.0);
+}
+
+double jerk_vector_feed_mm_per_s(const MachineLimits& limits, double kappa, double g,
+                                 double budget) {
+  if (!(kappa > 0.0) && !(g > 0.0)) return kInf;
+  // tangential_scale decreases in v: bisection on [0, hi] with hi past the crossing.
+  const double target = kMinTangentialScale * budget;
+  double lo = 0.0, hi = 1.0;
+  while (tangential_scale(limits, kappa, g, hi, budget) >= target && hi < 1e9) {
+    lo = hi;
+    hi *= 2.0;
+  }
+  for (int it = 0; it < 80 && hi - lo > 1e-12 * hi; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (tangential_scale(limits, kappa, g, mid, budget) >= target ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+// 2 v sin(φ/2) / T² + 0.75 v² Δκ / T = q J: the positive root in v.
+double jump_feed_mm_per_s(const MachineLimits& limits, double phi, double dkappa) {
+  const double T = limits.period_s;
+  const double lin = 2.0 * std::sin(0.5 * std::max(phi, 0.0)) / (T * T);
+  const double quad = 0.75 * std::max(dkappa, 0.0) / T;
+  const double rhs = kJumpJerkShare * limits.max_jerk_mm_per_s3;
+  if (!(lin > 0.0) && !(quad > 0.0)) return kInf;
+  if (!(quad > 0.0)) return rhs / lin;
+  return 2.0 * rhs / (lin + std::sqrt(lin * lin + 4.0 * quad * rhs));
+}
+
+double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi, double dkappa, double v) {
+  const double T = limits.period_s;
+  return 2.0 * v * std::sin(0.5 * std::max(phi, 0.0)) / (T * T) +
+         0.75 * v * v * std::max(dkappa, 0.0) / T;
+}
+
+Vec3 curvature_vector_per_mm(const toolpath::CurvePoint& point) {
+  const double speed2 = point.d1.squaredNorm();
+  if (!(speed2 > 0.0)) return Vec3::Zero();
+  return point.d1.cross(point.d2).cross(point.d1) / (speed2 * speed2);
 }
 
 double curvature_per_mm(const toolpath::CurvePoint& point) {

@@ -96,6 +96,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       config_(config) {
   const std::size_t n = path.segments.size();
   joint_corner_.assign(n + 1, FeedLimitResult{kInf, FeedLimit::Corner});
+  joint_share_.assign(n + 1, 0.0);
   inner_corners_.resize(n);
   const auto direction = [&](std::size_t k, bool at_end) -> Vec3 {
     const auto& g = path.segments[k].geometry;
@@ -132,14 +133,21 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
     const double cos_phi = std::clamp(in.dot(out) / (in.norm() * out.norm()), -1.0, 1.0);
     return 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / l;
   };
+  // The curvature vector next to a joint (JerkBound::vector): a curve's; zero on a polyline.
+  const auto curvature_vector = [&](std::size_t k, bool at_end) -> Vec3 {
+    const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry);
+    if (c == nullptr || limits_.jerk_bound != JerkBound::vector) return Vec3::Zero();
+    return curvature_vector_per_mm(c->eval(at_end ? c->u_end() : c->u_begin()));
+  };
   // Joints (the corner where segment k begins belongs to the move ending there, k − 1) and
   // the interior vertices of polylines, in increasing s; the interior vertices' s is summed
   // exactly as next_interval() sums it, so that every stop is a node of the stream.
   for (std::size_t k = 0; k < n; ++k) {
     if (k > 0) {
       const Vec3 d_in = direction(k - 1, true), d_out = direction(k, false);
+      const double dk = (curvature_vector(k, false) - curvature_vector(k - 1, true)).norm();
       const FeedLimitResult corner =
-          corner_speed(d_in, d_out, std::max(curvature(k - 1, true), curvature(k, false)));
+          corner_speed(d_in, d_out, std::max(curvature(k - 1, true), curvature(k, false)), dk);
       if (path.segments[k].stop_before ||
           must_stop(d_in, d_out, path.segments[k - 1].path_control, corner)) {
         if (stops_mm_.empty() || starts_mm_[k] > stops_mm_.back()) {
@@ -147,6 +155,10 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
         }
       } else {
         joint_corner_[k] = corner;
+        if (!d_in.isZero() && !d_out.isZero()) {
+          joint_share_[k] =
+              jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)), dk, corner.feed_mm_per_s);
+        }
       }
     }
     if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
@@ -164,16 +176,27 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
         const toolpath::CurvePoint cl = c->eval(std::nextafter(bp[i], -kInf)), cr = c->eval(bp[i]);
         const Vec3 left = cl.d1, right = cr.d1;
         const Vec3 d_in = unit_or_zero(left), d_out = unit_or_zero(right);
-        if (!d_in.isZero() && !d_out.isZero() &&
-            std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)) < kMinTurnRad) {
-          continue;  // smooth
+        // JerkBound::vector: a jump of the curvature vector (a C¹ knot) is a corner of its own.
+        const double dk = limits_.jerk_bound == JerkBound::vector
+                              ? (curvature_vector_per_mm(cr) - curvature_vector_per_mm(cl)).norm()
+                              : 0.0;
+        const double k_scale = std::max(curvature_per_mm(cl), curvature_per_mm(cr));
+        const double phi = d_in.isZero() || d_out.isZero()
+                               ? M_PI
+                               : std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+        const bool smooth = phi < kMinTurnRad;
+        const FeedLimitResult corner = corner_speed(d_in, d_out, k_scale, dk);
+        const double share = jump_share(smooth ? 0.0 : phi, dk, corner.feed_mm_per_s);
+        if (smooth) {  // a curvature jump: a corner only where it takes a share that counts
+          if (share > 1e-6) {
+            inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner, share});
+          }
+          continue;
         }
-        const FeedLimitResult corner =
-            corner_speed(d_in, d_out, std::max(curvature_per_mm(cl), curvature_per_mm(cr)));
         if (must_stop(d_in, d_out, path.segments[k].path_control, corner)) {
           if (stops_mm_.empty() || s > stops_mm_.back()) stops_mm_.push_back(s);
         } else {
-          inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner});
+          inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner, share});
         }
       }
     }
@@ -304,11 +327,21 @@ bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const
 // κ: the larger curvature of the two sides at the corner (curves meeting there): the chord
 // across the corner then also bows by κ Δs² / 8, so Δs solves
 // (Δs / 2) sin(φ/2) + κ Δs² / 8 = ε_c (for κ = 0: Δs = 2 ε_c / sin(φ/2)).
+// Under JerkBound::vector, also jump_feed_mm_per_s for the turn and the curvature jump Δκ
+// (docs/planner.md §3c); on a tangent joint or a smooth knot that law alone.
 FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
-                                           double curvature_per_mm) const {
+                                           double curvature_per_mm,
+                                           double curvature_jump_per_mm) const {
   if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
   const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
-  return {polyline_corner_speed_mm_per_s(limits_, phi, curvature_per_mm), FeedLimit::Corner};
+  FeedLimitResult r{polyline_corner_speed_mm_per_s(limits_, phi, curvature_per_mm),
+                    FeedLimit::Corner};
+  if (limits_.jerk_bound == JerkBound::vector && curvature_jump_per_mm > 0.0) {
+    const double v = jump_feed_mm_per_s(limits_, phi < kMinTurnRad ? 0.0 : phi,
+                                        curvature_jump_per_mm);
+    if (v < r.feed_mm_per_s) r = {v, FeedLimit::JerkVector};
+  }
+  return r;
 }
 
 FeedLimitResult LimitSampler::segment_cap(std::size_t segment) const {
@@ -342,6 +375,29 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
   const auto& pts = line.points;
   const Vec3 dir = unit_or_zero(pts[piece + 1] - pts[piece]);
   FeedLimitResult r = segment_cap(segment);
+  const double kappa = piece_curvature_per_mm(segment, piece);
+  if (seg.rapid) {  // no cutting: the curve laws without the roughness law
+    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                   FeedLimit::Chord});
+    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                   FeedLimit::CentripetalAccel});
+    r = min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
+                   FeedLimit::CentripetalJerk});
+    return r;
+  }
+  for (const std::size_t v : {piece, piece + 1}) {
+    const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
+                                              : inclination_from_normal_rad(line.normals[v], dir);
+    r = min_of(r, feed_limit(limits_, cutting_, kappa, alpha));
+  }
+  return r;
+}
+
+// The curvature a polyline piece acts with: 0, or on a piece shorter than one period's travel
+// at its cap the discrete curvature of its end vertices (see limit_on_piece).
+double LimitSampler::piece_curvature_per_mm(std::size_t segment, std::size_t piece) const {
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  const FeedLimitResult r = segment_cap(segment);
   // A piece shorter than one period's travel at the cap: several vertices fall inside one
   // period, so the polyline acts as a curve, of discrete curvature κ_v = 2 sin(φ_v / 2) /
   // min(l_in, l_out) at a vertex turning by φ_v (1/R on a polygon inscribed in a circle of
@@ -386,21 +442,7 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
       kappa = std::max(kappa, 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / std::min(l_in, l_out));
     }
   }
-  if (seg.rapid) {  // no cutting: the curve laws without the roughness law
-    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
-                   FeedLimit::Chord});
-    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
-                   FeedLimit::CentripetalAccel});
-    r = min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
-                   FeedLimit::CentripetalJerk});
-    return r;
-  }
-  for (const std::size_t v : {piece, piece + 1}) {
-    const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
-                                              : inclination_from_normal_rad(line.normals[v], dir);
-    r = min_of(r, feed_limit(limits_, cutting_, kappa, alpha));
-  }
-  return r;
+  return kappa;
 }
 
 FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vertex) const {
@@ -535,10 +577,22 @@ double LimitSampler::next_zone_edge_mm(double c0_mm, double v0, double c1_mm, do
   return best;
 }
 
+double LimitSampler::jump_share(double phi, double dk, double v_corner) const {
+  if (limits_.jerk_bound != JerkBound::vector) return 0.0;
+  const double v = std::min(v_corner, limits_.max_feed_mm_per_min / 60.0);
+  const double j = jump_jerk_mm_per_s3(limits_, phi < kMinTurnRad ? 0.0 : phi, dk, v);
+  return std::min(kJumpJerkShare, j / limits_.max_jerk_mm_per_s3);
+}
+
 void LimitSampler::apply_zones(Interval& iv) const {
-  const auto zone = [&](double center_mm, FeedLimitResult corner) {
+  const auto zone = [&](double center_mm, FeedLimitResult corner, double share) {
     if (!std::isfinite(corner.feed_mm_per_s)) return;
     const double half = corner.feed_mm_per_s * limits_.period_s;
+    // The third difference of the setpoints spans three periods: the jump's share of the
+    // jerk budget holds within two periods' travel of it.
+    if (share > 0.0 && iv.a_mm < center_mm + 2.0 * half && iv.b_mm > center_mm - 2.0 * half) {
+      iv.jump_share = std::max(iv.jump_share, share);
+    }
     if (iv.a_mm < center_mm + half && iv.b_mm > center_mm - half &&
         corner.feed_mm_per_s < iv.v_mm_per_s) {
       iv.v_mm_per_s = corner.feed_mm_per_s;
@@ -553,17 +607,29 @@ void LimitSampler::apply_zones(Interval& iv) const {
     double s = piece_s_;
     for (std::size_t v = piece_; v > lo; --v) s -= (line->points[v] - line->points[v - 1]).norm();
     for (std::size_t v = lo; v <= hi; ++v) {
-      zone(s, corner_limit(segment_, v));
+      const FeedLimitResult corner = corner_limit(segment_, v);
+      double share = 0.0;
+      if (v == 0 || v + 1 == line->points.size()) {
+        share = joint_share_[v == 0 ? segment_ : segment_ + 1];
+      } else if (std::isfinite(corner.feed_mm_per_s)) {
+        const Vec3 d_in = unit_or_zero(line->points[v] - line->points[v - 1]);
+        const Vec3 d_out = unit_or_zero(line->points[v + 1] - line->points[v]);
+        share = jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)), 0.0,
+                           corner.feed_mm_per_s);
+      }
+      zone(s, corner, share);
       if (v + 1 < line->points.size()) s += (line->points[v + 1] - line->points[v]).norm();
     }
   } else {
-    zone(starts_mm_[segment_], joint_corner_[segment_]);
-    zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1]);
+    zone(starts_mm_[segment_], joint_corner_[segment_], joint_share_[segment_]);
+    zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1], joint_share_[segment_ + 1]);
     const auto& inner = inner_corners_[segment_];
     const double reach = 2.0 * limits_.max_feed_mm_per_min / 60.0 * limits_.period_s;
     auto it = std::lower_bound(inner.begin(), inner.end(), iv.a_mm - reach,
                                [](const InnerCorner& c, double s) { return c.s_mm < s; });
-    for (; it != inner.end() && it->s_mm <= iv.b_mm + reach; ++it) zone(it->s_mm, it->corner);
+    for (; it != inner.end() && it->s_mm <= iv.b_mm + reach; ++it) {
+      zone(it->s_mm, it->corner, it->share);
+    }
   }
 }
 
@@ -611,7 +677,14 @@ bool LimitSampler::next_interval(Interval& iv) {
       iv.b_mm = b;
       iv.v_mm_per_s = v.feed_mm_per_s;
       iv.limit = v.limit;
+      iv.kappa_per_mm = limits_.jerk_bound == JerkBound::vector
+                            ? piece_curvature_per_mm(segment_, piece_)
+                            : 0.0;
+      iv.turn_per_mm2 = 0.0;
+      iv.jump_share = 0.0;
+      iv.rest_speed = false;
       apply_zones(iv);
+      bound_jerk_vector(iv);
       s_ = b;
       if (b >= end) {
         ++piece_, sub_ = 0;
@@ -736,7 +809,9 @@ bool LimitSampler::next_interval(Interval& iv) {
                           (end_rest && u1 < c.u_end());
     // A flat interval: every point the search would evaluate gives the cap, and ties keep the
     // first, so its result is the limit at any one point with every law above the cap.
-    const bool flat = config_.skip_flat_intervals && interval_is_flat(segment_, u_, u1, speed);
+    // (JerkBound::vector needs the curvature of every interval: no skip.)
+    const bool flat = config_.skip_flat_intervals && limits_.jerk_bound != JerkBound::vector &&
+                      interval_is_flat(segment_, u_, u1, speed);
     FeedLimitResult v = flat ? min_of({limits_.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed},
                                       segment_cap(segment_))
                              : interval_min_on_curve(segment_, u_, u1, open_end);
@@ -751,12 +826,82 @@ bool LimitSampler::next_interval(Interval& iv) {
     iv.b_mm = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + arc;
     iv.v_mm_per_s = v.feed_mm_per_s;
     iv.limit = v.limit;
+    iv.kappa_per_mm = iv.turn_per_mm2 = 0.0;
+    iv.jump_share = 0.0;
+    iv.rest_speed = innermost;
+    if (limits_.jerk_bound == JerkBound::vector) curve_turn(segment_, u_, u1, iv);
     apply_zones(iv);
+    bound_jerk_vector(iv);
     s_ = iv.b_mm;
     u_ = u1;
     return true;
   }
   return false;
+}
+
+// JerkBound::vector (docs/planner.md §3c): the largest curvature κ and curvature turn
+// g = |κ' N + κ τ B| on [u0, u1], from nine points: κ from the curvature vector k = κ N, g
+// from the part of Δk / Δs normal to the mid tangent between neighbours (on a circle Δk
+// points along the tangent, so g is 0 to second order). 5 % margin for what lies between.
+void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const {
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  constexpr int kPoints = 9;
+  constexpr double kMinArcMm = 0.02;  // a sliver is sampled over this much of its knot span
+  // The knot span that holds the interval (intervals end at breakpoints).
+  const std::vector<double>& bp = breakpoints_[segment];
+  const auto it = std::upper_bound(bp.begin(), bp.end(), u0);
+  const double span_lo = it == bp.begin() ? c.u_begin() : *(it - 1);
+  const double span_hi = it == bp.end() ? c.u_end() : *it;
+  const auto below = [&](double u) {  // the span's side of a knot
+    return u < c.u_end() ? std::max(span_lo, std::nextafter(u, -kInf)) : u;
+  };
+  double lo = u0, hi = below(std::min(u1, span_hi));
+  const double speed = c.eval(u0).d1.norm();
+  if (speed > 0.0 && (hi - lo) * speed < kMinArcMm) {
+    const double mid = 0.5 * (lo + hi), half = 0.5 * kMinArcMm / speed;
+    lo = std::max(span_lo, mid - half);
+    hi = below(std::min(span_hi, mid + half));
+  }
+  double kappa = 0.0, turn = 0.0;
+  toolpath::CurvePoint prev = c.eval(lo);
+  Vec3 k_prev = curvature_vector_per_mm(prev);
+  kappa = k_prev.norm();
+  double u_prev = lo;
+  for (int i = 1; i < kPoints; ++i) {
+    const double u = i + 1 == kPoints ? hi : lo + (hi - lo) * i / (kPoints - 1);
+    const toolpath::CurvePoint p = c.eval(u);
+    const Vec3 k = curvature_vector_per_mm(p);
+    kappa = std::max(kappa, k.norm());
+    const double ds = 0.5 * (prev.d1.norm() + p.d1.norm()) * (u - u_prev);
+    const Vec3 t = unit_or_zero(unit_or_zero(prev.d1) + unit_or_zero(p.d1));
+    const Vec3 dk = k - k_prev;
+    if (ds > 0.0) turn = std::max(turn, (dk - dk.dot(t) * t).norm() / ds);
+    prev = p;
+    k_prev = k;
+    u_prev = u;
+  }
+  iv.kappa_per_mm = 1.05 * kappa;
+  iv.turn_per_mm2 = 1.05 * turn;
+}
+
+// JerkBound::vector: the interval's speed so that the tangential scale it asks for is at least
+// kMinTangentialScale times its budget (jerk_vector_feed_mm_per_s), the budget being what a
+// jump nearby leaves. An interval raised to the rest speed keeps it (as it keeps it against the
+// curve laws).
+void LimitSampler::bound_jerk_vector(Interval& iv) const {
+  if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return;
+  const double budget = 1.0 - iv.jump_share;
+  const double v = jerk_vector_feed_mm_per_s(limits_, iv.kappa_per_mm, iv.turn_per_mm2, budget);
+  if (v < iv.v_mm_per_s) {
+    iv.v_mm_per_s = v;
+    iv.limit = FeedLimit::JerkVector;
+  }
+}
+
+double LimitSampler::tangential_scale_of(const Interval& iv) const {
+  if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return 1.0;
+  const double budget = 1.0 - iv.jump_share;
+  return tangential_scale(limits_, iv.kappa_per_mm, iv.turn_per_mm2, iv.v_mm_per_s, budget);
 }
 
 bool LimitSampler::is_rest_mm(double s_mm) const {
@@ -819,7 +964,7 @@ bool LimitSampler::next(LimitNode& out) {
   if (!started_) {
     started_ = true;
     enter_segment();
-    pending_ = {0.0, kInf, FeedLimit::MaxFeed, kInf, kInf};
+    pending_ = {0.0, kInf, FeedLimit::MaxFeed, kInf, kInf, 1.0};
   }
   Interval iv{};
   while (next_interval(iv)) {
@@ -829,8 +974,10 @@ bool LimitSampler::next(LimitNode& out) {
       pending_.limit = iv.limit;
     }
     pending_.right_mm_per_s = iv.v_mm_per_s;
+    const double scale = tangential_scale_of(iv);
+    pending_.tangential_scale = std::min(pending_.tangential_scale, scale);
     out = pending_;
-    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf};
+    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf, scale};
     return true;
   }
   out = pending_;

@@ -20,6 +20,9 @@ struct LimitNode {
   // motion comes to rest at a node, each side's planner takes its own side's value.
   double left_mm_per_s = 0.0;
   double right_mm_per_s = 0.0;
+  // Under JerkBound::vector: the fraction of a_max and j_max the tangential motion may use on
+  // both intervals (their minimum; docs/planner.md §3c); 1 under JerkBound::tangential.
+  double tangential_scale = 1.0;
 };
 
 struct SamplerConfig {
@@ -67,15 +70,24 @@ class LimitSampler {
   struct Interval {
     double a_mm, b_mm, v_mm_per_s;
     FeedLimit limit;
+    // JerkBound::vector: the largest curvature and curvature turn on the interval, and the
+    // share of the jerk budget a corner or curvature jump nearby takes (≤ kJumpJerkShare).
+    double kappa_per_mm = 0.0, turn_per_mm2 = 0.0;
+    double jump_share = 0.0;  // of j_max, taken by a jump within two periods' travel
+    bool rest_speed = false;  // raised to the rest speed (exempt from the curve laws)
   };
+  void bound_jerk_vector(Interval& iv) const;
+  double tangential_scale_of(const Interval& iv) const;
+  void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;
+  double piece_curvature_per_mm(std::size_t segment, std::size_t piece) const;
   bool next_interval(Interval& out);
   void enter_segment();
   FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1,
                                         bool open_end) const;
   bool interval_is_flat(std::size_t segment, double u0, double u1, double speed_u0) const;
   FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
-  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out,
-                               double curvature_per_mm = 0.0) const;
+  FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out, double curvature_per_mm = 0.0,
+                               double curvature_jump_per_mm = 0.0) const;
   bool must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
                  const FeedLimitResult& corner) const;
   bool vertex_is_stop(std::size_t segment, std::size_t vertex) const;
@@ -103,7 +115,12 @@ class LimitSampler {
   struct InnerCorner {
     double u, s_mm, speed_in, speed_out;
     FeedLimitResult corner;
+    double share = 0.0;  // JerkBound::vector: jump_share() of the corner
   };
+  std::vector<double> joint_share_;  // jump_share() of the corner at each joint
+  // The share of j_max the turn φ and curvature jump Δκ of a corner passed at v_corner take of
+  // the setpoints' third difference (at most kJumpJerkShare); 0 under JerkBound::tangential.
+  double jump_share(double phi_rad, double curvature_jump_per_mm, double v_corner) const;
   std::vector<std::vector<InnerCorner>> inner_corners_;
   // Where the limit jumps at a tangent joint or a smooth knot (a blend arc meets its lines):
   // the lower side's speed, so that a node at v T from it keeps the slow stretch to one period

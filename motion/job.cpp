@@ -26,6 +26,10 @@ PlannerLimits planner_limits(const JobConfig& c) {
   p.j_max_mm_per_s3 = c.limits.max_jerk_mm_per_s3;
   p.period_s = c.limits.period_s;
   p.window_capacity = c.window_capacity;
+  // Under the jerk-vector bound the sampler asks for tangential scales down to this.
+  p.min_tangential_scale =
+      c.limits.jerk_bound == interpolator::JerkBound::vector ? interpolator::kTangentialScaleFloor
+                                                             : 1.0;
   return p;
 }
 
@@ -135,9 +139,10 @@ void Job::prepare() {
           "it); split the curve there into two segments");
     }
   };
-  const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit) {
+  const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
+                        double scale) {
     check(s_mm, v_mm_per_s, limit);
-    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit)});
+    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit), scale});
   };
   while (planner_.wants_samples()) {
     if (carry_n_ > 0) {
@@ -160,19 +165,21 @@ void Job::prepare() {
     if (!last && node.s_mm >= end - tol) {
       const double length = end - start;
       const double left = node.s_mm > end + tol ? node.feed_mm_per_s : node.left_mm_per_s;
-      push(length, left, node.limit);
+      const double scale = node.tangential_scale;
+      push(length, left, node.limit, scale);
       const double right = node.s_mm > end + tol ? left : node.right_mm_per_s;
       check(length, right, node.limit);
-      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit)};
+      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit), scale};
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
       if (node.s_mm > end + tol) {  // no node fell on the stop: keep this one for the next
-        carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit)};
+        carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit),
+                     scale};
         carry_n_ = 2;
       }
       break;  // the planner has its end
     }
-    push(node.s_mm - start, node.feed_mm_per_s, node.limit);
+    push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.tangential_scale);
   }
 }
 

@@ -142,6 +142,10 @@ void validate(const PlannerLimits& limits) {
   require_positive("a_max_mm_per_s2", limits.a_max_mm_per_s2);
   require_positive("j_max_mm_per_s3", limits.j_max_mm_per_s3);
   require_positive("period_s", limits.period_s);
+  if (!(limits.min_tangential_scale > 0.0 && limits.min_tangential_scale <= 1.0)) {
+    throw InputError("min_tangential_scale = " + std::to_string(limits.min_tangential_scale) +
+                     " is invalid: it is a fraction of the limits, in (0, 1]");
+  }
   if (limits.window_capacity < 2) {
     throw InputError("window_capacity = " + std::to_string(limits.window_capacity) +
                      " is invalid: the look-ahead needs at least 2 samples");
@@ -152,7 +156,10 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
     : a_max_(limits.a_max_mm_per_s2),
       j_max_(limits.j_max_mm_per_s3),
       period_s_(limits.period_s),
-      length_mm_(length_mm) {
+      length_mm_(length_mm),
+      scale_floor_(limits.min_tangential_scale),
+      pol_a_(limits.a_max_mm_per_s2),
+      pol_j_(limits.j_max_mm_per_s3) {
   validate(limits);
   require_finite("length_mm", length_mm);
   if (length_mm < 0.0) {
@@ -190,10 +197,13 @@ const LimitSample& Planner::sample(std::size_t i) const {
 }
 
 // Look-ahead distance wanted at (v, a): braking from a bound on the speed soon reachable.
+// (Braking at the lowest tangential scale a sample may carry.)
 double Planner::horizon_mm(double v, double a) const {
   const double T = period_s_;
   const double v_hi = v + (std::max(a, 0.0) + a_max_) * 2.0 * T + a_max_ * a_max_ / (2.0 * j_max_);
-  return braking_distance_mm(v_hi, 0.0, a_max_, j_max_) + 4.0 * v_hi * T + 8.0 * j_max_ * T * T * T;
+  const double a_brake = a_max_ * scale_floor_, j_brake = j_max_ * scale_floor_;
+  return braking_distance_mm(v_hi, 0.0, a_brake, j_brake) + 4.0 * v_hi * T +
+         8.0 * j_max_ * T * T * T;
 }
 
 double Planner::lookahead_bound_mm() const {
@@ -215,6 +225,12 @@ void Planner::push(const LimitSample& in) {
                      " is invalid: a feed limit must be finite and > 0; where the machine must "
                      "stop, end the path there and start a new one");
   }
+  if (!(in.tangential_scale >= scale_floor_ * (1.0 - 1e-12) && in.tangential_scale <= 1.0)) {
+    throw InputError("tangential_scale = " + std::to_string(in.tangential_scale) +
+                     " at s_mm = " + std::to_string(in.s_mm) + " is outside [" +
+                     std::to_string(scale_floor_) +
+                     ", 1]: the planner's look-ahead is sized for min_tangential_scale; lower it");
+  }
   if (in.limit_id >= kLimitIdReserved) {
     throw InputError("limit_id = " + std::to_string(in.limit_id) + " is reserved (>= " +
                      std::to_string(kLimitIdReserved) + "); use a smaller id");
@@ -234,6 +250,7 @@ void Planner::push(const LimitSample& in) {
                      " samples is full: push only while wants_samples(), or raise the capacity");
   }
   ring_[(head_ + count_) % ring_.size()] = in;
+  if (in.tangential_scale < 1.0) any_scaled_ = true;
   ++count_;
   count_high_water_ = std::max(count_high_water_, count_);
   ahead_high_water_mm_ = std::max(ahead_high_water_mm_, in.s_mm - x_.s_mm);
@@ -249,7 +266,8 @@ void Planner::reserve_for_speed(double v_mm_per_s) {
   // a stop longer than kMaxRolloutPeriods is refused here, with the numbers, instead of sizing
   // buffers from them (1e300 mm/s would overflow the cast; 1e12 would exhaust memory).
   const double v_cap = 2.0 * v_mm_per_s + a_max_ * a_max_ / j_max_;
-  const double t_stop = v_cap / a_max_ + 2.0 * a_max_ / j_max_;
+  const double a_brake = a_max_ * scale_floor_, j_brake = j_max_ * scale_floor_;
+  const double t_stop = v_cap / a_brake + 2.0 * a_brake / j_brake;
   const double periods = std::ceil(3.0 * t_stop / period_s_) + 64.0;
   if (!(periods <= static_cast<double>(kMaxRolloutPeriods))) {
     throw InputError("a stop from " + std::to_string(v_mm_per_s) +
@@ -313,20 +331,46 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
   if (v_hi <= 0.0) return true;
   if (count_ < 2) return false;
   while (c.segment + 2 < count_ && sample(c.segment + 1).s_mm <= x.s_mm) ++c.segment;
+  double sigma = 1.0;  // the smallest tangential scale over the span
   for (std::size_t k = c.segment; k + 1 < count_; ++k) {
     const double lim = std::min(sample(k).v_max_mm_per_s, sample(k + 1).v_max_mm_per_s) * scale;
     if (v_hi > lim * (1.0 + kRelSlack)) return false;
-    if (sample(k + 1).s_mm >= s1) return true;
+    sigma = std::min({sigma, sample(k).tangential_scale, sample(k + 1).tangential_scale});
+    if (sample(k + 1).s_mm >= s1) {
+      if (sigma == 1.0) return true;
+      // Scaled limits (docs/planner.md §3c): a is linear in the period, so its ends bound it.
+      const double a_lim = sigma * a_max_ * (1.0 + kRelSlack);
+      return std::abs(j) <= sigma * j_max_ * (1.0 + kRelSlack) &&
+             std::abs(x.a_mm_per_s2) <= a_lim && std::abs(a1) <= a_lim;
+    }
   }
   return false;  // beyond the last sample
 }
 
+// The tangential scale of the interval that holds s (the smaller of its two samples).
+double Planner::scale_at(double s_mm) const {
+  if (count_ == 0) return 1.0;
+  std::size_t i = 0;
+  while (i + 1 < count_ && sample(i + 1).s_mm <= s_mm) ++i;
+  const double here = sample(i).tangential_scale;
+  return i + 1 < count_ ? std::min(here, sample(i + 1).tangential_scale) : here;
+}
+
+void Planner::set_policy_limits() {
+  double sigma = 1.0;
+  if (any_scaled_) {
+    for (std::size_t i = 0; i < count_; ++i) sigma = std::min(sigma, sample(i).tangential_scale);
+  }
+  pol_a_ = a_max_ * sigma;
+  pol_j_ = j_max_ * sigma;
+}
+
 double Planner::v_settle(const Kin& x) const {
-  return x.v_mm_per_s + x.a_mm_per_s2 * std::abs(x.a_mm_per_s2) / (2.0 * j_max_);
+  return x.v_mm_per_s + x.a_mm_per_s2 * std::abs(x.a_mm_per_s2) / (2.0 * pol_j_);
 }
 
 double Planner::need_mm(const Kin& x, double w) const {
-  return profile_distance(x.v_mm_per_s, x.a_mm_per_s2, w, a_max_, j_max_);
+  return profile_distance(x.v_mm_per_s, x.a_mm_per_s2, w, pol_a_, pol_j_);
 }
 
 // Two-period dead-beat onto (w, a = 0): the first jerk; ok if both fit and v stays >= 0.
@@ -335,8 +379,8 @@ double Planner::deadbeat_jerk(const Kin& x, double w, bool* ok) const {
   const double dv = x.v_mm_per_s - w;
   const double j1 = -dv / (T * T) - 1.5 * x.a_mm_per_s2 / T;
   const double j2 = dv / (T * T) + 0.5 * x.a_mm_per_s2 / T;
-  *ok = std::abs(j1) <= j_max_ && std::abs(j2) <= j_max_ &&
-        std::abs(x.a_mm_per_s2 + j1 * T) <= a_max_;
+  *ok = std::abs(j1) <= pol_j_ && std::abs(j2) <= pol_j_ &&
+        std::abs(x.a_mm_per_s2 + j1 * T) <= pol_a_;
   if (*ok) {  // v stays >= 0 over both periods (ends and interior extremes)
     Kin y = x;
     for (double j : {j1, j2}) {
@@ -359,12 +403,12 @@ double Planner::track(const Kin& x, double w) const {
   bool ok = false;
   const double j1 = deadbeat_jerk(x, w, &ok);
   if (ok) return j1;
-  const double v = x.v_mm_per_s, a = x.a_mm_per_s2, j3 = kFinalJerk * j_max_;
-  const bool down = decreasing(v, a, w, j_max_, j3);
-  const bool up = decreasing(-v, -a, -w, j_max_, j3);
+  const double v = x.v_mm_per_s, a = x.a_mm_per_s2, j3 = kFinalJerk * pol_j_;
+  const bool down = decreasing(v, a, w, pol_j_, j3);
+  const bool up = decreasing(-v, -a, -w, pol_j_, j3);
   // Neither: on a final-ramp parabola (to rounding); the ramp's landing jerk follows it.
-  if (down || (!up && a < 0.0)) return decrease_jerk(v, a, w, period_s_, a_max_, j_max_);
-  if (up || a > 0.0) return -decrease_jerk(-v, -a, -w, period_s_, a_max_, j_max_);
+  if (down || (!up && a < 0.0)) return decrease_jerk(v, a, w, period_s_, pol_a_, pol_j_);
+  if (up || a > 0.0) return -decrease_jerk(-v, -a, -w, period_s_, pol_a_, pol_j_);
   return 0.0;
 }
 
@@ -373,7 +417,7 @@ double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const 
   if (policy_hold_) return track(x, 0.0);
   while (c.block + 1 < block_count_ && blocks_[c.block].end_mm <= x.s_mm) ++c.block;
   const double vs = v_settle(x);
-  const double margin = 2.0 * x.v_mm_per_s * period_s_ + j_max_ * period_s_ * period_s_ * period_s_;
+  const double margin = 2.0 * x.v_mm_per_s * period_s_ + pol_j_ * period_s_ * period_s_ * period_s_;
   const double reach = need_mm(x, 0.0) + margin;
   double w = std::numeric_limits<double>::infinity();
   for (std::size_t b = c.block; b < block_count_; ++b) {
@@ -384,7 +428,7 @@ double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const 
     const double lim = bl.v_max_mm_per_s;
     if (lim < std::max(vs, x.v_mm_per_s) && lim < w &&
         (dist <= 0.0 ||
-         !decreasing(x.v_mm_per_s, x.a_mm_per_s2, lim, j_max_, kFinalJerk * j_max_) ||
+         !decreasing(x.v_mm_per_s, x.a_mm_per_s2, lim, pol_j_, kFinalJerk * pol_j_) ||
          need_mm(x, lim) + margin >= dist)) {
       w = lim;
       if (binding_id) *binding_id = bl.limit_id;
@@ -574,6 +618,7 @@ MotionSample Planner::step() {
     return last_;
   }
   drop_passed_samples();
+  set_policy_limits();
   if (landing_) {
     const double j = plan_[plan_pos_++];
     commit(j, kLimitIdPathEnd);
@@ -640,10 +685,12 @@ MotionSample Planner::step() {
 
   build_blocks(override_applied_, stop);
   const double T = period_s_;
-  const double j_top = clampj(std::min(j_max_, (a_max_ - x_.a_mm_per_s2) / T), j_max_);
+  const double sigma = any_scaled_ ? scale_at(x_.s_mm) : 1.0;
+  const double j_here = sigma * j_max_, a_here = sigma * a_max_;
+  const double j_top = clampj(std::min(j_here, (a_here - x_.a_mm_per_s2) / T), j_here);
   if (rollout(j_top, override_applied_, real_stop, best_, best_n_)) {
     const double a1 = x_.a_mm_per_s2 + j_top * T;
-    use_best(j_top, a1 >= a_max_ * (1.0 - 1e-9) ? kLimitIdAcceleration : kLimitIdJerk);
+    use_best(j_top, a1 >= a_here * (1.0 - 1e-9) ? kLimitIdAcceleration : kLimitIdJerk);
     return last_;
   }
   if (stop == length_mm_ && try_landing()) {

@@ -16,6 +16,10 @@ struct LimitSample {
   double s_mm = 0.0;            // arc length along the path, strictly increasing, first at 0
   double v_max_mm_per_s = 0.0;  // > 0; a point where the machine must stop ends the path
   std::uint8_t limit_id = 0;    // which feed law set it (< kLimitIdReserved)
+  // The fraction of a_max and j_max the motion may use between this sample and its
+  // neighbours (the smaller of two samples applies, as for v): below 1 where the jerk vector
+  // is bounded on a curve (docs/planner.md §3c); in [min_tangential_scale, 1].
+  double tangential_scale = 1.0;
 };
 
 // limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
@@ -35,6 +39,9 @@ struct PlannerLimits {
   double j_max_mm_per_s3 = 20000.0;    // tangential jerk limit
   double period_s = 0.004;             // interpolation period T
   std::size_t window_capacity = 4096;  // samples the look-ahead ring can hold (fixed memory)
+  // The lowest tangential_scale a sample may carry (the look-ahead and the buffers are sized
+  // for braking at it); 1 when every sample allows the full limits.
+  double min_tangential_scale = 1.0;
 };
 
 // Throws InputError naming the value unless every limit is finite and > 0 (capacity >= 2).
@@ -130,6 +137,13 @@ class Planner {
 
   // limits
   double a_max_, j_max_, period_s_, length_mm_;
+  double scale_floor_ = 1.0;  // min_tangential_scale
+  // The brake policy's limits this step: a_max and j_max times the smallest tangential scale
+  // in the window (so that every period π simulates keeps the local limits).
+  double pol_a_ = 0.0, pol_j_ = 0.0;
+  bool any_scaled_ = false;  // a sample with tangential_scale < 1 was pushed
+  void set_policy_limits();
+  double scale_at(double s_mm) const;
   double v_eps_, a_eps_;
   // ring of samples
   std::vector<LimitSample> ring_;

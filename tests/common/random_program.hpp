@@ -20,6 +20,11 @@ struct RandomProgram {
   Vec3 at{0, 0, 0};
   Vec3 heading{1, 0, 0};
   double max_feed_mm_per_min = 0.0;
+  // Off for the jerk-vector suite, whose bound leaves them out (docs/planner.md §3c): runs of
+  // pieces shorter than one period's travel (dense runs, 1 µm and 0.01 mm moves) and repeated
+  // control points (a rest point where the curvature grows without bound).
+  bool short_pieces = true;
+  bool repeated_points = true;
 
   double uni(double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); }
   int pick(int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); }
@@ -52,7 +57,8 @@ struct RandomProgram {
       Vec3 d = kind < 2 ? Vec3(-heading) : (kind < 5 ? random_unit() : heading);
       if (kind >= 5) d = (d + 0.3 * random_unit()).normalized();  // a mild turn
       const int lk = pick(10);
-      const double len = lk == 0 ? 0.0 : (lk == 1 ? 1e-3 : (lk == 2 ? 0.01 : uni(0.1, 15.0)));
+      double len = lk == 0 ? 0.0 : (lk == 1 ? 1e-3 : (lk == 2 ? 0.01 : uni(0.1, 15.0)));
+      if (!short_pieces && len > 0.0 && len < 0.5) len = uni(0.5, 15.0);
       pts.push_back(pts.back() + len * d);
       if (len > 0.0) heading = d;
     }
@@ -120,8 +126,8 @@ struct RandomProgram {
     std::sort(interior.begin(), interior.end());
     // Repeated control points: the parametric speed vanishes at an end (or at the C⁰ knot).
     // (Degree ≥ 2: at degree 1 a repeated point is a zero-length span, not yet walked.)
-    if (degree >= 2 && pick(4) == 0) pts[1] = pts[0];
-    if (degree >= 2 && pick(4) == 0) {
+    if (repeated_points && degree >= 2 && pick(4) == 0) pts[1] = pts[0];
+    if (repeated_points && degree >= 2 && pick(4) == 0) {
       pts[static_cast<std::size_t>(n - 2)] = pts[static_cast<std::size_t>(n - 1)];
     }
     knots.insert(knots.end(), interior.begin(), interior.end());
@@ -154,7 +160,7 @@ struct RandomProgram {
     const int n = 2 + pick(8);
     for (int i = 0; i < n; ++i) {
       const int k = pick(10);
-      p.segments.push_back(k < 5 ? lines() : (k < 7 ? dense() : nurbs()));
+      p.segments.push_back(k < 5 ? lines() : (k < 7 && short_pieces ? dense() : nurbs()));
     }
     return p;
   }

@@ -16,6 +16,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include "motion/job.hpp"
@@ -73,14 +74,23 @@ struct Walk {
   RunStats stats;                // computed by RunStats (the replay report)
 };
 
-Walk run(const Path& path) {
-  const JobConfig cfg = test::planner_machine();
+Walk run(const Path& path,
+         interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
+  JobConfig cfg = test::planner_machine();
+  cfg.limits.jerk_bound = bound;
   const double t3 = std::pow(cfg.limits.period_s, 3);
   Job job(path, cfg);
   Walk r;
   while (!job.done()) {
     job.prepare();
     r.sp.push_back(job.step());
+    if (r.sp.size() > 200'000) {  // 800 s: a stall
+      ADD_FAILURE() << "no end after 800 s, at s = " << r.sp.back().s_mm << " mm, v = "
+                    << r.sp.back().v_mm_per_s << " mm/s, limit "
+                    << limit_name(r.sp.back().limit_id) << " at "
+                    << r.sp.back().feed_limit_mm_per_s << " mm/s";
+      break;
+    }
     record(r.stats, cfg, r.sp.back(), job.limit_here().feed_mm_per_s, 0.0, 0.0);
     const std::size_t k = r.sp.size() - 1;
     if (k >= 3) {
@@ -169,6 +179,51 @@ TEST(JerkVector, TableOfTheBoundPaths) {
       // J T³ / 6 each (about 0.85 j_max for full-jerk ramps at 90°): within j_max as well.
       EXPECT_LE(r.jerk_vector_max, j_max * (1.0 + 1e-6)) << c.name;
     }
+  }
+}
+
+
+// A circle of radius 3 mm: v³κ² and 3 v a κ both large at the cap.
+Path small_circle() {
+  const std::string json = R"({"nurbs": {"degree": 2,
+    "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
+    "points": [[3,0,0],[3,3,0],[0,3,0],[-3,3,0],[-3,0,0],[-3,-3,0],[0,-3,0],[3,-3,0],[3,0,0]],
+    "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
+                0.7071067811865476,1]}})";
+  return toolpath::read_path_text(json, "circle R3");
+}
+
+// Under jerk_bound = "vector" every third difference of the setpoints is within j_max, on the
+// curves (the cross term 3 v a κ that the tangential bound leaves at 1.19 j_max on the circle)
+// and where the curvature jumps (the blend arcs' ends at 4.35 j_max); the durations against
+// the tangential bound are the price.
+TEST(JerkVector, VectorBoundHoldsOnEveryPathAndCostsLittle) {
+  using interpolator::JerkBound;
+  const double j_max = test::planner_machine().limits.max_jerk_mm_per_s3;
+  std::printf(
+      "| path | tangential: s | jerk vector / j_max | vector: s | jerk vector / j_max |\n"
+      "|---|---|---|---|---|\n");
+  const struct {
+    const char* name;
+    Path path;
+  } cases[] = {
+      {"circle R20", toolpath::read_path_text(ncd::test::kCircleJson, "circle")},
+      {"circle R3", small_circle()},
+      {"cubic", toolpath::read_path_text(ncd::test::kCubicJson, "cubic")},
+      {"square 10 mm (G64)", polyline(square(), PathControl::blend)},
+      {"square 10 mm (G64 P0.5)", polyline(square(), PathControl::blend, 0.5)},
+      {"zig-zag (G64 P0.01)", polyline(zigzag(), PathControl::blend, 0.01)},
+      {"gentle zig-zag (G64 P0.01)", polyline(gentle_zigzag(), PathControl::blend, 0.01)},
+      {"gentle zig-zag (G64 P0.5)", polyline(gentle_zigzag(), PathControl::blend, 0.5)},
+  };
+  for (const auto& c : cases) {
+    const Walk t = run(c.path, JerkBound::tangential);
+    const Walk v = run(c.path, JerkBound::vector);
+    std::printf("| %-26s | %6.3f | %5.3f | %6.3f | %5.3f |\n", c.name, t.sp.back().t_s,
+                t.jerk_vector_max / j_max, v.sp.back().t_s, v.jerk_vector_max / j_max);
+    EXPECT_LE(v.jerk_vector_max, j_max * (1.0 + 1e-6)) << c.name;
+    EXPECT_LE(v.stats.jerk_max_mm_per_s3, j_max * (1.0 + 1e-9)) << c.name;
+    EXPECT_TRUE(v.sp.back().done) << c.name;
   }
 }
 

@@ -69,8 +69,11 @@ std::string describe(const Path& path) {
 }
 
 // Checks one program; returns an empty string or the first failure.
-std::string check(const Path& path, double max_program_feed_mm_per_min) {
-  const JobConfig cfg = test::planner_machine();
+// Under jerk_bound = "vector" also the jerk vector, the third difference of the setpoints.
+std::string check(const Path& path, double max_program_feed_mm_per_min,
+                  interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
+  JobConfig cfg = test::planner_machine();
+  cfg.limits.jerk_bound = bound;
   const double T = cfg.limits.period_s, a_max = cfg.limits.max_accel_mm_per_s2;
   const double j_max = cfg.limits.max_jerk_mm_per_s3, eps = cfg.limits.chord_tolerance_mm;
   const double v_cap = cfg.limits.max_feed_mm_per_min / 60.0;
@@ -152,6 +155,10 @@ std::string check(const Path& path, double max_program_feed_mm_per_min) {
       const double jt = (s[k] - 3.0 * s[k - 1] + 3.0 * s[k - 2] - s[k - 3]) / (T * T * T);
       if (std::abs(jt) > j_max * (1.0 + 1e-6) + 1e-3)
         return "tangential jerk " + std::to_string(jt);
+      const double jv = (p[k] - 3.0 * p[k - 1] + 3.0 * p[k - 2] - p[k - 3]).norm() / (T * T * T);
+      if (bound == interpolator::JerkBound::vector && jv > j_max * (1.0 + 1e-6) + 1e-3) {
+        return "jerk vector " + std::to_string(jv) + " mm/s^3 at s = " + std::to_string(sp.s_mm);
+      }
     }
     if (sp.s_mm > still_s + 1e-4 || sp.done) {
       still_s = sp.s_mm;
@@ -221,6 +228,33 @@ TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
     std::string failure;
     try {
       failure = check(path, g.max_feed_mm_per_min);
+    } catch (const std::exception& e) {
+      failure = std::string("exception: ") + e.what();
+    }
+    ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << ": " << failure
+                                 << "\n"
+                                 << describe(path);
+  }
+}
+
+// The same checks and the jerk vector within j_max under jerk_bound = "vector", on random
+// programs without the runs the bound leaves out (pieces shorter than one period's travel,
+// repeated control points; docs/planner.md §3c). 50 programs here, NCD_PROPERTY_PROGRAMS more.
+TEST(Property, RandomProgramsKeepTheJerkVectorBound) {
+  const std::uint64_t seed = test::seed();
+  int programs = ncd::test::sweep_cases(50);
+  if (const char* env = std::getenv("NCD_PROPERTY_PROGRAMS")) programs = std::atoi(env);
+  ncd::test::RandomProgram g{std::mt19937_64(seed)};
+  g.short_pieces = false;
+  g.repeated_points = false;
+  for (int i = 0; i < programs; ++i) {
+    g.at = Vec3::Zero();
+    g.heading = Vec3::UnitX();
+    g.max_feed_mm_per_min = 0.0;
+    const Path path = g.program();
+    std::string failure;
+    try {
+      failure = check(path, g.max_feed_mm_per_min, interpolator::JerkBound::vector);
     } catch (const std::exception& e) {
       failure = std::string("exception: ") + e.what();
     }
