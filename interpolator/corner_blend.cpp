@@ -30,7 +30,9 @@
 // distance takes at V, plus the time through the slow zone (the arc and one period of travel
 // on each side, or 4 v_c T). The arc is taken only where it costs less: at 1 µm chord
 // tolerance and the default limits a 90° corner at P0.01 mm allows 2.3 mm/s through its arc,
-// slower than stopping, so it stops; at P0.5 mm it is rounded.
+// slower than stopping, so it stops; at P0.5 mm it is rounded. Under the jerk-vector bound
+// (docs/planner.md §3c) the arc's ends are curvature jumps, and the whole arc is estimated at
+// their jump speed.
 //
 // Where: corners between straight pieces of moves under G64 with P > 0, inside a polyline
 // and at the joint with the next move, when both are plain polylines (no contact normals,
@@ -136,29 +138,35 @@ Corner plan_corner(const Vec3& a, const Vec3& v, const Vec3& b, double p_mm, dou
   c.tangent_mm = std::min({r_p * tan_half, 0.5 * l_in, 0.5 * l_out});
   c.radius_mm = c.tangent_mm / tan_half;
   if (!(c.tangent_mm >= kMinTangentMm) || !std::isfinite(c.radius_mm)) return c;
+  const double T = l.period_s;
   const double kappa = 1.0 / c.radius_mm;
   const double v_arc =
       std::min({cap_in, cap, chord_feed_mm_per_s(kappa, l.chord_tolerance_mm, l.period_s),
                 centripetal_accel_feed_mm_per_s(kappa, l.max_accel_mm_per_s2),
-                centripetal_jerk_feed_mm_per_s(kappa, l.max_jerk_mm_per_s3),
-                l.jerk_bound == JerkBound::vector ? jump_feed_mm_per_s(l, 0.0, kappa)
-                                                  : std::numeric_limits<double>::infinity()});
+                centripetal_jerk_feed_mm_per_s(kappa, l.max_jerk_mm_per_s3)});
+  // Under the jerk-vector bound the arc's ends are curvature jumps, passed at the jump speed;
+  // the estimate takes the whole arc at it. (An arc walked at its own speed between the two
+  // jumps, reached with a_max, was tried: it chose the arcs of the 30° zig-zag at P0.5, which
+  // then took 3.60 s against 3.12 s with stops, since the ramps between the jumps are
+  // jerk-limited and at the scaled tangential limits of docs/planner.md §3c.)
+  const double v_end = l.jerk_bound == JerkBound::vector
+                           ? std::min(v_arc, jump_feed_mm_per_s(l, 0.0, kappa))
+                           : v_arc;
+  const double t_arc = (c.radius_mm * c.phi_rad + 2.0 * v_end * T) / v_end;
   double v_sharp = std::min(cap, polyline_corner_speed_mm_per_s(l, c.phi_rad));
   if (v_sharp < l.max_accel_mm_per_s2 * l.period_s) v_sharp = 0.0;  // the sampler stops there
   // The time each way costs near the corner, from cruising at the caps on both sides (see the
   // top of the file): blend if the arc is faster than the sharp corner or the stop.
-  const double T = l.period_s;
   // The speed each side can reach: the cap, or less on a short leg (rest at its midpoint).
   cap_in = std::min(cap_in, reachable_mm_per_s(0.5 * l_in, l));
   cap = std::min(cap, reachable_mm_per_s(0.5 * l_out, l));
-  const double blend = side_cost_s(cap_in, v_arc, c.tangent_mm + v_arc * T, l) +
-                       side_cost_s(cap, v_arc, c.tangent_mm + v_arc * T, l) +
-                       (c.radius_mm * c.phi_rad + 2.0 * v_arc * T) / v_arc;
+  const double blend = side_cost_s(cap_in, v_end, c.tangent_mm + v_end * T, l) +
+                       side_cost_s(cap, v_end, c.tangent_mm + v_end * T, l) + t_arc;
   const double sharp = v_sharp > 0.0
                            ? side_cost_s(cap_in, v_sharp, 2.0 * v_sharp * T, l) +
                                  side_cost_s(cap, v_sharp, 2.0 * v_sharp * T, l) + 4.0 * T
                            : side_cost_s(cap_in, 0.0, 0.0, l) + side_cost_s(cap, 0.0, 0.0, l);
-  c.blended = v_arc > v_sharp && blend < sharp;
+  c.blended = v_end > v_sharp && blend < sharp;
   return c;
 }
 

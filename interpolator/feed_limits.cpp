@@ -15,6 +15,9 @@
 //       ╲ ε  ....      ╱
 //         ╲.       . ╱   arc of radius ρ
 //
+// Under JerkBound::vector (docs/planner.md §3c) also the jerk-vector law: the speed at which the
+// tangential scale σ that keeps |jerk| ≤ j_max falls to kMinTangentialScale, and the jump law
+// 2 v sin(φ/2) / T² + 0.75 v² Δκ / T ≤ kJumpJerkShare j_max at corners and curvature jumps.
 // On a straight line (κ = 0) only roughness and the maximum feed remain. The binding limit is
 // reported with the speed; ties go to the first in enum order, so the report is deterministic.
 #include "interpolator/feed_limits.hpp"
@@ -25,6 +28,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/jerk_vector.hpp"
 #include "core/number_text.hpp"
 
 namespace ncd::interpolator {
@@ -138,19 +142,10 @@ FeedLimitResult feed_limit(const MachineLimits& limits, const CuttingParams& cut
                         curvature_per_mm);
 }
 
-// (σJ + c1)² + (σb + c2)² = (βJ)² with c1 = v³κ², b = 3 v A κ, c2 = v³ g: the larger root in σ.
 double tangential_scale(const MachineLimits& limits, double kappa, double g, double v,
                         double budget) {
-  if (!(kappa > 0.0) && !(g > 0.0)) return std::clamp(budget, 0.0, 1.0);
-  if (!std::isfinite(v)) return 0.0;
-  const double J = limits.max_jerk_mm_per_s3, A = limits.max_accel_mm_per_s2;
-  const double v3 = v * v * v;
-  const double c1 = v3 * kappa * kappa, b = 3.0 * v * A * kappa, c2 = v3 * g;
-  const double r2 = budget * budget * J * J;
-  const double qa = J * J + b * b, qb = J * c1 + b * c2, qc = c1 * c1 + c2 * c2 - r2;
-  if (qc >= 0.0) return 0.0;
-  const double sigma = (-qb + std::sqrt(qb * qb - qa * qc)) / qa;
-  return std::clamp(sigma, 0.0, 1.0);
+  return ncd::tangential_scale(JerkVectorSpan{kappa, g, budget}, v, limits.max_accel_mm_per_s2,
+                               limits.max_jerk_mm_per_s3);
 }
 
 double jerk_vector_feed_mm_per_s(const MachineLimits& limits, double kappa, double g,

@@ -56,7 +56,7 @@ struct MachineLimits {
 // left to the motion around it), and the lowest tangential scale a curve may ask of the planner
 // (times its budget, 1 − the share of a jump nearby) before its speed is lowered instead.
 inline constexpr double kJumpJerkShare = 0.5;
-inline constexpr double kMinTangentialScale = 0.5;
+inline constexpr double kMinTangentialScale = 0.3;
 // The lowest tangential scale the sampler ever gives: what the planner sizes its look-ahead for.
 inline constexpr double kTangentialScaleFloor = kMinTangentialScale * (1.0 - kJumpJerkShare);
 

@@ -55,6 +55,12 @@
 // stretches between stops separately, and takes each node's left and right interval values
 // at a stop for the stretch on that side.
 //
+// Jerk vector (JerkBound::vector, docs/planner.md §3c): every interval also gets its largest
+// curvature κ and curvature turn g (nine points), its speed lowered where the jerk-vector law
+// asks (jerk_vector_feed_mm_per_s) and a tangential scale σ for the planner; corners and
+// curvature jumps (C¹ knots, tangent joints) get the jump law as a corner speed, and the
+// intervals within two periods' travel of them the rest of the jerk budget.
+//
 // Rest refinement (docs/planner.md §3): at a rest point where a curve's limit dips towards 0
 // (a repeated control point), the intervals double away from it from d₁ = J T³/6 and halve
 // towards it; the innermost one takes at least v_rest(d₁) = (4.5 J d₁²)^(1/3), a speed no
@@ -898,10 +904,9 @@ void LimitSampler::bound_jerk_vector(Interval& iv) const {
   }
 }
 
-double LimitSampler::tangential_scale_of(const Interval& iv) const {
-  if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return 1.0;
-  const double budget = 1.0 - iv.jump_share;
-  return tangential_scale(limits_, iv.kappa_per_mm, iv.turn_per_mm2, iv.v_mm_per_s, budget);
+JerkVectorSpan LimitSampler::jerk_span_of(const Interval& iv) const {
+  if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return {};
+  return {iv.kappa_per_mm, iv.turn_per_mm2, 1.0 - iv.jump_share};
 }
 
 bool LimitSampler::is_rest_mm(double s_mm) const {
@@ -964,7 +969,7 @@ bool LimitSampler::next(LimitNode& out) {
   if (!started_) {
     started_ = true;
     enter_segment();
-    pending_ = {0.0, kInf, FeedLimit::MaxFeed, kInf, kInf, 1.0};
+    pending_ = {0.0, kInf, FeedLimit::MaxFeed, kInf, kInf, {}};
   }
   Interval iv{};
   while (next_interval(iv)) {
@@ -974,11 +979,14 @@ bool LimitSampler::next(LimitNode& out) {
       pending_.limit = iv.limit;
     }
     pending_.right_mm_per_s = iv.v_mm_per_s;
-    const double scale = tangential_scale_of(iv);
-    pending_.tangential_scale = std::min(pending_.tangential_scale, scale);
+    pending_.jerk_span = jerk_span_of(iv);
     out = pending_;
-    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf, scale};
+    pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf, {}};
     return true;
+  }
+  if (!std::isfinite(pending_.feed_mm_per_s)) {  // a path of length 0: no interval at all
+    const double cap = limits_.max_feed_mm_per_min / 60.0;
+    pending_.feed_mm_per_s = pending_.left_mm_per_s = pending_.right_mm_per_s = cap;
   }
   out = pending_;
   finished_ = true;

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "core/jerk_vector.hpp"
 #include "interpolator/feed_limits.hpp"
 #include "interpolator/roughness.hpp"
 #include "toolpath/path.hpp"
@@ -20,9 +21,10 @@ struct LimitNode {
   // motion comes to rest at a node, each side's planner takes its own side's value.
   double left_mm_per_s = 0.0;
   double right_mm_per_s = 0.0;
-  // Under JerkBound::vector: the fraction of a_max and j_max the tangential motion may use on
-  // both intervals (their minimum; docs/planner.md §3c); 1 under JerkBound::tangential.
-  double tangential_scale = 1.0;
+  // Under JerkBound::vector (docs/planner.md §3c): the curve of the interval that starts at the
+  // node (its largest curvature and curvature turn, and its jerk budget; unlike the speed, a
+  // span is exact for its interval, so it is not shared); none under JerkBound::tangential.
+  JerkVectorSpan jerk_span;
 };
 
 struct SamplerConfig {
@@ -77,7 +79,7 @@ class LimitSampler {
     bool rest_speed = false;  // raised to the rest speed (exempt from the curve laws)
   };
   void bound_jerk_vector(Interval& iv) const;
-  double tangential_scale_of(const Interval& iv) const;
+  JerkVectorSpan jerk_span_of(const Interval& iv) const;
   void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;
   double piece_curvature_per_mm(std::size_t segment, std::size_t piece) const;
   bool next_interval(Interval& out);

@@ -140,9 +140,10 @@ void Job::prepare() {
     }
   };
   const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
-                        double scale) {
+                        const JerkVectorSpan& span) {
     check(s_mm, v_mm_per_s, limit);
-    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit), scale});
+    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit), span.curvature_per_mm,
+                   span.turn_per_mm2, span.budget});
   };
   while (planner_.wants_samples()) {
     if (carry_n_ > 0) {
@@ -165,21 +166,28 @@ void Job::prepare() {
     if (!last && node.s_mm >= end - tol) {
       const double length = end - start;
       const double left = node.s_mm > end + tol ? node.feed_mm_per_s : node.left_mm_per_s;
-      const double scale = node.tangential_scale;
-      push(length, left, node.limit, scale);
-      const double right = node.s_mm > end + tol ? left : node.right_mm_per_s;
+      // The stretch ends here: no interval of it starts at this node. The next stretch starts
+      // with the interval after the node (or, where the node lies past the stop, with the
+      // interval of the node before, which holds the stop).
+      const bool past = node.s_mm > end + tol;
+      const JerkVectorSpan span = node.jerk_span, first = past ? last_span_ : span;
+      push(length, left, node.limit, JerkVectorSpan{});
+      const double right = past ? left : node.right_mm_per_s;
       check(length, right, node.limit);
-      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit), scale};
+      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit), first.curvature_per_mm,
+                    first.turn_per_mm2, first.budget};
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
-      if (node.s_mm > end + tol) {  // no node fell on the stop: keep this one for the next
-        carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit),
-                     scale};
+      if (past) {  // no node fell on the stop: keep this one for the next
+        carry_[1] = {node.s_mm - end,         node.feed_mm_per_s,
+                     static_cast<std::uint8_t>(node.limit), span.curvature_per_mm,
+                     span.turn_per_mm2,        span.budget};
         carry_n_ = 2;
       }
       break;  // the planner has its end
     }
-    push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.tangential_scale);
+    push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.jerk_span);
+    last_span_ = node.jerk_span;
   }
 }
 

@@ -106,6 +106,7 @@ class Job {
   std::size_t run_ = 0;            // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
   LimitSample carry_[2]{};         // samples of the next stretch read before it began
   bool stop_taken_early_ = false;  // the last stretch ended on a node short of its stop
+  JerkVectorSpan last_span_;       // the curve span of the last node pushed (its interval)
   std::size_t carry_n_ = 0;
   StepGuard guard_;
   bool sampler_done_ = false;

@@ -44,6 +44,11 @@
 //    way (docs/planner.md §4).
 // Override scales the limits; lowering it runs π towards the new limits while checking
 // against the old ones until the new ones hold. Hold makes π's target 0 from now on.
+// Jerk vector (docs/planner.md §3c): a sample may carry a curve span (κ, g, budget), and then
+// the exact checks hold the jerk vector bound at each period's highest speed and |a|, π plans
+// with the tangential scale σ (a_max and j_max times σ) that keeps it for the whole window at
+// the highest speed π may reach, and the look-ahead is sized for braking at the lowest σ
+// allowed (min_tangential_scale). Without spans the arithmetic is unchanged.
 //
 // Work per step: at most 2 + kBisection rollouts of at most rollout_cap_ periods, each period
 // O(1) plus the blocks within its braking distance; no allocation (buffers are sized in push).
@@ -225,11 +230,20 @@ void Planner::push(const LimitSample& in) {
                      " is invalid: a feed limit must be finite and > 0; where the machine must "
                      "stop, end the path there and start a new one");
   }
-  if (!(in.tangential_scale >= scale_floor_ * (1.0 - 1e-12) && in.tangential_scale <= 1.0)) {
-    throw InputError("tangential_scale = " + std::to_string(in.tangential_scale) +
-                     " at s_mm = " + std::to_string(in.s_mm) + " is outside [" +
-                     std::to_string(scale_floor_) +
-                     ", 1]: the planner's look-ahead is sized for min_tangential_scale; lower it");
+  const JerkVectorSpan span = in.jerk_span();
+  const bool constrained =
+      span.curvature_per_mm != 0.0 || span.turn_per_mm2 != 0.0 || span.budget != 1.0;
+  // (A span whose scale at v_max falls below min_tangential_scale is kept: the look-ahead is
+  // then shorter than a stop at that scale needs, and the motion slows for it, never faster.)
+  if (constrained && !(span.curvature_per_mm >= 0.0 && std::isfinite(span.curvature_per_mm) &&
+                       span.turn_per_mm2 >= 0.0 && std::isfinite(span.turn_per_mm2) &&
+                       span.budget > 0.0 && span.budget <= 1.0)) {
+    throw InputError("the jerk-vector span at s_mm = " + std::to_string(in.s_mm) +
+                     " (curvature " + std::to_string(span.curvature_per_mm) + " /mm, turn " +
+                     std::to_string(span.turn_per_mm2) + " /mm^2, budget " +
+                     std::to_string(span.budget) +
+                     ") is invalid: curvature and turn must be finite and >= 0, the budget in "
+                     "(0, 1]");
   }
   if (in.limit_id >= kLimitIdReserved) {
     throw InputError("limit_id = " + std::to_string(in.limit_id) + " is reserved (>= " +
@@ -250,7 +264,7 @@ void Planner::push(const LimitSample& in) {
                      " samples is full: push only while wants_samples(), or raise the capacity");
   }
   ring_[(head_ + count_) % ring_.size()] = in;
-  if (in.tangential_scale < 1.0) any_scaled_ = true;
+  if (constrained) any_scaled_ = true;
   ++count_;
   count_high_water_ = std::max(count_high_water_, count_);
   ahead_high_water_mm_ = std::max(ahead_high_water_mm_, in.s_mm - x_.s_mm);
@@ -331,35 +345,58 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
   if (v_hi <= 0.0) return true;
   if (count_ < 2) return false;
   while (c.segment + 2 < count_ && sample(c.segment + 1).s_mm <= x.s_mm) ++c.segment;
-  double sigma = 1.0;  // the smallest tangential scale over the span
+  JerkVectorSpan span;  // the curve over the period's span: largest κ and g, smallest budget
   for (std::size_t k = c.segment; k + 1 < count_; ++k) {
     const double lim = std::min(sample(k).v_max_mm_per_s, sample(k + 1).v_max_mm_per_s) * scale;
     if (v_hi > lim * (1.0 + kRelSlack)) return false;
-    sigma = std::min({sigma, sample(k).tangential_scale, sample(k + 1).tangential_scale});
+    if (any_scaled_) {  // the curve of the interval that starts at sample k
+      const JerkVectorSpan q = sample(k).jerk_span();
+      span.curvature_per_mm = std::max(span.curvature_per_mm, q.curvature_per_mm);
+      span.turn_per_mm2 = std::max(span.turn_per_mm2, q.turn_per_mm2);
+      span.budget = std::min(span.budget, q.budget);
+    }
     if (sample(k + 1).s_mm >= s1) {
-      if (sigma == 1.0) return true;
-      // Scaled limits (docs/planner.md §3c): a is linear in the period, so its ends bound it.
-      const double a_lim = sigma * a_max_ * (1.0 + kRelSlack);
-      return std::abs(j) <= sigma * j_max_ * (1.0 + kRelSlack) &&
-             std::abs(x.a_mm_per_s2) <= a_lim && std::abs(a1) <= a_lim;
+      if (!any_scaled_) return true;
+      // The jerk vector (docs/planner.md §3c) at the period's highest speed and |a| (a is
+      // linear in the period, so its ends bound it).
+      const double a_hi = std::max(std::abs(x.a_mm_per_s2), std::abs(a1));
+      return jerk_vector_within(span, v_hi, a_hi, j, j_max_, kRelSlack);
     }
   }
   return false;  // beyond the last sample
 }
 
-// The tangential scale of the interval that holds s (the smaller of its two samples).
-double Planner::scale_at(double s_mm) const {
+// The tangential scale the interval starting at sample i allows at speeds up to v (never above
+// the sample's v_max, which the checks hold there: the sampler made the scale at the interval's
+// limit at least min_tangential_scale).
+double Planner::sample_scale(std::size_t i, double v) const {
+  const LimitSample& q = sample(i);
+  return tangential_scale(q.jerk_span(), std::min(v, q.v_max_mm_per_s * override_applied_), a_max_,
+                          j_max_);
+}
+
+// The tangential scale of the interval that holds s at v.
+double Planner::scale_at(double s_mm, double v) const {
   if (count_ == 0) return 1.0;
   std::size_t i = 0;
   while (i + 1 < count_ && sample(i + 1).s_mm <= s_mm) ++i;
-  const double here = sample(i).tangential_scale;
-  return i + 1 < count_ ? std::min(here, sample(i + 1).tangential_scale) : here;
+  return sample_scale(i, v);
 }
 
+// π's scale: the smallest σ in the window at the highest speed π may reach from here (the
+// horizon's bound on the speed soon reachable, and the settling above it). π only brakes or
+// settles below that speed, so every period it simulates keeps the bound there; at lower
+// speeds the scale is larger (the cross term 3 v a κ and v³κ² shrink), which the exact checks
+// use. (The largest σ that every sample within reach of a stop at σ allows was tried: the cubic
+// took 1.876 s against 1.816 s, since π then brakes for the near samples harder than the
+// checks of the farther ones allow, and more rollouts fail.)
 void Planner::set_policy_limits() {
   double sigma = 1.0;
   if (any_scaled_) {
-    for (std::size_t i = 0; i < count_; ++i) sigma = std::min(sigma, sample(i).tangential_scale);
+    const double T = period_s_, a = std::max(x_.a_mm_per_s2, 0.0);
+    const double v_top = x_.v_mm_per_s + (a + a_max_) * 2.0 * T +
+                         (a + a_max_ * T) * (a + a_max_ * T) / (2.0 * j_max_ * scale_floor_);
+    for (std::size_t i = 0; i < count_; ++i) sigma = std::min(sigma, sample_scale(i, v_top));
   }
   pol_a_ = a_max_ * sigma;
   pol_j_ = j_max_ * sigma;
@@ -685,7 +722,10 @@ MotionSample Planner::step() {
 
   build_blocks(override_applied_, stop);
   const double T = period_s_;
-  const double sigma = any_scaled_ ? scale_at(x_.s_mm) : 1.0;
+  const double sigma =
+      any_scaled_ ? scale_at(x_.s_mm, x_.v_mm_per_s + std::abs(x_.a_mm_per_s2) * period_s_ +
+                                          j_max_ * period_s_ * period_s_)
+                  : 1.0;
   const double j_here = sigma * j_max_, a_here = sigma * a_max_;
   const double j_top = clampj(std::min(j_here, (a_here - x_.a_mm_per_s2) / T), j_here);
   if (rollout(j_top, override_applied_, real_stop, best_, best_n_)) {

@@ -8,6 +8,8 @@
 #include <span>
 #include <vector>
 
+#include "core/jerk_vector.hpp"
+
 namespace ncd::motion {
 
 // One point of the feed-limit curve. Between two samples the limit is the MINIMUM of the two
@@ -16,10 +18,13 @@ struct LimitSample {
   double s_mm = 0.0;            // arc length along the path, strictly increasing, first at 0
   double v_max_mm_per_s = 0.0;  // > 0; a point where the machine must stop ends the path
   std::uint8_t limit_id = 0;    // which feed law set it (< kLimitIdReserved)
-  // The fraction of a_max and j_max the motion may use between this sample and its
-  // neighbours (the smaller of two samples applies, as for v): below 1 where the jerk vector
-  // is bounded on a curve (docs/planner.md §3c); in [min_tangential_scale, 1].
-  double tangential_scale = 1.0;
+  // Where the jerk vector is bounded (docs/planner.md §3c): the curve of the interval that
+  // starts at this sample (its largest κ and g, and its budget; see JerkVectorSpan; unlike
+  // v_max, not shared with the interval before). 0, 0, 1: no constraint.
+  double curvature_per_mm = 0.0;
+  double turn_per_mm2 = 0.0;
+  double jerk_budget = 1.0;
+  JerkVectorSpan jerk_span() const { return {curvature_per_mm, turn_per_mm2, jerk_budget}; }
 };
 
 // limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
@@ -39,8 +44,8 @@ struct PlannerLimits {
   double j_max_mm_per_s3 = 20000.0;    // tangential jerk limit
   double period_s = 0.004;             // interpolation period T
   std::size_t window_capacity = 4096;  // samples the look-ahead ring can hold (fixed memory)
-  // The lowest tangential_scale a sample may carry (the look-ahead and the buffers are sized
-  // for braking at it); 1 when every sample allows the full limits.
+  // The lowest tangential scale a sample's jerk_span may ask at its v_max (the look-ahead and
+  // the buffers are sized for braking at it); 1 when every sample allows the full limits.
   double min_tangential_scale = 1.0;
 };
 
@@ -141,9 +146,10 @@ class Planner {
   // The brake policy's limits this step: a_max and j_max times the smallest tangential scale
   // in the window (so that every period π simulates keeps the local limits).
   double pol_a_ = 0.0, pol_j_ = 0.0;
-  bool any_scaled_ = false;  // a sample with tangential_scale < 1 was pushed
+  bool any_scaled_ = false;  // a sample with a jerk_span constraint was pushed
   void set_policy_limits();
-  double scale_at(double s_mm) const;
+  double scale_at(double s_mm, double v_mm_per_s) const;
+  double sample_scale(std::size_t i, double v_mm_per_s) const;
   double v_eps_, a_eps_;
   // ring of samples
   std::vector<LimitSample> ring_;

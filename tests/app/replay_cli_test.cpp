@@ -153,6 +153,34 @@ TEST_F(Replay, PlungeAndRetractRestAtTheBottomAndFinish) {
   EXPECT_LE(j["duration_s"].get<double>(), 1.05 * bound_s);
 }
 
+// jerk_bound = "vector" in the machine file: the report names that bound, and the jerk the
+// axes feel (the setpoints' third difference) stays within max_jerk_mm_per_s3 on
+// examples/cubic.json, where the tangential bound lets it reach 1.14 times that
+// (docs/planner.md §3c).
+TEST_F(Replay, JerkVectorBoundFromTheMachineFile) {
+  const std::string cubic = std::string(NCD_SOURCE_DIR) + "/examples/cubic.json";
+  for (const char* bound : {"tangential", "vector"}) {
+    const std::string machine =
+        write("m.toml", std::string("jerk_bound = \"") + bound +
+                           "\"\n[cutting]\npick_feed_mm = 0\nroughness_target_um = 1000\n");
+    const fs::path report = dir_ / "r.json";
+    const CmdResult r = ncd("replay " + cubic + " --machine " + machine + " --report " +
+                            report.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto j = nlohmann::json::parse(slurp(report));
+    EXPECT_EQ(j["jerk_bound"].get<std::string>().rfind(bound, 0), 0u) << j["jerk_bound"];
+    EXPECT_EQ(j["machine"]["jerk_bound"].get<std::string>(), bound);
+    EXPECT_EQ(j["limit_violations"].get<int>(), 0);
+    const double jv = j["jerk_vector_max"].get<double>();
+    if (std::string(bound) == "vector") {
+      EXPECT_LE(jv, 20000.0 * (1.0 + 1e-6));
+    } else {
+      EXPECT_GT(jv, 1.1 * 20000.0);  // the cross term 3 v a κ, unbounded under "tangential"
+    }
+    EXPECT_NE(r.err.find(std::string("bound in force: ") + bound), std::string::npos) << r.err;
+  }
+}
+
 struct BadReplay {
   std::string machine, path, message;
 };
@@ -166,6 +194,7 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
       {"max_accel_mm_per_s2 = -1000\n", cubic, "max_accel"},
       {"period_s = 0\n", cubic, "period"},
       {"max_jerk_mm_per_s3 = \"fast\"\n", cubic, "must be a number"},
+      {"jerk_bound = \"axes\"\n", cubic, "jerk_bound = \"axes\" is not a jerk bound"},
       {"", write("comp.ngc", "G21 G90\nG0 X0 Y0 Z0\nG41.1 D40 G1 X10 Y0 F100\n"),
        "comp.ngc:3: the cutter compensation entry move is not longer than the tool radius"},
       {"", (dir_ / "missing.json").string(), "missing.json"},

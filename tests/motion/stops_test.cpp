@@ -198,6 +198,18 @@ TEST(Stops, ZeroLengthMoveIsAStop) {
   EXPECT_LT((r.sp[at_rest[1]].p - Vec3(6, 0, 0)).norm(), 1e-9);
 }
 
+// A path of length 0 (only zero-length moves: a random program found it) ends at once, at rest
+// where it starts; the sampler's last node had no interval and an infinite limit, which the job
+// refused as "a cusp".
+TEST(Stops, PathOfLengthZeroEndsAtOnce) {
+  Path path;
+  path.segments.push_back(line_segment({{1, 2, 3}, {1, 2, 3}}, 4800.0));
+  path.segments.push_back(line_segment({{1, 2, 3}, {1, 2, 3}}, 5000.0));
+  const Motion r = run(path);
+  expect_at_rest_at(r, {1, 2, 3});
+  EXPECT_LE(r.sp.size(), 3U);
+}
+
 // A NURBS whose first control point repeats has zero parametric speed and unbounded curvature
 // at its start (C = a u² + b u³: κ ~ 1/u): the joint into it is a stop. Found by the property
 // suite (seed 1337050818, program 4): rounding left the curve's first derivative a few ulps off
