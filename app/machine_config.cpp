@@ -308,8 +308,8 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
                          "each <= max_jerk, the default) or \"vector\" (the jerk vector <= "
                          "max_jerk; docs/planner.md section 3c)");
       }
-      l.jerk_bound = b == "vector" ? interpolator::JerkBound::vector
-                                   : interpolator::JerkBound::tangential;
+      l.jerk_bound =
+          b == "vector" ? interpolator::JerkBound::vector : interpolator::JerkBound::tangential;
     } else if (key == "cutting") {
       if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
       for (const auto& [ck, cv] : value.as_table()) {
@@ -346,12 +346,12 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
       if (!value.is_table()) throw InputError(where + " must be a table: [tool]");
       parse_tool(value, name, c.tool);
     } else {
-      throw InputError("unknown key " + where +
-                       "; the machine file takes period_s, max_feed_mm_per_min, "
-                       "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
-                       "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the "
-                       "tables "
-                       "[cutting], [link], [encoder], [envelope], [program], [tool]");
+      throw InputError(
+          "unknown key " + where +
+          "; the machine file takes period_s, max_feed_mm_per_min, "
+          "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
+          "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
+          "[cutting], [link], [encoder], [envelope], [program], [tool]");
     }
   }
   c.encoder.line = c.link.line;

@@ -457,7 +457,8 @@ int run_replay(const ReplayArgs& a) {
                  st.feed_error_rms_rel(), st.feed_error_max_abs_mm, st.drift_mm(),
                  st.chord_error_max_mm, machine.limits.chord_tolerance_mm, st.accel_max_mm_per_s2,
                  st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
-                 st.jerk_vector_max_mm_per_s3, motion::jerk_bound_in_force(machine.limits.jerk_bound),
+                 st.jerk_vector_max_mm_per_s3,
+                 motion::jerk_bound_in_force(machine.limits.jerk_bound),
                  st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                  static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
     if (encoder) print_blocks(encoder->stats(), a.blocks);

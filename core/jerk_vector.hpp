@@ -14,15 +14,15 @@ namespace ncd {
 
 // The curve data one interval of the limit curve carries for the bound.
 struct JerkVectorSpan {
-  double curvature_per_mm = 0.0;    // largest κ
-  double turn_per_mm2 = 0.0;        // largest g
-  double budget = 1.0;              // fraction of j_max the smooth motion may use (a curvature
-                                    // jump nearby takes the rest)
+  double curvature_per_mm = 0.0;  // largest κ
+  double turn_per_mm2 = 0.0;      // largest g
+  double budget = 1.0;            // fraction of j_max the smooth motion may use (a curvature
+                                  // jump nearby takes the rest)
 };
 
 // True when |j| and |a| at speeds up to v keep the bound within budget × j_max.
-inline bool jerk_vector_within(const JerkVectorSpan& c, double v, double a, double j,
-                               double j_max, double rel_slack = 0.0) {
+inline bool jerk_vector_within(const JerkVectorSpan& c, double v, double a, double j, double j_max,
+                               double rel_slack = 0.0) {
   const double v3 = v * v * v, k = c.curvature_per_mm;
   const double t = std::abs(j) + v3 * k * k;
   const double n = 3.0 * v * std::abs(a) * k + v3 * c.turn_per_mm2;

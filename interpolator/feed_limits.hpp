@@ -105,7 +105,8 @@ double jerk_vector_feed_mm_per_s(const MachineLimits& limits, double curvature_p
 // and the acceleration jumps by v² Δκ where the curvature vector jumps by Δκ. The third
 // difference of the setpoints sees at most 2 v sin(φ/2) / T² + 0.75 v² Δκ / T; the largest v
 // that keeps it ≤ kJumpJerkShare j_max (+inf where neither turns).
-double jump_feed_mm_per_s(const MachineLimits& limits, double phi_rad, double curvature_jump_per_mm);
+double jump_feed_mm_per_s(const MachineLimits& limits, double phi_rad,
+                          double curvature_jump_per_mm);
 // That third difference at speed v: 2 v sin(φ/2) / T² + 0.75 v² Δκ / T, mm/s³.
 double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi_rad,
                            double curvature_jump_per_mm, double v_mm_per_s);

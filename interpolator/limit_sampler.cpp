@@ -162,8 +162,8 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       } else {
         joint_corner_[k] = corner;
         if (!d_in.isZero() && !d_out.isZero()) {
-          joint_share_[k] =
-              jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)), dk, corner.feed_mm_per_s);
+          joint_share_[k] = jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)), dk,
+                                       corner.feed_mm_per_s);
         }
       }
     }
@@ -343,8 +343,8 @@ FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
   FeedLimitResult r{polyline_corner_speed_mm_per_s(limits_, phi, curvature_per_mm),
                     FeedLimit::Corner};
   if (limits_.jerk_bound == JerkBound::vector && curvature_jump_per_mm > 0.0) {
-    const double v = jump_feed_mm_per_s(limits_, phi < kMinTurnRad ? 0.0 : phi,
-                                        curvature_jump_per_mm);
+    const double v =
+        jump_feed_mm_per_s(limits_, phi < kMinTurnRad ? 0.0 : phi, curvature_jump_per_mm);
     if (v < r.feed_mm_per_s) r = {v, FeedLimit::JerkVector};
   }
   return r;
@@ -683,9 +683,8 @@ bool LimitSampler::next_interval(Interval& iv) {
       iv.b_mm = b;
       iv.v_mm_per_s = v.feed_mm_per_s;
       iv.limit = v.limit;
-      iv.kappa_per_mm = limits_.jerk_bound == JerkBound::vector
-                            ? piece_curvature_per_mm(segment_, piece_)
-                            : 0.0;
+      iv.kappa_per_mm =
+          limits_.jerk_bound == JerkBound::vector ? piece_curvature_per_mm(segment_, piece_) : 0.0;
       iv.turn_per_mm2 = 0.0;
       iv.jump_share = 0.0;
       iv.rest_speed = false;

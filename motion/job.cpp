@@ -27,9 +27,9 @@ PlannerLimits planner_limits(const JobConfig& c) {
   p.period_s = c.limits.period_s;
   p.window_capacity = c.window_capacity;
   // Under the jerk-vector bound the sampler asks for tangential scales down to this.
-  p.min_tangential_scale =
-      c.limits.jerk_bound == interpolator::JerkBound::vector ? interpolator::kTangentialScaleFloor
-                                                             : 1.0;
+  p.min_tangential_scale = c.limits.jerk_bound == interpolator::JerkBound::vector
+                               ? interpolator::kTangentialScaleFloor
+                               : 1.0;
   return p;
 }
 
@@ -174,14 +174,18 @@ void Job::prepare() {
       push(length, left, node.limit, JerkVectorSpan{});
       const double right = past ? left : node.right_mm_per_s;
       check(length, right, node.limit);
-      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit), first.curvature_per_mm,
-                    first.turn_per_mm2, first.budget};
+      carry_[0] = {0.0,
+                   right,
+                   static_cast<std::uint8_t>(node.limit),
+                   first.curvature_per_mm,
+                   first.turn_per_mm2,
+                   first.budget};
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
       if (past) {  // no node fell on the stop: keep this one for the next
-        carry_[1] = {node.s_mm - end,         node.feed_mm_per_s,
-                     static_cast<std::uint8_t>(node.limit), span.curvature_per_mm,
-                     span.turn_per_mm2,        span.budget};
+        carry_[1] = {
+            node.s_mm - end,       node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit),
+            span.curvature_per_mm, span.turn_per_mm2,  span.budget};
         carry_n_ = 2;
       }
       break;  // the planner has its end

@@ -238,8 +238,8 @@ void Planner::push(const LimitSample& in) {
   if (constrained && !(span.curvature_per_mm >= 0.0 && std::isfinite(span.curvature_per_mm) &&
                        span.turn_per_mm2 >= 0.0 && std::isfinite(span.turn_per_mm2) &&
                        span.budget > 0.0 && span.budget <= 1.0)) {
-    throw InputError("the jerk-vector span at s_mm = " + std::to_string(in.s_mm) +
-                     " (curvature " + std::to_string(span.curvature_per_mm) + " /mm, turn " +
+    throw InputError("the jerk-vector span at s_mm = " + std::to_string(in.s_mm) + " (curvature " +
+                     std::to_string(span.curvature_per_mm) + " /mm, turn " +
                      std::to_string(span.turn_per_mm2) + " /mm^2, budget " +
                      std::to_string(span.budget) +
                      ") is invalid: curvature and turn must be finite and >= 0, the budget in "

@@ -162,10 +162,10 @@ TEST_F(Replay, JerkVectorBoundFromTheMachineFile) {
   for (const char* bound : {"tangential", "vector"}) {
     const std::string machine =
         write("m.toml", std::string("jerk_bound = \"") + bound +
-                           "\"\n[cutting]\npick_feed_mm = 0\nroughness_target_um = 1000\n");
+                            "\"\n[cutting]\npick_feed_mm = 0\nroughness_target_um = 1000\n");
     const fs::path report = dir_ / "r.json";
-    const CmdResult r = ncd("replay " + cubic + " --machine " + machine + " --report " +
-                            report.string());
+    const CmdResult r =
+        ncd("replay " + cubic + " --machine " + machine + " --report " + report.string());
     ASSERT_EQ(r.status, 0) << r.err;
     const auto j = nlohmann::json::parse(slurp(report));
     EXPECT_EQ(j["jerk_bound"].get<std::string>().rfind(bound, 0), 0u) << j["jerk_bound"];

@@ -74,8 +74,7 @@ struct Walk {
   RunStats stats;                // computed by RunStats (the replay report)
 };
 
-Walk run(const Path& path,
-         interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
+Walk run(const Path& path, interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
   JobConfig cfg = test::planner_machine();
   cfg.limits.jerk_bound = bound;
   const double t3 = std::pow(cfg.limits.period_s, 3);
@@ -85,10 +84,10 @@ Walk run(const Path& path,
     job.prepare();
     r.sp.push_back(job.step());
     if (r.sp.size() > 200'000) {  // 800 s: a stall
-      ADD_FAILURE() << "no end after 800 s, at s = " << r.sp.back().s_mm << " mm, v = "
-                    << r.sp.back().v_mm_per_s << " mm/s, limit "
-                    << limit_name(r.sp.back().limit_id) << " at "
-                    << r.sp.back().feed_limit_mm_per_s << " mm/s";
+      ADD_FAILURE() << "no end after 800 s, at s = " << r.sp.back().s_mm
+                    << " mm, v = " << r.sp.back().v_mm_per_s << " mm/s, limit "
+                    << limit_name(r.sp.back().limit_id) << " at " << r.sp.back().feed_limit_mm_per_s
+                    << " mm/s";
       break;
     }
     record(r.stats, cfg, r.sp.back(), job.limit_here().feed_mm_per_s, 0.0, 0.0);
@@ -181,7 +180,6 @@ TEST(JerkVector, TableOfTheBoundPaths) {
     }
   }
 }
-
 
 // A circle of radius 3 mm: v³κ² and 3 v a κ both large at the cap.
 Path small_circle() {

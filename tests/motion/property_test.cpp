@@ -253,7 +253,8 @@ TEST(Property, RandomProgramsKeepTheJerkVectorBound) {
   g.short_pieces = false;
   g.repeated_points = false;
   // NCD_PROPERTY_FROM=k replays program k of a seed without checking the ones before it.
-  const int from = std::getenv("NCD_PROPERTY_FROM") ? std::atoi(std::getenv("NCD_PROPERTY_FROM")) : 0;
+  const int from =
+      std::getenv("NCD_PROPERTY_FROM") ? std::atoi(std::getenv("NCD_PROPERTY_FROM")) : 0;
   for (int i = 0; i < programs; ++i) {
     g.at = Vec3::Zero();
     g.heading = Vec3::UnitX();
