@@ -28,23 +28,28 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
       "G1 X70 Y-20 F1200\nG1 Z-2 F300\nG1 Z0\nM2\n",
       "mixed.ngc");
   ASSERT_GE(path.segments.size(), 3u);
-  JobConfig cfg;
-  cfg.cutting.teeth = 4;
-  cfg.cutting.spindle_rpm = 12000.0;
-  Job job(path, cfg);
-  job.prepare();  // the first look-ahead window is filled before the cycle starts
-  const long before = ncd::test::g_allocations.load();
-  int periods = 0;
-  for (;;) {
-    job.prepare();
-    const Setpoint sp = job.step();
-    ++periods;
-    if (sp.done) break;
+  // Under both jerk bounds (the vector bound's curve spans and scales, docs/planner.md §3c).
+  for (const auto bound : {interpolator::JerkBound::tangential, interpolator::JerkBound::vector}) {
+    JobConfig cfg;
+    cfg.cutting.teeth = 4;
+    cfg.cutting.spindle_rpm = 12000.0;
+    cfg.limits.jerk_bound = bound;
+    Job job(path, cfg);
+    job.prepare();  // the first look-ahead window is filled before the cycle starts
+    const long before = ncd::test::g_allocations.load();
+    int periods = 0;
+    for (;;) {
+      job.prepare();
+      const Setpoint sp = job.step();
+      ++periods;
+      if (sp.done) break;
+    }
+    EXPECT_GT(periods, 100);
+    EXPECT_GE(job.stops_mm().size(), 3u);
+    EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
+        << "allocations during " << periods << " periods, jerk bound "
+        << interpolator::to_string(bound);
   }
-  EXPECT_GT(periods, 100);
-  EXPECT_GE(job.stops_mm().size(), 3u);
-  EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
-      << "allocations during " << periods << " periods";
 }
 
 // Memory does not grow with the run, and grows with the path only by its own data: the spiral
