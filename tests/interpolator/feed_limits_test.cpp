@@ -8,8 +8,10 @@
 #include <cmath>
 #include <iterator>
 #include <limits>
+#include <random>
 
 #include "core/error.hpp"
+#include "tests/common/seed.hpp"
 
 namespace ncd::interpolator {
 namespace {
@@ -169,6 +171,54 @@ TEST(MachineLimitsValidation, DefaultsAreValidAndBadValuesNamed) {
   m = {};
   m.feed_tolerance_rel = 1e-16;
   EXPECT_THROW(validate(m), InputError);
+}
+
+// The jerk-vector laws of docs/planner.md §3c against their definitions, on random curves and
+// speeds (seed printed): the tangential scale σ is the largest in [0, 1] with
+// (σJ + v³κ²)² + (3vσAκ + v³g)² ≤ (βJ)², found here by a brute-force scan of σ; the jerk-vector
+// speed is where σ reaches kMinTangentialScale × β; the jump speed solves
+// 2 v sin(φ/2)/T² + 0.75 v² Δκ/T = kJumpJerkShare J.
+TEST(JerkVectorLaws, MatchTheirDefinitions) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  MachineLimits m;
+  const double J = m.max_jerk_mm_per_s3, A = m.max_accel_mm_per_s2, T = m.period_s;
+  const auto excess = [&](double sigma, double k, double g, double v, double beta) {
+    const double v3 = v * v * v;
+    return std::pow(sigma * J + v3 * k * k, 2) + std::pow(3.0 * v * sigma * A * k + v3 * g, 2) -
+           beta * beta * J * J;
+  };
+  for (int i = 0; i < 2000; ++i) {
+    const double k = std::pow(10.0, -3.0 + 4.0 * u01(rng));  // 0.001 to 10 /mm
+    const double g = u01(rng) < 0.3 ? 0.0 : std::pow(10.0, -4.0 + 4.0 * u01(rng));
+    const double v = 0.1 + 150.0 * u01(rng), beta = u01(rng) < 0.5 ? 1.0 : 0.5;
+    const double sigma = tangential_scale(m, k, g, v, beta);
+    ASSERT_GE(sigma, 0.0);
+    ASSERT_LE(sigma, 1.0);
+    // Brute force: the largest σ on a grid of 1e-4 that keeps the bound.
+    double best = -1.0;
+    for (int n = 0; n <= 10000; ++n) {
+      if (excess(n * 1e-4, k, g, v, beta) <= 0.0) best = n * 1e-4;
+    }
+    if (best < 0.0) {
+      EXPECT_EQ(sigma, 0.0) << "k " << k << " g " << g << " v " << v;
+    } else {
+      EXPECT_NEAR(sigma, best, 1.01e-4) << "k " << k << " g " << g << " v " << v;
+      EXPECT_LE(excess(sigma, k, g, v, beta), 1e-9 * J * J);
+    }
+    const double vj = jerk_vector_feed_mm_per_s(m, k, g, beta);
+    EXPECT_NEAR(tangential_scale(m, k, g, vj, beta), kMinTangentialScale * beta, 1e-6);
+    const double phi = M_PI * u01(rng), dk = u01(rng) < 0.3 ? 0.0 : k;
+    const double vjump = jump_feed_mm_per_s(m, phi, dk);
+    const double third =
+        2.0 * vjump * std::sin(0.5 * phi) / (T * T) + 0.75 * vjump * vjump * dk / T;
+    EXPECT_NEAR(third, kJumpJerkShare * J, 1e-9 * J);
+    EXPECT_NEAR(jump_jerk_mm_per_s3(m, phi, dk, vjump), third, 1e-9 * J);
+  }
+  EXPECT_EQ(tangential_scale(m, 0.0, 0.0, 100.0, 0.5), 0.5);  // a line: only the budget
+  EXPECT_EQ(jerk_vector_feed_mm_per_s(m, 0.0, 0.0), kInf);
+  EXPECT_EQ(jump_feed_mm_per_s(m, 0.0, 0.0), kInf);
 }
 
 }  // namespace
