@@ -394,8 +394,9 @@ void Planner::set_policy_limits() {
   double sigma = 1.0;
   if (any_scaled_) {
     const double T = period_s_, a = std::max(x_.a_mm_per_s2, 0.0);
-    const double v_top = x_.v_mm_per_s + (a + a_max_) * 2.0 * T +
-                         (a + a_max_ * T) * (a + a_max_ * T) / (2.0 * j_max_ * scale_floor_);
+    const double a_next = std::min(a + j_max_ * T, a_max_);  // after one more period
+    const double v_top =
+        x_.v_mm_per_s + (a + a_max_) * 2.0 * T + a_next * a_next / (2.0 * j_max_ * scale_floor_);
     for (std::size_t i = 0; i < count_; ++i) sigma = std::min(sigma, sample_scale(i, v_top));
   }
   pol_a_ = a_max_ * sigma;
