@@ -62,6 +62,99 @@ inline double scurve_time_s(double d, double v, double a, double j) {
   return 2.0 * ramp_t(0.5 * (lo + hi));
 }
 
+// A lower bound on the duration of any motion along a velocity-limit profile with |a| ≤ A and
+// |jerk| ≤ J, from rest at s[0] to rest at s.back(): the profile V(s) must already hold the
+// acceleration (the phase plane's forward and backward passes), V[0] = V.back() = 0.
+//
+// The phase plane alone lets the acceleration jump from −A to +A at the bottom of every dip of
+// V, and from 0 to A at the rest ends; here the jerk is counted there. Pick pivots: the rest
+// ends, where (v, a) = (0, 0), and the bottoms of the dips of V, where the motion's state is
+// some (v0 ≤ V, a0 ∈ [−A, A]). Split the path between consecutive pivots. From a pivot, any
+// motion's acceleration τ later is at most min(A, a0 + J τ), and τ earlier its deceleration is
+// at most min(A, −a0 + J τ) (|jerk| ≤ J); the fastest such motion that keeps v ≤ V(s)
+// (accelerating at that cap, or along V where V binds: in one dimension under an upper bound
+// v ≤ V(s) and a cap that only grows with time, it is ahead at every instant) reaches the
+// split points in a time that no motion beats. So the duration is at least the sum, over
+// pivots, of the fastest backward and forward times to the neighbouring splits, minimised over
+// the unknown a0 at interior pivots (the forward time falls and the backward time rises with
+// a0, so a grid of a0 bounds the minimum from below: forward at the upper and backward at the
+// lower end of each cell). Every choice of pivots and splits gives a valid bound; the splits
+// are taken at the top of V between pivots, and a dip is a pivot where V rises by at least 5 %
+// on both sides. The integration in time (step dt_s) is numerical, like the phase plane's.
+inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector<double>& V,
+                                 double A, double J, double dt_s = 5e-6) {
+  const std::size_t n = s.size();
+  // The fastest motion from pivot i towards the split at index `to`, with v0 = V[i] and the
+  // acceleration cap min(A, a_start + J τ) in its own direction of travel.
+  const auto fastest_s = [&](std::size_t i, std::size_t to, double a_start) {
+    const double len = std::abs(s[to] - s[i]);
+    const int dir = to > i ? 1 : -1;
+    std::size_t k = i;  // cell index: position between s[k] and s[k + dir]
+    double x = 0.0, v = V[i], t = 0.0;
+    const auto limit_at = [&](double dist) {
+      while (k != to && std::abs(s[k + static_cast<std::size_t>(dir)] - s[i]) < dist) {
+        k = dir > 0 ? k + 1 : k - 1;
+      }
+      // The larger end of the cell: V between samples is not below both (a concave V near
+      // rest, √(2 A d), would be cut by a chord).
+      return k == to ? V[to] : std::max(V[k], V[dir > 0 ? k + 1 : k - 1]);
+    };
+    while (x < len) {
+      const double cap = std::min(A, a_start + J * (t + dt_s));
+      double v1 = std::max(0.0, v + cap * dt_s);
+      const double step = 0.5 * (v + v1) * dt_s;
+      v1 = std::min(v1, limit_at(x + step));
+      const double step1 = 0.5 * (v + v1) * dt_s;
+      if (x + step1 >= len) {
+        const double v_mid = 0.5 * (v + v1);
+        return t + (v_mid > 0.0 ? (len - x) / v_mid : dt_s);
+      }
+      if (step1 <= 0.0 && cap <= 0.0 && v <= 0.0) {  // parked: wait for the cap to turn
+        t += dt_s;
+        continue;
+      }
+      x += step1;
+      v = v1;
+      t += dt_s;
+    }
+    return t;
+  };
+  // Pivots: the ends and the prominent dips.
+  std::vector<std::size_t> pivots{0};
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    if (!(V[i] < V[i - 1] && V[i] <= V[i + 1])) continue;
+    const double rise = 1.05 * V[i];
+    bool left = false, right = false;
+    for (std::size_t k = i; k-- > pivots.back() && V[k] >= V[i] && !left;) left = V[k] >= rise;
+    for (std::size_t k = i + 1; k < n && V[k] >= V[i] && !right; ++k) right = V[k] >= rise;
+    if (left && right) pivots.push_back(i);
+  }
+  pivots.push_back(n - 1);
+  // Splits: the top of V between consecutive pivots.
+  std::vector<std::size_t> splits;
+  for (std::size_t p = 0; p + 1 < pivots.size(); ++p) {
+    std::size_t best = pivots[p] + 1;
+    for (std::size_t k = pivots[p] + 1; k < pivots[p + 1]; ++k)
+      if (V[k] > V[best]) best = k;
+    splits.push_back(std::min(best, pivots[p + 1]));
+  }
+  double total = fastest_s(0, splits.front(), 0.0) + fastest_s(n - 1, splits.back(), 0.0);
+  constexpr int kCells = 40;
+  for (std::size_t p = 1; p + 1 < pivots.size(); ++p) {
+    const std::size_t i = pivots[p];
+    std::vector<double> fwd(kCells + 1), bwd(kCells + 1);
+    for (int c = 0; c <= kCells; ++c) {
+      const double a0 = -A + 2.0 * A * c / kCells;
+      fwd[c] = fastest_s(i, splits[p], a0);
+      bwd[c] = fastest_s(i, splits[p - 1], -a0);
+    }
+    double least = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < kCells; ++c) least = std::min(least, fwd[c + 1] + bwd[c]);
+    total += least;
+  }
+  return total;
+}
+
 // The programmed geometry: points along the path with their arc length. Polyline vertices
 // exactly; NURBS sampled about every `step_mm` of arc.
 struct GeometryTable {
