@@ -6,9 +6,10 @@
 // |j| <= j_max, v >= 0, at rest at s = 0 and at rest exactly at s = L.
 //
 //   v_lim ─────────┐              ┌──────────────        window: samples from s to
-//                  │              │                      s + H(v), H = S-curve braking
+//                  │              │                      s + H(v, a), H = S-curve braking
 //   v(s)   ╭───────╮╲             │    ╭──────────       distance from a bound on the
-//         ╱         ╲╲____________│___╱                  speed reachable soon, plus margin
+//         ╱         ╲╲____________│___╱                  speed reachable soon, the ramp of a
+//                                                        to 0 (twice), plus margin
 //        ╱           ╲ certificate: brake & settle
 //   ────●──────────────●──────────●───────────────●──── s
 //       s(t)   s(t+T)   block      block          s + H    (or L: land exactly there)
@@ -201,14 +202,18 @@ const LimitSample& Planner::sample(std::size_t i) const {
   return ring_[(head_ + i) % ring_.size()];
 }
 
-// Look-ahead distance wanted at (v, a): braking from a bound on the speed soon reachable.
-// (Braking at the lowest tangential scale a sample may carry.)
+// Look-ahead distance wanted at (v, a): braking from a bound on the speed soon reachable, plus
+// twice the travel while the acceleration reached by then ramps down to 0 (the end of the
+// window is a stop for the certificate; counting the ramp once gave the cubic 1.648 s, 1.5 or
+// more times 1.628 s, none 1.664 s: docs/planner.md §4). (Braking at the lowest tangential
+// scale a sample may carry.)
 double Planner::horizon_mm(double v, double a) const {
   const double T = period_s_;
   const double v_hi = v + (std::max(a, 0.0) + a_max_) * 2.0 * T + a_max_ * a_max_ / (2.0 * j_max_);
+  const double a_hi = std::min(std::max(a, 0.0) + 2.0 * j_max_ * T, a_max_);
   const double a_brake = a_max_ * scale_floor_, j_brake = j_max_ * scale_floor_;
-  return braking_distance_mm(v_hi, 0.0, a_brake, j_brake) + 4.0 * v_hi * T +
-         8.0 * j_max_ * T * T * T;
+  return braking_distance_mm(v_hi, 0.0, a_brake, j_brake) + 2.0 * v_hi * a_hi / j_brake +
+         4.0 * v_hi * T + 8.0 * j_max_ * T * T * T;
 }
 
 double Planner::lookahead_bound_mm() const {

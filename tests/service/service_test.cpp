@@ -171,7 +171,10 @@ TEST(ServiceStates, AnOperatorHoldComesToRestOnThePathAndResumesWithinTheLimits)
   const Vec3 rest = got.back().p;
   const std::size_t n = got.size();
   for (int k = 0; k < 200; ++k) s.poll();
-  for (std::size_t k = n; k < got.size(); ++k) EXPECT_EQ(got[k].p, rest);  // at rest, held
+  // At rest, held: the walker may repay its sub-tolerance arc-length residual (PathWalker's
+  // debt, here about 1e-14 mm) in the first held period; after that nothing moves at all.
+  for (std::size_t k = n; k < got.size(); ++k) EXPECT_LT((got[k].p - rest).norm(), 1e-12);
+  for (std::size_t k = n + 1; k < got.size(); ++k) EXPECT_EQ(got[k].p, got[n].p);
   EXPECT_EQ(s.state(), State::Holding);
   EXPECT_TRUE(s.status().time_left_s.has_value());
   s.resume(HoldHolder::Operator);
