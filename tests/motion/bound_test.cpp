@@ -74,11 +74,10 @@ Walk walk(const Path& path) {
   return w;
 }
 
-// The phase-plane profile of one NURBS segment at program feed f (mm/s), from rest to rest,
-// and the two bounds on it: the phase plane's own time, and the jerk counted at its dips and
-// rest ends (test::jerk_pivot_bound_s).
+// Two bounds from the phase-plane profile of one NURBS segment at program feed f (mm/s), from
+// rest to rest: the phase plane's own time, and the jerk counted at the profile's dips and rest
+// ends (test::jerk_pivot_bound_s).
 struct PhasePlane {
-  std::vector<double> s_mm, v_mm_per_s;
   double time_s = 0.0;       // acceleration only (jerk only through the rest-end cap)
   double jerk_time_s = 0.0;  // with the jerk at the pivots
 };
@@ -113,8 +112,6 @@ PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s) {
   PhasePlane pp;
   for (int i = 0; i < n; ++i) pp.time_s += 2.0 * (s[i + 1] - s[i]) / (v[i] + v[i + 1]);
   pp.jerk_time_s = test::jerk_pivot_bound_s(s, v, a, jerk);
-  pp.s_mm = std::move(s);
-  pp.v_mm_per_s = std::move(v);
   return pp;
 }
 

@@ -99,7 +99,7 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
       // rest, √(2 A d), would be cut by a chord).
       return k == to ? V[to] : std::max(V[k], V[dir > 0 ? k + 1 : k - 1]);
     };
-    while (x < len) {
+    while (x < len && t < 1e4) {  // (a stop is a lower bound too; V = 0 over a cell never ends)
       const double cap = std::min(A, a_start + J * (t + dt_s));
       double v1 = std::max(0.0, v + cap * dt_s);
       const double step = 0.5 * (v + v1) * dt_s;
