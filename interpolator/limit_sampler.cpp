@@ -80,6 +80,11 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kMinTurnRad = 1e-9;  // below this a joint is straight
+// Where the limit jumps at a smooth knot, the nodes beside it lie this many periods of travel
+// (at the lower speed) from it: the slow stretch is the arc and these two guards. One whole
+// period held the arc's speed two periods longer at each corner (gentle zig-zag under G64
+// P0.01: 3.040 s; a quarter: 2.960 s, and a tenth the same; docs/planner.md §3a).
+constexpr double kGuardPeriods = 0.25;
 
 FeedLimitResult min_of(FeedLimitResult a, FeedLimitResult b) {
   return b.feed_mm_per_s < a.feed_mm_per_s ? b : a;
@@ -746,8 +751,8 @@ bool LimitSampler::next_interval(Interval& iv) {
       }
     }
     u1 = inner_corner_edge_u(u1);
-    // A jump of the limit at a smooth knot (a blend arc meeting its lines): a node one period
-    // of travel at the lower speed before and after it.
+    // A jump of the limit at a smooth knot (a blend arc meeting its lines): a node a quarter of
+    // a period's travel at the lower speed before and after it (kGuardPeriods).
     {
       const auto& edges = knot_edges_[segment_];
       const double tiny = 1e-12 * std::max(1.0, std::abs(u1));
@@ -757,11 +762,13 @@ bool LimitSampler::next_interval(Interval& iv) {
       const double T = limits_.period_s;
       if (knot_ > 0 && knot_ - 1 < edges.size() && std::isfinite(edges[knot_ - 1].v_mm_per_s) &&
           edges[knot_ - 1].speed_out > 0.0) {
-        consider(knots[knot_ - 1] + edges[knot_ - 1].v_mm_per_s * T / edges[knot_ - 1].speed_out);
+        consider(knots[knot_ - 1] +
+                 edges[knot_ - 1].v_mm_per_s * kGuardPeriods * T / edges[knot_ - 1].speed_out);
       }
       if (knot_ < edges.size() && std::isfinite(edges[knot_].v_mm_per_s) &&
           edges[knot_].speed_in > 0.0) {
-        consider(knots[knot_] - edges[knot_].v_mm_per_s * T / edges[knot_].speed_in);
+        consider(knots[knot_] -
+                 edges[knot_].v_mm_per_s * kGuardPeriods * T / edges[knot_].speed_in);
       }
     }
     // Rest refinement: where the motion rests at a point whose limit dips towards 0 (a
