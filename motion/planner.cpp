@@ -38,11 +38,14 @@
 // 4. Landing. Near L, the committed plan (which stops at or before L) plus the minimum-norm
 //    jerk correction that puts the end state exactly at (L, 0, 0), or a minimum-norm landing of
 //    n periods from the current state, is checked as above and then executed as it stands.
-//    The shortest are tried first: zero-jerk bases from the time-optimal stop time up, then the
-//    plan cut short by 3, 2, 1 periods (its creep onto L folded into the correction), then the
-//    plan itself. A zero-jerk landing longer than cruising at v and then stopping
-//    time-optimally is not taken while v ≥ a_max T: committed early, it brakes softly all the
-//    way (docs/planner.md §4).
+//    The shortest are tried first: when cruising at the limit, the time-optimal stop itself
+//    (ramps at 0.99 j_max) after the cruise that fills the distance, its deceleration lowered by
+//    bisection so that it rests on L after whole periods (the correction then only takes up the
+//    period averaging, and leaves the cruise alone); then zero-jerk bases from the time-optimal
+//    stop time up, then the plan cut short by 3, 2, 1 periods (its creep onto L folded into the
+//    correction), then the plan itself. A zero-jerk landing longer than cruising at v and then
+//    stopping time-optimally is not taken while v ≥ a_max T: committed early, it brakes softly all
+//    the way (docs/planner.md §4).
 // Override scales the limits; lowering it runs π towards the new limits while checking
 // against the old ones until the new ones hold. Hold makes π's target 0 from now on.
 // Jerk vector (docs/planner.md §3c): a sample may carry a curve span (κ, g, budget), and then
@@ -76,6 +79,7 @@ double clampj(double j, double j_max) {
 }
 
 constexpr double kFinalJerk = 0.9;  // final ramp at 0.9 j_max: the slack absorbs sampling
+constexpr double kLandJerk = 0.99;  // a landing's ramps: room for its minimum-norm correction
 
 // Time-optimal velocity change from (v0, a0) to (w, a = 0) in the decreasing direction: a ramp
 // at −j1 to a_p, a hold at a_p (>= −a_max), a final ramp at +j3 to a = 0.
@@ -102,18 +106,23 @@ bool decreasing(double v0, double a0, double w, double j1, double j3) {
   return (a0 > 0.0 ? v0 + 0.5 * a0 * a0 / j1 : v0 - 0.5 * a0 * a0 / j3) > w;
 }
 
-// Distance of the decreasing profile from (v0, a0) down to (w, 0); 0 if none is needed.
-double profile_distance(double v0, double a0, double w, double a_max, double j_max) {
-  const double j3 = kFinalJerk * j_max;
-  if (!decreasing(v0, a0, w, j_max, j3)) return 0.0;
-  const Profile p = decrease_profile(v0, a0, w, a_max, j_max, j3);
+// Distance of the decreasing profile from (v0, a0) down to (w, 0), ramps at j1 and j3; 0 if none
+// is needed.
+double profile_distance(double v0, double a0, double w, double a_max, double j1, double j3) {
+  if (!decreasing(v0, a0, w, j1, j3)) return 0.0;
+  const Profile p = decrease_profile(v0, a0, w, a_max, j1, j3);
   const double t1 = p.t1, t2 = p.t2, t3 = p.t3, ap = p.ap;
-  const double d1 = v0 * t1 + 0.5 * a0 * t1 * t1 - j_max * t1 * t1 * t1 / 6.0;
-  const double v1 = v0 + a0 * t1 - 0.5 * j_max * t1 * t1;
+  const double d1 = v0 * t1 + 0.5 * a0 * t1 * t1 - j1 * t1 * t1 * t1 / 6.0;
+  const double v1 = v0 + a0 * t1 - 0.5 * j1 * t1 * t1;
   const double d2 = v1 * t2 + 0.5 * ap * t2 * t2;
   const double v2 = v1 + ap * t2;
   const double d3 = v2 * t3 + 0.5 * ap * t3 * t3 + j3 * t3 * t3 * t3 / 6.0;
   return d1 + d2 + d3;
+}
+
+// The policy's profile: the final ramp at kFinalJerk j_max.
+double profile_distance(double v0, double a0, double w, double a_max, double j_max) {
+  return profile_distance(v0, a0, w, a_max, j_max, kFinalJerk * j_max);
 }
 
 // One period's jerk towards (w, 0) in the decreasing direction: the period average of the
@@ -533,10 +542,18 @@ bool Planner::rollout(double j0, double scale_check, double stop_mm, std::vector
 
 // Landing on (L, 0, 0) in n periods: base jerks (plan tail or 0) plus the minimum-norm
 // correction; checked exactly; on success it becomes the plan (landing_ set).
-bool Planner::land_with(std::size_t n, bool use_plan) {
+bool Planner::land_with(std::size_t n, LandBase base) {
   if (n < 3 || n > rollout_cap_) return false;
+  // The correction acts on the periods from `first` on: the S-curve base's cruise stays exact
+  // (at the cap any added jerk would cross the limit).
+  const std::size_t first = base == LandBase::scurve ? land_first_ : 0;
+  if (first + 3 > n) return false;
   const double T = period_s_;
-  for (std::size_t i = 0; i < n; ++i) land_j_[i] = use_plan ? plan_[plan_pos_ + i] : 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    land_j_[i] = base == LandBase::plan     ? plan_[plan_pos_ + i]
+                 : base == LandBase::scurve ? land_base_[i]
+                                            : 0.0;
+  }
   const auto end_state = [&](Kin& y) {  // forward without snapping, from x_
     y = x_;
     for (std::size_t i = 0; i < n; ++i) {
@@ -545,12 +562,12 @@ bool Planner::land_with(std::size_t n, bool use_plan) {
               y.v_mm_per_s + y.a_mm_per_s2 * T + 0.5 * j * T * T, y.a_mm_per_s2 + j * T};
     }
   };
-  // Gram system in the basis 1, u, u² with u = (k − (n−1)/2)/n, k = periods after this one;
-  // rows scaled by T, T², T³ (a, v, s).
+  // Gram system in the basis 1, u, u² with u = (k − (m−1)/2)/m, k = periods after this one,
+  // m = n − first corrected periods; rows scaled by T, T², T³ (a, v, s).
   Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
-  const double half = 0.5 * static_cast<double>(n - 1);
-  const double nn = static_cast<double>(n);
-  for (std::size_t i = 0; i < n; ++i) {
+  const double half = 0.5 * static_cast<double>(n - first - 1);
+  const double nn = static_cast<double>(n - first);
+  for (std::size_t i = first; i < n; ++i) {
     const double k = static_cast<double>(n - 1 - i);
     const double u = (k - half) / nn;
     const double rows[3] = {1.0, 0.5 * (2.0 * k + 1.0), (3.0 * k * k + 3.0 * k + 1.0) / 6.0};
@@ -563,10 +580,13 @@ bool Planner::land_with(std::size_t n, bool use_plan) {
   for (int pass = 0; pass < 2; ++pass) {
     Kin y{};
     end_state(y);
+    // (Aimed a hair short of L, 1e-12 relative: rounding must not carry the last period past
+    // the last limit sample, which the exact checks refuse; the end snaps onto L.)
+    const double aim_mm = length_mm_ - 1e-12 * std::max(1.0, length_mm_);
     const Eigen::Vector3d r(-y.a_mm_per_s2 / T, -y.v_mm_per_s / (T * T),
-                            (length_mm_ - y.s_mm) / (T * T * T));
+                            (aim_mm - y.s_mm) / (T * T * T));
     const Eigen::Vector3d c = lu.solve(r);
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = first; i < n; ++i) {
       const double u = (static_cast<double>(n - 1 - i) - half) / nn;
       land_j_[i] += c(0) + c(1) * u + c(2) * u * u;
     }
@@ -587,6 +607,45 @@ bool Planner::land_with(std::size_t n, bool use_plan) {
   plan_pos_ = 0;
   landing_ = true;
   return true;
+}
+
+// A landing base: the time-optimal stop from here with both ramps at kLandJerk j_max, delayed
+// (the acceleration held) so that it ends after n periods, as the period averages of its jerk,
+// with its deceleration lowered (bisection) until it rests on L: the correction then only
+// takes up the averaging. False if no deceleration up to a_max rests on L after n periods.
+bool Planner::scurve_base(std::size_t n) {
+  if (n > rollout_cap_) return false;
+  const double T = period_s_, jl = kLandJerk * j_max_;
+  const auto end_mm = [&](double a_cap) {  // fills land_base_; where it rests (NaN: too long)
+    const Profile p = decrease_profile(x_.v_mm_per_s, x_.a_mm_per_s2, 0.0, a_cap, jl, jl);
+    const double t0 = static_cast<double>(n) * T - (p.t1 + p.t2 + p.t3);
+    if (t0 < 0.0) return std::numeric_limits<double>::quiet_NaN();
+    const double brake_end = t0 + p.t1, ramp_begin = brake_end + p.t2;
+    const double ramp_end = ramp_begin + p.t3;
+    const auto overlap = [](double lo, double hi, double a, double b) {
+      return std::max(0.0, std::min(hi, b) - std::max(lo, a));
+    };
+    land_first_ = static_cast<std::size_t>(t0 / T);
+    Kin y = x_;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double lo = static_cast<double>(i) * T, hi = lo + T;
+      const double j =
+          jl * (overlap(lo, hi, ramp_begin, ramp_end) - overlap(lo, hi, t0, brake_end)) / T;
+      land_base_[i] = j;
+      y = Kin{y.s_mm + y.v_mm_per_s * T + 0.5 * y.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
+              y.v_mm_per_s + y.a_mm_per_s2 * T + 0.5 * j * T * T, y.a_mm_per_s2 + j * T};
+    }
+    return y.s_mm;
+  };
+  double hi = a_max_, lo = 0.05 * a_max_;
+  const double s_hi = end_mm(hi), s_lo = end_mm(lo);
+  if (!(s_hi >= length_mm_) || s_lo > length_mm_) return false;  // (NaN at lo: too long, fine)
+  for (int k = 0; k < 40; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    const double s_mid = end_mm(mid);
+    (std::isnan(s_mid) || s_mid < length_mm_ ? lo : hi) = mid;
+  }
+  return !std::isnan(end_mm(hi));
 }
 
 // Tries to land on L from here: the committed plan corrected, then minimum-norm landings.
@@ -612,22 +671,37 @@ bool Planner::try_landing() {
     const double t_cruise = t_stop + std::max(length_mm_ - x_.s_mm - need_mm(x_, 0.0), 0.0) / v;
     n_cruise = std::max(std::ceil(t_cruise / T) + 1.0, static_cast<double>(n0 + 2));
   }
+  // The time-optimal stop itself, after cruising over the distance it leaves: the earliest the
+  // motion can rest on L, to within the periods (the policy's final ramp is at kFinalJerk).
+  // Only when cruising at the limit: below it the follower may still gain before braking.
+  if (v >= a_max_ * T && v >= limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9)) {
+    const double jl = kLandJerk * j_max_;
+    const Profile q = decrease_profile(v, x_.a_mm_per_s2, 0.0, a_max_, jl, jl);
+    const double d_left =
+        length_mm_ - x_.s_mm - profile_distance(v, x_.a_mm_per_s2, 0.0, a_max_, jl, jl);
+    const double t_land = q.t1 + q.t2 + q.t3 + std::max(d_left, 0.0) / v;
+    const auto n_land = static_cast<std::size_t>(std::ceil(t_land / T));
+    for (std::size_t n = n_land; n < n_land + 2; ++n) {
+      if (scurve_base(n) && land_with(n, LandBase::scurve)) return true;
+    }
+  }
   for (std::size_t n = n0; n < tail && n < n0 + kShortLandings; ++n) {
     if (static_cast<double>(n) > n_cruise) break;
-    if (land_with(n, false)) return true;
+    if (land_with(n, LandBase::zero)) return true;
   }
   // The plan cut short: its last periods are often a creep onto L (the policy settles with
   // margin), which the correction can fold into the earlier ones.
   for (std::size_t cut = 3; cut > 0; --cut) {
-    if (tail >= 3 + cut && land_with(tail - cut, true)) return true;
+    if (tail >= 3 + cut && land_with(tail - cut, LandBase::plan)) return true;
   }
-  if (tail >= 3 && land_with(tail, true)) return true;
-  if (tail >= 2 && static_cast<double>(tail + 1) <= n_cruise && land_with(tail + 1, false)) {
+  if (tail >= 3 && land_with(tail, LandBase::plan)) return true;
+  if (tail >= 2 && static_cast<double>(tail + 1) <= n_cruise &&
+      land_with(tail + 1, LandBase::zero)) {
     return true;
   }
   std::size_t n = std::max<std::size_t>(3, tail);
   for (int k = 0; k < 12 && n <= rollout_cap_ && static_cast<double>(n) <= n_cruise; ++k) {
-    if (land_with(n, false)) return true;
+    if (land_with(n, LandBase::zero)) return true;
     n = n + std::max<std::size_t>(1, n / 4);
   }
   return false;

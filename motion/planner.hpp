@@ -131,7 +131,9 @@ class Planner {
   bool rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                std::size_t& out_n);
   bool try_landing();
-  bool land_with(std::size_t n, bool use_plan);
+  enum class LandBase { zero, plan, scurve };  // what a landing's correction starts from
+  bool land_with(std::size_t n, LandBase base);
+  bool scurve_base(std::size_t n);
   double v_settle(const Kin& x) const;
   double deadbeat_jerk(const Kin& x, double w, bool* ok) const;
   double track(const Kin& x, double w) const;
@@ -173,6 +175,7 @@ class Planner {
   bool landing_ = false;
   // landing scratch
   std::vector<double> land_j_, land_base_;
+  std::size_t land_first_ = 0;  // the S-curve base's first braking period
   // override and hold
   double override_applied_ = 1.0, override_target_ = 1.0;
   bool hold_ = false;
