@@ -53,20 +53,25 @@ double adaptive_length(const toolpath::ParametricCurve& c, double a, double b, d
 
 }  // namespace
 
-double curve_length_mm(const toolpath::ParametricCurve& curve) {
+double arc_length_mm(const toolpath::ParametricCurve& curve, double u0, double u1) {
   const auto speed = [&curve](double u) { return curve.eval(u).d1.norm(); };
+  // Four panels before the adaptive check: the path length is what the last period lands on,
+  // so its error would show up there as a feed error.
+  constexpr int kPanels = 4;
+  const double h = (u1 - u0) / kPanels;
+  double total = 0.0;
+  for (int k = 0; k < kPanels; ++k) {
+    const double a = u0 + k * h, b = k + 1 == kPanels ? u1 : a + h;
+    total += adaptive_length(curve, a, b, GaussLegendre10::integrate(speed, a, b), 0);
+  }
+  return total;
+}
+
+double curve_length_mm(const toolpath::ParametricCurve& curve) {
   const std::vector<double> knots = curve.breakpoints();
   double total = 0.0;
-  // Four panels per span before the adaptive check: the path length is what the last period
-  // lands on, so its error would show up there as a feed error.
-  constexpr int kPanels = 4;
   for (std::size_t i = 0; i + 1 < knots.size(); ++i) {
-    if (knots[i + 1] <= knots[i]) continue;
-    const double h = (knots[i + 1] - knots[i]) / kPanels;
-    for (int k = 0; k < kPanels; ++k) {
-      const double a = knots[i] + k * h, b = k + 1 == kPanels ? knots[i + 1] : a + h;
-      total += adaptive_length(curve, a, b, GaussLegendre10::integrate(speed, a, b), 0);
-    }
+    if (knots[i + 1] > knots[i]) total += arc_length_mm(curve, knots[i], knots[i + 1]);
   }
   return total;
 }

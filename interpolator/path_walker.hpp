@@ -56,5 +56,8 @@ class PathWalker {
 
 // Arc length of a NURBS segment by adaptive Gauss–Legendre per knot span, mm.
 double curve_length_mm(const toolpath::ParametricCurve& curve);
+// Arc length between parameters u0 < u1 the same way (four panels, each adaptive), mm: where a
+// span nearly reverses, |C'| has a narrow valley that four fixed panels miss by 7e-4 mm.
+double arc_length_mm(const toolpath::ParametricCurve& curve, double u0, double u1);
 
 }  // namespace ncd::interpolator

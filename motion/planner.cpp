@@ -540,8 +540,9 @@ bool Planner::rollout(double j0, double scale_check, double stop_mm, std::vector
   return false;
 }
 
-// Landing on (L, 0, 0) in n periods: base jerks (plan tail or 0) plus the minimum-norm
-// correction; checked exactly; on success it becomes the plan (landing_ set).
+// Landing on (L, 0, 0) in n periods: base jerks (the plan's tail, 0, or the S-curve of
+// scurve_base) plus the minimum-norm correction; checked exactly; on success it becomes the
+// plan (landing_ set).
 bool Planner::land_with(std::size_t n, LandBase base) {
   if (n < 3 || n > rollout_cap_) return false;
   // The correction acts on the periods from `first` on: the S-curve base's cruise stays exact
@@ -581,8 +582,10 @@ bool Planner::land_with(std::size_t n, LandBase base) {
     Kin y{};
     end_state(y);
     // (Aimed a hair short of L, 1e-12 relative: rounding must not carry the last period past
-    // the last limit sample, which the exact checks refuse; the end snaps onto L.)
-    const double aim_mm = length_mm_ - 1e-12 * std::max(1.0, length_mm_);
+    // the last limit sample, which the exact checks refuse; the end snaps onto L. Not when
+    // already that close: a landing from there must still move forward.)
+    const double hair = 1e-12 * std::max(1.0, length_mm_);
+    const double aim_mm = length_mm_ - x_.s_mm > 4.0 * hair ? length_mm_ - hair : length_mm_;
     const Eigen::Vector3d r(-y.a_mm_per_s2 / T, -y.v_mm_per_s / (T * T),
                             (aim_mm - y.s_mm) / (T * T * T));
     const Eigen::Vector3d c = lu.solve(r);
