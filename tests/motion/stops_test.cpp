@@ -246,6 +246,47 @@ TEST(Stops, JointIntoANurbsWithARepeatedFirstPointIsAStop) {
   }
 }
 
+// A corner at a knot of full multiplicity, after a span that nearly reverses (|C'| falls from
+// about 30 to 1 and back): the stop is at the knot itself, under both jerk bounds. Its arc length
+// was once summed with four fixed Gauss–Legendre panels, 11.80719 mm for a span of 11.80651 mm
+// (a slow reference in the test: the midpoint rule on 200 000 points), and the motion turned
+// the corner at 0.1 mm/s before resting (a jerk vector of 36 500 mm/s³; seed 47 of
+// Property.RandomProgramsKeepTheJerkVectorBound, program 272).
+TEST(Stops, CornerAfterANearlyReversingSpanStopsAtTheKnot) {
+  const std::vector<Vec3> pts{{-8.4032558467997216, 22.365131266210554, -0.069592772124472901},
+                              {-14.441175130404671, 20.454642477349903, -2.9063812498620463},
+                              {-15.389626355431991, 17.314213143167994, -8.2425111627821437},
+                              {-12.259836815441108, 20.67156310013927, -2.3280190613279679},
+                              {-9.3288558181059713, 19.55596148220085, -6.5076814429995364},
+                              {-7.8287392642222891, 17.718377404707493, -7.4302298913393425},
+                              {-6.6908031590136661, 16.189045792617645, -5.5162665620990126},
+                              {-6.1181092915409536, 17.496319648852506, -4.2223837390758341}};
+  // The first span is the Bézier of the first four points: its length by the midpoint rule.
+  const auto speed = [&pts](double u) {
+    const Vec3 d = 3.0 * ((pts[1] - pts[0]) * (1 - u) * (1 - u) +
+                          2.0 * (pts[2] - pts[1]) * (1 - u) * u + (pts[3] - pts[2]) * u * u);
+    return d.norm();
+  };
+  const int n = 200000;
+  double span_mm = 0.0;
+  for (int k = 0; k < n; ++k) span_mm += speed((k + 0.5) / n) / n;
+  for (const auto bound : {interpolator::JerkBound::tangential, interpolator::JerkBound::vector}) {
+    Path path;
+    PathSegment seg;
+    seg.geometry = toolpath::NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 4, 5, 5, 5, 5}, pts, {});
+    seg.feed_mm_per_min = 4355.4465837584821;
+    path.segments.push_back(seg);
+    JobConfig cfg = test::planner_machine();
+    cfg.limits.jerk_bound = bound;
+    const Motion r = run(path, cfg, 100'000);
+    expect_at_rest_at(r, pts.back());
+    const auto at_rest = rests(r);
+    ASSERT_EQ(at_rest.size(), 1U);
+    EXPECT_NEAR(r.sp[at_rest[0]].s_mm, span_mm, 1e-9);
+    EXPECT_LT((r.sp[at_rest[0]].p - pts[3]).norm(), 1e-9);
+  }
+}
+
 TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {
   // Five holes: rapid over, plunge 3 mm at F300, retract at the rapid rate.
   Path path;
