@@ -142,8 +142,7 @@ void Job::prepare() {
   const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
                         const JerkVectorSpan& span) {
     check(s_mm, v_mm_per_s, limit);
-    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit), span.curvature_per_mm,
-                   span.turn_per_mm2, span.budget});
+    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit), span});
   };
   while (planner_.wants_samples()) {
     if (carry_n_ > 0) {
@@ -174,18 +173,12 @@ void Job::prepare() {
       push(length, left, node.limit, JerkVectorSpan{});
       const double right = past ? left : node.right_mm_per_s;
       check(length, right, node.limit);
-      carry_[0] = {0.0,
-                   right,
-                   static_cast<std::uint8_t>(node.limit),
-                   first.curvature_per_mm,
-                   first.turn_per_mm2,
-                   first.budget};
+      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit), first};
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
       if (past) {  // no node fell on the stop: keep this one for the next
-        carry_[1] = {
-            node.s_mm - end,       node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit),
-            span.curvature_per_mm, span.turn_per_mm2,  span.budget};
+        carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit),
+                     span};
         carry_n_ = 2;
       }
       break;  // the planner has its end

@@ -244,7 +244,7 @@ void Planner::push(const LimitSample& in) {
                      " is invalid: a feed limit must be finite and > 0; where the machine must "
                      "stop, end the path there and start a new one");
   }
-  const JerkVectorSpan span = in.jerk_span();
+  const JerkVectorSpan span = in.jerk_span;
   const bool constrained =
       span.curvature_per_mm != 0.0 || span.turn_per_mm2 != 0.0 || span.budget != 1.0;
   // (A span whose scale at v_max falls below min_tangential_scale is kept: the look-ahead is
@@ -324,10 +324,14 @@ void Planner::drop_passed_samples() {
 }
 
 // One period of constant jerk j from x (exact cubic); rest is snapped to exact zeros.
-Planner::Kin Planner::advance(const Kin& x, double j) const {
+Planner::Kin Planner::cubic_step(const Kin& x, double j) const {
   const double T = period_s_;
-  Kin y{x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
-        x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T, x.a_mm_per_s2 + j * T};
+  return Kin{x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
+             x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T, x.a_mm_per_s2 + j * T};
+}
+
+Planner::Kin Planner::advance(const Kin& x, double j) const {
+  Kin y = cubic_step(x, j);
   if (std::abs(y.v_mm_per_s) <= v_eps_ && std::abs(y.a_mm_per_s2) <= a_eps_) {
     y.v_mm_per_s = 0.0;
     y.a_mm_per_s2 = 0.0;
@@ -364,7 +368,7 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
     const double lim = std::min(sample(k).v_max_mm_per_s, sample(k + 1).v_max_mm_per_s) * scale;
     if (v_hi > lim * (1.0 + kRelSlack)) return false;
     if (any_scaled_) {  // the curve of the interval that starts at sample k
-      const JerkVectorSpan q = sample(k).jerk_span();
+      const JerkVectorSpan q = sample(k).jerk_span;
       span.curvature_per_mm = std::max(span.curvature_per_mm, q.curvature_per_mm);
       span.turn_per_mm2 = std::max(span.turn_per_mm2, q.turn_per_mm2);
       span.budget = std::min(span.budget, q.budget);
@@ -385,7 +389,7 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
 // limit at least min_tangential_scale).
 double Planner::sample_scale(std::size_t i, double v) const {
   const LimitSample& q = sample(i);
-  return tangential_scale(q.jerk_span(), std::min(v, q.v_max_mm_per_s * override_applied_), a_max_,
+  return tangential_scale(q.jerk_span, std::min(v, q.v_max_mm_per_s * override_applied_), a_max_,
                           j_max_);
 }
 
@@ -557,11 +561,7 @@ bool Planner::land_with(std::size_t n, LandBase base) {
   }
   const auto end_state = [&](Kin& y) {  // forward without snapping, from x_
     y = x_;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double j = land_j_[i];
-      y = Kin{y.s_mm + y.v_mm_per_s * T + 0.5 * y.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
-              y.v_mm_per_s + y.a_mm_per_s2 * T + 0.5 * j * T * T, y.a_mm_per_s2 + j * T};
-    }
+    for (std::size_t i = 0; i < n; ++i) y = cubic_step(y, land_j_[i]);
   };
   // Gram system in the basis 1, u, u² with u = (k − (m−1)/2)/m, k = periods after this one,
   // m = n − first corrected periods; rows scaled by T, T², T³ (a, v, s).
@@ -635,8 +635,7 @@ bool Planner::scurve_base(std::size_t n) {
       const double j =
           jl * (overlap(lo, hi, ramp_begin, ramp_end) - overlap(lo, hi, t0, brake_end)) / T;
       land_base_[i] = j;
-      y = Kin{y.s_mm + y.v_mm_per_s * T + 0.5 * y.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
-              y.v_mm_per_s + y.a_mm_per_s2 * T + 0.5 * j * T * T, y.a_mm_per_s2 + j * T};
+      y = cubic_step(y, j);
     }
     return y.s_mm;
   };

@@ -19,12 +19,9 @@ struct LimitSample {
   double v_max_mm_per_s = 0.0;  // > 0; a point where the machine must stop ends the path
   std::uint8_t limit_id = 0;    // which feed law set it (< kLimitIdReserved)
   // Where the jerk vector is bounded (docs/planner.md §3c): the curve of the interval that
-  // starts at this sample (its largest κ and g, and its budget; see JerkVectorSpan; unlike
-  // v_max, not shared with the interval before). 0, 0, 1: no constraint.
-  double curvature_per_mm = 0.0;
-  double turn_per_mm2 = 0.0;
-  double jerk_budget = 1.0;
-  JerkVectorSpan jerk_span() const { return {curvature_per_mm, turn_per_mm2, jerk_budget}; }
+  // starts at this sample (its largest κ and g, and its budget; unlike v_max, not shared with
+  // the interval before). The default (0, 0, 1): no constraint.
+  JerkVectorSpan jerk_span{};
 };
 
 // limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
@@ -139,6 +136,7 @@ class Planner {
   double track(const Kin& x, double w) const;
   double need_mm(const Kin& x, double w) const;
   Kin advance(const Kin& x, double j) const;
+  Kin cubic_step(const Kin& x, double j) const;  // one period at jerk j, exactly, no snapping
   void commit(double j, std::uint8_t limit_id);
   double limit_at(double s_mm) const;
 
