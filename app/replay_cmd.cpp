@@ -229,6 +229,15 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["jerk_max"] = st.jerk_max_mm_per_s3;
   j["jerk_vector_max"] = st.jerk_vector_max_mm_per_s3;
   j["jerk_bound"] = motion::jerk_bound_in_force(m.limits.jerk_bound);
+  // Corners under G64 P (docs/planner.md §3a, §3d): rounded by an arc, or passed without their
+  // stop by overlapping the two moves; the deviation is the farthest overlapped setpoint's.
+  const motion::OverlapReport& o = job.overlap_report();
+  j["corners"] = {{"rounded", job.blend_report().corners},
+                  {"rounded_max_deviation_mm", job.blend_report().max_deviation_mm},
+                  {"overlapped", o.corners},
+                  {"overlap_periods_saved", o.periods_saved},
+                  {"overlap_max_deviation_mm", o.max_deviation_mm},
+                  {"setpoint_delay_periods", job.delay_periods()}};
   j["feed_max_mm_per_min"] = st.feed_max_mm_per_s * 60.0;
   j["limit_violations"] = st.limit_violations();
   j["limit_violations_by_kind"] = {{"feed", st.violations_feed},
@@ -449,6 +458,8 @@ int run_replay(const ReplayArgs& a) {
                  "  drift             %.3g mm; chord error max %.3g mm (tolerance %.3g mm)\n"
                  "  accel, jerk max   %.1f mm/s2, %.0f mm/s3 (tangential); limit violations %lld\n"
                  "  jerk vector max   %.0f mm/s3 (from the setpoints); bound in force: %s\n"
+                 "  corners (G64 P)   %zu rounded by arcs, %zu overlapped (%zu periods saved, "
+                 "%.4g mm from the corner at most)\n"
                  "  step time         median %.0f ns, p99 %.0f ns; replayed in %.2f s "
                  "(%.0f periods/s)\n",
                  source.c_str(), st.path_length_mm, static_cast<long long>(st.cycles),
@@ -458,8 +469,10 @@ int run_replay(const ReplayArgs& a) {
                  st.chord_error_max_mm, machine.limits.chord_tolerance_mm, st.accel_max_mm_per_s2,
                  st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
                  st.jerk_vector_max_mm_per_s3,
-                 motion::jerk_bound_in_force(machine.limits.jerk_bound),
-                 st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
+                 motion::jerk_bound_in_force(machine.limits.jerk_bound), job.blend_report().corners,
+                 job.overlap_report().corners, job.overlap_report().periods_saved,
+                 job.overlap_report().max_deviation_mm, st.step_time_ns.quantile(0.5),
+                 st.step_time_ns.quantile(0.99), wall_s,
                  static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
     if (encoder) print_blocks(encoder->stats(), a.blocks);
   }

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <optional>
+#include <vector>
 
 #include "interpolator/polyline_fit.hpp"
 #include "motion/job.hpp"
@@ -93,6 +94,42 @@ void BM_PlannerWholePath(benchmark::State& state) {
       static_cast<double>(periods * state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_PlannerWholePath)->Unit(benchmark::kMillisecond);
+
+// A zig-zag of 40 legs of 5 mm with 150° turns, walked whole by the job: arg 0 keeps its
+// corners sharp (G64 P0: stops, no line of setpoints), arg 10 passes them within 0.01 mm
+// (docs/planner.md §3d: the line of setpoints and an overlap at each corner). The baseline is
+// arg 0 in the same run; items are emitted periods, and "simulated_s" the motion's duration.
+void BM_JobZigZagCorners(benchmark::State& state) {
+  std::vector<Vec3> pts{Vec3::Zero()};
+  for (int i = 0; i < 40; ++i) {
+    const double ang = (i % 2 ? -1.0 : 1.0) * (0.5 * M_PI - 15.0 * M_PI / 180.0);
+    pts.push_back(pts.back() + 5.0 * Vec3(std::cos(ang), std::sin(ang), 0.0));
+  }
+  toolpath::Path path;
+  toolpath::PathSegment seg;
+  seg.geometry = toolpath::Polyline{pts, {}};
+  seg.feed_mm_per_min = 6000.0;
+  seg.blend_tolerance_mm = 1e-3 * static_cast<double>(state.range(0));
+  path.segments.push_back(seg);
+  std::int64_t periods = 0;
+  double simulated_s = 0.0;
+  for (auto _ : state) {
+    Job job(path, JobConfig{});
+    while (!job.done()) {
+      job.prepare();
+      simulated_s = job.step().t_s;
+      ++periods;
+    }
+  }
+  state.SetItemsProcessed(periods);
+  state.counters["simulated_s"] = simulated_s;
+}
+BENCHMARK(BM_JobZigZagCorners)
+    ->Arg(0)
+    ->Arg(10)
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true);
 
 // The fit alone (runs, least squares, proof); items are polyline points.
 void BM_PolylineFit(benchmark::State& state) {

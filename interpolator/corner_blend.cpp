@@ -116,6 +116,8 @@ struct Corner {
   bool blended = false;
   Vec3 v, d_in, d_out;
   double tangent_mm = 0.0, radius_mm = 0.0, half_cos = 1.0, phi_rad = 0.0;
+  bool eligible = false;  // a turn that is neither straight nor a reversal, P > 0
+  double tolerance_mm = 0.0, in_mm = 0.0, out_mm = 0.0;
 };
 
 // The arc at vertex v between pieces of lengths l_in and l_out, for tolerance p and the
@@ -167,6 +169,10 @@ Corner plan_corner(const Vec3& a, const Vec3& v, const Vec3& b, double p_mm, dou
                                  side_cost_s(cap, v_sharp, 2.0 * v_sharp * T, l) + 4.0 * T
                            : side_cost_s(cap_in, 0.0, 0.0, l) + side_cost_s(cap, 0.0, 0.0, l);
   c.blended = v_end > v_sharp && blend < sharp;
+  c.eligible = true;
+  c.tolerance_mm = p_mm;
+  c.in_mm = l_in;
+  c.out_mm = l_out;
   return c;
 }
 
@@ -222,7 +228,17 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
   }
   std::vector<Span> spans;
   std::vector<Corner> inner;
-  for (std::size_t k = 0; k < n; ++k) {
+  // The corners kept sharp, in path order. The straight length on each side is what is left of
+  // the piece after its other end's arc (at most half of the piece).
+  // Not where a rapid begins or ends: a G0 positions, and the approach and the retract are
+  // written to the machine as their programmed points (comms/program_blocks.cpp).
+  std::size_t k = 0;
+  const auto keep_sharp = [&](const Corner& c, bool joint_corner) {
+    if (!c.eligible || c.blended || path.segments[k].rapid) return;
+    if (joint_corner && path.segments[k + 1].rapid) return;
+    rep.sharp.push_back({c.v, c.d_in, c.d_out, c.tolerance_mm, 0.5 * c.in_mm, 0.5 * c.out_mm, k});
+  };
+  for (k = 0; k < n; ++k) {
     if (!std::holds_alternative<Polyline>(path.segments[k].geometry)) continue;
     const auto& pts = std::get<Polyline>(path.segments[k].geometry).points;
     Vec3 start = pts.front();
@@ -242,6 +258,8 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
     }
     auto& geometry = out.segments[k].geometry;
     if (!any) {
+      for (const Corner& c : inner) keep_sharp(c, false);
+      keep_sharp(joint[k], true);
       std::get<Polyline>(geometry).points.front() = start;
       continue;
     }
@@ -264,6 +282,7 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
     };
     for (std::size_t v = 1; v < pts.size(); ++v) {
       const Corner* c = v + 1 < pts.size() ? &inner[v - 1] : &joint[k];
+      keep_sharp(*c, v + 1 == pts.size());
       if (c->blended) {
         arc(*c);
       } else {

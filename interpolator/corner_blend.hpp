@@ -4,15 +4,27 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
 
 #include "interpolator/feed_limits.hpp"
 #include "toolpath/path.hpp"
 
 namespace ncd::interpolator {
 
+// A corner that could have been rounded but was kept sharp because the arc is slower than
+// passing it sharp or stopping there (motion/corner_overlap.hpp may pass it without its stop).
+struct SharpCorner {
+  Vec3 vertex_mm = Vec3::Zero();
+  Vec3 d_in = Vec3::Zero(), d_out = Vec3::Zero();  // unit directions of the pieces
+  double tolerance_mm = 0.0;                       // the move's G64 P
+  double in_mm = 0.0, out_mm = 0.0;                // straight length on each side of the vertex
+  std::size_t segment = 0;                         // the move that ends at the vertex or holds it
+};
+
 struct BlendReport {
-  std::size_t corners = 0;        // corners replaced by an arc
-  double max_deviation_mm = 0.0;  // largest distance of an arc from its programmed corner
+  std::size_t corners = 0;         // corners replaced by an arc
+  double max_deviation_mm = 0.0;   // largest distance of an arc from its programmed corner
+  std::vector<SharpCorner> sharp;  // blendable corners kept sharp, in path order
 };
 
 // The path with its blendable corners rounded (see corner_blend.cpp). The segment count and

@@ -103,6 +103,11 @@ class LimitSampler {
   double rest_first_mm() const;
   bool needs_rest_refinement(std::size_t segment, double u) const;
   double u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi, double arc_mm) const;
+  static void find_dips(const toolpath::NurbsCurve& c, const std::vector<double>& bp,
+                        std::vector<double>& out);
+  static void refuse_cusp(const toolpath::Path& path, std::size_t k, const toolpath::NurbsCurve& c,
+                          double u);
+  static constexpr double kDipFirstMm = 1e-4;  // the intervals on each side of a dip's bottom
 
   const toolpath::Path& path_;
   std::vector<double> starts_mm_;
@@ -151,7 +156,9 @@ class LimitSampler {
   double u_ = 0.0;                                // curve parameter
   std::size_t knot_ = 0;                          // next breakpoint of the curve
   std::vector<std::vector<double>> breakpoints_;  // per segment (empty for polylines)
-  double s_ = 0.0;                                // arc length reached
+  // Per segment, the bottoms of deep dips of |C'| inside spans (near-cusps), ascending.
+  std::vector<std::vector<double>> dips_;
+  double s_ = 0.0;  // arc length reached
   bool started_ = false, finished_ = false;
   std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)

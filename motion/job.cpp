@@ -11,6 +11,7 @@
 #include "motion/job.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <utility>
@@ -98,6 +99,8 @@ const char* limit_name(std::uint8_t id) {
       return "lookahead";
     case kLimitIdHold:
       return "hold";
+    case kLimitIdOverlap:
+      return "corner_overlap";
     default:
       break;
   }
@@ -121,12 +124,38 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
   // Every limit is capped by the machine's maximum feed: size the planner for it now, so
   // that nothing allocates once the cycle runs.
   planner_.reserve_for_speed(config.limits.max_feed_mm_per_min / 60.0);
+  // Sharp corners that may be passed without their stops (docs/planner.md §3d): the setpoints
+  // then wait in a line long enough to hold a whole overlap and three setpoints on each side.
+  if (!blend_.sharp.empty()) {
+    const auto& l = config.limits;
+    overlap_max_ = overlap_periods_max(l.max_accel_mm_per_s2, l.max_jerk_mm_per_s3, l.period_s);
+    line_cap_ = 2 * static_cast<std::size_t>(overlap_max_) + 8;
+    line_.resize(line_cap_);
+    window_.resize(line_cap_);
+    line_scratch_.resize(static_cast<std::size_t>(overlap_max_));
+    overlap_limits_.period_s = l.period_s;
+    overlap_limits_.max_feed_mm_per_s = l.max_feed_mm_per_min / 60.0;
+    overlap_limits_.max_accel_mm_per_s2 = l.max_accel_mm_per_s2;
+    overlap_limits_.max_jerk_vector_mm_per_s3 = l.jerk_bound == interpolator::JerkBound::vector
+                                                    ? l.max_jerk_mm_per_s3
+                                                    : std::sqrt(2.0) * l.max_jerk_mm_per_s3;
+    overlap_limits_.chord_tolerance_mm = l.chord_tolerance_mm;
+  }
+  here_.sp.p = walker_.position();
+}
+
+void Job::prepare() {
+  if (line_cap_ == 0) {
+    feed_planner();
+  } else {
+    fill_line();
+  }
 }
 
 // Feeds the planner the nodes of the current stretch, in its own arc length (from the
 // stretch's start). The node at a stop ends the stretch with the limit of the interval before
 // it; the next stretch begins there, at s = 0, with the limit of the interval after it.
-void Job::prepare() {
+void Job::feed_planner() {
   const double start = bounds_[run_], end = bounds_[run_ + 1];
   const bool last = run_ + 2 == bounds_.size();
   const double tol = 1e-9 * std::max(1.0, end);
@@ -189,10 +218,18 @@ void Job::prepare() {
 }
 
 Setpoint Job::step() {
+  Setpoint sp = line_cap_ == 0 ? raw_step() : delayed_step();
+  sp.fault = guard_.check(sp.t_s, sp.s_mm, sp.planned_ds_mm, sp.p);
+  return sp;
+}
+
+// One period of the planner and the walker.
+Setpoint Job::raw_step() {
   const MotionSample m = planner_.step();
   const bool last = run_ + 2 == bounds_.size();
   const double s_mm = m.done ? bounds_[run_ + 1] : bounds_[run_] + m.s_mm;
-  if (m.done && !last) {  // at rest at a stop: the next stretch starts from here
+  rest_ = m.done && !last;
+  if (rest_) {  // at rest at a stop: the next stretch starts from here
     ++run_;
     planner_.restart(bounds_[run_ + 1] - bounds_[run_]);
   }
@@ -212,9 +249,140 @@ Setpoint Job::step() {
   sp.chord_error_mm = w.chord_error_mm;
   sp.iterations = w.iterations;
   sp.converged = w.converged;
+  sp.segment = walker_.segment();
   sp.done = m.done && last;
-  sp.fault = guard_.check(sp.t_s, sp.s_mm, sp.planned_ds_mm, sp.p);
   return sp;
+}
+
+// The line of setpoints (docs/planner.md §3d), filled by prepare(): the planner runs line_cap_
+// periods ahead, so that at each rest on a sharp corner the motion after it is known while the
+// motion before it is still in the line; the overlap then replaces both ends, and the planner
+// runs as many periods more (a bounded catch-up: at most overlap_max_ + 1 in one prepare()).
+void Job::fill_line() {
+  while (line_n_ < line_cap_ && !raw_done()) {
+    feed_planner();
+    const Setpoint r = raw_step();
+    line_push(r, rest_);
+    // A rest with the whole window behind and ahead of it in the line is decided now.
+    for (std::size_t i = 0; i < line_n_; ++i) {
+      Pending& e = line_at(i);
+      if (e.rest && (i + static_cast<std::size_t>(overlap_max_) + 3 < line_n_ || raw_done())) {
+        e.rest = false;
+        try_overlap(i);
+      }
+    }
+  }
+}
+
+Setpoint Job::delayed_step() {
+  if (line_n_ == 0) fill_line();  // prepare() was not called
+  if (line_n_ == 0) {             // done: repeat the end
+    here_.sp.t_s = static_cast<double>(++emitted_) * config_.limits.period_s;
+    here_.sp.planned_ds_mm = 0.0;
+    return here_.sp;
+  }
+  here_ = line_at(0);
+  line_head_ = (line_head_ + 1) % line_.size();
+  --line_n_;
+  Setpoint sp = here_.sp;
+  sp.t_s = static_cast<double>(++emitted_) * config_.limits.period_s;
+  sp.planned_ds_mm = sp.s_mm - emitted_s_mm_;
+  emitted_s_mm_ = sp.s_mm;
+  sp.done = sp.done && line_n_ == 0;
+  here_.sp = sp;
+  return sp;
+}
+
+void Job::line_push(const Setpoint& sp, bool rest) {
+  Pending& e = line_[(line_head_ + line_n_) % line_.size()];
+  e.sp = sp;
+  e.piece = walker_.piece();
+  e.curve_u = walker_.curve_u();
+  e.rest = rest;
+  e.raw = true;
+  ++line_n_;
+}
+
+// The sharp corner the motion rests on at line entry `rest`, if any: the next ones of
+// blend_.sharp in the moves around it, at its position, entered along its piece.
+const interpolator::SharpCorner* Job::corner_at(std::size_t rest) {
+  if (rest == 0) return nullptr;
+  const Setpoint& at = line_at(rest).sp;
+  const Vec3 in = at.p - line_at(rest - 1).sp.p;
+  const std::size_t seg = at.segment;
+  while (corner_next_ < blend_.sharp.size() && blend_.sharp[corner_next_].segment + 1 < seg) {
+    ++corner_next_;
+  }
+  for (std::size_t i = corner_next_; i < blend_.sharp.size() && blend_.sharp[i].segment <= seg;
+       ++i) {
+    const interpolator::SharpCorner& c = blend_.sharp[i];
+    const double scale = 1e-9 * std::max(1.0, c.vertex_mm.norm());
+    if ((c.vertex_mm - at.p).norm() <= 1e-7 + scale && in.norm() > 0.0 &&
+        in.normalized().dot(c.d_in) > 1.0 - 1e-6) {
+      corner_next_ = i + 1;
+      return &c;
+    }
+  }
+  return nullptr;
+}
+
+// Overlaps the rest at line entry `rest` with the motion after it as far as the limits allow
+// (corner_overlap.hpp), in place: the 2m entries after rest − m become m.
+void Job::try_overlap(std::size_t rest) {
+  const interpolator::SharpCorner* c = corner_at(rest);
+  if (!c) return;
+  // The feed limits at 100 %, raised by an override above it (the planner's limit curve then).
+  const double over = std::max(1.0, planner_.override_fraction());
+  for (std::size_t i = 0; i < line_n_; ++i) {
+    const Pending& e = line_at(i);
+    window_[i] = {e.sp.p,
+                  e.sp.s_mm,
+                  e.sp.v_mm_per_s,
+                  e.sp.a_mm_per_s2,
+                  e.sp.j_mm_per_s3,
+                  e.sp.feed_limit_mm_per_s * over,
+                  e.raw};
+  }
+  const std::span<const OverlapSample> w(window_.data(), line_n_);
+  const int m = longest_overlap(*c, overlap_limits_, w, rest, overlap_max_);
+  if (m == 0) return;
+  const auto mu = static_cast<std::size_t>(m);
+  std::array<OverlapSample, kMaxOverlapPeriods> out;
+  overlap_setpoints(*c, config_.limits.period_s, w, rest, m,
+                    std::span<OverlapSample>(out.data(), mu));
+  for (std::size_t k = 1; k <= mu; ++k) {
+    const Pending &in = line_at(rest - mu + k), &go = line_at(rest + k);
+    Pending e = in;
+    const OverlapSample& o = out[k - 1];
+    e.sp.p = o.p_mm;
+    e.sp.s_mm = o.s_mm;
+    e.sp.v_mm_per_s = o.v_mm_per_s;
+    e.sp.a_mm_per_s2 = o.a_mm_per_s2;
+    e.sp.j_mm_per_s3 = o.j_mm_per_s3;
+    e.sp.travelled_mm = in.sp.travelled_mm + go.sp.travelled_mm;
+    e.sp.chord_error_mm = o.chord_error_mm;
+    e.sp.iterations = std::max(in.sp.iterations, go.sp.iterations);
+    e.sp.converged = in.sp.converged && go.sp.converged;
+    e.sp.overlapped = true;
+    e.sp.limit_id = kLimitIdOverlap;
+    e.sp.feed_limit_mm_per_s = std::min(in.sp.feed_limit_mm_per_s, go.sp.feed_limit_mm_per_s);
+    e.rest = false;
+    e.raw = false;
+    if (k == mu) {  // back on the path: the head's own setpoint, after a period of both moves
+      e = Pending{go.sp, go.piece, go.curve_u, false, false};
+      e.sp.travelled_mm = in.sp.travelled_mm + go.sp.travelled_mm;
+      e.sp.chord_error_mm = o.chord_error_mm;
+      e.sp.overlapped = true;
+    }
+    line_scratch_[k - 1] = e;
+    overlap_.max_deviation_mm = std::max(overlap_.max_deviation_mm, corner_distance_mm(*c, o.p_mm));
+  }
+  // Entries rest − m + 1 … rest + m become the m new ones; the rest of the line moves up by m.
+  for (std::size_t k = 0; k < mu; ++k) line_at(rest - mu + 1 + k) = line_scratch_[k];
+  for (std::size_t i = rest + 1; i + mu < line_n_; ++i) line_at(i) = line_at(i + mu);
+  line_n_ -= mu;
+  ++overlap_.corners;
+  overlap_.periods_saved += mu;
 }
 
 void Job::set_override(double fraction) {
@@ -251,12 +419,17 @@ std::vector<double> Job::segment_starts_mm() const {
   return starts;
 }
 
+Job::Place Job::place() const {
+  if (line_cap_ == 0) return {walker_.segment(), walker_.piece(), walker_.curve_u()};
+  return {here_.sp.segment, here_.piece, here_.curve_u};
+}
+
 interpolator::FeedLimitResult Job::limit_here() const {
-  const std::size_t seg = walker_.segment();
-  if (std::holds_alternative<toolpath::NurbsCurve>(path_.segments[seg].geometry)) {
-    return sampler_.limit_on_curve(seg, walker_.curve_u());
+  const Place at = place();
+  if (std::holds_alternative<toolpath::NurbsCurve>(path_.segments[at.segment].geometry)) {
+    return sampler_.limit_on_curve(at.segment, at.curve_u);
   }
-  return sampler_.limit_on_piece(seg, walker_.piece());
+  return sampler_.limit_on_piece(at.segment, at.piece);
 }
 
 double Job::roughness_here_um(double v_mm_per_s) const {
@@ -265,14 +438,14 @@ double Job::roughness_here_um(double v_mm_per_s) const {
   const auto r_um = [&](double alpha) {
     return 1000.0 * interpolator::roughness_mm(k.ball_radius_mm, k.pick_feed_mm, ft_mm, alpha);
   };
-  if (path_.segments[walker_.segment()].rapid) return 0.0;  // a G0 does not cut
-  const auto& g = path_.segments[walker_.segment()].geometry;
+  const Place at = place();
+  if (path_.segments[at.segment].rapid) return 0.0;  // a G0 does not cut
+  const auto& g = path_.segments[at.segment].geometry;
   if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
-    return r_um(
-        interpolator::inclination_from_tangent_rad(c->eval(walker_.curve_u()).d1.normalized()));
+    return r_um(interpolator::inclination_from_tangent_rad(c->eval(at.curve_u).d1.normalized()));
   }
   const auto& line = std::get<toolpath::Polyline>(g);
-  const std::size_t i = walker_.piece();
+  const std::size_t i = at.piece;
   const Vec3 dir = (line.points[i + 1] - line.points[i]).normalized();
   if (line.normals.empty()) return r_um(interpolator::inclination_from_tangent_rad(dir));
   return std::max(r_um(interpolator::inclination_from_normal_rad(line.normals[i], dir)),

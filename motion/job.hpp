@@ -13,6 +13,7 @@
 #include "interpolator/limit_sampler.hpp"
 #include "interpolator/path_walker.hpp"
 #include "interpolator/polyline_fit.hpp"
+#include "motion/corner_overlap.hpp"
 #include "motion/planner.hpp"
 #include "motion/step_guard.hpp"
 
@@ -46,6 +47,19 @@ struct Setpoint {
   // The feed laws' limit at s, at 100 % override, whichever limit binds (the planner's limit
   // curve there, MotionSample::v_limit_mm_per_s): the feed's ceiling, mm/s.
   double feed_limit_mm_per_s = 0.0;
+  std::size_t segment = 0;  // the segment of path() the setpoint belongs to
+  // The period that ends here ran the end of one move and the start of the next at once, at a
+  // sharp corner passed without its stop (docs/planner.md §3d): p lies within the move's G64 P
+  // of the programmed corner, off path() but for the last such setpoint; s sums the two moves'
+  // progress, v is the speed, a and j the larger of the two moves' own.
+  bool overlapped = false;
+};
+
+// What passing sharp corners without their stops did (docs/planner.md §3d).
+struct OverlapReport {
+  std::size_t corners = 0;        // corners overlapped
+  std::size_t periods_saved = 0;  // setpoints fewer than with their stops
+  double max_deviation_mm = 0.0;  // farthest superposed setpoint from its corner's pieces
 };
 
 // "roughness", …, "corner" for feed laws; "tangential_accel", "tangential_jerk", "path_end",
@@ -59,12 +73,13 @@ class Job {
   Job(const toolpath::Path& path, const JobConfig& config);
 
   // Look-ahead: feeds the planner from the limit sampler as far as it wants (the planner
-  // thread's work). Throws InputError if the path needs a stop the planner cannot take.
+  // thread's work); with a line of setpoints (delay_periods() > 0) also plans the periods that
+  // fill it. Throws InputError if the path needs a stop the planner cannot take.
   void prepare();
   // One period of the cycle: planner step and path walk, checked by the step rule (see
   // Setpoint::fault); call prepare() before each.
   Setpoint step();
-  bool done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
+  bool done() const { return raw_done() && line_n_ == 0; }
   // Where the motion comes to rest inside the path (LimitSampler::stops_mm), mm.
   const std::vector<double>& stops_mm() const { return sampler_.stops_mm(); }
   // Feed override as a fraction (0..2), for the planner and the step rule's speed bound.
@@ -82,6 +97,11 @@ class Job {
   // The path walked (the program's, with its blended corners) and what the blending did.
   const toolpath::Path& path() const { return path_; }
   const interpolator::BlendReport& blend_report() const { return blend_; }
+  // The sharp corners passed without their stops so far.
+  const OverlapReport& overlap_report() const { return overlap_; }
+  // Setpoints the job computes ahead of the one it emits: 0 unless a sharp corner may be
+  // overlapped (then feed override and hold act this many periods later).
+  std::size_t delay_periods() const { return line_cap_ == 0 ? 0 : line_cap_ - 1; }
   // Where each segment of the path given to the job starts on path(), mm, and its length last
   // (segments + 1 values; a segment that the fit split starts where its first piece starts).
   std::vector<double> segment_starts_mm() const;
@@ -95,6 +115,30 @@ class Job {
   double roughness_here_um(double v_mm_per_s) const;  // 0 on a rapid (G0 does not cut)
 
  private:
+  // One setpoint waiting to be emitted, with where the walker stood for it.
+  struct Pending {
+    Setpoint sp;
+    std::size_t piece = 0;
+    double curve_u = 0.0;
+    bool rest = false;  // the planner rests here between two stretches (not yet decided)
+    bool raw = true;    // the planner's own setpoint, not part of an overlap
+  };
+  bool raw_done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
+  void feed_planner();  // the planner's look-ahead from the sampler
+  void fill_line();     // planner steps into the line of setpoints, overlaps decided
+  Setpoint raw_step();
+  Setpoint delayed_step();
+  Pending& line_at(std::size_t i) { return line_[(line_head_ + i) % line_.size()]; }
+  void line_push(const Setpoint& sp, bool rest);
+  void try_overlap(std::size_t rest);
+  const interpolator::SharpCorner* corner_at(std::size_t rest);
+  // Where the last emitted setpoint stands on path(): the walker's place, or the line's.
+  struct Place {
+    std::size_t segment, piece;
+    double curve_u;
+  };
+  Place place() const;
+
   interpolator::BlendReport blend_;
   interpolator::FitReport fit_;
   toolpath::Path path_;  // the program's, dense runs fitted (G64 Q), corners blended
@@ -111,6 +155,19 @@ class Job {
   StepGuard guard_;
   bool sampler_done_ = false;
   double last_s_mm_ = 0.0;
+  // The overlap's line of setpoints (a ring of fixed size; empty when no corner may overlap).
+  std::vector<Pending> line_;
+  std::vector<OverlapSample> window_;  // scratch: the line as the overlap reads it
+  std::vector<Pending> line_scratch_;  // scratch: an overlap's new entries
+  std::size_t line_head_ = 0, line_n_ = 0, line_cap_ = 0;
+  int overlap_max_ = 0;
+  OverlapLimits overlap_limits_;
+  std::size_t corner_next_ = 0;  // the first of blend_.sharp not yet passed
+  std::int64_t emitted_ = 0;
+  double emitted_s_mm_ = 0.0;
+  bool rest_ = false;  // the last raw_step ended a stretch at rest (not the path's end)
+  Pending here_;       // the last setpoint emitted
+  OverlapReport overlap_;
 };
 
 }  // namespace ncd::motion

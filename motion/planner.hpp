@@ -26,6 +26,7 @@ struct LimitSample {
 
 // limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
 inline constexpr std::uint8_t kLimitIdReserved = 0xF0;
+inline constexpr std::uint8_t kLimitIdOverlap = 0xF9;       // a corner passed without its stop
 inline constexpr std::uint8_t kLimitIdHold = 0xFA;          // feed hold or override 0 %
 inline constexpr std::uint8_t kLimitIdLookahead = 0xFB;     // no samples far enough ahead
 inline constexpr std::uint8_t kLimitIdPathEnd = 0xFC;       // braking to land on L
@@ -85,6 +86,7 @@ class Planner {
   // Feed override as a fraction (0..2, 1 = 100 %): scales the limit curve; lowering it brakes
   // under the acceleration and jerk limits, so v may exceed the new curve while it does.
   void set_override(double fraction);
+  double override_fraction() const { return override_applied_; }  // in force now
   // Feed hold: a jerk-limited stop on the path; resume() goes on from there.
   void hold();
   void resume();

@@ -659,7 +659,7 @@ Status Service::status() const {
     r.position_mm = last_.p;
     r.s_mm = last_.s_mm;
     r.length_mm = cycle_->length_mm();
-    const std::size_t seg = cycle_->job().walker().segment();
+    const std::size_t seg = last_.segment;  // the walker may be ahead (docs/planner.md §3d)
     // The job's own path: fitted dense runs (G64 Q) split a program segment, each part keeps
     // its source line.
     const auto& segs = cycle_->job().path().segments;

@@ -181,6 +181,40 @@ TEST_F(Replay, JerkVectorBoundFromTheMachineFile) {
   }
 }
 
+// A square under G64 P0.01 from an NC program: its three corners are passed without their
+// stops (docs/planner.md §3d) and the report says so; under G64 P0 the same program stops at
+// each and takes 21 periods (84 ms) longer, the periods the report gives as saved.
+TEST_F(Replay, CornersPassedWithoutTheirStopsAreReported) {
+  const std::string machine =
+      write("m.toml", "[cutting]\npick_feed_mm = 0\nroughness_target_um = 1000\n");
+  double duration_s[2] = {0.0, 0.0};
+  for (const int p : {1, 0}) {
+    const std::string program =
+        write("square.ngc", std::string("G21 G90 G64 P") + (p ? "0.01" : "0") +
+                                "\nG0 X0 Y0 Z0\nG1 X10 F6000\nY10\nX0\nY0\nM2\n");
+    const fs::path report = dir_ / "r.json";
+    const CmdResult r =
+        ncd("replay " + program + " --machine " + machine + " --report " + report.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto j = nlohmann::json::parse(slurp(report));
+    EXPECT_EQ(j["limit_violations"].get<int>(), 0);
+    const auto& c = j["corners"];
+    duration_s[p] = j["duration_s"].get<double>();
+    if (p) {
+      EXPECT_EQ(c["overlapped"].get<int>(), 3);
+      EXPECT_GT(c["overlap_periods_saved"].get<int>(), 0);
+      EXPECT_LE(c["overlap_max_deviation_mm"].get<double>(), 0.01);
+      EXPECT_GT(c["setpoint_delay_periods"].get<int>(), 0);
+      EXPECT_NE(r.err.find("3 overlapped"), std::string::npos) << r.err;
+      EXPECT_GT(j["active_limit_share"]["corner_overlap"].get<double>(), 0.0);
+    } else {
+      EXPECT_EQ(c["overlapped"].get<int>(), 0);
+      EXPECT_EQ(c["setpoint_delay_periods"].get<int>(), 0);
+    }
+  }
+  EXPECT_LT(duration_s[1], duration_s[0] - 3 * 0.004);
+}
+
 struct BadReplay {
   std::string machine, path, message;
 };
@@ -195,6 +229,11 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
       {"period_s = 0\n", cubic, "period"},
       {"max_jerk_mm_per_s3 = \"fast\"\n", cubic, "must be a number"},
       {"jerk_bound = \"axes\"\n", cubic, "jerk_bound = \"axes\" is not a jerk bound"},
+      // A cubic Bézier whose parametric speed vanishes at u = 0.5 (a cusp inside its span):
+      // refused up front with the point, not stalled on (docs/planner.md §2, near-cusps).
+      {"", write("cusp.json", R"({"feed_mm_per_min": 600, "nurbs": {"degree": 3,
+          "knots": [0,0,0,0,1,1,1,1], "points": [[0,0,0],[10,10,0],[0,10,0],[10,0,0]]}})"),
+       "the curve has a cusp inside a span, at u = 0.5, (5, 7.5, 0) mm"},
       {"", write("comp.ngc", "G21 G90\nG0 X0 Y0 Z0\nG41.1 D40 G1 X10 Y0 F100\n"),
        "comp.ngc:3: the cutter compensation entry move is not longer than the tool radius"},
       {"", (dir_ / "missing.json").string(), "missing.json"},

@@ -46,6 +46,12 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
     }
     EXPECT_GT(periods, 100);
     EXPECT_GE(job.stops_mm().size(), 3u);
+    // The corner at (20, 0) is passed without its stop under "tangential" (docs/planner.md
+    // §3d): the line of setpoints and its overlaps allocate nothing either.
+    EXPECT_GT(job.delay_periods(), 0U);
+    if (bound == interpolator::JerkBound::tangential) {
+      EXPECT_GE(job.overlap_report().corners, 1U);
+    }
     EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
         << "allocations during " << periods << " periods, jerk bound "
         << interpolator::to_string(bound);

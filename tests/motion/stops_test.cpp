@@ -36,6 +36,7 @@ PathSegment line_segment(std::vector<Vec3> points, double feed_mm_per_min,
 struct Motion {
   std::vector<Setpoint> sp;
   double duration_s = 0.0;
+  std::size_t overlap_saved = 0;  // periods saved at corners passed without their stop
 };
 
 // Runs a job to its end (at most max_periods) and records every setpoint.
@@ -48,6 +49,7 @@ Motion run(const Path& path, const JobConfig& cfg = test::planner_machine(),
     r.sp.push_back(job.step());
   }
   r.duration_s = r.sp.empty() ? 0.0 : r.sp.back().t_s;
+  r.overlap_saved = job.overlap_report().periods_saved;
   return r;
 }
 
@@ -110,11 +112,13 @@ TEST(Stops, ReversalInsideOnePolyline) {
 }
 
 // The square: 10 × 10 mm at 6000 mm/min took 4.41 s, against 1.04 s for an exact
-// stop at every corner. Its corners are too sharp to blend within 1 µm at a_max T (4 mm/s).
+// stop at every corner. Its corners are too sharp to pass within 1 µm at a_max T (4 mm/s).
+// Under G64 P0 they stop (with a tolerance they are overlapped instead: overlap_test.cpp).
 TEST(Stops, SquareCornersStopAndMatchTheExactStopBound) {
   Path path;
   path.segments.push_back(
       line_segment({{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}}, 6000.0));
+  path.segments[0].blend_tolerance_mm = 0.0;
   const Motion r = run(path);
   expect_at_rest_at(r, {0, 0, 0});
   EXPECT_EQ(rests(r).size(), 3U);
@@ -134,6 +138,7 @@ TEST(Stops, ZigZagCornersStop) {
   }
   Path path;
   path.segments.push_back(line_segment(pts, 6000.0));
+  path.segments[0].blend_tolerance_mm = 0.0;  // G64 P0 (overlap_test.cpp passes them within P)
   const Motion r = run(path);
   expect_at_rest_at(r, pts.back());
   EXPECT_EQ(rests(r).size(), 7U);
@@ -312,7 +317,19 @@ TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {
     bound += test::scurve_time_s(5.0, 100.0, kA, kJ) + test::scurve_time_s(5.0, 5.0, kA, kJ) +
              test::scurve_time_s(5.0, 100.0, kA, kJ);
   }
-  std::cout << "drilling: " << r.duration_s << " s, exact-stop bound " << bound << " s\n";
+  // The bottom of each hole, a reversal, stops. The corners at the rapids keep their stops too
+  // (a rapid is never overlapped, docs/planner.md §3d): nothing is saved here.
+  const double saved_s = static_cast<double>(r.overlap_saved) * kT;
+  std::cout << "drilling: " << r.duration_s << " s, exact-stop bound " << bound << " s, " << saved_s
+            << " s saved at the corners\n";
+  for (int h = 0; h < 5; ++h) {
+    bool stopped = false;
+    for (const std::size_t i : rests(r)) {
+      stopped |= (r.sp[i].p - Vec3(5.0 * h + 5.0, 0, -3)).norm() < 1e-9;
+    }
+    EXPECT_TRUE(stopped) << "hole " << h;
+  }
+  EXPECT_EQ(r.overlap_saved, 0U);
   EXPECT_GE(r.duration_s, bound - kT);
   EXPECT_LE(r.duration_s, 1.05 * bound);
 }
