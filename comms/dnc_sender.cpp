@@ -241,6 +241,7 @@ class Session {
   enum class Phase { Startup, Ready, Recovering };
 
   double now_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
+  double hold_now_s() const { return s_.hold_clock ? s_.hold_clock->now_s() : now_s(); }
 
   // The live counters (SenderCounts), stored once per pass: plain reads of the session's own
   // state and relaxed atomic stores.
@@ -361,7 +362,7 @@ class Session {
     if (c == kXoff) {
       if (xon_) {
         xon_ = false;
-        xoff_since_s_ = now_s();
+        xoff_since_s_ = hold_now_s();
         ++report_.xoff_count;
       }
     } else if (c == kXon) {
@@ -375,7 +376,7 @@ class Session {
   }
 
   void end_xoff() {
-    const double held = now_s() - xoff_since_s_;
+    const double held = hold_now_s() - xoff_since_s_;
     xon_ = true;
     report_.xoff_total_s += held;
     report_.xoff_longest_s = std::max(report_.xoff_longest_s, held);
@@ -937,7 +938,7 @@ class Session {
   }
 
   void watch_hold() {
-    const double now = now_s();
+    const double now = hold_now_s();
     bool held = !xon_;
     double since = xoff_since_s_;
     if (s_.line.flow == Flow::RtsCts) {

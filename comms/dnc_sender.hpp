@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -16,6 +17,7 @@
 
 #include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
+#include "comms/sim_clock.hpp"
 
 namespace ncd::comms {
 
@@ -23,9 +25,13 @@ class TransferJournal;
 
 struct SenderSettings {
   LineSettings line;
-  int max_queued_chars = 16;      // drip: characters allowed ahead of the wire (stop distance)
-  int rx_buffer_bytes = 128;      // ack: controller receive buffer (grbl 128, grblHAL 1024)
-  double xoff_timeout_s = 5.0;    // a hold longer than this is reported (and holds the motion)
+  int max_queued_chars = 16;    // drip: characters allowed ahead of the wire (stop distance)
+  int rx_buffer_bytes = 128;    // ack: controller receive buffer (grbl 128, grblHAL 1024)
+  double xoff_timeout_s = 5.0;  // a hold longer than this is reported (and holds the motion)
+  // The clock the controller's holds (XOFF, CTS low) are timed on; null: the wall clock. A test
+  // whose simulated controller runs on a ManualClock gives it here, so that a hold lasts as
+  // long for both ends however the machine's load delays the test's thread.
+  std::shared_ptr<const SimClock> hold_clock;
   double reconnect_max_s = 30.0;  // give up reopening a lost port after this long
   double progress_period_s = 1.0;
   // drip: after a lost link, blocks within this many characters before the first block the
@@ -109,8 +115,8 @@ struct SenderReport {
   double duration_s = 0.0;
   double link_use = 0.0;  // bytes_written / (duration · line capacity)
   int xoff_count = 0;
-  double xoff_total_s = 0.0;
-  double xoff_longest_s = 0.0;
+  double xoff_total_s = 0.0;    // on SenderSettings::hold_clock
+  double xoff_longest_s = 0.0;  // on SenderSettings::hold_clock
   int xoff_timeouts = 0;
   int reconnects = 0;  // reopened and resumed
   std::int64_t noise_bytes = 0;

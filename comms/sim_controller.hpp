@@ -28,6 +28,7 @@
 #include "comms/dialect.hpp"
 #include "comms/line_settings.hpp"
 #include "comms/program_file.hpp"
+#include "comms/sim_clock.hpp"
 
 namespace ncd::comms {
 
@@ -49,24 +50,6 @@ struct SimFaults {
   // receive buffer and the planner are lost, the position is kept, the banner is sent again
   // (ack; after ALARM:3 when it was moving, as grbl's reset during motion does).
   long reset_after_blocks = 0;
-};
-
-// The controller's time. Null in the config: the wall clock (steady_clock). A test gives a
-// ManualClock and advances it, so that the controller's logic runs in simulated time whatever
-// the load on the machine.
-class SimClock {
- public:
-  virtual ~SimClock() = default;
-  virtual double now_s() const = 0;
-};
-
-class ManualClock : public SimClock {
- public:
-  double now_s() const override { return t_s_.load(std::memory_order_acquire); }
-  void advance(double dt_s) { t_s_.store(now_s() + dt_s, std::memory_order_release); }
-
- private:
-  std::atomic<double> t_s_{0.0};
 };
 
 struct SimControllerConfig {
@@ -103,7 +86,9 @@ struct SimControllerConfig {
   bool machine_safety = true;
   double tool_change_s = 5.0;  // M6 (drip dialects; grbl refuses M6): the change takes this long
   bool optional_stop = false;  // M1 stops as M0 does (the operator's optional-stop switch)
-  std::shared_ptr<const SimClock> clock;  // null: the wall clock
+  // The controller's time (comms/sim_clock.hpp); null: the wall clock. A test gives a ManualClock
+  // and moves it on, so that the controller runs in simulated time whatever the load.
+  std::shared_ptr<const SimClock> clock;
   SimFaults faults;
   // Told of link events and alarms as they happen (on the thread of run()); may be empty.
   std::function<void(const std::string&)> on_event;

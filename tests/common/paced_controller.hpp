@@ -3,8 +3,8 @@
 // ManualClock that the test moves on. The sender, though, paces its writes by a model of the
 // wire on the wall clock (comms/dnc_sender.cpp, which takes no clock yet), so:
 //   - the controller's time is never let fall behind the wall clock: each step moves it on by
-//     dt, or to the wall time elapsed if that is later (a loaded machine makes the steps
-//     coarser, and the line never carries more than the sender's model allows);
+//     dt, or to the wall time elapsed if that is later, in increments of dt (a loaded machine
+//     makes a step longer, and the line never carries more than the sender's model allows);
 //   - drip: before each step the test waits until the sender has read everything the controller
 //     wrote (FIONREAD on the controller's port is 0), so a DC3 is seen before time moves on. Not
 //     for ack (grbl): its character counting needs no such wait, and the extra descriptor on the
@@ -49,31 +49,25 @@ class PacedController {
   }
   ~PacedController() { stop(); }
 
-  // Moves the controller's time on by dt_s (or to the wall time elapsed, if later) and waits
-  // until its loop has run at the new time.
+  // Moves the controller's time on by dt_s, or to the wall time elapsed if that is later. A
+  // later wall time is caught up in increments of dt_s, each run by the controller's loop after
+  // the sender has read what it wrote, so that a controller's DC3 never outlasts, in its time,
+  // the drain that ends it because the test's thread was kept from running.
   void step(double dt_s) {
-    using namespace std::chrono_literals;
-    const auto until = std::chrono::steady_clock::now() + 60s;
-    for (int unread = 1; port_fd_ >= 0 && !done_;) {
-      ASSERT_EQ(::ioctl(port_fd_, FIONREAD, &unread), 0);
-      if (unread == 0) break;
-      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the sender stopped reading";
-      std::this_thread::sleep_for(100us);
-    }
     const double wall_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
-    const double now_s = clock_->now_s() - t0_;
-    clock_->advance(std::max(dt_s, wall_s - now_s));
-    const double target = clock_->now_s() - t0_;
-    while (!done_ && sim_->progress().t_s < target - 1e-12) {
-      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the controller's loop is stuck";
-      std::this_thread::sleep_for(100us);
+    const double to_s = std::max(now_s() + dt_s, wall_s);
+    while (!done_ && now_s() < to_s - 1e-12 && !::testing::Test::HasFatalFailure()) {
+      increment(std::min(dt_s, to_s - now_s()));
     }
   }
 
   // run() has returned (exit_at_end: the program end executed and the line quiet).
   bool done() const { return done_; }
   comms::SimController& sim() { return *sim_; }
+  // The controller's time, for a sender that times the controller's holds on it
+  // (SenderSettings::hold_clock).
+  std::shared_ptr<const comms::SimClock> clock() const { return clock_; }
   // Stops the controller and joins its thread; its log is complete after this.
   void stop() {
     if (port_fd_ >= 0) {
@@ -88,6 +82,27 @@ class PacedController {
   const comms::SimLog& log() const { return sim_->log(); }
 
  private:
+  double now_s() const { return clock_->now_s() - t0_; }
+
+  // One increment: waits until the sender has read everything the controller wrote, moves the
+  // controller's time on by dt_s and waits until its loop has run at the new time.
+  void increment(double dt_s) {
+    using namespace std::chrono_literals;
+    const auto until = std::chrono::steady_clock::now() + 60s;
+    for (int unread = 1; port_fd_ >= 0 && !done_;) {
+      ASSERT_EQ(::ioctl(port_fd_, FIONREAD, &unread), 0);
+      if (unread == 0) break;
+      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the sender stopped reading";
+      std::this_thread::sleep_for(100us);
+    }
+    clock_->advance(dt_s);
+    const double target = now_s();
+    while (!done_ && sim_->progress().t_s < target - 1e-12) {
+      ASSERT_LT(std::chrono::steady_clock::now(), until) << "the controller's loop is stuck";
+      std::this_thread::sleep_for(100us);
+    }
+  }
+
   std::shared_ptr<comms::ManualClock> clock_ = std::make_shared<comms::ManualClock>();
   std::unique_ptr<comms::SimController> sim_;
   std::thread thread_;

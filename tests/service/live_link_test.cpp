@@ -7,7 +7,8 @@
 // characters of a 4096-byte buffer: 3904 characters, 0.34 s of the sender's output, instead of
 // the 64 characters (5.6 ms) of a 256-byte one, so its thread may be kept from running that long
 // before a batch of characters overflows it.
-// The hold test waits out the sender's xoff_timeout_s with the controller's time standing still.
+// The sender times the controller's holds on the controller's clock (SenderSettings::hold_clock),
+// so that a hold lasts as long for both ends however long the test's thread is kept waiting.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -36,6 +37,10 @@ namespace fs = std::filesystem;
 const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
   "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
   "feed_mm_per_min": 1500})";
+
+// How long a controller's DC3 lasts, on its clock, before the sender reports it and holds the
+// motion: longer than any hold of the controller's flow control in these tests.
+constexpr double kXoffTimeoutS = 1.0;
 
 comms::LineSettings line_at(const std::string& device) {
   comms::LineSettings l;
@@ -76,7 +81,7 @@ class LiveLink : public ::testing::Test {
 
   void step(double dt_s) { ctl_.step(dt_s); }
 
-  service::JobSpec job(std::vector<motion::Setpoint>& out, double xoff_timeout_s) {
+  service::JobSpec job(std::vector<motion::Setpoint>& out) {
     service::JobSpec j;
     j.name = "cubic";
     j.path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kCubic, "cubic.json"));
@@ -84,7 +89,8 @@ class LiveLink : public ::testing::Test {
     j.sink = std::make_unique<test::CaptureSink>(out);
     service::LinkSpec link;
     link.sender.line = line_at((dir_ / "cnc").string());
-    link.sender.xoff_timeout_s = xoff_timeout_s;
+    link.sender.xoff_timeout_s = kXoffTimeoutS;
+    link.sender.hold_clock = ctl_.clock();
     link.encoder.max_block_s = 0.5;
     j.link = link;
     return j;
@@ -138,7 +144,7 @@ TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
   start_controller({});
   service::Service s(options());
   std::vector<motion::Setpoint> emitted;
-  s.submit(job(emitted, 600.0));
+  s.submit(job(emitted));
   s.start();
   for (int k = 0; k < 200000 && (s.busy() || !ctl_.done()); ++k) {
     paced_poll(s);
@@ -150,6 +156,11 @@ TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
   const service::Status st = s.status();
   ASSERT_TRUE(st.link && st.link->done);
   EXPECT_TRUE(st.link->report.completed) << st.link->report.failure;
+  // The controller's flow control (DC3 at 192 characters, DC1 at 96) held the line, each time
+  // for less than the hold test's xoff_timeout_s, on the controller's clock.
+  EXPECT_GT(st.link->report.xoff_count, 0);
+  EXPECT_EQ(st.link->report.xoff_timeouts, 0)
+      << "longest hold " << st.link->report.xoff_longest_s << " s of the controller's time";
   const std::string program = expected_program(emitted, Vec3::Zero());
   const std::string sha = comms::sha256_hex(program);
   EXPECT_EQ(st.link->report.program_sha256, sha);
@@ -165,23 +176,26 @@ TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
 TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
   comms::SimFaults f;
   f.hold_after_blocks = 4;
-  f.hold_s = 1.5;
+  f.hold_s = 5.0;
   start_controller(f);
   service::Service s(options());
   auto events = s.subscribe(4096);
   std::vector<motion::Setpoint> emitted;
-  s.submit(job(emitted, 0.3));
+  s.submit(job(emitted));
   s.start();
-  // Up to the controller's fourth block: from there it holds the line with DC3 for 1.5 s of
-  // its time.
+  // Up to the controller's fourth block: from there it holds the line with DC3 for 5 s of its
+  // time.
   for (int k = 0; k < 100000 && ctl_.sim().progress().blocks_received < 4; ++k) {
     paced_poll(s);
     step(0.005);
   }
   ASSERT_GE(ctl_.sim().progress().blocks_received, 4);
   ASSERT_EQ(s.state(), service::State::Running);
-  // The controller's time stands still: the sender sees DC3 for longer than 0.3 s of wall time
-  // and says so; the next poll() applies the link's hold before it drains anything.
+  // The sender times the hold on the controller's clock: that moves on, the service unpolled,
+  // past the sender's xoff_timeout_s, and then stands still with DC3 still held while the
+  // sender says so; the next poll() applies the link's hold before it drains anything.
+  const double hold_from_s = ctl_.clock()->now_s();
+  while (ctl_.clock()->now_s() - hold_from_s < kXoffTimeoutS + 0.2) step(0.005);
   const auto until = std::chrono::steady_clock::now() + 60s;
   while (!s.status().link->link_holds) {
     ASSERT_LT(std::chrono::steady_clock::now(), until) << "the link never held the motion";
