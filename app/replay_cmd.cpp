@@ -230,14 +230,16 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["jerk_vector_max"] = st.jerk_vector_max_mm_per_s3;
   j["jerk_bound"] = motion::jerk_bound_in_force(m.limits.jerk_bound);
   // Corners under G64 P (docs/planner.md §3a, §3d): rounded by an arc, or passed without their
-  // stop by overlapping the two moves; the deviation is the farthest overlapped setpoint's.
+  // stop by overlapping the two moves; the deviation is the farthest overlapped setpoint's. The
+  // setpoints then wait up to setpoint_delay_periods, within setpoint_delay_within_mm of a stop.
   const motion::OverlapReport& o = job.overlap_report();
   j["corners"] = {{"rounded", job.blend_report().corners},
                   {"rounded_max_deviation_mm", job.blend_report().max_deviation_mm},
                   {"overlapped", o.corners},
                   {"overlap_periods_saved", o.periods_saved},
                   {"overlap_max_deviation_mm", o.max_deviation_mm},
-                  {"setpoint_delay_periods", job.delay_periods()}};
+                  {"setpoint_delay_periods", job.delay_periods()},
+                  {"setpoint_delay_within_mm", job.line_depth_within_mm()}};
   j["feed_max_mm_per_min"] = st.feed_max_mm_per_s * 60.0;
   j["limit_violations"] = st.limit_violations();
   j["limit_violations_by_kind"] = {{"feed", st.violations_feed},

@@ -71,6 +71,20 @@ StepBounds step_bounds(const JobConfig& c) {
   return b;
 }
 
+// Planner steps per prepare() while the line of setpoints fills: it grows by two a period.
+constexpr int kLineStepsPerPrepare = 3;
+
+// How far before a stop the line is filled to its capacity (docs/planner.md §3d), mm. From
+// there the planner makes at least n steps to the rest, n · v_max · T covering the distance,
+// and the line grows by (r − 1)/r of them; the rest's decision waits ⌈(m + 4)/r⌉ periods more
+// for the m + 4 setpoints after it, while the head moves on. The longest overlap m then still
+// has its m + 3 setpoints before the rest: n ≥ r/(r − 1) · (m + 4 + ⌈(m + 4)/r⌉).
+double line_deep_within_mm(int overlap_max, double max_feed_mm_per_s, double period_s) {
+  const int r = kLineStepsPerPrepare, after = overlap_max + 4;
+  const int n = (r * (after + (after + r - 1) / r) + r - 2) / (r - 1) + 1;
+  return n * max_feed_mm_per_s * period_s;
+}
+
 }  // namespace
 
 const char* to_string(StepFault fault) {
@@ -140,6 +154,7 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
                                                     ? l.max_jerk_mm_per_s3
                                                     : std::sqrt(2.0) * l.max_jerk_mm_per_s3;
     overlap_limits_.chord_tolerance_mm = l.chord_tolerance_mm;
+    deep_within_mm_ = line_deep_within_mm(overlap_max_, l.max_feed_mm_per_min / 60.0, l.period_s);
   }
   here_.sp.p = walker_.position();
 }
@@ -254,24 +269,32 @@ Setpoint Job::raw_step() {
   return sp;
 }
 
-// The line of setpoints (docs/planner.md §3d), filled by prepare(): the planner runs line_cap_
-// periods ahead, so that at each rest on a sharp corner the motion after it is known while the
-// motion before it is still in the line; the overlap then replaces both ends, and the planner
-// runs as many periods more (a bounded catch-up: at most overlap_max_ + 1 in one prepare()).
+// The line of setpoints (docs/planner.md §3d), filled by prepare(): within deep_within_mm_ of
+// a stop, or while a rest waits for its decision, the planner runs up to line_cap_ periods ahead
+// (kLineStepsPerPrepare steps a period at most), so that at each rest on a sharp corner the
+// motion after it is known while the motion before it is still in the line; the overlap then
+// replaces both ends. Elsewhere the line holds the one setpoint emitted next, and a hold or an
+// override acts at once.
 void Job::fill_line() {
-  while (line_n_ < line_cap_ && !raw_done()) {
+  for (int n = 0; n < kLineStepsPerPrepare && line_n_ < line_target() && !raw_done(); ++n) {
     feed_planner();
     const Setpoint r = raw_step();
     line_push(r, rest_);
     // A rest with the whole window behind and ahead of it in the line is decided now.
-    for (std::size_t i = 0; i < line_n_; ++i) {
+    for (std::size_t i = 0; i < line_n_ && undecided_ > 0; ++i) {
       Pending& e = line_at(i);
       if (e.rest && (i + static_cast<std::size_t>(overlap_max_) + 3 < line_n_ || raw_done())) {
         e.rest = false;
+        --undecided_;
         try_overlap(i);
       }
     }
   }
+}
+
+std::size_t Job::line_target() const {
+  const bool near_stop = bounds_[run_ + 1] - last_s_mm_ <= deep_within_mm_;
+  return near_stop || undecided_ > 0 ? line_cap_ : 1;
 }
 
 Setpoint Job::delayed_step() {
@@ -301,6 +324,7 @@ void Job::line_push(const Setpoint& sp, bool rest) {
   e.rest = rest;
   e.raw = true;
   ++line_n_;
+  if (rest) ++undecided_;
 }
 
 // The sharp corner the motion rests on at line entry `rest`, if any: the next ones of
@@ -381,6 +405,8 @@ void Job::try_overlap(std::size_t rest) {
   for (std::size_t k = 0; k < mu; ++k) line_at(rest - mu + 1 + k) = line_scratch_[k];
   for (std::size_t i = rest + 1; i + mu < line_n_; ++i) line_at(i) = line_at(i + mu);
   line_n_ -= mu;
+  undecided_ = 0;  // the entries moved up may include a rest
+  for (std::size_t i = 0; i < line_n_; ++i) undecided_ += line_at(i).rest ? 1 : 0;
   ++overlap_.corners;
   overlap_.periods_saved += mu;
 }

@@ -99,9 +99,13 @@ class Job {
   const interpolator::BlendReport& blend_report() const { return blend_; }
   // The sharp corners passed without their stops so far.
   const OverlapReport& overlap_report() const { return overlap_; }
-  // Setpoints the job computes ahead of the one it emits: 0 unless a sharp corner may be
-  // overlapped (then feed override and hold act this many periods later).
+  // The most setpoints the job computes ahead of the one it emits: 0 unless a sharp corner may
+  // be overlapped. Then feed override and hold act up to this many periods later, but only
+  // within line_depth_within_mm() of a stop; elsewhere they act at once.
   std::size_t delay_periods() const { return line_cap_ == 0 ? 0 : line_cap_ - 1; }
+  double line_depth_within_mm() const { return deep_within_mm_; }
+  // Setpoints computed ahead of the one emitted next, now.
+  std::size_t line_depth() const { return line_n_; }
   // Where each segment of the path given to the job starts on path(), mm, and its length last
   // (segments + 1 values; a segment that the fit split starts where its first piece starts).
   std::vector<double> segment_starts_mm() const;
@@ -124,8 +128,9 @@ class Job {
     bool raw = true;    // the planner's own setpoint, not part of an overlap
   };
   bool raw_done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
-  void feed_planner();  // the planner's look-ahead from the sampler
-  void fill_line();     // planner steps into the line of setpoints, overlaps decided
+  void feed_planner();              // the planner's look-ahead from the sampler
+  void fill_line();                 // planner steps into the line of setpoints, overlaps decided
+  std::size_t line_target() const;  // how deep fill_line() fills the line now
   Setpoint raw_step();
   Setpoint delayed_step();
   Pending& line_at(std::size_t i) { return line_[(line_head_ + i) % line_.size()]; }
@@ -160,6 +165,8 @@ class Job {
   std::vector<OverlapSample> window_;  // scratch: the line as the overlap reads it
   std::vector<Pending> line_scratch_;  // scratch: an overlap's new entries
   std::size_t line_head_ = 0, line_n_ = 0, line_cap_ = 0;
+  std::size_t undecided_ = 0;    // rests in the line whose overlap is not decided yet
+  double deep_within_mm_ = 0.0;  // the line is filled to line_cap_ within this of a stop
   int overlap_max_ = 0;
   OverlapLimits overlap_limits_;
   std::size_t corner_next_ = 0;  // the first of blend_.sharp not yet passed
