@@ -65,7 +65,6 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -80,11 +79,13 @@
 #include "comms/sha256.hpp"
 #include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::comms {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using text::fixed;
 using Vec3 = std::array<double, 3>;
 
 constexpr std::int64_t kFraming = -1;     // % and NUL leader
@@ -1241,12 +1242,6 @@ class Session {
              fixed(100.0 * static_cast<double>(report_.bytes_written) / (now * cps_), 0) +
              " % of the line" + (xon_ ? "" : ", held by XOFF") +
              (ack_ && phase_ == Phase::Startup ? ", waiting for the controller to speak" : ""));
-  }
-
-  static std::string fixed(double v, int decimals) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-    return buf;
   }
 
   void finish() {

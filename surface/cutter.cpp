@@ -49,15 +49,10 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::surface {
 namespace {
-
-std::string num(double v) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
 
 // One move, precomputed for the tiles.
 struct MoveGeom {
@@ -153,9 +148,9 @@ class Cutter {
       const double v = std::hypot(g.dcx, g.dcy) / std::max(dt, 1e-300);
       const double steps = dt > 0.0 ? std::ceil(dt * (omega * rho_hi + v) / sample_mm) : 0.0;
       if (steps > kMaxSteps) {
-        throw InputError("move " + std::to_string(k) + " lasts " + num(dt) + " s and needs " +
-                         num(steps) + " time steps at a cell of " + num(map.cell_mm()) +
-                         " mm, above " + num(kMaxSteps) +
+        throw InputError("move " + std::to_string(k) + " lasts " + text::sig(dt) + " s and needs " +
+                         text::sig(steps) + " time steps at a cell of " + text::sig(map.cell_mm()) +
+                         " mm, above " + text::sig(kMaxSteps) +
                          ": simulate a shorter stretch of the run or use a coarser cell");
       }
       g.steps = static_cast<std::int64_t>(steps);
@@ -291,7 +286,7 @@ void validate(const BallEndMill& tool) {
                      " is outside [1, 64]: give the number of cutting edges of the ball");
   }
   if (!std::isfinite(tool.helix_deg) || tool.helix_deg < 0.0 || tool.helix_deg >= 60.0) {
-    throw InputError("helix_deg = " + num(tool.helix_deg) +
+    throw InputError("helix_deg = " + text::sig(tool.helix_deg) +
                      " is outside [0, 60): give the lead angle of the edges, 0 for straight edges");
   }
 }
@@ -300,7 +295,7 @@ SimStats simulate(ZMap& map, const BallEndMill& tool, const std::vector<Move>& m
                   const SimOptions& options) {
   validate(tool);
   if (!(options.sample_fraction > 0.0 && options.sample_fraction <= 1.0)) {
-    throw InputError("sample_fraction = " + num(options.sample_fraction) +
+    throw InputError("sample_fraction = " + text::sig(options.sample_fraction) +
                      " is outside (0, 1]: samples must be at most one cell apart");
   }
   if (options.tile_cells < 8) {
@@ -318,8 +313,8 @@ SimStats simulate(ZMap& map, const BallEndMill& tool, const std::vector<Move>& m
                        "not finite: check the setpoints");
     }
     if (m.t1_s < m.t0_s) {
-      throw InputError("move " + std::to_string(k) + " ends at t = " + num(m.t1_s) +
-                       " s before it starts at t = " + num(m.t0_s) +
+      throw InputError("move " + std::to_string(k) + " ends at t = " + text::sig(m.t1_s) +
+                       " s before it starts at t = " + text::sig(m.t0_s) +
                        " s: setpoints must be in time order");
     }
   }

@@ -9,17 +9,9 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::surface {
-namespace {
-
-std::string num(double v) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-
-}  // namespace
 
 RasterRun make_raster(const RasterSpec& spec, const BallEndMill& tool) {
   validate(tool);
@@ -28,16 +20,16 @@ RasterRun make_raster(const RasterSpec& spec, const BallEndMill& tool) {
   require_positive("stock_mm", spec.stock_mm);
   const double r = tool.radius_mm;
   if (spec.pick_feed_mm >= 2.0 * r) {
-    throw InputError("pick_feed_mm = " + num(spec.pick_feed_mm) +
-                     " is not below the ball's diameter " + num(2.0 * r) +
+    throw InputError("pick_feed_mm = " + text::sig(spec.pick_feed_mm) +
+                     " is not below the ball's diameter " + text::sig(2.0 * r) +
                      " mm: the passes would leave uncut ribs; reduce the pick feed");
   }
   if (spec.stock_mm >= r) {
-    throw InputError("stock_mm = " + num(spec.stock_mm) + " is not below the ball radius " +
-                     num(r) + " mm: the simulation models the ball, not the shank");
+    throw InputError("stock_mm = " + text::sig(spec.stock_mm) + " is not below the ball radius " +
+                     text::sig(r) + " mm: the simulation models the ball, not the shank");
   }
   if (!std::isfinite(spec.inclination_deg) || std::abs(spec.inclination_deg) >= 60.0) {
-    throw InputError("inclination_deg = " + num(spec.inclination_deg) +
+    throw InputError("inclination_deg = " + text::sig(spec.inclination_deg) +
                      " is outside (-60, 60): the ball's hemisphere must reach the slope");
   }
   const double ft = spec.feed_per_tooth_mm, fp = spec.pick_feed_mm;
@@ -115,8 +107,8 @@ std::vector<Move> read_setpoints_csv(std::istream& in, const std::string& name,
     const Vec3 pos(v[1], v[2], v[3]);
     if (have_prev) {
       if (v[0] < t_prev) {
-        throw InputError(name + ":" + std::to_string(line_no) + ": t_s = " + num(v[0]) +
-                         " is before the previous row's " + num(t_prev) +
+        throw InputError(name + ":" + std::to_string(line_no) + ": t_s = " + text::sig(v[0]) +
+                         " is before the previous row's " + text::sig(t_prev) +
                          ": the setpoints must be in time order");
       }
       Move m;

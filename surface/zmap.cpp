@@ -5,26 +5,22 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/number_text.hpp"
 
 namespace ncd::surface {
 namespace {
 
-std::string num(double v) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-
 int cells_along(const char* axis, double lo, double hi, double h) {
   if (!std::isfinite(lo) || !std::isfinite(hi) || !(hi > lo)) {
-    throw InputError(std::string("the patch's ") + axis + " range [" + num(lo) + ", " + num(hi) +
+    throw InputError(std::string("the patch's ") + axis + " range [" + text::sig(lo) + ", " +
+                     text::sig(hi) +
                      "] mm is empty or not finite: give a minimum below the maximum");
   }
   const double n = std::ceil((hi - lo) / h - 1e-9);
   if (n > static_cast<double>(kMaxCells)) {
-    throw InputError(std::string("the patch's ") + axis + " range of " + num(hi - lo) +
-                     " mm at a cell of " + num(h) + " mm needs " + num(n) + " cells, above " +
-                     num(static_cast<double>(kMaxCells)) +
+    throw InputError(std::string("the patch's ") + axis + " range of " + text::sig(hi - lo) +
+                     " mm at a cell of " + text::sig(h) + " mm needs " + text::sig(n) +
+                     " cells, above " + text::sig(static_cast<double>(kMaxCells)) +
                      ": use a coarser cell or a smaller patch");
   }
   return static_cast<int>(n);
@@ -39,9 +35,9 @@ ZMap::ZMap(const GridSpec& spec, const InitialSurface& surface)
   ny_ = cells_along("y", spec.y_min_mm, spec.y_max_mm, h_);
   const double total = static_cast<double>(nx_) * static_cast<double>(ny_);
   if (total > static_cast<double>(kMaxCells)) {
-    throw InputError("the patch needs " + num(total) + " cells (" + std::to_string(nx_) + " x " +
-                     std::to_string(ny_) + " at " + num(h_) + " mm), above the limit of " +
-                     num(static_cast<double>(kMaxCells)) +
+    throw InputError("the patch needs " + text::sig(total) + " cells (" + std::to_string(nx_) +
+                     " x " + std::to_string(ny_) + " at " + text::sig(h_) +
+                     " mm), above the limit of " + text::sig(static_cast<double>(kMaxCells)) +
                      ": use a coarser cell (--cell-um) or a smaller patch");
   }
   const std::size_t n = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
@@ -51,8 +47,8 @@ ZMap::ZMap(const GridSpec& spec, const InitialSurface& surface)
     for (int i = 0; i < nx_; ++i) {
       const double z = surface_.at_mm(x_mm(i), y_mm(j));
       if (!std::isfinite(z)) {
-        throw InputError("the initial surface is not finite at x = " + num(x_mm(i)) +
-                         " mm, y = " + num(y_mm(j)) + " mm: give a height function defined " +
+        throw InputError("the initial surface is not finite at x = " + text::sig(x_mm(i)) +
+                         " mm, y = " + text::sig(y_mm(j)) + " mm: give a height function defined " +
                          "over the whole patch");
       }
       z_[index(i, j)] = z;
