@@ -389,10 +389,12 @@ void Service::run_here() {
   }
 }
 
+// At most a ring's worth a call: on the simulated clock the cycle's thread refills the ring as
+// fast as it is drained, and a poll must come back to its owner (status, holds, the link).
 void Service::drain() {
   motion::Setpoint sp;
   const double period_s = job_.motion.limits.period_s;
-  while (cycle_->pop(sp)) {
+  for (std::size_t n = 0; n < options_.ring_capacity && cycle_->pop(sp); ++n) {
     if (limits_->check(sp) != LimitKind::None) {
       const LiveViolations& v = limits_->violations();
       const std::string what =

@@ -139,6 +139,9 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
 
   app::SubmittedJob job = app::submitted_job(chamfer_request(port), config);
   ASSERT_TRUE(job.spec.program) << "the service walks the whole program";
+  ASSERT_TRUE(job.spec.link);
+  // The controller's holds timed on its own clock, whatever the load on the test's thread.
+  job.spec.link->sender.hold_clock = ctl_.clock();
   service::ServiceOptions o;
   o.clock = motion::ClockKind::Simulated;
   o.realtime = false;

@@ -190,7 +190,8 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
     step(0.005);
   }
   ASSERT_GE(ctl_.sim().progress().blocks_received, 4);
-  ASSERT_EQ(s.state(), service::State::Running);
+  ASSERT_EQ(s.state(), service::State::Running)
+      << s.status().error << "; controller: " << alarms_and_errors(ctl_.log());
   // The sender times the hold on the controller's clock: that moves on, the service unpolled,
   // past the sender's xoff_timeout_s, and then stands still with DC3 still held while the
   // sender says so; the next poll() applies the link's hold before it drains anything.
