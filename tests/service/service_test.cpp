@@ -120,6 +120,40 @@ TEST(ServiceStates, AJobRunsFromIdleToDoneAndEmitsTheReferenceSetpoints) {
   EXPECT_EQ(feed->dropped(), 0u);
 }
 
+// A sink slower than the cycle (1 ms a setpoint against a cycle thread on the simulated clock,
+// which refills the ring as fast as it is drained): each poll still drains at most a ring's
+// worth and comes back to its owner (the last one also flushes the ring the motion's end left),
+// and the job ends with all the reference's setpoints.
+TEST(ServiceStates, APollDrainsAtMostARingsWorthWhateverTheSinksSpeed) {
+  constexpr std::size_t kRing = 16;
+  service::Service s(simulated(kRing));
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  auto path = cubic();
+  service::JobSpec j = job_of(path, got, committed);
+  struct SlowSink : test::CaptureSink {
+    using test::CaptureSink::CaptureSink;
+    void write(const motion::Setpoint& sp) override {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      test::CaptureSink::write(sp);
+    }
+  };
+  j.sink = std::make_unique<SlowSink>(got, &committed);
+  s.submit(std::move(j));
+  s.start();
+  std::size_t before = 0, full = 0;
+  for (int polls = 0; polls < 10000000 && s.poll(); ++polls) {
+    ASSERT_LE(got.size() - before, kRing) << "poll " << polls;
+    full += got.size() - before == kRing ? 1 : 0;
+    before = got.size();
+  }
+  EXPECT_LE(got.size() - before, 2 * kRing);  // the last: a ring, then the ring the end left
+  EXPECT_EQ(s.state(), State::Done);
+  // The sink was the slower: most polls stopped at the bound, with the ring refilled behind.
+  EXPECT_GT(full, got.size() / kRing / 2) << got.size() << " setpoints";
+  EXPECT_EQ(got.size(), reference(*path, motion::JobConfig{}).size());
+}
+
 TEST(ServiceStates, CommandsInTheWrongStateAreRefusedNamingIt) {
   service::Service s(simulated(64));
   const auto refused = [](auto&& f, const std::string& part) {
