@@ -476,6 +476,14 @@ int run_replay(const ReplayArgs& a) {
                  job.overlap_report().max_deviation_mm, st.step_time_ns.quantile(0.5),
                  st.step_time_ns.quantile(0.99), wall_s,
                  static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
+    if (job.delay_periods() > 0) {  // the corner overlap's line of setpoints (planner.md §3d)
+      std::fprintf(stderr,
+                   "  hold, override    act up to %zu periods (%.0f ms) late within %.1f mm of a "
+                   "stop, for the corner overlap; elsewhere in the next period\n",
+                   job.delay_periods(),
+                   1e3 * machine.limits.period_s * static_cast<double>(job.delay_periods()),
+                   job.line_depth_within_mm());
+    }
     if (encoder) print_blocks(encoder->stats(), a.blocks);
   }
   return 0;

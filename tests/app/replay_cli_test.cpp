@@ -207,11 +207,15 @@ TEST_F(Replay, CornersPassedWithoutTheirStopsAreReported) {
       EXPECT_GT(c["setpoint_delay_periods"].get<int>(), 0);
       EXPECT_GT(c["setpoint_delay_within_mm"].get<double>(), 0.0);
       EXPECT_NE(r.err.find("3 overlapped"), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("act up to 35 periods (140 ms) late within 14.8 mm of a stop"),
+                std::string::npos)
+          << r.err;
       EXPECT_GT(j["active_limit_share"]["corner_overlap"].get<double>(), 0.0);
     } else {
       EXPECT_EQ(c["overlapped"].get<int>(), 0);
       EXPECT_EQ(c["setpoint_delay_periods"].get<int>(), 0);
       EXPECT_EQ(c["setpoint_delay_within_mm"].get<double>(), 0.0);
+      EXPECT_EQ(r.err.find("hold, override"), std::string::npos) << r.err;
     }
   }
   EXPECT_LT(duration_s[1], duration_s[0] - 3 * 0.004);
