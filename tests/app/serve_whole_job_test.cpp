@@ -147,6 +147,10 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   o.realtime = false;
   o.ring_capacity = 64;
   service::Service s(o);
+  ctl_.while_sender_reads([&s] {  // until the job's link is done
+    const service::Status st = s.status();
+    return !st.link || !st.link->done;
+  });
   s.submit(std::move(job.spec));
   s.start();
   // The link's live counters in the socket's status (app::to_json), read during the transfer:

@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <thread>
 
@@ -62,6 +63,11 @@ class PacedController {
     }
   }
 
+  // Whether the sender still reads the line (it does until it has finished): once it has not,
+  // what the controller writes after (a DC1 as its buffer drains) stays unread, and steps no
+  // longer wait for it. Unset: the sender reads until the controller is done.
+  void while_sender_reads(std::function<bool()> reading) { sender_reading_ = std::move(reading); }
+
   // run() has returned (exit_at_end: the program end executed and the line quiet).
   bool done() const { return done_; }
   comms::SimController& sim() { return *sim_; }
@@ -89,7 +95,7 @@ class PacedController {
   void increment(double dt_s) {
     using namespace std::chrono_literals;
     const auto until = std::chrono::steady_clock::now() + 60s;
-    for (int unread = 1; port_fd_ >= 0 && !done_;) {
+    for (int unread = 1; port_fd_ >= 0 && !done_ && (!sender_reading_ || sender_reading_());) {
       ASSERT_EQ(::ioctl(port_fd_, FIONREAD, &unread), 0);
       if (unread == 0) break;
       ASSERT_LT(std::chrono::steady_clock::now(), until) << "the sender stopped reading";
@@ -107,6 +113,7 @@ class PacedController {
   std::unique_ptr<comms::SimController> sim_;
   std::thread thread_;
   std::atomic<bool> done_{false};
+  std::function<bool()> sender_reading_;
   double t0_ = 0.0;
   int port_fd_ = -1;
   std::chrono::steady_clock::time_point wall0_;

@@ -80,6 +80,13 @@ class LiveLink : public ::testing::Test {
   }
 
   void step(double dt_s) { ctl_.step(dt_s); }
+  // The sender reads the line until the job's link is done.
+  void follow(service::Service& s) {
+    ctl_.while_sender_reads([&s] {
+      const service::Status st = s.status();
+      return !st.link || !st.link->done;
+    });
+  }
 
   service::JobSpec job(std::vector<motion::Setpoint>& out) {
     service::JobSpec j;
@@ -143,6 +150,7 @@ class LiveLink : public ::testing::Test {
 TEST_F(LiveLink, JobStreamsLiveToTheControllerAsReplayEncodesIt) {
   start_controller({});
   service::Service s(options());
+  follow(s);
   std::vector<motion::Setpoint> emitted;
   s.submit(job(emitted));
   s.start();
@@ -179,6 +187,7 @@ TEST_F(LiveLink, LinkHoldHoldsTheMotionAndResumes) {
   f.hold_s = 5.0;
   start_controller(f);
   service::Service s(options());
+  follow(s);
   auto events = s.subscribe(4096);
   std::vector<motion::Setpoint> emitted;
   s.submit(job(emitted));
