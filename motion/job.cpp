@@ -74,15 +74,39 @@ StepBounds step_bounds(const JobConfig& c) {
 // Planner steps per prepare() while the line of setpoints fills: it grows by two a period.
 constexpr int kLineStepsPerPrepare = 3;
 
-// How far before a stop the line is filled to its capacity (docs/planner.md §3d), mm. From
-// there the planner makes at least n steps to the rest, n · v_max · T covering the distance,
-// and the line grows by (r − 1)/r of them; the rest's decision waits ⌈(m + 4)/r⌉ periods more
-// for the m + 4 setpoints after it, while the head moves on. The longest overlap m then still
-// has its m + 3 setpoints before the rest: n ≥ r/(r − 1) · (m + 4 + ⌈(m + 4)/r⌉).
-double line_deep_within_mm(int overlap_max, double max_feed_mm_per_s, double period_s) {
+// The planner steps before a rest that fill the line to its capacity in time (docs/planner.md
+// §3d): from n steps before it the line grows by (r − 1)/r of them, and the rest's decision
+// waits ⌈(m + 4)/r⌉ periods more for the m + 4 setpoints after it while the head moves on; the
+// longest overlap m then still has its m + 3 setpoints before the rest:
+// n ≥ r/(r − 1) · (m + 4 + ⌈(m + 4)/r⌉), one more for rounding.
+int line_deep_steps(int overlap_max) {
   const int r = kLineStepsPerPrepare, after = overlap_max + 4;
-  const int n = (r * (after + (after + r - 1) / r) + r - 2) / (r - 1) + 1;
-  return n * max_feed_mm_per_s * period_s;
+  return (r * (after + (after + r - 1) / r) + r - 2) / (r - 1) + 1;
+}
+
+// Per stretch between stops, the distance before its stop within which the line is deep, mm:
+// n periods at the fastest the stretch may go, 200 % of the highest programmed feed of the
+// segments it touches (the override's top), at most the machine's maximum feed (and that on
+// rapids and segments without a feed).
+std::vector<double> line_deep_within_mm(const toolpath::Path& path,
+                                        const std::vector<double>& segment_start_mm,
+                                        const std::vector<double>& bounds_mm,
+                                        const interpolator::MachineLimits& l, int steps) {
+  const double v_max = l.max_feed_mm_per_min / 60.0;
+  std::vector<double> within(bounds_mm.size() - 1, 0.0);
+  for (std::size_t k = 0; k + 1 < bounds_mm.size(); ++k) {
+    double v = 0.0;
+    for (std::size_t j = 0; j < path.segments.size(); ++j) {
+      if (segment_start_mm[j + 1] < bounds_mm[k] || segment_start_mm[j] > bounds_mm[k + 1]) {
+        continue;
+      }
+      const auto& seg = path.segments[j];
+      const bool fed = !seg.rapid && seg.feed_mm_per_min.has_value();
+      v = std::max(v, fed ? std::min(v_max, 2.0 * *seg.feed_mm_per_min / 60.0) : v_max);
+    }
+    within[k] = steps * v * l.period_s;
+  }
+  return within;
 }
 
 }  // namespace
@@ -154,7 +178,8 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
                                                     ? l.max_jerk_mm_per_s3
                                                     : std::sqrt(2.0) * l.max_jerk_mm_per_s3;
     overlap_limits_.chord_tolerance_mm = l.chord_tolerance_mm;
-    deep_within_mm_ = line_deep_within_mm(overlap_max_, l.max_feed_mm_per_min / 60.0, l.period_s);
+    deep_within_mm_ = line_deep_within_mm(path_, segment_starts(walker_, path_.segments.size()),
+                                          bounds_, l, line_deep_steps(overlap_max_));
   }
   here_.sp.p = walker_.position();
 }
@@ -270,10 +295,10 @@ Setpoint Job::raw_step() {
 }
 
 // The line of setpoints (docs/planner.md §3d), filled by prepare(): within deep_within_mm_ of
-// a stop, or while a rest waits for its decision, the planner runs up to line_cap_ periods ahead
-// (kLineStepsPerPrepare steps a period at most), so that at each rest on a sharp corner the
-// motion after it is known while the motion before it is still in the line; the overlap then
-// replaces both ends. Elsewhere the line holds the one setpoint emitted next, and a hold or an
+// the stretch's stop, or while a rest waits for its decision, the planner runs up to line_cap_
+// periods ahead (kLineStepsPerPrepare steps a period at most), so that at each rest on a sharp
+// corner the motion after it is known while the motion before it is still in the line; the overlap
+// then replaces both ends. Elsewhere the line holds the one setpoint emitted next, and a hold or an
 // override acts at once.
 void Job::fill_line() {
   for (int n = 0; n < kLineStepsPerPrepare && line_n_ < line_target() && !raw_done(); ++n) {
@@ -293,7 +318,7 @@ void Job::fill_line() {
 }
 
 std::size_t Job::line_target() const {
-  const bool near_stop = bounds_[run_ + 1] - last_s_mm_ <= deep_within_mm_;
+  const bool near_stop = bounds_[run_ + 1] - last_s_mm_ <= deep_within_mm_[run_];
   return near_stop || undecided_ > 0 ? line_cap_ : 1;
 }
 

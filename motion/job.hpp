@@ -5,6 +5,7 @@
 // and the wall clock of the service; it knows no clock itself.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -101,9 +102,14 @@ class Job {
   const OverlapReport& overlap_report() const { return overlap_; }
   // The most setpoints the job computes ahead of the one it emits: 0 unless a sharp corner may
   // be overlapped. Then feed override and hold act up to this many periods later, but only
-  // within line_depth_within_mm() of a stop; elsewhere they act at once.
+  // within line_depth_within_mm() of a stop (at most: it scales with each stretch's feed);
+  // elsewhere they act at once.
   std::size_t delay_periods() const { return line_cap_ == 0 ? 0 : line_cap_ - 1; }
-  double line_depth_within_mm() const { return deep_within_mm_; }
+  double line_depth_within_mm() const {
+    return deep_within_mm_.empty()
+               ? 0.0
+               : *std::max_element(deep_within_mm_.begin(), deep_within_mm_.end());
+  }
   // Setpoints computed ahead of the one emitted next, now.
   std::size_t line_depth() const { return line_n_; }
   // Where each segment of the path given to the job starts on path(), mm, and its length last
@@ -165,8 +171,9 @@ class Job {
   std::vector<OverlapSample> window_;  // scratch: the line as the overlap reads it
   std::vector<Pending> line_scratch_;  // scratch: an overlap's new entries
   std::size_t line_head_ = 0, line_n_ = 0, line_cap_ = 0;
-  std::size_t undecided_ = 0;    // rests in the line whose overlap is not decided yet
-  double deep_within_mm_ = 0.0;  // the line is filled to line_cap_ within this of a stop
+  std::size_t undecided_ = 0;  // rests in the line whose overlap is not decided yet
+  // Per stretch: the line is filled to line_cap_ within this of the stretch's stop, mm.
+  std::vector<double> deep_within_mm_;
   int overlap_max_ = 0;
   OverlapLimits overlap_limits_;
   std::size_t corner_next_ = 0;  // the first of blend_.sharp not yet passed
