@@ -306,11 +306,10 @@ void Job::fill_line() {
     const Setpoint r = raw_step();
     line_push(r, rest_);
     // A rest with the whole window behind and ahead of it in the line is decided now.
-    for (std::size_t i = 0; i < line_n_ && undecided_ > 0; ++i) {
+    for (std::size_t i = 0; i < line_n_; ++i) {
       Pending& e = line_at(i);
       if (e.rest && (i + static_cast<std::size_t>(overlap_max_) + 3 < line_n_ || raw_done())) {
         e.rest = false;
-        --undecided_;
         try_overlap(i);
       }
     }
@@ -318,8 +317,11 @@ void Job::fill_line() {
 }
 
 std::size_t Job::line_target() const {
-  const bool near_stop = bounds_[run_ + 1] - last_s_mm_ <= deep_within_mm_[run_];
-  return near_stop || undecided_ > 0 ? line_cap_ : 1;
+  if (bounds_[run_ + 1] - last_s_mm_ <= deep_within_mm_[run_]) return line_cap_;
+  for (std::size_t i = 0; i < line_n_; ++i) {  // a rest waiting for its decision
+    if (line_[(line_head_ + i) % line_.size()].rest) return line_cap_;
+  }
+  return 1;
 }
 
 Setpoint Job::delayed_step() {
@@ -349,7 +351,6 @@ void Job::line_push(const Setpoint& sp, bool rest) {
   e.rest = rest;
   e.raw = true;
   ++line_n_;
-  if (rest) ++undecided_;
 }
 
 // The sharp corner the motion rests on at line entry `rest`, if any: the next ones of
@@ -430,8 +431,6 @@ void Job::try_overlap(std::size_t rest) {
   for (std::size_t k = 0; k < mu; ++k) line_at(rest - mu + 1 + k) = line_scratch_[k];
   for (std::size_t i = rest + 1; i + mu < line_n_; ++i) line_at(i) = line_at(i + mu);
   line_n_ -= mu;
-  undecided_ = 0;  // the entries moved up may include a rest
-  for (std::size_t i = 0; i < line_n_; ++i) undecided_ += line_at(i).rest ? 1 : 0;
   ++overlap_.corners;
   overlap_.periods_saved += mu;
 }

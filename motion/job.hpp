@@ -171,7 +171,6 @@ class Job {
   std::vector<OverlapSample> window_;  // scratch: the line as the overlap reads it
   std::vector<Pending> line_scratch_;  // scratch: an overlap's new entries
   std::size_t line_head_ = 0, line_n_ = 0, line_cap_ = 0;
-  std::size_t undecided_ = 0;  // rests in the line whose overlap is not decided yet
   // Per stretch: the line is filled to line_cap_ within this of the stretch's stop, mm.
   std::vector<double> deep_within_mm_;
   int overlap_max_ = 0;

@@ -36,6 +36,18 @@ class Replay : public Cli {
     EXPECT_EQ(ncd(kChamfer + " -o " + path).status, 0);
     return path;
   }
+  // `ncd replay PATH --machine MACHINE --report`: what it printed, and the report (null unless
+  // it exited 0).
+  struct Run {
+    CmdResult r;
+    nlohmann::json report;
+  };
+  Run replay_with(const std::string& path, const std::string& machine) {
+    const fs::path report = dir_ / "r.json";
+    Run run{ncd("replay " + path + " --machine " + machine + " --report " + report.string()), {}};
+    if (run.r.status == 0) run.report = nlohmann::json::parse(slurp(report));
+    return run;
+  }
 };
 
 TEST_F(Replay, HelpNamesTheOutputs) {
@@ -163,11 +175,8 @@ TEST_F(Replay, JerkVectorBoundFromTheMachineFile) {
     const std::string machine =
         write("m.toml", std::string("jerk_bound = \"") + bound +
                             "\"\n[cutting]\npick_feed_mm = 0\nroughness_target_um = 1000\n");
-    const fs::path report = dir_ / "r.json";
-    const CmdResult r =
-        ncd("replay " + cubic + " --machine " + machine + " --report " + report.string());
+    const auto [r, j] = replay_with(cubic, machine);
     ASSERT_EQ(r.status, 0) << r.err;
-    const auto j = nlohmann::json::parse(slurp(report));
     EXPECT_EQ(j["jerk_bound"].get<std::string>().rfind(bound, 0), 0u) << j["jerk_bound"];
     EXPECT_EQ(j["machine"]["jerk_bound"].get<std::string>(), bound);
     EXPECT_EQ(j["limit_violations"].get<int>(), 0);
@@ -192,11 +201,8 @@ TEST_F(Replay, CornersPassedWithoutTheirStopsAreReported) {
     const std::string program =
         write("square.ngc", std::string("G21 G90 G64 P") + (p ? "0.01" : "0") +
                                 "\nG0 X0 Y0 Z0\nG1 X10 F6000\nY10\nX0\nY0\nM2\n");
-    const fs::path report = dir_ / "r.json";
-    const CmdResult r =
-        ncd("replay " + program + " --machine " + machine + " --report " + report.string());
+    const auto [r, j] = replay_with(program, machine);
     ASSERT_EQ(r.status, 0) << r.err;
-    const auto j = nlohmann::json::parse(slurp(report));
     EXPECT_EQ(j["limit_violations"].get<int>(), 0);
     const auto& c = j["corners"];
     duration_s[p] = j["duration_s"].get<double>();
