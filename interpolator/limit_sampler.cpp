@@ -82,6 +82,8 @@ namespace ncd::interpolator {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kFineBelowCap =
+    0.999;  // an interval whose limit is lower is followed by half ones
 
 // The argument of the minimum of a unimodal f on [a, b], by golden section, to width tol.
 template <typename F>
@@ -746,7 +748,8 @@ bool LimitSampler::next_interval(Interval& iv) {
       continue;
     }
     const double speed = c.eval(u_).d1.norm();
-    double u1 = speed > 0.0 ? u_ + config_.spacing_mm / speed : c.u_end();
+    const double spacing_mm = fine_ ? 0.5 * config_.spacing_mm : config_.spacing_mm;
+    double u1 = speed > 0.0 ? u_ + spacing_mm / speed : c.u_end();
     const std::vector<double>& knots = breakpoints_[segment_];
     while (knot_ < knots.size() && knots[knot_] <= u_) ++knot_;
     if (knot_ < knots.size()) u1 = std::min(u1, knots[knot_]);
@@ -884,6 +887,9 @@ bool LimitSampler::next_interval(Interval& iv) {
                              : interval_min_on_curve(segment_, u_, u1, open_end);
     ++curve_intervals_;
     if (flat) ++flat_intervals_;
+    // Where the limit is below the cap it changes along the curve: there the planner holds
+    // each interval's minimum over the whole interval, so shorter ones follow it closer.
+    fine_ = v.feed_mm_per_s < kFineBelowCap * segment_cap(segment_).feed_mm_per_s;
     if (innermost) {
       // The first (last) period's travel from (to) rest: no jerk-limited motion is faster
       // there than the rest speed, so the limit's dip to 0 at the point itself is not a cap.
@@ -1065,6 +1071,7 @@ double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u
 
 void LimitSampler::enter_segment() {
   rest_origin_mm_ = -1.0;
+  fine_ = false;
   s_ = starts_mm_[segment_];
   piece_s_ = s_;
   knot_ = 0;
@@ -1088,6 +1095,7 @@ bool LimitSampler::next(LimitNode& out) {
       pending_.limit = iv.limit;
     }
     pending_.right_mm_per_s = iv.v_mm_per_s;
+    pending_.right_limit = iv.limit;
     pending_.jerk_span = jerk_span_of(iv);
     out = pending_;
     pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf, {}};

@@ -25,6 +25,7 @@ struct LimitNode {
   // node (its largest curvature and curvature turn, and its jerk budget; unlike the speed, a
   // span is exact for its interval, so it is not shared); none under JerkBound::tangential.
   JerkVectorSpan jerk_span;
+  FeedLimit right_limit = FeedLimit::MaxFeed;  // the law of right_mm_per_s
 };
 
 struct SamplerConfig {
@@ -162,7 +163,8 @@ class LimitSampler {
   bool started_ = false, finished_ = false;
   std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
-  LimitNode pending_;             // the node whose right-hand interval is not known yet
+  bool fine_ = false;  // the last curve interval's limit was below the cap: half the spacing
+  LimitNode pending_;  // the node whose right-hand interval is not known yet
 };
 
 }  // namespace ncd::interpolator

@@ -72,6 +72,7 @@ StepBounds step_bounds(const JobConfig& c) {
 }
 
 // Planner steps per prepare() while the line of setpoints fills: it grows by two a period.
+constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kLineStepsPerPrepare = 3;
 
 // The planner steps before a rest that fill the line to its capacity in time (docs/planner.md
@@ -208,10 +209,13 @@ void Job::feed_planner() {
           "it); split the curve there into two segments");
     }
   };
+  const auto id = [](interpolator::FeedLimit limit) { return static_cast<std::uint8_t>(limit); };
+  // A node and the interval after it (the sampler's minimum there; +inf at a stretch's end).
   const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
-                        const JerkVectorSpan& span) {
+                        const JerkVectorSpan& span, double v_after_mm_per_s,
+                        interpolator::FeedLimit after) {
     check(s_mm, v_mm_per_s, limit);
-    planner_.push({s_mm, v_mm_per_s, static_cast<std::uint8_t>(limit), span});
+    planner_.push({s_mm, v_mm_per_s, id(limit), span, v_after_mm_per_s, id(after)});
   };
   while (planner_.wants_samples()) {
     if (carry_n_ > 0) {
@@ -239,20 +243,21 @@ void Job::feed_planner() {
       // interval of the node before, which holds the stop).
       const bool past = node.s_mm > end + tol;
       const JerkVectorSpan span = node.jerk_span, first = past ? last_span_ : span;
-      push(length, left, node.limit, JerkVectorSpan{});
+      push(length, left, node.limit, JerkVectorSpan{}, kInf, node.limit);
       const double right = past ? left : node.right_mm_per_s;
       check(length, right, node.limit);
-      carry_[0] = {0.0, right, static_cast<std::uint8_t>(node.limit), first};
+      carry_[0] = {0.0, right, id(node.limit), first, past ? kInf : right, id(node.right_limit)};
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
       if (past) {  // no node fell on the stop: keep this one for the next
-        carry_[1] = {node.s_mm - end, node.feed_mm_per_s, static_cast<std::uint8_t>(node.limit),
-                     span};
+        carry_[1] = {node.s_mm - end,     node.feed_mm_per_s,  id(node.limit), span,
+                     node.right_mm_per_s, id(node.right_limit)};
         carry_n_ = 2;
       }
       break;  // the planner has its end
     }
-    push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.jerk_span);
+    push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.jerk_span, node.right_mm_per_s,
+         node.right_limit);
     last_span_ = node.jerk_span;
   }
 }

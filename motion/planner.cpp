@@ -244,6 +244,17 @@ void Planner::push(const LimitSample& in) {
                      " is invalid: a feed limit must be finite and > 0; where the machine must "
                      "stop, end the path there and start a new one");
   }
+  if (!(in.v_after_mm_per_s >= in.v_max_mm_per_s)) {
+    throw InputError("v_after_mm_per_s = " + std::to_string(in.v_after_mm_per_s) +
+                     " at s_mm = " + std::to_string(in.s_mm) +
+                     " is invalid: the limit over the interval after a sample is at least the "
+                     "sample's v_max_mm_per_s (" +
+                     std::to_string(in.v_max_mm_per_s) + "); use +inf where it is not known");
+  }
+  if (in.after_limit_id >= kLimitIdReserved) {
+    throw InputError("after_limit_id = " + std::to_string(in.after_limit_id) + " is reserved (>= " +
+                     std::to_string(kLimitIdReserved) + "); use a smaller id");
+  }
   const JerkVectorSpan span = in.jerk_span;
   const bool constrained =
       span.curvature_per_mm != 0.0 || span.turn_per_mm2 != 0.0 || span.budget != 1.0;
@@ -365,7 +376,7 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
   while (c.segment + 2 < count_ && sample(c.segment + 1).s_mm <= x.s_mm) ++c.segment;
   JerkVectorSpan span;  // the curve over the period's span: largest κ and g, smallest budget
   for (std::size_t k = c.segment; k + 1 < count_; ++k) {
-    const double lim = std::min(sample(k).v_max_mm_per_s, sample(k + 1).v_max_mm_per_s) * scale;
+    const double lim = interval_limit(k) * scale;
     if (v_hi > lim * (1.0 + kRelSlack)) return false;
     if (any_scaled_) {  // the curve of the interval that starts at sample k
       const JerkVectorSpan q = sample(k).jerk_span;
@@ -389,7 +400,7 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
 // limit at least min_tangential_scale).
 double Planner::sample_scale(std::size_t i, double v) const {
   const LimitSample& q = sample(i);
-  return tangential_scale(q.jerk_span, std::min(v, q.v_max_mm_per_s * override_applied_), a_max_,
+  return tangential_scale(q.jerk_span, std::min(v, interval_limit(i) * override_applied_), a_max_,
                           j_max_);
 }
 
@@ -504,8 +515,8 @@ void Planner::build_blocks(double scale, double stop_mm) {
     const double b0 = std::max(p.s_mm, x_.s_mm);
     const double b1 = std::min(q.s_mm, stop_mm);
     if (b1 > b0) {
-      const double v = std::min(p.v_max_mm_per_s, q.v_max_mm_per_s) * scale;
-      const std::uint8_t id = p.v_max_mm_per_s <= q.v_max_mm_per_s ? p.limit_id : q.limit_id;
+      const double v = interval_limit(i) * scale;
+      const std::uint8_t id = interval_limit_id(i);
       if (block_count_ > 0) {
         Block& last = blocks_[block_count_ - 1];
         if (last.v_max_mm_per_s == v || last.end_mm - last.begin_mm < len_min) {
@@ -724,8 +735,22 @@ double Planner::limit_at(double s_mm) const {
   if (count_ == 0) return 0.0;
   std::size_t i = 0;
   while (i + 1 < count_ && sample(i + 1).s_mm <= s_mm) ++i;
-  const double here = sample(i).v_max_mm_per_s;
-  return i + 1 < count_ ? std::min(here, sample(i + 1).v_max_mm_per_s) : here;
+  return interval_limit(i);
+}
+
+double Planner::interval_limit(std::size_t i) const {
+  const LimitSample& p = sample(i);
+  if (i + 1 >= count_) return p.v_max_mm_per_s;
+  if (std::isfinite(p.v_after_mm_per_s)) return p.v_after_mm_per_s;
+  return std::min(p.v_max_mm_per_s, sample(i + 1).v_max_mm_per_s);
+}
+
+std::uint8_t Planner::interval_limit_id(std::size_t i) const {
+  const LimitSample& p = sample(i);
+  if (i + 1 >= count_) return p.limit_id;
+  if (std::isfinite(p.v_after_mm_per_s)) return p.after_limit_id;
+  const LimitSample& q = sample(i + 1);
+  return p.v_max_mm_per_s <= q.v_max_mm_per_s ? p.limit_id : q.limit_id;
 }
 
 MotionSample Planner::step() {

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -13,7 +14,9 @@
 namespace ncd::motion {
 
 // One point of the feed-limit curve. Between two samples the limit is the MINIMUM of the two
-// (conservative, piecewise constant), so an upstream that samples densely is respected.
+// (conservative, piecewise constant), so an upstream that samples densely is respected; an
+// upstream that knows the limit's minimum over the interval after a sample gives it in
+// v_after_mm_per_s, and the planner holds that instead (docs/planner.md §2).
 struct LimitSample {
   double s_mm = 0.0;            // arc length along the path, strictly increasing, first at 0
   double v_max_mm_per_s = 0.0;  // > 0; a point where the machine must stop ends the path
@@ -22,6 +25,10 @@ struct LimitSample {
   // starts at this sample (its largest κ and g, and its budget; unlike v_max, not shared with
   // the interval before). The default (0, 0, 1): no constraint.
   JerkVectorSpan jerk_span{};
+  // The limit over the interval from this sample to the next (its minimum there; at least
+  // v_max_mm_per_s), and the law that sets it; +inf: the smaller of the two samples.
+  double v_after_mm_per_s = std::numeric_limits<double>::infinity();
+  std::uint8_t after_limit_id = 0;
 };
 
 // limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
@@ -141,6 +148,8 @@ class Planner {
   Kin cubic_step(const Kin& x, double j) const;  // one period at jerk j, exactly, no snapping
   void commit(double j, std::uint8_t limit_id);
   double limit_at(double s_mm) const;
+  double interval_limit(std::size_t i) const;  // between samples i and i + 1 (see LimitSample)
+  std::uint8_t interval_limit_id(std::size_t i) const;
 
   // limits
   double a_max_, j_max_, period_s_, length_mm_;

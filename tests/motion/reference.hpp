@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <vector>
 
@@ -84,6 +85,27 @@ inline double scurve_time_s(double d, double v, double a, double j) {
 inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector<double>& V,
                                  double A, double J, double dt_s = 5e-6) {
   const std::size_t n = s.size();
+  // The top within reach: U[k] = max V over s[k] ± V_top A / J. Whatever the motion's
+  // acceleration a, |jerk| ≤ J keeps its sign for |a|/J ≤ A/J more: for a > 0 the speed still
+  // rises by a²/2J, for a < 0 it was a²/2J higher |a|/J ago, within V_top A / J of travel; so
+  // v + a²/2J ≤ U(s), a cap |a| ≤ √(2J (U − v)) (the S-curve's own ramp onto its top).
+  const double v_top = *std::max_element(V.begin(), V.end());
+  const double reach_mm = v_top * A / J;
+  std::vector<double> U(n);
+  {
+    std::deque<std::size_t> window;  // indices of a falling run of V: the front is the maximum
+    std::size_t hi = 0;
+    for (std::size_t k = 0, lo = 0; k < n; ++k) {
+      for (; hi < n && s[hi] <= s[k] + reach_mm; ++hi) {
+        while (!window.empty() && V[window.back()] <= V[hi]) window.pop_back();
+        window.push_back(hi);
+      }
+      for (; s[lo] < s[k] - reach_mm; ++lo) {
+        if (window.front() == lo) window.pop_front();
+      }
+      U[k] = V[window.front()];
+    }
+  }
   // The fastest motion from pivot i towards the split at index `to`, with v0 = V[i] and the
   // acceleration cap min(A, a_start + J τ) in its own direction of travel.
   const auto fastest_s = [&](std::size_t i, std::size_t to, double a_start) {
@@ -100,7 +122,9 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
       return k == to ? V[to] : std::max(V[k], V[dir > 0 ? k + 1 : k - 1]);
     };
     while (x < len && t < 1e4) {  // (a stop is a lower bound too; V = 0 over a cell never ends)
-      const double cap = std::min(A, a_start + J * (t + dt_s));
+      const double top = std::max(U[k], U[k == to ? k : dir > 0 ? k + 1 : k - 1]);
+      const double cap =
+          std::min({A, a_start + J * (t + dt_s), std::sqrt(2.0 * J * std::max(0.0, top - v))});
       double v1 = std::max(0.0, v + cap * dt_s);
       const double step = 0.5 * (v + v1) * dt_s;
       v1 = std::min(v1, limit_at(x + step));
