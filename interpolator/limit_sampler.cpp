@@ -9,8 +9,14 @@
 //     intervals   |  m0 | m1 | m2 | m3 |        m_i = min of the limit over interval i
 //     nodes       v0    v1   v2   v3   v4       v_k = min(m_k-1, m_k)
 //
-// Intervals are at most `spacing_mm` long (0.2 mm: two per period at 100 mm/s and 4 ms), with
-// a node on every knot and vertex. The minimum over a curve interval: five samples, then
+// The job also hands the planner each interval's own minimum m_i (LimitNode::right_mm_per_s),
+// which the planner holds instead of min(v_k, v_k+1) = min(m_k-1, m_k, m_k+1): on a slope of
+// the limit that follows it an interval closer (docs/planner.md §2, "Each interval's own
+// minimum").
+//
+// Intervals are at most `spacing_mm` long (0.2 mm: two per period at 100 mm/s and 4 ms; half
+// that on a curve after an interval whose limit is below the cap), with a node on every knot
+// and vertex. The minimum over a curve interval: five samples, then
 // Brent's method around the lowest (the minimum may sit just inside an end).
 //
 // What is limited (docs/planner.md §§1–3): on curves, feed_limit() at each point (roughness

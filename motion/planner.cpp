@@ -1,9 +1,10 @@
 // Look-ahead feed planner: a jerk-limited online trajectory in one dimension (arc length s).
 //
-// Input: a feed-limit curve v_lim(s), piecewise constant between pushed samples (the minimum
-// of the two ends); limits a_max, j_max; period T. Output: s(t) with a constant jerk inside
-// each period, so s is a cubic per period; v <= v_lim(s) at every instant, |a| <= a_max,
-// |j| <= j_max, v >= 0, at rest at s = 0 and at rest exactly at s = L.
+// Input: a feed-limit curve v_lim(s), piecewise constant between pushed samples (the limit
+// over the interval after a sample when the upstream gives it, else the minimum of the two
+// ends; docs/planner.md §2); limits a_max, j_max; period T. Output: s(t) with a constant jerk
+// inside each period, so s is a cubic per period; v <= v_lim(s) at every instant,
+// |a| <= a_max, |j| <= j_max, v >= 0, at rest at s = 0 and at rest exactly at s = L.
 //
 //   v_lim ─────────┐              ┌──────────────        window: samples from s to
 //                  │              │                      s + H(v, a), H = S-curve braking

@@ -67,21 +67,22 @@ inline double scurve_time_s(double d, double v, double a, double j) {
 // |jerk| ≤ J, from rest at s[0] to rest at s.back(): the profile V(s) must already hold the
 // acceleration (the phase plane's forward and backward passes), V[0] = V.back() = 0.
 //
-// The phase plane alone lets the acceleration jump from −A to +A at the bottom of every dip of
-// V, and from 0 to A at the rest ends; here the jerk is counted there. Pick pivots: the rest
-// ends, where (v, a) = (0, 0), and the bottoms of the dips of V, where the motion's state is
-// some (v0 ≤ V, a0 ∈ [−A, A]). Split the path between consecutive pivots. From a pivot, any
-// motion's acceleration τ later is at most min(A, a0 + J τ), and τ earlier its deceleration is
-// at most min(A, −a0 + J τ) (|jerk| ≤ J); the fastest such motion that keeps v ≤ V(s)
-// (accelerating at that cap, or along V where V binds: in one dimension under an upper bound
-// v ≤ V(s) and a cap that only grows with time, it is ahead at every instant) reaches the
-// split points in a time that no motion beats. So the duration is at least the sum, over
-// pivots, of the fastest backward and forward times to the neighbouring splits, minimised over
-// the unknown a0 at interior pivots (the forward time falls and the backward time rises with
-// a0, so a grid of a0 bounds the minimum from below: forward at the upper and backward at the
-// lower end of each cell). Every choice of pivots and splits gives a valid bound; the splits
-// are taken at the top of V between pivots, and a dip is a pivot where V rises by at least 5 %
-// on both sides. The integration in time (step dt_s) is numerical, like the phase plane's.
+// The phase plane alone lets the acceleration jump from −A to +A at the bottom of every dip
+// of V, from 0 to A at the rest ends, and from A to 0 onto a top; here the jerk is counted
+// there. Pick pivots: the rest ends, where (v, a) = (0, 0), and the bottoms of the dips of V,
+// where the motion's state is some (v0 ≤ V, a0 ∈ [−A, A]). Split the path between consecutive
+// pivots. From a pivot, any motion's acceleration τ later is at most min(A, a0 + J τ), and τ
+// earlier its deceleration is at most min(A, −a0 + J τ) (|jerk| ≤ J), and either is at most
+// √(2J (U − v)) (U below); the fastest such motion that keeps v ≤ V(s) (accelerating at that
+// cap, or along V where V binds: in one dimension under an upper bound v ≤ V(s) and a cap that
+// grows with time and falls with speed, it is ahead at every instant) reaches the split points in a
+// time that no motion beats. So the duration is at least the sum, over pivots, of the fastest
+// backward and forward times to the neighbouring splits, minimised over the unknown a0 at interior
+// pivots (the forward time falls and the backward time rises with a0, so a grid of a0 bounds the
+// minimum from below: forward at the upper and backward at the lower end of each cell). Every
+// choice of pivots and splits gives a valid bound; the splits are taken at the top of V between
+// pivots, and a dip is a pivot where V rises by at least 5 % on both sides. The integration in time
+// (step dt_s) is numerical, like the phase plane's.
 inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector<double>& V,
                                  double A, double J, double dt_s = 5e-6) {
   const std::size_t n = s.size();
