@@ -62,7 +62,7 @@ double expect_same_nodes(const toolpath::Path& path, const MachineLimits& limits
     const LimitNode& b = slow.nodes[i];
     const bool same = a.s_mm == b.s_mm && a.feed_mm_per_s == b.feed_mm_per_s &&
                       a.limit == b.limit && a.left_mm_per_s == b.left_mm_per_s &&
-                      a.right_mm_per_s == b.right_mm_per_s;
+                      a.right_mm_per_s == b.right_mm_per_s && a.right_limit == b.right_limit;
     if (!same) {
       ++reported;
       ADD_FAILURE() << what << ": node " << i << " differs: s " << a.s_mm << " / " << b.s_mm

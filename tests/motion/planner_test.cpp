@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <functional>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -23,20 +24,27 @@ namespace {
 
 constexpr double kTol = 1e-9;  // relative tolerance of the checks (rounding only)
 
-// The limit the curve sets at s: min of the two ends of the segment holding s (both adjacent
-// segments at a sample point); 0 outside the curve.
+// The limit over the interval from curve[k] to curve[k + 1]: its own value where given
+// (LimitSample::v_after_mm_per_s), else the smaller of its two ends.
+double interval_value(const std::vector<LimitSample>& curve, std::size_t k) {
+  if (std::isfinite(curve[k].v_after_mm_per_s)) return curve[k].v_after_mm_per_s;
+  return std::min(curve[k].v_max_mm_per_s, curve[k + 1].v_max_mm_per_s);
+}
+
+// The limit the curve sets at s: the value of the interval holding s (of both adjacent
+// intervals at a sample point); 0 outside the curve.
 double limit_at(const std::vector<LimitSample>& curve, double s) {
   auto it = std::upper_bound(curve.begin(), curve.end(), s,
                              [](double x, const LimitSample& p) { return x < p.s_mm; });
   if (it == curve.begin() || it == curve.end()) {
-    if (it == curve.end() && !curve.empty() && curve.back().s_mm == s) {
-      return std::min(curve.back().v_max_mm_per_s, curve[curve.size() - 2].v_max_mm_per_s);
+    if (it == curve.end() && curve.size() >= 2 && curve.back().s_mm == s) {
+      return interval_value(curve, curve.size() - 2);
     }
     return 0.0;
   }
   const auto i = static_cast<std::size_t>(it - curve.begin());  // curve[i-1].s <= s < curve[i].s
-  double v = std::min(curve[i - 1].v_max_mm_per_s, curve[i].v_max_mm_per_s);
-  if (curve[i - 1].s_mm == s && i >= 2) v = std::min(v, curve[i - 2].v_max_mm_per_s);
+  double v = interval_value(curve, i - 1);
+  if (curve[i - 1].s_mm == s && i >= 2) v = std::min(v, interval_value(curve, i - 2));
   return v;
 }
 
@@ -200,7 +208,10 @@ TEST(Planner, RejectsBadSamples) {
   EXPECT_THROW(p.push({0.0, 10.0, 1}), InputError);  // not increasing
   EXPECT_THROW(p.push({1.0, -1.0, 1}), InputError);  // negative limit
   EXPECT_THROW(p.push({1.0, NAN, 1}), InputError);
-  EXPECT_THROW(p.push({1.0, 10.0, kLimitIdJerk}), InputError);  // reserved id
+  EXPECT_THROW(p.push({1.0, 10.0, kLimitIdJerk}), InputError);   // reserved id
+  EXPECT_THROW(p.push({1.0, 10.0, 1, {}, 5.0, 1}), InputError);  // interval below its sample
+  EXPECT_THROW(p.push({1.0, 10.0, 1, {}, NAN, 1}), InputError);
+  EXPECT_THROW(p.push({1.0, 10.0, 1, {}, 20.0, kLimitIdJerk}), InputError);
   try {
     p.push({2.0, 0.0, 1});
     ADD_FAILURE() << "a zero limit was accepted";
@@ -210,6 +221,30 @@ TEST(Planner, RejectsBadSamples) {
   Planner q(limits(1e3, 2e4, 0.004), 10.0);
   EXPECT_THROW(q.set_override(2.5), InputError);
   EXPECT_THROW(q.set_override(-0.1), InputError);
+}
+
+// An interval's own limit (LimitSample::v_after_mm_per_s) is held instead of the smaller of
+// its two samples: a 30 mm interval whose ends are at 20 mm/s but whose own limit is 80 mm/s
+// is crossed above 20 and never above 80, the interval after it (no own limit) at 20 at most.
+TEST(Planner, HoldsAnIntervalsOwnLimitWhereGiven) {
+  const PlannerLimits l = limits(1e3, 2e4, 0.004);
+  std::vector<LimitSample> c{{0.0, 20.0, 1, {}, 80.0, 2}, {30.0, 20.0, 1}, {60.0, 20.0, 1}};
+  const auto m = plan_all(l, 60.0, c);
+  EXPECT_EQ(check_motion(m, c, l, 60.0).failures, 0);
+  double v_first = 0.0, v_second = 0.0;
+  for (const MotionSample& s : m) {
+    double& v_peak = s.s_mm < 30.0 ? v_first : v_second;
+    v_peak = std::max(v_peak, s.v_mm_per_s);
+  }
+  EXPECT_GT(v_first, 75.0);
+  EXPECT_LE(v_first, 80.0 * (1.0 + kTol));
+  EXPECT_LE(v_second, 20.0 * (1.0 + kTol));
+  // The same curve without the interval's own limit: 20 mm/s all along.
+  c[0].v_after_mm_per_s = std::numeric_limits<double>::infinity();
+  double v_node_rule = 0.0;
+  for (const MotionSample& s : plan_all(l, 60.0, c))
+    v_node_rule = std::max(v_node_rule, s.v_mm_per_s);
+  EXPECT_LE(v_node_rule, 20.0 * (1.0 + kTol));
 }
 
 TEST(Planner, ZeroLengthIsDoneAtOnce) {
@@ -307,6 +342,16 @@ std::vector<LimitSample> random_curve(std::mt19937_64& rng, double length_mm) {
     if (s >= length_mm) break;
   }
   c.push_back({std::max(length_mm, c.back().s_mm + 1e-3), 5.0 + 100.0 * u(rng), 9});
+  // Half the curves give some intervals their own limit (an upstream that knows the minimum
+  // over each interval, as the job's sampler does): up to 3x the sample's own.
+  if (u(rng) < 0.5) {
+    for (std::size_t k = 0; k + 1 < c.size(); ++k) {
+      if (u(rng) < 0.5) {
+        c[k].v_after_mm_per_s = c[k].v_max_mm_per_s * (1.0 + 2.0 * u(rng));
+        c[k].after_limit_id = 7;
+      }
+    }
+  }
   return c;
 }
 
