@@ -546,12 +546,13 @@ FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double 
   const double step = (u1 - u0) / (kSamples - 1);
   FeedLimitResult best{std::numeric_limits<double>::infinity(), FeedLimit::MaxFeed};
   int at = 0;
+  double f_at = kInf;  // the limit at the lowest sample
   const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
   double speed_lo = kInf, speed_hi = 0.0;
   int slow = 0;
   for (int i = 0; i < kSamples; ++i) {
     const FeedLimitResult f = limit_on_curve(segment, u0 + step * i);
-    if (f.feed_mm_per_s < best.feed_mm_per_s) best = f, at = i;
+    if (f.feed_mm_per_s < best.feed_mm_per_s) best = f, at = i, f_at = f.feed_mm_per_s;
     const double speed = c.eval(u0 + step * i).d1.norm();
     if (speed < speed_lo) speed_lo = speed, slow = i;
     speed_hi = std::max(speed_hi, speed);
@@ -571,7 +572,10 @@ FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double 
   const double tol = 1e-9 * (u1 - u0);
   constexpr double kGolden = 0.3819660112501051;
   double x = u0 + step * at, w = x, v = x, e = 0.0, d = 0.0;
-  double fx = best.feed_mm_per_s, fw = fx, fv = fx;
+  // Brent starts from the lowest sample's own value: the bottom of a dip of |C'| above may
+  // have lowered `best` below it, and a start below f(x) kept Brent at x (a minimum inside
+  // [a, b] was then missed by up to 0.04 %: LimitSamplerInterval.RandomBSplines, seed 134).
+  double fx = f_at, fw = fx, fv = fx;
   for (int it = 0; it < 60; ++it) {
     const double xm = 0.5 * (a + b);
     if (std::abs(x - xm) <= 2.0 * tol - 0.5 * (b - a)) break;

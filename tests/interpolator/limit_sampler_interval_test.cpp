@@ -64,8 +64,10 @@ Scan scan_intervals(const toolpath::Path& path, const std::string& what) {
     ++out.intervals;
     EXPECT_EQ(a.feed_mm_per_s, std::min(a.left_mm_per_s, a.right_mm_per_s)) << what << " " << k;
     EXPECT_EQ(a.right_mm_per_s, b.left_mm_per_s) << what << " " << k;
-    // Inside the interval, away from its ends by more than the arc-length table's error.
-    const double margin_mm = 1e-5;
+    // Inside the interval, away from its ends by more than the arc-length table's error (up to
+    // 1e-4 mm against the sampler's on these curves; a jump of the limit at a knot would
+    // otherwise be read on the wrong side).
+    const double margin_mm = std::min(1e-3, 0.25 * (b.s_mm - a.s_mm));
     double least = 1e300;
     for (int i = 0; i <= 400; ++i) {
       const double s = a.s_mm + margin_mm + (b.s_mm - a.s_mm - 2.0 * margin_mm) * i / 400.0;
@@ -73,7 +75,9 @@ Scan scan_intervals(const toolpath::Path& path, const std::string& what) {
       const double law = feed_limit_at(limits, cutting, c.eval(u_at(s))).feed_mm_per_s;
       least = std::min({least, law, cap_mm_per_s});
     }
-    if (least < 1e300 && a.right_mm_per_s > least * (1.0 + 1e-6) && reported++ < 5) {
+    // 1e-4: the table's error where the limit is steepest (a few µm from a near-cusp); the
+    // feed laws themselves mean nothing finer (the chord error moves by 2e-4 of ε_c).
+    if (least < 1e300 && a.right_mm_per_s > least * (1.0 + 1e-4) && reported++ < 5) {
       ADD_FAILURE() << what << ": interval " << k << " [" << a.s_mm << ", " << b.s_mm
                     << "] mm holds " << a.right_mm_per_s << " mm/s, the laws reach " << least;
     }
