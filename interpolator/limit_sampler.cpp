@@ -15,8 +15,8 @@
 // minimum").
 //
 // Intervals are at most `spacing_mm` long (0.2 mm: two per period at 100 mm/s and 4 ms; half
-// that on a curve after an interval whose limit is below the cap), with a node on every knot
-// and vertex. The minimum over a curve interval: five samples, then
+// that on a curve after an interval whose limit is below the cap and changing), with a node on
+// every knot and vertex. The minimum over a curve interval: five samples, then
 // Brent's method around the lowest (the minimum may sit just inside an end).
 //
 // What is limited (docs/planner.md §§1–3): on curves, feed_limit() at each point (roughness
@@ -88,8 +88,10 @@ namespace ncd::interpolator {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kFineBelowCap =
-    0.999;  // an interval whose limit is lower is followed by half ones
+// Half intervals follow one whose limit is below the cap (by 0.1 %) and changed from the one
+// before by more than kFineStep of itself (a slope of the limit; docs/planner.md §2).
+constexpr double kFineBelowCap = 0.999;
+constexpr double kFineStep = 0.005;
 
 // The argument of the minimum of a unimodal f on [a, b], by golden section, to width tol.
 template <typename F>
@@ -897,9 +899,11 @@ bool LimitSampler::next_interval(Interval& iv) {
                              : interval_min_on_curve(segment_, u_, u1, open_end);
     ++curve_intervals_;
     if (flat) ++flat_intervals_;
-    // Where the limit is below the cap it changes along the curve: there the planner holds
-    // each interval's minimum over the whole interval, so shorter ones follow it closer.
-    fine_ = v.feed_mm_per_s < kFineBelowCap * segment_cap(segment_).feed_mm_per_s;
+    // Where the limit is below the cap and changes fast along the curve, shorter intervals
+    // follow it closer (the planner holds each interval's minimum over the whole interval).
+    fine_ = v.feed_mm_per_s < kFineBelowCap * segment_cap(segment_).feed_mm_per_s &&
+            std::abs(v.feed_mm_per_s - last_curve_v_) > kFineStep * v.feed_mm_per_s;
+    last_curve_v_ = v.feed_mm_per_s;
     if (innermost) {
       // The first (last) period's travel from (to) rest: no jerk-limited motion is faster
       // there than the rest speed, so the limit's dip to 0 at the point itself is not a cap.
@@ -1082,6 +1086,7 @@ double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u
 void LimitSampler::enter_segment() {
   rest_origin_mm_ = -1.0;
   fine_ = false;
+  last_curve_v_ = kInf;
   s_ = starts_mm_[segment_];
   piece_s_ = s_;
   knot_ = 0;

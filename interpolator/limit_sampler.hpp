@@ -163,8 +163,9 @@ class LimitSampler {
   bool started_ = false, finished_ = false;
   std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
-  bool fine_ = false;  // the last curve interval's limit was below the cap: half the spacing
-  LimitNode pending_;  // the node whose right-hand interval is not known yet
+  bool fine_ = false;             // the limit is below the cap and changing: half the spacing
+  double last_curve_v_ = 0.0;     // the last curve interval's limit (+inf at a segment's start)
+  LimitNode pending_;             // the node whose right-hand interval is not known yet
 };
 
 }  // namespace ncd::interpolator
