@@ -14,6 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <utility>
 
 #include "core/error.hpp"
@@ -71,8 +72,9 @@ StepBounds step_bounds(const JobConfig& c) {
   return b;
 }
 
-// Planner steps per prepare() while the line of setpoints fills: it grows by two a period.
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Planner steps per prepare() while the line of setpoints fills: it grows by two a period.
 constexpr int kLineStepsPerPrepare = 3;
 
 // The planner steps before a rest that fill the line to its capacity in time (docs/planner.md

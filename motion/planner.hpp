@@ -67,8 +67,9 @@ struct MotionSample {
   double j_mm_per_s3 = 0.0;
   std::uint8_t limit_id = 0;  // binding feed limit, or kLimitId* when the planner's own binds
   bool done = false;          // at rest exactly at L; further steps repeat this sample
-  // The limit curve at s, at 100 % override (the smaller of the two samples around s; at a
-  // sample, the interval after it): what the feed laws allow here whichever limit binds, mm/s.
+  // The limit curve at s, at 100 % override (the limit of the interval holding s, see
+  // LimitSample; at a sample, the interval after it): what the feed laws allow here whichever
+  // limit binds, mm/s.
   // 0 before any sample.
   double v_limit_mm_per_s = 0.0;
 };
