@@ -11,6 +11,8 @@
 //     above the top within reach), a tighter lower bound;
 //   - S-curve bound: the closed-form jerk-limited rest-to-rest time of each stretch between
 //     stops at its constant limit (lines, and the circle, whose limit is constant).
+// On the cubic the jerk-counting bound is also printed split to split against ncd's time there,
+// which must not fall below it by more than a period (the interpolation at the splits).
 // The dense CAM rows (issue 13) walk 20 000 moves of 0.01 mm along an arc of radius 50 mm at
 // F3000 raw and fitted under G64 P0.01 Q0.01 (interpolator/polyline_fit.cpp, docs/planner.md
 // §3b), with the coordinates exact and rounded as a CAM post writes them (4 and 3 decimals);
@@ -18,12 +20,14 @@
 // programmed polyline.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <optional>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "interpolator/feed_limits.hpp"
 #include "motion/job.hpp"
@@ -43,12 +47,17 @@ using toolpath::Path;
 using toolpath::PathSegment;
 using toolpath::Polyline;
 
-double ncd_duration_s(const Path& path, std::size_t* overlap_saved_periods = nullptr) {
+// The setpoints' arc length at the end of each period (from 0 at t = 0), when asked.
+double ncd_duration_s(const Path& path, std::size_t* overlap_saved_periods = nullptr,
+                      std::vector<double>* s_mm = nullptr) {
   Job job(path, test::planner_machine());
   double t = 0.0;
+  if (s_mm) s_mm->assign(1, 0.0);
   while (!job.done()) {
     job.prepare();
-    t = job.step().t_s;
+    const Setpoint sp = job.step();
+    t = sp.t_s;
+    if (s_mm) s_mm->push_back(sp.s_mm);
   }
   if (overlap_saved_periods) *overlap_saved_periods = job.overlap_report().periods_saved;
   return t;
@@ -82,6 +91,7 @@ Walk walk(const Path& path) {
 struct PhasePlane {
   double time_s = 0.0;       // acceleration only (jerk only through the rest-end cap)
   double jerk_time_s = 0.0;  // with the jerk at the pivots
+  std::vector<test::BoundStretch> stretches;  // of jerk_time_s, split to split
 };
 
 PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s) {
@@ -113,7 +123,7 @@ PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s) {
     v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * a * (s[i + 1] - s[i])));
   PhasePlane pp;
   for (int i = 0; i < n; ++i) pp.time_s += 2.0 * (s[i + 1] - s[i]) / (v[i] + v[i + 1]);
-  pp.jerk_time_s = test::jerk_pivot_bound_s(s, v, a, jerk);
+  pp.jerk_time_s = test::jerk_pivot_bound_s(s, v, a, jerk, 5e-6, &pp.stretches);
   return pp;
 }
 
@@ -157,10 +167,30 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
   }
   {
     const Path p = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
-    const double t = ncd_duration_s(p);
+    std::vector<double> s_of_period;
+    const double t = ncd_duration_s(p, nullptr, &s_of_period);
     const PhasePlane pp = phase_plane(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
     row("cubic", t, pp.time_s, "phase plane (a; j at rest)");
     row("cubic", t, pp.jerk_time_s, "phase plane, j at dips");
+    // Stretch by stretch (docs/planner.md §6): ncd's time between the bound's splits, the
+    // setpoints' time at a split interpolated within its period. Each stretch's bound holds for
+    // any motion, so ncd may not beat it by more than that interpolation (a period).
+    const auto t_at = [&](double s) {
+      const auto k = static_cast<std::size_t>(
+          std::lower_bound(s_of_period.begin(), s_of_period.end(), s) - s_of_period.begin());
+      if (k == 0) return 0.0;
+      if (k >= s_of_period.size()) return t;
+      const double w = (s - s_of_period[k - 1]) / (s_of_period[k] - s_of_period[k - 1]);
+      return test::planner_machine().limits.period_s * (static_cast<double>(k - 1) + w);
+    };
+    for (const test::BoundStretch& b : pp.stretches) {
+      const double ncd_s =
+          (b.end_mm == pp.stretches.back().end_mm ? t : t_at(b.end_mm)) - t_at(b.begin_mm);
+      std::printf("  cubic %6.1f - %6.1f mm: bound %.4f s, ncd %.4f s, lost %5.1f ms\n", b.begin_mm,
+                  b.end_mm, b.time_s, ncd_s, 1000.0 * (ncd_s - b.time_s));
+      EXPECT_GE(ncd_s, b.time_s - test::planner_machine().limits.period_s)
+          << b.begin_mm << " - " << b.end_mm << " mm";
+    }
     EXPECT_GE(t, pp.jerk_time_s);
     EXPECT_GE(pp.jerk_time_s, pp.time_s);
     EXPECT_LE(t, 1.05 * pp.time_s);       // 1.034 (docs/planner.md §6)

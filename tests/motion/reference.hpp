@@ -83,8 +83,15 @@ inline double scurve_time_s(double d, double v, double a, double j) {
 // choice of pivots and splits gives a valid bound; the splits are taken at the top of V between
 // pivots, and a dip is a pivot where V rises by at least 5 % on both sides. The integration in time
 // (step dt_s) is numerical, like the phase plane's.
+// One stretch of the bound: from one split to the next (the path's ends for the first and the
+// last); any motion spends at least time_s between them.
+struct BoundStretch {
+  double begin_mm, end_mm, time_s;
+};
+
 inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector<double>& V,
-                                 double A, double J, double dt_s = 5e-6) {
+                                 double A, double J, double dt_s = 5e-6,
+                                 std::vector<BoundStretch>* stretches = nullptr) {
   const std::size_t n = s.size();
   // The top within reach: U[k] = max V over s[k] ± V_top A / J. Whatever the motion's
   // acceleration a, |jerk| ≤ J keeps its sign for |a|/J ≤ A/J more: for a > 0 the speed still
@@ -163,7 +170,12 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
       if (V[k] > V[best]) best = k;
     splits.push_back(std::min(best, pivots[p + 1]));
   }
-  double total = fastest_s(0, splits.front(), 0.0) + fastest_s(n - 1, splits.back(), 0.0);
+  const double first = fastest_s(0, splits.front(), 0.0);
+  const double last = fastest_s(n - 1, splits.back(), 0.0);
+  double total = first + last;
+  if (stretches) {
+    stretches->assign(1, {s.front(), s[splits.front()], first});
+  }
   constexpr int kCells = 40;
   for (std::size_t p = 1; p + 1 < pivots.size(); ++p) {
     const std::size_t i = pivots[p];
@@ -176,7 +188,9 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
     double least = std::numeric_limits<double>::infinity();
     for (int c = 0; c < kCells; ++c) least = std::min(least, fwd[c + 1] + bwd[c]);
     total += least;
+    if (stretches) stretches->push_back({s[splits[p - 1]], s[splits[p]], least});
   }
+  if (stretches) stretches->push_back({s[splits.back()], s.back(), last});
   return total;
 }
 
