@@ -97,12 +97,12 @@ std::vector<double> line_deep_within_mm(const toolpath::Path& path,
                                         const interpolator::MachineLimits& l, int steps) {
   const double v_max = l.max_feed_mm_per_min / 60.0;
   std::vector<double> within(bounds_mm.size() - 1, 0.0);
+  std::size_t first = 0;  // the first segment that ends at or after the stretch's start
   for (std::size_t k = 0; k + 1 < bounds_mm.size(); ++k) {
+    while (first < path.segments.size() && segment_start_mm[first + 1] < bounds_mm[k]) ++first;
     double v = 0.0;
-    for (std::size_t j = 0; j < path.segments.size(); ++j) {
-      if (segment_start_mm[j + 1] < bounds_mm[k] || segment_start_mm[j] > bounds_mm[k + 1]) {
-        continue;
-      }
+    for (std::size_t j = first; j < path.segments.size() && segment_start_mm[j] <= bounds_mm[k + 1];
+         ++j) {
       const auto& seg = path.segments[j];
       const bool fed = !seg.rapid && seg.feed_mm_per_min.has_value();
       v = std::max(v, fed ? std::min(v_max, 2.0 * *seg.feed_mm_per_min / 60.0) : v_max);
