@@ -138,9 +138,10 @@ class Planner {
   bool rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                std::size_t& out_n);
   bool try_landing();
-  enum class LandBase { zero, plan, scurve };  // what a landing's correction starts from
+  enum class LandBase { zero, plan, scurve, reach };  // what a landing's correction starts from
   bool land_with(std::size_t n, LandBase base);
   bool scurve_base(std::size_t n);
+  double reach_base(std::size_t n, double v_cap, double jerk_fraction);
   double v_settle(const Kin& x) const;
   double deadbeat_jerk(const Kin& x, double w, bool* ok) const;
   double track(const Kin& x, double w) const;

@@ -7,7 +7,11 @@
 // Before this test some lengths lost 7 periods (20.612 mm, 43.386 mm): 9.1 mm before the end,
 // at the cap, the first landing that passed the checks was a minimum-norm correction of zero
 // jerks over 48 periods, where cruising and then stopping takes 41.5, and it braked softly all
-// the way; the mean over the lengths was 1.70 periods.
+// the way; the mean over the lengths was 1.70 periods. Lines that never reach the cap then still
+// lost up to 5 periods (0.2714 mm: 24 periods against 19): their landing was the minimum-norm
+// (quadratic) jerk, which needs 60 d / t³ where the bang-bang move needs 32 d / t³. With the
+// rise-cruise-stop base (Planner::reach_base) every line ends within one period of the whole
+// periods the closed form needs, and the mean is 0.67 periods.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -53,15 +57,16 @@ TEST(Landing, LinesWithinAFewPeriodsOfTheClosedFormSCurve) {
   for (double d = 0.05; d < 60.0; d *= 1.07, ++n) {
     const double t = walk_line(d).duration_s, b = test::scurve_time_s(d, v, a, j);
     const double extra_periods = (t - b) / T;
-    EXPECT_GE(t, std::ceil(b / T - 1e-9) * T - 1e-9) << d << " mm";
-    EXPECT_LE(extra_periods, 6.0) << d << " mm: " << t << " s against " << b << " s";
+    const double whole_periods = std::ceil(b / T - 1e-9);
+    EXPECT_GE(t, whole_periods * T - 1e-9) << d << " mm";
+    EXPECT_LE(t, (whole_periods + 1.0) * T + 1e-9) << d << " mm: " << t << " s against " << b;
     worst = std::max(worst, extra_periods);
     sum += extra_periods;
   }
   std::printf(
       "%d lines 0.05-57 mm: periods beyond the closed-form S-curve: mean %.2f, worst %.1f\n", n,
       sum / n, worst);
-  EXPECT_LE(sum / n, 1.65);  // 1.70 before the landing changes, 1.59 after
+  EXPECT_LE(sum / n, 0.75);  // 1.70, then 1.50; 0.67 with the reach base
 }
 
 TEST(Landing, StopFromCruiseWithinThreePeriodsOfTheTimeOptimalStop) {
