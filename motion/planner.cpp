@@ -799,7 +799,7 @@ bool Planner::try_landing() {
   // The time-optimal stop itself, after cruising over the distance it leaves: the earliest the
   // motion can rest on L, to within the periods (the policy's final ramp is at kFinalJerk).
   // Only when cruising at the limit: below it the follower may still gain before braking.
-  if (v >= a_max_ * T && v >= limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9)) {
+  if (v > 0.0 && v >= limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9)) {
     const double jl = kLandJerk * j_max_;
     const Profile q = decrease_profile(v, x_.a_mm_per_s2, 0.0, a_max_, jl, jl);
     const double d_left =

@@ -288,12 +288,58 @@ TEST(Planner, RestToRestMatchesClosedFormSCurveWithinOnePeriod) {
     EXPECT_EQ(r.failures, 0);
     const double want = scurve_duration(k.L, k.v, k.a, k.j);
     EXPECT_GE(r.duration_s, want - 1e-9) << "faster than time-optimal?";
-    // Target was one period; measured excess is 1–9 periods (braking margin 2vT of the
-    // policy, 0.9 j_max final ramp, landing correction). Bound at 10 periods until tuned.
-    EXPECT_LE(r.duration_s, want + 10.0 * k.T) << "L=" << k.L << " v=" << k.v << " want " << want;
+    // 1–9 periods more before the landings of docs/planner.md §6 (the short-move base among
+    // them); 0.2–1.8 now.
+    EXPECT_LE(r.duration_s, want + 2.0 * k.T) << "L=" << k.L << " v=" << k.v << " want " << want;
     std::printf("S-curve L=%g v=%g: %.4f s vs closed form %.4f s (+%.1f periods)\n", k.L, k.v,
                 r.duration_s, want, (r.duration_s - want) / k.T);
   }
+}
+
+// Random rest-to-rest moves on a flat limit (lengths from 10 µm to 60 mm, limits and periods
+// spread over two decades; the seed printed) against the closed-form time-optimal S-curve: every
+// constraint kept, never faster, and near it. Measured on seeds 1–3 (1500 moves each): 0.83–0.86
+// periods beyond it on average, 5–5.3 % of the moves more than two periods, the worst 5.4–10.4
+// periods (a cruise below a_max T, and long moves at T = 1 ms and a low jerk that peak below
+// their cap). Before the short-move landing (docs/planner.md §6): 1.41–1.47 on average, 21–22 %
+// beyond two periods, the worst 6.8–12.8.
+TEST(Planner, RandomRestToRestNearTheClosedForm) {
+  const std::uint64_t seed = ncd::test::seed();
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double periods[] = {0.001, 0.002, 0.004};
+#ifdef NDEBUG
+  constexpr int kCases = 1500;
+#else
+  constexpr int kCases = 300;
+#endif
+  double worst = 0.0, sum = 0.0;
+  int beyond_two = 0;
+  for (int i = 0; i < kCases; ++i) {
+    const PlannerLimits l = limits(200.0 + 2800.0 * u(rng), 2000.0 + 58000.0 * u(rng),
+                                   periods[static_cast<std::size_t>(u(rng) * 2.999)]);
+    const double length_mm = 0.01 * std::pow(6000.0, u(rng));
+    const double v = 5.0 + 195.0 * u(rng);
+    const auto c = flat(length_mm, v, std::max(0.05, length_mm * u(rng)));
+    const auto m = plan_all(l, length_mm, c);
+    const Report r = check_motion(m, c, l, length_mm);
+    const double want = scurve_duration(length_mm, v, l.a_max_mm_per_s2, l.j_max_mm_per_s3);
+    const double extra = (r.duration_s - want) / l.period_s;
+    ASSERT_EQ(r.failures, 0) << "case " << i;
+    ASSERT_GE(extra, -1e-6) << "case " << i << ": faster than time-optimal?";
+    EXPECT_LE(extra, 12.0) << "case " << i << " L=" << length_mm << " v=" << v
+                           << " a=" << l.a_max_mm_per_s2 << " j=" << l.j_max_mm_per_s3
+                           << " T=" << l.period_s;
+    worst = std::max(worst, extra);
+    sum += extra;
+    beyond_two += extra > 2.0 ? 1 : 0;
+  }
+  std::printf(
+      "%d random rest-to-rest moves: periods beyond the closed form: mean %.2f, worst %.2f, "
+      "%d beyond two\n",
+      kCases, sum / kCases, worst, beyond_two);
+  EXPECT_LE(sum / kCases, 1.0);
+  EXPECT_LE(beyond_two, kCases / 10);
 }
 
 TEST(Planner, SuddenDropIsMetAtTheNewLevelWithoutDip) {
