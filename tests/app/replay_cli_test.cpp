@@ -339,12 +339,14 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   // The link carries the blocks at the planned feed, except where the chord tolerance cuts a
   // block too short for it at a corner; there the feed is lowered, by little and in few blocks.
   // (The peak use is 78.6 % against the 80 % margin: a sampler change that moved a few nodes
-  // once lowered one 0.0197 mm block from 98.5 to 86 mm/min.)
-  EXPECT_LE(b["feed_lowered"]["blocks"].get<int>(), 3);
+  // once lowered one 0.0197 mm block from 98.5 to 86 mm/min. The short-move landing of
+  // docs/planner.md §6 made the approach's stops steeper and the program 0.116 s shorter; it
+  // also lowers a 0.002 mm block at the turn after a stop from 15 to 11 mm/min: 4 blocks.)
+  EXPECT_LE(b["feed_lowered"]["blocks"].get<int>(), 4);
   for (const auto& range : b["feed_lowered"]["range_list"]) {
     EXPECT_NE(range["reason"].get<std::string>().find("the link"), std::string::npos) << range;
     EXPECT_GE(range["lowered_feed_min_mm_per_min"].get<double>(),
-              0.8 * range["planned_feed_mm_per_min"].get<double>())
+              0.7 * range["planned_feed_mm_per_min"].get<double>())
         << range;
   }
   EXPECT_LE(b["duration_s"].get<double>(), b["planned_duration_s"].get<double>() + 0.02);
