@@ -705,8 +705,8 @@ bool Planner::scurve_base(std::size_t n) {
 // cruise that fills the distance makes up the time. Its jerk is averaged over the periods; the
 // minimum-norm correction takes up that averaging. (The zero base's correction alone is the
 // minimum-L2 jerk, a quadratic that needs 60 d / t³ where the bang-bang move needs 32 d / t³:
-// 23 % longer on a short line.) Returns the fastest time from here (+inf if none) when n = 0; else
-// fills land_base_ for n periods when n > 0 and a profile of exactly n periods exists.
+// 23 % longer on a short line.) Returns the fastest time from here, +inf if none; for n > 0,
+// fills land_base_ with the base of exactly n periods, and returns +inf if there is none.
 double Planner::reach_base(std::size_t n, double v_cap, double jerk_fraction) {
   const double T = period_s_, jl = jerk_fraction * j_max_;
   const double v0 = x_.v_mm_per_s, a0 = x_.a_mm_per_s2, d = length_mm_ - x_.s_mm;
@@ -753,16 +753,15 @@ double Planner::reach_base(std::size_t n, double v_cap, double jerk_fraction) {
   }
   const double w = hi;
   double tw = 0.0;
-  ph[3] = Phase{0.0, 0.0};
   const double left = d - shape(w, &tw);
-  ph[3] = Phase{std::max(left, 0.0) / w, 0.0};
+  ph[3] = Phase{std::max(left, 0.0) / w, 0.0};  // the cruise
   // Period averages of the phases' jerk.
-  std::size_t i = 0;
   double begin = 0.0;
   for (std::size_t k = 0; k < n; ++k) land_base_[k] = 0.0;
   for (const Phase& p : ph) {
     const double end = begin + p.t_s;
-    for (i = static_cast<std::size_t>(begin / T); i < n && static_cast<double>(i) * T < end; ++i) {
+    for (auto i = static_cast<std::size_t>(begin / T); i < n && static_cast<double>(i) * T < end;
+         ++i) {
       const double lo_t = std::max(begin, static_cast<double>(i) * T);
       const double hi_t = std::min(end, static_cast<double>(i + 1) * T);
       if (hi_t > lo_t) land_base_[i] += p.j * (hi_t - lo_t) / T;
