@@ -788,17 +788,19 @@ bool Planner::try_landing() {
       std::max<std::size_t>(3, t_stop > 0.0 ? static_cast<std::size_t>(t_stop / T) : 0);
   // Nor is one taken that ends later than cruising at v and then stopping time-optimally
   // would: committed early, a minimum-norm landing brakes softly all the way to L.
-  // (Not below a_max T, where cruising is no estimate: near rest any landing is taken.)
+  // (Not below a_max T, where cruising is no estimate: near rest any landing is taken; but a
+  // cruise at the limit is one, however slow.)
   const double v = x_.v_mm_per_s;
+  const bool at_limit = v > 0.0 && v >= limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9);
   double n_cruise = std::numeric_limits<double>::infinity();
-  if (v >= a_max_ * T) {
+  if (v >= a_max_ * T || at_limit) {
     const double t_cruise = t_stop + std::max(length_mm_ - x_.s_mm - need_mm(x_, 0.0), 0.0) / v;
     n_cruise = std::max(std::ceil(t_cruise / T) + 1.0, static_cast<double>(n0 + 2));
   }
   // The time-optimal stop itself, after cruising over the distance it leaves: the earliest the
   // motion can rest on L, to within the periods (the policy's final ramp is at kFinalJerk).
   // Only when cruising at the limit: below it the follower may still gain before braking.
-  if (v > 0.0 && v >= limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9)) {
+  if (at_limit) {
     const double jl = kLandJerk * j_max_;
     const Profile q = decrease_profile(v, x_.a_mm_per_s2, 0.0, a_max_, jl, jl);
     const double d_left =
