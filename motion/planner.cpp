@@ -812,7 +812,7 @@ bool Planner::try_landing() {
     }
   }
   // Below the limit: rise, cruise and stop in the fewest whole periods (a short move).
-  if (v < limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9)) {
+  if (!at_limit) {
     double v_cap = std::numeric_limits<double>::infinity();
     for (std::size_t k = 0; k + 1 < count_ && sample(k).s_mm < length_mm_; ++k)
       v_cap = std::min(v_cap, interval_limit(k) * override_applied_);
