@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 #include "core/jerk_vector.hpp"
@@ -164,8 +165,9 @@ class LimitSampler {
   std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
   bool fine_ = false;             // the limit is below the cap and changing: half the spacing
-  double last_curve_v_ = 0.0;     // the last curve interval's limit (+inf at a segment's start)
-  LimitNode pending_;             // the node whose right-hand interval is not known yet
+  // The last curve interval's limit (+inf: none yet in this segment).
+  double last_curve_v_ = std::numeric_limits<double>::infinity();
+  LimitNode pending_;  // the node whose right-hand interval is not known yet
 };
 
 }  // namespace ncd::interpolator

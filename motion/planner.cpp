@@ -175,6 +175,23 @@ double run_phases(const Phase* ph, int n, double v, double a, double* t_s) {
   return s;
 }
 
+// The period averages of piecewise-constant jerk phases (from t = 0, cut at n T) into out[0, n):
+// a landing base whose acceleration is the profile's own at every period end.
+void average_phases(const Phase* ph, int count, std::size_t n, double T, double* out) {
+  std::fill(out, out + n, 0.0);
+  double begin = 0.0;
+  for (int k = 0; k < count; ++k) {
+    const double end = begin + ph[k].t_s;
+    for (auto i = static_cast<std::size_t>(begin / T); i < n && static_cast<double>(i) * T < end;
+         ++i) {
+      const double lo = std::max(begin, static_cast<double>(i) * T);
+      const double hi = std::min(end, static_cast<double>(i + 1) * T);
+      if (hi > lo) out[i] += ph[k].j * (hi - lo) / T;
+    }
+    begin = end;
+  }
+}
+
 }  // namespace
 
 double braking_distance_mm(double v, double v_t, double a_max, double j_max) {
@@ -755,24 +772,13 @@ double Planner::reach_base(std::size_t n, double v_cap, double jerk_fraction) {
   double tw = 0.0;
   const double left = d - shape(w, &tw);
   ph[3] = Phase{std::max(left, 0.0) / w, 0.0};  // the cruise
-  // Period averages of the phases' jerk.
-  double begin = 0.0;
-  for (std::size_t k = 0; k < n; ++k) land_base_[k] = 0.0;
-  for (const Phase& p : ph) {
-    const double end = begin + p.t_s;
-    for (auto i = static_cast<std::size_t>(begin / T); i < n && static_cast<double>(i) * T < end;
-         ++i) {
-      const double lo_t = std::max(begin, static_cast<double>(i) * T);
-      const double hi_t = std::min(end, static_cast<double>(i + 1) * T);
-      if (hi_t > lo_t) land_base_[i] += p.j * (hi_t - lo_t) / T;
-    }
-    begin = end;
-  }
+  average_phases(ph, 7, n, T, land_base_.data());
   land_first_ = 0;
   return t_fast;
 }
 
-// Tries to land on L from here: the committed plan corrected, then minimum-norm landings.
+// Tries to land on L from here: the committed plan corrected, then minimum-norm landings. The
+// blocks were built this step up to L (step() calls it only then).
 bool Planner::try_landing() {
   const double T = period_s_;
   const double slack = 4.0 * x_.v_mm_per_s * T + 64.0 * j_max_ * T * T * T;
@@ -813,9 +819,9 @@ bool Planner::try_landing() {
   }
   // Below the limit: rise, cruise and stop in the fewest whole periods (a short move).
   if (!at_limit) {
-    double v_cap = std::numeric_limits<double>::infinity();
-    for (std::size_t k = 0; k + 1 < count_ && sample(k).s_mm < length_mm_; ++k)
-      v_cap = std::min(v_cap, interval_limit(k) * override_applied_);
+    double v_cap = std::numeric_limits<double>::infinity();  // the lowest block up to L
+    for (std::size_t k = 0; k < block_count_; ++k)
+      v_cap = std::min(v_cap, blocks_[k].v_max_mm_per_s);
     const double t_fast = std::isfinite(v_cap) ? reach_base(0, v_cap, kLandJerk) : v_cap;
     if (std::isfinite(t_fast)) {
       const auto n_fast = static_cast<std::size_t>(std::ceil(t_fast / T - 1e-9));
