@@ -50,7 +50,8 @@
 //    stopping time-optimally is not taken while v ≥ a_max T: committed early, it brakes softly all
 //    the way (docs/planner.md §4).
 // Override scales the limits; lowering it runs π towards the new limits while checking
-// against the old ones until the new ones hold. Hold makes π's target 0 from now on.
+// against the old ones until the new ones hold. Hold makes π's target 0 from now on; a hold
+// during a landing cuts it short where π's stop rests sooner (docs/planner.md §4, step 5).
 // Jerk vector (docs/planner.md §3c): a sample may carry a curve span (κ, g, budget), and then
 // the exact checks hold the jerk vector bound at each period's highest speed and |a|, π plans
 // with the tangential scale σ (a_max and j_max times σ) that keeps it for the whole window at
@@ -854,6 +855,27 @@ bool Planner::try_landing() {
   return false;
 }
 
+// A hold while a landing runs: the landing ends at rest too, but it may cruise a few periods
+// first, and it rests on L. π's stop from here (checked like every rollout) is taken instead
+// when it rests in fewer periods; else the landing goes on, since nothing stops sooner.
+bool Planner::cut_landing_for_hold() {
+  if (x_.v_mm_per_s == 0.0 && x_.a_mm_per_s2 == 0.0) return false;
+  const double last_s = count_ > 0 ? sample(count_ - 1).s_mm : x_.s_mm;
+  policy_hold_ = true;
+  Cursor c;
+  const double j = policy(x_, c, nullptr);
+  const bool sooner = rollout(j, override_applied_, std::min(length_mm_, last_s), best_, best_n_) &&
+                      best_n_ < plan_n_ - plan_pos_;
+  policy_hold_ = false;
+  if (!sooner) return false;
+  landing_ = false;
+  std::swap(plan_, best_);
+  plan_n_ = best_n_;
+  plan_pos_ = 1;
+  commit(j, kLimitIdHold);
+  return true;
+}
+
 // Executes jerk j for one period and records the output sample.
 void Planner::commit(double j, std::uint8_t limit_id) {
   x_ = advance(x_, j);
@@ -897,6 +919,7 @@ MotionSample Planner::step() {
   }
   drop_passed_samples();
   set_policy_limits();
+  if (landing_ && (hold_ || override_target_ == 0.0) && cut_landing_for_hold()) return last_;
   if (landing_) {
     const double j = plan_[plan_pos_++];
     commit(j, kLimitIdPathEnd);

@@ -138,6 +138,7 @@ class Planner {
   bool rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                std::size_t& out_n);
   bool try_landing();
+  bool cut_landing_for_hold();
   enum class LandBase { zero, plan, scurve, reach };  // what a landing's correction starts from
   bool land_with(std::size_t n, LandBase base);
   bool scurve_base(std::size_t n);

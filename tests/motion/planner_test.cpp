@@ -537,6 +537,67 @@ TEST(Planner, HoldStopsOnThePathAndResumes) {
   EXPECT_TRUE(m.back().done);
 }
 
+// A hold given while the planner lands on L (its landing committed, issue 13): the landing is
+// cut short where a stop is faster, and never delays the hold. For a hold at every period of
+// the landings of lines of several lengths (their landings begin with whole periods of cruise
+// before the time-optimal stop), the motion brakes from the next period on when it was
+// cruising, is at rest by the time the jerk-limited stop from the state at the hold allows (two
+// periods more for the whole periods), stays on [0, L], keeps every limit, and after the resume
+// ends at rest exactly at L.
+TEST(Planner, AHoldDuringTheLandingCutsItShort) {
+  const PlannerLimits l = limits(1000.0, 20000.0, 0.004);
+  std::size_t cruising_holds = 0;
+  // Periods from a hold in the landing's cruise to the first braking period (j < −J/2): the
+  // landing's own (what a hold waited before) and the held motion's, the largest over them.
+  std::size_t worst_landing = 0, worst_held = 0;
+  const auto until_braking = [](const std::vector<MotionSample>& m, std::size_t at, double J) {
+    std::size_t k = at + 1;
+    while (k < m.size() && m[k].j_mm_per_s3 >= -0.5 * J && m[k].v_mm_per_s > 0.0) ++k;
+    return k - at - 1;
+  };
+  for (const double length_mm : {20.0, 33.3, 50.0, 71.7}) {
+    const auto c = flat(length_mm, 100.0, 0.5);
+    const auto free = run_with(l, length_mm, c, [](Planner&, std::size_t) {});
+    std::size_t first = 0;
+    while (first < free.size() && free[first].limit_id != kLimitIdPathEnd) ++first;
+    ASSERT_LT(first, free.size());
+    for (std::size_t at = first; at + 1 < free.size(); ++at) {
+      SCOPED_TRACE("L = " + std::to_string(length_mm) + " mm, hold at period " +
+                   std::to_string(at));
+      const auto m = run_with(l, length_mm, c, [&](Planner& p, std::size_t i) {
+        if (i == at) p.hold();
+        if (i == at + 100) p.resume();
+      });
+      EXPECT_EQ(check_motion(m, c, l, length_mm).failures, 0);
+      ASSERT_TRUE(m.back().done);
+      EXPECT_EQ(m.back().s_mm, length_mm);
+      const MotionSample& h = m[at];  // the state the hold finds (m[0] is the start)
+      const double v = h.v_mm_per_s, a = h.a_mm_per_s2;
+      // The stop from (v, a): a ramp to −a_max and back, at most (v + a²/2J)/A + 2A/J.
+      const double A = l.a_max_mm_per_s2, J = l.j_max_mm_per_s3;
+      const double t_stop = (v + a * a / (2.0 * J)) / A + 2.0 * A / J + 2.0 * l.period_s;
+      for (std::size_t k = at + 1; k < m.size() && k < at + 100; ++k) {
+        if (m[k].t_s >= h.t_s + t_stop) {
+          EXPECT_EQ(m[k].v_mm_per_s, 0.0) << m[k].t_s;
+        }
+      }
+      // The landing's cruise (jerk and acceleration zero but for the rounding of its
+      // correction): the held motion brakes at once instead.
+      if (std::abs(free[at + 1].j_mm_per_s3) < 1e-6 && std::abs(free[at + 1].a_mm_per_s2) < 1e-9 &&
+          v > 0.0) {
+        ++cruising_holds;
+        worst_landing = std::max(worst_landing, until_braking(free, at, J));
+        worst_held = std::max(worst_held, until_braking(m, at, J));
+        EXPECT_LT(m[at + 1].j_mm_per_s3, -0.5 * J) << "the landing cruised on through the hold";
+      }
+    }
+  }
+  EXPECT_GT(cruising_holds, 0U);  // the case the test is about occurs
+  std::printf(
+      "a hold during a landing: braking after at most %zu periods (the landing's own: %zu)\n",
+      worst_held, worst_landing);
+}
+
 TEST(Planner, ReplayIsDeterministic) {
   std::mt19937_64 rng(7);
   const auto c = random_curve(rng, 40.0);
