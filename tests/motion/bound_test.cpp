@@ -172,6 +172,8 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     const PhasePlane pp = phase_plane(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
     row("cubic", t, pp.time_s, "phase plane (a; j at rest)");
     row("cubic", t, pp.jerk_time_s, "phase plane, j at dips");
+    std::printf("  cubic: ncd %.3f s, jerk-counting bound %.4f s, ratio %.4f\n", t, pp.jerk_time_s,
+                t / pp.jerk_time_s);
     // Stretch by stretch (docs/planner.md §6): ncd's time between the bound's splits, the
     // setpoints' time at a split interpolated within its period. Each stretch's bound holds for
     // any motion, so ncd may not beat it by more than that interpolation (a period).
@@ -193,7 +195,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     EXPECT_GE(t, pp.jerk_time_s);
     EXPECT_GE(pp.jerk_time_s, pp.time_s);
     EXPECT_LE(t, 1.05 * pp.time_s);       // 1.034 (docs/planner.md §6)
-    EXPECT_LE(t, 1.03 * pp.jerk_time_s);  // 1.024
+    EXPECT_LE(t, 1.03 * pp.jerk_time_s);  // 1.022
   }
   const auto exact_stop = [&](const char* name, const Path& p, double v_mm_per_s,
                               const std::vector<double>& legs) {
@@ -403,10 +405,11 @@ TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {
 // closed form: a line of length d under a feed cap (one S-curve), and two such lines with a
 // full stop between them (a pivot inside the path). It must never exceed the optimum and never
 // fall below the phase plane's time. It is loosest where the motion's top speed is below the
-// cap: the fastest motions from either end meet at the top without the jerk that turns +a into
-// −a there (on the shortest lines, all jerk, the ratio is 2 (3d/J)^(1/3) / (4 (d/2J)^(1/3)) =
-// 0.909; with the acceleration saturated, lower: the worst of 2 400 random lines was 0.772), so
-// it must reach 0.75 of the optimum on a line. Random lengths, caps and limits, seed printed.
+// cap: the fastest motions from either end meet without the jerk that turns +a into −a there
+// (on the shortest lines, all jerk, the ratio is 2 (3d/J)^(1/3) / (4 (d/2J)^(1/3)) = 0.909).
+// With the splits where the two meet, that is the worst case (0.9084–0.9085 over seeds 1–8;
+// with the split at the top of V, lines with the acceleration saturated fell to 0.772), so it
+// must reach 0.9 of the optimum on a line. Random lengths, caps and limits, seed printed.
 TEST(Bound, JerkPivotBoundNeverExceedsTheKnownOptimum) {
   std::mt19937_64 rng(test::seed());
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -450,7 +453,7 @@ TEST(Bound, JerkPivotBoundNeverExceedsTheKnownOptimum) {
     EXPECT_LE(bound, optimum * (1.0 + 1e-4));
     EXPECT_GE(bound, pp * (1.0 - 1e-4));
     if (legs.size() == 1) {
-      EXPECT_GE(bound, 0.75 * optimum);
+      EXPECT_GE(bound, 0.9 * optimum);
       worst = std::min(worst, bound / optimum);
     }
   }
