@@ -26,6 +26,11 @@
 //    as fast as the limits allow. Tracking uses the jerk averaged over the period of the
 //    continuous time-optimal velocity profile (so a(t+T) is exact), and a two-period dead-beat
 //    (j1, j2 solve v and a exactly) once it fits in ±j_max: that makes rest exact (v = a = 0).
+//    π has a second member, tried where the first fails (a state is safe if either certifies
+//    it): it settles 2.5 % below the demanding level, its final ramp onto that level at 0.95
+//    j_max (onto rest both ramp at 0.9). It can brake later into a dip of the limit and pass
+//    the bottom a little below it, as the time-optimal motion does (docs/planner.md §4, "The
+//    undershooting member").
 // 2. Exact checks. Each simulated period is checked exactly: |j| <= j_max, |a(t+T)| <= a_max (a
 //    is linear inside), the quadratic v(τ) has its extremes at the ends or at τ = −a/j, and its
 //    maximum must not exceed the minimum limit over [s(t), s(t+T)] (conservative: at every
@@ -83,6 +88,10 @@ double clampj(double j, double j_max) {
 }
 
 constexpr double kFinalJerk = 0.9;  // final ramp at 0.9 j_max: the slack absorbs sampling
+// π's second member (see the top, 1): it settles this fraction below a demanding block's level,
+// its final ramp at kUnderFinalJerk j_max (docs/planner.md §4, "The undershooting member").
+constexpr double kUndershoot = 0.025;
+constexpr double kUnderFinalJerk = 0.95;
 constexpr double kLandJerk = 0.99;  // a landing's ramps: room for its minimum-norm correction
 
 // Time-optimal velocity change from (v0, a0) to (w, a = 0) in the decreasing direction: a ramp
@@ -124,16 +133,12 @@ double profile_distance(double v0, double a0, double w, double a_max, double j1,
   return d1 + d2 + d3;
 }
 
-// The policy's profile: the final ramp at kFinalJerk j_max.
-double profile_distance(double v0, double a0, double w, double a_max, double j_max) {
-  return profile_distance(v0, a0, w, a_max, j_max, kFinalJerk * j_max);
-}
-
 // One period's jerk towards (w, 0) in the decreasing direction: the period average of the
 // profile, or, once its final ramp starts within the period, the jerk that lands exactly on
 // the final-ramp parabola v − w = a² / (2 j3) at the period end.
-double decrease_jerk(double v0, double a0, double w, double T, double a_max, double j_max) {
-  const double j3 = kFinalJerk * j_max;
+double decrease_jerk(double v0, double a0, double w, double T, double a_max, double j_max,
+                     double final_jerk) {
+  const double j3 = final_jerk * j_max;
   const Profile p = decrease_profile(v0, a0, w, a_max, j_max, j3);
   if (p.t1 + p.t2 < T) {
     const double disc = j3 * j3 * T * T + 4.0 * j3 * a0 * T + 8.0 * j3 * (v0 - w);
@@ -230,6 +235,7 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
     throw InputError("length_mm = " + std::to_string(length_mm) +
                      " is invalid: a path length must be >= 0");
   }
+  pol_final_ = kFinalJerk;
   v_eps_ = 1e-9 * j_max_ * period_s_ * period_s_;
   a_eps_ = 1e-9 * j_max_ * period_s_;
   ring_.resize(limits.window_capacity);
@@ -485,8 +491,14 @@ double Planner::v_settle(const Kin& x) const {
   return x.v_mm_per_s + x.a_mm_per_s2 * std::abs(x.a_mm_per_s2) / (2.0 * pol_j_);
 }
 
+// π's final ramp towards speed w: the member's onto a block's level, kFinalJerk onto rest
+// (the undershooting member changes only how π meets a dip, not how it stops).
+double Planner::final_jerk(double w) const {
+  return w > 0.0 ? pol_final_ : kFinalJerk;
+}
+
 double Planner::need_mm(const Kin& x, double w) const {
-  return profile_distance(x.v_mm_per_s, x.a_mm_per_s2, w, pol_a_, pol_j_);
+  return profile_distance(x.v_mm_per_s, x.a_mm_per_s2, w, pol_a_, pol_j_, final_jerk(w) * pol_j_);
 }
 
 // Two-period dead-beat onto (w, a = 0): the first jerk; ok if both fit and v stays >= 0.
@@ -519,12 +531,15 @@ double Planner::track(const Kin& x, double w) const {
   bool ok = false;
   const double j1 = deadbeat_jerk(x, w, &ok);
   if (ok) return j1;
-  const double v = x.v_mm_per_s, a = x.a_mm_per_s2, j3 = kFinalJerk * pol_j_;
+  const double f = final_jerk(w);
+  const double v = x.v_mm_per_s, a = x.a_mm_per_s2, j3 = f * pol_j_;
   const bool down = decreasing(v, a, w, pol_j_, j3);
   const bool up = decreasing(-v, -a, -w, pol_j_, j3);
   // Neither: on a final-ramp parabola (to rounding); the ramp's landing jerk follows it.
-  if (down || (!up && a < 0.0)) return decrease_jerk(v, a, w, period_s_, pol_a_, pol_j_);
-  if (up || a > 0.0) return -decrease_jerk(-v, -a, -w, period_s_, pol_a_, pol_j_);
+  if (down || (!up && a < 0.0)) {
+    return decrease_jerk(v, a, w, period_s_, pol_a_, pol_j_, f);
+  }
+  if (up || a > 0.0) return -decrease_jerk(-v, -a, -w, period_s_, pol_a_, pol_j_, f);
   return 0.0;
 }
 
@@ -544,13 +559,13 @@ double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const 
     const double lim = bl.v_max_mm_per_s;
     if (lim < std::max(vs, x.v_mm_per_s) && lim < w &&
         (dist <= 0.0 ||
-         !decreasing(x.v_mm_per_s, x.a_mm_per_s2, lim, pol_j_, kFinalJerk * pol_j_) ||
+         !decreasing(x.v_mm_per_s, x.a_mm_per_s2, lim, pol_j_, final_jerk(lim) * pol_j_) ||
          need_mm(x, lim) + margin >= dist)) {
       w = lim;
       if (binding_id) *binding_id = bl.limit_id;
     }
   }
-  return track(x, std::isfinite(w) ? w : 0.0);
+  return track(x, std::isfinite(w) ? w * (1.0 - pol_under_) : 0.0);
 }
 
 // Blocks of the window from s to stop_mm, limits scaled; short blocks merged (minimum kept).
@@ -584,9 +599,21 @@ void Planner::build_blocks(double scale, double stop_mm) {
   }
 }
 
-// Simulates j0 then π until rest, checking every period; the jerks go to out[0, out_n).
+// Simulates j0 then π until rest, checking every period; the jerks go to out[0, out_n). Where
+// π's first member fails, its second (the undershooting one) is tried: either certifies.
 bool Planner::rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                       std::size_t& out_n) {
+  if (rollout_member(j0, scale_check, stop_mm, out, out_n)) return true;
+  pol_final_ = kUnderFinalJerk;
+  pol_under_ = kUndershoot;
+  const bool ok = rollout_member(j0, scale_check, stop_mm, out, out_n);
+  pol_final_ = kFinalJerk;
+  pol_under_ = 0.0;
+  return ok;
+}
+
+bool Planner::rollout_member(double j0, double scale_check, double stop_mm,
+                             std::vector<double>& out, std::size_t& out_n) {
   ++last_rollouts_;
   Cursor c;
   Kin x = x_;

@@ -137,6 +137,8 @@ class Planner {
   double policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const;
   bool rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                std::size_t& out_n);
+  bool rollout_member(double j0, double scale_check, double stop_mm, std::vector<double>& out,
+                      std::size_t& out_n);  // rollout() with π's member in force
   bool try_landing();
   bool cut_landing_for_hold();
   enum class LandBase { zero, plan, scurve, reach };  // what a landing's correction starts from
@@ -147,6 +149,7 @@ class Planner {
   double deadbeat_jerk(const Kin& x, double w, bool* ok) const;
   double track(const Kin& x, double w) const;
   double need_mm(const Kin& x, double w) const;
+  double final_jerk(double w_mm_per_s) const;
   Kin advance(const Kin& x, double j) const;
   Kin cubic_step(const Kin& x, double j) const;  // one period at jerk j, exactly, no snapping
   void commit(double j, std::uint8_t limit_id);
@@ -194,6 +197,9 @@ class Planner {
   double policy_scale_ = 1.0;
   double policy_stop_mm_ = 0.0;
   bool policy_hold_ = false;
+  // π's member in force (see rollout): its final ramp (fraction of j_max) and how far below a
+  // demanding block's level it settles (fraction).
+  double pol_final_ = 0.0, pol_under_ = 0.0;
   std::size_t last_rollouts_ = 0;
 };
 

@@ -94,9 +94,9 @@ struct PhasePlane {
   std::vector<test::BoundStretch> stretches;  // of jerk_time_s, split to split
 };
 
-PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s) {
+PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s, int n = 200000,
+                       double dt_s = 5e-6, int cells = 200) {
   const JobConfig cfg = test::planner_machine();
-  const int n = 200000;
   std::vector<double> s(n + 1, 0.0), v(n + 1, 0.0);
   const double du = (c.u_end() - c.u_begin()) / n;
   for (int i = 0; i <= n; ++i) {
@@ -123,7 +123,7 @@ PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s) {
     v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2 * a * (s[i + 1] - s[i])));
   PhasePlane pp;
   for (int i = 0; i < n; ++i) pp.time_s += 2.0 * (s[i + 1] - s[i]) / (v[i] + v[i + 1]);
-  pp.jerk_time_s = test::jerk_pivot_bound_s(s, v, a, jerk, 5e-6, &pp.stretches);
+  pp.jerk_time_s = test::jerk_pivot_bound_s(s, v, a, jerk, dt_s, &pp.stretches, cells);
   return pp;
 }
 
@@ -195,7 +195,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     EXPECT_GE(t, pp.jerk_time_s);
     EXPECT_GE(pp.jerk_time_s, pp.time_s);
     EXPECT_LE(t, 1.05 * pp.time_s);       // 1.034 (docs/planner.md §6)
-    EXPECT_LE(t, 1.03 * pp.jerk_time_s);  // 1.022
+    EXPECT_LE(t, 1.02 * pp.jerk_time_s);  // 1.0194 (issue 13's goal on smooth paths)
   }
   const auto exact_stop = [&](const char* name, const Path& p, double v_mm_per_s,
                               const std::vector<double>& legs) {
@@ -399,6 +399,50 @@ TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {
       }
     }
   }
+}
+
+// ncd against the jerk-counting bound on random smooth curves (issue 13's goal on smooth paths,
+// beyond the one cubic): cubic B-splines of 6–10 control points about 20 mm apart along X,
+// ±30 mm across and ±3 mm in Z, at F6000 (seed printed). Each duration must be at least its
+// bound (the bound holds for any motion) and within 5 % of it (1.010–1.011 on average over
+// seeds 1–3, 1.022–1.033 at worst: not every curve is within 2 %); the mean and the worst are
+// printed, with the total duration (docs/planner.md §4, "The undershooting member"). The
+// bound here is integrated coarser than the cubic's (40 cells of a₀, steps of 20 µs; still a
+// bound, a little lower) to keep the test short.
+TEST(Bound, RandomSmoothCurvesNearTheJerkCountingBound) {
+  std::mt19937_64 rng(test::seed());
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  double total_s = 0.0, sum_ratio = 0.0, worst = 0.0;
+  constexpr int kCurves = 16;
+  for (int k = 0; k < kCurves; ++k) {
+    const int n = 6 + k % 5;
+    std::vector<Vec3> points;
+    for (int i = 0; i < n; ++i) {
+      points.emplace_back(20.0 * i + 15.0 * unit(rng), 30.0 * unit(rng), 3.0 * unit(rng));
+    }
+    std::vector<double> knots(4, 0.0);
+    for (int i = 1; i <= n - 4; ++i) knots.push_back(static_cast<double>(i) / (n - 3));
+    knots.insert(knots.end(), 4, 1.0);
+    NurbsCurve c(3, knots, points);
+    Path p;
+    PathSegment seg;
+    seg.geometry = c;
+    seg.feed_mm_per_min = 6000.0;
+    p.segments.push_back(seg);
+    const double t = ncd_duration_s(p);
+    const double b = phase_plane(c, 100.0, 40000, 2e-5, 40).jerk_time_s;
+    SCOPED_TRACE("curve " + std::to_string(k) + ": " + std::to_string(t) + " s against " +
+                 std::to_string(b) + " s");
+    EXPECT_GE(t, b * (1.0 - 1e-4));
+    EXPECT_LE(t, 1.05 * b);
+    std::printf("    curve %2d: %.3f s, bound %.4f s, ratio %.4f\n", k, t, b, t / b);
+    total_s += t;
+    sum_ratio += t / b;
+    worst = std::max(worst, t / b);
+  }
+  std::printf(
+      "  %d random curves: ncd %.3f s in all, %.4f of the bound on average, %.4f at worst\n",
+      kCurves, total_s, sum_ratio / kCurves, worst);
 }
 
 // The jerk-counting bound (test::jerk_pivot_bound_s) against motions whose optimum is known in

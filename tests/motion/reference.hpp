@@ -79,13 +79,13 @@ inline double scurve_time_s(double d, double v, double a, double j) {
 // time that no motion beats. So the duration is at least the sum, over pivots, of the fastest
 // backward and forward times to the neighbouring splits, minimised over the unknown a0 at interior
 // pivots (the forward time falls and the backward time rises with a0, so a grid of a0 bounds the
-// minimum from below: forward at the upper and backward at the lower end of each cell, 200
-// cells). Every choice of pivots and splits gives a valid bound, so the splits are those that
-// make it largest: the arrival times of the fastest motions are recorded at about 500 candidate
-// splits per stretch, and a coordinate ascent from the tops of V moves each split to where the
-// two pivots around it add up most (a split at the top lets the motion from one side arrive
-// there at the top speed while the other is still climbing; on a line whose top lies below the
-// cap the best split is where the two meet, and the bound reaches the all-jerk ratio 0.909 of
+// minimum from below: forward at the upper and backward at the lower end of each cell; 200
+// cells by default). Every choice of pivots and splits gives a valid bound, so the splits are those
+// that make it largest: the arrival times of the fastest motions are recorded at about 500
+// candidate splits per stretch, and a coordinate ascent from the tops of V moves each split to
+// where the two pivots around it add up most (a split at the top lets the motion from one side
+// arrive there at the top speed while the other is still climbing; on a line whose top lies below
+// the cap the best split is where the two meet, and the bound reaches the all-jerk ratio 0.909 of
 // the optimum, where a split at the top gave 0.77). A dip is a pivot where V rises by at least
 // 5 % on both sides. The integration in time (step dt_s) is numerical, like the phase plane's.
 // One stretch of the bound: from one split to the next (the path's ends for the first and the
@@ -96,7 +96,7 @@ struct BoundStretch {
 
 inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector<double>& V,
                                  double A, double J, double dt_s = 5e-6,
-                                 std::vector<BoundStretch>* stretches = nullptr) {
+                                 std::vector<BoundStretch>* stretches = nullptr, int cells = 200) {
   const std::size_t n = s.size();
   // The top within reach: U[k] = max V over s[k] ± V_top A / J. Whatever the motion's
   // acceleration a, |jerk| ≤ J keeps its sign for |a|/J ≤ A/J more: for a > 0 the speed still
@@ -177,7 +177,7 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
   // a0 = 0 only (cell 0). Interior pivots take the a0 grid: the forward time falls and the
   // backward time rises with a0, so a grid bounds the minimum over a0 from below (forward at
   // the upper and backward at the lower end of each cell).
-  constexpr int kCells = 200;
+  const int kCells = cells;
   const std::size_t stretches_n = pivots.size() - 1;
   std::vector<std::vector<std::size_t>> cand(stretches_n);
   for (std::size_t p = 0; p < stretches_n; ++p) {
