@@ -604,6 +604,7 @@ void Planner::build_blocks(double scale, double stop_mm) {
 bool Planner::rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                       std::size_t& out_n) {
   if (rollout_member(j0, scale_check, stop_mm, out, out_n)) return true;
+  if (policy_hold_) return false;  // braking to rest: both members are the same
   pol_final_ = kUnderFinalJerk;
   pol_under_ = kUndershoot;
   const bool ok = rollout_member(j0, scale_check, stop_mm, out, out_n);
