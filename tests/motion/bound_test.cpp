@@ -405,7 +405,7 @@ TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {
 // beyond the one cubic): cubic B-splines of 6–10 control points about 20 mm apart along X,
 // ±30 mm across and ±3 mm in Z, at F6000 (seed printed). Each duration must be at least its
 // bound (the bound holds for any motion) and within 5 % of it (1.010–1.011 on average over
-// seeds 1–3, 1.022–1.033 at worst: not every curve is within 2 %); the mean and the worst are
+// seeds 1–6, 1.016–1.032 at worst: not every curve is within 2 %); the mean and the worst are
 // printed, with the total duration (docs/planner.md §4, "The undershooting member"). The
 // bound here is integrated coarser than the cubic's (40 cells of a₀, steps of 20 µs; still a
 // bound, a little lower) to keep the test short.
