@@ -117,7 +117,7 @@ void CurveWalker::reset(double u) {
 template <class Rule>
 double CurveWalker::integrate_speed(double u0, double u1, Rule&& rule) const {
   if (u1 < u0) return -integrate_speed(u1, u0, rule);
-  const auto speed = [this](double u) { return curve_.eval(u).d1.norm(); };
+  const auto speed = [this](double u) { return curve_.derivative(u).norm(); };
   double sum = 0.0;
   double a = u0;
   for (auto it = std::upper_bound(breakpoints_.begin(), breakpoints_.end(), u0);
@@ -217,7 +217,7 @@ StepResult CurveWalker::correct(double delta_s_mm, double u_predicted, double sp
     } else {
       hi = u;
     }
-    double next = u - g / curve_.eval(u).d1.norm();
+    double next = u - g / curve_.derivative(u).norm();
     if (!(next > lo && next < hi)) {
       if (next >= hi && hi == u_end_ && !end_tried) {
         next = u_end_;

@@ -555,7 +555,7 @@ FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double 
   for (int i = 0; i < kSamples; ++i) {
     const FeedLimitResult f = limit_on_curve(segment, u0 + step * i);
     if (f.feed_mm_per_s < best.feed_mm_per_s) best = f, at = i, f_at = f.feed_mm_per_s;
-    const double speed = c.eval(u0 + step * i).d1.norm();
+    const double speed = c.derivative(u0 + step * i).norm();
     if (speed < speed_lo) speed_lo = speed, slow = i;
     speed_hi = std::max(speed_hi, speed);
   }
@@ -566,7 +566,7 @@ FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double 
   // the limit there too.
   if (speed_hi > 1.5 * speed_lo) {
     const double bottom = golden_section_min(
-        [&c](double u) { return c.eval(u).d1.norm(); }, u0 + step * std::max(slow - 1, 0),
+        [&c](double u) { return c.derivative(u).norm(); }, u0 + step * std::max(slow - 1, 0),
         u0 + step * std::min(slow + 1, kSamples - 1), 1e-12 * (u1 - u0));
     best = min_of(best, limit_on_curve(segment, bottom));
   }
@@ -759,7 +759,7 @@ bool LimitSampler::next_interval(Interval& iv) {
       if (segment_ < path_.segments.size()) enter_segment();
       continue;
     }
-    const double speed = c.eval(u_).d1.norm();
+    const double speed = c.derivative(u_).norm();
     const double spacing_mm = fine_ ? 0.5 * config_.spacing_mm : config_.spacing_mm;
     double u1 = speed > 0.0 ? u_ + spacing_mm / speed : c.u_end();
     const std::vector<double>& knots = breakpoints_[segment_];
@@ -777,8 +777,8 @@ bool LimitSampler::next_interval(Interval& iv) {
     {
       const double u_next = knot_ < knots.size() ? std::min(knots[knot_], c.u_end()) : c.u_end();
       if (u1 < u_next && u_next - u1 < u1 - u_) {
-        const double to_next =
-            GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u_, u_next);
+        const double to_next = GaussLegendre10::integrate(
+            [&c](double w) { return c.derivative(w).norm(); }, u_, u_next);
         const double s_next = u_next >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + to_next;
         if (is_rest_mm(s_next)) {
           if (to_next <= config_.spacing_mm) {
@@ -854,7 +854,7 @@ bool LimitSampler::next_interval(Interval& iv) {
       const std::vector<double>& dips = dips_[segment_];
       const auto next = std::upper_bound(dips.begin(), dips.end(), u_);
       const auto arc_of = [&c](double a, double b) {
-        return GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, a, b);
+        return GaussLegendre10::integrate([&c](double w) { return c.derivative(w).norm(); }, a, b);
       };
       if (next != dips.end() && *next <= u1) {
         const double d = arc_of(u_, *next);
@@ -866,7 +866,7 @@ bool LimitSampler::next_interval(Interval& iv) {
       }
     }
     const auto arc_to = [&c, this](double u) {
-      return GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u_, u);
+      return GaussLegendre10::integrate([&c](double w) { return c.derivative(w).norm(); }, u_, u);
     };
     const bool end_knot = u1 >= c.u_end() || (knot_ < knots.size() && u1 == knots[knot_]);
     bool end_rest = false;  // the interval ends where the motion rests: its far side is not its
@@ -943,7 +943,7 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
     return u < c.u_end() ? std::max(span_lo, std::nextafter(u, -kInf)) : u;
   };
   double lo = u0, hi = below(std::min(u1, span_hi));
-  const double speed = c.eval(u0).d1.norm();
+  const double speed = c.derivative(u0).norm();
   if (speed > 0.0 && (hi - lo) * speed < kMinArcMm) {
     const double mid = 0.5 * (lo + hi), half = 0.5 * kMinArcMm / speed;
     lo = std::max(span_lo, mid - half);
@@ -999,7 +999,7 @@ void LimitSampler::find_dips(const toolpath::NurbsCurve& c, const std::vector<do
     const auto at = [&](int j) { return bp[i] + w * (static_cast<double>(j) + 0.5) / kSamples; };
     double top = 0.0;
     for (int j = 0; j < kSamples; ++j) {
-      speed[static_cast<std::size_t>(j)] = c.eval(at(j)).d1.norm();
+      speed[static_cast<std::size_t>(j)] = c.derivative(at(j)).norm();
       top = std::max(top, speed[static_cast<std::size_t>(j)]);
     }
     for (int j = 1; j + 1 < kSamples; ++j) {
@@ -1007,7 +1007,7 @@ void LimitSampler::find_dips(const toolpath::NurbsCurve& c, const std::vector<do
       if (!(speed[J] < speed[J - 1] && speed[J] <= speed[J + 1] && speed[J] < kDeep * top)) {
         continue;
       }
-      out.push_back(golden_section_min([&c](double u) { return c.eval(u).d1.norm(); }, at(j - 1),
+      out.push_back(golden_section_min([&c](double u) { return c.derivative(u).norm(); }, at(j - 1),
                                        at(j + 1), 1e-13 * std::max(1.0, std::abs(at(j + 1)))));
     }
   }
@@ -1071,7 +1071,7 @@ bool LimitSampler::needs_rest_refinement(std::size_t segment, double u) const {
 double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi,
                               double arc_mm) const {
   const auto arc = [&c, u0](double u) {
-    return GaussLegendre10::integrate([&c](double w) { return c.eval(w).d1.norm(); }, u0, u);
+    return GaussLegendre10::integrate([&c](double w) { return c.derivative(w).norm(); }, u0, u);
   };
   if (arc(u_hi) <= arc_mm) return u_hi;
   double lo = u0, hi = u_hi;

@@ -41,7 +41,7 @@ double distance_to_chord(const Vec3& q, const Vec3& a, const Vec3& b) {
 // resolves u only to 2e-14 of its width, so |P'| itself carries ~1e-14 relative rounding.
 double adaptive_length(const toolpath::ParametricCurve& c, double a, double b, double whole,
                        int depth) {
-  const auto speed = [&c](double u) { return c.eval(u).d1.norm(); };
+  const auto speed = [&c](double u) { return c.derivative(u).norm(); };
   const double m = 0.5 * (a + b);
   const double left = GaussLegendre10::integrate(speed, a, m);
   const double right = GaussLegendre10::integrate(speed, m, b);
@@ -54,7 +54,7 @@ double adaptive_length(const toolpath::ParametricCurve& c, double a, double b, d
 }  // namespace
 
 double arc_length_mm(const toolpath::ParametricCurve& curve, double u0, double u1) {
-  const auto speed = [&curve](double u) { return curve.eval(u).d1.norm(); };
+  const auto speed = [&curve](double u) { return curve.derivative(u).norm(); };
   // Four panels before the adaptive check: the path length is what the last period lands on,
   // so its error would show up there as a feed error.
   constexpr int kPanels = 4;

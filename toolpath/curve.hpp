@@ -21,6 +21,9 @@ class ParametricCurve {
   virtual double u_begin() const = 0;
   virtual double u_end() const = 0;
   virtual CurvePoint eval(double u) const = 0;
+  // P'(u) alone, the same bits as eval(u).d1: what arc-length integrals need (a curve may do
+  // less work for it).
+  virtual Vec3 derivative(double u) const { return eval(u).d1; }
   // Parameters where P'' may jump (interior knots), ascending, begin and end included; arc
   // length integrals split there.
   virtual std::vector<double> breakpoints() const = 0;

@@ -177,8 +177,9 @@ namespace {
 
 // Steps 2–4 for a degree P known at compile time: the loops unroll and the arrays shrink to
 // P + 1, but every operation and its order are those of the general algorithm, so the result
-// is the same bit for bit whatever the degree.
-template <std::size_t P>
+// is the same bit for bit whatever the degree. ND: the derivatives wanted (2, or 1 for P' alone,
+// which skips the second derivative's work and leaves d2 zero; P and P' are the same bits).
+template <std::size_t P, std::size_t ND = 2>
 CurvePoint eval_on_span(double u, std::size_t s, const double* knots, const Vec3* weighted_points,
                         const double* weights) {
   constexpr std::size_t p = P;
@@ -199,9 +200,9 @@ CurvePoint eval_on_span(double u, std::size_t s, const double* knots, const Vec3
     }
     ndu[j][j] = saved;
   }
-  std::array<std::array<double, kOrder>, 3> ders{};  // ders[k][j] = d^k N_{s−p+j,p}/du^k
+  std::array<std::array<double, kOrder>, ND + 1> ders{};  // ders[k][j] = d^k N_{s−p+j,p}/du^k
   for (std::size_t j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
-  constexpr std::size_t nd = std::min<std::size_t>(2, p);  // derivatives above p vanish
+  constexpr std::size_t nd = std::min<std::size_t>(ND, p);  // derivatives above p vanish
   constexpr auto pi = static_cast<std::ptrdiff_t>(p);
   for (std::ptrdiff_t r = 0; r <= pi; ++r) {
     std::array<std::array<double, kOrder>, 2> a{};
@@ -236,11 +237,12 @@ CurvePoint eval_on_span(double u, std::size_t s, const double* knots, const Vec3
   }
 
   // Homogeneous sums over the active points s−p … s.
-  std::array<Vec3, 3> A{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
-  std::array<double, 3> w{};
+  std::array<Vec3, ND + 1> A;
+  A.fill(Vec3::Zero());
+  std::array<double, ND + 1> w{};
   for (std::size_t j = 0; j <= p; ++j) {
     const std::size_t i = s - p + j;
-    for (std::size_t k = 0; k < 3; ++k) {
+    for (std::size_t k = 0; k <= ND; ++k) {
       A[k] += ders[k][j] * weighted_points[i];
       w[k] += ders[k][j] * weights[i];
     }
@@ -248,7 +250,11 @@ CurvePoint eval_on_span(double u, std::size_t s, const double* knots, const Vec3
   CurvePoint c;
   c.p = A[0] / w[0];
   c.d1 = (A[1] - w[1] * c.p) / w[0];
-  c.d2 = (A[2] - 2.0 * w[1] * c.d1 - w[2] * c.p) / w[0];
+  if constexpr (ND >= 2) {
+    c.d2 = (A[2] - 2.0 * w[1] * c.d1 - w[2] * c.p) / w[0];
+  } else {
+    c.d2 = Vec3::Zero();
+  }
   return c;
 }
 
@@ -276,6 +282,30 @@ CurvePoint NurbsCurve::eval(double u) const {
     default:
       static_assert(kMaxDegree == 7, "one case per degree");
       return eval_on_span<7>(u, s, k, wp, w);
+  }
+}
+
+Vec3 NurbsCurve::derivative(double u) const {
+  u = std::clamp(u, u_begin(), u_end());
+  const std::size_t s = find_span(u);
+  const double* k = knots_.data();
+  const Vec3* wp = weighted_points_.data();
+  const double* w = weights_.data();
+  switch (degree_) {
+    case 1:
+      return eval_on_span<1, 1>(u, s, k, wp, w).d1;
+    case 2:
+      return eval_on_span<2, 1>(u, s, k, wp, w).d1;
+    case 3:
+      return eval_on_span<3, 1>(u, s, k, wp, w).d1;
+    case 4:
+      return eval_on_span<4, 1>(u, s, k, wp, w).d1;
+    case 5:
+      return eval_on_span<5, 1>(u, s, k, wp, w).d1;
+    case 6:
+      return eval_on_span<6, 1>(u, s, k, wp, w).d1;
+    default:
+      return eval_on_span<7, 1>(u, s, k, wp, w).d1;
   }
 }
 

@@ -40,6 +40,8 @@ class NurbsCurve final : public ParametricCurve {
   // P, P', P'' at u (clamped to [u_begin, u_end]); at an interior knot, the derivatives of the
   // span that starts there. Does not allocate.
   CurvePoint eval(double u) const override;
+  // P'(u) without the second derivative's work; the same bits as eval(u).d1.
+  Vec3 derivative(double u) const override;
   // Distinct knot values, ascending, u_begin and u_end included.
   std::vector<double> breakpoints() const override;
 
