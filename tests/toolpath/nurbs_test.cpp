@@ -171,6 +171,34 @@ TEST(NurbsCurve, MatchesCoxDeBoorJetReferenceInRandomSweeps) {
   EXPECT_GT(checked, 7 * 2 * 40 * 25);
 }
 
+// derivative() skips the second derivative's work but must give eval(u).d1 bit for bit (the
+// sampler's and the walkers' arc lengths use it, and setpoints must not change): every degree,
+// rational or not, at every knot (a span's end and the next one's start) and at random u,
+// clamped ends included.
+TEST(NurbsCurve, DerivativeIsEvalsFirstDerivativeBitForBit) {
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> unit(-0.1, 1.1);
+  int checked = 0;
+  for (int degree = 1; degree <= 7; ++degree) {
+    for (bool rational : {false, true}) {
+      for (int trial = 0; trial < 20; ++trial) {
+        const NurbsCurve c = random_curve(rng, degree, rational);
+        std::vector<double> us = c.knots();
+        for (int k = 0; k < 50; ++k) us.push_back(c.u_end() * unit(rng));
+        for (const double u : us) {
+          const Vec3 d = c.derivative(u), e = c.eval(u).d1;
+          for (int i = 0; i < 3; ++i) {
+            ASSERT_EQ(d[i], e[i]) << "degree " << degree << (rational ? " rational" : "")
+                                  << " u = " << u << " component " << i;
+          }
+          ++checked;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 7 * 2 * 20 * 50);
+}
+
 TEST(NurbsCurve, EvalDoesNotAllocate) {
   std::mt19937_64 rng(7);
   const NurbsCurve c = random_curve(rng, 7, true);
