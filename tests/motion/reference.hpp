@@ -121,11 +121,11 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
   }
   // The fastest motion from pivot i towards index `to`, with v0 = V[i] and the acceleration cap
   // min(A, a_start + J τ) in its own direction of travel: the time at which it reaches each
-  // index of `at` (ordered away from i, the last one `to`) goes to out (+inf where it stops
-  // short: a stop is a lower bound too).
+  // index of `at` (ordered away from i, the last one `to`) goes to out (where it parks for
+  // good, V = 0 over a cell, the time it ran: a lower bound too).
   const auto fastest_s = [&](std::size_t i, std::size_t to, double a_start,
                              const std::vector<std::size_t>& at, std::vector<double>& out) {
-    out.assign(at.size(), std::numeric_limits<double>::infinity());
+    out.assign(at.size(), 0.0);
     const int dir = to > i ? 1 : -1;
     std::size_t k = i;     // cell index: position between s[k] and s[k + dir]
     std::size_t next = 0;  // the next index of `at` to reach
@@ -159,6 +159,7 @@ inline double jerk_pivot_bound_s(const std::vector<double>& s, const std::vector
       v = v1;
       t += dt_s;
     }
+    for (; next < at.size(); ++next) out[next] = t;  // never reached: the time so far bounds it
   };
   // Pivots: the ends and the prominent dips.
   std::vector<std::size_t> pivots{0};
