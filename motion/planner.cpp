@@ -897,11 +897,16 @@ bool Planner::cut_landing_for_hold() {
   policy_hold_ = false;
   if (!sooner) return false;
   landing_ = false;
+  take_best(j, kLimitIdHold);
+  return true;
+}
+
+// Makes the rollout in best_ (its first jerk j) the committed plan and executes j.
+void Planner::take_best(double j, std::uint8_t limit_id) {
   std::swap(plan_, best_);
   plan_n_ = best_n_;
   plan_pos_ = 1;
-  commit(j, kLimitIdHold);
-  return true;
+  commit(j, limit_id);
 }
 
 // Executes jerk j for one period and records the output sample.
@@ -971,12 +976,6 @@ MotionSample Planner::step() {
     if (plan_pos_ < plan_n_) ++plan_pos_;
     commit(j_fallback, id);
   };
-  const auto use_best = [&](double j, std::uint8_t id) {
-    std::swap(plan_, best_);
-    plan_n_ = best_n_;
-    plan_pos_ = 1;
-    commit(j, id);
-  };
   std::size_t n = 0;
 
   // Feed hold (or override 0 %): π brakes to rest; stays there until resume().
@@ -985,7 +984,7 @@ MotionSample Planner::step() {
     Cursor c;
     const double j = at_rest ? 0.0 : policy(x_, c, nullptr);
     if (rollout(j, override_applied_, real_stop, best_, best_n_)) {
-      use_best(j, kLimitIdHold);
+      take_best(j, kLimitIdHold);
     } else {
       use_fallback(kLimitIdHold);
     }
@@ -1003,9 +1002,9 @@ MotionSample Planner::step() {
     const double j = at_rest ? 0.0 : policy(x_, c, &id);
     if (rollout(j, override_target_, real_stop, best_, best_n_)) {
       override_applied_ = override_target_;
-      use_best(j, id);
+      take_best(j, id);
     } else if (rollout(j, override_applied_, real_stop, best_, best_n_)) {
-      use_best(j, id);
+      take_best(j, id);
     } else {
       use_fallback(id);
     }
@@ -1022,7 +1021,7 @@ MotionSample Planner::step() {
   const double j_top = clampj(std::min(j_here, (a_here - x_.a_mm_per_s2) / T), j_here);
   if (rollout(j_top, override_applied_, real_stop, best_, best_n_)) {
     const double a1 = x_.a_mm_per_s2 + j_top * T;
-    use_best(j_top, a1 >= a_here * (1.0 - 1e-9) ? kLimitIdAcceleration : kLimitIdJerk);
+    take_best(j_top, a1 >= a_here * (1.0 - 1e-9) ? kLimitIdAcceleration : kLimitIdJerk);
     return last_;
   }
   if (stop == length_mm_ && try_landing()) {
@@ -1049,7 +1048,7 @@ MotionSample Planner::step() {
     if (jt > lo && jt < j_top && rollout(jt, override_applied_, real_stop, trial_, n)) {
       std::swap(trial_, best_);
       best_n_ = n;
-      use_best(jt, binding());
+      take_best(jt, binding());
       return last_;
     }
   }
@@ -1067,7 +1066,7 @@ MotionSample Planner::step() {
     }
   }
   if (have) {
-    use_best(j_best, 0);
+    take_best(j_best, 0);
   } else {
     use_fallback(0);
   }

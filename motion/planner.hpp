@@ -141,6 +141,7 @@ class Planner {
                       std::size_t& out_n);  // rollout() with π's member in force
   bool try_landing();
   bool cut_landing_for_hold();
+  void take_best(double j, std::uint8_t limit_id);
   enum class LandBase { zero, plan, scurve, reach };  // what a landing's correction starts from
   bool land_with(std::size_t n, LandBase base);
   bool scurve_base(std::size_t n);

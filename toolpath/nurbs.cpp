@@ -258,55 +258,42 @@ CurvePoint eval_on_span(double u, std::size_t s, const double* knots, const Vec3
   return c;
 }
 
+// The degree's instantiation of eval_on_span at u (clamped), after A2.1's span search.
+template <std::size_t ND>
+CurvePoint eval_at(int degree, double u, std::size_t s, const double* k, const Vec3* wp,
+                   const double* w) {
+  switch (degree) {
+    case 1:
+      return eval_on_span<1, ND>(u, s, k, wp, w);
+    case 2:
+      return eval_on_span<2, ND>(u, s, k, wp, w);
+    case 3:
+      return eval_on_span<3, ND>(u, s, k, wp, w);
+    case 4:
+      return eval_on_span<4, ND>(u, s, k, wp, w);
+    case 5:
+      return eval_on_span<5, ND>(u, s, k, wp, w);
+    case 6:
+      return eval_on_span<6, ND>(u, s, k, wp, w);
+    default:
+      static_assert(NurbsCurve::kMaxDegree == 7, "one case per degree");
+      return eval_on_span<7, ND>(u, s, k, wp, w);
+  }
+}
+
 }  // namespace
 
 CurvePoint NurbsCurve::eval(double u) const {
   u = std::clamp(u, u_begin(), u_end());
-  const std::size_t s = find_span(u);
-  const double* k = knots_.data();
-  const Vec3* wp = weighted_points_.data();
-  const double* w = weights_.data();
-  switch (degree_) {
-    case 1:
-      return eval_on_span<1>(u, s, k, wp, w);
-    case 2:
-      return eval_on_span<2>(u, s, k, wp, w);
-    case 3:
-      return eval_on_span<3>(u, s, k, wp, w);
-    case 4:
-      return eval_on_span<4>(u, s, k, wp, w);
-    case 5:
-      return eval_on_span<5>(u, s, k, wp, w);
-    case 6:
-      return eval_on_span<6>(u, s, k, wp, w);
-    default:
-      static_assert(kMaxDegree == 7, "one case per degree");
-      return eval_on_span<7>(u, s, k, wp, w);
-  }
+  return eval_at<2>(degree_, u, find_span(u), knots_.data(), weighted_points_.data(),
+                    weights_.data());
 }
 
 Vec3 NurbsCurve::derivative(double u) const {
   u = std::clamp(u, u_begin(), u_end());
-  const std::size_t s = find_span(u);
-  const double* k = knots_.data();
-  const Vec3* wp = weighted_points_.data();
-  const double* w = weights_.data();
-  switch (degree_) {
-    case 1:
-      return eval_on_span<1, 1>(u, s, k, wp, w).d1;
-    case 2:
-      return eval_on_span<2, 1>(u, s, k, wp, w).d1;
-    case 3:
-      return eval_on_span<3, 1>(u, s, k, wp, w).d1;
-    case 4:
-      return eval_on_span<4, 1>(u, s, k, wp, w).d1;
-    case 5:
-      return eval_on_span<5, 1>(u, s, k, wp, w).d1;
-    case 6:
-      return eval_on_span<6, 1>(u, s, k, wp, w).d1;
-    default:
-      return eval_on_span<7, 1>(u, s, k, wp, w).d1;
-  }
+  return eval_at<1>(degree_, u, find_span(u), knots_.data(), weighted_points_.data(),
+                    weights_.data())
+      .d1;
 }
 
 std::vector<double> NurbsCurve::breakpoints() const {
