@@ -263,7 +263,8 @@ void Planner::restart(double length_mm) {
 }
 
 const LimitSample& Planner::sample(std::size_t i) const {
-  return ring_[(head_ + i) % ring_.size()];
+  const std::size_t k = head_ + i;  // < 2 x the ring's size: a subtraction, not a division
+  return ring_[k < ring_.size() ? k : k - ring_.size()];
 }
 
 // Look-ahead distance wanted at (v, a): braking from a bound on the speed soon reachable, plus
@@ -548,10 +549,15 @@ double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const 
   if (policy_hold_) return track(x, 0.0);
   while (c.block + 1 < block_count_ && blocks_[c.block].end_mm <= x.s_mm) ++c.block;
   const double vs = v_settle(x);
+  // A block demands only below max(vs, v): where no block ahead is, π brakes to rest.
+  const std::size_t b_end =
+      c.block < block_count_ && blocks_[c.block].min_on_mm_per_s < std::max(vs, x.v_mm_per_s)
+          ? block_count_
+          : c.block;
   const double margin = 2.0 * x.v_mm_per_s * period_s_ + pol_j_ * period_s_ * period_s_ * period_s_;
-  const double reach = need_mm(x, 0.0) + margin;
+  const double reach = b_end > c.block ? need_mm(x, 0.0) + margin : 0.0;
   double w = std::numeric_limits<double>::infinity();
-  for (std::size_t b = c.block; b < block_count_; ++b) {
+  for (std::size_t b = c.block; b < b_end; ++b) {
     const Block& bl = blocks_[b];
     const double dist = bl.begin_mm - x.s_mm;
     if (dist > reach) break;
@@ -593,9 +599,14 @@ void Planner::build_blocks(double scale, double stop_mm) {
           continue;
         }
       }
-      blocks_[block_count_++] = Block{b0, b1, v, id};
+      blocks_[block_count_++] = Block{b0, b1, v, id, 0.0};
     }
     if (q.s_mm >= stop_mm) break;
+  }
+  double lowest = std::numeric_limits<double>::infinity();
+  for (std::size_t b = block_count_; b-- > 0;) {
+    lowest = std::min(lowest, blocks_[b].v_max_mm_per_s);
+    blocks_[b].min_on_mm_per_s = lowest;
   }
 }
 

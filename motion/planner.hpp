@@ -123,6 +123,7 @@ class Planner {
   struct Block {
     double begin_mm, end_mm, v_max_mm_per_s;
     std::uint8_t limit_id;
+    double min_on_mm_per_s;  // the lowest level of this block and every block after it
   };
   struct Cursor {
     std::size_t segment = 0;  // index into the ring (segment between sample i and i+1)
