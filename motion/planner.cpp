@@ -378,6 +378,7 @@ void Planner::reserve_for_speed(double v_mm_per_s) {
     plan_.resize(cap);
     trial_.resize(cap);
     best_.resize(cap);
+    memo_.resize(cap);
     land_j_.resize(cap);
     land_base_.resize(cap);
   }
@@ -407,23 +408,30 @@ Planner::Kin Planner::advance(const Kin& x, double j) const {
   return y;
 }
 
+// The lowest and highest speed of one period at jerk j from x: the quadratic v(τ) has its
+// extremes at the ends or at τ = −a/j.
+Planner::SpeedRange Planner::period_speeds(const Kin& x, double j) const {
+  const double T = period_s_;
+  const double v1 = x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T;
+  SpeedRange r{std::min(x.v_mm_per_s, v1), std::max(x.v_mm_per_s, v1)};
+  if (j != 0.0) {
+    const double tau = -x.a_mm_per_s2 / j;
+    if (tau > 0.0 && tau < T) {
+      const double vt = x.v_mm_per_s + x.a_mm_per_s2 * tau + 0.5 * j * tau * tau;
+      r.lo = std::min(r.lo, vt);
+      r.hi = std::max(r.hi, vt);
+    }
+  }
+  return r;
+}
+
 // Exact check of one period: jerk, acceleration, v(τ) within [0, min limit over the span].
 bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm) const {
   const double T = period_s_;
   if (!(std::abs(j) <= j_max_)) return false;
   const double a1 = x.a_mm_per_s2 + j * T;
   if (std::abs(a1) > a_max_ * (1.0 + kRelSlack)) return false;
-  const double v1 = x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T;
-  double v_hi = std::max(x.v_mm_per_s, v1);
-  double v_lo = std::min(x.v_mm_per_s, v1);
-  if (j != 0.0) {
-    const double tau = -x.a_mm_per_s2 / j;
-    if (tau > 0.0 && tau < T) {
-      const double vt = x.v_mm_per_s + x.a_mm_per_s2 * tau + 0.5 * j * tau * tau;
-      v_hi = std::max(v_hi, vt);
-      v_lo = std::min(v_lo, vt);
-    }
-  }
+  const auto [v_lo, v_hi] = period_speeds(x, j);
   if (v_lo < -v_eps_) return false;
   const double s1 = x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0;
   if (s1 > stop_mm + 1e-12 * std::max(1.0, length_mm_)) return false;
@@ -577,6 +585,9 @@ double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const 
 // Blocks of the window from s to stop_mm, limits scaled; short blocks merged (minimum kept).
 void Planner::build_blocks(double scale, double stop_mm) {
   block_count_ = 0;
+  blocks_period_ = periods_;
+  blocks_scale_ = scale;
+  blocks_stop_mm_ = stop_mm;
   if (count_ < 2) return;
   const double len_min = (stop_mm - x_.s_mm) / kBlocksPerWindow;
   for (std::size_t i = 0; i + 1 < count_; ++i) {
@@ -608,6 +619,7 @@ void Planner::build_blocks(double scale, double stop_mm) {
     lowest = std::min(lowest, blocks_[b].v_max_mm_per_s);
     blocks_[b].min_on_mm_per_s = lowest;
   }
+  blocks_min_ = block_count_ > 0 ? lowest : -std::numeric_limits<double>::infinity();
 }
 
 // Simulates j0 then π until rest, checking every period; the jerks go to out[0, out_n). Where
@@ -627,17 +639,40 @@ bool Planner::rollout(double j0, double scale_check, double stop_mm, std::vector
 bool Planner::rollout_member(double j0, double scale_check, double stop_mm,
                              std::vector<double>& out, std::size_t& out_n) {
   ++last_rollouts_;
+  const RolloutKey key{x_.v_mm_per_s, x_.a_mm_per_s2, j0,         scale_check, pol_a_,
+                       pol_j_,        pol_final_,     pol_under_, policy_hold_};
+  // In a window flat enough for it, the memo's rollout shifted to s (see RolloutKey), if it
+  // still rests before the stop point with room for the rounding of s.
+  const bool flat_window =
+      !any_scaled_ && blocks_period_ == periods_ && scale_check == blocks_scale_;
+  if (flat_window && memo_n_ > 0 && key == memo_key_ && blocks_min_ >= memo_v_need_ &&
+      x_.s_mm + memo_span_mm_ + 1e-9 * std::max(1.0, length_mm_) <=
+          std::min(stop_mm, blocks_stop_mm_)) {
+    std::copy_n(memo_.begin(), memo_n_, out.begin());
+    out_n = memo_n_;
+    return true;
+  }
   Cursor c;
   Kin x = x_;
   double j = j0;
+  double v_need = 0.0;  // the highest speed of any period, and of any state π looks from
   for (std::size_t n = 0; n < rollout_cap_; ++n) {
     if (!check_period(x, j, c, scale_check, stop_mm)) return false;
     out[n] = j;
+    v_need = std::max(v_need, period_speeds(x, j).hi);
     x = advance(x, j);
     if (x.v_mm_per_s == 0.0 && x.a_mm_per_s2 == 0.0) {
       out_n = n + 1;
+      if (flat_window && blocks_min_ >= v_need && x.s_mm <= blocks_stop_mm_) {
+        std::copy_n(out.begin(), out_n, memo_.begin());
+        memo_n_ = out_n;
+        memo_key_ = key;
+        memo_v_need_ = v_need;
+        memo_span_mm_ = x.s_mm - x_.s_mm;
+      }
       return true;
     }
+    v_need = std::max({v_need, x.v_mm_per_s, v_settle(x)});
     j = policy(x, c, nullptr);
   }
   return false;
@@ -920,6 +955,16 @@ void Planner::take_best(double j, std::uint8_t limit_id) {
   commit(j, limit_id);
 }
 
+// After a dead-beat onto a flat limit w: a state within rounding of (w, a = 0) is put on it
+// exactly, as advance() puts rest on exact zeros, so that the cruise repeats bit for bit (its
+// next jerk is 0, and its rollout the memo's: see RolloutKey). It moves v by at most v_eps and
+// a by at most a_eps, far inside the checks' slack.
+void Planner::settle_on(double w) {
+  if (std::abs(x_.v_mm_per_s - w) > v_eps_ || std::abs(x_.a_mm_per_s2) > a_eps_) return;
+  x_.v_mm_per_s = last_.v_mm_per_s = w;
+  x_.a_mm_per_s2 = last_.a_mm_per_s2 = 0.0;
+}
+
 // Executes jerk j for one period and records the output sample.
 void Planner::commit(double j, std::uint8_t limit_id) {
   x_ = advance(x_, j);
@@ -1060,6 +1105,7 @@ MotionSample Planner::step() {
       std::swap(trial_, best_);
       best_n_ = n;
       take_best(jt, binding());
+      if (ok) settle_on(blocks_[0].v_max_mm_per_s);
       return last_;
     }
   }

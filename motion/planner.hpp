@@ -40,7 +40,7 @@ inline constexpr std::uint8_t kLimitIdPathEnd = 0xFC;       // braking to land o
 inline constexpr std::uint8_t kLimitIdJerk = 0xFD;          // |j| = j_max binds
 inline constexpr std::uint8_t kLimitIdAcceleration = 0xFE;  // |a| = a_max binds
 
-// The longest rollout the planner sizes its buffers for (periods; 3x the longest stop): five
+// The longest rollout the planner sizes its buffers for (periods; 3x the longest stop): six
 // buffers of 2 MB, and a stop of up to 350 s at 4 ms.
 inline constexpr std::size_t kMaxRolloutPeriods = std::size_t{1} << 18;
 
@@ -130,7 +130,25 @@ class Planner {
     std::size_t block = 0;
   };
 
+  struct SpeedRange {
+    double lo, hi;
+  };
+  // What a rollout's jerks depend on besides the window: the state's speed and acceleration,
+  // the first jerk, the check's scale, and π's limits and member. Where every block of the
+  // window is at or above the highest speed the rollout reaches or looks from (v_need), π never
+  // settles on a block and no period meets the limit curve: its jerks are then a function of
+  // the key alone, and the rollout from s + Δ is the one from s shifted by Δ, if it still rests
+  // before the stop point. A cruise on a flat limit (settle_on) is such a rollout, the same
+  // every period: it comes from the memo instead of being simulated again.
+  struct RolloutKey {
+    double v, a, j0, scale, pol_a, pol_j, pol_final, pol_under;
+    bool hold;
+    bool operator==(const RolloutKey&) const = default;
+  };
+
   const LimitSample& sample(std::size_t i) const;
+  SpeedRange period_speeds(const Kin& x, double j) const;
+  void settle_on(double w_mm_per_s);
   double horizon_mm(double v_mm_per_s, double a_mm_per_s2) const;
   void drop_passed_samples();
   void build_blocks(double scale, double stop_mm);
@@ -179,6 +197,15 @@ class Planner {
   // blocks (policy targets) of the current step
   std::vector<Block> blocks_;
   std::size_t block_count_ = 0;
+  // when they were built (periods_), for which scale and stop, and their lowest level
+  std::int64_t blocks_period_ = -1;
+  double blocks_scale_ = 0.0, blocks_stop_mm_ = 0.0, blocks_min_ = 0.0;
+  // the last rollout that rested within a flat window (see RolloutKey): its jerks, its key,
+  // the highest speed it reached or looked from, and its length
+  std::vector<double> memo_;
+  std::size_t memo_n_ = 0;
+  RolloutKey memo_key_{};
+  double memo_v_need_ = 0.0, memo_span_mm_ = 0.0;
   // state
   Kin x_{0.0, 0.0, 0.0};
   double t_s_ = 0.0;
