@@ -124,6 +124,14 @@ Vec3 unit_or_zero(const Vec3& v) {
   return n > 0.0 ? Vec3(v / n) : Vec3::Zero();
 }
 
+// The arc length of c over [a, b] by the 10-point rule (the sampler's intervals hold no knot,
+// so the rule is exact to rounding there), its nodes sharing one span search.
+double gauss_arc_mm(const toolpath::NurbsCurve& c, double a, double b) {
+  std::size_t span = 0;
+  return GaussLegendre10::integrate([&c, &span](double w) { return c.derivative(w, span).norm(); },
+                                    a, b);
+}
+
 }  // namespace
 
 LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segment_starts_mm,
@@ -777,8 +785,7 @@ bool LimitSampler::next_interval(Interval& iv) {
     {
       const double u_next = knot_ < knots.size() ? std::min(knots[knot_], c.u_end()) : c.u_end();
       if (u1 < u_next && u_next - u1 < u1 - u_) {
-        const double to_next = GaussLegendre10::integrate(
-            [&c](double w) { return c.derivative(w).norm(); }, u_, u_next);
+        const double to_next = gauss_arc_mm(c, u_, u_next);
         const double s_next = u_next >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + to_next;
         if (is_rest_mm(s_next)) {
           if (to_next <= config_.spacing_mm) {
@@ -853,9 +860,7 @@ bool LimitSampler::next_interval(Interval& iv) {
     {
       const std::vector<double>& dips = dips_[segment_];
       const auto next = std::upper_bound(dips.begin(), dips.end(), u_);
-      const auto arc_of = [&c](double a, double b) {
-        return GaussLegendre10::integrate([&c](double w) { return c.derivative(w).norm(); }, a, b);
-      };
+      const auto arc_of = [&c](double a, double b) { return gauss_arc_mm(c, a, b); };
       if (next != dips.end() && *next <= u1) {
         const double d = arc_of(u_, *next);
         u1 = d <= 2.0 * kDipFirstMm ? *next : u_at_arc(c, u_, *next, 0.5 * d);
@@ -865,9 +870,7 @@ bool LimitSampler::next_interval(Interval& iv) {
         if (arc_of(u_, u1) > step) u1 = u_at_arc(c, u_, u1, step);
       }
     }
-    const auto arc_to = [&c, this](double u) {
-      return GaussLegendre10::integrate([&c](double w) { return c.derivative(w).norm(); }, u_, u);
-    };
+    const auto arc_to = [&c, this](double u) { return gauss_arc_mm(c, u_, u); };
     const bool end_knot = u1 >= c.u_end() || (knot_ < knots.size() && u1 == knots[knot_]);
     bool end_rest = false;  // the interval ends where the motion rests: its far side is not its
     if (end_knot) {
@@ -1070,9 +1073,7 @@ bool LimitSampler::needs_rest_refinement(std::size_t segment, double u) const {
 // the 10-point rule is exact to rounding); u_hi if the arc to it is shorter.
 double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi,
                               double arc_mm) const {
-  const auto arc = [&c, u0](double u) {
-    return GaussLegendre10::integrate([&c](double w) { return c.derivative(w).norm(); }, u0, u);
-  };
+  const auto arc = [&c, u0](double u) { return gauss_arc_mm(c, u0, u); };
   if (arc(u_hi) <= arc_mm) return u_hi;
   double lo = u0, hi = u_hi;
   for (int it = 0; it < 200 && hi > std::nextafter(lo, kInf); ++it) {

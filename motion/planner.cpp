@@ -239,6 +239,7 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
   v_eps_ = 1e-9 * j_max_ * period_s_ * period_s_;
   a_eps_ = 1e-9 * j_max_ * period_s_;
   ring_.resize(limits.window_capacity);
+  interval_ring_.resize(limits.window_capacity);
   blocks_.resize(limits.window_capacity);
   last_.done = false;
 }
@@ -262,9 +263,13 @@ void Planner::restart(double length_mm) {
   last_.done = false;
 }
 
-const LimitSample& Planner::sample(std::size_t i) const {
+std::size_t Planner::ring_index(std::size_t i) const {
   const std::size_t k = head_ + i;  // < 2 x the ring's size: a subtraction, not a division
-  return ring_[k < ring_.size() ? k : k - ring_.size()];
+  return k < ring_.size() ? k : k - ring_.size();
+}
+
+const LimitSample& Planner::sample(std::size_t i) const {
+  return ring_[ring_index(i)];
 }
 
 // Look-ahead distance wanted at (v, a): braking from a bound on the speed soon reachable, plus
@@ -344,7 +349,8 @@ void Planner::push(const LimitSample& in) {
     throw InputError("window_capacity = " + std::to_string(ring_.size()) +
                      " samples is full: push only while wants_samples(), or raise the capacity");
   }
-  ring_[(head_ + count_) % ring_.size()] = in;
+  ring_[ring_index(count_)] = in;
+  if (count_ > 0) interval_ring_[ring_index(count_ - 1)] = interval_between(sample(count_ - 1), in);
   if (constrained) any_scaled_ = true;
   ++count_;
   count_high_water_ = std::max(count_high_water_, count_);
@@ -590,29 +596,28 @@ void Planner::build_blocks(double scale, double stop_mm) {
   blocks_stop_mm_ = stop_mm;
   if (count_ < 2) return;
   const double len_min = (stop_mm - x_.s_mm) / kBlocksPerWindow;
+  std::size_t k = ring_index(0);  // ring index of sample i
   for (std::size_t i = 0; i + 1 < count_; ++i) {
-    const LimitSample& p = sample(i);
-    const LimitSample& q = sample(i + 1);
-    const double b0 = std::max(p.s_mm, x_.s_mm);
-    const double b1 = std::min(q.s_mm, stop_mm);
+    const std::size_t k_next = k + 1 < ring_.size() ? k + 1 : 0;
+    const double q_s = ring_[k_next].s_mm;
+    const double b0 = std::max(ring_[k].s_mm, x_.s_mm);
+    const double b1 = std::min(q_s, stop_mm);
     if (b1 > b0) {
-      const double v = interval_limit(i) * scale;
-      const std::uint8_t id = interval_limit_id(i);
-      if (block_count_ > 0) {
-        Block& last = blocks_[block_count_ - 1];
-        if (last.v_max_mm_per_s == v || last.end_mm - last.begin_mm < len_min) {
-          last.end_mm = b1;
-          if (v < last.v_max_mm_per_s) {
-            last.v_max_mm_per_s = v;
-            last.limit_id = id;
-          }
-          if (q.s_mm >= stop_mm) break;
-          continue;
+      const IntervalLimit& lim = interval_ring_[k];
+      const double v = lim.v_mm_per_s * scale;
+      Block* last = block_count_ > 0 ? &blocks_[block_count_ - 1] : nullptr;
+      if (last && (last->v_max_mm_per_s == v || last->end_mm - last->begin_mm < len_min)) {
+        last->end_mm = b1;
+        if (v < last->v_max_mm_per_s) {
+          last->v_max_mm_per_s = v;
+          last->limit_id = lim.limit_id;
         }
+      } else {
+        blocks_[block_count_++] = Block{b0, b1, v, lim.limit_id, 0.0};
       }
-      blocks_[block_count_++] = Block{b0, b1, v, id, 0.0};
     }
-    if (q.s_mm >= stop_mm) break;
+    if (q_s >= stop_mm) break;
+    k = k_next;
   }
   double lowest = std::numeric_limits<double>::infinity();
   for (std::size_t b = block_count_; b-- > 0;) {
@@ -983,19 +988,19 @@ double Planner::limit_at(double s_mm) const {
   return interval_limit(i);
 }
 
+// The limit over the interval from p to the next sample q, and its law (see LimitSample).
+Planner::IntervalLimit Planner::interval_between(const LimitSample& p, const LimitSample& q) {
+  if (std::isfinite(p.v_after_mm_per_s)) return {p.v_after_mm_per_s, p.after_limit_id};
+  return {std::min(p.v_max_mm_per_s, q.v_max_mm_per_s),
+          p.v_max_mm_per_s <= q.v_max_mm_per_s ? p.limit_id : q.limit_id};
+}
+
 double Planner::interval_limit(std::size_t i) const {
-  const LimitSample& p = sample(i);
-  if (i + 1 >= count_) return p.v_max_mm_per_s;
-  if (std::isfinite(p.v_after_mm_per_s)) return p.v_after_mm_per_s;
-  return std::min(p.v_max_mm_per_s, sample(i + 1).v_max_mm_per_s);
+  return i + 1 < count_ ? interval_ring_[ring_index(i)].v_mm_per_s : sample(i).v_max_mm_per_s;
 }
 
 std::uint8_t Planner::interval_limit_id(std::size_t i) const {
-  const LimitSample& p = sample(i);
-  if (i + 1 >= count_) return p.limit_id;
-  if (std::isfinite(p.v_after_mm_per_s)) return p.after_limit_id;
-  const LimitSample& q = sample(i + 1);
-  return p.v_max_mm_per_s <= q.v_max_mm_per_s ? p.limit_id : q.limit_id;
+  return i + 1 < count_ ? interval_ring_[ring_index(i)].limit_id : sample(i).limit_id;
 }
 
 MotionSample Planner::step() {

@@ -146,6 +146,12 @@ class Planner {
     bool operator==(const RolloutKey&) const = default;
   };
 
+  struct IntervalLimit {
+    double v_mm_per_s;  // interval_limit: the limit from a sample to the next
+    std::uint8_t limit_id;
+  };
+  static IntervalLimit interval_between(const LimitSample& p, const LimitSample& q);
+  std::size_t ring_index(std::size_t i) const;  // of the i-th sample of the window
   const LimitSample& sample(std::size_t i) const;
   SpeedRange period_speeds(const Kin& x, double j) const;
   void settle_on(double w_mm_per_s);
@@ -190,6 +196,7 @@ class Planner {
   double v_eps_, a_eps_;
   // ring of samples
   std::vector<LimitSample> ring_;
+  std::vector<IntervalLimit> interval_ring_;  // [k]: from ring_[k] to the sample after it
   std::size_t head_ = 0, count_ = 0, count_high_water_ = 0;
   double ahead_high_water_mm_ = 0.0;
   double v_top_pushed_ = 0.0;

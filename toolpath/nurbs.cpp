@@ -296,6 +296,17 @@ Vec3 NurbsCurve::derivative(double u) const {
       .d1;
 }
 
+Vec3 NurbsCurve::derivative(double u, std::size_t& span_hint) const {
+  u = std::clamp(u, u_begin(), u_end());
+  const std::size_t h = span_hint;  // valid: knots[h] ≤ u < knots[h+1] inside [p, n]
+  if (!(h >= static_cast<std::size_t>(degree_) && h < points_.size() && knots_[h] <= u &&
+        u < knots_[h + 1])) {
+    span_hint = find_span(u);
+  }
+  return eval_at<1>(degree_, u, span_hint, knots_.data(), weighted_points_.data(), weights_.data())
+      .d1;
+}
+
 std::vector<double> NurbsCurve::breakpoints() const {
   std::vector<double> b;
   for (double k : knots_) {

@@ -42,6 +42,10 @@ class NurbsCurve final : public ParametricCurve {
   CurvePoint eval(double u) const override;
   // P'(u) without the second derivative's work; the same bits as eval(u).d1.
   Vec3 derivative(double u) const override;
+  // The same, where u most likely lies in the knot span *span_hint (a caller's sweep through
+  // one span, as a quadrature's: two comparisons instead of the span search); the hint is
+  // updated to u's span. Any hint gives the same bits.
+  Vec3 derivative(double u, std::size_t& span_hint) const;
   // Distinct knot values, ascending, u_begin and u_end included.
   std::vector<double> breakpoints() const override;
 

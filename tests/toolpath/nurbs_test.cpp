@@ -174,7 +174,7 @@ TEST(NurbsCurve, MatchesCoxDeBoorJetReferenceInRandomSweeps) {
 // derivative() skips the second derivative's work but must give eval(u).d1 bit for bit (the
 // sampler's and the walkers' arc lengths use it, and setpoints must not change): every degree,
 // rational or not, at every knot (a span's end and the next one's start) and at random u,
-// clamped ends included.
+// clamped ends included. The span-hinted derivative too, whatever the hint.
 TEST(NurbsCurve, DerivativeIsEvalsFirstDerivativeBitForBit) {
   std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> unit(-0.1, 1.1);
@@ -185,11 +185,18 @@ TEST(NurbsCurve, DerivativeIsEvalsFirstDerivativeBitForBit) {
         const NurbsCurve c = random_curve(rng, degree, rational);
         std::vector<double> us = c.knots();
         for (int k = 0; k < 50; ++k) us.push_back(c.u_end() * unit(rng));
+        // The span hint: carried from the previous u (a sweep), or any index at all.
+        std::size_t carried = 0;
+        std::uniform_int_distribution<std::size_t> any_index(0, c.knots().size() + 2);
         for (const double u : us) {
+          std::size_t random_hint = any_index(rng);
           const Vec3 d = c.derivative(u), e = c.eval(u).d1;
+          const Vec3 dc = c.derivative(u, carried), dr = c.derivative(u, random_hint);
           for (int i = 0; i < 3; ++i) {
             ASSERT_EQ(d[i], e[i]) << "degree " << degree << (rational ? " rational" : "")
                                   << " u = " << u << " component " << i;
+            ASSERT_EQ(dc[i], e[i]) << "carried hint, degree " << degree << " u = " << u;
+            ASSERT_EQ(dr[i], e[i]) << "random hint, degree " << degree << " u = " << u;
           }
           ++checked;
         }
