@@ -132,6 +132,14 @@ double gauss_arc_mm(const toolpath::NurbsCurve& c, double a, double b) {
                                     a, b);
 }
 
+// The parametric speed |C'| = |d1| vanishes to rounding: below 1e-9 of the curve's size (its
+// largest control point, at least 1 mm) per unit of its parameter range.
+bool speed_vanishes(const toolpath::NurbsCurve& c, const Vec3& d1) {
+  double top = 0.0;
+  for (const Vec3& q : c.points()) top = std::max(top, q.norm());
+  return !(d1.norm() > 1e-9 * std::max(1.0, top) / std::max(c.u_end() - c.u_begin(), 1e-300));
+}
+
 }  // namespace
 
 LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segment_starts_mm,
@@ -948,9 +956,12 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
   double lo = u0, hi = below(std::min(u1, span_hi));
   const double speed = c.derivative(u0).norm();
   if (speed > 0.0 && (hi - lo) * speed < kMinArcMm) {
+    // Never onto a span end where the curve rests (a repeated control point: |C'| = 0, and κ
+    // grows without bound towards it): the intervals that halve towards it keep their own.
+    const auto rests = [&c](double u) { return speed_vanishes(c, c.derivative(u)); };
     const double mid = 0.5 * (lo + hi), half = 0.5 * kMinArcMm / speed;
-    lo = std::max(span_lo, mid - half);
-    hi = below(std::min(span_hi, mid + half));
+    lo = std::max(rests(span_lo) ? u0 : span_lo, mid - half);
+    hi = below(std::min(rests(span_hi) ? std::min(u1, span_hi) : span_hi, mid + half));
   }
   double kappa = 0.0, turn = 0.0;
   toolpath::CurvePoint prev = c.eval(lo);
@@ -1022,11 +1033,8 @@ void LimitSampler::find_dips(const toolpath::NurbsCurve& c, const std::vector<do
 void LimitSampler::refuse_cusp(const toolpath::Path& path, std::size_t k,
                                const toolpath::NurbsCurve& c, double u) {
   const toolpath::PathSegment& seg = path.segments[k];
-  double top = 0.0;
-  for (const Vec3& q : c.points()) top = std::max(top, q.norm());
   const toolpath::CurvePoint at = c.eval(u);
-  const double scale = std::max(1.0, top) / std::max(c.u_end() - c.u_begin(), 1e-300);
-  if (at.d1.norm() > 1e-9 * scale) return;
+  if (!speed_vanishes(c, at.d1)) return;
   throw InputError(
       (path.source.empty() ? "" : path.source + ": ") + "segment " + std::to_string(k + 1) +
       (seg.source_line > 0 ? " (line " + std::to_string(seg.source_line) + ")" : "") +

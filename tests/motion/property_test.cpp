@@ -327,15 +327,15 @@ TEST(Property, RandomSharpCornersArePassedWithinEveryLimit) {
 }
 
 // The same checks and the jerk vector within j_max under jerk_bound = "vector", on random
-// programs without the runs the bound leaves out (pieces shorter than one period's travel,
-// repeated control points; docs/planner.md §3c). 50 programs here, NCD_PROPERTY_PROGRAMS more.
+// programs without the runs the bound leaves out (pieces shorter than one period's travel;
+// docs/planner.md §3c), with repeated control points (rest points whose curvature grows without
+// bound). 50 programs here, NCD_PROPERTY_PROGRAMS more.
 TEST(Property, RandomProgramsKeepTheJerkVectorBound) {
   const std::uint64_t seed = test::seed();
   int programs = ncd::test::sweep_cases(50);
   if (const char* env = std::getenv("NCD_PROPERTY_PROGRAMS")) programs = std::atoi(env);
   ncd::test::RandomProgram g{std::mt19937_64(seed)};
   g.short_pieces = false;
-  g.repeated_points = false;
   // NCD_PROPERTY_FROM=k replays program k of a seed without checking the ones before it.
   const int from =
       std::getenv("NCD_PROPERTY_FROM") ? std::atoi(std::getenv("NCD_PROPERTY_FROM")) : 0;
@@ -529,6 +529,50 @@ TEST(Property, RandomDegenerateNurbsWalkTheirTrueLength) {
     expect_walked(s, name.c_str());
     if (HasFailure()) break;
   }
+}
+
+}  // namespace
+}  // namespace ncd::motion
+
+namespace ncd::motion {
+namespace {
+
+// A rational quintic whose last control point repeats (its end a rest point where κ grows
+// without bound), then a polyline under G64 P: under "vector" the interval before the end was a
+// sliver sampled over 0.02 mm of its span, that reached the end itself, where |C'| = 0 gave κ =
+// 8e29 and a jerk-vector limit of 0 ("the path needs a full stop"; program 5 of seed 1 of
+// Property.RandomProgramsKeepTheJerkVectorBound with repeated control points). Now walked, every
+// check of the property suite kept, the jerk vector within j_max.
+TEST(Property, RepeatedEndPointUnderTheJerkVectorBound) {
+  const std::vector<Vec3> pts{{0, 0, 0},
+                              {0, 0, 0},
+                              {5.5443324161314091, -9.5786173677849256, 1.0796743316990058},
+                              {0.16197075541984685, -9.1616261456560046, 1.002612159710788},
+                              {-1.5463378199601983, -13.228121635648002, 2.4236111276336967},
+                              {-1.2187471313561051, -10.706396824932312, 0.65383433371264954},
+                              {-1.3214934439367931, -15.334952934186161, 1.4966282499175989},
+                              {-2.9256225116881662, -12.824746954639124, -4.6848999339510389},
+                              {-2.9256225116881662, -12.824746954639124, -4.6848999339510389}};
+  const std::vector<double> weights{1.3910556331069324, 1.3375613315071322,  1.4014939522253484,
+                                    1.506025667699004,  0.81374075883611308, 1.4467949956145516,
+                                    1.8772489188103036, 1.2694955795477378,  1.9478966428191054};
+  Path path;
+  PathSegment curve;
+  curve.geometry =
+      toolpath::NurbsCurve(5, {0, 0, 0, 0, 0, 0, 1, 2, 3, 4, 4, 4, 4, 4, 4}, pts, weights);
+  curve.feed_mm_per_min = 1972.6855305697597;
+  path.segments.push_back(curve);
+  PathSegment line;
+  line.geometry =
+      toolpath::Polyline{{pts.back(),
+                          {-3.5820456717876503, -11.995045167942044, -9.091759962129295},
+                          {2.7154271591749666, -6.6627622230029413, -2.6680389945676675}},
+                         {}};
+  line.feed_mm_per_min = 3309.7053898868589;
+  line.blend_tolerance_mm = 0.26105293861097612;
+  path.segments.push_back(line);
+  EXPECT_EQ(check(path, 3309.7053898868589, interpolator::JerkBound::vector), "");
+  EXPECT_EQ(check(path, 3309.7053898868589, interpolator::JerkBound::tangential), "");
 }
 
 }  // namespace
