@@ -502,13 +502,42 @@ double LimitSampler::piece_curvature_per_mm(std::size_t segment, std::size_t pie
   return kappa;
 }
 
+// JerkBound::vector: the discrete curvature vector of an interior vertex where a piece beside
+// it is shorter than one period's travel at the cap (the polyline acts as a curve there:
+// 2 sin(φ/2) / min(l_in, l_out) along the turn); 0 at a vertex between long pieces, where the
+// motion rests, and at the ends.
+Vec3 LimitSampler::vertex_curvature_vector(std::size_t segment, std::size_t vertex) const {
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  if (vertex == 0 || vertex + 1 >= pts.size() || vertex_is_stop(segment, vertex)) {
+    return Vec3::Zero();
+  }
+  const Vec3 in = pts[vertex] - pts[vertex - 1], out = pts[vertex + 1] - pts[vertex];
+  const double l_min = std::min(in.norm(), out.norm());
+  if (!(l_min < segment_cap(segment).feed_mm_per_s * limits_.period_s)) return Vec3::Zero();
+  const Vec3 turn = unit_or_zero(out) - unit_or_zero(in);  // |turn| = 2 sin(φ/2)
+  return turn / l_min;
+}
+
+// The jump of the discrete curvature vector at a vertex of a dense run (the larger of its two
+// sides): a curve whose curvature jumps there, for the jump law's 0.75 v² Δκ / T term.
+double LimitSampler::vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const {
+  if (limits_.jerk_bound != JerkBound::vector) return 0.0;
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  const Vec3 here = vertex_curvature_vector(segment, vertex);
+  const Vec3 before = vertex > 0 ? vertex_curvature_vector(segment, vertex - 1) : Vec3::Zero();
+  const Vec3 after =
+      vertex + 1 < pts.size() ? vertex_curvature_vector(segment, vertex + 1) : Vec3::Zero();
+  return std::max((here - before).norm(), (after - here).norm());
+}
+
 FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vertex) const {
   const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
   if (vertex == 0) return joint_corner_[segment];
   if (vertex + 1 == line.points.size()) return joint_corner_[segment + 1];
   if (vertex_is_stop(segment, vertex)) return {kInf, FeedLimit::Corner};  // at rest there
   return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
-                      unit_or_zero(line.points[vertex + 1] - line.points[vertex]));
+                      unit_or_zero(line.points[vertex + 1] - line.points[vertex]), 0.0,
+                      vertex_curvature_jump_per_mm(segment, vertex));
 }
 
 bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
@@ -692,8 +721,8 @@ void LimitSampler::apply_zones(Interval& iv) const {
       } else if (std::isfinite(corner.feed_mm_per_s)) {
         const Vec3 d_in = unit_or_zero(line->points[v] - line->points[v - 1]);
         const Vec3 d_out = unit_or_zero(line->points[v + 1] - line->points[v]);
-        share = jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)), 0.0,
-                           corner.feed_mm_per_s);
+        share = jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)),
+                           vertex_curvature_jump_per_mm(segment_, v), corner.feed_mm_per_s);
       }
       zone(s, corner, share);
       if (v + 1 < line->points.size()) s += (line->points[v + 1] - line->points[v]).norm();

@@ -69,6 +69,8 @@ class LimitSampler {
   FeedLimitResult limit_on_piece(std::size_t segment, std::size_t piece) const;
   // The corner speed at vertex v of a polyline segment (v = 0 and the last: the joints).
   FeedLimitResult corner_limit(std::size_t segment, std::size_t vertex) const;
+  Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
+  double vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const;
 
  private:
   struct Interval {

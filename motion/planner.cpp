@@ -63,6 +63,14 @@
 // the highest speed π may reach, and the look-ahead is sized for braking at the lowest σ
 // allowed (min_tangential_scale). Without spans the arithmetic is unchanged.
 //
+// Cruise (docs/planner.md §6, "The cruise from the memo"). After the dead-beat onto a flat
+// limit w, a state within rounding of (w, a = 0) is put exactly on it (as rest is put on exact
+// zeros), so a cruise repeats bit for bit. A rollout whose every period stays at or below the
+// lowest block of the window never settles on a block nor meets the limit curve: its jerks
+// depend only on (v, a, the first jerk, π's limits and member), and from s + Δ it is the same
+// rollout shifted by Δ. The last such rollout is kept (the memo) and reused while it still rests
+// before the stop point; a cruise's certificate then costs a copy, not a simulation.
+//
 // Work per step: at most 2 + kBisection rollouts of at most rollout_cap_ periods, each period
 // O(1) plus the blocks within its braking distance; no allocation (buffers are sized in push).
 #include "motion/planner.hpp"

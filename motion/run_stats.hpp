@@ -24,9 +24,9 @@ inline constexpr double kDriftToleranceMm = 1e-3;
 inline const char* jerk_bound_in_force(interpolator::JerkBound bound) {
   return bound == interpolator::JerkBound::vector
              ? "vector: the jerk vector |d3p/dt3| <= j_max on curves and at curvature jumps "
-               "(tangential limits scaled where a curve needs it), and the setpoints' direction "
-               "change at a corner passed without a stop; not across runs of polyline pieces "
-               "shorter than one period's travel"
+               "(tangential limits scaled where a curve needs it), across runs of polyline "
+               "pieces shorter than one period's travel (their discrete curvature and its "
+               "jumps), and the setpoints' direction change at a corner passed without a stop"
              : "tangential jerk |j_t| <= j_max and centripetal jerk v^3 kappa^2 <= j_max, each; "
                "the jerk vector (jerk_vector_max) is measured, not bounded";
 }
