@@ -971,9 +971,11 @@ void Planner::take_best(double j, std::uint8_t limit_id) {
 // After a dead-beat onto a flat limit w: a state within rounding of (w, a = 0) is put on it
 // exactly, as advance() puts rest on exact zeros, so that the cruise repeats bit for bit (its
 // next jerk is 0, and its rollout the memo's: see RolloutKey). It moves v by at most v_eps and
-// a by at most a_eps, far inside the checks' slack.
+// a by at most a_eps, and only where no block of the window is below w, so v = w holds every
+// limit the next periods meet (the window reaches far beyond them).
 void Planner::settle_on(double w) {
   if (std::abs(x_.v_mm_per_s - w) > v_eps_ || std::abs(x_.a_mm_per_s2) > a_eps_) return;
+  if (!(blocks_min_ >= w)) return;
   x_.v_mm_per_s = last_.v_mm_per_s = w;
   x_.a_mm_per_s2 = last_.a_mm_per_s2 = 0.0;
 }
