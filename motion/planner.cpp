@@ -244,6 +244,7 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
                      " is invalid: a path length must be >= 0");
   }
   pol_final_ = kFinalJerk;
+  reuse_rollouts_ = limits.reuse_rollouts;
   v_eps_ = 1e-9 * j_max_ * period_s_ * period_s_;
   a_eps_ = 1e-9 * j_max_ * period_s_;
   ring_.resize(limits.window_capacity);
@@ -657,12 +658,13 @@ bool Planner::rollout_member(double j0, double scale_check, double stop_mm,
   // In a window flat enough for it, the memo's rollout shifted to s (see RolloutKey), if it
   // still rests before the stop point with room for the rounding of s.
   const bool flat_window =
-      !any_scaled_ && blocks_period_ == periods_ && scale_check == blocks_scale_;
+      reuse_rollouts_ && !any_scaled_ && blocks_period_ == periods_ && scale_check == blocks_scale_;
   if (flat_window && memo_n_ > 0 && key == memo_key_ && blocks_min_ >= memo_v_need_ &&
       x_.s_mm + memo_span_mm_ + 1e-9 * std::max(1.0, length_mm_) <=
           std::min(stop_mm, blocks_stop_mm_)) {
     std::copy_n(memo_.begin(), memo_n_, out.begin());
     out_n = memo_n_;
+    ++memo_hits_;
     return true;
   }
   Cursor c;

@@ -52,6 +52,9 @@ struct PlannerLimits {
   // The lowest tangential scale a sample's jerk_span may ask at its v_max (the look-ahead and
   // the buffers are sized for braking at it); 1 when every sample allows the full limits.
   double min_tangential_scale = 1.0;
+  // Reuse the last rollout of a flat window, shifted (see Planner::RolloutKey); false simulates
+  // every rollout (the reference the memo is tested against: the same motion bit for bit).
+  bool reuse_rollouts = true;
 };
 
 // Throws InputError naming the value unless every limit is finite and > 0 (capacity >= 2).
@@ -114,6 +117,8 @@ class Planner {
   double lookahead_bound_mm() const;
   // Rollouts evaluated in the last step (work per step, for benchmarks).
   std::size_t last_step_rollouts() const { return last_rollouts_; }
+  // Rollouts taken from the memo instead of simulated, since construction.
+  std::size_t rollouts_from_memo() const { return memo_hits_; }
 
   struct Kin {
     double s_mm, v_mm_per_s, a_mm_per_s2;
@@ -210,7 +215,8 @@ class Planner {
   // the last rollout that rested within a flat window (see RolloutKey): its jerks, its key,
   // the highest speed it reached or looked from, and its length
   std::vector<double> memo_;
-  std::size_t memo_n_ = 0;
+  bool reuse_rollouts_ = true;
+  std::size_t memo_n_ = 0, memo_hits_ = 0;
   RolloutKey memo_key_{};
   double memo_v_need_ = 0.0, memo_span_mm_ = 0.0;
   // state

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 
 namespace ncd::motion {
@@ -609,6 +610,58 @@ TEST(Planner, ReplayIsDeterministic) {
     ASSERT_EQ(a[i].s_mm, b[i].s_mm);
     ASSERT_EQ(a[i].j_mm_per_s3, b[i].j_mm_per_s3);
   }
+}
+
+// The memo (docs/planner.md §6, "The cruise from the memo") claims that a rollout reused from it
+// is the one the planner would simulate: random limit curves with flat stretches, long cruises
+// at one limit, and a feed hold and override changes at random periods, planned with and without
+// reuse_rollouts, give the same motion bit for bit (every s, v, a, j and binding limit). The
+// memo must actually be used (its hits counted), or the comparison proves nothing.
+TEST(Planner, RolloutsFromTheMemoAreTheSimulatedOnesBitForBit) {
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::size_t hits = 0, periods = 0;
+  const int cases = ncd::test::sweep_cases(60);
+  for (int k = 0; k < cases; ++k) {
+    PlannerLimits on =
+        limits(200.0 + 2800.0 * u(rng), 2000.0 + 58000.0 * u(rng), k % 2 == 0 ? 0.004 : 0.001);
+    PlannerLimits off = on;
+    off.reuse_rollouts = false;
+    const double length_mm = 5.0 + 200.0 * u(rng);
+    std::vector<LimitSample> c;
+    if (k % 3 == 0) {  // one long cruise at a single limit
+      const double level = 20.0 + 180.0 * u(rng);
+      for (double s = 0.0; s < length_mm; s += 0.25) c.push_back({s, level, 1});
+      c.push_back({length_mm, level, 1});
+    } else {
+      c = random_curve(rng, length_mm);
+    }
+    const auto hold_at = static_cast<std::size_t>(2000.0 * u(rng));
+    const auto override_at = static_cast<std::size_t>(2000.0 * u(rng));
+    const double fraction = 0.3 + 1.5 * u(rng);
+    Planner a(on, length_mm), b(off, length_mm);
+    std::size_t next_a = 0, next_b = 0;
+    for (std::size_t n = 0; n < 2'000'000 && !a.done(); ++n) {
+      if (n == hold_at) a.hold(), b.hold();
+      if (n == hold_at + 150) a.resume(), b.resume();
+      if (n == override_at) a.set_override(fraction), b.set_override(fraction);
+      push_available(a, c, next_a);
+      push_available(b, c, next_b);
+      const MotionSample x = a.step(), y = b.step();
+      ASSERT_EQ(x.s_mm, y.s_mm) << "case " << k << " period " << n;
+      ASSERT_EQ(x.v_mm_per_s, y.v_mm_per_s) << "case " << k << " period " << n;
+      ASSERT_EQ(x.a_mm_per_s2, y.a_mm_per_s2) << "case " << k << " period " << n;
+      ASSERT_EQ(x.j_mm_per_s3, y.j_mm_per_s3) << "case " << k << " period " << n;
+      ASSERT_EQ(x.limit_id, y.limit_id) << "case " << k << " period " << n;
+      ASSERT_EQ(x.done, y.done) << "case " << k << " period " << n;
+      ++periods;
+    }
+    ASSERT_TRUE(a.done()) << "case " << k;
+    EXPECT_EQ(b.rollouts_from_memo(), 0U);
+    hits += a.rollouts_from_memo();
+  }
+  std::printf("%d limit curves, %zu periods, %zu rollouts from the memo\n", cases, periods, hits);
+  EXPECT_GT(hits, periods / 4);
 }
 
 }  // namespace
