@@ -62,9 +62,17 @@ void BM_PlannerStep(benchmark::State& state) {
 }
 BENCHMARK(BM_PlannerStep)->Repetitions(5)->ReportAggregatesOnly(true);
 
-// Cruise at a flat limit: the common case.
+// Cruise at a flat limit: the common case. Arg 1 reuses the cruise's rollout from the memo
+// (docs/planner.md §6, "The cruise from the memo"), arg 0 simulates it every period: the
+// baseline, in the same run.
+PlannerLimits memo_limits(const benchmark::State& state) {
+  PlannerLimits l = bench_limits();
+  l.reuse_rollouts = state.range(0) != 0;
+  return l;
+}
+
 void BM_PlannerStepCruise(benchmark::State& state) {
-  Planner p(bench_limits(), 1e9);
+  Planner p(memo_limits(state), 1e9);
   double next_s = 0.0;
   for (auto _ : state) {
     while (p.wants_samples()) {
@@ -73,14 +81,16 @@ void BM_PlannerStepCruise(benchmark::State& state) {
     }
     benchmark::DoNotOptimize(p.step());
   }
+  state.counters["from_memo"] = benchmark::Counter(static_cast<double>(p.rollouts_from_memo()),
+                                                   benchmark::Counter::kAvgIterations);
 }
-BENCHMARK(BM_PlannerStepCruise)->Repetitions(5)->ReportAggregatesOnly(true);
+BENCHMARK(BM_PlannerStepCruise)->Arg(0)->Arg(1)->Repetitions(5)->ReportAggregatesOnly(true);
 
-// A whole 2 m path with the pattern, start to rest at L.
+// A whole 2 m path with the pattern, start to rest at L (arg as above).
 void BM_PlannerWholePath(benchmark::State& state) {
   std::size_t periods = 0;
   for (auto _ : state) {
-    Planner p(bench_limits(), 2000.0);
+    Planner p(memo_limits(state), 2000.0);
     Feeder f;
     periods = 0;
     while (!p.done()) {
@@ -93,7 +103,7 @@ void BM_PlannerWholePath(benchmark::State& state) {
   state.counters["periods_per_s"] = benchmark::Counter(
       static_cast<double>(periods * state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_PlannerWholePath)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PlannerWholePath)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 // A zig-zag of 40 legs of 5 mm with 150° turns, walked whole by the job: arg 0 keeps its
 // corners sharp (G64 P0: stops, no line of setpoints), arg 10 passes them within 0.01 mm
