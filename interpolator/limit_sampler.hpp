@@ -69,8 +69,6 @@ class LimitSampler {
   FeedLimitResult limit_on_piece(std::size_t segment, std::size_t piece) const;
   // The corner speed at vertex v of a polyline segment (v = 0 and the last: the joints).
   FeedLimitResult corner_limit(std::size_t segment, std::size_t vertex) const;
-  Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
-  double vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const;
 
  private:
   struct Interval {
@@ -86,6 +84,9 @@ class LimitSampler {
   JerkVectorSpan jerk_span_of(const Interval& iv) const;
   void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;
   double piece_curvature_per_mm(std::size_t segment, std::size_t piece) const;
+  // JerkBound::vector, dense runs: a vertex's discrete curvature vector, and its jump there.
+  Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
+  double vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const;
   bool next_interval(Interval& out);
   void enter_segment();
   FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1,
