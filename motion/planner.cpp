@@ -441,12 +441,14 @@ Planner::SpeedRange Planner::period_speeds(const Kin& x, double j) const {
 }
 
 // Exact check of one period: jerk, acceleration, v(τ) within [0, min limit over the span].
-bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm) const {
+bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm,
+                           double* v_hi_out) const {
   const double T = period_s_;
   if (!(std::abs(j) <= j_max_)) return false;
   const double a1 = x.a_mm_per_s2 + j * T;
   if (std::abs(a1) > a_max_ * (1.0 + kRelSlack)) return false;
   const auto [v_lo, v_hi] = period_speeds(x, j);
+  if (v_hi_out) *v_hi_out = v_hi;
   if (v_lo < -v_eps_) return false;
   const double s1 = x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0;
   if (s1 > stop_mm + 1e-12 * std::max(1.0, length_mm_)) return false;
@@ -628,12 +630,16 @@ void Planner::build_blocks(double scale, double stop_mm) {
     if (q_s >= stop_mm) break;
     k = k_next;
   }
-  double lowest = std::numeric_limits<double>::infinity();
+  double lowest = std::numeric_limits<double>::infinity();  // each block's min_on
   for (std::size_t b = block_count_; b-- > 0;) {
     lowest = std::min(lowest, blocks_[b].v_max_mm_per_s);
     blocks_[b].min_on_mm_per_s = lowest;
   }
-  blocks_min_ = block_count_ > 0 ? lowest : -std::numeric_limits<double>::infinity();
+}
+
+// The lowest level of the blocks built this step (−inf without blocks).
+double Planner::window_min() const {
+  return block_count_ > 0 ? blocks_[0].min_on_mm_per_s : -std::numeric_limits<double>::infinity();
 }
 
 // Simulates j0 then π until rest, checking every period; the jerks go to out[0, out_n). Where
@@ -659,7 +665,7 @@ bool Planner::rollout_member(double j0, double scale_check, double stop_mm,
   // still rests before the stop point with room for the rounding of s.
   const bool flat_window =
       reuse_rollouts_ && !any_scaled_ && blocks_period_ == periods_ && scale_check == blocks_scale_;
-  if (flat_window && memo_n_ > 0 && key == memo_key_ && blocks_min_ >= memo_v_need_ &&
+  if (flat_window && memo_n_ > 0 && key == memo_key_ && window_min() >= memo_v_need_ &&
       x_.s_mm + memo_span_mm_ + 1e-9 * std::max(1.0, length_mm_) <=
           std::min(stop_mm, blocks_stop_mm_)) {
     std::copy_n(memo_.begin(), memo_n_, out.begin());
@@ -672,13 +678,14 @@ bool Planner::rollout_member(double j0, double scale_check, double stop_mm,
   double j = j0;
   double v_need = 0.0;  // the highest speed of any period, and of any state π looks from
   for (std::size_t n = 0; n < rollout_cap_; ++n) {
-    if (!check_period(x, j, c, scale_check, stop_mm)) return false;
+    double v_hi = 0.0;
+    if (!check_period(x, j, c, scale_check, stop_mm, &v_hi)) return false;
     out[n] = j;
-    v_need = std::max(v_need, period_speeds(x, j).hi);
+    v_need = std::max(v_need, v_hi);
     x = advance(x, j);
     if (x.v_mm_per_s == 0.0 && x.a_mm_per_s2 == 0.0) {
       out_n = n + 1;
-      if (flat_window && blocks_min_ >= v_need && x.s_mm <= blocks_stop_mm_) {
+      if (flat_window && window_min() >= v_need && x.s_mm <= blocks_stop_mm_) {
         std::copy_n(out.begin(), out_n, memo_.begin());
         memo_n_ = out_n;
         memo_key_ = key;
@@ -977,7 +984,7 @@ void Planner::take_best(double j, std::uint8_t limit_id) {
 // limit the next periods meet (the window reaches far beyond them).
 void Planner::settle_on(double w) {
   if (std::abs(x_.v_mm_per_s - w) > v_eps_ || std::abs(x_.a_mm_per_s2) > a_eps_) return;
-  if (!(blocks_min_ >= w)) return;
+  if (!(window_min() >= w)) return;
   x_.v_mm_per_s = last_.v_mm_per_s = w;
   x_.a_mm_per_s2 = last_.a_mm_per_s2 = 0.0;
 }

@@ -138,13 +138,8 @@ class Planner {
   struct SpeedRange {
     double lo, hi;
   };
-  // What a rollout's jerks depend on besides the window: the state's speed and acceleration,
-  // the first jerk, the check's scale, and π's limits and member. Where every block of the
-  // window is at or above the highest speed the rollout reaches or looks from (v_need), π never
-  // settles on a block and no period meets the limit curve: its jerks are then a function of
-  // the key alone, and the rollout from s + Δ is the one from s shifted by Δ, if it still rests
-  // before the stop point. A cruise on a flat limit (settle_on) is such a rollout, the same
-  // every period: it comes from the memo instead of being simulated again.
+  // What a rollout's jerks depend on in a window no lower than the speeds it reaches (the
+  // memo: planner.cpp's top, "Cruise").
   struct RolloutKey {
     double v, a, j0, scale, pol_a, pol_j, pol_final, pol_under;
     bool hold;
@@ -163,7 +158,10 @@ class Planner {
   double horizon_mm(double v_mm_per_s, double a_mm_per_s2) const;
   void drop_passed_samples();
   void build_blocks(double scale, double stop_mm);
-  bool check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm) const;
+  // v_hi_out: the period's highest speed (set whenever it returns true)
+  bool check_period(const Kin& x, double j, Cursor& c, double scale, double stop_mm,
+                    double* v_hi_out = nullptr) const;
+  double window_min() const;
   double policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const;
   bool rollout(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                std::size_t& out_n);
@@ -209,9 +207,9 @@ class Planner {
   // blocks (policy targets) of the current step
   std::vector<Block> blocks_;
   std::size_t block_count_ = 0;
-  // when they were built (periods_), for which scale and stop, and their lowest level
+  // when they were built (periods_), for which scale and stop
   std::int64_t blocks_period_ = -1;
-  double blocks_scale_ = 0.0, blocks_stop_mm_ = 0.0, blocks_min_ = 0.0;
+  double blocks_scale_ = 0.0, blocks_stop_mm_ = 0.0;
   // the last rollout that rested within a flat window (see RolloutKey): its jerks, its key,
   // the highest speed it reached or looked from, and its length
   std::vector<double> memo_;
@@ -236,8 +234,6 @@ class Planner {
   // override and hold
   double override_applied_ = 1.0, override_target_ = 1.0;
   bool hold_ = false;
-  double policy_scale_ = 1.0;
-  double policy_stop_mm_ = 0.0;
   bool policy_hold_ = false;
   // π's member in force (see rollout): its final ramp (fraction of j_max) and how far below a
   // demanding block's level it settles (fraction).

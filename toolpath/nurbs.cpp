@@ -290,10 +290,8 @@ CurvePoint NurbsCurve::eval(double u) const {
 }
 
 Vec3 NurbsCurve::derivative(double u) const {
-  u = std::clamp(u, u_begin(), u_end());
-  return eval_at<1>(degree_, u, find_span(u), knots_.data(), weighted_points_.data(),
-                    weights_.data())
-      .d1;
+  std::size_t no_hint = 0;  // never a valid span (< degree): the span search
+  return derivative(u, no_hint);
 }
 
 Vec3 NurbsCurve::derivative(double u, std::size_t& span_hint) const {
