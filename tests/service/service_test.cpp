@@ -254,7 +254,13 @@ TEST(ServiceStates, StopEndsAsStoppedWithWhyAndWhereAndCommitsTheSetpoints) {
 TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
   const char* kSquare = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X20 F600\nG1 Y20 F480\nG1 X0 F600\nM2\n";
   auto path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kSquare, "square.ngc"));
-  service::Service s(simulated(64));
+  // The cycle on this thread, one period per poll: the status is read after every setpoint. (On
+  // the cycle thread a poll drains whatever the thread has made, so how many setpoints a side
+  // gets checked at depends on the scheduler: CI once saw 64 polls on a side of 500 periods.)
+  service::ServiceOptions o = simulated(64);
+  o.cycle_thread = false;
+  o.periods_per_poll = 1;
+  service::Service s(o);
   std::vector<motion::Setpoint> got;
   bool committed = false;
   s.submit(job_of(path, got, committed));
