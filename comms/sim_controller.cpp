@@ -686,6 +686,7 @@ struct SimController::Impl {
       if (c == kGrblStatus) {
         send(status_report(t));
         ++log.status_reports;
+        log.executed_at_last_report = log.blocks_executed;
         return;
       }
       if (c == kGrblHold) return feed_hold(t);
@@ -1136,6 +1137,7 @@ struct SimController::Impl {
     r.position = position;
     for (const Line& l : planner) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
     for (const Line& l : rx) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
+    r.executed_at_last_report = log.executed_at_last_report;
     busy = sync_busy = held = pausing = false;
     rx.clear();
     planner.clear();
@@ -1722,7 +1724,8 @@ Json to_json(const SimLog& l) {
                       {"in_motion", r.in_motion},
                       {"aborted", r.aborted ? Json(*r.aborted) : Json(nullptr)},
                       {"position", {r.position[0], r.position[1], r.position[2]}},
-                      {"blocks_lost", r.blocks_lost}});
+                      {"blocks_lost", r.blocks_lost},
+                      {"executed_at_last_report", optional_json(r.executed_at_last_report)}});
   }
   Json links = Json::array();
   for (const SimLinkEvent& e : l.link_events) {

@@ -217,6 +217,9 @@ struct SimReset {
   std::optional<std::string> aborted;  // the block executing, left unfinished
   std::array<double, 3> position{};    // kept
   long blocks_lost = 0;                // in the planner and the receive buffer
+  // The blocks executed when the last status report before the reset was sent (the most a
+  // sender reading every report can know executed); none if no report was sent.
+  std::optional<long> executed_at_last_report;
 };
 
 // An event the controller executed (spindle, coolant, tool, dwell, stops, program end), at its
@@ -270,7 +273,8 @@ struct SimLog {
   std::vector<SimEvent> events;
   std::vector<SimReset> resets;
   long status_reports = 0, feed_holds = 0, cycle_starts = 0;
-  std::uint64_t bytes_before_banner = 0;  // ack: received while booting, before the banner
+  std::optional<long> executed_at_last_report;  // blocks executed when the last report was sent
+  std::uint64_t bytes_before_banner = 0;        // ack: received while booting, before the banner
   long banners_sent = 0;
 };
 
