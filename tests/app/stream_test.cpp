@@ -62,6 +62,17 @@ class Stream : public Cli {
     return nlohmann::json::parse(slurp(log_));
   }
 
+  // Waits (up to 10 s) until the controller has printed `text` among its events: the bytes ncd
+  // sent last (a hold, a soft reset) have been taken. A fixed sleep would race a loaded machine.
+  void wait_for_event(const std::string& text) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (slurp(dir_ / "cnc.err").find(text) == std::string::npos) {
+      ASSERT_LT(std::chrono::steady_clock::now(), end)
+          << "the controller never printed '" << text << "': " << slurp(dir_ / "cnc.err");
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+
   // Stops a controller that will not end on its own (an interrupted job) and reads its log.
   nlohmann::json stopped_log(Process& p) {
     p.signal(SIGTERM);
@@ -354,7 +365,7 @@ TEST_F(Stream, ControllerResetInterruptsNamingTheBlocks) {
                        " --baud 115200 --frame 8N1 -q --no-journal --banner-wait 0.3 --protocol " +
                        protocol + " --report " + (dir_ / "r.json").string());
     EXPECT_EQ(r.status, 3) << r.err;
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    if (protocol == "ack") wait_for_event("reset (soft_reset)");
     const auto log = stopped_log(*cnc);
     ASSERT_EQ(log["resets"].size(), protocol == "ack" ? 2U : 1U);  // the fault, then ncd's 0x18
     const auto ran = executed(log);
@@ -404,7 +415,7 @@ TEST_F(Stream, ErrorReplyLeavesNoLaterBlockExecuted) {
                      (dir_ / "r.json").string());
   EXPECT_EQ(r.status, 3) << r.err;
   EXPECT_NE(r.out.find("error:20"), std::string::npos) << r.out;
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  wait_for_event("reset (soft_reset)");
   const auto log = stopped_log(*cnc);
   const auto ran = executed(log);
   const auto blocks = blocks_of(prog);
