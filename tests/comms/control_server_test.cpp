@@ -321,23 +321,24 @@ TEST(ControlServerTest, LineLimitIsExactInBytes) {
 TEST(ControlServerTest, SubscribeStreamsAtTheRateAndStopsOnTheNextRequest) {
   Running server("tcp:127.0.0.1:0");
   Client client = server.client();
+  // 16 lines: at 50 Hz the 16th is sent at least 15 periods (300 ms) after the request. A loaded
+  // machine only makes them later, so the rate is checked from below in time, from before the
+  // request, never by how many lines a fixed window happened to see.
+  const auto asked = Clock::now();
   const Json ok = client.request(R"({"cmd":"subscribe","hz":50})");
   EXPECT_EQ(ok, Json({{"ok", true}}));
-  int lines = 0;
   int last_seq = -1;
-  const auto end = Clock::now() + 500ms;
-  while (Clock::now() < end) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - Clock::now());
-    const auto line = client.line(std::max(left, 1ms));
-    if (!line) break;
+  for (int lines = 0; lines < 16; ++lines) {
+    const auto line = client.line(5s);
+    ASSERT_TRUE(line) << "no status line within 5 s after " << lines;
     const Json status = Json::parse(*line);
     ASSERT_TRUE(status.contains("seq")) << status;
     EXPECT_GT(status["seq"].get<int>(), last_seq);
     last_seq = status["seq"].get<int>();
-    ++lines;
   }
-  EXPECT_GE(lines, 10) << "50 Hz for 0.5 s";
-  EXPECT_LE(lines, 35) << "50 Hz for 0.5 s is 26 lines at most; the rate was not honoured";
+  const double span_s = std::chrono::duration<double>(Clock::now() - asked).count();
+  EXPECT_GE(span_s, 15 * 0.020 * 0.9) << "16 lines faster than 50 Hz: the rate was not honoured";
+  std::cout << "[ measured ] 16 status lines " << span_s << " s after the request\n";
 
   client.send(echo(9) + "\n");
   Json reply = client.json();
