@@ -686,7 +686,7 @@ struct SimController::Impl {
       if (c == kGrblStatus) {
         send(status_report(t));
         ++log.status_reports;
-        log.executed_at_last_report = log.blocks_executed;
+        executed_at_last_report = log.blocks_executed;
         return;
       }
       if (c == kGrblHold) return feed_hold(t);
@@ -1137,7 +1137,7 @@ struct SimController::Impl {
     r.position = position;
     for (const Line& l : planner) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
     for (const Line& l : rx) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
-    r.executed_at_last_report = log.executed_at_last_report;
+    r.executed_at_last_report = executed_at_last_report;
     busy = sync_busy = held = pausing = false;
     rx.clear();
     planner.clear();
@@ -1543,6 +1543,7 @@ struct SimController::Impl {
   double next_storm = 0.0, next_noise = 0.0;
   bool alarmed = false;
   double alarm_t = 0.0;
+  std::optional<long> executed_at_last_report;  // blocks executed when the last report was sent
 
   // executor
   bool started = false, busy = false, moved = false;  // moved: a move has started

@@ -273,8 +273,7 @@ struct SimLog {
   std::vector<SimEvent> events;
   std::vector<SimReset> resets;
   long status_reports = 0, feed_holds = 0, cycle_starts = 0;
-  std::optional<long> executed_at_last_report;  // blocks executed when the last report was sent
-  std::uint64_t bytes_before_banner = 0;        // ack: received while booting, before the banner
+  std::uint64_t bytes_before_banner = 0;  // ack: received while booting, before the banner
   long banners_sent = 0;
 };
 
