@@ -1125,6 +1125,10 @@ TEST(SimController, GrblStatusHoldResumeAndResetInSimulatedTime) {
   EXPECT_EQ(log.resets[0].aborted, "G1 X20");
   EXPECT_EQ(log.resets[0].blocks_lost, 1);                   // G1 X30
   EXPECT_NEAR(log.resets[0].position[0], x_of(run2), 0.05);  // kept where it stopped
+  // The last report before the reset (run2, past X10) was sent with G1 X10 executed: what a
+  // sender could know then.
+  EXPECT_EQ(log.resets[0].executed_at_last_report, 1);
+  EXPECT_EQ(to_json(log)["resets"][0]["executed_at_last_report"], 1);
   EXPECT_EQ(log.feed_holds, 1);
   EXPECT_EQ(log.cycle_starts, 1);
 }
