@@ -1018,10 +1018,6 @@ double Planner::interval_limit(std::size_t i) const {
   return i + 1 < count_ ? interval_ring_[ring_index(i)].v_mm_per_s : sample(i).v_max_mm_per_s;
 }
 
-std::uint8_t Planner::interval_limit_id(std::size_t i) const {
-  return i + 1 < count_ ? interval_ring_[ring_index(i)].limit_id : sample(i).limit_id;
-}
-
 MotionSample Planner::step() {
   if (done_) return last_;
   last_rollouts_ = 0;

@@ -184,7 +184,6 @@ class Planner {
   void commit(double j, std::uint8_t limit_id);
   double limit_at(double s_mm) const;
   double interval_limit(std::size_t i) const;  // between samples i and i + 1 (see LimitSample)
-  std::uint8_t interval_limit_id(std::size_t i) const;
 
   // limits
   double a_max_, j_max_, period_s_, length_mm_;
