@@ -5,6 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <optional>
 #include <vector>
 
@@ -28,7 +29,7 @@ struct Feeder {
   double next_s = 0.0;
   void feed(Planner& p) {
     while (p.wants_samples()) {
-      p.push({next_s, pattern_limit(next_s), 1});
+      if (p.push({next_s, pattern_limit(next_s), 1}) != PushResult::Ok) std::abort();
       next_s += 0.25;
     }
   }
@@ -45,6 +46,7 @@ PlannerLimits bench_limits() {
 // One period (push of the samples it wants, then step) on an effectively endless path.
 void BM_PlannerStep(benchmark::State& state) {
   Planner p(bench_limits(), 1e9);
+  p.reserve_for_speed(60.0);
   Feeder f;
   for (int i = 0; i < 1000; ++i) {  // warm up: past the first acceleration
     f.feed(p);
@@ -73,10 +75,11 @@ PlannerLimits memo_limits(const benchmark::State& state) {
 
 void BM_PlannerStepCruise(benchmark::State& state) {
   Planner p(memo_limits(state), 1e9);
+  p.reserve_for_speed(50.0);
   double next_s = 0.0;
   for (auto _ : state) {
     while (p.wants_samples()) {
-      p.push({next_s, 50.0, 1});
+      if (p.push({next_s, 50.0, 1}) != PushResult::Ok) std::abort();
       next_s += 0.25;
     }
     benchmark::DoNotOptimize(p.step());
@@ -91,6 +94,7 @@ void BM_PlannerWholePath(benchmark::State& state) {
   std::size_t periods = 0;
   for (auto _ : state) {
     Planner p(memo_limits(state), 2000.0);
+    p.reserve_for_speed(60.0);
     Feeder f;
     periods = 0;
     while (!p.done()) {

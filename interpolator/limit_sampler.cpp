@@ -70,7 +70,8 @@
 // Rest refinement (docs/planner.md §3): at a rest point where a curve's limit dips towards 0
 // (a repeated control point), the intervals double away from it from d₁ = J T³/6 and halve
 // towards it; the innermost one takes at least v_rest(d₁) = (4.5 J d₁²)^(1/3), a speed no
-// jerk-limited motion exceeds within d₁ of rest, so the dip at the point is no cap.
+// jerk-limited motion exceeds within d₁ of rest, so the dip at the point is no cap. The
+// segment's own caps (programmed feed, maximum feed) stay caps there.
 #include "interpolator/limit_sampler.hpp"
 
 #include <algorithm>
@@ -947,7 +948,16 @@ bool LimitSampler::next_interval(Interval& iv) {
     if (innermost) {
       // The first (last) period's travel from (to) rest: no jerk-limited motion is faster
       // there than the rest speed, so the limit's dip to 0 at the point itself is not a cap.
-      v.feed_mm_per_s = std::max(v.feed_mm_per_s, rest_speed_mm_per_s(rest_d_mm));
+      // The segment's own caps (its programmed feed, the machine's maximum) are, whatever the
+      // speed reachable: a move programmed slower than the rest speed (G93 F0.5 over 8 mm is
+      // 3.9 mm/min) keeps its feed up to the rest.
+      const FeedLimitResult cap = segment_cap(segment_);
+      const double v_rest = rest_speed_mm_per_s(rest_d_mm);
+      if (v_rest >= cap.feed_mm_per_s) {
+        v = cap;
+      } else {
+        v.feed_mm_per_s = std::max(v.feed_mm_per_s, v_rest);
+      }
     }
     iv.a_mm = s_;
     iv.b_mm = u1 >= c.u_end() ? starts_mm_[segment_ + 1] : s_ + arc;

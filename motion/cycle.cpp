@@ -72,7 +72,9 @@ void sleep_until_ns(std::int64_t deadline_ns) {
 Cycle::Cycle(std::unique_ptr<Job> job, const CycleOptions& options)
     : job_(std::move(job)), options_(options), ring_(options.ring_capacity) {
   const std::int64_t t0 = now_ns();
-  job_->prepare();  // the first look-ahead window, outside the cycle
+  // The first look-ahead window, outside the cycle: a path the look-ahead cannot take is
+  // refused here, at the job's start.
+  if (!job_->prepare()) throw InputError(job_->fault_message());
   stats_.first_window_ns = now_ns() - t0;
   period_ns_ = static_cast<std::int64_t>(std::llround(job_->config().limits.period_s * 1e9));
   // Until the first period, the status shows where the path starts (not the origin).
@@ -157,6 +159,10 @@ void Cycle::stop() {
   stop_req_.store(true, std::memory_order_release);
 }
 void Cycle::set_override(double fraction) {
+  if (!(fraction >= 0.0 && fraction <= 2.0)) {  // checked here: the period takes it as it is
+    throw InputError("feed override = " + std::to_string(fraction) +
+                     " is invalid: it must be between 0 (0 %) and 2 (200 %)");
+  }
   override_req_.store(fraction, std::memory_order_release);
 }
 
@@ -230,10 +236,7 @@ bool Cycle::run_period(CycleState& state) {
     state = CycleState::Running;
   }
   const double ovr = override_req_.exchange(-1.0, std::memory_order_acq_rel);
-  if (ovr >= 0.0) {
-    job_->set_override(ovr);
-    override_applied_ = ovr;
-  }
+  if (ovr >= 0.0 && job_->set_override(ovr)) override_applied_ = ovr;
   Setpoint sp;
   if (options_.own_thread) {
     job_->prepare();
@@ -265,16 +268,7 @@ bool Cycle::run_period(CycleState& state) {
       sp.s_mm <= watch_s_mm_ + kProgressMm) {
     const auto& limits = job_->config().limits;
     if (static_cast<double>(++watch_periods_) * limits.period_s >= limits.stall_timeout_s) {
-      const interpolator::FeedLimitResult here = job_->limit_here();
-      error_ = "no progress for " + std::to_string(limits.stall_timeout_s) +
-               " s (stall_timeout_s) at s = " + std::to_string(sp.s_mm) + " of " +
-               std::to_string(job_->length_mm()) + " mm, X" + std::to_string(sp.p.x()) + " Y" +
-               std::to_string(sp.p.y()) + " Z" + std::to_string(sp.p.z()) +
-               ", v = " + std::to_string(sp.v_mm_per_s) +
-               " mm/s; limit in force: " + limit_name(sp.limit_id) + " (" +
-               interpolator::to_string(here.limit) + " " + std::to_string(here.feed_mm_per_s) +
-               " mm/s here): the motion was stopped (an internal error; please report it with "
-               "the program)";
+      stall_ = Stall{true, sp};  // worded by error(), outside the period
       publish(sp, CycleState::Error);
       return false;
     }
@@ -304,9 +298,29 @@ void Cycle::count_work(std::int64_t work_ns, std::int64_t ran) {
 
 void Cycle::end_run() {
   if (job_->fault().fault != StepFault::None) {
-    error_ = job_->fault_message();
     st_state_.store(static_cast<int>(CycleState::Error), std::memory_order_release);
   }
+}
+
+// The words for what ended the run in error, made here (by the owner, after the run), not in
+// the period that found it: a stall, the job's fault, or an exception that escaped a period.
+std::string Cycle::error() const {
+  if (stall_.seen) {
+    const Setpoint& sp = stall_.at;
+    const auto& limits = job_->config().limits;
+    const interpolator::FeedLimitResult here = job_->limit_here();
+    return "no progress for " + std::to_string(limits.stall_timeout_s) +
+           " s (stall_timeout_s) at s = " + std::to_string(sp.s_mm) + " of " +
+           std::to_string(job_->length_mm()) + " mm, X" + std::to_string(sp.p.x()) + " Y" +
+           std::to_string(sp.p.y()) + " Z" + std::to_string(sp.p.z()) +
+           ", v = " + std::to_string(sp.v_mm_per_s) +
+           " mm/s; limit in force: " + limit_name(sp.limit_id) + " (" +
+           interpolator::to_string(here.limit) + " " + std::to_string(here.feed_mm_per_s) +
+           " mm/s here): the motion was stopped (an internal error; please report it with the "
+           "program)";
+  }
+  if (job_->fault().fault != StepFault::None) return job_->fault_message();
+  return error_;
 }
 
 void Cycle::fail_run(const char* what, CycleState& state) {

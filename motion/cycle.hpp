@@ -89,8 +89,9 @@ class Cycle {
   // Commands, read by the cycle at its next period (atomic flags, no locks).
   void hold();
   void resume();
-  void set_override(double fraction);  // 0..2, applied through the planner
-  void stop();                         // a jerk-limited stop on the path, then the end
+  // 0..2, applied through the planner at the next period; throws InputError outside that.
+  void set_override(double fraction);
+  void stop();  // a jerk-limited stop on the path, then the end
   // Blocks until the job is done or stopped (the thread has ended).
   void join();
   bool finished() const { return finished_.load(std::memory_order_acquire); }
@@ -106,7 +107,8 @@ class Cycle {
   LatenessBins lateness_bins() const;
   // Valid after join().
   const CycleStats& stats() const { return stats_; }
-  const std::string& error() const { return error_; }
+  // Why the run ended in error, in words (empty if it did not); read after finished().
+  std::string error() const;
   double length_mm() const { return job_->length_mm(); }
   const Job& job() const { return *job_; }
 
@@ -124,7 +126,11 @@ class Cycle {
   boost::lockfree::spsc_queue<Setpoint> ring_;  // one producer, one consumer, no allocation
   std::thread thread_;
   CycleStats stats_;
-  std::string error_;
+  std::string error_;  // an exception that escaped a period (none should)
+  struct Stall {
+    bool seen = false;
+    Setpoint at;  // the setpoint where no progress was seen for stall_timeout_s
+  } stall_;
   RealtimeGrant grant_;
   // Commands.
   std::atomic<bool> hold_req_{false}, resume_req_{false}, stop_req_{false};

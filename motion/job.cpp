@@ -124,6 +124,8 @@ const char* to_string(StepFault fault) {
       return "acceleration";
     case StepFault::Walk:
       return "walk";
+    case StepFault::Plan:
+      return "plan";
   }
   return "none";
 }
@@ -187,41 +189,51 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
   here_.sp.p = walker_.position();
 }
 
-void Job::prepare() {
-  if (line_cap_ == 0) {
-    feed_planner();
-  } else {
-    fill_line();
-  }
+bool Job::prepare() {
+  if (plan_fault_.fault != StepFault::None) return false;
+  if (line_cap_ == 0) return feed_planner();
+  fill_line();
+  return plan_fault_.fault == StepFault::None;
+}
+
+// Records why the look-ahead cannot go on (the first reason only); the job is then over.
+bool Job::plan_failed(const LimitSample& sample, PushResult why, std::uint8_t law) {
+  if (plan_fault_.fault != StepFault::None) return false;
+  plan_fault_.fault = StepFault::Plan;
+  plan_fault_.period = emitted_;
+  plan_fault_.t_s = static_cast<double>(emitted_) * config_.limits.period_s;
+  plan_fault_.s_mm = bounds_[run_] + sample.s_mm;
+  plan_fault_.from_mm = plan_fault_.to_mm = here_.sp.p;
+  plan_fault_.value = sample.v_max_mm_per_s;
+  plan_sample_ = sample;
+  plan_why_ = why;
+  plan_law_ = law;
+  return false;
 }
 
 // Feeds the planner the nodes of the current stretch, in its own arc length (from the
 // stretch's start). The node at a stop ends the stretch with the limit of the interval before
 // it; the next stretch begins there, at s = 0, with the limit of the interval after it.
-void Job::feed_planner() {
+bool Job::feed_planner() {
+  if (plan_fault_.fault != StepFault::None) return false;
   const double start = bounds_[run_], end = bounds_[run_ + 1];
   const bool last = run_ + 2 == bounds_.size();
   const double tol = 1e-9 * std::max(1.0, end);
-  const auto check = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit) {
-    if (!(v_mm_per_s > 0.0) || !std::isfinite(v_mm_per_s)) {
-      throw InputError(
-          "the path needs a full stop at s = " + std::to_string(start + s_mm) + " mm (" +
-          interpolator::to_string(limit) +
-          " limit is 0 there: a cusp of a curve, where its parametric speed vanishes inside "
-          "it); split the curve there into two segments");
-    }
-  };
   const auto id = [](interpolator::FeedLimit limit) { return static_cast<std::uint8_t>(limit); };
+  // A sample to the planner; false (and the fault recorded) if it is refused.
+  const auto take = [&](const LimitSample& q) {
+    const PushResult r = planner_.push(q);
+    return r == PushResult::Ok || plan_failed(q, r, q.limit_id);
+  };
   // A node and the interval after it (the sampler's minimum there; +inf at a stretch's end).
   const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
                         const JerkVectorSpan& span, double v_after_mm_per_s,
                         interpolator::FeedLimit after) {
-    check(s_mm, v_mm_per_s, limit);
-    planner_.push({s_mm, v_mm_per_s, id(limit), span, v_after_mm_per_s, id(after)});
+    return take({s_mm, v_mm_per_s, id(limit), span, v_after_mm_per_s, id(after)});
   };
   while (planner_.wants_samples()) {
     if (carry_n_ > 0) {
-      planner_.push(carry_[0]);
+      if (!take(carry_[0])) return false;
       carry_[0] = carry_[1];
       --carry_n_;
       continue;
@@ -245,10 +257,10 @@ void Job::feed_planner() {
       // interval of the node before, which holds the stop).
       const bool past = node.s_mm > end + tol;
       const JerkVectorSpan span = node.jerk_span, first = past ? last_span_ : span;
-      push(length, left, node.limit, JerkVectorSpan{}, kInf, node.limit);
+      if (!push(length, left, node.limit, JerkVectorSpan{}, kInf, node.limit)) return false;
       const double right = past ? left : node.right_mm_per_s;
-      check(length, right, node.limit);
       carry_[0] = {0.0, right, id(node.limit), first, past ? kInf : right, id(node.right_limit)};
+      // (A zero limit after the stop is refused when the next stretch takes it.)
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
       if (past) {  // no node fell on the stop: keep this one for the next
@@ -258,14 +270,24 @@ void Job::feed_planner() {
       }
       break;  // the planner has its end
     }
-    push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.jerk_span, node.right_mm_per_s,
-         node.right_limit);
+    if (!push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.jerk_span,
+              node.right_mm_per_s, node.right_limit)) {
+      return false;
+    }
     last_span_ = node.jerk_span;
   }
+  return true;
 }
 
 Setpoint Job::step() {
+  if (plan_fault_.fault != StepFault::None) {  // the job is over: nothing more is emitted
+    Setpoint sp = here_.sp;
+    sp.fault = StepFault::Plan;
+    return sp;
+  }
   Setpoint sp = line_cap_ == 0 ? raw_step() : delayed_step();
+  if (plan_fault_.fault != StepFault::None) sp.fault = StepFault::Plan;  // in this step's fill
+  if (sp.fault != StepFault::None) return sp;
   sp.fault = guard_.check(sp.t_s, sp.s_mm, sp.planned_ds_mm, sp.p);
   return sp;
 }
@@ -278,7 +300,10 @@ Setpoint Job::raw_step() {
   rest_ = m.done && !last;
   if (rest_) {  // at rest at a stop: the next stretch starts from here
     ++run_;
-    planner_.restart(bounds_[run_ + 1] - bounds_[run_]);
+    if (!planner_.restart(bounds_[run_ + 1] - bounds_[run_])) {
+      plan_failed(LimitSample{bounds_[run_ + 1] - bounds_[run_], 0.0}, PushResult::NotIncreasing,
+                  0);
+    }
   }
   Setpoint sp;
   sp.t_s = m.t_s;
@@ -309,7 +334,7 @@ Setpoint Job::raw_step() {
 // override acts at once.
 void Job::fill_line() {
   for (int n = 0; n < kLineStepsPerPrepare && line_n_ < line_target() && !raw_done(); ++n) {
-    feed_planner();
+    if (!feed_planner()) return;
     const Setpoint r = raw_step();
     line_push(r, rest_);
     // A rest with the whole window behind and ahead of it in the line is decided now.
@@ -442,12 +467,14 @@ void Job::try_overlap(std::size_t rest) {
   overlap_.periods_saved += mu;
 }
 
-void Job::set_override(double fraction) {
-  planner_.set_override(fraction);
+bool Job::set_override(double fraction) {
+  if (!planner_.set_override(fraction)) return false;
   guard_.set_override(fraction);
+  return true;
 }
 
 std::string Job::fault_message() const {
+  if (plan_fault_.fault != StepFault::None) return plan_fault_message();
   const StepFaultInfo& f = guard_.info();
   if (f.fault == StepFault::None) return {};
   static const char* const kWhat[] = {
@@ -463,6 +490,29 @@ std::string Job::fault_message() const {
                 static_cast<long long>(f.period), f.t_s, f.s_mm, f.from_mm.x(), f.from_mm.y(),
                 f.from_mm.z(), f.to_mm.x(), f.to_mm.y(), f.to_mm.z(), f.value, f.allowed);
   return text;
+}
+
+// The look-ahead's fault in words: a zero limit is a stop the sampler did not place (a cusp of a
+// curve); anything else is a sample the planner refused, which is an internal error.
+std::string Job::plan_fault_message() const {
+  const double s_mm = plan_fault_.s_mm;
+  const std::string where = "at s = " + std::to_string(s_mm) + " mm of " +
+                            std::to_string(length_mm()) + " mm (period " +
+                            std::to_string(plan_fault_.period) + ")";
+  if (plan_why_ == PushResult::SpeedInvalid && !(plan_sample_.v_max_mm_per_s > 0.0)) {
+    return "the path needs a full stop " + where + " (" + limit_name(plan_law_) +
+           " limit is 0 there: a cusp of a curve, where its parametric speed vanishes inside "
+           "it); split the curve there into two segments";
+  }
+  if (plan_why_ == PushResult::NotIncreasing && plan_sample_.v_max_mm_per_s == 0.0) {
+    return "the planner could not start the stretch of " + std::to_string(plan_sample_.s_mm) +
+           " mm " + where +
+           "; the motion was stopped (an internal error; please report it with "
+           "the program)";
+  }
+  return "the look-ahead refused a feed limit " + where + ": " +
+         describe(plan_why_, plan_sample_, planner_.reserved_speed_mm_per_s()) +
+         "; the motion was stopped (an internal error; please report it with the program)";
 }
 
 std::vector<double> Job::segment_starts_mm() const {

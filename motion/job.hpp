@@ -75,18 +75,23 @@ class Job {
 
   // Look-ahead: feeds the planner from the limit sampler as far as it wants (the planner
   // thread's work); with a line of setpoints (delay_periods() > 0) also plans the periods that
-  // fill it. Throws InputError if the path needs a stop the planner cannot take.
-  void prepare();
+  // fill it. Never throws: false when the look-ahead cannot go on (a zero limit inside a
+  // stretch, a sample the planner refuses); the job is then over, step() returns a setpoint
+  // with StepFault::Plan and fault_message() says why.
+  bool prepare();
   // One period of the cycle: planner step and path walk, checked by the step rule (see
-  // Setpoint::fault); call prepare() before each.
+  // Setpoint::fault); call prepare() before each. Never throws, never allocates.
   Setpoint step();
   bool done() const { return raw_done() && line_n_ == 0; }
   // Where the motion comes to rest inside the path (LimitSampler::stops_mm), mm.
   const std::vector<double>& stops_mm() const { return sampler_.stops_mm(); }
   // Feed override as a fraction (0..2), for the planner and the step rule's speed bound.
-  void set_override(double fraction);
-  // The first setpoint the step rule refused, if any.
-  const StepFaultInfo& fault() const { return guard_.info(); }
+  // False (nothing changes) outside 0..2: the caller checks the value at its edge.
+  bool set_override(double fraction);
+  // The first fault: the look-ahead's (StepFault::Plan), else the step rule's, if any.
+  const StepFaultInfo& fault() const {
+    return plan_fault_.fault != StepFault::None ? plan_fault_ : guard_.info();
+  }
   // That fault in words (what, where, the measured and the allowed value); allocates.
   std::string fault_message() const;
   double length_mm() const { return walker_.length_mm(); }
@@ -134,7 +139,9 @@ class Job {
     bool raw = true;    // the planner's own setpoint, not part of an overlap
   };
   bool raw_done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
-  void feed_planner();              // the planner's look-ahead from the sampler
+  bool feed_planner();  // the planner's look-ahead from the sampler
+  bool plan_failed(const LimitSample& sample, PushResult why, std::uint8_t law);
+  std::string plan_fault_message() const;
   void fill_line();                 // planner steps into the line of setpoints, overlaps decided
   std::size_t line_target() const;  // how deep fill_line() fills the line now
   Setpoint raw_step();
@@ -164,6 +171,12 @@ class Job {
   JerkVectorSpan last_span_;       // the curve span of the last node pushed (its interval)
   std::size_t carry_n_ = 0;
   StepGuard guard_;
+  // The look-ahead's fault (fault() == Plan): where, and the sample refused and why (a zero
+  // limit: PushResult::SpeedInvalid with the law that set it in plan_law_).
+  StepFaultInfo plan_fault_;
+  LimitSample plan_sample_{};
+  PushResult plan_why_ = PushResult::Ok;
+  std::uint8_t plan_law_ = 0;
   bool sampler_done_ = false;
   double last_s_mm_ = 0.0;
   // The overlap's line of setpoints (a ring of fixed size; empty when no corner may overlap).

@@ -72,7 +72,13 @@
 // before the stop point; a cruise's certificate then costs a copy, not a simulation.
 //
 // Work per step: at most 2 + kBisection rollouts of at most rollout_cap_ periods, each period
-// O(1) plus the blocks within its braking distance; no allocation (buffers are sized in push).
+// O(1) plus the blocks within its braking distance. Memory: the six plan buffers are sized once,
+// by reserve_for_speed at the job's start, for three stops from twice the machine's top feed
+// (rollout_cap_ periods); every write into them is bounded by rollout_cap_ (a rollout longer
+// than that fails its certificate; a landing longer than that is not tried, and a slow move
+// lands once it is within reach), and push() refuses a limit above the reserved speed. No step
+// allocates or throws: push() answers with a PushResult, restart() and set_override() with a
+// bool.
 #include "motion/planner.hpp"
 
 #include <Eigen/Dense>
@@ -215,6 +221,73 @@ double braking_distance_mm(double v, double v_t, double a_max, double j_max) {
   return 0.5 * (v + v_t) * t;
 }
 
+const char* to_string(PushResult r) {
+  switch (r) {
+    case PushResult::Ok:
+      return "ok";
+    case PushResult::SpeedInvalid:
+      return "speed_invalid";
+    case PushResult::AfterInvalid:
+      return "after_invalid";
+    case PushResult::IdReserved:
+      return "id_reserved";
+    case PushResult::SpanInvalid:
+      return "span_invalid";
+    case PushResult::FirstNotAtZero:
+      return "first_not_at_zero";
+    case PushResult::NotIncreasing:
+      return "not_increasing";
+    case PushResult::WindowFull:
+      return "window_full";
+    case PushResult::AboveReserve:
+      return "above_reserve";
+  }
+  return "unknown";
+}
+
+std::string describe(PushResult r, const LimitSample& in, double reserved) {
+  const std::string at = " at s_mm = " + std::to_string(in.s_mm);
+  switch (r) {
+    case PushResult::Ok:
+      return "ok";
+    case PushResult::SpeedInvalid:
+      return "v_max_mm_per_s = " + std::to_string(in.v_max_mm_per_s) + at +
+             " is invalid: a feed limit must be finite and > 0; where the machine must stop, end "
+             "the path there and start a new one";
+    case PushResult::AfterInvalid:
+      return "v_after_mm_per_s = " + std::to_string(in.v_after_mm_per_s) + at +
+             " is invalid: the limit over the interval after a sample is at least the sample's "
+             "v_max_mm_per_s (" +
+             std::to_string(in.v_max_mm_per_s) + "); use +inf where it is not known";
+    case PushResult::IdReserved:
+      return "limit_id = " + std::to_string(in.limit_id) +
+             " or after_limit_id = " + std::to_string(in.after_limit_id) + at +
+             " is reserved (>= " + std::to_string(kLimitIdReserved) + "); use a smaller id";
+    case PushResult::SpanInvalid:
+      return "the jerk-vector span" + at + " (curvature " +
+             std::to_string(in.jerk_span.curvature_per_mm) + " /mm, turn " +
+             std::to_string(in.jerk_span.turn_per_mm2) + " /mm^2, budget " +
+             std::to_string(in.jerk_span.budget) +
+             ") is invalid: curvature and turn must be finite and >= 0, the budget in (0, 1]";
+    case PushResult::FirstNotAtZero:
+      return "s_mm = " + std::to_string(in.s_mm) +
+             " is invalid for the first limit sample: the curve must start at s = 0";
+    case PushResult::NotIncreasing:
+      return "s_mm = " + std::to_string(in.s_mm) +
+             " is invalid: samples must have finite, strictly increasing s";
+    case PushResult::WindowFull:
+      return "the look-ahead window is full" + at +
+             ": push only while wants_samples(), or raise window_capacity";
+    case PushResult::AboveReserve:
+      return "v_max_mm_per_s = " + std::to_string(in.v_max_mm_per_s) + " (interval " +
+             std::to_string(in.v_after_mm_per_s) + ")" + at +
+             " is above the speed the planner's buffers were sized for at the job's start (" +
+             std::to_string(reserved) +
+             " mm/s): every feed limit must be capped by the machine's maximum feed";
+  }
+  return "unknown";
+}
+
 void validate(const PlannerLimits& limits) {
   require_positive("a_max_mm_per_s2", limits.a_max_mm_per_s2);
   require_positive("j_max_mm_per_s3", limits.j_max_mm_per_s3);
@@ -253,12 +326,8 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
   last_.done = false;
 }
 
-void Planner::restart(double length_mm) {
-  if (!std::isfinite(length_mm) || length_mm < 0.0) {
-    throw InputError("length_mm = " + std::to_string(length_mm) +
-                     " is invalid: a path length must be finite and >= 0");
-  }
-  if (!done_) throw InputError("Planner::restart before the motion came to rest at its end");
+bool Planner::restart(double length_mm) {
+  if (!std::isfinite(length_mm) || length_mm < 0.0 || !done_) return false;
   length_mm_ = length_mm;
   head_ = count_ = 0;
   saw_end_ = false;
@@ -270,6 +339,7 @@ void Planner::restart(double length_mm) {
   override_applied_ = override_target_;  // at rest: a new override holds at once
   last_.s_mm = 0.0;
   last_.done = false;
+  return true;
 }
 
 std::size_t Planner::ring_index(std::size_t i) const {
@@ -305,25 +375,33 @@ bool Planner::wants_samples() const {
   return sample(count_ - 1).s_mm < x_.s_mm + horizon_mm(x_.v_mm_per_s, x_.a_mm_per_s2);
 }
 
-void Planner::push(const LimitSample& in) {
-  if (saw_end_) return;  // past L: nothing more is needed
-  require_finite("s_mm", in.s_mm);
+PushResult Planner::push(const LimitSample& in) {
+  if (saw_end_) return PushResult::Ok;  // past L: nothing more is needed
+  const PushResult r = classify(in);
+  if (r != PushResult::Ok) return r;
+  ring_[ring_index(count_)] = in;
+  if (count_ > 0) interval_ring_[ring_index(count_ - 1)] = interval_between(sample(count_ - 1), in);
+  const JerkVectorSpan span = in.jerk_span;
+  if (span.curvature_per_mm != 0.0 || span.turn_per_mm2 != 0.0 || span.budget != 1.0) {
+    any_scaled_ = true;
+  }
+  ++count_;
+  count_high_water_ = std::max(count_high_water_, count_);
+  ahead_high_water_mm_ = std::max(ahead_high_water_mm_, in.s_mm - x_.s_mm);
+  if (in.s_mm >= length_mm_) saw_end_ = true;
+  v_top_pushed_ = std::max(v_top_pushed_, in.v_max_mm_per_s);
+  return PushResult::Ok;
+}
+
+// Whether push() can take the sample: the checks in the order describe() words them.
+PushResult Planner::classify(const LimitSample& in) const {
+  if (!std::isfinite(in.s_mm)) return PushResult::NotIncreasing;
   if (!std::isfinite(in.v_max_mm_per_s) || in.v_max_mm_per_s <= 0.0) {
-    throw InputError("v_max_mm_per_s = " + std::to_string(in.v_max_mm_per_s) +
-                     " at s_mm = " + std::to_string(in.s_mm) +
-                     " is invalid: a feed limit must be finite and > 0; where the machine must "
-                     "stop, end the path there and start a new one");
+    return PushResult::SpeedInvalid;
   }
-  if (!(in.v_after_mm_per_s >= in.v_max_mm_per_s)) {
-    throw InputError("v_after_mm_per_s = " + std::to_string(in.v_after_mm_per_s) +
-                     " at s_mm = " + std::to_string(in.s_mm) +
-                     " is invalid: the limit over the interval after a sample is at least the "
-                     "sample's v_max_mm_per_s (" +
-                     std::to_string(in.v_max_mm_per_s) + "); use +inf where it is not known");
-  }
-  if (in.after_limit_id >= kLimitIdReserved) {
-    throw InputError("after_limit_id = " + std::to_string(in.after_limit_id) + " is reserved (>= " +
-                     std::to_string(kLimitIdReserved) + "); use a smaller id");
+  if (!(in.v_after_mm_per_s >= in.v_max_mm_per_s)) return PushResult::AfterInvalid;
+  if (in.limit_id >= kLimitIdReserved || in.after_limit_id >= kLimitIdReserved) {
+    return PushResult::IdReserved;
   }
   const JerkVectorSpan span = in.jerk_span;
   const bool constrained =
@@ -333,48 +411,25 @@ void Planner::push(const LimitSample& in) {
   if (constrained && !(span.curvature_per_mm >= 0.0 && std::isfinite(span.curvature_per_mm) &&
                        span.turn_per_mm2 >= 0.0 && std::isfinite(span.turn_per_mm2) &&
                        span.budget > 0.0 && span.budget <= 1.0)) {
-    throw InputError("the jerk-vector span at s_mm = " + std::to_string(in.s_mm) + " (curvature " +
-                     std::to_string(span.curvature_per_mm) + " /mm, turn " +
-                     std::to_string(span.turn_per_mm2) + " /mm^2, budget " +
-                     std::to_string(span.budget) +
-                     ") is invalid: curvature and turn must be finite and >= 0, the budget in "
-                     "(0, 1]");
+    return PushResult::SpanInvalid;
   }
-  if (in.limit_id >= kLimitIdReserved) {
-    throw InputError("limit_id = " + std::to_string(in.limit_id) + " is reserved (>= " +
-                     std::to_string(kLimitIdReserved) + "); use a smaller id");
+  if (count_ == 0 && periods_ == 0 && in.s_mm != 0.0) return PushResult::FirstNotAtZero;
+  if (count_ > 0 && !(in.s_mm > sample(count_ - 1).s_mm)) return PushResult::NotIncreasing;
+  if (count_ >= ring_.size()) return PushResult::WindowFull;
+  // The buffers hold every rollout from speeds up to 2 v_reserved (override 200 %): no limit
+  // the motion may follow, at a sample or over an interval, may be above v_reserved.
+  if (in.v_max_mm_per_s > v_reserved_ ||
+      (std::isfinite(in.v_after_mm_per_s) && in.v_after_mm_per_s > v_reserved_)) {
+    return PushResult::AboveReserve;
   }
-  if (count_ == 0 && periods_ == 0 && in.s_mm != 0.0) {
-    throw InputError("s_mm = " + std::to_string(in.s_mm) +
-                     " is invalid for the first limit sample: the curve must start at s = 0");
-  }
-  if (count_ > 0 && !(in.s_mm > sample(count_ - 1).s_mm)) {
-    throw InputError("s_mm = " + std::to_string(in.s_mm) +
-                     " is invalid: samples must have "
-                     "strictly increasing s (previous " +
-                     std::to_string(sample(count_ - 1).s_mm) + ")");
-  }
-  if (count_ >= ring_.size()) {
-    throw InputError("window_capacity = " + std::to_string(ring_.size()) +
-                     " samples is full: push only while wants_samples(), or raise the capacity");
-  }
-  ring_[ring_index(count_)] = in;
-  if (count_ > 0) interval_ring_[ring_index(count_ - 1)] = interval_between(sample(count_ - 1), in);
-  if (constrained) any_scaled_ = true;
-  ++count_;
-  count_high_water_ = std::max(count_high_water_, count_);
-  ahead_high_water_mm_ = std::max(ahead_high_water_mm_, in.s_mm - x_.s_mm);
-  if (in.s_mm >= length_mm_) saw_end_ = true;
-  if (in.v_max_mm_per_s > v_top_pushed_) {
-    v_top_pushed_ = in.v_max_mm_per_s;
-    reserve_for_speed(v_top_pushed_);
-  }
+  return PushResult::Ok;
 }
 
 void Planner::reserve_for_speed(double v_mm_per_s) {
   // Longest rollout: a stop from 2 v (override 200 %) with settling phases, tripled. Bounded:
   // a stop longer than kMaxRolloutPeriods is refused here, with the numbers, instead of sizing
   // buffers from them (1e300 mm/s would overflow the cast; 1e12 would exhaust memory).
+  require_finite("v_mm_per_s", v_mm_per_s);
   const double v_cap = 2.0 * v_mm_per_s + a_max_ * a_max_ / j_max_;
   const double a_brake = a_max_ * scale_floor_, j_brake = j_max_ * scale_floor_;
   const double t_stop = v_cap / a_brake + 2.0 * a_brake / j_brake;
@@ -387,6 +442,7 @@ void Planner::reserve_for_speed(double v_mm_per_s) {
                      std::to_string(static_cast<double>(kMaxRolloutPeriods) * period_s_ / 3.0) +
                      " s; lower the maximum feed or raise the acceleration and jerk limits");
   }
+  v_reserved_ = std::max(v_reserved_, v_mm_per_s);
   const auto cap = static_cast<std::size_t>(periods);
   if (cap > rollout_cap_) {
     rollout_cap_ = cap;
@@ -851,7 +907,9 @@ double Planner::reach_base(std::size_t n, double v_cap, double jerk_fraction) {
   const double t_fast = t + std::max(fill, 0.0) / w_fast;
   const double t_n = static_cast<double>(n) * T;
   if (n == 0) return t_fast;
-  if (t_n < t_fast) return std::numeric_limits<double>::infinity();
+  // The base fills land_base_[0, n): no landing is longer than the buffers (land_with refuses
+  // it too); a slow move lands once it is within rollout_cap_ periods of L.
+  if (t_n < t_fast || n > rollout_cap_) return std::numeric_limits<double>::infinity();
   // The time of the motion through w: falls as w rises towards w_fast.
   const auto time_through = [&](double w) {
     double tw = 0.0;
@@ -1151,12 +1209,10 @@ MotionSample Planner::step() {
   return last_;
 }
 
-void Planner::set_override(double fraction) {
-  if (!std::isfinite(fraction) || fraction < 0.0 || fraction > 2.0) {
-    throw InputError("feed override = " + std::to_string(fraction) +
-                     " is invalid: it must be between 0 (0 %) and 2 (200 %)");
-  }
+bool Planner::set_override(double fraction) {
+  if (!(fraction >= 0.0 && fraction <= 2.0)) return false;
   override_target_ = fraction;
+  return true;
 }
 
 void Planner::hold() {
@@ -1167,18 +1223,32 @@ void Planner::resume() {
   hold_ = false;
 }
 
-void push_available(Planner& planner, std::span<const LimitSample> curve, std::size_t& next) {
-  while (next < curve.size() && planner.wants_samples()) planner.push(curve[next++]);
+PushResult push_available(Planner& planner, std::span<const LimitSample> curve, std::size_t& next) {
+  while (next < curve.size() && planner.wants_samples()) {
+    const PushResult r = planner.push(curve[next]);
+    if (r != PushResult::Ok) return r;
+    ++next;
+  }
+  return PushResult::Ok;
 }
 
 std::vector<MotionSample> plan_all(const PlannerLimits& limits, double length_mm,
                                    std::span<const LimitSample> curve, std::size_t max_periods) {
   Planner planner(limits, length_mm);
+  double v_top = 0.0;
+  for (const LimitSample& q : curve) {
+    if (std::isfinite(q.v_max_mm_per_s)) v_top = std::max(v_top, q.v_max_mm_per_s);
+    if (std::isfinite(q.v_after_mm_per_s)) v_top = std::max(v_top, q.v_after_mm_per_s);
+  }
+  planner.reserve_for_speed(v_top);
   std::vector<MotionSample> out;
   out.push_back(MotionSample{});
   std::size_t next = 0;
   while (out.size() <= max_periods) {
-    push_available(planner, curve, next);
+    const PushResult r = push_available(planner, curve, next);
+    if (r != PushResult::Ok) {
+      throw InputError(describe(r, curve[next], planner.reserved_speed_mm_per_s()));
+    }
     out.push_back(planner.step());
     if (out.back().done) return out;
   }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <limits>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "core/jerk_vector.hpp"
@@ -39,6 +40,23 @@ inline constexpr std::uint8_t kLimitIdLookahead = 0xFB;     // no samples far en
 inline constexpr std::uint8_t kLimitIdPathEnd = 0xFC;       // braking to land on L
 inline constexpr std::uint8_t kLimitIdJerk = 0xFD;          // |j| = j_max binds
 inline constexpr std::uint8_t kLimitIdAcceleration = 0xFE;  // |a| = a_max binds
+
+// What push() made of a sample: Ok, or why it was refused (the sample is then not taken and the
+// planner is unchanged). The cycle's result code: push() never throws (planner.cpp's top).
+enum class PushResult : std::uint8_t {
+  Ok,
+  SpeedInvalid,    // v_max not finite or not > 0
+  AfterInvalid,    // v_after below v_max (or NaN)
+  IdReserved,      // limit_id or after_limit_id >= kLimitIdReserved
+  SpanInvalid,     // jerk_span with a negative or non-finite term, or a budget outside (0, 1]
+  FirstNotAtZero,  // the first sample's s is not 0
+  NotIncreasing,   // s not above the previous sample's
+  WindowFull,      // pushed while !wants_samples() said the window was full
+  AboveReserve,    // v_max above the speed the buffers were sized for (reserve_for_speed)
+};
+const char* to_string(PushResult result);
+// The refusal in words, naming the value, the limit and a way out (allocates: for the edges).
+std::string describe(PushResult result, const LimitSample& sample, double reserved_mm_per_s);
 
 // The longest rollout the planner sizes its buffers for (periods; 3x the longest stop): six
 // buffers of 2 MB, and a stop of up to 350 s at 4 ms.
@@ -85,18 +103,23 @@ class Planner {
   // True while the look-ahead window wants more samples (not full, not past L, and not yet
   // covering the braking horizon from the current speed); push while it says so.
   bool wants_samples() const;
-  // Appends one limit sample (s strictly increasing, first at 0, 0 < v finite). Allocates
-  // only when v is above every speed pushed or reserved before.
-  void push(const LimitSample& sample);
-  // Sizes the plan buffers for samples up to v (the machine's maximum feed), so that push()
-  // and step() never allocate afterwards: call it before handing the planner to the cycle.
+  // Appends one limit sample (s strictly increasing, first at 0, 0 < v finite, v at most the
+  // reserved speed). Never allocates, never throws: a sample it cannot take is refused with its
+  // result code and leaves the planner as it was.
+  PushResult push(const LimitSample& sample);
+  // Sizes the plan buffers for samples up to v (the machine's maximum feed; the override's 200 %
+  // is included), once, before the planner is handed to the cycle: push() refuses faster
+  // samples, and nothing allocates afterwards. Throws InputError, naming the numbers, when the
+  // stop from that speed is longer than the planner's bound (kMaxRolloutPeriods).
   void reserve_for_speed(double v_mm_per_s);
+  double reserved_speed_mm_per_s() const { return v_reserved_; }
   // Advances one period; no allocation, bounded work.
   MotionSample step();
 
   // Feed override as a fraction (0..2, 1 = 100 %): scales the limit curve; lowering it brakes
   // under the acceleration and jerk limits, so v may exceed the new curve while it does.
-  void set_override(double fraction);
+  // False (and nothing changes) outside 0..2: the caller checks the value at its edge.
+  bool set_override(double fraction);
   double override_fraction() const { return override_applied_; }  // in force now
   // Feed hold: a jerk-limited stop on the path; resume() goes on from there.
   void hold();
@@ -104,9 +127,9 @@ class Planner {
 
   bool done() const { return done_; }
   // After done(): plans the next stretch, of length_mm, from rest at its s = 0, keeping the
-  // buffers (no allocation), the clock, the override and the hold. Throws InputError on a
-  // bad length or before done().
-  void restart(double length_mm);
+  // buffers (no allocation), the clock, the override and the hold. False (and nothing
+  // changes) on a length that is not finite and >= 0, or before done().
+  bool restart(double length_mm);
   double length_mm() const { return length_mm_; }
   // Look-ahead window, now and at its high-water mark, in samples and in mm past s.
   std::size_t window_samples() const { return count_; }
@@ -151,6 +174,7 @@ class Planner {
     std::uint8_t limit_id;
   };
   static IntervalLimit interval_between(const LimitSample& p, const LimitSample& q);
+  PushResult classify(const LimitSample& sample) const;
   std::size_t ring_index(std::size_t i) const;  // of the i-th sample of the window
   const LimitSample& sample(std::size_t i) const;
   SpeedRange period_speeds(const Kin& x, double j) const;
@@ -202,6 +226,7 @@ class Planner {
   std::size_t head_ = 0, count_ = 0, count_high_water_ = 0;
   double ahead_high_water_mm_ = 0.0;
   double v_top_pushed_ = 0.0;
+  double v_reserved_ = 0.0;  // the speed the plan buffers are sized for (reserve_for_speed)
   bool saw_end_ = false;
   // blocks (policy targets) of the current step
   std::vector<Block> blocks_;
@@ -240,11 +265,13 @@ class Planner {
   std::size_t last_rollouts_ = 0;
 };
 
-// Pushes samples from curve[next...] while the planner wants them; advances next.
-void push_available(Planner& planner, std::span<const LimitSample> curve, std::size_t& next);
+// Pushes samples from curve[next...] while the planner wants them; advances next past each one
+// taken. Stops at the first refusal and returns it.
+PushResult push_available(Planner& planner, std::span<const LimitSample> curve, std::size_t& next);
 
-// The whole motion for a limit curve given at once (tests, replay): step() until done.
-// Throws InputError if the motion does not finish within max_periods.
+// The whole motion for a limit curve given at once (tests, replay): reserves for the curve's
+// highest speed, then step() until done. Throws InputError on a sample the planner refuses or
+// if the motion does not finish within max_periods.
 std::vector<MotionSample> plan_all(const PlannerLimits& limits, double length_mm,
                                    std::span<const LimitSample> curve,
                                    std::size_t max_periods = 50'000'000);

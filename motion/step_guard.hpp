@@ -28,9 +28,12 @@ namespace ncd::motion {
 inline constexpr double kStepMarginRel = 0.02;  // m: 2 % above the bound
 inline constexpr double kStepSlackMm = 1e-6;    // ε: 1 nm, the setpoint file's resolution
 
-enum class StepFault : std::uint8_t { None, Speed, Acceleration, Walk };
+// Speed, Acceleration, Walk: the step rule above. Plan: the look-ahead could not go on (a limit
+// sample the planner refused, a zero limit inside a stretch, a stretch it could not restart);
+// the job's, not the guard's (motion/job.hpp), reported through the same channel.
+enum class StepFault : std::uint8_t { None, Speed, Acceleration, Walk, Plan };
 
-// "speed", "acceleration", "walk"; "none".
+// "speed", "acceleration", "walk", "plan"; "none".
 const char* to_string(StepFault fault);
 
 struct StepBounds {

@@ -9,7 +9,8 @@
 //   - every setpoint lies on the walked geometry (nearest-point distance ≤ 1e-5 mm), and within
 //     the active tolerance of the programmed geometry (G64 P; G64 Q on a fitted dense run);
 //   - every period's chord stays within the chord tolerance of the geometry it spans;
-//   - the speed |Δp|/T stays within the machine's maximum feed and the programs' F words;
+//   - the speed |Δp|/T stays within the machine's maximum feed, and the planned speed within
+//     the F word of the move holding the setpoint;
 //     the tangential acceleration and jerk (differences of the planned s) within their limits;
 //     the acceleration vector |Δ²p|/T² within √2 a_max (tangential and centripetal each ≤ a_max);
 //   - no stall: never 2 s without 0.1 µm of progress.
@@ -81,8 +82,9 @@ std::size_t g_overlapped_corners = 0;
 // Checks one program; returns an empty string or the first failure.
 // Under jerk_bound = "vector" also the jerk vector, the third difference of the setpoints.
 std::string check(const Path& path, double max_program_feed_mm_per_min,
-                  interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
-  JobConfig cfg = test::planner_machine();
+                  interpolator::JerkBound bound = interpolator::JerkBound::tangential,
+                  const JobConfig& machine = test::planner_machine()) {
+  JobConfig cfg = machine;
   cfg.limits.jerk_bound = bound;
   const double T = cfg.limits.period_s, a_max = cfg.limits.max_accel_mm_per_s2;
   const double j_max = cfg.limits.max_jerk_mm_per_s3, eps = cfg.limits.chord_tolerance_mm;
@@ -163,6 +165,17 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
     prev_tol = tol;
     const double v = (sp.p - p.back()).norm() / T;
     if (v > v_cap * (1.0 + 1e-9)) return "speed " + std::to_string(v) + " mm/s";
+    // The programmed feed (F) of the move holding the setpoint, in the walked path (a blend
+    // arc carries the feed of its corner's moves): the planned speed at the period's end never
+    // above it (a superposed setpoint sums two moves' progress: held to v_cap above).
+    const auto& walked_seg = job.path().segments[walked];
+    if (!sp.overlapped && !walked_seg.rapid && walked_seg.feed_mm_per_min &&
+        sp.v_mm_per_s > *walked_seg.feed_mm_per_min / 60.0 * (1.0 + 1e-9) + 1e-12) {
+      return "speed " + std::to_string(sp.v_mm_per_s) + " mm/s at s = " + std::to_string(sp.s_mm) +
+             " above the programmed feed F" + std::to_string(*walked_seg.feed_mm_per_min) +
+             " of walked segment " + std::to_string(walked) + " (limit " + limit_name(sp.limit_id) +
+             ")";
+    }
     p.push_back(sp.p);
     s.push_back(sp.s_mm);
     const std::size_t k = p.size() - 1;
@@ -610,6 +623,59 @@ TEST(Property, FacetedCornersKeepTheJerkVectorBound) {
     }
   }
   std::printf("%d faceted corners checked\n", cases);
+}
+
+// Moves programmed slower than a jerk-limited motion gets within its first periods from rest
+// (under 0.64 mm/s here: G93 F0.5 over a quarter circle of 5 mm is 3.9 mm/min, 0.065 mm/s),
+// on short random curves and lines that end in a reversal (a rest), on the machine of
+// LinuxCNC's flowsnake.ngc (F15000, 3000 mm/s², 60 000 mm/s³): every setpoint within the
+// move's feed up to the rest, and the walk ends at rest on the end point (check() above).
+// tests/ngc/inverse_time.ngc found the rest refinement lifting the cap there (0.116 mm/s
+// against F3.9 mm/min). Seed printed.
+TEST(Property, SlowMovesKeepTheirFeedIntoAndOutOfRests) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  const auto uni = [&rng](double a, double b) {
+    return std::uniform_real_distribution<double>(a, b)(rng);
+  };
+  JobConfig machine = test::planner_machine();
+  machine.limits.max_feed_mm_per_min = 15000.0;
+  machine.limits.max_accel_mm_per_s2 = 3000.0;
+  machine.limits.max_jerk_mm_per_s3 = 60000.0;
+  const int programs = ncd::test::sweep_cases(30);
+  for (int i = 0; i < programs; ++i) {
+    Path path;
+    Vec3 at = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) {
+      // A short curve (degree 1–5, 0.5–2 mm long), then a reversal line, both slow.
+      const int degree = 1 + static_cast<int>(uni(0.0, 4.999));
+      const int n = degree + 1 + static_cast<int>(uni(0.0, 2.999));
+      std::vector<Vec3> pts{at};
+      const Vec3 dir = Vec3(uni(-1, 1), uni(-1, 1), uni(-0.3, 0.3)).normalized();
+      for (int j = 1; j < n; ++j) {
+        const Vec3 wobble(uni(-0.5, 0.5), uni(-0.5, 0.5), uni(-0.1, 0.1));
+        pts.push_back(pts.back() + uni(0.1, 0.4) * (dir + wobble).normalized());
+      }
+      std::vector<double> knots(static_cast<std::size_t>(degree + 1), 0.0);
+      for (int j = 1; j < n - degree; ++j) knots.push_back(j);
+      knots.insert(knots.end(), static_cast<std::size_t>(degree + 1), n - degree);
+      const double feed = std::exp(uni(std::log(3.0), std::log(36.0)));  // mm/min
+      PathSegment curve;
+      curve.geometry = NurbsCurve(degree, knots, pts);
+      curve.feed_mm_per_min = feed;
+      path.segments.push_back(curve);
+      const Vec3 end = pts.back(), back = (pts[pts.size() - 2] - end).normalized();
+      PathSegment line;
+      line.geometry = Polyline{{end, end + uni(0.05, 0.5) * back}, {}};
+      line.feed_mm_per_min = std::exp(uni(std::log(3.0), std::log(36.0)));
+      path.segments.push_back(line);
+      at = std::get<Polyline>(line.geometry).points.back();
+    }
+    const std::string failure = check(path, 60.0, interpolator::JerkBound::tangential, machine);
+    ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << ": " << failure
+                                 << "\n"
+                                 << describe(path);
+  }
 }
 
 }  // namespace
