@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 #include <utility>
 
 #include "core/error.hpp"
@@ -57,9 +58,46 @@ std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_
 
 // The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
 // first (docs/planner.md §3b); the corners left between polyline parts are then blended.
+// Every number of the path the job will read in its periods, checked at its start: a feed
+// that is not a positive finite number, a tolerance that is negative or not finite, a point
+// that is not finite. (Inside the periods a bad number could only end the job in a fault.)
+void validate_path(const toolpath::Path& path) {
+  const auto where = [&path](std::size_t k) {
+    const auto& seg = path.segments[k];
+    return (path.source.empty() ? std::string() : path.source + ": ") + "segment " +
+           std::to_string(k + 1) +
+           (seg.source_line > 0 ? " (line " + std::to_string(seg.source_line) + ")" : "");
+  };
+  const auto finite = [](const Vec3& p) { return p.allFinite(); };
+  for (std::size_t k = 0; k < path.segments.size(); ++k) {
+    const auto& seg = path.segments[k];
+    if (seg.feed_mm_per_min &&
+        !(*seg.feed_mm_per_min > 0.0 && std::isfinite(*seg.feed_mm_per_min))) {
+      throw InputError(where(k) + ": feed " + std::to_string(*seg.feed_mm_per_min) +
+                       " mm/min is invalid: a feed must be a finite number > 0; program an F "
+                       "word above 0");
+    }
+    for (const auto& tol : {seg.blend_tolerance_mm, seg.smoothing_tolerance_mm}) {
+      if (tol && !(*tol >= 0.0 && std::isfinite(*tol))) {
+        throw InputError(where(k) + ": G64 tolerance " + std::to_string(*tol) +
+                         " mm is invalid: it must be finite and >= 0");
+      }
+    }
+    bool ok = true;
+    if (const auto* line = std::get_if<toolpath::Polyline>(&seg.geometry)) {
+      for (const Vec3& p : line->points) ok = ok && finite(p);
+    } else {
+      for (const Vec3& p : std::get<toolpath::NurbsCurve>(seg.geometry).points())
+        ok = ok && finite(p);
+    }
+    if (!ok) throw InputError(where(k) + ": a point is not a finite number");
+  }
+}
+
 toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
                             interpolator::FitReport* fit, interpolator::BlendReport* report) {
   interpolator::validate(c.limits);
+  validate_path(path);
   return interpolator::blend_corners(interpolator::fit_polylines(path, c.limits, fit), c.limits,
                                      report);
 }

@@ -7,7 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
+#include "core/error.hpp"
 #include "motion/run_stats.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/motion/chamfer_exp3.hpp"
@@ -217,6 +220,43 @@ TEST(Job, TaylorAloneIsWorseThanTheCorrectedWalk) {
     worst = std::max(worst, std::abs(simpson_arc(c, u0, r.u) - 0.4) / 0.4);
   }
   EXPECT_GT(worst, 1e-5);
+}
+
+toolpath::PathSegment line_of(std::vector<Vec3> points, double feed_mm_per_min) {
+  toolpath::PathSegment seg;
+  seg.geometry = toolpath::Polyline{std::move(points), {}};
+  seg.feed_mm_per_min = feed_mm_per_min;
+  return seg;
+}
+
+// A path's numbers are checked when the job is made, not in its periods: a feed of 0, below 0
+// or not a number, a negative G64 tolerance or a point that is not finite is refused there,
+// naming the segment and its line (the periods have only result codes).
+TEST(Job, BadNumbersOfAPathAreRefusedAtTheStart) {
+  const auto refused = [](const toolpath::Path& path) {
+    try {
+      Job job(path, fast_machine());
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  for (const double feed : {0.0, -300.0, std::nan(""), HUGE_VAL}) {
+    toolpath::Path path;
+    path.segments.push_back(line_of({{0, 0, 0}, {10, 0, 0}}, 600.0));
+    path.segments.push_back(line_of({{10, 0, 0}, {10, 10, 0}}, feed));
+    path.segments.back().source_line = 7;
+    const std::string why = refused(path);
+    EXPECT_NE(why.find("segment 2 (line 7): feed"), std::string::npos) << why;
+    EXPECT_NE(why.find("F word above 0"), std::string::npos) << why;
+  }
+  toolpath::Path tol;
+  tol.segments.push_back(line_of({{0, 0, 0}, {10, 0, 0}}, 600.0));
+  tol.segments.back().blend_tolerance_mm = -0.1;
+  EXPECT_NE(refused(tol).find("G64 tolerance"), std::string::npos);
+  toolpath::Path nan_point;
+  nan_point.segments.push_back(line_of({{0, 0, 0}, {std::nan(""), 0, 0}}, 600.0));
+  EXPECT_NE(refused(nan_point).find("not a finite number"), std::string::npos);
 }
 
 }  // namespace
