@@ -231,6 +231,9 @@ Path to_path(const Program& program, const ToPathOptions& options) {
   std::optional<double> blend_mm, smooth_mm;
   std::vector<std::size_t>* place = options.segment_of_step;
   if (place) place->assign(program.steps.size(), kNoSegment);
+  // Where the machine stands (mm, machine coordinates): the end of the last planned motion.
+  std::optional<Vec3> machine_at;
+  bool tool_changed = false;  // a tool change since that motion
   for (std::size_t i = 0; i < program.steps.size(); ++i) {
     const Step& step = program.steps[i];
     if (const auto* ev = std::get_if<Event>(&step.item)) {
@@ -250,6 +253,7 @@ Path to_path(const Program& program, const ToPathOptions& options) {
                                  std::is_same_v<T, ToolChangeEvent> ||
                                  std::is_same_v<T, StopEvent> || std::is_same_v<T, SpindleEvent>) {
               stop_pending = true;
+              if constexpr (std::is_same_v<T, ToolChangeEvent>) tool_changed = true;
             }
           },
           *ev);
@@ -274,7 +278,27 @@ Path to_path(const Program& program, const ToPathOptions& options) {
     }
     const std::optional<double> spindle =
         m.spindle == SpindleDir::off ? std::nullopt : std::optional<double>(m.spindle_rpm);
-    const Vec3 start_mm = (m.start + m.offset) * k;
+    Vec3 start_mm = (m.start + m.offset) * k;
+    // A tool change with its length offset on the same line (T3 M6 G43 H3): LinuxCNC re-reads
+    // the position after the change, so the program position stays and the offset moves the
+    // machine's (rs274 shows it so, and the interpreter follows). The machine does not jump:
+    // the next move starts where it stands. A line or a rapid is taken from there; an arc or a
+    // curve is defined from the program position and would not start on the machine's.
+    const bool jumps =
+        machine_at && (start_mm - *machine_at).norm() > 1e-9 * std::max(1.0, machine_at->norm());
+    if (jumps && tool_changed) {
+      if (!std::holds_alternative<LineMove>(m.geometry)) {
+        throw InputError(where(program, m.src) +
+                         ": an arc or curve right after a tool change whose length offset was "
+                         "set on the change's own line starts " +
+                         std::to_string((start_mm - *machine_at).norm()) +
+                         " mm from where the machine stands; move to its start with G0 or G1 "
+                         "first, or give G43 H on the line after M6");
+      }
+      start_mm = *machine_at;
+    }
+    tool_changed = false;
+    machine_at = (motion_end(m) + m.offset) * k;
     if (const auto* line = std::get_if<LineMove>(&m.geometry)) {
       const Vec3 end_mm = (line->end + m.offset) * k;
       if (open && !stop_pending && !m.rapid) {  // each rapid is its own segment (ProgramBlocks)

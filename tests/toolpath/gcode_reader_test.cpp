@@ -228,6 +228,40 @@ TEST(GcodeReader, MachineToolsAreKnownWithoutATable) {
   }
 }
 
+// A tool change with its length offset on the same line (T3 M6 G43 H3, as CAM posts write it):
+// the interpreter keeps the program position there, as rs274 does, and the machine does not
+// jump: the next line starts where the machine stands (5 mm, no offset) and ends at the
+// programmed Z plus the new length (1 + 28.575). Every segment starts where the one before
+// ended. An arc right after such a change is refused, naming its line.
+TEST(GcodeReader, ToolLengthSetOnTheChangesLineMovesTheMachineOnlyWithTheNextMove) {
+  const std::filesystem::path table =
+      std::filesystem::temp_directory_path() / ("ncd_tl_" + std::to_string(getpid()) + ".tbl");
+  std::ofstream(table) << "T3 P3 Z28.575 D3.175\n";
+  InterpretOptions o;
+  o.tool_table = table.string();
+  std::istringstream in("G21 G90\nG0 X0 Y0 Z5\nG1 X4 F100\nT3 M6 G43 H3\nG0 Z1\nG1 X8\nM2\n");
+  const Path p = read_gcode(in, "tl.ngc", o);
+  ASSERT_GE(p.segments.size(), 3u);
+  Vec3 end = polyline(p, 0).points.back();
+  EXPECT_NEAR(end.z(), 5.0, 1e-12);
+  for (std::size_t i = 1; i < p.segments.size(); ++i) {
+    const Polyline& l = polyline(p, i);
+    EXPECT_NEAR((l.points.front() - end).norm(), 0.0, 1e-12) << "segment " << i;
+    end = l.points.back();
+  }
+  EXPECT_NEAR(polyline(p, 1).points.back().z(), 1.0 + 28.575, 1e-12);
+  std::istringstream arc("G21 G90\nG0 X0 Y0 Z5\nG1 X4 F100\nT3 M6 G43 H3\nG2 X8 Y0 I2 J0\nM2\n");
+  try {
+    read_gcode(arc, "tl_arc.ngc", o);
+    ADD_FAILURE() << "an arc from a position the machine is not at was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("tl_arc.ngc:5: an arc or curve right after a tool change"),
+              std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(table);
+}
+
 TEST(GcodeReader, RejectsUnsupportedAndMalformedInputWithLineNumbers) {
   const std::string start = "G21 G90\nG0 X0 Y0 Z0\nF100\n";  // lines 1-3
   // Out of scope: refused with the construct and a way out.
