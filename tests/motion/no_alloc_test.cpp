@@ -3,11 +3,21 @@
 // the count.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <new>
+#include <optional>
+#include <string>
+#include <vector>
 
+#include "core/error.hpp"
 #include "motion/job.hpp"
 #include "tests/common/count_allocations.hpp"
 #include "toolpath/path_io.hpp"
@@ -94,6 +104,65 @@ TEST(NoAllocation, ReplayMemoryIsFlatInPathLength) {
   std::cout << "[ memory   ] job built: " << short_run.build_bytes << " B (10 turns), "
             << long_run.build_bytes << " B (40 turns), " << per_point << " B per control point\n";
   EXPECT_LE(per_point, 512);
+}
+
+// Every program we have (tests/ngc and, where installed, LinuxCNC's samples) that reads, on the
+// machine under which flowsnake.ngc's landing once wrote past the planner's buffers (F15000,
+// 3000 mm/s², 60 000 mm/s³): the job sizes its buffers when it is made, from the machine's top
+// feed, and no period of the whole walk allocates (a buffer grown in a period would be an
+// allocation here; one written past is ASan's, in the debug tree). Each walks to its end.
+TEST(NoAllocation, EveryProgramWeHaveWalksWithoutAllocating) {
+  namespace fs = std::filesystem;
+  const fs::path table =
+      fs::temp_directory_path() / ("ncd_noalloc_" + std::to_string(getpid()) + ".tbl");
+  std::ofstream(table) << "T1 P1 Z75.5 D6\nT2 P2 Z-0.25 D12.7\nT3 P3 Z28.575 D3.175\n"
+                          "T4 P4 Z19.05 D9.525\nT5 P5 Z50 D2.54\nT7 P7 Z60 D5\nT10 P10 Z100 D8\n"
+                          "T20 P20 Z50.8 D25.4\n";
+  std::vector<fs::path> programs;
+  for (const fs::path& dir :
+       {fs::path(NCD_SOURCE_DIR) / "tests" / "ngc", fs::path("/usr/share/linuxcnc/ncfiles")}) {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      if (e.path().extension() == ".ngc") programs.push_back(e.path());
+    }
+  }
+  std::sort(programs.begin(), programs.end());
+  JobConfig cfg;
+  cfg.limits.max_feed_mm_per_min = 15000.0;
+  cfg.limits.max_accel_mm_per_s2 = 3000.0;
+  cfg.limits.max_jerk_mm_per_s3 = 60000.0;
+  cfg.cutting.pick_feed_mm = 0.0;
+  cfg.cutting.roughness_target_um = 1000.0;
+  int walked = 0;
+  for (const fs::path& file : programs) {
+    toolpath::InterpretOptions o;
+    o.tool_table = table.string();
+    o.subroutine_path = {file.parent_path().string()};
+    std::optional<toolpath::Path> path;
+    try {
+      path = toolpath::read_path_file(file.string(), o);
+    } catch (const InputError&) {
+      continue;  // refused by the reader (tests/app/walk_programs_test.cpp checks the words)
+    }
+    Job job(*path, cfg);
+    ASSERT_TRUE(job.prepare()) << file << ": " << job.fault_message();
+    const long before = ncd::test::g_allocations.load();
+    Setpoint sp;
+    std::int64_t periods = 0;
+    while (!sp.done && periods < 50'000'000) {
+      job.prepare();
+      sp = job.step();
+      ++periods;
+      ASSERT_EQ(sp.fault, StepFault::None) << file << ": " << job.fault_message();
+    }
+    EXPECT_TRUE(sp.done) << file;
+    EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
+        << file << ": allocations during " << periods << " periods";
+    ++walked;
+  }
+  fs::remove(table);
+  std::printf("%d of %zu programs walked without allocating\n", walked, programs.size());
+  EXPECT_GE(walked, 40);
 }
 
 }  // namespace
