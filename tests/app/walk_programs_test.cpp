@@ -3,7 +3,7 @@
 // scripts/install-judges.sh installs; without it they are not listed, and the summary test says
 // so). Each is replayed whole and --path-only on a fast machine (F15000, 3000 mm/s², 60 000
 // mm/s³: the limits under which flowsnake.ngc's landing once wrote past the planner's buffers),
-// with a tool table (T1–T20, lengths not 0), a parameter file (G28/G30 homes) and the program's
+// with a tool table (T1–T20: the diameters of LinuxCNC's sim table, lengths of 19–100 mm), a parameter file (G28/G30 homes) and the program's
 // folder on the subroutine path. A run is either accepted (exit 0: walked to its end with 0
 // limit violations) or refused with a message naming the program (exit 2). Never a crash, a
 // sanitizer report (the debug tree's ncd is built with ASan and UBSan and aborts on one), an
@@ -47,8 +47,8 @@ std::string slurp(const fs::path& p) {
 }
 
 constexpr const char* kToolTable =
-    "T1 P1 Z75.5 D6 ;ball 6\nT2 P2 Z-0.25 D12.7\nT3 P3 Z28.575 D3.175\nT4 P4 Z19.05 D9.525\n"
-    "T5 P5 Z50 D2.54\nT7 P7 Z60 D5\nT10 P10 Z100 D8\nT20 P20 Z50.8 D25.4\n";
+    "T1 P1 Z75.5 D0.25\nT2 P2 Z-0.25 D0.5\nT3 P3 Z28.575 D0.125\nT4 P4 Z19.05 D0.375\n"
+    "T5 P5 Z50 D0.1\nT7 P7 Z60 D0.2\nT10 P10 Z100 D0.3\nT20 P20 Z50.8 D1\n";
 constexpr const char* kVarFile = "5161 1.0\n5162 2.0\n5163 30.0\n5181 -1.0\n5182 -2.0\n5183 25.0\n";
 
 struct Replay {

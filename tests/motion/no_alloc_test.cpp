@@ -115,9 +115,9 @@ TEST(NoAllocation, EveryProgramWeHaveWalksWithoutAllocating) {
   namespace fs = std::filesystem;
   const fs::path table =
       fs::temp_directory_path() / ("ncd_noalloc_" + std::to_string(getpid()) + ".tbl");
-  std::ofstream(table) << "T1 P1 Z75.5 D6\nT2 P2 Z-0.25 D12.7\nT3 P3 Z28.575 D3.175\n"
-                          "T4 P4 Z19.05 D9.525\nT5 P5 Z50 D2.54\nT7 P7 Z60 D5\nT10 P10 Z100 D8\n"
-                          "T20 P20 Z50.8 D25.4\n";
+  std::ofstream(table) << "T1 P1 Z75.5 D0.25\nT2 P2 Z-0.25 D0.5\nT3 P3 Z28.575 D0.125\n"
+                          "T4 P4 Z19.05 D0.375\nT5 P5 Z50 D0.1\nT7 P7 Z60 D0.2\nT10 P10 Z100 D0.3\n"
+                          "T20 P20 Z50.8 D1\n";
   std::vector<fs::path> programs;
   for (const fs::path& dir :
        {fs::path(NCD_SOURCE_DIR) / "tests" / "ngc", fs::path("/usr/share/linuxcnc/ncfiles")}) {
