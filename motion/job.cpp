@@ -56,8 +56,6 @@ std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_
   return s;
 }
 
-// The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
-// first (docs/planner.md §3b); the corners left between polyline parts are then blended.
 // Every number of the path the job will read in its periods, checked at its start: a feed
 // that is not a positive finite number, a tolerance that is negative or not finite, a point
 // that is not finite. (Inside the periods a bad number could only end the job in a fault.)
@@ -94,6 +92,8 @@ void validate_path(const toolpath::Path& path) {
   }
 }
 
+// The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
+// first (docs/planner.md §3b); the corners left between polyline parts are then blended.
 toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
                             interpolator::FitReport* fit, interpolator::BlendReport* report) {
   interpolator::validate(c.limits);
