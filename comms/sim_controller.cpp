@@ -43,13 +43,20 @@
 //    (stepper.c, planner.c, serial.c): a move leaves the planner, and Bf:'s count and Ln:, when
 //    its last 10 ms segment is prepared, up to 5 segments before the motion gets there (this
 //    also frees its slot for the next line); the byte count is grbl's serial ring, which holds
-//    only the bytes behind a line waiting for the planner (docs/dnc-link.md). `!` holds
-//    (the motion stops at once where it is: Hold:0), `~` resumes, 0x18 resets. A reset (also
-//    the injected fault, and with reset_on_open a sender opening the port) aborts the block
-//    executing, throws away the planner, the receive buffer and a partial line, keeps the
-//    position, and after boot_s (bytes received meanwhile are lost, counted as
-//    bytes_before_banner) sends the banner; a reset while moving first says ALARM:3 and locks
-//    the controller (error:9 for every line) until `$X`. N numbers are ignored.
+//    only the bytes behind a line waiting for the planner (docs/dnc-link.md); the status mask
+//    ($10, status_mask) chooses MPos or WPos and whether Bf: is there, FS: gives the spindle's
+//    speed (0 when stopped), WCO: the work offset on the first report after a reset and every
+//    10th (idle) or 30th (busy). `!` decelerates the move at hold_accel (Hold:1; a move that
+//    cannot stop within itself runs to its end) and holds it at rest (Hold:0), when grbl's
+//    protocol loop is suspended: no line is read until `~` (ignored before Hold:0) or a reset.
+//    0x18 resets. A reset (also the injected fault, a power cycle, and with reset_on_open a
+//    sender opening the port) aborts the block executing, throws away the planner, the receive
+//    buffer and a partial line, stops the spindle and coolant, returns the parser to its
+//    power-on modes at the machine's position (which a power-up restarts at 0), and after
+//    boot_s (bytes received meanwhile are lost, counted as bytes_before_banner) sends the
+//    banner, lost if the port is closed then; a reset in motion (before Hold:0) first says
+//    ALARM:3 and locks the controller (error:9 for every g-code line) until `$X`. `$10=N` sets
+//    the mask (error:8 unless Idle). N numbers are ignored.
 // 4. Lines. LF ends a line; CR and NUL are removed, spaces and tabs trimmed at both ends. Empty
 //    lines and `%` lines are framing: a `%` after a block on the current connection ends the
 //    program; any other `%` opens it (again, from a sender that reconnected).
@@ -795,7 +802,8 @@ struct SimController::Impl {
     if (!drip && grbl_locked) {  // grbl: g-code is locked out until $X (or $H)
       line.kind = Kind::Error;
       line.error = kErrAlarmLock;
-      log.errors.push_back({t, log.lines_received, line.error, text, "locked by an alarm: send $X"});
+      log.errors.push_back(
+          {t, log.lines_received, line.error, text, "locked by an alarm: send $X"});
       ++log.blocks_rejected;
       queue_line(std::move(line), t);
       return;
@@ -1303,7 +1311,8 @@ struct SimController::Impl {
     log.resets.push_back(r);
     event("reset (" + cause + ")" + (r.aborted ? ": aborted '" + *r.aborted + "'" : "") + ", " +
           std::to_string(r.blocks_lost) + " queued blocks lost, " +
-          (power_up ? "position restarts at 0" : "position kept"));
+          (power_up ? "position restarts at 0" : "position kept") +
+          (r.in_motion && !drip ? "; in motion: ALARM:3, locked until $X" : ""));
     if (drip) {  // a Fanuc-type control: DC3 then SYN, ready again at low water
       send_flow(true);
       send(std::string(1, kSyn));
@@ -1733,15 +1742,15 @@ struct SimController::Impl {
   long current_seq = 0;
   std::array<double, 3> cur_from{}, hold_pos{};  // the move executing: from, and where held
   double cur_t0 = 0.0, cur_t1 = 0.0, remaining_s = 0.0;
-  bool sync_busy = false;  // ack: the executor runs a dwell outside the planner
-  bool held = false;       // ack: feed hold (!), decelerating or at rest
+  bool sync_busy = false;    // ack: the executor runs a dwell outside the planner
+  bool held = false;         // ack: feed hold (!), decelerating or at rest
   bool hold_to_end = false;  // the held move cannot stop before its end: it runs to it
   double hold_t = 0.0, hold_done_t = 0.0;  // the `!`, and when the motion is at rest
-  bool pausing = false;    // a program stop (M0) waits for cycle start
-  int exec_spindle = 5;    // the spindle as executed: 3, 4 or 5
+  bool pausing = false;                    // a program stop (M0) waits for cycle start
+  int exec_spindle = 5;                    // the spindle as executed: 3, 4 or 5
   bool exec_coolant = false;
   double exec_rpm = 0.0;
-  bool grbl_locked = false;  // ack: alarm state after a reset in motion, until $X
+  bool grbl_locked = false;           // ack: alarm state after a reset in motion, until $X
   int status_mask = cfg.status_mask;  // grbl's $10
   int wco_countdown = 0;              // status reports until the next WCO: field
   std::optional<double> booting_until;

@@ -289,7 +289,7 @@ struct SimLog {
   std::vector<SimEvent> events;
   std::vector<SimReset> resets;
   long status_reports = 0, feed_holds = 0, cycle_starts = 0;
-  long unlocks = 0;  // ack: `$X` lines that cleared an alarm lock
+  long unlocks = 0;                       // ack: `$X` lines that cleared an alarm lock
   std::uint64_t bytes_before_banner = 0;  // ack: received while booting, before the banner
   long banners_sent = 0;
   long banners_lost = 0;  // sent while the port was closed or no sender had it open

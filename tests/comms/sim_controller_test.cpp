@@ -1224,8 +1224,8 @@ TEST(SimController, GrblResetDuringTheHoldAlarmsAfterItDoesNot) {
   EXPECT_NE(wpos.find("|WPos:"), std::string::npos) << wpos;
   const SimLog& log = run.stop();
   ASSERT_EQ(log.resets.size(), 2U);
-  EXPECT_TRUE(log.resets[0].in_motion);   // during Hold:1
-  EXPECT_FALSE(log.resets[1].in_motion);  // at rest in Hold:0
+  EXPECT_TRUE(log.resets[0].in_motion);     // during Hold:1
+  EXPECT_FALSE(log.resets[1].in_motion);    // at rest in Hold:0
   EXPECT_EQ(log.resets[1].blocks_lost, 1);  // G1 X6, still in the receive buffer
   EXPECT_EQ(log.unlocks, 1);
   for (const SimExecuted& e : log.executed) EXPECT_NE(e.text, "G1 X6");  // lost in the reset
@@ -1268,7 +1268,8 @@ TEST(SimController, GrblRestartBannerIsLostWhileThePortIsClosed) {
   EXPECT_EQ(log.banners_lost, 1);
   EXPECT_EQ(log.link_drops, 1);
   bool spindle_stopped = false;
-  for (const SimEvent& e : log.events) spindle_stopped = spindle_stopped || e.kind == "spindle_stop";
+  for (const SimEvent& e : log.events)
+    spindle_stopped = spindle_stopped || e.kind == "spindle_stop";
   EXPECT_TRUE(spindle_stopped);
 }
 
