@@ -436,6 +436,7 @@ class Session {
         line.rfind("[MSG:Reset to continue]", 0) == 0) {
       track_ok_ = false;  // the planner may have been cleared: Bf no longer counts executed
     }
+    if (stopping_ && is_banner(line)) reset_seen_ = true;  // the halt's reset, in any phase
     if (auto st = parse_grbl_status(line)) {
       on_status(*st);
       return;
@@ -795,7 +796,7 @@ class Session {
   }
 
   // What the controller's state at start-up allows.
-  void start_state(const std::string& state) {
+  void start_state(std::string state) {  // a copy: the halt below reads new statuses
     report_.controller_state = state;
     if (state == "Idle") {
       // A half line an earlier connection left is flushed before the first block; a banner
