@@ -78,9 +78,10 @@ std::string restart_flag(std::int64_t first) {
 
 // What to do after a job that did not complete: why, what to check, and the flags to add to the
 // same command after "plus: ".
-std::string next_step(const comms::SenderReport& r, bool ack, bool skips_repeated_n, bool journal) {
+std::string next_step(const comms::SenderReport& r, bool ack, bool skips_repeated_n, bool journal,
+                      std::int64_t program_blocks) {
   const std::int64_t first = r.blocks_confirmed;
-  if (first >= r.blocks && r.blocks > 0 && !r.stopped) return "";
+  if (first >= program_blocks) return "every block has run: nothing is left to send";
   if (!ack) {
     if (skips_repeated_n && journal) {
       return "check the machine, then send the rest with the same port settings plus: --resume "
@@ -453,7 +454,8 @@ int run_stream(const StreamArgs& a) {
   if (ack && !r.controller_state.empty()) {
     std::cout << "controller: " << r.controller_state << "\n";
   }
-  const std::string next = next_step(r, ack, a.skips_repeated_n, !journal_path.empty());
+  const std::string next =
+      next_step(r, ack, a.skips_repeated_n, !journal_path.empty(), program.blocks);
   if (!next.empty()) std::cout << "next: " << next << "\n";
   return 3;
 }
