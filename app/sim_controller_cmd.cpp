@@ -48,6 +48,8 @@ struct SimArgs {
   double boot_s = 0.0;
   bool no_machine_safety = false, optional_stop = false;
   double tool_change_s = 5.0;
+  int status_mask = 3;
+  double accel = 100.0;
   comms::SimFaults faults;
 };
 
@@ -108,6 +110,8 @@ int run_sim_controller(const SimArgs& a) {
   cfg.machine_safety = !a.no_machine_safety;
   cfg.tool_change_s = a.tool_change_s;
   cfg.optional_stop = a.optional_stop;
+  cfg.status_mask = a.status_mask;
+  cfg.hold_accel_mm_per_s2 = a.accel;
   if (a.seed < -1) {
     throw InputError("--seed " + std::to_string(a.seed) + " is invalid: use 0 or more");
   }
@@ -199,6 +203,14 @@ void register_sim_controller(CLI::App& app, Runner& run) {
       ->capture_default_str();
   c->add_flag("--report-line-numbers", a->report_line_numbers,
               "ack: status reports carry Ln: (grbl built with USE_LINE_NUMBERS)");
+  c->add_option("--status-mask", a->status_mask,
+                "ack: grbl's $10 at start-up: 1 MPos (grbl's default), 2 WPos and Bf:, 3 MPos "
+                "and Bf: (0 WPos); a $10=N line changes it")
+      ->capture_default_str();
+  c->add_option("--accel", a->accel,
+                "ack: a feed hold's deceleration, mm/s² (grbl's $120): Hold:1 while slowing "
+                "down, then Hold:0; a reset before Hold:0 is a reset in motion (ALARM:3)")
+      ->capture_default_str();
   c->add_flag("--no-machine-safety", a->no_machine_safety,
               "with --dialect: no alarm for a feed move (G1 G2 G3) with the spindle stopped "
               "(grbl itself has no such check; the simulation's default is to alarm)");
@@ -218,6 +230,10 @@ void register_sim_controller(CLI::App& app, Runner& run) {
                 "fault: controller reset after N blocks: the block executing is aborted, the "
                 "buffers are lost, the position is kept, the banner is sent again (drip: DC3 "
                 "SYN)");
+  c->add_option("--restart-after-blocks", f.restart_after_blocks,
+                "fault (ack): after N blocks the controller restarts as at power-up while its "
+                "USB link goes down for --down-s: queue and modes lost, position restarts at 0, "
+                "and its banner is sent while the port is closed (a sender never sees it)");
   c->add_option("--down-s", f.down_s, "fault: how long the link stays down, s")
       ->capture_default_str();
   c->add_flag("--xoff-storm", f.xoff_storm,

@@ -1,10 +1,14 @@
 // `ncd stream`: send an NC program to a controller over RS-232 DNC and exit 0 once the
 // controller has all of it (drip: delivered; grbl: executed, as its status reports say). A
 // transfer journal next to the program records the first block not known executed, so a
-// stopped or killed transfer can resume there (--resume) or restart from any block with the
-// modal state and a safe re-entry (--restart-from N). Exit status: 0 done, 2 invalid input, 3
-// the job did not complete (interrupted by a reset, an alarm, an error reply or a lost link,
-// or stopped by a signal; the report names the blocks). docs/dnc-link.md has the rules.
+// stopped or killed transfer can resume there (--resume, drip with a controller that skips
+// repeated N) or restart from any block with the modal state and a safe re-entry
+// (--restart-from N). A job that does not complete ends with what to do next, as the flags to
+// add to the same command ("next: … plus: --restart-from N"): for grbl the block comes from
+// what its status reports said, and after ncd was killed from where grbl's position says it
+// stopped. Exit status: 0 done, 2 invalid input, 3 the job did not complete (interrupted by a
+// reset, an alarm, an error reply or a lost link, or stopped by a signal; the report names the
+// blocks). docs/dnc-link.md has the rules.
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -44,6 +48,7 @@ struct StreamArgs {
   int planner_blocks = 15;
   double status_hz = 5.0, banner_wait_s = 2.5, startup_timeout_s = 10.0;
   bool skips_repeated_n = false;
+  bool unlock = false;
 };
 
 // The modal state in force before block `n` (1-based) and the highest Z reached before it.
@@ -64,6 +69,104 @@ comms::ModalState state_before(const std::string& path, long n, double& max_z_mm
     if (m.motion) max_z_mm = std::max(max_z_mm, m.to_mm[2]);
   }
   return modal.state();
+}
+
+// The restart flag for the first block not done (0-based), of `blocks`.
+std::string restart_flag(std::int64_t first) {
+  return first <= 0 ? "--restart" : "--restart-from " + std::to_string(first + 1);
+}
+
+// What to do after a job that did not complete: why, what to check, and the flags to add to the
+// same command after "plus: ".
+std::string next_step(const comms::SenderReport& r, bool ack, bool skips_repeated_n, bool journal,
+                      std::int64_t program_blocks) {
+  const std::int64_t first = r.blocks_confirmed;
+  if (first >= program_blocks) return "every block has run: nothing is left to send";
+  if (!ack) {
+    if (skips_repeated_n && journal) {
+      return "check the machine, then send the rest with the same port settings plus: --resume "
+             "--controller-skips-repeated-n";
+    }
+    return "a drip-feed controller runs what it receives and says nothing: it may have run "
+           "blocks up to " +
+           std::to_string(first) + " (the first not sent is " + std::to_string(first + 1) +
+           "); check the machine for the first block it has not run, N, then send the rest "
+           "with the same port settings plus: --restart-from N";
+  }
+  const comms::HaltReport& h = r.halt;
+  std::string s;
+  if (h.attempted && !h.at_rest) {
+    s = "the controller could not be brought to a safe halt (" + h.detail + "); ";
+  }
+  if (r.rejected_block >= 0) {
+    s += "fix block " + std::to_string(r.rejected_block + 1) + " (the controller refused it), ";
+  }
+  if (r.blocks_executed < 0) {
+    return s +
+           "check the machine for the first block it has not run, N (executed blocks are "
+           "not known without status reports), then send the rest with the same port "
+           "settings plus: --restart-from N";
+  }
+  const bool alarm = r.controller_state == "Alarm";
+  if (alarm || r.position_may_be_lost) {
+    s += "check the machine: its position may be lost (" +
+         std::string(alarm ? "grbl is in alarm, locked until $X; " : "the controller reset; ") +
+         "home it ($H) if it has homing switches, or set its zero again)";
+  } else {
+    s += "check the machine";
+  }
+  return s +
+         ", then send the rest with the same port settings plus: " + (alarm ? "--unlock " : "") +
+         restart_flag(first);
+}
+
+// A grbl transfer that stopped without finishing (ncd was killed): grbl ran on through the
+// blocks it had queued, so the journal's block is behind the machine. Where grbl stands now
+// (asked with `?` only) says which block is the first not done; the refusal names it.
+std::string advice_after_stop(const comms::SenderSettings& settings, const std::string& program,
+                              const comms::JournalState& j, const std::string& journal_path) {
+  std::string head = "a transfer of " + program + " to grbl stopped before the end (journal " +
+                     journal_path + ": its first block not known executed is " +
+                     std::to_string(j.confirmed + 1) + " of " + std::to_string(j.blocks) +
+                     "), and grbl ran on through the blocks it had queued, so --resume cannot be "
+                     "used";
+  const std::string fallback =
+      "; check the machine for the first block it has not run, N, then send the rest with the "
+      "same port settings plus: --restart-from N (or --restart to send it all again)";
+  const comms::GrblProbe p = comms::probe_grbl(settings, 60.0);
+  if (!p.spoke)
+    return head + "; where grbl stands could not be read (" + p.failure + ")" + fallback;
+  if (p.banner) {
+    return head + "; grbl reset when the port opened, so its position tells nothing" + fallback;
+  }
+  if (p.state == "Run" || p.state == "Jog" || p.state == "Hold:1") {
+    return head + "; grbl is still moving (" + p.state +
+           ") after 60 s: wait until it is Idle, "
+           "then run this again";
+  }
+  if (!p.position) {
+    return head + "; grbl reports its machine position without the work offset (WCO)" + fallback;
+  }
+  const auto& x = *p.position;
+  const std::string at =
+      text::fixed(x[0], 3) + ", " + text::fixed(x[1], 3) + ", " + text::fixed(x[2], 3);
+  const comms::PositionMatch m = comms::match_position(program, j.confirmed, j.sent_bound, x);
+  if (!m.first_not_done) {
+    return head + "; grbl is " + p.state + " at " + at + ", and " + m.why + fallback;
+  }
+  const std::int64_t first = *m.first_not_done;
+  if (first >= j.blocks) {
+    return head + "; grbl is " + p.state + " at " + at +
+           ", the end of the last move: every "
+           "block has run (pass --restart to send it all again)";
+  }
+  const bool alarm = p.state == "Alarm";
+  return head + "; grbl is " + p.state + " at " + at + ", " +
+         (m.at_end ? "the end of block " : "inside block ") + std::to_string(m.move + 1) +
+         ", the only block sent that it lies on: check the machine" +
+         (alarm ? " (grbl is in alarm, locked until $X: its position may be lost)" : "") +
+         ", then send the rest with the same port settings plus: " + (alarm ? "--unlock " : "") +
+         restart_flag(first);
 }
 
 nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettings& line,
@@ -89,6 +192,17 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
          r.blocks_executed >= 0 ? nlohmann::json(nullptr) : nlohmann::json(r.blocks_confirmed + 1)},
         {"interrupted", r.interrupted},
         {"dropped", r.dropped},
+        {"rejected_block",
+         r.rejected_block >= 0 ? nlohmann::json(r.rejected_block + 1) : nlohmann::json(nullptr)},
+        {"controller_state", r.controller_state},
+        {"halt",
+         {{"attempted", r.halt.attempted},
+          {"at_rest", r.halt.at_rest},
+          {"reset", r.halt.reset},
+          {"alarm", r.halt.alarm},
+          {"rest_s", r.halt.rest_s},
+          {"state", r.halt.state},
+          {"detail", r.halt.detail}}},
         {"reconnects", r.reconnects},
         {"link_losses", r.link_losses},
         {"startup", r.startup},
@@ -214,12 +328,11 @@ int run_stream(const StreamArgs& a) {
                          " belongs to a different program (its checksum differs): pass "
                          "--restart to send this program from the start, or --journal FILE");
       }
-      if (a.resume && ack) {
-        throw InputError(
-            "--resume with --protocol ack: grbl kept executing the blocks it had queued after "
-            "ncd stopped, so sending from the journal's block " +
-            std::to_string(previous->confirmed + 1) +
-            " could repeat them; check the machine, then use --restart-from N");
+      if (ack) {  // with or without --resume: where grbl stands says where to restart
+        comms::SenderSettings probe;
+        probe.line = line;
+        probe.banner_wait_s = a.banner_wait_s;
+        throw InputError(advice_after_stop(probe, a.program, *previous, journal_path));
       }
       if (a.resume && !a.skips_repeated_n) {
         throw InputError(
@@ -230,10 +343,17 @@ int run_stream(const StreamArgs& a) {
             "discards repeated N numbers, or check the machine and use --restart-from N");
       }
       if (!a.resume) {
-        throw InputError("a transfer of " + a.program + " stopped at block " +
-                         std::to_string(previous->confirmed + 1) + " of " +
-                         std::to_string(previous->blocks) + " (journal " + journal_path +
-                         "): pass --resume to continue there, or --restart to send it all again");
+        throw InputError(
+            "a transfer of " + a.program + " stopped at block " +
+            std::to_string(previous->confirmed + 1) + " of " + std::to_string(previous->blocks) +
+            " (journal " + journal_path + "): " +
+            (a.skips_repeated_n
+                 ? "pass --resume to continue there"
+                 : "a drip-feed controller may have received blocks after it and runs a block it "
+                   "receives twice, so pass --resume --controller-skips-repeated-n only if its "
+                   "manual says it discards repeated N numbers, or check the machine and pass "
+                   "--restart-from N") +
+            ", or --restart to send it all again");
       }
       first_block = previous->confirmed;
       if (previous->settings != comms::describe(line)) {
@@ -268,6 +388,8 @@ int run_stream(const StreamArgs& a) {
   settings.controller_skips_repeated_n = a.skips_repeated_n;
   settings.preamble = preamble;
   settings.dialect = dialect;
+  settings.halt_on_stop = ack;  // Ctrl-C: hold grbl, reset it once at rest (docs/dnc-link.md)
+  settings.unlock = a.unlock;
   comms::ProgramFile source(a.program);
   const bool quiet = a.quiet;
   comms::DncSender sender(settings, source, [quiet](const comms::SenderEvent& e) {
@@ -324,14 +446,17 @@ int run_stream(const StreamArgs& a) {
   }
   if (r.stopped) {
     std::cout << "stopped; the first block not known " << (ack ? "executed" : "sent") << " is "
-              << r.blocks_confirmed + 1
-              << (journal_path.empty() ? ""
-                                       : "; resume with --resume (journal " + journal_path + ")")
-              << "\n";
+              << r.blocks_confirmed + 1 << "\n";
   } else {
     std::cout << "interrupted: " << r.failure << "\n";
-    if (!r.dropped.empty()) std::cout << "dropped: " << r.dropped << "\n";
   }
+  if (!r.dropped.empty()) std::cout << "dropped: " << r.dropped << "\n";
+  if (ack && !r.controller_state.empty()) {
+    std::cout << "controller: " << r.controller_state << "\n";
+  }
+  const std::string next =
+      next_step(r, ack, a.skips_repeated_n, !journal_path.empty(), program.blocks);
+  if (!next.empty()) std::cout << "next: " << next << "\n";
   return 3;
 }
 
@@ -343,8 +468,8 @@ void register_stream(CLI::App& app, Runner& run) {
       "stream",
       "Send an NC program to a controller over RS-232 DNC (drip feed with XON/XOFF or RTS/CTS, "
       "or grbl-type acknowledged streaming). Exits 0 once the controller has all of it, 3 if "
-      "the transfer stopped (the journal lets --resume continue at the first unconfirmed "
-      "block).");
+      "the transfer stopped, with what to do next (a restart from the first block not known "
+      "executed).");
   c->add_option("program", a->program, "the NC program (one block per line)")->required();
   c->add_option("--port", a->port, "serial device, e.g. /dev/ttyS0 or a sim-controller link")
       ->required();
@@ -387,6 +512,9 @@ void register_stream(CLI::App& app, Runner& run) {
   c->add_option("--startup-timeout", a->startup_timeout_s,
                 "ack: give up when the controller has not spoken after this long, s")
       ->capture_default_str();
+  c->add_flag("--unlock", a->unlock,
+              "ack: if grbl is in alarm at start-up (locked, e.g. after ALARM:3), clear the lock "
+              "with $X before sending; only once the machine has been checked");
   c->add_flag("--controller-skips-repeated-n", a->skips_repeated_n,
               "drip: the controller's manual says it discards a block whose N it already has; "
               "only then are blocks resent after a lost link");

@@ -17,9 +17,13 @@
 // (controller_skips_repeated_n, numbered blocks). Otherwise the job stops as interrupted.
 //
 // Acknowledged streaming (grbl 1.1). Nothing is sent before the controller has spoken: the
-// sender waits banner_wait_s for the banner ("Grbl 1.1h ['$' for help]"), else wakes it with an
-// LF and waits for its `ok`, up to startup_timeout_s. Each line is answered `ok` (queued) or
-// `error:N`; character counting keeps the sum of unanswered lines within the receive buffer.
+// sender waits banner_wait_s for the banner ("Grbl 1.1h ['$' for help]"), else asks `?` (a
+// real-time byte), else wakes it with the half-line flush and waits for its answer, up to
+// startup_timeout_s. Then a status says whether it can take a program: Idle goes on (after the
+// flush, when there was no banner); Alarm ends the job before any line (with `unlock`, `$X`
+// first); a hold (grbl reads no line while held at rest) is brought to a safe halt; Run and the
+// rest end the job. Each line is answered `ok` (queued) or `error:N`; character counting keeps
+// the sum of unanswered lines within the receive buffer.
 // `?` is polled at status_hz; each status report says which of the queued blocks are done:
 //   Idle      all done;
 //   Ln:n      the moves before block n have left grbl's planner;
@@ -31,12 +35,18 @@
 // comes after an `ok` in the stream was made after that block was queued, so the counts agree.
 // A banner, `[MSG:Reset to continue]` or ALARM mid-program is a reset: the job is interrupted,
 // the report names the last block known executed and the first not known executed, and ncd
-// does not resume past it. On error:N or ALARM the sender holds (`!`), reads a status, then
-// resets (0x18) so nothing queued after the error runs, and reports what the reset dropped.
+// does not resume past it. On error:N or ALARM, on a stop with halt_on_stop, and on
+// request_halt the sender brings grbl to a safe halt: `!`, then `?` until the state is at rest
+// (Hold:0, Idle, Alarm: a reset during the hold's deceleration, Hold:1, is a reset in motion,
+// which raises ALARM:3 and locks grbl), then 0x18, its banner, and a status for the state left
+// (the report's controller_state; Alarm means `$X` is needed). It reports what the reset
+// dropped; the rejected line itself is neither queued nor credited with the oks that follow.
 //
 // A lost link (ack). The port is reopened with back-off (0.1 s doubling to 2 s, for up to
 // reconnect_max_s). A banner on the new connection is a reset: interrupted. Otherwise the
-// sender holds (`!`) and reads status until the controller is held or idle, then resumes only
+// sender holds (`!`) and reads status until the controller is held or idle. A restart can hide
+// here, its banner sent while the port was closed: a spindle stopped (FS:…,0) where the program
+// has it turning, or a position that is no candidate's, tells it. The sender resumes only
 // if the position proves what the controller holds: the receive buffer is empty (Bf), and
 // either the planner is empty and the position is the end point of exactly one candidate move
 // (queued or sent), or the position lies inside exactly one candidate move's segment and the
@@ -45,13 +55,17 @@
 // and its answer: a half line the cut left in grbl's line buffer is refused whole with it, or,
 // cut inside its `;` comment, queued (ok), and then not sent again. Anything else (no Bf, a
 // non-empty buffer, a full planner, a position that matches none or several, a block without
-// motion right after the last one held) stops as interrupted.
+// motion right after the last one held) stops as interrupted, and the controller, held to be
+// asked, is not left held: the safe halt completes the hold with a reset.
 //
 // Faults. A hang-up or I/O error closes the port. A hold (XOFF or CTS) longer than
 // xoff_timeout_s is reported and raises the hold callback, which a live job uses to bring the
 // motion to a planned stop. NAK or SYN (drip) stop the transfer with the block named. Other
 // bytes are noise: counted, logged, ignored. The journal records the first block not known
-// executed (ack) or sent (drip: carried by the line), so a restarted ncd resumes there.
+// executed (ack) or sent (drip: carried by the line), so a restarted ncd resumes there, and a
+// bound on the blocks written (raised 32 blocks at a time, before the block goes out), so that
+// after ncd was killed the blocks grbl may have run on with are known: match_position finds the
+// one its position lies on, and probe_grbl asks grbl where it is with `?` alone.
 //
 // Live counters (docs/dnc-link.md, "Live counters"). After each pass of the loop, and at the
 // end, the session stores what it has done so far into relaxed atomics (SenderCounters), read
@@ -101,6 +115,12 @@ constexpr std::size_t kGrblSegments = 5;
 // limit), so nothing of the half line runs. Only a half line inside a `;` comment, whose code
 // arrived whole, swallows it and is queued (ok). docs/dnc-link.md, "A half line".
 constexpr const char* kFlushText = "))";
+constexpr char kResetByte = 0x18;  // grbl's soft reset (real-time)
+
+// The program's spindle turns after a block: M3 or M4 with a speed above 0.
+bool spins(const ModalState& m) {
+  return m.spindle != 5 && m.speed_rpm.value_or(0.0) > 0.0;
+}
 
 struct Item {
   std::int64_t index = kFraming;  // program block, or one of the negative kinds
@@ -109,6 +129,7 @@ struct Item {
   double end_mark = -1.0;         // bytes written on this connection when its last byte went out
   BlockMotion geo;                // what the block does
   std::optional<long> n;          // its N
+  bool spindle_on = false;        // the program's spindle turns (M3/M4 at S > 0) after it
 };
 
 bool starts_with_n_word(const std::string& text) {
@@ -178,13 +199,14 @@ class Session {
  public:
   Session(const SenderSettings& s, BlockSource& source, const DncSender::EventFn& on_event,
           const DncSender::HoldFn& on_hold, TransferJournal* journal, std::int64_t first_block,
-          SenderCounters& counters)
+          SenderCounters& counters, const std::atomic<bool>& halt_request)
       : s_(s),
         source_(source),
         on_event_(on_event),
         on_hold_(on_hold),
         journal_(journal),
         counters_(counters),
+        halt_request_(halt_request),
         ack_(s.line.protocol == Protocol::Ack),
         cps_(chars_per_s(s.line)),
         window_(s.resend_window_chars >= 0
@@ -204,6 +226,7 @@ class Session {
       it.index = kPreamble;
       it.bytes = line + eob_text(s.line.eob);
       it.geo = pre.apply(line);
+      it.spindle_on = spins(pre.state());
       items_.push_back(std::move(it));
     }
     report_.startup = ack_ ? "none" : "";
@@ -221,8 +244,10 @@ class Session {
     last_tick_ = t0_;
     next_progress_s_ = s_.progress_period_s;
     while (true) {
-      if (stop.load(std::memory_order_relaxed)) {
+      const bool halt = halt_request_.load() || (s_.halt_on_stop && stop.load());
+      if (halt || stop.load(std::memory_order_relaxed)) {
         report_.stopped = true;
+        if (halt && ack_) halt_on_request();
         break;
       }
       if (!link_ && !reopen(stop)) break;
@@ -411,35 +436,13 @@ class Session {
         line.rfind("[MSG:Reset to continue]", 0) == 0) {
       track_ok_ = false;  // the planner may have been cleared: Bf no longer counts executed
     }
+    if (stopping_ && is_banner(line)) reset_seen_ = true;  // the halt's reset, in any phase
     if (auto st = parse_grbl_status(line)) {
       on_status(*st);
       return;
     }
     if (phase_ == Phase::Startup) {
-      if (is_banner(line)) {
-        if (opened_once_before_) {
-          controller_reset("the controller reset while the link was down (its banner '" + line +
-                           "' came on the new connection)");
-          return;
-        }
-        report_.startup = "banner";
-        track_ok_ = true;  // the banner that opens the job, not a reset in it
-        emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
-        phase_ = Phase::Ready;
-      } else if ((line == "ok" || line.rfind("error:", 0) == 0) && woke_) {
-        // The wake-up line is the half-line flush: refused (error:N) as it should be, or `ok`
-        // when it completed a half line ending in a `;` comment an earlier connection left.
-        report_.startup = "woken";
-        if (line == "ok") {
-          report_.notes.push_back(
-              "the wake-up line completed a half line ending in a ';' comment that an earlier "
-              "connection had left in the controller's line buffer; the controller queued it");
-        }
-        emit(SenderEvent::Kind::Opened, resume_point(), "the controller answered the wake-up line");
-        phase_ = Phase::Ready;
-      } else {
-        noise(line.size() + 1, '\0');
-      }
+      startup_line(line);
       return;
     }
     if (stopping_) {  // after a hold for an error: account what still comes, nothing else
@@ -471,6 +474,17 @@ class Session {
       }
       const std::int64_t block = sent_items_ > 0 ? items_.front().index : next_index_;
       const std::string what = sent_items_ > 0 ? " ('" + trim_eob(items_.front().bytes) + "')" : "";
+      if (sent_items_ > 0) {
+        // The rejected line: grbl did not queue it, and it is not sent again. The oks that come
+        // while stopping belong to the lines after it.
+        if (block >= 0) {
+          report_.rejected_block = block;
+          rejected_reply_ = line;
+        }
+        unacked_bytes_ -= static_cast<int>(items_.front().bytes.size());
+        items_.pop_front();
+        --sent_items_;
+      }
       stop_controller("the controller rejected " +
                       (block >= 0 ? "block " + std::to_string(block + 1) : std::string("a line")) +
                       " with " + line + what);
@@ -478,6 +492,50 @@ class Session {
       stop_controller("the controller raised " + line);
     } else if (is_banner(line) || line.rfind("[MSG:Reset to continue]", 0) == 0) {
       controller_reset("the controller reset mid-program ('" + line + "')");
+    } else {
+      noise(line.size() + 1, '\0');
+    }
+  }
+
+  // A line from the controller before the job has started.
+  void startup_line(const std::string& line) {
+    if (is_banner(line)) {
+      if (opened_once_before_) {
+        controller_reset("the controller reset while the link was down (its banner '" + line +
+                         "' came on the new connection)");
+        return;
+      }
+      report_.startup = "banner";
+      track_ok_ = true;  // the banner that opens the job, not a reset in it
+      spoke_ = true;
+      woke_ = wake_pending_ = false;  // a reset cleared its buffers (and any wake-up line)
+      have_status_ = false;           // its state now: ask again
+      next_poll_s_ = now_s();
+      emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
+      return;
+    }
+    const bool answer = line == "ok" || line.rfind("error:", 0) == 0;
+    if (answer && wake_pending_) {
+      // The wake-up line is the half-line flush: refused (error:N) as it should be, or `ok`
+      // when it completed a half line ending in a `;` comment an earlier connection left.
+      wake_pending_ = false;
+      spoke_ = true;
+      if (report_.startup != "banner") report_.startup = "woken";
+      if (line == "ok") {
+        report_.notes.push_back(
+            "the wake-up line completed a half line ending in a ';' comment that an earlier "
+            "connection had left in the controller's line buffer; the controller queued it");
+      }
+      emit(SenderEvent::Kind::Opened, resume_point(), "the controller answered the wake-up line");
+    } else if (answer && unlock_pending_) {
+      unlock_pending_ = false;
+      if (line == "ok") {
+        report_.notes.push_back("the controller's alarm lock was cleared with $X (--unlock)");
+      } else {
+        report_.failure = "the controller refused $X with " + line + "; nothing was sent";
+      }
+    } else if (line.front() == '[') {
+      report_.notes.push_back("the controller said " + line);  // [MSG:…]: informative
     } else {
       noise(line.size() + 1, '\0');
     }
@@ -532,6 +590,8 @@ class Session {
   }
 
   void executed(const Item& it) {
+    last_spindle_on_ = it.spindle_on;
+    if (it.geo.motion) last_end_ = it.geo.to_mm;
     if (it.index >= 0) {
       ++executed_count_;
       last_executed_ = it.index;
@@ -570,6 +630,7 @@ class Session {
     last_status_ = st;
     last_position_ = work_position(st);
     have_status_ = true;
+    if (phase_ == Phase::Startup) spoke_ = true;
     if (phase_ != Phase::Ready && !stopping_) return;  // startup and recovery read it themselves
     if (!track_ok_ || st.state == "Alarm") return;
     track(st, last_position_);
@@ -577,9 +638,9 @@ class Session {
 
   void track(const GrblStatus& st, const Vec3& pos) {
     const std::size_t moves = queued_moves();
-    if (st.state == "Idle") {
+    if (st.state == "Idle") {  // everything queued has run, whatever the fields say
       pop_done(moves);
-      basis("Bf");
+      basis(st.line_number ? "Ln" : st.free_blocks ? "Bf" : "position");
       confirm_journal();
       return;
     }
@@ -658,41 +719,146 @@ class Session {
     }
   }
 
-  // Start-up: never send before the controller has spoken.
+  // Start-up: never send before the controller has spoken, and never a block before its state
+  // is known to take one (docs/dnc-link.md, "Start-up"). Without a banner within banner_wait_s,
+  // ask `?` (a real-time byte, no line); without a status either, wake it with the half-line
+  // flush and wait for its answer. Then, with status polling, read its state: Idle goes on;
+  // Alarm ends the job before any block (or, with `unlock`, sends `$X`); a hold (held at rest, its
+  // protocol loop reads no line) is brought to a safe halt; Run and the rest end the job.
   void startup() {
-    const double since = now_s() - phase_t0_;
-    if (!opened_once_before_) {
-      if (!woke_ && since >= s_.banner_wait_s) {
-        woke_ = true;
-        emit(SenderEvent::Kind::Opened, resume_point(),
-             "no banner within " + fixed(s_.banner_wait_s, 1) +
-                 " s: waking the controller with a line it must refuse");
-        write_raw(std::string(kFlushText) + "\n");
-      }
-      if (since >= s_.startup_timeout_s) {
-        report_.failure = "the controller on " + s_.line.device + " did not speak within " +
-                          fixed(s_.startup_timeout_s, 1) +
-                          " s (no banner, no answer to an empty line): check that it is "
-                          "powered, the port, the baud rate and the frame (" +
-                          describe(s_.line) + "), or raise --startup-timeout";
+    if (opened_once_before_) {
+      // After a lost link: a banner means a reset (handled in ack_line). Without one, hold and
+      // ask where the controller is.
+      if (now_s() - phase_t0_ >= std::min(s_.banner_wait_s, 1.0)) {
+        phase_ = Phase::Recovering;
+        phase_t0_ = now_s();
+        have_status_ = false;
+        write_raw("!?");
+        next_poll_s_ = now_s() + 0.2;
       }
       return;
     }
-    // After a lost link: a banner means a reset (handled in ack_line). Without one, hold and
-    // ask where the controller is.
-    if (since >= std::min(s_.banner_wait_s, 1.0)) {
-      phase_ = Phase::Recovering;
-      phase_t0_ = now_s();
-      have_status_ = false;
-      write_raw("!?");
-      next_poll_s_ = now_s() + 0.2;
+    const double since = now_s() - phase_t0_;
+    const bool ask = s_.status_hz > 0.0;
+    if (!spoke_) {
+      if (since >= s_.startup_timeout_s) {
+        report_.failure = "the controller on " + s_.line.device + " did not speak within " +
+                          fixed(s_.startup_timeout_s, 1) +
+                          " s (no banner, no status report, no answer to a line it must "
+                          "refuse): check that it is powered, the port, the baud rate and the "
+                          "frame (" +
+                          describe(s_.line) + "), or raise --startup-timeout";
+        return;
+      }
+      if (since < s_.banner_wait_s) return;
+      if (ask && !asked_) {
+        asked_ = true;
+        emit(SenderEvent::Kind::Opened, resume_point(),
+             "no banner within " + fixed(s_.banner_wait_s, 1) + " s: asking its status ('?')");
+        write_raw("?");
+      } else if (!woke_ && (!ask || since >= s_.banner_wait_s + 0.5)) {
+        emit(SenderEvent::Kind::Opened, resume_point(),
+             "no banner and no status: waking the controller with a line it must refuse");
+        wake();
+      }
+      return;
     }
+    if (wake_pending_ || unlock_pending_) return;  // their answers come first
+    if (!ask) {
+      if (!woke_ && report_.startup != "banner") return wake();
+      phase_ = Phase::Ready;
+      return;
+    }
+    if (!have_status_) {
+      if (now_s() >= next_poll_s_) {
+        if (++start_polls_ > 8) {  // 2 s without a status: a controller without `?`
+          report_.notes.push_back(
+              "the controller answered no status report at start-up: its state (alarm, hold) "
+              "was not checked");
+          if (!woke_ && report_.startup != "banner") return wake();
+          phase_ = Phase::Ready;
+          return;
+        }
+        write_raw("?");
+        next_poll_s_ = now_s() + 0.25;
+      }
+      return;
+    }
+    start_state(last_status_->state);
+  }
+
+  // The first line after opening: the half-line flush, which grbl must refuse (or which ends a
+  // half line inside a `;` comment an earlier connection left: then that block is queued).
+  void wake() {
+    woke_ = wake_pending_ = true;
+    wrote_line_ = true;
+    write_raw(std::string(kFlushText) + "\n");
+  }
+
+  // What the controller's state at start-up allows.
+  void start_state(std::string state) {  // a copy: the halt below reads new statuses
+    report_.controller_state = state;
+    if (state == "Idle") {
+      // A half line an earlier connection left is flushed before the first block; a banner
+      // (a reset) has cleared it.
+      if (!woke_ && report_.startup != "banner") return wake();
+      phase_ = Phase::Ready;
+      return;
+    }
+    if (state == "Alarm") {
+      report_.position_may_be_lost = true;
+      if (!s_.unlock || unlock_tried_) {
+        report_.failure = unlock_tried_ ? std::string(
+                                              "the controller stays in alarm after $X (grbl keeps "
+                                              "a hard-limit or door alarm until "
+                                              "the cause is cleared); nothing was sent")
+                                        : "the controller is in alarm (locked: grbl refuses every "
+                                          "line with error:9 until $X); "
+                                          "nothing was sent";
+        return;
+      }
+      if (!woke_ && report_.startup != "banner") return wake();
+      unlock_pending_ = unlock_tried_ = true;
+      wrote_line_ = true;
+      emit(SenderEvent::Kind::Opened, resume_point(),
+           "the controller is in alarm: unlocking it with $X (--unlock)");
+      write_raw("$X\n");
+      have_status_ = false;
+      next_poll_s_ = now_s() + 0.25;
+      return;
+    }
+    if (state.rfind("Hold", 0) == 0 && !start_halted_) {
+      // Held: grbl reads no line until `~` or a reset, and `~` would run what it still holds.
+      start_halted_ = true;
+      emit(SenderEvent::Kind::Opened, resume_point(),
+           "the controller is held (" + state + "): bringing it to a safe halt before sending");
+      const HaltReport h = safe_halt();
+      if (!h.ok() && !(h.reset && h.alarm)) {
+        report_.failure = "the controller was held (" + state +
+                          ") and could not be brought to a safe halt: " + halt_text(h) +
+                          "; nothing was sent";
+        return;
+      }
+      report_.notes.push_back("the controller was held (" + state + ") at start-up; ncd halted " +
+                              "it (" + halt_text(h) + ") before sending");
+      woke_ = wake_pending_ = false;  // the reset cleared its buffers: no half line is left
+      report_.startup = "banner";
+      have_status_ = false;
+      next_poll_s_ = now_s();
+      return;
+    }
+    report_.failure =
+        "the controller is not ready for a program: its state is " + state +
+        (state == "Run" || state == "Jog" || state == "Home"
+             ? " (it is moving: it still runs blocks it was sent before; wait until it is Idle)"
+             : "") +
+        "; nothing was sent";
   }
 
   void recovering() {
     const double now = now_s();
     if (now - phase_t0_ > 5.0) {
-      interrupt("the controller gave no status within 5 s after the link came back");
+      give_up("the controller gave no status within 5 s after the link came back");
       return;
     }
     if (have_status_ && last_status_ &&
@@ -712,16 +878,16 @@ class Session {
     const std::string where = " (position " + fixed(pos[0], 3) + ", " + fixed(pos[1], 3) + ", " +
                               fixed(pos[2], 3) + ", " + st.state + ")";
     if (!st.free_blocks) {
-      interrupt(
+      give_up(
           "after the lost link the status has no Bf: field, so the blocks the controller "
           "holds cannot be counted (grbl: $10=2 or 3)" +
           where);
       return;
     }
     if (st.free_bytes && *st.free_bytes < s_.rx_buffer_bytes) {
-      interrupt("after the lost link the controller's receive buffer still holds " +
-                std::to_string(s_.rx_buffer_bytes - *st.free_bytes) +
-                " bytes, lines not yet read: which blocks they are cannot be told" + where);
+      give_up("after the lost link the controller's receive buffer still holds " +
+              std::to_string(s_.rx_buffer_bytes - *st.free_bytes) +
+              " bytes, lines not yet read: which blocks they are cannot be told" + where);
       return;
     }
     // Candidates: queued (ok'd) blocks, then the lines written on the lost connection.
@@ -729,10 +895,27 @@ class Session {
     for (const Item& it : queued_) cands.push_back(&it);
     const std::size_t n_queued = cands.size();
     const std::size_t written = sent_items_ + (cur_off_ > 0 ? 1 : 0);
+    for (std::size_t i = 0; i < written && i < items_.size(); ++i) cands.push_back(&items_[i]);
+    // A restart (a power-up) stops the spindle; its banner is lost while the port is closed.
+    // If the program has the spindle turning before and through every block the controller may
+    // hold, a stopped spindle (FS:…,0) tells that the controller reset and lost its queue.
+    const bool spindle_steady = std::all_of(cands.begin(), cands.end(), [&](const Item* it) {
+      return it->spindle_on == last_spindle_on_;
+    });
+    if (spindle_steady && last_spindle_on_ && st.spindle_rpm && *st.spindle_rpm <= 0.0) {
+      report_.position_may_be_lost = true;
+      give_up(
+          "after the lost link the controller's spindle is stopped (FS:…,0) while the program "
+          "has it turning: the controller has reset (a restart whose banner was sent while the "
+          "port was closed), so its queue and its modes are gone" +
+          where);
+      return;
+    }
+    cands.resize(n_queued);
     if (*st.free_blocks == 0 && written > 0) {
       // grbl's protocol loop takes a whole line out of the receive ring and then waits for a
       // free planner block: such a line is in neither count of Bf:, and runs when room frees.
-      interrupt(
+      give_up(
           "after the lost link the controller's planner is full, so a line it received may "
           "be waiting for room, counted nowhere: which blocks it holds cannot be told" +
           where);
@@ -743,6 +926,13 @@ class Session {
     // The last candidate the controller received: index into cands, or -1 for "none".
     long last = -1;
     if (cands.empty()) {
+      if (last_end_ && dist(*last_end_, pos) > kPositionTolMm) {
+        give_up(
+            "after the lost link the controller is not where the last move known executed "
+            "ended, and it holds nothing ncd sent: it has moved or reset meanwhile" +
+            where);
+        return;
+      }
       last = -1;
     } else if (held == 0) {
       int hits = 0;
@@ -752,12 +942,25 @@ class Session {
           last = static_cast<long>(i);
         }
       }
+      const bool moves =
+          std::any_of(cands.begin(), cands.end(), [](const Item* it) { return it->geo.motion; });
       if (hits != 1) {
-        if (hits == 0 && n_queued == cands.size()) {
-          last = static_cast<long>(cands.size()) - 1;  // nothing in flight: all queued ran
+        if (hits == 0 && n_queued == cands.size() && !moves && last_end_ &&
+            dist(*last_end_, pos) <= kPositionTolMm) {
+          // Nothing in flight and no move queued: the controller is where the last move known
+          // executed ended, so all it had ran.
+          last = static_cast<long>(cands.size()) - 1;
+        } else if (hits == 0) {
+          report_.position_may_be_lost = pos[0] == 0.0 && pos[1] == 0.0 && pos[2] == 0.0;
+          give_up(
+              "after the lost link the controller is at rest where none of the blocks it may "
+              "have ends (a controller that restarted, its banner lost while the port was "
+              "closed, counts its position from 0 again)" +
+              where);
+          return;
         } else {
-          interrupt("after the lost link the position matches " + std::to_string(hits) +
-                    " end points of the blocks the controller may have" + where);
+          give_up("after the lost link the position matches " + std::to_string(hits) +
+                  " end points of the blocks the controller may have" + where);
           return;
         }
       }
@@ -776,8 +979,8 @@ class Session {
         }
       }
       if (hits != 1) {
-        interrupt("after the lost link the position lies on " + std::to_string(hits) +
-                  " of the blocks the controller may have" + where);
+        give_up("after the lost link the position lies on " + std::to_string(hits) +
+                " of the blocks the controller may have" + where);
         return;
       }
       // The planner holds `held` moves starting with e (or with the move after e, at its end).
@@ -790,13 +993,13 @@ class Session {
         }
       }
       if (need > 0) {
-        interrupt("after the lost link the controller holds " + std::to_string(held) +
-                  " moves, more than ncd sent" + where);
+        give_up("after the lost link the controller holds " + std::to_string(held) +
+                " moves, more than ncd sent" + where);
         return;
       }
     }
     if (last + 1 < static_cast<long>(n_queued)) {
-      interrupt(
+      give_up(
           "after the lost link the position says the controller lacks blocks it had "
           "queued" +
           where);
@@ -804,8 +1007,8 @@ class Session {
     }
     const std::size_t next = static_cast<std::size_t>(last + 1);
     if (next < cands.size() && !cands[next]->geo.motion) {
-      interrupt("after the lost link it cannot be told whether block '" +
-                trim_eob(cands[next]->bytes) + "' (no motion) reached the controller" + where);
+      give_up("after the lost link it cannot be told whether block '" +
+              trim_eob(cands[next]->bytes) + "' (no motion) reached the controller" + where);
       return;
     }
     // The controller has cands[0 .. last]: queue the written ones it received, resend the rest.
@@ -841,65 +1044,192 @@ class Session {
     confirm_journal();
   }
 
-  // A reset, seen: nothing to stop, the queue is gone. Never resume past it.
+  // A reset, seen: nothing to stop, the queue is gone. Never resume past it. Its state (an
+  // alarm lock after a reset in motion) is read for the advice.
   void controller_reset(const std::string& why) {
     const std::int64_t first = first_unexecuted();
     dropped_note(first);
+    read_state();
     interrupt(why);
   }
 
-  // An error reply or an alarm: hold at once, read a status, then reset so nothing queued after
-  // it runs.
+  // An error reply or an alarm: bring grbl to a safe halt so that nothing queued after it runs.
   void stop_controller(const std::string& why) {
     report_.alarms.push_back(why);
     emit(SenderEvent::Kind::Alarm, resume_point(), why);
+    if (why.find("ALARM:3") != std::string::npos) report_.position_may_be_lost = true;
     if (s_.reset_on_error && link_) {
-      stopping_ = true;
-      try {
-        have_status_ = false;
-        write_raw("!?");
-        pump_until(1.0, [&] { return have_status_; });
-        write_raw(std::string(1, '\x18'));
-        pump_until(3.0, [&] { return reset_seen_; });
-      } catch (const LinkError&) {
-      }
-      stopping_ = false;
-      report_.notes.push_back("the controller was held (!) and reset (0x18) after the failure");
+      const HaltReport h = safe_halt();
+      report_.notes.push_back("after the failure the controller was " + halt_text(h));
     }
     dropped_note(first_unexecuted());
     interrupt(why);
   }
 
-  template <class Pred>
-  void pump_until(double timeout_s, Pred pred) {
-    const double until = now_s() + timeout_s;
-    while (now_s() < until && !pred()) {
-      read_input();
-      link_->wait(5, false);
+  // A lost link that cannot be resumed: ncd had held the controller (`!`) to read where it is;
+  // it must not be left held (its protocol loop reads no line then, and a `~` would run what it
+  // still holds), so the hold is completed with a reset.
+  void give_up(const std::string& why) {
+    // What the controller holds is not proven (it may even have restarted): its status counts
+    // nothing executed from here on.
+    track_ok_ = false;
+    if (link_ && s_.reset_on_error) {
+      const HaltReport h = safe_halt();
+      report_.notes.push_back("the controller, held to read its position, was " + halt_text(h));
+    }
+    dropped_note(first_unexecuted());
+    interrupt(why);
+  }
+
+  // DncSender::request_halt, or a stop with halt_on_stop.
+  void halt_on_request() {
+    if (!wrote_line_ && report_.blocks_sent == 0) return;  // nothing sent: nothing to stop
+    if (!link_) {
+      report_.halt.attempted = true;
+      report_.halt.detail = "the port was closed: the controller could not be held";
+      return;
+    }
+    const HaltReport h = safe_halt();
+    report_.notes.push_back("stopped: the controller was " + halt_text(h));
+    dropped_note(first_unexecuted());
+  }
+
+  static bool at_rest(const std::string& state) {
+    return state == "Idle" || state == "Hold:0" || state == "Alarm" || state == "Sleep" ||
+           state == "Check" || state == "Door:0" || state == "Door:1";
+  }
+
+  // What the halt did, for notes and messages.
+  static std::string halt_text(const HaltReport& h) {
+    if (!h.detail.empty()) return "not brought to a safe halt: " + h.detail;
+    std::string t = "held (!), at rest after " + fixed(h.rest_s, 2) + " s, reset (0x18)";
+    return t + (h.alarm ? "; it is in alarm (locked until $X)" : "; now " + h.state);
+  }
+
+  // grbl's safe halt (its manual: a feed hold, then a reset once the hold is complete): `!`,
+  // `?` every 50 ms until the state is at rest (Hold:0, Idle, Alarm), which tracks the blocks
+  // executed exactly (at rest nothing lags), then 0x18, its banner, and a status to confirm the
+  // state. A reset while the hold decelerates (Hold:1) would be a reset in motion (ALARM:3, the
+  // position may be lost), so without a status at rest there is no reset: the controller stays
+  // held and the report says why.
+  HaltReport safe_halt() {
+    HaltReport h;
+    h.attempted = true;
+    stopping_ = true;
+    reset_seen_ = false;
+    try {
+      const double t0 = now_s();
+      const long reports0 = report_.status_reports;
+      write_raw("!");
+      double next_ask = t0;
+      std::optional<GrblStatus> rest;
+      while (now_s() - t0 < s_.halt_timeout_s) {
+        if (now_s() >= next_ask) {
+          have_status_ = false;
+          write_raw("?");
+          next_ask = now_s() + 0.05;
+        }
+        read_input();
+        if (have_status_ && last_status_ && at_rest(last_status_->state)) {
+          rest = last_status_;
+          break;
+        }
+        if (report_.status_reports == reports0 && now_s() - t0 > 2.0) break;
+        link_->wait(5, false);
+      }
+      h.rest_s = now_s() - t0;
+      if (!rest) {
+        h.state = last_status_ && report_.status_reports > reports0 ? last_status_->state : "";
+        h.detail = report_.status_reports == reports0
+                       ? "it answers no status report, so whether its motion has stopped "
+                         "cannot be told; it was held (!) and not reset (a reset in motion "
+                         "loses the position): reset it by hand once the machine has stopped"
+                       : "its motion was not at rest after " + fixed(s_.halt_timeout_s, 0) +
+                             " s (state " + h.state +
+                             "); it was held (!) and not reset (a reset in motion loses the "
+                             "position): reset it by hand once the machine has stopped";
+        report_.halt = h;
+        report_.controller_state = h.state;
+        stopping_ = false;
+        return h;
+      }
+      h.at_rest = true;
+      write_raw(std::string(1, kResetByte));
+      const double t1 = now_s();
+      while (!reset_seen_ && now_s() - t1 < 3.0) {
+        read_input();
+        link_->wait(5, false);
+      }
+      h.reset = reset_seen_;
+      if (!h.reset) h.detail = "no banner came back within 3 s of the reset (0x18)";
+      read_state();
+      h.state = report_.controller_state;
+      h.alarm = h.state == "Alarm";
+    } catch (const LinkError& e) {
+      h.detail = std::string("the link failed during the halt: ") + e.what();
+    }
+    stopping_ = false;
+    report_.halt = h;
+    return h;
+  }
+
+  // Asks one status (up to 1 s) and records the controller's state for the report and advice.
+  void read_state() {
+    if (!link_) return;
+    try {
+      have_status_ = false;
+      const double t0 = now_s();
+      double next_ask = t0;
+      while (!have_status_ && now_s() - t0 < 1.0) {
+        if (now_s() >= next_ask) {
+          write_raw("?");
+          next_ask = now_s() + 0.25;
+        }
+        read_input();
+        if (!have_status_) link_->wait(5, false);
+      }
+      if (have_status_ && last_status_) report_.controller_state = last_status_->state;
+      if (report_.controller_state == "Alarm") report_.position_may_be_lost = true;
+    } catch (const LinkError&) {
     }
   }
 
   void dropped_note(std::int64_t first) {
+    // The queued blocks as ranges (the rejected block, answered error:N, is not among them).
+    std::string queued;
     std::int64_t lo = -1, hi = -1, in_flight = 0;
+    const auto flush_range = [&] {
+      if (lo < 0) return;
+      queued += (queued.empty() ? "" : ", ") + std::to_string(lo + 1) +
+                (hi > lo ? "-" + std::to_string(hi + 1) : std::string());
+      lo = hi = -1;
+    };
     for (const Item& it : queued_) {
       if (it.index < 0) continue;
+      if (lo >= 0 && it.index != hi + 1) flush_range();
       if (lo < 0) lo = it.index;
       hi = it.index;
     }
+    flush_range();
     for (std::size_t i = 0; i < sent_items_ && i < items_.size(); ++i) {
       if (items_[i].index >= 0) ++in_flight;
     }
     std::string d;
-    if (lo >= 0) {
-      d = "blocks " + std::to_string(lo + 1) + "-" + std::to_string(hi + 1) +
-          " were queued in the controller and not known executed";
+    if (!queued.empty()) {
+      d = "blocks " + queued + " were queued in the controller and not known executed";
     }
     if (in_flight > 0) {
       d += (d.empty() ? "" : "; ") + std::to_string(in_flight) + " more were sent and not answered";
     }
+    if (report_.rejected_block >= 0) {
+      d += (d.empty() ? "" : "; ") + std::string("block ") +
+           std::to_string(report_.rejected_block + 1) + " was refused (" + rejected_reply_ + ")";
+    }
     report_.dropped = d.empty() ? "nothing was queued beyond block " + std::to_string(first) : d;
   }
 
+  // Ends the job as interrupted. The report names the last block known executed and the first
+  // not known executed; what to do next is the caller's (ncd stream prints it).
   void interrupt(const std::string& why) {
     report_.interrupted = true;
     const std::int64_t first = first_unexecuted();
@@ -907,9 +1237,7 @@ class Session {
     if (ack_ && status_known()) {
       where = "; last block known executed: " +
               (last_executed_ >= 0 ? std::to_string(last_executed_ + 1) : std::string("none")) +
-              ", first block not known executed: " + std::to_string(first + 1) +
-              "; not resuming: check the machine, then restart with --restart-from " +
-              std::to_string(first + 1);
+              ", first block not known executed: " + std::to_string(first + 1) + "; not resuming";
     } else {
       where = "; first block not sent: " + std::to_string(first + 1) +
               " (which blocks arrived and executed is not known on this link)";
@@ -1001,12 +1329,16 @@ class Session {
       ++report_.blocks;
       report_.program_bytes += static_cast<std::int64_t>(text.size() + 1);
       const BlockMotion geo = modal_.apply(text);
-      if (index < skip_until_) continue;
+      if (index < skip_until_) {
+        last_spindle_on_ = spins(modal_.state());  // a restart's preamble sets this state again
+        continue;
+      }
       Item it;
       it.index = index;
       it.bytes = text + eob_text(s_.line.eob);
       it.geo = geo;
       it.n = n_word(text);
+      it.spindle_on = spins(modal_.state());
       items_.push_back(std::move(it));
       return true;
     }
@@ -1031,6 +1363,7 @@ class Session {
     while (room > 0) {
       if (sent_items_ == items_.size() && !pull()) return;
       Item& it = items_[sent_items_];
+      if (cur_off_ == 0 && journal_ != nullptr && it.index >= 0) journal_->note_writing(it.index);
       const std::size_t take =
           std::min<std::size_t>(static_cast<std::size_t>(room), it.bytes.size() - cur_off_);
       const std::size_t n = link_->write_some(std::string_view(it.bytes).substr(cur_off_, take));
@@ -1066,6 +1399,8 @@ class Session {
       }
       if (cur_off_ == 0 && unacked_bytes_ + size > s_.rx_buffer_bytes) return;
       if (cur_off_ == 0) unacked_bytes_ += size;
+      if (cur_off_ == 0 && journal_ != nullptr && it.index >= 0) journal_->note_writing(it.index);
+      wrote_line_ = true;
       report_.max_unacked_bytes = std::max(report_.max_unacked_bytes, unacked_bytes_);
       const std::size_t n = link_->write_some(std::string_view(it.bytes).substr(cur_off_));
       conn_written_ += static_cast<std::int64_t>(n);
@@ -1132,7 +1467,7 @@ class Session {
     ++report_.link_losses;
     set_hold(true);
     if (ack_) {
-      if (phase_ == Phase::Startup && !opened_once_before_ && !woke_) {
+      if (phase_ == Phase::Startup && !opened_once_before_ && !wrote_line_) {
         phase_t0_ = -1.0;  // nothing was sent yet: start again
       } else {
         opened_once_before_ = true;
@@ -1253,6 +1588,9 @@ class Session {
     if (report_.completed && ack_ && status_known()) pop_done(queued_moves());
     report_.blocks_confirmed = report_.completed ? report_.blocks : first_unexecuted();
     if (ack_ && status_known()) report_.blocks_executed = executed_count_;
+    if (ack_ && report_.controller_state.empty() && last_status_) {
+      report_.controller_state = last_status_->state;
+    }
     if (ack_ && !status_known() && report_.execution_basis.empty()) {
       report_.execution_basis = "not known";
     }
@@ -1274,6 +1612,7 @@ class Session {
   DncSender::ExecutedFn on_executed_;
   TransferJournal* journal_;
   SenderCounters& counters_;
+  const std::atomic<bool>& halt_request_;
   const bool ack_;
   const double cps_;
   const int window_;
@@ -1309,6 +1648,15 @@ class Session {
   Phase phase_ = Phase::Startup;
   double phase_t0_ = 0.0;
   bool woke_ = false;
+  // ack start-up: the controller spoke (banner, status, answer); `?` asked; the wake-up line
+  // and `$X` await their answers; status polls; a hold met at start-up was halted; a line
+  // (anything but real-time bytes) was written on the first connection.
+  bool spoke_ = false, asked_ = false, wake_pending_ = false, unlock_pending_ = false;
+  bool unlock_tried_ = false, start_halted_ = false, wrote_line_ = false;
+  int start_polls_ = 0;
+  std::string rejected_reply_;    // the error:N of the rejected block
+  bool last_spindle_on_ = false;  // after the last block known executed
+  std::optional<Vec3> last_end_;  // where the last move known executed ended
   bool stopping_ = false, reset_seen_ = false, track_ok_ = true;
   bool status_supported_ = true, have_status_ = false;
   long polls_ = 0;
@@ -1375,7 +1723,8 @@ void SenderCounters::store(const SenderCounts& c) {
 }
 
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
-  Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_);
+  Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_,
+                  halt_request_);
   session.on_executed(on_executed_);
   return session.run(stop);
 }
@@ -1421,6 +1770,16 @@ std::optional<GrblStatus> parse_grbl_status(std::string_view line) {
       }
       st.free_blocks = b;
       st.free_bytes = r;
+    } else if (key == "FS" || key == "F") {
+      const auto comma = value.find(',');
+      double f = 0.0, rpm = 0.0;
+      const std::string_view fv = value.substr(0, comma);
+      if (std::from_chars(fv.data(), fv.data() + fv.size(), f).ec == std::errc()) st.feed = f;
+      if (comma != std::string_view::npos &&
+          std::from_chars(value.data() + comma + 1, value.data() + value.size(), rpm).ec ==
+              std::errc()) {
+        st.spindle_rpm = rpm;
+      }
     } else if (key == "Ln") {
       long n = 0;
       if (std::from_chars(value.data(), value.data() + value.size(), n).ec == std::errc()) {
@@ -1430,6 +1789,115 @@ std::optional<GrblStatus> parse_grbl_status(std::string_view line) {
   }
   if (!st.mpos && !st.wpos) return std::nullopt;
   return st;
+}
+
+PositionMatch match_position(const std::string& program_path, std::int64_t first, std::int64_t end,
+                             const Vec3& position) {
+  ProgramFile src(program_path);
+  ProgramModal modal;
+  std::string text;
+  std::vector<std::pair<std::int64_t, BlockMotion>> moves;  // candidates, oldest first
+  std::optional<std::pair<std::int64_t, BlockMotion>> before;
+  for (std::int64_t k = 0; k < end && src.next(text) == BlockStatus::Ready; ++k) {
+    const BlockMotion m = modal.apply(text);
+    if (!m.motion) continue;
+    if (k < first) {
+      before = {k, m};
+    } else {
+      moves.emplace_back(k, m);
+    }
+  }
+  if (before) moves.insert(moves.begin(), *before);
+  PositionMatch r;
+  int hits = 0;
+  for (const auto& [k, m] : moves) {
+    double u = 0.0;
+    if (to_segment(position, m.from_mm, m.to_mm, u) > kPositionTolMm) continue;
+    const bool at_end = dist(position, m.to_mm) <= kPositionTolMm;
+    if (!at_end && dist(position, m.from_mm) <= kPositionTolMm) continue;  // the previous's end
+    ++hits;
+    r.move = k;
+    r.at_end = at_end;
+  }
+  if (hits == 1) {
+    r.first_not_done = r.at_end ? r.move + 1 : r.move;
+  } else {
+    r.why = hits == 0 ? "it lies on none of the moves ncd may have sent"
+                      : "it lies on " + std::to_string(hits) + " of the moves ncd may have sent";
+  }
+  return r;
+}
+
+GrblProbe probe_grbl(const SenderSettings& s, double settle_s) {
+  GrblProbe p;
+  std::unique_ptr<SerialLink> link;
+  try {
+    link = std::make_unique<SerialLink>(s.line);
+  } catch (const LinkError& e) {
+    p.failure = std::string("cannot open the link: ") + e.what();
+    return p;
+  }
+  const auto t0 = Clock::now();
+  const auto since = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
+  std::string line;
+  std::optional<GrblStatus> last;
+  std::optional<Vec3> wco;
+  int reports = 0;
+  double next_ask = s.banner_wait_s;
+  const auto on_line = [&](const std::string& text) {
+    if (text.rfind("Grbl ", 0) == 0) {
+      p.banner = true;
+      next_ask = std::min(next_ask, since());
+    } else if (auto st = parse_grbl_status(text)) {
+      ++reports;
+      if (st->wco) wco = st->wco;
+      last = st;
+    }
+  };
+  try {
+    while (since() < s.banner_wait_s + settle_s) {
+      char buf[256];
+      for (std::size_t n; (n = link->read_some(buf, sizeof buf)) > 0;) {
+        for (std::size_t i = 0; i < n; ++i) {
+          if (buf[i] == '\n') {
+            if (!line.empty() && line.back() == '\r') line.pop_back();
+            on_line(line);
+            line.clear();
+          } else if (line.size() < 256) {
+            line += buf[i];
+          }
+        }
+      }
+      const bool moving = last && (last->state == "Run" || last->state == "Jog" ||
+                                   last->state == "Home" || last->state == "Hold:1");
+      // grbl prints WCO: on the first report after a reset and then every 10th or 30th.
+      const bool located = last && (last->wpos || wco || reports >= 31);
+      if (last && !moving && located) break;
+      if (since() >= next_ask) {
+        link->write_some("?");
+        next_ask = since() + 0.1;
+      }
+      link->wait(5, false);
+    }
+  } catch (const LinkError& e) {
+    p.failure = std::string("the link failed: ") + e.what();
+    return p;
+  }
+  if (!last) {
+    p.failure = "the controller answered no status report ('?') within " +
+                fixed(s.banner_wait_s + settle_s, 1) + " s";
+    return p;
+  }
+  p.spoke = true;
+  p.state = last->state;
+  p.free_blocks = last->free_blocks;
+  if (last->wpos) {
+    p.position = last->wpos;
+  } else if (last->mpos && wco) {
+    p.position = Vec3{(*last->mpos)[0] - (*wco)[0], (*last->mpos)[1] - (*wco)[1],
+                      (*last->mpos)[2] - (*wco)[2]};
+  }
+  return p;
 }
 
 std::optional<Violation> check_program_file(const std::string& path, Dialect dialect) {

@@ -47,7 +47,17 @@ struct SenderSettings {
   double status_hz = 5.0;           // `?` polls (out of band); 0: none, "executed" is not known
   double banner_wait_s = 2.5;       // wait this long for the banner before waking with an LF
   double startup_timeout_s = 10.0;  // no banner and no answer to the wake by then: give up
-  bool reset_on_error = true;       // on error:N or ALARM: feed hold, then soft reset (0x18)
+  // On error:N or ALARM, and when a lost link cannot be resumed: bring grbl to a safe halt
+  // (DncSender::request_halt) so that nothing queued after the failure runs.
+  bool reset_on_error = true;
+  // ack: when `stop` is set, bring grbl to a safe halt before run() returns (the same as
+  // request_halt); off, a stop leaves grbl running the blocks it has queued.
+  bool halt_on_stop = false;
+  double halt_timeout_s = 30.0;  // ack: the longest wait for a hold to come to rest (Hold:0)
+  // ack: at start-up, clear grbl's alarm lock with `$X` (the operator has checked the machine;
+  // after ALARM:3 its position may be lost). Off, a locked controller ends the job before any
+  // line is sent.
+  bool unlock = false;
   // Lines sent before the first block (a restart's modal state and re-entry), without N.
   std::vector<std::string> preamble;
   // The controller's dialect: each block is checked (comms/dialect) before it is written; the
@@ -68,9 +78,52 @@ struct GrblStatus {
   std::optional<std::array<double, 3>> mpos, wpos, wco;
   std::optional<int> free_blocks, free_bytes;  // Bf:
   std::optional<long> line_number;             // Ln:
+  std::optional<double> feed;                  // FS: (or F:), mm/min
+  std::optional<double> spindle_rpm;           // FS:'s second value: 0 when the spindle is off
 };
 // Parses one status line (without CR LF); nullopt if it is not one.
 std::optional<GrblStatus> parse_grbl_status(std::string_view line);
+
+// The end of grbl's safe halt (DncSender::request_halt, docs/dnc-link.md "A safe halt"): a feed
+// hold, a wait until the status says the motion is at rest (Hold:0, or Idle), then the soft
+// reset, which throws the queue away without an alarm, and a status to confirm the state.
+struct HaltReport {
+  bool attempted = false;
+  bool at_rest = false;  // the status said Hold:0, Idle or Alarm before the reset
+  bool reset = false;    // the soft reset was sent and grbl's banner came back
+  bool alarm = false;    // grbl is in alarm (locked until $X) after it
+  double rest_s = 0.0;   // from the hold to the status at rest
+  std::string state;     // grbl's state after the halt (Idle, Alarm), or when it gave up
+  std::string detail;    // why it did not complete; empty when it did
+  bool ok() const { return at_rest && reset && !alarm && detail.empty(); }
+};
+
+// What grbl says of itself when asked with `?` only (no line sent): for advice on where to
+// restart after ncd was killed (docs/dnc-link.md "After ncd was killed").
+struct GrblProbe {
+  bool spoke = false;   // it answered a status report
+  bool banner = false;  // it reset when the port opened: its position restarted, tells nothing
+  std::string state;    // Idle, Run, Hold:0, Alarm, … (the last report, after waiting)
+  std::optional<std::array<double, 3>> position;  // work coordinates; none without WPos or WCO
+  std::optional<int> free_blocks;                 // Bf:, when reported
+  std::string failure;                            // why it could not be asked
+};
+// Opens the port, waits for the banner up to banner_wait_s, asks `?` and, while grbl runs the
+// blocks it has queued (Run), asks again up to settle_s; writes nothing but `?`.
+GrblProbe probe_grbl(const SenderSettings& settings, double settle_s);
+
+// Where a program stands at a controller's reported position (work coordinates): of the moves
+// among blocks [first, end) (0-based), and the last move before `first`, the one that ends at
+// `position` (then the block after it is the first not done) or that `position` lies on, past
+// its start (then that move is), within 0.002 mm. It must be the only one.
+struct PositionMatch {
+  std::optional<std::int64_t> first_not_done;  // 0-based; nullopt: no unique match (see why)
+  std::int64_t move = -1;                      // the move matched (0-based)
+  bool at_end = false;                         // at its end point (else inside it)
+  std::string why;                             // when there is no unique match
+};
+PositionMatch match_position(const std::string& program_path, std::int64_t first, std::int64_t end,
+                             const std::array<double, 3>& position);
 
 enum class BlockStatus { Ready, NotYet, End };
 
@@ -95,15 +148,21 @@ struct SenderReport {
   bool stopped = false;      // stopped on request before the end
   bool interrupted = false;  // a reset, an alarm, an error or a lost link stopped the job
   std::string failure;       // alarm or link given up; empty otherwise
-  std::int64_t first_block = 0;           // resumed from this block (journal)
-  std::int64_t blocks = 0;                // program blocks taken from the source
-  std::int64_t blocks_confirmed = 0;      // resume point at the end: the first block not known
-                                          // executed (ack) or sent (drip), 0-based
-  std::int64_t blocks_sent = 0;           // program blocks written in full at least once
-  std::int64_t blocks_queued = 0;         // ack: answered ok (queued by the controller)
-  std::int64_t blocks_executed = -1;      // ack with status: known executed; -1 not known (drip)
-  std::string execution_basis;            // how `executed` is known: Ln, Bf, position, or not
-  std::string dropped;                    // what a reset threw away (queued, not executed)
+  std::int64_t first_block = 0;       // resumed from this block (journal)
+  std::int64_t blocks = 0;            // program blocks taken from the source
+  std::int64_t blocks_confirmed = 0;  // resume point at the end: the first block not known
+                                      // executed (ack) or sent (drip), 0-based
+  std::int64_t blocks_sent = 0;       // program blocks written in full at least once
+  std::int64_t blocks_queued = 0;     // ack: answered ok (queued by the controller)
+  std::int64_t blocks_executed = -1;  // ack with status: known executed; -1 not known (drip)
+  std::string execution_basis;        // how `executed` is known: Ln, Bf, position, or not
+  std::string dropped;                // what a reset threw away (queued, not executed)
+  std::int64_t rejected_block = -1;   // ack: the block grbl answered error:N (0-based)
+  // ack: grbl's state when the job ended, from its last status report (Idle, Alarm, Hold:0…);
+  // empty when not known.
+  std::string controller_state;
+  bool position_may_be_lost = false;      // ack: ALARM:3 (a reset in motion) or a restart was seen
+  HaltReport halt;                        // ack: the safe halt, when one was made
   int link_losses = 0;                    // the port failed or hung up
   std::uint64_t bytes_before_banner = 0;  // ack: always 0 (nothing is sent before it)
   std::string startup;                    // ack: banner | woken | none
@@ -184,6 +243,13 @@ class DncSender {
   void on_executed(ExecutedFn fn) { on_executed_ = std::move(fn); }
   // Sends until the program is confirmed, an alarm, the link is given up, or stop is set.
   SenderReport run(const std::atomic<bool>& stop);
+  // Brings grbl to a safe halt and ends run() as stopped: a feed hold `!`, a wait until the
+  // status says the motion is at rest (Hold:0, or Idle; up to halt_timeout_s), then the soft
+  // reset 0x18, which throws away every queued block without ALARM:3 (grbl raises it for a
+  // reset in motion), and a status to confirm there is no alarm. SenderReport::halt says how it
+  // went. Drip (no such commands): run() just stops. Callable from any thread (an atomic flag),
+  // before or during run(); async-signal-safe.
+  void request_halt() noexcept { halt_request_.store(true); }
   // The live counters of the run under way (or the last one); readable from any thread.
   const SenderCounters& counters() const { return counters_; }
 
@@ -196,6 +262,7 @@ class DncSender {
   TransferJournal* journal_ = nullptr;
   std::int64_t first_block_ = 0;
   SenderCounters counters_;
+  std::atomic<bool> halt_request_{false};
 };
 
 }  // namespace ncd::comms

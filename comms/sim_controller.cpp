@@ -43,13 +43,20 @@
 //    (stepper.c, planner.c, serial.c): a move leaves the planner, and Bf:'s count and Ln:, when
 //    its last 10 ms segment is prepared, up to 5 segments before the motion gets there (this
 //    also frees its slot for the next line); the byte count is grbl's serial ring, which holds
-//    only the bytes behind a line waiting for the planner (docs/dnc-link.md). `!` holds
-//    (the motion stops at once where it is: Hold:0), `~` resumes, 0x18 resets. A reset (also
-//    the injected fault, and with reset_on_open a sender opening the port) aborts the block
-//    executing, throws away the planner, the receive buffer and a partial line, keeps the
-//    position, and after boot_s (bytes received meanwhile are lost, counted as
-//    bytes_before_banner) sends the banner; a reset while moving first says ALARM:3 and locks
-//    the controller (error:9 for every line) until `$X`. N numbers are ignored.
+//    only the bytes behind a line waiting for the planner (docs/dnc-link.md); the status mask
+//    ($10, status_mask) chooses MPos or WPos and whether Bf: is there, FS: gives the spindle's
+//    speed (0 when stopped), WCO: the work offset on the first report after a reset and every
+//    10th (idle) or 30th (busy). `!` decelerates the move at hold_accel (Hold:1; a move that
+//    cannot stop within itself runs to its end) and holds it at rest (Hold:0), when grbl's
+//    protocol loop is suspended: no line is read until `~` (ignored before Hold:0) or a reset.
+//    0x18 resets. A reset (also the injected fault, a power cycle, and with reset_on_open a
+//    sender opening the port) aborts the block executing, throws away the planner, the receive
+//    buffer and a partial line, stops the spindle and coolant, returns the parser to its
+//    power-on modes at the machine's position (which a power-up restarts at 0), and after
+//    boot_s (bytes received meanwhile are lost, counted as bytes_before_banner) sends the
+//    banner, lost if the port is closed then; a reset in motion (before Hold:0) first says
+//    ALARM:3 and locks the controller (error:9 for every g-code line) until `$X`. `$10=N` sets
+//    the mask (error:8 unless Idle). N numbers are ignored.
 // 4. Lines. LF ends a line; CR and NUL are removed, spaces and tabs trimmed at both ends. Empty
 //    lines and `%` lines are framing: a `%` after a block on the current connection ends the
 //    program; any other `%` opens it (again, from a sender that reconnected).
@@ -225,8 +232,20 @@ SimControllerConfig checked(SimControllerConfig c) {
     bad("--skip-duplicate-n is not a grbl behaviour (grbl ignores N numbers)",
         "use --protocol drip, or leave it out");
   }
+  if (c.status_mask < 0 || c.status_mask > 3) {
+    bad("--status-mask " + std::to_string(c.status_mask) + " is out of range",
+        "use grbl's $10: 0 (WPos), 1 (MPos, grbl's default), 2 (WPos and Bf:) or 3 (MPos and Bf:)");
+  }
+  if (!std::isfinite(c.hold_accel_mm_per_s2) || c.hold_accel_mm_per_s2 <= 0.0) {
+    bad("--accel " + text::sig(c.hold_accel_mm_per_s2) + " mm/s² is invalid",
+        "use an acceleration above 0 (grbl's default $120 is 10 mm/s²)");
+  }
+  if (f.restart_after_blocks != 0 && !ack) {
+    bad("--restart-after-blocks is a grbl behaviour (its banner after a power-up)",
+        "use --protocol ack, or --reset-after-blocks");
+  }
   if (f.drop_link_after_blocks < 0 || f.hold_after_blocks < 0 || f.alarm_after_blocks < 0 ||
-      f.reset_after_blocks < 0 || f.drop_link_after_chars < 0) {
+      f.reset_after_blocks < 0 || f.drop_link_after_chars < 0 || f.restart_after_blocks < 0) {
     bad("a fault's block count is negative", "use a count of 1 or more, or 0 for none");
   }
   if (!std::isfinite(f.down_s) || f.down_s < 0.0 || f.down_s > 3600.0) {
@@ -430,7 +449,7 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
 // ---- The controller ----
 
 struct SimController::Impl {
-  enum class Kind { Block, End, Framing, Duplicate, AfterEnd, Error };
+  enum class Kind { Block, End, Framing, Duplicate, AfterEnd, Error, System };
   struct Line {
     Kind kind = Kind::Block;
     int size = 0;             // characters it holds in the receive buffer
@@ -665,6 +684,10 @@ struct SimController::Impl {
     }
     if (drop_pending) {
       drop_link(t);
+      if (restart_pending) {
+        restart_pending = false;
+        reset(t, "power_cycle");  // its banner goes out while the port is closed
+      }
       return;
     }
     if (marker && taken >= *marker) apply_marker();
@@ -770,21 +793,18 @@ struct SimController::Impl {
       queue_line(std::move(line), t);
       return;
     }
-    if (!drip && (grbl_locked || text[0] == '$')) {  // grbl: locked until $X; $ commands
+    if (!drip && text[0] == '$') {  // a grbl system command: acted on when it is read
+      line.kind = Kind::System;
+      line.text = text;
+      queue_line(std::move(line), t);
+      return;
+    }
+    if (!drip && grbl_locked) {  // grbl: g-code is locked out until $X (or $H)
       line.kind = Kind::Error;
       line.error = kErrAlarmLock;
-      if (text == "$X" || text == "$x") {
-        grbl_locked = false;
-        line.kind = Kind::Framing;
-        send("[MSG:Caution: Unlocked]\r\n");
-      } else if (text[0] == '$') {
-        line.error = kErrExpectedLetter;
-      }
-      if (line.kind == Kind::Error) {
-        log.errors.push_back({t, log.lines_received, line.error, text,
-                              grbl_locked ? "locked by an alarm: send $X" : "not a block"});
-        ++log.blocks_rejected;
-      }
+      log.errors.push_back(
+          {t, log.lines_received, line.error, text, "locked by an alarm: send $X"});
+      ++log.blocks_rejected;
       queue_line(std::move(line), t);
       return;
     }
@@ -917,6 +937,11 @@ struct SimController::Impl {
       alarm_pending = true;  // after the line is queued
     }
     if (f.reset_after_blocks == k && log.resets.empty()) reset_pending = true;
+    if (f.restart_after_blocks == k && !restarted) {
+      restarted = true;
+      drop_pending = true;  // the USB link goes with the power: cut after this line
+      restart_pending = true;
+    }
   }
 
   void receive_end(double t) {
@@ -979,9 +1004,48 @@ struct SimController::Impl {
     return head >= tail ? size - (head - tail) : tail - head - 1;
   }
 
+  // A grbl `$` line as system.c executes it, when the protocol loop reads it: `$X` clears an
+  // alarm lock (and does nothing otherwise), `$10=N` sets the status report mask (Idle or Alarm
+  // only: error:8 while the machine runs or holds). Others are not modelled: error:1.
+  std::string system_command(const std::string& text, double t) {
+    std::string up = text;
+    for (char& c : up) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    const auto fail = [&](int code, const std::string& why) {
+      log.errors.push_back({t, log.lines_received, code, text, why});
+      ++log.blocks_rejected;
+      return "error:" + std::to_string(code) + "\r\n";
+    };
+    if (up == "$X") {
+      if (grbl_locked) {
+        grbl_locked = false;
+        alarm_exit = false;
+        ++log.unlocks;
+        send("[MSG:Caution: Unlocked]\r\n");
+        event("unlocked ($X)");
+      }
+      return "ok\r\n";
+    }
+    if (up.rfind("$10=", 0) == 0) {
+      int mask = -1;
+      const auto r = std::from_chars(up.data() + 4, up.data() + up.size(), mask);
+      if (r.ec != std::errc() || r.ptr != up.data() + up.size() || mask < 0 || mask > 255) {
+        return fail(3, "$10 takes a number from 0 to 255");
+      }
+      if (busy || !planner.empty() || held || pausing) {
+        return fail(kErrIdle, "$10= while the machine runs or holds (grbl wants Idle)");
+      }
+      status_mask = mask;
+      return "ok\r\n";
+    }
+    return fail(kErrExpectedLetter, "not a block (only $X and $10= are modelled)");
+  }
+
   void pump_planner(double t) {
     // grbl executes G4 and M0 inside gc_execute_line (mc_dwell, the suspend loop): it reads no
     // further line until they are over.
+    // A complete hold suspends grbl's protocol loop (protocol_exec_rt_suspend): no line is read
+    // until cycle start or a reset.
+    if (hold_complete(t)) return;
     while (!rx.empty() && !alarmed && !(busy && sync_busy)) {
       Line& line = rx.front();
       if (line.kind == Kind::Block && !line.block.move) {
@@ -1016,6 +1080,9 @@ struct SimController::Impl {
         planner.push_back(std::move(line));
         log.max_planner_blocks =
             std::max(log.max_planner_blocks, static_cast<long>(planner_held(t)));
+      } else if (line.kind == Kind::System) {
+        reply(line, system_command(line.text, t));
+        fill -= line.size;
       } else {
         reply(line, line.kind == Kind::Error ? "error:" + std::to_string(line.error) + "\r\n"
                                              : std::string("ok\r\n"));
@@ -1030,6 +1097,7 @@ struct SimController::Impl {
   void raise_alarm(double t, const std::string& code, const std::string& detail) {
     if (alarmed) return;
     alarmed = true;
+    alarm_exit = true;
     alarm_t = t;
     late_written_end = 0;  // what follows is read, and counted as after the alarm
     log.alarms.push_back({t, code, log.blocks_received, log.last_n, detail});
@@ -1055,30 +1123,74 @@ struct SimController::Impl {
 
   // ---- grbl's real-time commands and resets ----
 
-  std::array<double, 3> position_at(double t) const {
-    if (!busy || !current.move) return position;
-    if (held) return hold_pos;
+  // The position of the move executing at time s, at full speed.
+  std::array<double, 3> along(double s) const {
     const double span = cur_t1 - cur_t0;
-    const double f = span > 0.0 ? std::clamp((t - cur_t0) / span, 0.0, 1.0) : 1.0;
+    const double f = span > 0.0 ? std::clamp((s - cur_t0) / span, 0.0, 1.0) : 1.0;
     std::array<double, 3> p{};
     for (std::size_t k = 0; k < 3; ++k) p[k] = cur_from[k] + f * (current.to[k] - cur_from[k]);
     return p;
   }
 
-  std::string status_report(double t) const {
+  std::array<double, 3> position_at(double t) const {
+    if (!busy || !current.move) return position;
+    if (held && !hold_to_end) {
+      if (t >= hold_done_t) return hold_pos;
+      // Decelerating at a = v/τ: after σ the move has covered v·(σ − σ²/2τ), what full speed
+      // covers in σ − σ²/2τ.
+      const double sigma = std::max(0.0, t - hold_t), tau = hold_done_t - hold_t;
+      return along(hold_t + sigma - sigma * sigma / (2.0 * tau));
+    }
+    return along(t);
+  }
+
+  // A hold has brought the motion to rest (grbl's SUSPEND_HOLD_COMPLETE): Hold:0.
+  bool hold_complete(double t) const { return held && t >= hold_done_t; }
+
+  // The machine moves at t: a move executing, not yet at rest in a hold. A reset now is a reset
+  // in motion (grbl's mc_reset: ALARM:3).
+  bool moving(double t) const {
+    return busy && current.move && !sync_busy && t < busy_end && !hold_complete(t);
+  }
+
+  // grbl's work coordinate offset (report.c): the coordinate system in use, G92 and the tool
+  // length offset on Z. Zero without the grbl dialect (the transport parser has no offsets).
+  std::array<double, 3> wco() const {
+    std::array<double, 3> w{};
+    if (cfg.dialect != Dialect::grbl) return w;
+    const auto& cs = grbl_state.coord_system[static_cast<std::size_t>(grbl_state.coord_select)];
+    for (std::size_t k = 0; k < 3; ++k) w[k] = cs[k] + grbl_state.g92[k];
+    w[2] += grbl_state.tool_length_mm;
+    return w;
+  }
+
+  std::string status_report(double t) {
     std::string s = "<";
     if (alarmed || grbl_locked) {
       s += "Alarm";
-    } else if (held || (busy && pausing && busy_end <= t)) {
-      s += "Hold:0";  // the simulated hold stops at once: complete, ready to resume
+    } else if (held) {
+      s += hold_complete(t) ? "Hold:0" : "Hold:1";  // 1: decelerating; 0: at rest, can resume
+    } else if (busy && pausing && busy_end <= t) {
+      s += "Hold:0";
     } else {
       s += busy || !planner.empty() ? "Run" : "Idle";
     }
-    const auto p = position_at(t);
+    // $10 bit 0: MPos, else WPos (the machine position less the work offset); bit 1: Bf:.
+    auto p = position_at(t);
+    const auto w = wco();
+    const bool mpos = (status_mask & 1) != 0;
+    if (!mpos) {
+      for (std::size_t k = 0; k < 3; ++k) p[k] -= w[k];
+    }
     std::array<char, 96> text{};
-    std::snprintf(text.data(), text.size(), "|MPos:%.3f,%.3f,%.3f|Bf:%d,%d", p[0], p[1], p[2],
-                  cfg.planner_blocks - static_cast<int>(planner_held(t)), ring_available());
+    std::snprintf(text.data(), text.size(), "|%s:%.3f,%.3f,%.3f", mpos ? "MPos" : "WPos", p[0],
+                  p[1], p[2]);
     s += text.data();
+    if ((status_mask & 2) != 0) {
+      std::snprintf(text.data(), text.size(), "|Bf:%d,%d",
+                    cfg.planner_blocks - static_cast<int>(planner_held(t)), ring_available());
+      s += text.data();
+    }
     // grbl reports the line number of the planner's current block: the first not prepared.
     if (cfg.report_line_numbers && planner_held(t) > 0) {
       const std::size_t k = prepared(t);
@@ -1086,17 +1198,57 @@ struct SimController::Impl {
       const SimBlock& b = k == 0 && executing ? current : planner[k - (executing ? 1 : 0)].block;
       if (b.n && *b.n > 0) s += "|Ln:" + std::to_string(*b.n);
     }
-    std::snprintf(text.data(), text.size(), "|FS:%.0f,0>\r\n",
-                  busy && !held && current.move ? current.feed_mm_per_min : 0.0);
-    return s + text.data();
+    // FS: the feed now (falling during a hold's deceleration) and the spindle's speed (0 when
+    // stopped: sys.spindle_speed).
+    double feed = 0.0;
+    if (busy && current.move && !sync_busy && t < busy_end && !held) {
+      feed = current.feed_mm_per_min;
+    } else if (held && !hold_complete(t) && busy && current.move) {
+      feed = hold_to_end ? current.feed_mm_per_min
+                         : current.feed_mm_per_min * (1.0 - (t - hold_t) / (hold_done_t - hold_t));
+    }
+    std::snprintf(text.data(), text.size(), "|FS:%.0f,%.0f", feed,
+                  exec_spindle != 5 ? exec_rpm : 0.0);
+    s += text.data();
+    // WCO: on the first report after a reset, then every 10th (idle) or 30th (busy), as grbl.
+    if (wco_countdown > 0) {
+      --wco_countdown;
+    } else {
+      wco_countdown = busy || held ? 29 : 9;
+      std::snprintf(text.data(), text.size(), "|WCO:%.3f,%.3f,%.3f", w[0], w[1], w[2]);
+      s += text.data();
+    }
+    return s + ">\r\n";
   }
 
+  // `!`: grbl decelerates a move along its path (Hold:1) and holds at rest (Hold:0); idle, or
+  // in a dwell, the hold is complete at once. This model slows down within the move executing:
+  // a move that cannot stop before its end runs to its end at its feed and holds there (grbl
+  // would decelerate through the next blocks, a difference that only moves where it stops).
   void feed_hold(double t) {
     ++log.feed_holds;
-    if (held || alarmed) return;
-    hold_pos = position_at(t);
+    if (held || alarmed || grbl_locked) return;  // grbl ignores a hold in alarm
+    const bool was_moving = moving(t);
     held = true;
-    remaining_s = busy ? std::max(0.0, busy_end - t) : 0.0;
+    hold_t = t;
+    hold_to_end = false;
+    hold_done_t = t;
+    if (was_moving) {
+      const double v_mm_per_s = current.feed_mm_per_min / 60.0;
+      const double tau = v_mm_per_s / cfg.hold_accel_mm_per_s2;  // time to stop
+      const double left_s = busy_end - t;                        // at full speed
+      if (tau / 2.0 >= left_s) {
+        hold_to_end = true;
+        hold_done_t = busy_end;
+      } else {
+        hold_done_t = t + tau;
+        hold_pos = along(t + tau / 2.0);  // stopping covers what full speed covers in τ/2
+        remaining_s = left_s - tau / 2.0;
+      }
+    } else {
+      hold_pos = position_at(t);
+      remaining_s = busy ? std::max(0.0, busy_end - t) : 0.0;
+    }
     event("feed hold");
   }
 
@@ -1109,27 +1261,32 @@ struct SimController::Impl {
       event("cycle start: resumed after the program stop");
       return;
     }
-    if (!held) return;
+    if (!hold_complete(t)) return;  // grbl resumes a hold only once it is complete
     ++log.cycle_starts;
     held = false;
-    if (busy) {
+    if (busy && !hold_to_end) {
       cur_from = hold_pos;
       cur_t0 = t;
       busy_end = cur_t1 = t + remaining_s;
-    } else {
+    } else if (!busy) {
       free_at = std::max(free_at, t);
     }
+    hold_to_end = false;
     event("cycle start");
     pump_planner(t);
   }
 
-  // A controller reset (soft reset 0x18, the injected fault, or the port opened with
-  // reset_on_open): the motion stops where it is, the queue is lost, the position kept.
+  // A controller reset (soft reset 0x18, the injected fault, the port opened with reset_on_open,
+  // a power cycle): the motion stops where it is, the queue is lost, the spindle and coolant
+  // stop (grbl's mc_reset), the parser returns to its power-on modes (gc_init: the coordinate
+  // systems are kept, G92 and the tool length offset are not) at the machine's position, which
+  // a power-up (power_cycle, port_opened: a hardware reset) restarts at 0.
   void reset(double t, const std::string& cause) {
+    const bool power_up = cause == "power_cycle" || cause == "port_opened";
     SimReset r;
     r.t_s = t;
     r.cause = cause;
-    r.in_motion = busy && !held && current.move;
+    r.in_motion = moving(t) && !power_up;
     if (busy) {
       position = position_at(t);
       r.aborted = current_text;
@@ -1138,7 +1295,8 @@ struct SimController::Impl {
     for (const Line& l : planner) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
     for (const Line& l : rx) r.blocks_lost += l.kind == Kind::Block ? 1 : 0;
     r.executed_at_last_report = executed_at_last_report;
-    busy = sync_busy = held = pausing = false;
+    const long seq = current_seq;
+    busy = sync_busy = held = pausing = hold_to_end = false;
     rx.clear();
     planner.clear();
     partial.clear();
@@ -1146,15 +1304,36 @@ struct SimController::Impl {
     discarding_long = false;
     fill = 0;
     free_at = t;
+    if (exec_spindle != 5) log.events.push_back({t, seq, std::nullopt, "spindle_stop", 0.0});
+    if (exec_coolant) log.events.push_back({t, seq, std::nullopt, "coolant_off", 0.0});
+    exec_spindle = 5;
+    exec_coolant = false;
     log.resets.push_back(r);
     event("reset (" + cause + ")" + (r.aborted ? ": aborted '" + *r.aborted + "'" : "") + ", " +
-          std::to_string(r.blocks_lost) + " queued blocks lost, position kept");
+          std::to_string(r.blocks_lost) + " queued blocks lost, " +
+          (power_up ? "position restarts at 0" : "position kept") +
+          (r.in_motion && !drip ? "; in motion: ALARM:3, locked until $X" : ""));
     if (drip) {  // a Fanuc-type control: DC3 then SYN, ready again at low water
       send_flow(true);
       send(std::string(1, kSyn));
       return;
     }
-    if (r.in_motion && !alarmed) {
+    if (power_up) position = {0.0, 0.0, 0.0};
+    GrblState fresh;  // gc_init, then gc_sync_position
+    fresh.coord_system = grbl_state.coord_system;
+    fresh.position = position;
+    grbl_state = fresh;
+    modal = SimModal{};
+    modal.position = position;
+    end_received = false;
+    blocks_in_epoch = 0;
+    wco_countdown = 0;
+    if (power_up) {
+      alarmed = grbl_locked = alarm_exit = false;  // power-on: Idle (no homing lock modelled)
+    } else if (alarmed) {
+      alarmed = false;  // an alarm outlives a reset: locked until $X
+      grbl_locked = true;
+    } else if (r.in_motion) {
       send("ALARM:3\r\n");  // grbl: reset while in motion, position may be lost
       grbl_locked = true;
     }
@@ -1163,6 +1342,8 @@ struct SimController::Impl {
 
   void boot_done() {
     booting_until.reset();
+    // A banner sent while the port is closed, or before a sender opened it, is lost.
+    if (!pty.is_open() || open_count == 0) ++log.banners_lost;
     send(std::string("\r\n") + kGrblBanner + "\r\n");
     if (grbl_locked) send("[MSG:'$H'|'$X' to unlock]\r\n");
     ++log.banners_sent;
@@ -1193,7 +1374,8 @@ struct SimController::Impl {
     if (!drip) pump_planner(t);
     for (;;) {
       if (busy) {
-        if (held || busy_end > t || pausing) return;
+        // held: at rest mid-move; a hold that runs to the block's end lets the block finish
+        if ((held && !hold_to_end) || busy_end > t || pausing) return;
         const bool answer = sync_busy;
         finish(busy_end);
         if (answer) send("ok\r\n");  // a dwell is answered when it is over
@@ -1258,7 +1440,10 @@ struct SimController::Impl {
                               : "spindle_stop",
           exec_rpm, t);
     }
-    if (b.coolant) add(*b.coolant ? "coolant_on" : "coolant_off", 0.0, t);
+    if (b.coolant) {
+      exec_coolant = *b.coolant;
+      add(*b.coolant ? "coolant_on" : "coolant_off", 0.0, t);
+    }
     if (b.dwell) add("dwell", b.duration_s, t);
     if (pauses(b)) {
       pausing = true;
@@ -1396,7 +1581,7 @@ struct SimController::Impl {
   bool should_exit(double t) const {
     if (stop.load()) return true;
     if (!cfg.exit_at_end) return false;
-    if (alarmed) return t - alarm_t >= cfg.alarm_linger_s;
+    if (alarmed || alarm_exit) return t - alarm_t >= cfg.alarm_linger_s;
     // ack: the sender polls status until it has seen the end executed; wait for it to leave
     if (!drip && open_count > 0) return false;
     return log.program_end_executed && t - log.last_byte_t_s >= cfg.exit_quiet_s && out.empty();
@@ -1458,7 +1643,7 @@ struct SimController::Impl {
     if (stop.load()) {
       log.stop_reason = "stop_requested";
     } else {
-      log.stop_reason = alarmed ? "alarm" : "program_end";
+      log.stop_reason = alarmed || alarm_exit ? "alarm" : "program_end";
     }
     const auto& q = drip ? rx : planner;
     if (moved && !alarmed && !busy && q.empty() && !end_received &&
@@ -1513,6 +1698,7 @@ struct SimController::Impl {
   std::optional<std::uint64_t> marker;  // bytes taken when the last sender's bytes are all read
   std::optional<double> down_until;
   bool drop_pending = false, alarm_pending = false, reset_pending = false;
+  bool restart_pending = false, restarted = false;
 
   // wire
   std::array<char, 4096> buf{};
@@ -1542,6 +1728,7 @@ struct SimController::Impl {
   std::optional<double> storm_until, hold_until;
   double next_storm = 0.0, next_noise = 0.0;
   bool alarmed = false;
+  bool alarm_exit = false;  // with exit_at_end: an alarm was raised and not unlocked since
   double alarm_t = 0.0;
   std::optional<long> executed_at_last_report;  // blocks executed when the last report was sent
 
@@ -1555,12 +1742,17 @@ struct SimController::Impl {
   long current_seq = 0;
   std::array<double, 3> cur_from{}, hold_pos{};  // the move executing: from, and where held
   double cur_t0 = 0.0, cur_t1 = 0.0, remaining_s = 0.0;
-  bool sync_busy = false;  // ack: the executor runs a dwell outside the planner
-  bool held = false;       // ack: feed hold (!)
-  bool pausing = false;    // a program stop (M0) waits for cycle start
-  int exec_spindle = 5;    // the spindle as executed: 3, 4 or 5
+  bool sync_busy = false;    // ack: the executor runs a dwell outside the planner
+  bool held = false;         // ack: feed hold (!), decelerating or at rest
+  bool hold_to_end = false;  // the held move cannot stop before its end: it runs to it
+  double hold_t = 0.0, hold_done_t = 0.0;  // the `!`, and when the motion is at rest
+  bool pausing = false;                    // a program stop (M0) waits for cycle start
+  int exec_spindle = 5;                    // the spindle as executed: 3, 4 or 5
+  bool exec_coolant = false;
   double exec_rpm = 0.0;
-  bool grbl_locked = false;  // ack: alarm state after a reset in motion, until $X
+  bool grbl_locked = false;           // ack: alarm state after a reset in motion, until $X
+  int status_mask = cfg.status_mask;  // grbl's $10
+  int wco_countdown = 0;              // status reports until the next WCO: field
   std::optional<double> booting_until;
 
   // live view
@@ -1657,6 +1849,8 @@ Json settings_json(const SimControllerConfig& c) {
               {"reset_on_open", c.reset_on_open},
               {"boot_s", c.boot_s},
               {"report_line_numbers", c.report_line_numbers},
+              {"status_mask", c.status_mask},
+              {"hold_accel_mm_per_s2", c.hold_accel_mm_per_s2},
               {"dialect", c.dialect ? Json(to_string(*c.dialect)) : Json(nullptr)},
               {"machine_safety", c.machine_safety},
               {"tool_change_s", c.tool_change_s},
@@ -1671,7 +1865,8 @@ Json settings_json(const SimControllerConfig& c) {
                 {"hold_s", f.hold_s},
                 {"noise_bytes_per_s", f.noise_bytes_per_s},
                 {"alarm_after_blocks", f.alarm_after_blocks},
-                {"reset_after_blocks", f.reset_after_blocks}}}};
+                {"reset_after_blocks", f.reset_after_blocks},
+                {"restart_after_blocks", f.restart_after_blocks}}}};
 }
 
 Json to_json(const SimLog& l) {
@@ -1786,7 +1981,9 @@ Json to_json(const SimLog& l) {
               {"feed_holds", l.feed_holds},
               {"cycle_starts", l.cycle_starts},
               {"bytes_before_banner", l.bytes_before_banner},
-              {"banners_sent", l.banners_sent}};
+              {"banners_sent", l.banners_sent},
+              {"banners_lost", l.banners_lost},
+              {"unlocks", l.unlocks}};
 }
 
 }  // namespace ncd::comms

@@ -46,10 +46,16 @@ struct SimFaults {
   double hold_s = 10.0;
   double noise_bytes_per_s = 0.0;  // random bytes (drip) or garbage lines (ack) to the sender
   long alarm_after_blocks = 0;     // then raise an alarm and stop executing
-  // Controller reset (power cycle, watchdog, reset button): the block executing is aborted, the
-  // receive buffer and the planner are lost, the position is kept, the banner is sent again
-  // (ack; after ALARM:3 when it was moving, as grbl's reset during motion does).
+  // Controller reset (watchdog, reset button): the block executing is aborted, the receive
+  // buffer and the planner are lost, the position is kept, the banner is sent again (ack; after
+  // ALARM:3 when it was moving, as grbl's reset during motion does).
   long reset_after_blocks = 0;
+  // Ack: the controller restarts as at power-up while its USB link goes away (an Arduino's
+  // serial port disappears when the board loses power): the link is cut as by
+  // drop_link_after_blocks for down_s, the block executing is aborted, the planner, the receive
+  // buffer and the parser state are lost, grbl's position restarts at 0 (a power-up clears it),
+  // and its banner goes out while the port is closed, so a sender never sees it.
+  long restart_after_blocks = 0;
 };
 
 struct SimControllerConfig {
@@ -76,6 +82,13 @@ struct SimControllerConfig {
   bool reset_on_open = false;
   double boot_s = 0.0;
   bool report_line_numbers = false;  // ack: status reports carry Ln: (grbl's USE_LINE_NUMBERS)
+  // Ack: grbl's $10, the status report mask: bit 0 MPos (else WPos), bit 1 the Bf: field. grbl's
+  // factory default is 1 (MPos, no Bf:); ncd's tracking wants 3. A `$10=N` line changes it.
+  int status_mask = 3;
+  // Ack: the deceleration of a feed hold (grbl's $120–$122 acceleration), mm/s². After `!` a
+  // move slows down along its path (Hold:1) and stops (Hold:0), or, when it would not stop within
+  // the block, runs to the block's end and stops there; a reset before then is in motion.
+  double hold_accel_mm_per_s2 = 100.0;
   // The controller's dialect (comms/dialect.hpp). grbl (ack only): every line gets grbl 1.1's
   // verdict and error number from check_grbl_line, and is executed as grbl would (arcs, G91,
   // G20, offsets, G28/G30, G4, M0, M2/M30). iso or linuxcnc (drip): a line the dialect refuses
@@ -114,6 +127,7 @@ enum SimError : int {
   kErrExpectedLetter = 1,  // a character that is not a word letter
   kErrBadNumber = 2,       // a letter without a number, or a malformed number
   kErrNegative = 4,        // negative F, S, T or P
+  kErrIdle = 8,            // a $ command that needs Idle (or Alarm), e.g. $10= while moving
   kErrAlarmLock = 9,       // a line received while in alarm
   kErrLineOverflow = 11,   // more than 79 characters kept (grbl's line buffer)
   kErrUnsupported = 20,    // G91, G20, G2/G3, unknown G or M codes, unsupported letters
@@ -212,10 +226,12 @@ struct SimExecuted {
 // A controller reset: what it interrupted and what it threw away.
 struct SimReset {
   double t_s = 0.0;
-  std::string cause;                   // injected | soft_reset (0x18) | port_opened
+  // injected | soft_reset (0x18) | port_opened | power_cycle (restart_after_blocks)
+  std::string cause;
   bool in_motion = false;              // grbl then raises ALARM:3 and locks until $X
   std::optional<std::string> aborted;  // the block executing, left unfinished
-  std::array<double, 3> position{};    // kept
+  std::array<double, 3> position{};    // where the motion stopped (grbl keeps it, except at
+                                       // a power-up, after which it counts from 0)
   long blocks_lost = 0;                // in the planner and the receive buffer
   // The blocks executed when the last status report before the reset was sent (the most a
   // sender reading every report can know executed); none if no report was sent.
@@ -273,8 +289,10 @@ struct SimLog {
   std::vector<SimEvent> events;
   std::vector<SimReset> resets;
   long status_reports = 0, feed_holds = 0, cycle_starts = 0;
+  long unlocks = 0;                       // ack: `$X` lines that cleared an alarm lock
   std::uint64_t bytes_before_banner = 0;  // ack: received while booting, before the banner
   long banners_sent = 0;
+  long banners_lost = 0;  // sent while the port was closed or no sender had it open
 };
 
 // The log as the JSON `--log` writes (field names in README, `ncd sim-controller`).

@@ -1,10 +1,12 @@
-// Transfer journal: header line, then `confirmed NNNNNNNNNNNN complete N\n` at a fixed offset.
+// Transfer journal: header line, then `confirmed NNNNNNNNNNNN sent NNNNNNNNNNNN complete N\n` at
+// a fixed offset (journals written before `sent` was added have `confirmed … complete N`).
 #include "comms/transfer_journal.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -22,10 +24,11 @@ namespace {
 
 constexpr const char* kMagic = "ncd-transfer-journal-1";
 
-std::string record_text(std::int64_t confirmed, bool complete) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "confirmed %012lld complete %d\n",
-                static_cast<long long>(confirmed), complete ? 1 : 0);
+std::string record_text(std::int64_t confirmed, std::int64_t sent_bound, bool complete) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "confirmed %012lld sent %012lld complete %d\n",
+                static_cast<long long>(confirmed), static_cast<long long>(sent_bound),
+                complete ? 1 : 0);
   return buf;
 }
 
@@ -61,6 +64,14 @@ void TransferJournal::confirm(std::int64_t confirmed) {
   write_record();
 }
 
+void TransferJournal::note_writing(std::int64_t index) {
+  if (index < state_.sent_bound) return;
+  state_.sent_bound = index + kSentMargin;
+  if (state_.blocks > 0) state_.sent_bound = std::min(state_.sent_bound, state_.blocks);
+  state_.sent_bound = std::max(state_.sent_bound, index + 1);
+  write_record();
+}
+
 void TransferJournal::complete() {
   state_.complete = true;
   state_.confirmed = state_.blocks;
@@ -68,7 +79,7 @@ void TransferJournal::complete() {
 }
 
 void TransferJournal::write_record() {
-  const std::string rec = record_text(state_.confirmed, state_.complete);
+  const std::string rec = record_text(state_.confirmed, state_.sent_bound, state_.complete);
   if (::pwrite(fd_, rec.data(), rec.size(), record_offset_) != static_cast<ssize_t>(rec.size()) ||
       ::fdatasync(fd_) != 0) {
     throw std::runtime_error("cannot update the transfer journal " + path_ + ": " +
@@ -101,13 +112,21 @@ std::optional<JournalState> TransferJournal::read(const std::string& path) {
     if (std::string(e.what()).rfind("the transfer journal", 0) == 0) throw;  // already bad()
     throw bad(e.what());
   }
-  long long confirmed = -1;
+  long long confirmed = -1, sent = -1;
   int complete = -1;
-  if (std::sscanf(rec.c_str(), "confirmed %lld complete %d", &confirmed, &complete) != 2 ||
-      confirmed < 0 || confirmed > s.blocks || (complete != 0 && complete != 1)) {
+  if (std::sscanf(rec.c_str(), "confirmed %lld sent %lld complete %d", &confirmed, &sent,
+                  &complete) != 3) {
+    sent = s.blocks;  // an older journal: every block may have been written
+    if (std::sscanf(rec.c_str(), "confirmed %lld complete %d", &confirmed, &complete) != 2) {
+      throw bad("bad record '" + rec + "'");
+    }
+  }
+  if (confirmed < 0 || confirmed > s.blocks || sent < 0 || sent > s.blocks ||
+      (complete != 0 && complete != 1)) {
     throw bad("bad record '" + rec + "'");
   }
   s.confirmed = confirmed;
+  s.sent_bound = std::max(sent, confirmed);
   s.complete = complete == 1;
   return s;
 }

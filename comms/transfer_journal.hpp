@@ -16,7 +16,11 @@ struct JournalState {
   std::string settings;        // describe(LineSettings) at the start of the transfer
   std::int64_t blocks = 0;     // blocks in the program
   std::int64_t confirmed = 0;  // blocks the controller has confirmed: resume at this index
-  bool complete = false;       // the whole program was confirmed
+  // No block at or after this index has been written to the port: with `confirmed`, the
+  // blocks a controller may have run after the sender died (kept ahead of what is written, by a
+  // margin, so that it is flushed once per kSentMargin blocks, not once a block).
+  std::int64_t sent_bound = 0;
+  bool complete = false;  // the whole program was confirmed
 };
 
 class TransferJournal {
@@ -29,6 +33,10 @@ class TransferJournal {
 
   // Records that blocks [0, confirmed) are confirmed; flushes to disk. Never goes backwards.
   void confirm(std::int64_t confirmed);
+  // Called before block `index` (0-based) is written: raises sent_bound past it (by
+  // kSentMargin, capped at the program's blocks, if known) and flushes, when it is not already.
+  void note_writing(std::int64_t index);
+  static constexpr std::int64_t kSentMargin = 32;
   // Marks the transfer complete.
   void complete();
   const std::string& path() const { return path_; }

@@ -119,6 +119,9 @@ TEST_F(SimControllerCli, BadFlagsExitTwoAndLeaveNothing) {
       {l + " --noise-bytes-per-s -1", "--noise-bytes-per-s"},
       {l + " --down-s -1", "--down-s"},
       {l + " --seed -5", "--seed"},
+      {l + " --protocol ack --status-mask 4", "--status-mask 4"},
+      {l + " --protocol ack --accel 0", "--accel 0"},
+      {l + " --restart-after-blocks 3", "--restart-after-blocks"},  // drip: no banner to lose
       {l + " --log " + (dir_ / "missing" / "log.json").string(), "missing"},
       {" --link " + (dir_ / "file").string(), "symbolic link"},
       {" --link " + (dir_ / "missing" / "cnc").string(), "missing"},

@@ -93,6 +93,40 @@ TEST(TransferJournal, RecordsTheResumePointInPlace) {
   EXPECT_FALSE(TransferJournal::read(p.string()));
 }
 
+// The bound on the blocks written: always past the block about to be written (read back after
+// each call, as a sender killed right after the write would leave it), raised by a margin so
+// that the record is rewritten once per kSentMargin blocks; a journal from before the bound
+// reads as "every block may have been written".
+TEST(TransferJournal, SentBoundIsAlwaysPastTheBlockWritten) {
+  const fs::path p = temp("journal_sent");
+  JournalState s;
+  s.program_sha256 = "ab";
+  s.settings = "115200 8N1 none ack LF";
+  s.blocks = 100;
+  {
+    TransferJournal j(p.string(), s);
+    std::int64_t raised = 0, last = -1;
+    for (std::int64_t k = 0; k < 100; ++k) {
+      j.note_writing(k);
+      const auto r = TransferJournal::read(p.string());
+      ASSERT_TRUE(r);
+      EXPECT_GT(r->sent_bound, k);
+      EXPECT_LE(r->sent_bound, 100);
+      raised += r->sent_bound != last ? 1 : 0;
+      last = r->sent_bound;
+    }
+    EXPECT_EQ(raised, 4);  // 0 → 32, 64, 96, 100
+  }
+  std::ofstream(p) << R"({"journal":"ncd-transfer-journal-1","program_sha256":"ab",)"
+                   << R"("settings":"x","blocks":100})"
+                   << "\nconfirmed 000000000042 complete 0\n";
+  const auto old = TransferJournal::read(p.string());
+  ASSERT_TRUE(old);
+  EXPECT_EQ(old->confirmed, 42);
+  EXPECT_EQ(old->sent_bound, 100);
+  fs::remove(p);
+}
+
 TEST(ProgramFile, FramingIsNotABlock) {
   EXPECT_EQ(block_of_line("%"), "");
   EXPECT_EQ(block_of_line(std::string("\0\0%\r", 4)), "");

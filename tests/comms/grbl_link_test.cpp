@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -374,6 +375,175 @@ TEST(GrblHalfLine, ACutLineNeverRunsCutShortNorTwice) {
       refused = refused || e.text == n30.substr(0, offset) + "))";
     EXPECT_EQ(refused, !in_comment);
   }
+}
+
+}  // namespace
+}  // namespace ncd::comms
+
+namespace ncd::comms {
+namespace {
+
+// The sender and a grbl controller on a ManualClock: the test's thread moves the controller's
+// time on in steps of dt_s while the sender runs on its own thread, until run() returns.
+struct SenderRun {
+  SenderReport report;
+  bool finished = false;
+};
+
+SenderRun run_sender(DncSender& sender, Running& run, const std::atomic<bool>& stop, double dt_s,
+                     const std::function<void(double)>& at_time = {}) {
+  SenderRun r;
+  std::atomic<bool> done{false};
+  std::thread t([&] {
+    r.report = sender.run(stop);
+    done = true;
+  });
+  const auto t0 = Clock::now();
+  double sim_t = 0.0;
+  while (!done && since(t0) < 120.0) {
+    if (!run.step(dt_s)) break;
+    sim_t += dt_s;
+    if (at_time) at_time(sim_t);
+  }
+  t.join();
+  r.finished = done;
+  return r;
+}
+
+std::string slow_moves(int moves) {
+  std::string text = "G21 G90 G94\n";
+  for (int i = 1; i <= moves; ++i) {
+    char line[48];
+    std::snprintf(line, sizeof line, "N%d G1 X%d F600\n", i, i);  // 1 mm at 10 mm/s: 0.1 s
+    text += line;
+  }
+  return text + "M2\n";
+}
+
+SenderSettings grbl_sender(const fs::path& link) {
+  SenderSettings s;
+  s.line.device = link.string();
+  s.line.baud = 115200;
+  parse_frame("8N1", s.line);
+  s.line.protocol = Protocol::Ack;
+  s.status_hz = 10.0;
+  s.banner_wait_s = 0.2;
+  s.startup_timeout_s = 60.0;
+  return s;
+}
+
+// DncSender::request_halt, the primitive a stop calls: asked while grbl moves, it holds, waits
+// for Hold:0 (the 100 mm/s² deceleration from 10 mm/s takes 0.1 s of the controller's time,
+// however late the sender's thread runs), and only then resets: no ALARM:3, nothing queued runs
+// after it, grbl Idle. At rest the count of executed blocks is exact: it equals the controller's.
+TEST(GrblHalt, RequestHaltResetsOnlyOnceTheHoldIsAtRest) {
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  Running run(grbl_config(dir / "cnc", clock), clock);
+  const fs::path path = dir / "prog.ngc";
+  std::ofstream(path) << slow_moves(60);
+  ProgramFile source(path.string());
+  DncSender sender(grbl_sender(dir / "cnc"), source);
+  std::atomic<bool> stop{false};
+  bool asked = false;
+  const SenderRun r = run_sender(sender, run, stop, 0.0005, [&](double t) {
+    if (!asked && t >= 2.0) {  // some 18 moves in, the planner full
+      asked = true;
+      sender.request_halt();
+    }
+  });
+  ASSERT_TRUE(r.finished);
+  const SenderReport& rep = r.report;
+  EXPECT_TRUE(rep.stopped);
+  EXPECT_FALSE(rep.completed);
+  EXPECT_TRUE(rep.halt.attempted);
+  EXPECT_TRUE(rep.halt.ok()) << rep.halt.detail;
+  EXPECT_EQ(rep.halt.state, "Idle");
+  EXPECT_EQ(rep.controller_state, "Idle");
+  for (int i = 0; i < 200; ++i) ASSERT_TRUE(run.step(0.005));  // 1 s more: nothing moves
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.resets.size(), 1U);
+  EXPECT_EQ(log.resets[0].cause, "soft_reset");
+  EXPECT_FALSE(log.resets[0].in_motion);
+  EXPECT_GT(log.resets[0].blocks_lost, 0);
+  EXPECT_EQ(log.feed_holds, 1);
+  EXPECT_EQ(log.cycle_starts, 0);
+  EXPECT_EQ(rep.blocks_executed, log.blocks_executed);  // exact at rest
+  EXPECT_GE(log.blocks_executed, 10);
+  std::cout << "[ measured ] halted after " << log.blocks_executed << " blocks, at rest after "
+            << rep.halt.rest_s << " s of the sender's time; " << log.resets[0].blocks_lost
+            << " queued blocks thrown away, no alarm\n";
+}
+
+// A hold that cannot come to rest within halt_timeout_s (a slow deceleration: 0.01 mm/s²) is
+// not reset: a reset in motion would raise ALARM:3 and lose the position. The controller stays
+// held (its motion slowing down), and the report says so.
+TEST(GrblHalt, NoResetBeforeTheMotionIsAtRest) {
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  SimControllerConfig cfg = grbl_config(dir / "cnc", clock);
+  cfg.hold_accel_mm_per_s2 = 0.01;
+  Running run(cfg, clock);
+  const fs::path path = dir / "prog.ngc";
+  std::ofstream(path) << "G21 G90 G94\nG1 X1000 F600\nM2\n";  // 100 s of motion
+  ProgramFile source(path.string());
+  SenderSettings s = grbl_sender(dir / "cnc");
+  s.halt_timeout_s = 1.0;
+  DncSender sender(s, source);
+  std::atomic<bool> stop{false};
+  bool asked = false;
+  const SenderRun r = run_sender(sender, run, stop, 0.001, [&](double t) {
+    if (!asked && t >= 1.0) {
+      asked = true;
+      sender.request_halt();
+    }
+  });
+  ASSERT_TRUE(r.finished);
+  EXPECT_TRUE(r.report.halt.attempted);
+  EXPECT_FALSE(r.report.halt.at_rest);
+  EXPECT_FALSE(r.report.halt.reset);
+  EXPECT_EQ(r.report.halt.state, "Hold:1");
+  EXPECT_NE(r.report.halt.detail.find("not reset"), std::string::npos) << r.report.halt.detail;
+  const SimLog& log = run.stop();
+  EXPECT_TRUE(log.resets.empty());
+  EXPECT_EQ(log.feed_holds, 1);
+}
+
+// A controller left held (Hold:0: its protocol loop reads no line, so a wake-up line gets no
+// answer) is brought to a safe halt at start-up, and the program then runs whole. Before, the
+// next `ncd stream` waited for an answer and gave up: "did not speak within 10 s".
+TEST(GrblHalt, AControllerLeftHeldIsHaltedAtStartUpThenTheProgramRuns) {
+  TempDir dir;
+  auto clock = std::make_shared<ManualClock>();
+  Running run(grbl_config(dir / "cnc", clock), clock);
+  {
+    Peer peer((dir / "cnc").string());
+    peer.write_all("!");
+    for (int i = 0; i < 50; ++i) ASSERT_TRUE(run.step(0.001));
+  }
+  const fs::path path = dir / "prog.ngc";
+  const std::string text = slow_moves(10);
+  std::ofstream(path) << text;
+  ProgramFile source(path.string());
+  SenderSettings s = grbl_sender(dir / "cnc");
+  s.startup_timeout_s = 10.0;
+  DncSender sender(s, source);
+  std::atomic<bool> stop{false};
+  const SenderRun r = run_sender(sender, run, stop, 0.0005);
+  ASSERT_TRUE(r.finished);
+  EXPECT_TRUE(r.report.completed) << r.report.failure;
+  EXPECT_TRUE(r.report.halt.ok()) << r.report.halt.detail << " / " << r.report.halt.state;
+  ASSERT_FALSE(r.report.notes.empty());
+  EXPECT_NE(r.report.notes[0].find("held (Hold:0) at start-up"), std::string::npos)
+      << r.report.notes[0];
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.resets.size(), 1U);
+  EXPECT_FALSE(log.resets[0].in_motion);
+  std::vector<std::string> ran, want;
+  for (const SimExecuted& e : log.executed) ran.push_back(e.text);
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) want.push_back(line);
+  EXPECT_EQ(ran, want);
 }
 
 }  // namespace

@@ -1066,11 +1066,13 @@ TEST(SimController, NoiseNeverLooksLikeProtocol) {
 }
 
 // grbl's real-time commands and reset, in simulated time: a 10 mm move at 600 mm/min takes 1 s;
-// `?` after 0.25 s reports about 2.5 mm, Run and the planner's count; `!` holds there (the
-// position does not change in 0.5 s); `~` resumes, and the move ends 1 s of motion plus the hold
-// after it began; 0x18 during the next move aborts it (ALARM:3, banner, position kept, the
-// queued block lost). Characters take their time on the wire (87 µs at 115200 8N1), so the
-// positions are checked to 0.05 mm (5 ms of motion).
+// `?` after 0.25 s reports about 2.5 mm, Run and the planner's count; `!` decelerates the move at
+// 100 mm/s² (Hold:1 for v/a = 0.1 s, over v²/2a = 0.5 mm; a `~` then is ignored, as grbl resumes
+// only a complete hold), then holds it at rest (Hold:0: the position does not change in 0.5 s);
+// `~` resumes, and the move ends 1 s of motion, plus the time at rest, plus the 0.05 s the
+// deceleration lost, after it began; 0x18 during the next move aborts it (ALARM:3, banner,
+// position kept, the queued block lost). Characters take their time on the wire (87 µs at 115200
+// 8N1), so the positions are checked to 0.05 mm (5 ms of motion).
 TEST(SimController, GrblStatusHoldResumeAndResetInSimulatedTime) {
   TempDir dir;
   SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
@@ -1103,12 +1105,21 @@ TEST(SimController, GrblStatusHoldResumeAndResetInSimulatedTime) {
   EXPECT_EQ(run1.substr(0, 5), "<Run|") << run1;
   EXPECT_NEAR(x_of(run1), 2.5, 0.05) << run1;
   EXPECT_NE(run1.find("|Bf:12,128|"), std::string::npos) << run1;  // 3 moves of 15, buffer empty
+  EXPECT_NE(run1.find("|FS:600,0"), std::string::npos) << run1;    // feed, spindle stopped
+  EXPECT_NE(run1.find("|WCO:0.000,0.000,0.000"), std::string::npos) << run1;  // the first report
   peer.write_all("!");  // nothing answers a hold: the status below is read after it
+  const std::string slowing = ask("?", "<");
+  EXPECT_EQ(slowing.substr(0, 8), "<Hold:1|") << slowing;
+  peer.write_all("~");  // ignored: the hold is not complete
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(run.step(*clock, 0.001));  // v/a = 0.1 s
   const std::string held = ask("?", "<");
   for (int i = 0; i < 500; ++i) ASSERT_TRUE(run.step(*clock, 0.001));  // held 0.5 s
   const std::string held2 = ask("?", "<");
   EXPECT_EQ(held.substr(0, 8), "<Hold:0|") << held;
+  EXPECT_NEAR(x_of(held), x_of(run1) + 0.5, 0.05) << held;  // v²/2a further
+  EXPECT_GT(x_of(held), x_of(slowing)) << slowing;
   EXPECT_EQ(x_of(held), x_of(held2)) << held2;
+  EXPECT_NE(held2.find("|FS:0,0"), std::string::npos) << held2;
   peer.write_all("~");
   for (int i = 0; i < 800; ++i) ASSERT_TRUE(run.step(*clock, 0.001));  // to X10, then on
   const std::string run2 = ask("?", "<");
@@ -1119,7 +1130,9 @@ TEST(SimController, GrblStatusHoldResumeAndResetInSimulatedTime) {
   const SimLog& log = run.stop();
   ASSERT_EQ(log.executed.size(), 1U);
   EXPECT_EQ(log.executed[0].text, "G1 X10 F600");
-  EXPECT_NEAR(log.executed[0].t_s, 1.5, 0.01);  // 1 s of motion + 0.5 s held
+  // 1 s of motion, the 0.05 s the deceleration lost, and the time at rest (0.5 s and the
+  // question's few steps).
+  EXPECT_NEAR(log.executed[0].t_s, 1.55, 0.01);
   ASSERT_EQ(log.resets.size(), 1U);
   EXPECT_TRUE(log.resets[0].in_motion);
   EXPECT_EQ(log.resets[0].aborted, "G1 X20");
@@ -1130,7 +1143,134 @@ TEST(SimController, GrblStatusHoldResumeAndResetInSimulatedTime) {
   EXPECT_EQ(log.resets[0].executed_at_last_report, 1);
   EXPECT_EQ(to_json(log)["resets"][0]["executed_at_last_report"], 1);
   EXPECT_EQ(log.feed_holds, 1);
-  EXPECT_EQ(log.cycle_starts, 1);
+  EXPECT_EQ(log.cycle_starts, 1);  // the `~` during Hold:1 did nothing
+}
+
+// A grbl-mode exchange over the pty, in simulated time: writes `bytes` and steps the clock until
+// a new reply starts with `prefix` (or 10 s of wall time pass); returns it, or "(none)".
+std::string grbl_ask(Peer& peer, Running& run, ManualClock& clock, const std::string& bytes,
+                     const std::string& prefix) {
+  const std::size_t from = peer.replies.size();
+  peer.write_all(bytes);
+  const auto t0 = Clock::now();
+  while (since(t0) < 10.0) {
+    peer.pump();
+    for (std::size_t k = from; k < peer.replies.size(); ++k) {
+      if (peer.replies[k].rfind(prefix, 0) == 0) return peer.replies[k];
+    }
+    run.step(clock, 0.0005);
+  }
+  return "(none)";
+}
+
+// grbl's safe halt (its manual: feed hold, wait for Hold:0, then reset) against a reset during
+// the hold's deceleration. A reset in Hold:1 is a reset in motion: ALARM:3, the lock (every
+// g-code line error:9, `?` Alarm) until `$X`, which answers [MSG:Caution: Unlocked] and ok. The
+// reset also cleared the parser (F is undefined: error:22). A reset once the hold is complete
+// (Hold:0) raises nothing and leaves grbl Idle. `$10` sets the status mask: 1 has no Bf:, 0
+// reports WPos; `$10=` while moving is error:8. While held at rest grbl reads no line (its
+// protocol loop is suspended): a line sent then is answered after `~`.
+TEST(SimController, GrblResetDuringTheHoldAlarmsAfterItDoesNot) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  auto clock = std::make_shared<ManualClock>();
+  cfg.clock = clock;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  run.start_clock(*clock);
+  const auto ask = [&](const std::string& bytes, const std::string& prefix) {
+    return grbl_ask(peer, run, *clock, bytes, prefix);
+  };
+  const auto wait_state = [&](const std::string& state) {
+    for (int i = 0; i < 400; ++i) {
+      const std::string st = ask("?", "<");
+      if (st.rfind("<" + state, 0) == 0) return st;
+      for (int k = 0; k < 10; ++k) run.step(*clock, 0.001);
+    }
+    return std::string("(never ") + state + ")";
+  };
+  EXPECT_EQ(ask("G1 X10 F600\nG1 X20\n", "ok"), "ok");
+  for (int i = 0; i < 200; ++i) ASSERT_TRUE(run.step(*clock, 0.001));
+  // `!` and 0x18 at once, as ncd did: the reset comes while the move decelerates.
+  EXPECT_EQ(ask(std::string("!") + kGrblReset, "ALARM"), "ALARM:3");
+  peer.pump();
+  EXPECT_NE(std::find(peer.replies.begin(), peer.replies.end(), "[MSG:'$H'|'$X' to unlock]"),
+            peer.replies.end());
+  EXPECT_EQ(wait_state("Alarm").substr(0, 7), "<Alarm|");
+  EXPECT_EQ(ask("G1 X1 F600\n", "error"), "error:9");  // locked
+  EXPECT_EQ(ask("$X\n", "[MSG"), "[MSG:Caution: Unlocked]");
+  EXPECT_EQ(wait_state("Idle").substr(0, 6), "<Idle|");
+  EXPECT_EQ(ask("G1 X5\n", "error"), "error:22");  // the reset cleared F
+  EXPECT_EQ(ask("G1 X5 F600\n", "ok"), "ok");
+  EXPECT_EQ(ask("$10=2\n", "error"), "error:8");  // not while moving
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(run.step(*clock, 0.001));
+  peer.write_all("!");
+  const std::string at_rest = wait_state("Hold:0");
+  EXPECT_EQ(at_rest.substr(0, 8), "<Hold:0|") << at_rest;
+  peer.write_all("G1 X6\n");  // not read while held at rest
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(run.step(*clock, 0.001));
+  peer.pump();
+  // G1 X10, G1 X20, $X, G1 X5 F600; not G1 X6
+  EXPECT_EQ(std::count(peer.replies.begin(), peer.replies.end(), "ok"), 4);
+  peer.write_all(std::string(1, kGrblReset));  // at rest: no alarm
+  EXPECT_EQ(ask("", "Grbl"), kGrblBanner);
+  EXPECT_EQ(wait_state("Idle").substr(0, 6), "<Idle|");
+  EXPECT_EQ(ask("$10=1\n", "ok"), "ok");
+  const std::string mpos_only = ask("?", "<");
+  EXPECT_NE(mpos_only.find("|MPos:"), std::string::npos) << mpos_only;
+  EXPECT_EQ(mpos_only.find("|Bf:"), std::string::npos) << mpos_only;
+  EXPECT_EQ(ask("$10=0\n", "ok"), "ok");
+  const std::string wpos = ask("?", "<");
+  EXPECT_NE(wpos.find("|WPos:"), std::string::npos) << wpos;
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.resets.size(), 2U);
+  EXPECT_TRUE(log.resets[0].in_motion);     // during Hold:1
+  EXPECT_FALSE(log.resets[1].in_motion);    // at rest in Hold:0
+  EXPECT_EQ(log.resets[1].blocks_lost, 1);  // G1 X6, still in the receive buffer
+  EXPECT_EQ(log.unlocks, 1);
+  for (const SimExecuted& e : log.executed) EXPECT_NE(e.text, "G1 X6");  // lost in the reset
+}
+
+// A restart at power-up with the USB link gone meanwhile (restart_after_blocks): the banner goes
+// out while the port is closed, so a sender reopening it hears nothing; the controller is Idle,
+// its position restarted at 0, its spindle stopped (FS:…,0), its queue and modes lost.
+TEST(SimController, GrblRestartBannerIsLostWhileThePortIsClosed) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  cfg.dialect = Dialect::grbl;
+  cfg.faults.restart_after_blocks = 4;
+  cfg.faults.down_s = 0.3;
+  auto clock = std::make_shared<ManualClock>();
+  cfg.clock = clock;
+  Running run(cfg);
+  run.start_clock(*clock);
+  {
+    Peer peer(cfg.line.device, run.sim);
+    peer.write_all("S1000 M3\nG1 X10 F600\nG1 X20\nG1 X30\nG1 X40\n");
+    for (int i = 0; i < 200 && peer.pump(); ++i) ASSERT_TRUE(run.step(*clock, 0.001));
+    EXPECT_FALSE(peer.pump());  // hung up
+  }
+  for (int i = 0; i < 400; ++i) ASSERT_TRUE(run.step(*clock, 0.001));  // the link is back
+  ASSERT_TRUE(fs::is_symlink(cfg.line.device));
+  Peer peer(cfg.line.device, run.sim);
+  for (int i = 0; i < 200; ++i) ASSERT_TRUE(run.step(*clock, 0.001));
+  peer.pump();
+  EXPECT_TRUE(peer.replies.empty()) << peer.replies.front();  // no banner
+  const std::string st = grbl_ask(peer, run, *clock, "?", "<");
+  EXPECT_EQ(st.substr(0, 30), "<Idle|MPos:0.000,0.000,0.000|B") << st;
+  EXPECT_NE(st.find("|FS:0,0"), std::string::npos) << st;
+  const SimLog& log = run.stop();
+  ASSERT_EQ(log.resets.size(), 1U);
+  EXPECT_EQ(log.resets[0].cause, "power_cycle");
+  EXPECT_FALSE(log.resets[0].in_motion);  // no ALARM:3: the board lost its power
+  EXPECT_GT(log.resets[0].position[0], 0.0);
+  EXPECT_EQ(log.banners_sent, 1);
+  EXPECT_EQ(log.banners_lost, 1);
+  EXPECT_EQ(log.link_drops, 1);
+  bool spindle_stopped = false;
+  for (const SimEvent& e : log.events)
+    spindle_stopped = spindle_stopped || e.kind == "spindle_stop";
+  EXPECT_TRUE(spindle_stopped);
 }
 
 TEST(SimController, ExitAtEndReturnsAfterTheProgram) {
