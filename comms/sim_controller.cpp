@@ -1097,6 +1097,7 @@ struct SimController::Impl {
     hold_pos = position_at(t);
     held = true;
     remaining_s = busy ? std::max(0.0, busy_end - t) : 0.0;
+    log.events.push_back({t, current_seq, current.n, "feed_hold", 0.0});  // the motion stops here
     event("feed hold");
   }
 

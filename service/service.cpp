@@ -551,10 +551,13 @@ void Service::finish_motion() {
   if (live_) {
     // A job that reached its end: what follows its last planned move (the retract's rapid, M5,
     // M2). A restarted one has no program events after its line: its ending follows the last
-    // block. Any other end is early: the ending from where the blocks leave the tool (in the
-    // blocks after the planned stop, or sent by the sender after its hold and reset).
+    // block (a bare path, a test's, has none to follow). Any other end is early: the ending from
+    // where the blocks leave the tool (in the blocks after the planned stop, or sent by the sender
+    // after its hold and reset).
     if (s == State::Done && live_->program) {
       live_->program->end();
+    } else if (s == State::Done && !job_.restart) {
+      live_->encoder->finish();  // a bare path: no program, nothing started that must stop
     } else {
       if (s == State::Done) {
         request_ending("the restarted program reached its end", false);
