@@ -69,7 +69,8 @@
 // end, the session stores what it has done so far into relaxed atomics (SenderCounters), read
 // by the owner without a lock. An underrun is counted when a dry spell begins: everything
 // written, the source not ready and not over, the controller not holding, after the first
-// block.
+// block, and not while the owner holds the motion feeding the source (set_source_held) or in
+// the dry spell that continues after such a hold.
 #include "comms/dnc_sender.hpp"
 
 #include <algorithm>
@@ -193,7 +194,7 @@ class Session {
   Session(const SenderSettings& s, BlockSource& source, const DncSender::EventFn& on_event,
           const DncSender::HoldFn& on_hold, TransferJournal* journal, std::int64_t first_block,
           SenderCounters& counters, const std::atomic<bool>& end_requested,
-          const DncSender::EndingFn& ending)
+          const DncSender::EndingFn& ending, const std::atomic<bool>& source_held)
       : s_(s),
         source_(source),
         on_event_(on_event),
@@ -202,6 +203,7 @@ class Session {
         counters_(counters),
         end_requested_(end_requested),
         ending_fn_(ending),
+        source_held_(source_held),
         ack_(s.line.protocol == Protocol::Ack),
         cps_(chars_per_s(s.line)),
         window_(s.resend_window_chars >= 0
@@ -291,6 +293,12 @@ class Session {
   // yet and the program is not over, while the controller does not hold the line (a hold is
   // the controller's own wish) and after the first block went out (before it, nothing runs).
   void watch_underrun() {
+    // While the motion feeding the source is held (the operator's hold), or in the dry spell
+    // that goes on after it until the next block, nothing starves: the tool is at rest.
+    if (source_held_.load(std::memory_order_relaxed)) {
+      dry_ = true;
+      return;
+    }
     const bool nothing = source_waiting_ && !source_done_ && sent_items_ == items_.size();
     const bool held = !xon_ || cts_low_;
     const bool dry =
@@ -1448,6 +1456,7 @@ class Session {
   SenderCounters& counters_;
   const std::atomic<bool>& end_requested_;
   const DncSender::EndingFn& ending_fn_;
+  const std::atomic<bool>& source_held_;
   Ending ending_ = Ending::None;
   double ending_t0_ = 0.0;
   std::int64_t ending_first_unexecuted_ = -1;
@@ -1560,7 +1569,7 @@ void DncSender::end_with(EndingFn ending) {
 
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_,
-                  end_requested_, ending_);
+                  end_requested_, ending_, source_held_);
   session.on_executed(on_executed_);
   return session.run(stop);
 }

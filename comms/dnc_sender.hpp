@@ -210,6 +210,10 @@ class DncSender {
   // followed to Idle. report.ending says how far it went. Callable from any thread, once (later
   // calls are ignored); drip ignores it (the caller appends its ending to the source).
   void end_with(EndingFn ending);
+  // The motion that feeds the source is held (an operator's hold): a dry spell then, and its
+  // continuation until the next block, is no underrun (the tool is at rest, nothing starves).
+  // Callable from any thread.
+  void set_source_held(bool held) { source_held_.store(held, std::memory_order_relaxed); }
   // Sends until the program is confirmed, an alarm, the link is given up, or stop is set.
   SenderReport run(const std::atomic<bool>& stop);
   // The live counters of the run under way (or the last one); readable from any thread.
@@ -227,6 +231,7 @@ class DncSender {
   std::atomic<bool> ending_claimed_{false};  // end_with() was called
   EndingFn ending_;                          // then written, before end_requested_ is set
   std::atomic<bool> end_requested_{false};
+  std::atomic<bool> source_held_{false};
 };
 
 }  // namespace ncd::comms

@@ -74,7 +74,11 @@ std::vector<std::string> ending_blocks(const toolpath::SafeRetract& r,
         }
       }
     }
-    out.push_back("G0Z" + number(r.clearance_z_mm, decimals));
+    // X Y written: straight up from where the tool is, whatever the controller's parser thinks.
+    const bool to_axis = !out.empty() && out.back().rfind("G1", 0) == 0;
+    const Vec3 xy = to_axis ? *r.axis_xy : *at;
+    out.push_back("G0X" + number(xy.x(), decimals) + "Y" + number(xy.y(), decimals) + "Z" +
+                  number(r.clearance_z_mm, decimals));
   }
   out.push_back("M5");
   out.push_back("M9");

@@ -39,7 +39,8 @@ std::string event_words(const toolpath::Event& event, int decimals = 3, bool len
 //   in the bore of an inner edge (below the plane, within bore_radius_mm + 0.01 mm of the axis):
 //     "G1X…Y…Z…F…", horizontally to the drill axis (Z written: level whatever the controller's
 //     parser thinks after a reset);
-//   below the plane: "G0Z…";
+//   below the plane: "G0X…Y…Z…", straight up (X Y written: where the tool is, whatever the
+//     controller's parser thinks after a reset);
 //   then "M5", "M9", "M2" (or "M30").
 // Nothing moves when `at` is not known, or at or above the plane (never down): the operator
 // retracts, and the status says so.

@@ -333,6 +333,7 @@ void Service::hold(HoldHolder by) {
   if (by == HoldHolder::None) throw InputError("hold: a hold needs a holder");
   if (state_ != State::Holding) held_time_left_s_ = time_left_s();
   cycle_->hold();
+  if (live_) live_->sender->set_source_held(true);  // the controller waits: no underrun
   set_state(State::Holding, by, std::string("held by the ") + to_string(by));
 }
 
@@ -344,6 +345,7 @@ void Service::resume(HoldHolder by) {
                                                   : "; only the operator resumes it"));
   }
   cycle_->resume();
+  if (live_) live_->sender->set_source_held(false);
   held_time_left_s_.reset();
   set_state(State::Running, HoldHolder::None, std::string("resumed by the ") + to_string(by));
 }
