@@ -351,6 +351,20 @@ void Service::resume(HoldHolder by) {
 }
 
 void Service::stop(const std::string& why) {
+  if (state_ == State::Streaming && live_) {
+    // The motion is over; the controller still has blocks. grbl: hold it and end the job now.
+    if (live_->hold_and_reset && ending_.state == EndingStatus::State::None &&
+        !live_->done.load(std::memory_order_acquire)) {
+      stop_why_ = why;
+      final_state_ = State::Stopped;
+      request_ending(why, true);
+      return;
+    }
+    throw InputError(
+        "stop: the motion has ended and the controller is taking the last blocks, which end the "
+        "job safely" +
+        std::string(live_->hold_and_reset ? "" : " (a drip link cannot take back what it sent)"));
+  }
   require_active("stop");
   stop_why_ = why;
   cycle_->stop();
@@ -745,16 +759,23 @@ void Service::fail_job(const std::string& why) {
     set_state(State::Streaming, HoldHolder::None, "the job failed; ending it safely");
     return;
   }
-  if (live_) {
+  error_ = why;
+  if (live_) {  // streaming already, or the link gone: nothing more reaches the controller
     live_->blocks.close();
     live_->stop = true;
     if (live_->thread.joinable()) live_->thread.join();
     live_->done.store(true);
+    if (ending_.state != EndingStatus::State::Sent &&
+        ending_.state != EndingStatus::State::NotNeeded) {
+      ending_.state = EndingStatus::State::NotSent;
+      ending_.note =
+          "the safe ending could NOT be sent: the transfer was given up; " + ending_advice();
+      error_ += "; " + ending_.note;
+    }
   }
   job_.sink.reset();  // removes the setpoints' temporary file
-  error_ = why;
-  emit(EventKind::Alarm, why);
-  set_state(State::Error, HoldHolder::None, why);
+  emit(EventKind::Alarm, error_);
+  set_state(State::Error, HoldHolder::None, error_);
   end_job();
 }
 

@@ -179,11 +179,13 @@ class Service {
   Service& operator=(const Service&) = delete;
 
   // Commands. Each throws InputError naming the state when it does not apply there.
-  void submit(JobSpec job);           // idle, ready, done, stopped, error → ready
-  const std::string& start();         // ready → running; returns the real-time grant
-  void hold(HoldHolder by);           // running → holding (or a new holder while holding)
-  void resume(HoldHolder by);         // holding → running, by the holder only
-  void stop(const std::string& why);  // running, holding → a jerk-limited stop, then stopped
+  void submit(JobSpec job);    // idle, ready, done, stopped, error → ready
+  const std::string& start();  // ready → running; returns the real-time grant
+  void hold(HoldHolder by);    // running → holding (or a new holder while holding)
+  void resume(HoldHolder by);  // holding → running, by the holder only
+  // running, holding → a jerk-limited stop, then the ending (service.cpp), then stopped;
+  // streaming on an ack link with status → the controller held and the ending sent now.
+  void stop(const std::string& why);
   void set_override(double percent);  // running, holding; 0..200
   // Stops any motion (a jerk-limited stop) and ends a streamed job safely, as stop() does; a
   // transfer already ending goes on to its end. poll() until !busy().
