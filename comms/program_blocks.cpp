@@ -59,6 +59,7 @@ std::vector<std::string> ending_blocks(const toolpath::SafeRetract& r,
   if (after_reset) out.push_back("G21G90");
   const double tol_mm = 0.5 * std::pow(10.0, -decimals);  // a move shorter is not written
   if (at && at->z() < r.clearance_z_mm - tol_mm) {
+    bool to_axis = false;  // in the bore: the rise starts from the drill axis
     if (r.axis_xy) {
       const double off_mm = std::hypot(at->x() - r.axis_xy->x(), at->y() - r.axis_xy->y());
       if (off_mm <= r.bore_radius_mm + 0.01) {  // in the bore: back to the axis first
@@ -66,6 +67,7 @@ std::vector<std::string> ending_blocks(const toolpath::SafeRetract& r,
           out.push_back("M3S" + number(r.spindle_rpm, 0));
           if (r.spindle_dwell_s > 0.0) out.push_back("G4P" + number(r.spindle_dwell_s, decimals));
         }
+        to_axis = true;
         if (off_mm > tol_mm) {
           // Z written: a controller whose parser lost the position in a reset keeps it level.
           out.push_back("G1X" + number(r.axis_xy->x(), decimals) + "Y" +
@@ -75,7 +77,6 @@ std::vector<std::string> ending_blocks(const toolpath::SafeRetract& r,
       }
     }
     // X Y written: straight up from where the tool is, whatever the controller's parser thinks.
-    const bool to_axis = !out.empty() && out.back().rfind("G1", 0) == 0;
     const Vec3 xy = to_axis ? *r.axis_xy : *at;
     out.push_back("G0X" + number(xy.x(), decimals) + "Y" + number(xy.y(), decimals) + "Z" +
                   number(r.clearance_z_mm, decimals));
