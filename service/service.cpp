@@ -816,6 +816,13 @@ void Service::request_ending(const std::string& why, bool now) {
         "retract, M5, M9, the program end";
     append_pending_ = true;
   }
+  if (job_.retract) {
+    ending_.how += "; clearance Z " + text::fixed(job_.retract->clearance_z_mm, 3) + " mm (" +
+                   job_.retract->clearance_from + ")" +
+                   (job_.retract->axis_xy ? ", in the bore back to the drill axis first" : "");
+  } else {
+    ending_.how += "; the job has no retract of its own: nothing moves";
+  }
   log("ending job " + job_.name + " (" + why + "): " + ending_.how);
 }
 

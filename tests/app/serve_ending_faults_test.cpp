@@ -79,6 +79,29 @@ std::string machine_text(bool grbl, double xoff_timeout_s = 5.0) {
          "[tool]\nprogrammed_point = \"tip\"\nnumber = 1\nspindle_dwell_s = 0.5\n";
 }
 
+// The end of the controller's log, for the report: its last blocks, moves and events.
+std::string log_tail(const comms::SimLog& log) {
+  std::string out = "executed:";
+  const std::size_t e = log.executed.size();
+  for (std::size_t i = e > 8 ? e - 8 : 0; i < e; ++i) out += " " + log.executed[i].text;
+  out += "; moves:";
+  const std::size_t m = log.moves.size();
+  for (std::size_t i = m > 3 ? m - 3 : 0; i < m; ++i) {
+    char b[96];
+    std::snprintf(b, sizeof b, " G%d (%.3f, %.3f, %.3f) @%.3f s", log.moves[i].g, log.moves[i].p[0],
+                  log.moves[i].p[1], log.moves[i].p[2], log.moves[i].t_s);
+    out += b;
+  }
+  out += "; events:";
+  const std::size_t v = log.events.size();
+  for (std::size_t i = v > 4 ? v - 4 : 0; i < v; ++i) {
+    char b[64];
+    std::snprintf(b, sizeof b, " %s @%.3f s", log.events[i].kind.c_str(), log.events[i].t_s);
+    out += b;
+  }
+  return out;
+}
+
 // The setpoints file fails (a full disk) past half the loop (Y below -3 mm, 10.5 mm from the
 // axis): even a controller that lags the motion by its whole queue (grbl's 15 blocks) is then
 // on the loop.
@@ -230,9 +253,10 @@ TEST_P(ServedEnding, AJobErrorMidCutEndsWithTheInBoreRetract) {
   if (grbl) {
     EXPECT_FALSE(log.resets.back().in_motion) << "reset at Hold:0: no ALARM:3";
   }
-  std::printf("[ measured ] %s job error: stopped at (%.3f, %.3f, %.3f); ending %s; %s\n",
-              grbl ? "grbl" : "iso", stop[0], stop[1], stop[2],
-              json(st.ending.blocks).dump().c_str(), st.ending.note.c_str());
+  std::printf(
+      "[ measured ] %s job error: stopped at (%.3f, %.3f, %.3f); ending %s; %s; log tail %s\n",
+      grbl ? "grbl" : "iso", stop[0], stop[1], stop[2], json(st.ending.blocks).dump().c_str(),
+      st.ending.note.c_str(), log_tail(log).c_str());
 }
 
 TEST_P(ServedEnding, ABlockTheDialectRefusesMidProgramEndsTheJobSafely) {
@@ -273,9 +297,10 @@ TEST_P(ServedEnding, ABlockTheDialectRefusesMidProgramEndsTheJobSafely) {
   EXPECT_NEAR(stop[2], -1.0, 1e-3);
   EXPECT_NEAR(log.moves.back().p[0], stop[0], 1e-3);
   EXPECT_NEAR(log.moves.back().p[1], stop[1], 1e-3);
-  std::printf("[ measured ] %s refused block: stopped at (%.3f, %.3f, %.3f); ending %s\n",
-              grbl ? "grbl" : "iso", stop[0], stop[1], stop[2],
-              json(st.ending.blocks).dump().c_str());
+  std::printf(
+      "[ measured ] %s refused block: stopped at (%.3f, %.3f, %.3f); ending %s; log tail %s\n",
+      grbl ? "grbl" : "iso", stop[0], stop[1], stop[2], json(st.ending.blocks).dump().c_str(),
+      log_tail(log).c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(Dialects, ServedEnding, ::testing::Values(false, true),
@@ -313,7 +338,8 @@ TEST_F(ServedEnding, ALostDripLinkSaysTheEndingCouldNotBeSent) {
   EXPECT_FALSE(log.program_end_executed);
   ASSERT_FALSE(log.events.empty());
   EXPECT_EQ(log.events.back().kind, "dwell");
-  std::printf("[ measured ] lost drip link: %s\n", st.error.c_str());
+  std::printf("[ measured ] lost drip link: %s; log tail %s\n", st.error.c_str(),
+              log_tail(log).c_str());
 }
 
 TEST_F(ServedEnding, AStopWhileTheAckLinkIsDownSaysSoAndTheEndingIsNotSent) {

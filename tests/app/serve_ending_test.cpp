@@ -73,6 +73,29 @@ std::string machine_text(bool grbl) {
          "[tool]\nprogrammed_point = \"tip\"\nnumber = 1\nspindle_dwell_s = 0.5\n";
 }
 
+// The end of the controller's log, for the report: its last blocks, moves and events.
+std::string log_tail(const comms::SimLog& log) {
+  std::string out = "executed:";
+  const std::size_t e = log.executed.size();
+  for (std::size_t i = e > 8 ? e - 8 : 0; i < e; ++i) out += " " + log.executed[i].text;
+  out += "; moves:";
+  const std::size_t m = log.moves.size();
+  for (std::size_t i = m > 3 ? m - 3 : 0; i < m; ++i) {
+    char b[96];
+    std::snprintf(b, sizeof b, " G%d (%.3f, %.3f, %.3f) @%.3f s", log.moves[i].g, log.moves[i].p[0],
+                  log.moves[i].p[1], log.moves[i].p[2], log.moves[i].t_s);
+    out += b;
+  }
+  out += "; events:";
+  const std::size_t v = log.events.size();
+  for (std::size_t i = v > 4 ? v - 4 : 0; i < v; ++i) {
+    char b[64];
+    std::snprintf(b, sizeof b, " %s @%.3f s", log.events[i].kind.c_str(), log.events[i].t_s);
+    out += b;
+  }
+  return out;
+}
+
 class ServeEnding : public test::ServeFixture, public ::testing::WithParamInterface<Case> {
  protected:
   void TearDown() override {
@@ -226,10 +249,10 @@ TEST_P(ServeEnding, StoppedInTheBoreTheControllerRetractsByTheDrillAxisAndEnds) 
   std::printf(
       "[ measured ] %s, %s: ncd's motion at %s at the request; the controller stopped at (%.3f, "
       "%.3f, %.3f), %.3f mm from the axis; request to motion stop at the controller %.3f s; "
-      "events %s\n",
+      "log tail %s\n",
       k.grbl ? "grbl (ack)" : "iso (drip)", k.sigint ? "SIGINT" : "{\"cmd\":\"stop\"}",
       ncd_at.dump().c_str(), stop[0], stop[1], stop[2], std::hypot(stop[0], stop[1]),
-      stopped_t_s - requested_t_s, log_json["events"].dump().c_str());
+      stopped_t_s - requested_t_s, log_tail(log).c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, ServeEnding,
