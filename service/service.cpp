@@ -577,7 +577,9 @@ void Service::finish_motion() {
     } else {
       if (s == State::Done) {
         request_ending("the restarted program reached its end", false);
-        ending_.how = "after the restarted program's last block: the retract, M5, M9, M2";
+        ending_.how.replace(0, ending_.how.find(';'),
+                            "after the restarted program's last block: the retract, M5, M9, the "
+                            "program end");
       } else {
         request_ending(why, true);
       }

@@ -9,6 +9,8 @@
 //   - the link lost mid-cut: the job ends in error, and its status, error and log say the ending
 //     could NOT be sent and what to do at the machine; a stop while an ack link is down says so
 //     in its reply (link_down_note);
+//   - a job restarted from a line, which streams no program events after the line, ends with
+//     spindle stop, coolant off and program end after its last block;
 //   - an operator hold longer than the link's hold timeout (xoff_timeout_s): no error, no link
 //     hold, and the job completes after the resume.
 // For the first two, in the iso (drip) and grbl (ack) dialects, the controller's log must end
@@ -371,6 +373,47 @@ TEST_F(ServedEnding, AStopWhileTheAckLinkIsDownSaysSoAndTheEndingIsNotSent) {
   EXPECT_FALSE(ctl_.log().program_end_executed);
   std::printf("[ measured ] stop while the ack link is down: reply warning '%s'; error '%s'\n",
               down.c_str(), st.error.c_str());
+}
+
+// A job restarted from a line streams the path from there, without the program's events after
+// the line (docs/service.md, "Restart from a line"): its end gets the ending after its last
+// block, so the spindle stops and the program ends. Before, the stream ended on the last move.
+TEST_F(ServedEnding, ARestartedJobEndsWithSpindleStopAndProgramEnd) {
+  const std::string program =
+      write("prog.ngc",
+            "G21 G90 G17\nS3000 M3\nG0 Z10\nG0 X0 Y0\nG1 Z-1 F300\nG1 X20\nG1 Y20\nG1 X0\n"
+            "G1 Y0\nG0 Z10\nM5\nM2\n");
+  const app::ServiceConfig config = this->config(false);
+  start_controller(config);
+  app::SubmittedJob job = app::submitted_job(
+      {{"cmd", "submit"}, {"job", {{"path", program}}}, {"port", port()}, {"restart_from", 7}},
+      config);
+  ASSERT_TRUE(job.spec.restart);
+  job.spec.link->sender.hold_clock = ctl_.clock();
+  auto s = service();
+  s->submit(std::move(job.spec));
+  s->start();
+  run_until(*s, [] { return false; });
+  ctl_.stop();
+  const service::Status st = s->status();
+  ASSERT_EQ(st.state, service::State::Done) << st.error << "\n" << service_log();
+  EXPECT_EQ(st.ending.state, service::EndingStatus::State::Sent) << st.ending.note;
+  const comms::SimLog& log = ctl_.log();
+  const json j = comms::to_json(log);
+  ASSERT_GE(log.events.size(), 3u);
+  const std::size_t n = log.events.size();
+  EXPECT_EQ(log.events[n - 3].kind, "spindle_stop") << j["events"].dump();
+  EXPECT_EQ(log.events[n - 2].kind, "coolant_off") << j["events"].dump();
+  EXPECT_EQ(log.events[n - 1].kind, "program_end") << j["events"].dump();
+  EXPECT_TRUE(log.alarms.empty()) << j["alarms"].dump();
+  // The program's own last move rose to Z 10, its clearance (a restart streams the path's
+  // blocks, its rapids as feed blocks): nothing more moves.
+  EXPECT_NEAR(log.moves.back().p[2], 10.0, 1e-3);
+  EXPECT_NEAR(log.moves.back().p[0], 0.0, 1e-3);
+  EXPECT_NEAR(log.moves.back().p[1], 0.0, 1e-3);
+  EXPECT_EQ(st.ending.blocks.size(), 3u) << json(st.ending.blocks).dump();
+  std::printf("[ measured ] restarted job: ending %s; log tail %s\n",
+              json(st.ending.blocks).dump().c_str(), log_tail(log).c_str());
 }
 
 // An operator hold longer than the link's hold timeout (xoff_timeout_s, 8 s here: above the
