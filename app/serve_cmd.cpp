@@ -1,9 +1,12 @@
 // `ncd serve`: the service next to a machine. One io_context runs the control socket, the
 // job state machine and signal handling; each running job has its cycle thread. SIGTERM or
-// SIGINT brings any motion to a jerk-limited stop, ends the job cleanly and exits 0.
+// SIGINT brings any motion to a jerk-limited stop, ends a streamed job safely (the retract, M5,
+// M9 and the program end reach the controller: docs/service.md, "Ending early") and exits 0;
+// a second signal gives a transfer still under way up.
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
 #include <csignal>
+#include <functional>
 #include <iostream>
 #include <memory>
 
@@ -64,18 +67,34 @@ int run_serve(const ServeArgs& a) {
     }
     feed->start();
   }
+  // The first signal ends any job safely (its ending reaches the controller) and then the
+  // service; a second one gives a transfer still under way up.
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
-  signals.async_wait([&](const boost::system::error_code& ec, int signal) {
+  std::function<void(const boost::system::error_code&, int)> on_signal;
+  bool shutting_down = false;
+  on_signal = [&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
-    std::cerr << "ncd serve: " << (signal == SIGTERM ? "SIGTERM" : "SIGINT") << ", shutting down"
+    const char* name = signal == SIGTERM ? "SIGTERM" : "SIGINT";
+    if (shutting_down) {
+      std::cerr << "ncd serve: " << name << " again: giving the transfer up" << std::endl;
+      service.abort_transfer();
+      return;
+    }
+    shutting_down = true;
+    std::cerr << "ncd serve: " << name
+              << ", shutting down (a job is ended safely first; a second signal gives its "
+                 "transfer up)"
               << std::endl;
+    signals.async_wait(on_signal);
     service.shutdown([&] {
+      signals.cancel();
       if (feed) feed->close();  // hands the job's last events on
       server.close();
       if (web) web->close();
       io.stop();
     });
-  });
+  };
+  signals.async_wait(on_signal);
   // An exception out of a handler must not end the service: log it and go on serving (the
   // handlers of the job state machine catch their own and put the job in error).
   for (;;) {

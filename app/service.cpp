@@ -191,6 +191,7 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
     path = std::make_shared<toolpath::Path>(std::move(whole.path));
     spec.program = std::make_shared<const toolpath::Program>(std::move(whole.program));
     spec.header = std::move(whole.header);
+    spec.retract = std::move(whole.retract);
   }
   check_envelope(*path, machine);
   check_estimate(estimate_run(*path, machine), !setpoints.empty());
@@ -219,8 +220,19 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
           "program restarts from a line");
     }
     const std::string text = read_input_file(file, "\"job\".\"path\"");
-    service::restart_job(spec, toolpath::interpret_ngc(text, file, config.machine.program), text,
-                         line, clearance);
+    toolpath::Program program = toolpath::interpret_ngc(text, file, config.machine.program);
+    // The ending of a restarted job: straight up to the highest Z of the whole program, or the
+    // restart's clearance if that is higher.
+    const toolpath::Path planned = toolpath::to_path(program);
+    if (!planned.segments.empty()) {
+      toolpath::SafeRetract r = toolpath::program_retract(program, planned);
+      if (clearance && *clearance > r.clearance_z_mm) {
+        r.clearance_z_mm = *clearance;
+        r.clearance_from = "the restart's \"clearance_z_mm\"";
+      }
+      spec.retract = r;
+    }
+    service::restart_job(spec, program, text, line, clearance);
   } else if (req.contains("clearance_z_mm")) {
     throw InputError("\"clearance_z_mm\" goes with \"restart_from\"");
   }
@@ -308,6 +320,12 @@ json Service::handle(const json& req) {
     core_.resume(service::HoldHolder::Operator);
   } else if (cmd == "stop") {
     core_.stop("stop requested by a client");
+    json reply{{"ok", true}, {"state", service::to_string(core_.state())}};
+    const service::EndingStatus& e = core_.status().ending;
+    if (e.state != service::EndingStatus::State::None) reply["ending"] = to_json(e);
+    const std::string down = core_.link_down_note();
+    if (!down.empty()) reply["warning"] = down;
+    return reply;
   } else if (cmd == "override") {
     core_.set_override(number(req, "percent"));
   } else {
@@ -374,6 +392,7 @@ json to_json(const service::Status& st) {
                     {"line", r.line > 0 ? json(r.line) : json()}};
   }
   if (st.interference_allowed) s["interference_allowed"] = true;
+  s["ending"] = st.ending.state == service::EndingStatus::State::None ? json() : to_json(st.ending);
   if (st.restart_line > 0) s["restart_from_line"] = st.restart_line;
   s["events_dropped"] = st.events_dropped;
   if (!st.link) {
@@ -419,6 +438,13 @@ json to_json(const service::Status& st) {
   return s;
 }
 
+json to_json(const service::EndingStatus& e) {
+  return {{"state", service::to_string(e.state)},
+          {"how", e.how},
+          {"blocks", e.blocks},
+          {"note", e.note}};
+}
+
 json to_json(const service::Event& e) {
   json j{{"seq", e.seq},
          {"kind", service::to_string(e.kind)},
@@ -448,6 +474,11 @@ void Service::shutdown(std::function<void()> done) {
   }
   on_idle_ = std::move(done);
   core_.shutdown("the service was shut down (SIGTERM or SIGINT)");
+  if (!loop_armed_) run_loop();
+}
+
+void Service::abort_transfer() {
+  core_.abort_transfer("a second SIGTERM or SIGINT during the shutdown");
   if (!loop_armed_) run_loop();
 }
 

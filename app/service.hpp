@@ -36,9 +36,12 @@ class Service : public comms::ControlHandler {
 
   nlohmann::json handle(const nlohmann::json& request) override;
   nlohmann::json status() override;
-  // SIGTERM/SIGINT: bring any motion to a jerk-limited stop, end the job cleanly, then call
-  // done (on the io_context).
+  // SIGTERM/SIGINT: bring any motion to a jerk-limited stop, end the job safely (the ending
+  // reaches the controller first), then call done (on the io_context).
   void shutdown(std::function<void()> done);
+  // A second signal during the shutdown: give the transfer up (the ending is not sent; the
+  // job's error says what to do at the machine).
+  void abort_transfer();
   // A new observer's event feed (service::Service::subscribe; app/event_feed.hpp drains it).
   std::shared_ptr<service::Subscription> subscribe(std::size_t capacity) {
     return core_.subscribe(capacity);
@@ -59,6 +62,8 @@ class Service : public comms::ControlHandler {
 
 // The status snapshot as the socket's JSON (field names with units; README, "ncd serve").
 nlohmann::json to_json(const service::Status& status);
+// How a streamed job that ended early left the machine (docs/service.md, "Ending early").
+nlohmann::json to_json(const service::EndingStatus& ending);
 // One observer event as JSON (field names with units).
 nlohmann::json to_json(const service::Event& event);
 

@@ -58,6 +58,8 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
   if (ngc) {
     w.program = toolpath::interpret_ngc(text, file, m.program);
     w.header.push_back(who + " of " + file + " (programmed point: as in that program)");
+    w.path = toolpath::to_path(w.program);
+    if (!w.path.segments.empty()) w.retract = toolpath::program_retract(w.program, w.path);
   } else {
     toolpath::JobFrame f;
     f.spindle_rpm = m.cutting.spindle_rpm;
@@ -116,8 +118,9 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
                   f.clearance_z_mm, f.spindle_rpm);
     w.header.push_back(line);
     w.program = toolpath::whole_job(cut, f);
+    w.retract = toolpath::job_retract(cut, f);
+    w.path = toolpath::to_path(w.program);
   }
-  w.path = toolpath::to_path(w.program);
   w.path.source = input.source;
   w.path.chamfer = input.chamfer;
   return w;

@@ -10,12 +10,14 @@
 // writes for it.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "app/machine_config.hpp"
 #include "toolpath/path.hpp"
 #include "toolpath/program.hpp"
+#include "toolpath/whole_program.hpp"
 
 namespace ncd::app {
 
@@ -23,6 +25,10 @@ struct WholeRun {
   toolpath::Program program;        // the events and motions, in order
   toolpath::Path path;              // what the planner walks: to_path(program)
   std::vector<std::string> header;  // comment lines (without parentheses) opening the blocks
+  // How the job leaves the part when it ends early (docs/whole-program.md, "Ending early"): a
+  // generated job's clearance plane and drill axis, an NC program's highest Z. None for
+  // path_only.
+  std::optional<toolpath::SafeRetract> retract;
 };
 
 // `who` names the command in the header ("ncd replay", "ncd serve"); `file` is the path file the

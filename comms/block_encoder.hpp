@@ -201,6 +201,12 @@ class BlockEncoder {
   void comment(const std::string& text);
   // "%" when percent is on: at the start of the program and after its end.
   void percent_line();
+  // Closes the open block at its last setpoint without ending the program: the blocks then end
+  // where the tool stands (a job ending early writes its own ending after them). No-op after
+  // finish().
+  void close_block() {
+    if (!finished_) close_open();
+  }
   // Closes the open block. Idempotent.
   void finish();
   bool finished() const { return finished_; }

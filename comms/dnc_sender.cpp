@@ -58,6 +58,18 @@
 // motion right after the last one held) stops as interrupted, and the controller, held to be
 // asked, is not left held: the safe halt completes the hold with a reset.
 //
+// Ending early (ack, end_with; docs/dnc-link.md "Ending early"). A job that stops, fails or is
+// shut down mid-program must not leave grbl running the blocks it queued, which can be seconds
+// of cutting ahead of the stop. Once the link is ready the sender takes no more program blocks,
+// drops those not yet written, writes `!` (grbl decelerates on the path at once) and polls `?`
+// until the state is Hold:0: the hold is complete, and a soft reset now raises no ALARM:3 (grbl
+// clears its hold flag when the hold completes; only a reset in motion loses the position). It
+// then writes 0x18: grbl drops its planner and receive buffer, stops the spindle and the
+// coolant, keeps the position and sends its banner. After the banner the lines of the job's
+// ending, made for the position the hold left (the status's work position), go out as any lines
+// do, each answered ok, and are followed to Idle. An alarm, a missing Hold:0 within 5 s or a
+// missing banner within startup_timeout_s ends the transfer with the ending not sent.
+//
 // Faults. A hang-up or I/O error closes the port. A hold (XOFF or CTS) longer than
 // xoff_timeout_s is reported and raises the hold callback, which a live job uses to bring the
 // motion to a planned stop. NAK or SYN (drip) stop the transfer with the block named. Other
@@ -71,7 +83,8 @@
 // end, the session stores what it has done so far into relaxed atomics (SenderCounters), read
 // by the owner without a lock. An underrun is counted when a dry spell begins: everything
 // written, the source not ready and not over, the controller not holding, after the first
-// block.
+// block, and not while the owner holds the motion feeding the source (set_source_held) or in
+// the dry spell that continues after such a hold.
 #include "comms/dnc_sender.hpp"
 
 #include <algorithm>
@@ -102,10 +115,12 @@ using Clock = std::chrono::steady_clock;
 using text::fixed;
 using Vec3 = std::array<double, 3>;
 
-constexpr std::int64_t kFraming = -1;     // % and NUL leader
-constexpr std::int64_t kPreamble = -2;    // restart lines
-constexpr std::int64_t kFlush = -3;       // ack: the line grbl must refuse (error:11)
-constexpr double kPositionTolMm = 0.002;  // grbl reports 3 decimals
+constexpr std::int64_t kFraming = -1;        // % and NUL leader
+constexpr std::int64_t kPreamble = -2;       // restart lines
+constexpr std::int64_t kFlush = -3;          // ack: the line grbl must refuse (error:11)
+constexpr std::int64_t kEnding = -4;         // ack: a line of the ending after a reset
+constexpr double kEndingHoldTimeoutS = 5.0;  // `!` to Hold:0 at most
+constexpr double kPositionTolMm = 0.002;     // grbl reports 3 decimals
 // grbl 1.1's step segment buffer holds 5 segments (stepper.c, SEGMENT_BUFFER_SIZE − 1), each of
 // one block: up to 5 moves that left the planner (Bf:, Ln:) may still be running.
 constexpr std::size_t kGrblSegments = 5;
@@ -199,7 +214,9 @@ class Session {
  public:
   Session(const SenderSettings& s, BlockSource& source, const DncSender::EventFn& on_event,
           const DncSender::HoldFn& on_hold, TransferJournal* journal, std::int64_t first_block,
-          SenderCounters& counters, const std::atomic<bool>& halt_request)
+          SenderCounters& counters, const std::atomic<bool>& halt_request,
+          const std::atomic<bool>& end_requested, const DncSender::EndingFn& ending,
+          const std::atomic<bool>& source_held)
       : s_(s),
         source_(source),
         on_event_(on_event),
@@ -207,6 +224,9 @@ class Session {
         journal_(journal),
         counters_(counters),
         halt_request_(halt_request),
+        end_requested_(end_requested),
+        ending_fn_(ending),
+        source_held_(source_held),
         ack_(s.line.protocol == Protocol::Ack),
         cps_(chars_per_s(s.line)),
         window_(s.resend_window_chars >= 0
@@ -299,6 +319,12 @@ class Session {
   // yet and the program is not over, while the controller does not hold the line (a hold is
   // the controller's own wish) and after the first block went out (before it, nothing runs).
   void watch_underrun() {
+    // While the motion feeding the source is held (the operator's hold), or in the dry spell
+    // that goes on after it until the next block, nothing starves: the tool is at rest.
+    if (source_held_.load(std::memory_order_relaxed)) {
+      dry_ = true;
+      return;
+    }
     const bool nothing = source_waiting_ && !source_done_ && sent_items_ == items_.size();
     const bool held = !xon_ || cts_low_;
     const bool dry =
@@ -328,7 +354,13 @@ class Session {
     if (ack_) {
       if (phase_ == Phase::Startup) startup();
       if (phase_ == Phase::Recovering) recovering();
-      if (phase_ == Phase::Ready) {
+      if (phase_ == Phase::Ready && ending_ == Ending::None &&
+          end_requested_.load(std::memory_order_acquire)) {
+        begin_ending();
+      }
+      if (ending_ == Ending::Holding || ending_ == Ending::Resetting) {
+        ending_step();
+      } else if (phase_ == Phase::Ready) {
         write_ack();
         poll_status();
       }
@@ -340,7 +372,15 @@ class Session {
     watch_underrun();
     progress();
     if (done()) {
-      report_.completed = true;
+      if (ending_ == Ending::Sending) {  // the ending, not the program, went to its end
+        report_.ending.sent = true;
+        report_.ending.executed = status_known();
+        emit(SenderEvent::Kind::Ending, report_.blocks,
+             std::string("the ending was ") +
+                 (status_known() ? "executed (the controller is idle)" : "queued"));
+      } else if (ending_ == Ending::None) {
+        report_.completed = true;
+      }
       return false;
     }
     link_->wait(wait_ms(), false);
@@ -352,6 +392,8 @@ class Session {
   bool status_known() const { return s_.status_hz > 0.0 && status_supported_; }
 
   bool done() const {
+    if (ending_ == Ending::NotNeeded) return true;
+    if (ending_ == Ending::Holding || ending_ == Ending::Resetting) return false;
     if (!source_done_) return false;
     if (ack_)
       return phase_ == Phase::Ready && items_.empty() && (queued_.empty() || !status_known());
@@ -439,6 +481,10 @@ class Session {
     if (stopping_ && is_banner(line)) reset_seen_ = true;  // the halt's reset, in any phase
     if (auto st = parse_grbl_status(line)) {
       on_status(*st);
+      return;
+    }
+    if (ending_ == Ending::Holding || ending_ == Ending::Resetting) {
+      ending_line(line);
       return;
     }
     if (phase_ == Phase::Startup) {
@@ -1044,6 +1090,129 @@ class Session {
     confirm_journal();
   }
 
+  // ---- Ending early (see the top of this file) ----
+
+  void begin_ending() {
+    EndingReport& e = report_.ending;
+    e.requested = true;
+    e.request_t_s = now_s();
+    source_done_ = true;  // no more program blocks
+    // The lines not yet written (a half-written one too: the reset clears grbl's line buffer).
+    const std::size_t keep = sent_items_;
+    while (items_.size() > keep) items_.pop_back();
+    cur_off_ = 0;
+    if (!motion_written_) {
+      ending_ = Ending::NotNeeded;
+      e.not_needed = true;
+      emit(SenderEvent::Kind::Ending, report_.blocks,
+           "ending the job: no move had been sent, the controller never moved");
+      return;
+    }
+    ending_ = Ending::Holding;
+    ending_t0_ = now_s();
+    have_status_ = false;
+    write_raw("!?");
+    next_poll_s_ = now_s() + 0.1;
+    emit(SenderEvent::Kind::Ending, report_.blocks,
+         "ending the job: feed hold (!), waiting for Hold:0 before the reset");
+  }
+
+  void ending_step() {
+    const double now = now_s();
+    if (ending_ == Ending::Holding) {
+      if (have_status_ && last_status_) {
+        const std::string& state = last_status_->state;
+        if (state == "Hold:0") {
+          report_.ending.held = true;
+          report_.ending.held_t_s = now;
+          report_.ending.held_at_mm = last_position_;
+          reset_for_ending();
+          return;
+        }
+        if (state.rfind("Alarm", 0) == 0) {
+          fail_ending("the controller is in alarm (its status says " + state +
+                      "): it takes no line until it is unlocked");
+          return;
+        }
+      }
+      if (now - ending_t0_ > kEndingHoldTimeoutS) {
+        fail_ending("after the feed hold (!) the controller did not report Hold:0 within " +
+                    fixed(kEndingHoldTimeoutS, 0) + " s" +
+                    (last_status_ ? " (last status " + last_status_->state + ")" : ""));
+        return;
+      }
+      if (now >= next_poll_s_) {
+        next_poll_s_ = now + 0.1;
+        write_raw("?");
+      }
+      return;
+    }
+    if (now - ending_t0_ > s_.startup_timeout_s) {  // Resetting
+      fail_ending("no banner within " + fixed(s_.startup_timeout_s, 1) +
+                  " s after the soft reset (0x18)");
+    }
+  }
+
+  // Hold:0: what grbl queued is not known executed; the reset drops it.
+  void reset_for_ending() {
+    dropped_note(first_unexecuted());
+    ending_first_unexecuted_ = first_unexecuted();
+    write_raw(std::string(1, '\x18'));
+    ending_ = Ending::Resetting;
+    ending_t0_ = now_s();
+    items_.clear();
+    queued_.clear();
+    sent_items_ = 0;
+    cur_off_ = 0;
+    unacked_bytes_ = 0;
+    line_.clear();
+  }
+
+  // A line while holding or resetting for the ending.
+  void ending_line(const std::string& line) {
+    if (line.rfind("ALARM", 0) == 0) {
+      fail_ending("the controller raised " + line +
+                  (ending_ == Ending::Resetting ? " on the reset: it is locked until $X" : ""));
+    } else if (is_banner(line)) {
+      if (ending_ == Ending::Holding) {
+        fail_ending("the controller reset by itself before its hold was complete ('" + line + "')");
+        return;
+      }
+      report_.ending.reset = true;
+      send_ending();
+    } else if (line == "ok" && ending_ == Ending::Holding && sent_items_ > 0) {
+      take_ok();  // a line written before the hold, queued: the reset drops it
+    }
+  }
+
+  void send_ending() {
+    const std::vector<std::string> lines =
+        ending_fn_ ? ending_fn_(report_.ending.held_at_mm) : std::vector<std::string>{};
+    report_.ending.lines = lines;
+    ProgramModal modal;
+    for (const std::string& l : lines) {
+      Item it;
+      it.index = kEnding;
+      it.bytes = l + eob_text(s_.line.eob);
+      it.geo = modal.apply(l);
+      items_.push_back(std::move(it));
+    }
+    ending_ = Ending::Sending;
+    track_ok_ = true;
+    have_status_ = false;
+    next_poll_s_ = 0.0;
+    emit(SenderEvent::Kind::Ending, report_.blocks,
+         "the controller was held and reset; sending the ending (" + std::to_string(lines.size()) +
+             " lines)");
+  }
+
+  void fail_ending(const std::string& why) {
+    report_.ending.failure = why;
+    report_.alarms.push_back(why);
+    emit(SenderEvent::Kind::Alarm, resume_point(), "the ending could not be sent: " + why);
+    interrupt("the ending could not be sent: " + why);
+  }
+
   // A reset, seen: nothing to stop, the queue is gone. Never resume past it. Its state (an
   // alarm lock after a reset in motion) is read for the advice.
   void controller_reset(const std::string& why) {
@@ -1345,6 +1514,7 @@ class Session {
   }
 
   void written(const Item& it) {
+    motion_written_ = motion_written_ || it.geo.motion;
     if (it.index >= 0 && it.index >= sent_high_) {
       sent_high_ = it.index + 1;
       ++report_.blocks_sent;
@@ -1587,6 +1757,15 @@ class Session {
                                                 : 0.0;
     if (report_.completed && ack_ && status_known()) pop_done(queued_moves());
     report_.blocks_confirmed = report_.completed ? report_.blocks : first_unexecuted();
+    if (ending_ == Ending::Sending || ending_ == Ending::NotNeeded) {
+      report_.blocks_confirmed =
+          ending_first_unexecuted_ >= 0 ? ending_first_unexecuted_ : report_.blocks_confirmed;
+    }
+    if (report_.ending.requested && !report_.ending.sent && !report_.ending.not_needed &&
+        report_.ending.failure.empty()) {
+      report_.ending.failure =
+          report_.failure.empty() ? "the transfer was stopped first" : report_.failure;
+    }
     if (ack_ && status_known()) report_.blocks_executed = executed_count_;
     if (ack_ && report_.controller_state.empty() && last_status_) {
       report_.controller_state = last_status_->state;
@@ -1605,6 +1784,8 @@ class Session {
     link_.reset();
   }
 
+  enum class Ending { None, NotNeeded, Holding, Resetting, Sending };
+
   const SenderSettings& s_;
   BlockSource& source_;
   const DncSender::EventFn& on_event_;
@@ -1613,6 +1794,13 @@ class Session {
   TransferJournal* journal_;
   SenderCounters& counters_;
   const std::atomic<bool>& halt_request_;
+  const std::atomic<bool>& end_requested_;
+  const DncSender::EndingFn& ending_fn_;
+  const std::atomic<bool>& source_held_;
+  Ending ending_ = Ending::None;
+  double ending_t0_ = 0.0;
+  std::int64_t ending_first_unexecuted_ = -1;
+  bool motion_written_ = false;  // a line with motion went out
   const bool ack_;
   const double cps_;
   const int window_;
@@ -1722,9 +1910,15 @@ void SenderCounters::store(const SenderCounts& c) {
   link_losses_.store(c.link_losses, r);
 }
 
+void DncSender::end_with(EndingFn ending) {
+  if (ending_claimed_.exchange(true)) return;
+  ending_ = std::move(ending);
+  end_requested_.store(true, std::memory_order_release);
+}
+
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_,
-                  halt_request_);
+                  halt_request_, end_requested_, ending_, source_held_);
   session.on_executed(on_executed_);
   return session.run(stop);
 }

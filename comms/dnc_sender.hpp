@@ -136,11 +136,26 @@ class BlockSource {
 };
 
 struct SenderEvent {
-  enum class Kind { Opened, LinkLost, Reopened, XoffLong, XoffEnd, Noise, Alarm, Progress };
+  enum class Kind { Opened, LinkLost, Reopened, XoffLong, XoffEnd, Noise, Alarm, Progress, Ending };
   Kind kind = Kind::Progress;
   double t_s = 0.0;        // since the sender started
   std::int64_t block = 0;  // the block concerned (0-based), or blocks sent for Progress
   std::string text;        // what happened, for the log
+};
+
+// How an ack (grbl) stream ended early (DncSender::end_with; docs/dnc-link.md, "Ending early").
+struct EndingReport {
+  bool requested = false;   // end_with() was acted on
+  bool not_needed = false;  // no motion block had been written: the controller never moved
+  bool held = false;        // after `!` the controller reported Hold:0
+  bool reset = false;       // then it was reset (0x18) and sent its banner
+  bool sent = false;        // every ending line was answered ok
+  bool executed = false;    // ... and the controller then reported Idle
+  std::optional<std::array<double, 3>> held_at_mm;  // where the hold left the tool (work)
+  double request_t_s = -1.0;  // since the sender started: the request seen, `!` written
+  double held_t_s = -1.0;     // Hold:0 seen
+  std::vector<std::string> lines;
+  std::string failure;  // why the ending was not sent
 };
 
 struct SenderReport {
@@ -184,6 +199,7 @@ struct SenderReport {
   int max_queued_estimate = 0;  // largest characters ahead of the wire, model or kernel
   int max_unacked_bytes = 0;    // ack: largest sum of unanswered lines
   std::string program_sha256;   // of the blocks, each ended by one LF
+  EndingReport ending;          // ack: end_with()
 };
 
 // What the sender has done so far, published while it runs (docs/dnc-link.md, "Live counters"):
@@ -241,6 +257,22 @@ class DncSender {
   // Called when the link holds the motion (a long XOFF, CTS low, a lost port) and frees it.
   void on_hold(HoldFn fn) { on_hold_ = std::move(fn); }
   void on_executed(ExecutedFn fn) { on_executed_ = std::move(fn); }
+  // The lines that end a job early, given where the controller stopped (work coordinates, mm;
+  // none when not known): comms::ending_blocks of the job's toolpath::SafeRetract.
+  using EndingFn =
+      std::function<std::vector<std::string>(const std::optional<std::array<double, 3>>& at_mm)>;
+  // ack (grbl) with status polling: end the stream now, safely (docs/dnc-link.md, "Ending
+  // early"). No more program blocks are taken; once the link is ready the controller is held
+  // (`!`), and when its status says Hold:0 (at rest: a reset then raises no ALARM:3) it is reset
+  // (0x18: grbl drops what it queued, stops the spindle and coolant, keeps the position); after
+  // its banner the lines ending(where the hold left the tool) are sent and their execution
+  // followed to Idle. report.ending says how far it went. Callable from any thread, once (later
+  // calls are ignored); drip ignores it (the caller appends its ending to the source).
+  void end_with(EndingFn ending);
+  // The motion that feeds the source is held (an operator's hold): a dry spell then, and its
+  // continuation until the next block, is no underrun (the tool is at rest, nothing starves).
+  // Callable from any thread.
+  void set_source_held(bool held) { source_held_.store(held, std::memory_order_relaxed); }
   // Sends until the program is confirmed, an alarm, the link is given up, or stop is set.
   SenderReport run(const std::atomic<bool>& stop);
   // Brings grbl to a safe halt and ends run() as stopped: a feed hold `!`, a wait until the
@@ -263,6 +295,10 @@ class DncSender {
   std::int64_t first_block_ = 0;
   SenderCounters counters_;
   std::atomic<bool> halt_request_{false};
+  std::atomic<bool> ending_claimed_{false};  // end_with() was called
+  EndingFn ending_;                          // then written, before end_requested_ is set
+  std::atomic<bool> end_requested_{false};
+  std::atomic<bool> source_held_{false};
 };
 
 }  // namespace ncd::comms

@@ -52,6 +52,41 @@ std::string event_words(const toolpath::Event& event, int decimals, bool length_
       event);
 }
 
+std::vector<std::string> ending_blocks(const toolpath::SafeRetract& r,
+                                       const std::optional<Vec3>& at, int decimals,
+                                       int feed_decimals, bool after_reset) {
+  std::vector<std::string> out;
+  if (after_reset) out.push_back("G21G90");
+  const double tol_mm = 0.5 * std::pow(10.0, -decimals);  // a move shorter is not written
+  if (at && at->z() < r.clearance_z_mm - tol_mm) {
+    bool to_axis = false;  // in the bore: the rise starts from the drill axis
+    if (r.axis_xy) {
+      const double off_mm = std::hypot(at->x() - r.axis_xy->x(), at->y() - r.axis_xy->y());
+      if (off_mm <= r.bore_radius_mm + 0.01) {  // in the bore: back to the axis first
+        if (after_reset && r.spindle_rpm > 0.0) {
+          out.push_back("M3S" + number(r.spindle_rpm, 0));
+          if (r.spindle_dwell_s > 0.0) out.push_back("G4P" + number(r.spindle_dwell_s, decimals));
+        }
+        to_axis = true;
+        if (off_mm > tol_mm) {
+          // Z written: a controller whose parser lost the position in a reset keeps it level.
+          out.push_back("G1X" + number(r.axis_xy->x(), decimals) + "Y" +
+                        number(r.axis_xy->y(), decimals) + "Z" + number(at->z(), decimals) + "F" +
+                        number(r.feed_mm_per_min, feed_decimals));
+        }
+      }
+    }
+    // X Y written: straight up from where the tool is, whatever the controller's parser thinks.
+    const Vec3 xy = to_axis ? *r.axis_xy : *at;
+    out.push_back("G0X" + number(xy.x(), decimals) + "Y" + number(xy.y(), decimals) + "Z" +
+                  number(r.clearance_z_mm, decimals));
+  }
+  out.push_back("M5");
+  out.push_back("M9");
+  out.push_back(r.end_m == 30 ? "M30" : "M2");
+  return out;
+}
+
 ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder,
                              const std::vector<double>& segment_start_mm)
     : encoder_(encoder), decimals_(encoder.settings().decimals) {

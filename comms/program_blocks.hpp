@@ -12,12 +12,14 @@
 // interpolated between the setpoints on either side.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "comms/block_encoder.hpp"
 #include "motion/job.hpp"
 #include "toolpath/program.hpp"
+#include "toolpath/whole_program.hpp"
 
 namespace ncd::comms {
 
@@ -29,6 +31,22 @@ namespace ncd::comms {
 // then applies the tool table's length; LinuxCNC and ISO controls take it, grbl and the simulated
 // controller do not, and an operator who touches off the tool's programmed point needs none).
 std::string event_words(const toolpath::Event& event, int decimals = 3, bool length_offset = false);
+
+// The blocks that end a job early (docs/whole-program.md, "Ending early"), without N, from
+// `at`, where the blocks sent so far leave the tool (none: not known):
+//   after_reset (a controller reset cleared the modes and stopped the spindle): "G21G90", and
+//     before a move in the bore "M3S…" and "G4P…" (the program's speed and dwell);
+//   in the bore of an inner edge (below the plane, within bore_radius_mm + 0.01 mm of the axis):
+//     "G1X…Y…Z…F…", horizontally to the drill axis (Z written: level whatever the controller's
+//     parser thinks after a reset);
+//   below the plane: "G0X…Y…Z…", straight up (X Y written: where the tool is, whatever the
+//     controller's parser thinks after a reset);
+//   then "M5", "M9", "M2" (or "M30").
+// Nothing moves when `at` is not known, or at or above the plane (never down): the operator
+// retracts, and the status says so.
+std::vector<std::string> ending_blocks(const toolpath::SafeRetract& retract,
+                                       const std::optional<Vec3>& at, int decimals,
+                                       int feed_decimals, bool after_reset);
 
 class ProgramBlocks {
  public:

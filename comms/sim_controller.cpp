@@ -1249,6 +1249,7 @@ struct SimController::Impl {
       hold_pos = position_at(t);
       remaining_s = busy ? std::max(0.0, busy_end - t) : 0.0;
     }
+    log.events.push_back({t, current_seq, current.n, "feed_hold", 0.0});  // the hold begins
     event("feed hold");
   }
 

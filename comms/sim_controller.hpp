@@ -240,7 +240,8 @@ struct SimReset {
 
 // An event the controller executed (spindle, coolant, tool, dwell, stops, program end), at its
 // simulated time: spindle_cw | spindle_ccw | spindle_stop | speed | coolant_on | coolant_off |
-// tool | tool_change | dwell | pause | resume | optional_stop_skipped | program_end.
+// tool | tool_change | dwell | pause | resume | optional_stop_skipped | program_end, and
+// feed_hold (ack: a `!` that stopped the motion, at the time and place it stopped).
 struct SimEvent {
   double t_s = 0.0;
   long seq = 0;  // the block (1-based, blocks accepted)

@@ -36,6 +36,23 @@
 // Error rule is not emitted and the job ends in error), the statistics, the setpoint sink, the
 // block encoder, whose closed blocks queue for the sender. Observers get events through their
 // own bounded rings (service/events.hpp).
+//
+// Ending early (docs/service.md). A streamed job that does not reach its end (stop, shutdown, a
+// job error, a block the controller's dialect refuses, an exception) leaves the machine by the
+// same sequence: the motion stops on the path (the cycle's jerk-limited stop), then the job's
+// retract from where the blocks left the tool (toolpath::SafeRetract: for an inner edge back to
+// the drill axis first, then up to the clearance plane), M5, M9 and the program end
+// (comms::ending_blocks). Where the ending goes depends on the link:
+//   - ack (grbl) with status polling: at the request, DncSender::end_with holds the controller
+//     (`!`), waits for Hold:0, resets it (0x18) and sends the ending from where the hold left the
+//     tool, so the controller does not run the seconds of blocks it had queued;
+//   - drip (and ack without status): the ending is written into the block stream after the
+//     planned stop's last block; the controller runs what it holds, then the ending.
+// Every block is checked against the controller's dialect before it is queued (the check the
+// sender repeats before writing it): a refused block and everything after it stay out of the
+// queue, and the ending follows the last block queued. A link that ends while the motion runs
+// (lost, given up, the controller's alarm) ends the job in error with the ending NOT sent, and
+// the error says what to do at the machine (toolpath::retract_advice).
 #include "service/service.hpp"
 
 #include <algorithm>
@@ -44,6 +61,7 @@
 #include <mutex>
 #include <thread>
 
+#include "comms/dialect.hpp"
 #include "comms/live_blocks.hpp"
 #include "comms/program_blocks.hpp"
 #include "comms/transfer_journal.hpp"
@@ -104,6 +122,22 @@ const char* to_string(EventKind k) {
   return "state";
 }
 
+const char* to_string(EndingStatus::State s) {
+  switch (s) {
+    case EndingStatus::State::None:
+      return "none";
+    case EndingStatus::State::Pending:
+      return "pending";
+    case EndingStatus::State::Sent:
+      return "sent";
+    case EndingStatus::State::NotSent:
+      return "not_sent";
+    case EndingStatus::State::NotNeeded:
+      return "not_needed";
+  }
+  return "none";
+}
+
 const char* to_string(LimitKind k) {
   switch (k) {
     case LimitKind::None:
@@ -155,7 +189,19 @@ struct Service::Live {
   std::atomic<int> hold_request{-1};    // the sender's last hold (1) or release (0); -1: none new
   std::atomic<bool> link_holds{false};  // the sender's last hold state
   std::int64_t blocks_encoded = 0, chars_encoded = 0;  // owner's thread
-  comms::SenderReport report;                          // written by the thread before done
+  // The owner's check of each block against the controller's dialect before it is queued
+  // (the sender's own check, on the same blocks in the same order, gives the same verdict).
+  std::optional<comms::Dialect> dialect;
+  comms::DialectState dialect_state;
+  std::string refused;            // the first block refused, and why; empty: none
+  bool gate_closed = false;       // after a refusal: nothing more is queued until the ending
+  std::optional<Vec3> queued_at;  // where the blocks queued so far leave the tool
+  bool writing_ending = false;    // the ending's blocks are being queued
+  bool ending_written = false;
+  std::vector<std::string> ending_blocks;  // as queued
+  std::string ending_refused;              // an ending block the dialect refused (left out)
+  bool hold_and_reset = false;             // the ending goes by DncSender::end_with
+  comms::SenderReport report;              // written by the thread before done
   comms::LineSettings line;
   mutable std::mutex mutex;
   std::string last_event;           // guarded by mutex
@@ -260,6 +306,9 @@ const std::string& Service::start() {
   accel_max_ = jerk_max_ = feed_max_ = 0.0;
   override_percent_ = 100.0;
   overruns_seen_ = 0;
+  ending_ = {};
+  append_pending_ = false;
+  alarmed_ = false;
   last_ = {};
   last_.p = start_mm_;
   limits_.emplace(job_.rules);
@@ -284,6 +333,7 @@ void Service::hold(HoldHolder by) {
   if (by == HoldHolder::None) throw InputError("hold: a hold needs a holder");
   if (state_ != State::Holding) held_time_left_s_ = time_left_s();
   cycle_->hold();
+  if (live_) live_->sender->set_source_held(true);  // the controller waits: no underrun
   set_state(State::Holding, by, std::string("held by the ") + to_string(by));
 }
 
@@ -295,14 +345,30 @@ void Service::resume(HoldHolder by) {
                                                   : "; only the operator resumes it"));
   }
   cycle_->resume();
+  if (live_) live_->sender->set_source_held(false);
   held_time_left_s_.reset();
   set_state(State::Running, HoldHolder::None, std::string("resumed by the ") + to_string(by));
 }
 
 void Service::stop(const std::string& why) {
+  if (state_ == State::Streaming && live_) {
+    // The motion is over; the controller still has blocks. grbl: hold it and end the job now.
+    if (live_->hold_and_reset && ending_.state == EndingStatus::State::None &&
+        !live_->done.load(std::memory_order_acquire)) {
+      stop_why_ = why;
+      final_state_ = State::Stopped;
+      request_ending(why, true);
+      return;
+    }
+    throw InputError(
+        "stop: the motion has ended and the controller is taking the last blocks, which end the "
+        "job safely" +
+        std::string(live_->hold_and_reset ? "" : " (a drip link cannot take back what it sent)"));
+  }
   require_active("stop");
   stop_why_ = why;
   cycle_->stop();
+  request_ending(why, true);
 }
 
 void Service::set_override(double percent) {
@@ -317,13 +383,43 @@ void Service::set_override(double percent) {
 
 void Service::shutdown(const std::string& why) {
   if (state_ == State::Streaming && live_) {
-    log("stopping the transfer (the journal keeps where it stopped)");
-    live_->stop = true;
-  } else if (cycle_ && !cycle_->finished()) {
-    log("stopping the running job (a jerk-limited stop on the path)");
+    if (live_->hold_and_reset && ending_.state == EndingStatus::State::None) {
+      // The controller may still run seconds of queued blocks: hold it and end the job now.
+      request_ending(why, true);
+      final_state_ = State::Stopped;
+      stop_why_ = why;
+    } else {
+      log("the controller is taking the last blocks, which end the job safely; waiting for "
+          "them (a second signal gives the transfer up)");
+    }
+  } else if (cycle_ && !cycle_->finished() &&
+             (state_ == State::Running || state_ == State::Holding)) {
+    log("stopping the running job (a jerk-limited stop on the path), then ending it safely");
     stop_why_ = why;
     cycle_->stop();
+    request_ending(why, true);
   }
+}
+
+void Service::abort_transfer(const std::string& why) {
+  if (!live_ || live_->done.load(std::memory_order_acquire)) return;
+  log("giving the transfer up: " + why);
+  if (ending_.state == EndingStatus::State::Pending || ending_.state == EndingStatus::State::None) {
+    ending_.note = "given up (" + why + ")";
+  }
+  if (cycle_ && !cycle_->finished()) cycle_->stop();
+  live_->stop = true;
+}
+
+std::string Service::link_down_note() const {
+  if (!live_) return "";
+  const comms::SenderCounts c = live_->sender->counters().load();
+  const bool ended = live_->done.load(std::memory_order_acquire);
+  const bool lost = c.link_losses > c.reconnects && live_->link_holds.load();
+  if (!ended && !lost) return "";
+  return "the link to " + live_->line.device + " is " + (ended ? "gone" : "down") +
+         ": the safe ending can" + (ended ? "not" : " only") + " be sent" +
+         (ended ? "" : " if it comes back within reconnect_max_s") + "; " + ending_advice();
 }
 
 bool Service::poll() {
@@ -349,6 +445,14 @@ void Service::step() {
       events.swap(live_->events);
     }
     for (const std::string& e : events) emit(EventKind::Link, e);
+    if ((state_ == State::Running || state_ == State::Holding) &&
+        live_->done.load(std::memory_order_acquire)) {
+      const comms::SenderReport& r = live_->report;
+      if (!(r.ending.sent || r.ending.not_needed)) {
+        link_failed();
+        return;
+      }
+    }
     const int request = live_->hold_request.exchange(-1);
     if (request >= 0 && cycle_ && !cycle_->finished()) {
       if (request == 1 && state_ == State::Running) {
@@ -366,7 +470,7 @@ void Service::step() {
     } else {
       run_here();
     }
-    if (state_ == State::Error) return;
+    if (!cycle_ || (state_ != State::Running && state_ != State::Holding)) return;
     const motion::CycleStatus c = cycle_->status();
     if (c.overruns > overruns_seen_) {
       overruns_seen_ = c.overruns;
@@ -375,7 +479,7 @@ void Service::step() {
     }
     if (cycle_->finished()) {
       drain();
-      if (state_ == State::Error) return;
+      if (!cycle_ || (state_ != State::Running && state_ != State::Holding)) return;
       finish_motion();
     }
   }
@@ -385,7 +489,7 @@ void Service::step() {
 void Service::run_here() {
   for (std::int64_t k = 0; k < options_.periods_per_poll && cycle_->run_here(); ++k) {
     drain();
-    if (state_ == State::Error) return;
+    if (!cycle_ || (state_ != State::Running && state_ != State::Holding)) return;
   }
 }
 
@@ -424,6 +528,10 @@ void Service::drain() {
       } else {
         live_->encoder->push(sp);
       }
+      if (!live_->refused.empty()) {
+        fail_job(live_->refused);
+        return;
+      }
     }
   }
 }
@@ -458,16 +566,38 @@ void Service::finish_motion() {
       " overruns, " + std::to_string(st.setpoints_lost) + " setpoints lost");
   if (live_) {
     // A job that reached its end: what follows its last planned move (the retract's rapid, M5,
-    // M2). A stopped one ends where the motion stopped: the retract from there is the
-    // operator's (the program's own would move sideways from wherever the stop left the tool).
-    if (live_->program && s == State::Done) {
+    // M2). A restarted one has no program events after its line: its ending follows the last
+    // block (a bare path, a test's, has none to follow). Any other end is early: the ending from
+    // where the blocks leave the tool (in the blocks after the planned stop, or sent by the sender
+    // after its hold and reset).
+    if (s == State::Done && live_->program) {
       live_->program->end();
+    } else if (s == State::Done && !job_.restart) {
+      live_->encoder->finish();  // a bare path: no program, nothing started that must stop
     } else {
-      live_->encoder->finish();
+      if (s == State::Done) {
+        request_ending("the restarted program reached its end", false);
+        ending_.how.replace(0, ending_.how.find(';'),
+                            "after the restarted program's last block: the retract, M5, M9, the "
+                            "program end");
+      } else {
+        request_ending(why, true);
+      }
+      if (append_pending_) {
+        append_ending();
+      } else {
+        live_->encoder->finish();
+      }
     }
     live_->blocks.close();
     final_state_ = s;
-    set_state(State::Streaming, HoldHolder::None, "the motion ended; blocks still to send");
+    if (s == State::Error) {
+      emit(EventKind::Alarm, error_);
+      alarmed_ = true;
+    }
+    set_state(State::Streaming, HoldHolder::None,
+              s == State::Done ? "the motion ended; blocks still to send"
+                               : "the motion ended early; ending the job safely");
     return;
   }
   if (s == State::Error) emit(EventKind::Alarm, error_);
@@ -484,9 +614,29 @@ void Service::start_stream(const motion::Job& job) {
   comms::EncoderSettings enc = link.encoder;
   enc.line = ls->line;
   if (enc.max_block_s <= 0.0) enc.max_block_s = options_.live_max_block_s;
+  ls->dialect = link.sender.dialect;
+  ls->hold_and_reset = ls->line.protocol == comms::Protocol::Ack && link.sender.status_hz > 0.0;
   ls->encoder = std::make_unique<comms::BlockEncoder>(enc, [raw](const comms::EncodedBlock& b) {
+    if (raw->gate_closed && !raw->writing_ending) return;
+    if (raw->dialect) {
+      if (const auto v = comms::check_line(*raw->dialect, b.text, raw->dialect_state)) {
+        const std::string why = "block '" + b.text + "' refused before it was queued: " +
+                                comms::describe(*v, *raw->dialect);
+        if (raw->writing_ending) {
+          raw->ending_refused = why;  // the rest of the ending still goes
+        } else {
+          raw->refused = why;
+          raw->gate_closed = true;
+        }
+        return;
+      }
+    }
     ++raw->blocks_encoded;
     raw->chars_encoded += b.chars;
+    if (b.closed_by != comms::BlockClose::Words && b.closed_by != comms::BlockClose::Comment) {
+      raw->queued_at = b.end;
+    }
+    if (raw->writing_ending) raw->ending_blocks.push_back(b.text);
     raw->blocks.push(b.text);
   });
   motion::Setpoint start;
@@ -552,16 +702,33 @@ void Service::follow_stream() {
   State s = final_state_;
   std::string why = s == State::Done ? "the motion ended and the controller has every block"
                                      : (s == State::Error ? error_ : stop_why_);
-  if (!r.completed && s != State::Error) {
+  const bool ending = ending_.state == EndingStatus::State::Pending;
+  if (ending) resolve_ending(r);
+  const bool ok = ending ? ending_.state != EndingStatus::State::NotSent : r.completed;
+  if (!ok && !ending) {  // a job that reached its end: its own end may not have arrived
+    ending_.state = EndingStatus::State::NotSent;
+    ending_.note =
+        "the program's own end (retract, M5, M2) may not have reached the "
+        "controller; " +
+        ending_advice();
+  }
+  const std::string failure = r.stopped ? std::string("given up") : r.failure;
+  if (!ok && s != State::Error) {
     s = State::Error;
-    error_ = "the transfer to " + live_->line.device +
-             " did not complete: " + (r.stopped ? std::string("stopped") : r.failure);
+    error_ = "the transfer to " + live_->line.device + " did not complete: " + failure + "; " +
+             ending_.note;
+    why = error_;
+  } else if (!ok) {
+    error_ += "; the transfer to " + live_->line.device + " did not complete: " + failure + "; " +
+              ending_.note;
     why = error_;
   }
   log("sent " + std::to_string(r.blocks) + " blocks (" + std::to_string(r.bytes_written) +
       " bytes) to " + live_->line.device + " in " + text::sig(r.duration_s) + " s, " +
       text::sig(100.0 * r.link_use) + " % of the line; sha256 " + r.program_sha256);
-  if (s == State::Error) emit(EventKind::Alarm, error_);
+  if (!ok || (s == State::Error && !alarmed_)) emit(EventKind::Alarm, error_);
+  log("ending: " + std::string(to_string(ending_.state)) +
+      (ending_.note.empty() ? std::string() : " (" + ending_.note + ")"));
   set_state(s, HoldHolder::None, why);
   end_job();
 }
@@ -569,16 +736,188 @@ void Service::follow_stream() {
 void Service::fail_job(const std::string& why) {
   log("job " + job_.name + " failed: " + why);
   cycle_.reset();  // leaves at once (even blocked on a full ring) and joins the cycle thread
-  if (live_) {
+  if (live_ && state_ != State::Streaming && !live_->done.load(std::memory_order_acquire)) {
+    // The link still carries: end the job safely after the last block queued (ack: hold, reset,
+    // then the ending), then end in error once the controller has it.
+    job_.sink.reset();
+    error_ = why;
+    try {
+      request_ending(why, true);
+      if (append_pending_) {
+        append_ending();
+      } else {
+        live_->encoder->finish();
+      }
+    } catch (const std::exception& e) {
+      ending_.state = EndingStatus::State::NotSent;
+      ending_.note =
+          std::string("the ending could not be written (") + e.what() + "); " + ending_advice();
+      error_ += "; " + ending_.note;
+    }
+    live_->blocks.close();
+    final_state_ = State::Error;
+    emit(EventKind::Alarm, error_);
+    alarmed_ = true;
+    set_state(State::Streaming, HoldHolder::None, "the job failed; ending it safely");
+    return;
+  }
+  error_ = why;
+  if (live_) {  // streaming already, or the link gone: nothing more reaches the controller
     live_->blocks.close();
     live_->stop = true;
     if (live_->thread.joinable()) live_->thread.join();
     live_->done.store(true);
+    if (ending_.state != EndingStatus::State::Sent &&
+        ending_.state != EndingStatus::State::NotNeeded) {
+      ending_.state = EndingStatus::State::NotSent;
+      ending_.note =
+          "the safe ending could NOT be sent: the transfer was given up; " + ending_advice();
+      error_ += "; " + ending_.note;
+    }
   }
   job_.sink.reset();  // removes the setpoints' temporary file
-  error_ = why;
-  emit(EventKind::Alarm, why);
-  set_state(State::Error, HoldHolder::None, why);
+  emit(EventKind::Alarm, error_);
+  set_state(State::Error, HoldHolder::None, error_);
+  end_job();
+}
+
+// ---- Ending early (see the top of this file) ----
+
+bool Service::ends_by_hold_and_reset() const {
+  return live_ && live_->hold_and_reset;
+}
+
+std::string Service::ending_advice() const {
+  if (!job_.retract) {
+    return "at the machine: stop the motion, switch the spindle (M5) and the coolant (M9) off "
+           "and retract the tool (the job has no retract of its own)";
+  }
+  return toolpath::retract_advice(*job_.retract);
+}
+
+void Service::request_ending(const std::string& why, bool now) {
+  if (!live_ || ending_.state != EndingStatus::State::None) return;
+  ending_.state = EndingStatus::State::Pending;
+  const comms::EncoderSettings& enc = live_->encoder->settings();
+  if (now && ends_by_hold_and_reset()) {
+    ending_.how =
+        "feed hold (!) at once, Hold:0, soft reset (0x18), then from where the hold left the "
+        "tool: the retract, M5, M9, the program end";
+    const std::optional<toolpath::SafeRetract> retract = job_.retract;
+    const int decimals = enc.decimals, feed_decimals = enc.feed_decimals;
+    live_->sender->end_with(
+        [retract, decimals, feed_decimals](const std::optional<std::array<double, 3>>& at) {
+          std::optional<Vec3> p;
+          if (retract && at) p = Vec3((*at)[0], (*at)[1], (*at)[2]);
+          return comms::ending_blocks(retract.value_or(toolpath::SafeRetract{}), p, decimals,
+                                      feed_decimals, true);
+        });
+  } else {
+    ending_.how =
+        "after the planned stop on the path: the blocks up to the stop, then from there the "
+        "retract, M5, M9, the program end";
+    append_pending_ = true;
+  }
+  if (job_.retract) {
+    ending_.how += "; clearance Z " + text::fixed(job_.retract->clearance_z_mm, 3) + " mm (" +
+                   job_.retract->clearance_from + ")" +
+                   (job_.retract->axis_xy ? ", in the bore back to the drill axis first" : "");
+  } else {
+    ending_.how += "; the job has no retract of its own: nothing moves";
+  }
+  log("ending job " + job_.name + " (" + why + "): " + ending_.how);
+}
+
+// The ending into the block stream, after the last block queued (the planned stop's, or the
+// last before a refused one).
+void Service::append_ending() {
+  Live& l = *live_;
+  if (l.ending_written) return;
+  l.ending_written = true;
+  append_pending_ = false;
+  const comms::EncoderSettings& enc = l.encoder->settings();
+  l.encoder->close_block();  // the planned stop's last block (left out after a refusal)
+  l.writing_ending = true;
+  const std::optional<Vec3> at = job_.retract ? l.queued_at : std::nullopt;
+  const std::vector<std::string> words = comms::ending_blocks(
+      job_.retract.value_or(toolpath::SafeRetract{}), at, enc.decimals, enc.feed_decimals, false);
+  for (const std::string& w : words) l.encoder->words(w);
+  l.encoder->finish();
+  l.encoder->percent_line();
+  l.writing_ending = false;
+  ending_.blocks = l.ending_blocks;
+  if (!l.ending_refused.empty()) ending_.note = "left out of the ending: " + l.ending_refused;
+  if (!at && job_.retract) {
+    ending_.note += (ending_.note.empty() ? "" : "; ") +
+                    std::string("no move had been queued, so the ending moves nothing");
+  }
+}
+
+// The sender has ended; the ending asked for either reached the controller or did not.
+void Service::resolve_ending(const comms::SenderReport& r) {
+  const std::string note = ending_.note;
+  if (live_->hold_and_reset && !append_pending_ && !live_->ending_written) {
+    const comms::EndingReport& e = r.ending;
+    if (e.not_needed) {
+      ending_.state = EndingStatus::State::NotNeeded;
+      ending_.note = "no move had been sent: the controller never moved";
+      return;
+    }
+    ending_.blocks = e.lines;
+    if (e.sent) {
+      ending_.state = EndingStatus::State::Sent;
+      char held[160] = "";
+      if (e.held_at_mm) {
+        std::snprintf(held, sizeof held, "held at (%.3f, %.3f, %.3f) %.3f s after the request, ",
+                      (*e.held_at_mm)[0], (*e.held_at_mm)[1], (*e.held_at_mm)[2],
+                      e.held_t_s - e.request_t_s);
+      }
+      ending_.note = std::string(held) + "reset, and the ending " +
+                     (e.executed ? "executed (the controller reported Idle after it)"
+                                 : "queued (no status: its execution is not known)");
+      return;
+    }
+    ending_.state = EndingStatus::State::NotSent;
+    ending_.note = "the safe ending could NOT be sent: " +
+                   (e.failure.empty() ? (r.failure.empty() ? note : r.failure) : e.failure) + "; " +
+                   ending_advice();
+    return;
+  }
+  if (r.completed) {
+    ending_.state = EndingStatus::State::Sent;
+    ending_.note = (note.empty() ? std::string() : note + "; ") +
+                   (live_->line.protocol == comms::Protocol::Ack
+                        ? "the controller queued every block of it"
+                        : "delivered to the controller; drip feed cannot confirm that it "
+                          "executed it");
+    return;
+  }
+  ending_.state = EndingStatus::State::NotSent;
+  ending_.note =
+      "the safe ending could NOT be sent: " +
+      (r.stopped ? (note.empty() ? std::string("the transfer was stopped") : note) : r.failure) +
+      "; " + ending_advice();
+}
+
+// The sender ended while the motion ran: nothing more reaches the controller.
+void Service::link_failed() {
+  live_->thread.join();
+  const comms::SenderReport& r = live_->report;
+  const std::string failure =
+      r.failure.empty() ? (r.stopped ? std::string("stopped") : std::string("ended")) : r.failure;
+  ending_.state = EndingStatus::State::NotSent;
+  ending_.note =
+      "the safe ending (retract, M5, M9, program end) could NOT be sent: the link is "
+      "gone; " +
+      ending_advice();
+  error_ = "the link to " + live_->line.device + " failed while the job ran: " + failure + "; " +
+           ending_.note;
+  log("job " + job_.name + " failed: " + error_);
+  cycle_.reset();  // nothing it walks reaches the machine any more
+  live_->blocks.close();
+  job_.sink.reset();
+  emit(EventKind::Alarm, error_);
+  set_state(State::Error, HoldHolder::None, error_);
   end_job();
 }
 
@@ -655,6 +994,7 @@ Status Service::status() const {
   s.interference_allowed = job_.interference_allowed;
   if (limits_) s.violations = limits_->violations();
   if (job_.restart) s.restart_line = job_.restart->line;
+  s.ending = ending_;
   if (state_ == State::Stopped && cycle_) {
     StopReport r;
     r.why = stop_why_.empty() ? "stopped" : stop_why_;

@@ -23,6 +23,7 @@
 #include "service/live_limits.hpp"
 #include "toolpath/path.hpp"
 #include "toolpath/program.hpp"
+#include "toolpath/whole_program.hpp"
 
 namespace ncd::service {
 
@@ -76,6 +77,10 @@ struct JobSpec {
   std::unique_ptr<SetpointSink> sink;  // may be null
   bool interference_allowed = false;   // a chamfer whose checks failed, allowed by the user
   std::optional<RestartSpec> restart;
+  // How a streamed job leaves the part when it ends early (docs/service.md, "Ending early"):
+  // its clearance plane and, for an inner edge, the way back to the drill axis. None: the
+  // ending stops the spindle and the coolant and ends the program, and moves nothing.
+  std::optional<toolpath::SafeRetract> retract;
 };
 
 struct ServiceOptions {
@@ -101,6 +106,24 @@ struct StopReport {
   double s_mm = 0.0, length_mm = 0.0;
   int line = 0;  // source line of the segment it stopped in; 0 if none
 };
+
+// How a streamed job that did not reach its end left the machine (docs/service.md, "Ending
+// early"): stopped, shut down, failed, or its link failed. The ending is the retract from where
+// the blocks left the tool, M5, M9 and the program end.
+struct EndingStatus {
+  enum class State {
+    None,       // the job has not ended early (or has no link)
+    Pending,    // asked for: on its way to the controller
+    Sent,       // the controller has it (drip: delivered; ack: executed, Idle after it)
+    NotSent,    // it could not be sent: `note` says why and what to do at the machine
+    NotNeeded,  // no move had reached the controller
+  };
+  State state = State::None;
+  std::string how;                  // the sequence this link uses
+  std::vector<std::string> blocks;  // as sent (drip with N numbers; ack after its reset)
+  std::string note;                 // what is known of it, or why not and what to do
+};
+const char* to_string(EndingStatus::State s);
 
 // The link of a streaming job.
 struct LinkStatus {
@@ -143,6 +166,7 @@ struct Status {
   LiveViolations violations;
   std::optional<StopReport> stopped;
   std::optional<LinkStatus> link;
+  EndingStatus ending;
   int restart_line = 0;
   std::uint64_t events_dropped = 0;  // summed over the subscribers
 };
@@ -155,14 +179,22 @@ class Service {
   Service& operator=(const Service&) = delete;
 
   // Commands. Each throws InputError naming the state when it does not apply there.
-  void submit(JobSpec job);           // idle, ready, done, stopped, error → ready
-  const std::string& start();         // ready → running; returns the real-time grant
-  void hold(HoldHolder by);           // running → holding (or a new holder while holding)
-  void resume(HoldHolder by);         // holding → running, by the holder only
-  void stop(const std::string& why);  // running, holding → a jerk-limited stop, then stopped
+  void submit(JobSpec job);    // idle, ready, done, stopped, error → ready
+  const std::string& start();  // ready → running; returns the real-time grant
+  void hold(HoldHolder by);    // running → holding (or a new holder while holding)
+  void resume(HoldHolder by);  // holding → running, by the holder only
+  // running, holding → a jerk-limited stop, then the ending (service.cpp), then stopped;
+  // streaming on an ack link with status → the controller held and the ending sent now.
+  void stop(const std::string& why);
   void set_override(double percent);  // running, holding; 0..200
-  // Stops any motion (a jerk-limited stop) or transfer; poll() until !busy().
+  // Stops any motion (a jerk-limited stop) and ends a streamed job safely, as stop() does; a
+  // transfer already ending goes on to its end. poll() until !busy().
   void shutdown(const std::string& why);
+  // Gives the transfer up at once (a second shutdown signal): the ending is not sent, and the
+  // job's error says so and what to do at the machine.
+  void abort_transfer(const std::string& why);
+  // When the link is down now, what that means for the ending (for a stop's reply); else "".
+  std::string link_down_note() const;
 
   // The loop: drains the setpoints, applies the link's holds, follows the sender, ends the job.
   // Returns busy(). Never throws: an exception ends the job in error.
@@ -203,6 +235,15 @@ class Service {
   void start_stream(const motion::Job& job);
   void follow_stream();
   void fail_job(const std::string& why);
+  // Ending early (service.cpp, "Ending early"): ask for it (now: cut the controller's queue
+  // where the link can, ack; else the ending follows the blocks up to the stop), and write it
+  // into the block stream after the planned stop.
+  void request_ending(const std::string& why, bool now);
+  bool ends_by_hold_and_reset() const;
+  void append_ending();
+  void resolve_ending(const comms::SenderReport& r);
+  void link_failed();
+  std::string ending_advice() const;
   void end_job();
   void set_state(State s, HoldHolder holder, const std::string& why);
   void emit(EventKind kind, const std::string& text, double value = 0.0, double limit = 0.0,
@@ -230,6 +271,9 @@ class Service {
   double accel_max_ = 0.0, jerk_max_ = 0.0, feed_max_ = 0.0;
   double override_percent_ = 100.0;
   std::int64_t overruns_seen_ = 0;
+  EndingStatus ending_;
+  bool append_pending_ = false;  // the ending goes into the blocks after the planned stop
+  bool alarmed_ = false;         // the job's alarm event has gone out
   std::uint64_t event_seq_ = 0;
   std::vector<std::shared_ptr<Subscription>> subscribers_;
 };

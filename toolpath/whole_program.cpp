@@ -13,8 +13,13 @@
 //   M5 (SpindleEvent off), M2 (EndEvent).
 // The spindle event sets stop_before on the first planned move (to_path), so the planner starts
 // from rest after it; the rapids are planned at the machine's rapid rate and written as G0.
+//
+// A job that ends early leaves the part by SafeRetract (job_retract, program_retract): the same
+// clearance plane and, for an inner edge, the same way back to the drill axis, from wherever the
+// tool stopped (comms::ending_blocks writes it; docs/whole-program.md, "Ending early").
 #include "toolpath/whole_program.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -138,6 +143,63 @@ Program whole_job(const Path& cut, const JobFrame& f) {
   b.event(EndEvent{2});
   b.p_.files = {cut.source};
   return std::move(b.p_);
+}
+
+SafeRetract job_retract(const Path& cut, const JobFrame& f) {
+  SafeRetract r;
+  r.clearance_z_mm = f.clearance_z_mm;
+  r.clearance_from = "the job's clearance plane";
+  r.feed_mm_per_min = f.feed_mm_per_min;
+  r.spindle_rpm = f.spindle_rpm;
+  r.spindle_dwell_s = f.spindle_dwell_s;
+  if (f.axis_xy) {
+    r.axis_xy = Vec3(f.axis_xy->x(), f.axis_xy->y(), 0.0);
+    const auto reach = [&](const Vec3& p) {
+      r.bore_radius_mm =
+          std::max(r.bore_radius_mm, std::hypot(p.x() - r.axis_xy->x(), p.y() - r.axis_xy->y()));
+    };
+    for (const PathSegment& s : cut.segments) {
+      if (const auto* p = std::get_if<Polyline>(&s.geometry)) {
+        for (const Vec3& q : p->points) reach(q);
+      } else {
+        for (const Vec3& q : std::get<NurbsCurve>(s.geometry).points()) reach(q);
+      }
+    }
+  }
+  return r;
+}
+
+SafeRetract program_retract(const Program& program, const Path& planned) {
+  SafeRetract r;
+  double top = -1e300;
+  for (const PathSegment& s : planned.segments) top = std::max(top, segment_top(s));
+  if (!(top > -1e299)) {
+    throw InputError(planned.source + ": the program has no motion, so no clearance plane");
+  }
+  r.clearance_z_mm = top;
+  r.clearance_from = "the highest Z the program reaches";
+  for (const Step& step : program.steps) {
+    if (const auto* ev = std::get_if<Event>(&step.item)) {
+      if (const auto* end = std::get_if<EndEvent>(ev)) r.end_m = end->m == 30 ? 30 : 2;
+      if (const auto* sp = std::get_if<SpindleEvent>(ev)) {
+        if (sp->dir != SpindleDir::off) r.spindle_rpm = sp->rpm;
+      }
+    }
+  }
+  return r;
+}
+
+std::string retract_advice(const SafeRetract& r) {
+  std::string way =
+      "straight up to Z " + text::fixed(r.clearance_z_mm, 3) + " mm (" + r.clearance_from + ")";
+  if (r.axis_xy) {
+    way = "if the tool is in the bore, first horizontally back to the drill axis (X " +
+          text::fixed(r.axis_xy->x(), 3) + " Y " + text::fixed(r.axis_xy->y(), 3) + "), then " +
+          way;
+  }
+  return "at the machine: stop the motion (feed hold, then reset), switch the spindle (M5) and "
+         "the coolant (M9) off, and retract the tool " +
+         way;
 }
 
 Program chamfer_job(const ChamferPath& path, const NgcOptions& o) {

@@ -43,6 +43,37 @@ Program whole_job(const Path& cut, const JobFrame& frame);
 // its change and the spindle dwell of the options.
 Program chamfer_job(const ChamferPath& path, const NgcOptions& options);
 
+// How a job leaves the part when it ends before its own end: stopped, shut down, failed, or cut
+// off by its link (docs/whole-program.md, "Ending early"). From wherever the tool stands it
+// goes straight up to the clearance plane, never sideways below it, except in the bore of an
+// inner edge: there the program's own retract goes horizontally back to the drill axis first
+// (the only way out of the bore), and so does the ending. Then M5, M9 and the program end.
+struct SafeRetract {
+  double clearance_z_mm = 0.0;  // the plane to rise to, the program's frame and point
+  std::string clearance_from;   // where that plane comes from, for the log and the status
+  // Inner edges: the drill axis (X Y) and the farthest the cut goes from it. Below the plane and
+  // within bore_radius_mm (+ 0.01 mm) of the axis the tool is in the bore.
+  std::optional<Vec3> axis_xy;
+  double bore_radius_mm = 0.0;
+  double feed_mm_per_min = 0.0;  // the move back to the axis (the program's approach feed)
+  // To turn the spindle again before that move when a controller reset stopped it (grbl, after
+  // its feed hold and soft reset): the program's speed and its dwell.
+  double spindle_rpm = 0.0;
+  double spindle_dwell_s = 0.0;
+  int end_m = 2;  // the program end: M2 or M30, as the program ends
+};
+
+// The retract of whole_job(cut, frame): its clearance plane, and for an inner edge the drill
+// axis and the cut's farthest point from it.
+SafeRetract job_retract(const Path& cut, const JobFrame& frame);
+// The retract of an RS-274/NGC program planned as `planned` (to_path of it): straight up to the
+// highest Z the program reaches (control points of curves included: they bound the curve from
+// above), its M2 or M30. Throws InputError when the path has no point.
+SafeRetract program_retract(const Program& program, const Path& planned);
+// What the operator must do at the machine when the ending could not be sent: stop the motion,
+// the spindle and the coolant, and retract the way the ending would have.
+std::string retract_advice(const SafeRetract& retract);
+
 // Header lines of a job (without parentheses): the programmed point and the frame.
 std::string programmed_point_text(ProgramPoint point, double ball_radius_mm);
 
