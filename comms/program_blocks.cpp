@@ -160,7 +160,8 @@ std::vector<std::string> ProgramBlocks::split_notes() const {
       writes[a] = m.axes[a] && (!held[a] || *held[a] != q[a]);
       if (writes[a]) held[a] = q[a];
     }
-    if (!writes[2] || !(writes[0] || writes[1])) continue;
+    // A generated job's first rapid is its documented approach (its header says so).
+    if (!writes[2] || !(writes[0] || writes[1]) || m.src.line == 0) continue;
     std::string across;
     for (std::size_t a = 0; a < 2; ++a) {
       if (writes[a]) {
@@ -168,9 +169,7 @@ std::vector<std::string> ProgramBlocks::split_notes() const {
                   number(static_cast<double>(q[a]) / scale, decimals_);
       }
     }
-    const std::string whose =
-        m.src.line > 0 ? "the rapid of " + toolpath::where(program_, m.src) : "the first rapid";
-    notes.push_back("ncd: " + whose + ", from where the tool stands, is written as G0 Z" +
+    notes.push_back("ncd: the rapid of " + toolpath::where(program_, m.src) + ", from where the tool stands, is written as G0 Z" +
                     number(static_cast<double>(q[2]) / scale, decimals_) + " then G0 " + across +
                     ": Z first, then across");
   }
