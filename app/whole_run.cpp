@@ -115,13 +115,14 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
       w.header.push_back("load tool " + std::to_string(f.tool) + " before the start: the " +
                          comms::to_string(*m.link.dialect) + " dialect has no tool change (M6)");
     }
-    w.header.push_back(toolpath::tool_length_text(m.tool.programmed_point, f.tool, f.length_offset));
-    w.header.push_back(line);
     w.header.push_back(
-        "approach: G0 Z to the plane, G0 X Y over the " +
-        std::string(f.axis_xy ? "drill axis" : "start") +
-        ", G0 down to 1 mm above the start, G1 down" + (f.axis_xy ? " and out to the edge" : ""));
-    w.header.push_back(std::string("retract: ") + (f.axis_xy ? "G1 back to the axis, " : "") +
+        toolpath::tool_length_text(m.tool.programmed_point, f.tool, f.length_offset));
+    w.header.push_back(line);
+    // Header lines short enough for a drip controller's buffer (program_blocks.cpp).
+    w.header.push_back("approach: G0 Z plane, G0 X Y over the " +
+                       std::string(f.axis_xy ? "axis" : "start") + ", G0 to 1 mm above, G1 down" +
+                       (f.axis_xy ? ", out" : ""));
+    w.header.push_back(std::string("retract: ") + (f.axis_xy ? "G1 to the axis, " : "") +
                        "G0 up to the plane");
     w.program = toolpath::whole_job(cut, f);
   }

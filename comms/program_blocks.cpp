@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <optional>
 #include <stdexcept>
 
@@ -154,9 +155,8 @@ std::vector<std::string> ProgramBlocks::split_notes() const {
     std::array<bool, 3> writes{};
     std::array<long long, 3> q{};
     for (std::size_t a = 0; a < 3; ++a) {
-      q[a] = std::llround((m.end[static_cast<Eigen::Index>(a)] -
-                           offset[static_cast<Eigen::Index>(a)]) *
-                          scale);
+      q[a] = std::llround(
+          (m.end[static_cast<Eigen::Index>(a)] - offset[static_cast<Eigen::Index>(a)]) * scale);
       writes[a] = m.axes[a] && (!held[a] || *held[a] != q[a]);
       if (writes[a]) held[a] = q[a];
     }
@@ -169,9 +169,16 @@ std::vector<std::string> ProgramBlocks::split_notes() const {
                   number(static_cast<double>(q[a]) / scale, decimals_);
       }
     }
-    notes.push_back("ncd: the rapid of " + toolpath::where(program_, m.src) + ", from where the tool stands, is written as G0 Z" +
-                    number(static_cast<double>(q[2]) / scale, decimals_) + " then G0 " + across +
-                    ": Z first, then across");
+    // Short (a line longer than a drip controller's XON level deadlocks its buffer: the
+    // simulated controller's 256 B buffer resumes at 96 B); the first header line names the
+    // file already.
+    const std::string at =
+        m.src.file == 0
+            ? "line " + std::to_string(m.src.line)
+            : std::filesystem::path(toolpath::where(program_, m.src)).filename().string();
+    notes.push_back("ncd: " + at + "'s rapid from an unknown position: G0 Z" +
+                    number(static_cast<double>(q[2]) / scale, decimals_) + " first, then G0 " +
+                    across);
   }
   return notes;
 }

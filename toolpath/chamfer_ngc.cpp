@@ -2,9 +2,10 @@
 // parameter, G21 G90 G94, the tool (T n M6, or a header line asking for it where the controller
 // has no tool change) and its length (G43 H n before the first move: without it a Fanuc or
 // LinuxCNC drives the spindle's gauge line, and the tip runs low by the whole tool length; a
-// header line saying how to set it where the controller has no tool table), the spindle (S M3, then G4 P for its spin-up when the machine file gives
-// one), an approach, the closed loop of G1 moves, a retract, M5, M2: the same sequence as the
-// whole job of the blocks (toolpath/whole_program.hpp, docs/whole-program.md).
+// header line saying how to set it where the controller has no tool table), the spindle (S M3, then
+// G4 P for its spin-up when the machine file gives one), an approach, the closed loop of G1 moves,
+// a retract, M5, M2: the same sequence as the whole job of the blocks (toolpath/whole_program.hpp,
+// docs/whole-program.md).
 //
 // Frames (docs/chamfer.md): by default the drill frame, Z along the drill axis, X0 Y0 on it, Z0
 // at the foot of the common perpendicular with the pipe axis; the header says how the pipe axis
@@ -32,13 +33,9 @@ std::string to_string(ProgramFrame frame) {
 std::string tool_length_text(ProgramPoint point, int tool, bool length_offset) {
   const std::string to = point == ProgramPoint::Tip ? "the ball tip" : "the ball centre";
   const std::string t = std::to_string(tool);
-  if (length_offset) {
-    return "tool length: G43 H" + t + " before the first move; the controller's tool table must "
-           "hold tool " + t + "'s length to " + to;
-  }
-  return "tool length: this controller has no tool table (no G43 H); before the start set the "
-         "work offset Z with tool " + t + "'s " + (point == ProgramPoint::Tip ? "tip" : "centre") +
-         " at the part's Z0, or give G43.1 Z<length to " + to + ">";
+  if (length_offset) return "tool length: G43 H" + t + ", the controller's table, to " + to;
+  return "tool length: no tool table; set work Z0 at tool " + t + "'s " +
+         (point == ProgramPoint::Tip ? "tip" : "centre") + " or give G43.1 Z";
 }
 
 double default_safe_z_mm(const ChamferSpec& spec) {

@@ -117,12 +117,16 @@ double offset_before_first(const std::vector<Item>& items, char kind) {
   return std::nan("");
 }
 
-// The header's notes of moves the blocks add: "(ncd: ... is written as G0 Z.. then G0 ..)".
+// The header's notes of moves the blocks add: "(ncd: line 5's rapid from an unknown position:
+// G0 Z5. first, then G0 X10. Y10.)".
 std::size_t listed_added_moves(const std::string& blocks) {
   std::size_t n = 0;
   for (std::size_t at = 0; (at = blocks.find("(ncd: ", at)) != std::string::npos; ++at) {
     const std::size_t end = blocks.find(')', at);
-    if (blocks.substr(at, end - at).find("is written as G0 Z") != std::string::npos) ++n;
+    if (blocks.substr(at, end - at).find("rapid from an unknown position: G0 Z") !=
+        std::string::npos) {
+      ++n;
+    }
   }
   return n;
 }
@@ -131,8 +135,9 @@ std::size_t listed_added_moves(const std::string& blocks) {
 // move: each rapid of the program is a rapid of the blocks to the same point, or (a listed
 // split) a rapid to its Z and then the rapid; each run of feeds ends at the same point, every
 // point of the blocks' run lies within the blend and chord tolerances of the program's path,
-// and the middle of every feed of the program within them of the blocks' path. The tool length offsets come in the same order with the same
-// lengths. Returns what differs (empty: nothing), and the number of splits found.
+// and the middle of every feed of the program within them of the blocks' path. The tool length
+// offsets come in the same order with the same lengths. Returns what differs (empty: nothing), and
+// the number of splits found.
 std::string motion_diff(const std::vector<Item>& prog, const std::vector<Item>& blocks,
                         std::size_t& splits) {
   splits = 0;
@@ -178,9 +183,10 @@ std::string motion_diff(const std::vector<Item>& prog, const std::vector<Item>& 
         continue;
       }
       char m[160];
-      std::snprintf(m, sizeof m, "program rapid %zu to (%.4f, %.4f, %.4f), blocks move %zu to "
-                    "(%.4f, %.4f, %.4f)", i, a[i].p.x, a[i].p.y, a[i].p.z, j, b[j].p.x, b[j].p.y,
-                    b[j].p.z);
+      std::snprintf(m, sizeof m,
+                    "program rapid %zu to (%.4f, %.4f, %.4f), blocks move %zu to "
+                    "(%.4f, %.4f, %.4f)",
+                    i, a[i].p.x, a[i].p.y, a[i].p.z, j, b[j].p.x, b[j].p.y, b[j].p.z);
       return m;
     }
     // A run of feeds on both sides.
@@ -205,8 +211,10 @@ std::string motion_diff(const std::vector<Item>& prog, const std::vector<Item>& 
       const double d = dist_to_polyline(mid, rb);
       if (d > kFeedTolMm) {
         char m[160];
-        std::snprintf(m, sizeof m, "the middle (%.4f, %.4f, %.4f) of a program feed is %.4f mm "
-                      "off the blocks' path", mid.x, mid.y, mid.z, d);
+        std::snprintf(m, sizeof m,
+                      "the middle (%.4f, %.4f, %.4f) of a program feed is %.4f mm "
+                      "off the blocks' path",
+                      mid.x, mid.y, mid.z, d);
         return m;
       }
     }
@@ -255,10 +263,9 @@ class ToolLengthHome : public Cli {
   }
   Canonical canonical(const std::string& file, const std::string& options = "") {
     const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
-    const std::string cmd =
-        ncd::test::rs274_command(dir_, "-t " + rs274_table_ + " " + options + " -g " + file +
-                                           " " + out.string()) +
-        " >" + log.string() + " 2>&1";
+    const std::string cmd = ncd::test::rs274_command(dir_, "-t " + rs274_table_ + " " + options +
+                                                               " -g " + file + " " + out.string()) +
+                            " >" + log.string() + " 2>&1";
     const int raw = std::system(cmd.c_str());
     Canonical c;
     c.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -294,9 +301,10 @@ class ToolLengthHome : public Cli {
     expect_clean(c, what);
     const double before_feed = offset_before_first(c.items, 'F');
     const double before_rapid = offset_before_first(c.items, 'T');
-    std::printf("rs274 %-34s tool length %.4f mm before the first feed, %.4f before the first "
-                "rapid\n",
-                what.c_str(), before_feed, before_rapid);
+    std::printf(
+        "rs274 %-34s tool length %.4f mm before the first feed, %.4f before the first "
+        "rapid\n",
+        what.c_str(), before_feed, before_rapid);
     EXPECT_NEAR(before_feed, length_mm, 1e-3) << what << "\n" << c.out;
     EXPECT_NEAR(before_rapid, length_mm, 1e-3) << what << "\n" << c.out;
   }
@@ -332,8 +340,8 @@ TEST_F(ToolLengthHome, ForGrblTheHeaderSaysHowTheLengthIsSet) {
   ASSERT_EQ(ncd("replay " + json + " --machine " + m + " -q --blocks " + blocks).status, 0);
   for (const std::string& text : {slurp(ngc), slurp(blocks)}) {
     EXPECT_EQ(code_of(text).find("G43"), std::string::npos) << text;
-    EXPECT_NE(comments_of(text).find("before the start set the work offset Z with tool 4's tip "
-                                     "at the part's Z0, or give G43.1"),
+    EXPECT_NE(comments_of(text).find("tool length: no tool table; set work Z0 at tool 4's tip or "
+                                     "give G43.1 Z"),
               std::string::npos)
         << text;
   }
@@ -505,9 +513,8 @@ TEST_F(ToolLengthHome, TheOnlyMovesTheBlocksAddAreListedInTheirHeader) {
   const CmdResult r = ncd("replay " + prog + " --machine " + m + " -q --blocks " + blocks);
   ASSERT_EQ(r.status, 0) << r.err;
   const std::string b = slurp(blocks);
-  EXPECT_NE(b.find("(ncd: the rapid of " + prog +
-                   ":5, from where the tool stands, is written as G0 Z5. then G0 X10. Y10.: Z "
-                   "first, then across)"),
+  EXPECT_NE(b.find("(ncd: line 5's rapid from an unknown position: G0 Z5. first, then G0 X10. "
+                   "Y10.)"),
             std::string::npos)
       << b;
   const Canonical p = canonical(prog), c = canonical(blocks);
