@@ -284,8 +284,8 @@ class BlockEncoder {
   // What the controller holds modally after the blocks written so far.
   std::int64_t written_q_[3] = {0, 0, 0};
   bool axis_written_[3] = {false, false, false};  // written_q_[a] is what the controller holds
-  Vec3 offset_ = Vec3::Zero();                     // set_offset()
-  std::int64_t written_feed_ = -1;  // feed units; −1: none yet
+  Vec3 offset_ = Vec3::Zero();                    // set_offset()
+  std::int64_t written_feed_ = -1;                // feed units; −1: none yet
   bool g1_written_ = false;
   double time_drift_s_ = 0.0;  // Σ (written − planned duration) of the unlowered blocks
   // The open block.

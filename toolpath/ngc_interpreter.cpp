@@ -2292,9 +2292,8 @@ class Interpreter {
       }
       const std::string g = base == 5161 ? "G28" : "G30";
       const std::string from = std::to_string(base) + "-" + std::to_string(base + 2);
-      fail(g + " moves " + std::string(1, static_cast<char>('X' + a)) +
-           " to the stored " + g + " position, but no parameter " + std::to_string(base + a) +
-           " is known: " +
+      fail(g + " moves " + std::string(1, static_cast<char>('X' + a)) + " to the stored " + g +
+           " position, but no parameter " + std::to_string(base + a) + " is known: " +
            (opt_.parameter_file.empty()
                 ? std::string("no parameter file is given")
                 : "the parameter file " + opt_.parameter_file + " does not hold it") +

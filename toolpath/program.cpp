@@ -237,19 +237,19 @@ std::optional<std::string> change_without_length_offset(const Program& program) 
     }
     if (!change) continue;
     const Motion& m = std::get<Motion>(step.item);
-    const bool moves_z = m.start_known ? std::abs(motion_end(m).z() - m.start.z()) > 0.0
-                                       : m.end_known[2];
+    const bool moves_z =
+        m.start_known ? std::abs(motion_end(m).z() - m.start.z()) > 0.0 : m.end_known[2];
     if (m.rapid && !moves_z) continue;
     const Step& c = program.steps[*change];
     const int tool = std::get<ToolChangeEvent>(std::get<Event>(c.item)).tool;
     const std::string t = std::to_string(tool);
-    return where(program, c.src) + ": the tool change to T" + t +
-           " is followed by " + (m.rapid ? "a rapid in Z" : "a feed move") + " at " +
-           where(program, m.src) +
+    return where(program, c.src) + ": the tool change to T" + t + " is followed by " +
+           (m.rapid ? "a rapid in Z" : "a feed move") + " at " + where(program, m.src) +
            " with no tool length offset for it: the controller would drive the spindle's gauge "
            "line (or the tool before's length) where the program means the tool's point, "
            "which runs the tool into the part by its length. Add G43 H" +
-           t + " after the M6 (the controller's tool table gives the length), or G49 after it "
+           t +
+           " after the M6 (the controller's tool table gives the length), or G49 after it "
            "if the tool's length is set in the work offset";
   }
   return std::nullopt;

@@ -112,8 +112,8 @@ struct TeachProgramOptions {
 void validate(const TeachProgramOptions& options);
 
 // The NC program: a header comment stating the frame, D, l, side, precision and the checks,
-// then G21, G90 F S, G43 H (options.length_offset), M03, a rapid above the first point, one G01 X Y Z per point (the first
-// again at the end of a closed loop), a rapid retract, M05, M30. No % lines.
+// then G21, G90 F S, G43 H (options.length_offset), M03, a rapid above the first point, one G01 X Y
+// Z per point (the first again at the end of a closed loop), a rapid retract, M05, M30. No % lines.
 std::string teach_program(const TeachPath& path, const TeachProgramOptions& options);
 
 // v with exactly `decimals` digits after the point: rounded to nearest (the binary value), or
