@@ -82,6 +82,7 @@ int run_chamfer(const ChamferArgs& a) {
     ngc.path_blending = comms::rules(*dialect).path_blending;
     ngc.percent = comms::rules(*dialect).percent_framing;
     ngc.tool_change = comms::rules(*dialect).tool_change;
+    ngc.length_offset = comms::rules(*dialect).length_offsets;
   }
   ngc.safe_z_mm = a.safe_z_mm.value_or(toolpath::default_safe_z_mm(spec));
   require_positive("feed (--feed, mm/min)", ngc.feed_mm_per_min);

@@ -21,7 +21,7 @@ struct TeachArgs {
   std::string points, frame_points, side = "left", output;
   toolpath::TeachSpec spec;
   toolpath::TeachProgramOptions program;
-  bool truncate = false, quiet = false;
+  bool truncate = false, quiet = false, no_length_offset = false;
 };
 
 // The whole file (a regular file, core/input_file.hpp), or an InputError naming it and the flag
@@ -48,6 +48,7 @@ int run_teach(const TeachArgs& a) {
   spec.side = a.side == "left" ? toolpath::TravelSide::Left : toolpath::TravelSide::Right;
   toolpath::TeachProgramOptions program = a.program;
   program.rounding = a.truncate ? toolpath::Rounding::Truncate : toolpath::Rounding::Nearest;
+  program.length_offset = !a.no_length_offset;
   toolpath::validate(spec);  // flags before files: the cheaper mistake is reported first
   toolpath::validate(program);
 
@@ -119,6 +120,13 @@ void register_teach(CLI::App& app, Runner& run) {
   c->add_option("--clearance", a->program.clearance_mm,
                 "approach and retract plane above the highest point (+Z), mm")
       ->capture_default_str();
+  c->add_option("--tool", a->program.tool,
+                "the tool in the spindle (the program changes none): G43 H<tool> before the "
+                "first move takes its length from the controller's tool table")
+      ->capture_default_str();
+  c->add_flag("--no-length-offset", a->no_length_offset,
+              "no G43 H, for a controller without a tool table (grbl): set the work offset Z "
+              "for the tool instead");
   c->add_option("-o,--output", a->output, "NC program file (default: standard output)");
   c->add_flag("-q,--quiet", a->quiet, "no summary on standard error");
   c->callback([a, &run] { run = [a] { return run_teach(*a); }; });

@@ -66,10 +66,7 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
     f.spindle_dwell_s = m.tool.spindle_dwell_s;
     f.tool = m.tool.number;
     f.tool_change = !m.link.dialect || comms::rules(*m.link.dialect).tool_change;
-    if (!f.tool_change) {
-      w.header.push_back("load tool " + std::to_string(f.tool) + " before the start: the " +
-                         comms::to_string(*m.link.dialect) + " dialect has no tool change (M6)");
-    }
+    f.length_offset = !m.link.dialect || comms::rules(*m.link.dialect).length_offsets;
     f.feed_mm_per_min = input.segments.front().feed_mm_per_min.value_or(300.0);
     toolpath::Path cut = input;
     double top = -1e300;
@@ -116,7 +113,19 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
     char line[96];
     std::snprintf(line, sizeof line, "clearance plane Z %.3f mm, spindle %.0f rpm",
                   f.clearance_z_mm, f.spindle_rpm);
+    if (!f.tool_change) {
+      w.header.push_back("load tool " + std::to_string(f.tool) + " before the start: the " +
+                         comms::to_string(*m.link.dialect) + " dialect has no tool change (M6)");
+    }
+    w.header.push_back(
+        toolpath::tool_length_text(m.tool.programmed_point, f.tool, f.length_offset));
     w.header.push_back(line);
+    // Header lines short enough for a drip controller's buffer (program_blocks.cpp).
+    w.header.push_back("approach: G0 Z plane, G0 X Y over the " +
+                       std::string(f.axis_xy ? "axis" : "start") + ", G0 to 1 mm above, G1 down" +
+                       (f.axis_xy ? ", out" : ""));
+    w.header.push_back(std::string("retract: ") + (f.axis_xy ? "G1 to the axis, " : "") +
+                       "G0 up to the plane");
     w.program = toolpath::whole_job(cut, f);
     w.retract = toolpath::job_retract(cut, f);
     w.path = toolpath::to_path(w.program);

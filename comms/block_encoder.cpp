@@ -137,6 +137,7 @@ void apply_dialect(EncoderSettings& settings, Dialect dialect) {
   settings.numbers = r.n_numbers;
   settings.comments = r.paren_comments;
   settings.path_blending = r.path_blending;
+  settings.length_offsets = r.length_offsets;
   if (r.max_line_chars > 0) settings.max_comment_chars = static_cast<std::size_t>(r.max_line_chars);
 }
 
@@ -251,13 +252,31 @@ BlockEncoder::BlockEncoder(const EncoderSettings& settings,
   stats_.line = describe(settings_.line);
 }
 
+// q: the written coordinates (the planned ones less the offset) in units of 10^-decimals mm.
 void BlockEncoder::quantize(const Vec3& p, std::int64_t q[3]) const {
-  for (int a = 0; a < 3; ++a) q[a] = std::llround(p[a] * scale_);
+  for (int a = 0; a < 3; ++a) q[a] = std::llround((p[a] - offset_[a]) * scale_);
 }
 
+// Where the written q puts the tool, in the planned coordinates.
 Vec3 BlockEncoder::written(const std::int64_t q[3]) const {
   return Vec3(static_cast<double>(q[0]) / scale_, static_cast<double>(q[1]) / scale_,
-              static_cast<double>(q[2]) / scale_);
+              static_cast<double>(q[2]) / scale_) +
+         offset_;
+}
+
+void BlockEncoder::set_offset(const Vec3& offset_mm) {
+  if (finished_) throw std::logic_error("BlockEncoder::set_offset after finish()");
+  for (int a = 0; a < 3; ++a) {
+    if (!std::isfinite(offset_mm[a]) || std::abs(offset_mm[a]) > kMaxCoordMm) {
+      throw InputError("tool length offset " + text::sig(offset_mm[a]) +
+                       " mm: the block encoder needs a finite offset within 1e9 mm");
+    }
+  }
+  close_open();
+  offset_ = offset_mm;
+  // The tool stands where it stood; its written coordinates change with the offset.
+  quantize(anchor_.written, anchor_.q);
+  for (bool& w : axis_written_) w = false;
 }
 
 void BlockEncoder::push(const motion::Setpoint& sp) {
@@ -531,7 +550,8 @@ void BlockEncoder::deliver_line(BlockClose kind, double duration_s, bool numbere
   sink_(b);
 }
 
-void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm) {
+void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm,
+                         const std::array<bool, 3>& axes) {
   if (finished_) throw std::logic_error("BlockEncoder::rapid after finish()");
   for (int a = 0; a < 3; ++a) {
     if (!std::isfinite(end[a]) || std::abs(end[a]) > kMaxCoordMm) {
@@ -549,13 +569,18 @@ void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm) {
     append_number(t, next_number_);
   }
   t += "G0";
+  bool any = false;
   for (int a = 0; a < 3; ++a) {
-    if (started_ && q[a] == written_q_[a]) continue;
+    if (!axes[static_cast<std::size_t>(a)]) continue;
+    if (axis_written_[a] && q[a] == written_q_[a]) continue;
     t.push_back("XYZ"[a]);
     append_fixed(t, q[a], settings_.decimals);
+    written_q_[a] = q[a];
+    axis_written_[a] = true;
+    any = true;
   }
   const double from_t_s = anchor_.t_s;
-  for (int a = 0; a < 3; ++a) written_q_[a] = anchor_.q[a] = q[a];
+  for (int a = 0; a < 3; ++a) anchor_.q[a] = q[a];
   anchor_.exact = end;
   anchor_.written = written(q);
   anchor_.rounding_mm = (anchor_.written - end).norm();
@@ -565,8 +590,9 @@ void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm) {
   v_min_ = v_max_ = 0.0;
   last_p_ = end;
   last_step_ = Vec3::Zero();
-  g1_written_ = false;  // the next feed block says G1 again
   started_ = true;
+  if (!any) return;     // the controller stands there already (as far as it was told)
+  g1_written_ = false;  // the next feed block says G1 again
   deliver_line(BlockClose::Rapid, std::max(0.0, t_s - from_t_s), settings_.numbers);
 }
 
@@ -626,7 +652,7 @@ int BlockEncoder::format_motion(const std::int64_t q[3], std::int64_t feed_units
   }
   if (!g1_written_) t += "G1";
   for (int a = 0; a < 3; ++a) {
-    if (q[a] == written_q_[a]) continue;
+    if (axis_written_[a] && q[a] == written_q_[a]) continue;
     t.push_back("XYZ"[a]);
     append_fixed(t, q[a], settings_.decimals);
   }
@@ -651,6 +677,7 @@ void BlockEncoder::emit_positioning(const motion::Setpoint& sp) {
     t.push_back("XYZ"[a]);
     append_fixed(t, q[a], settings_.decimals);
     written_q_[a] = q[a];
+    axis_written_[a] = true;
     anchor_.q[a] = q[a];
   }
   anchor_.exact = sp.p;
@@ -723,7 +750,10 @@ void BlockEncoder::emit(BlockClose reason, const std::int64_t q[3]) {
   b.positioning = false;
   b.feed_lowered = f.lowered;
   // The controller's modal state after this block.
-  for (int a = 0; a < 3; ++a) written_q_[a] = q[a];
+  for (int a = 0; a < 3; ++a) {
+    written_q_[a] = q[a];
+    axis_written_[a] = true;
+  }
   written_feed_ = f.units;
   g1_written_ = true;
   next_number_ += settings_.number_step;

@@ -15,6 +15,7 @@
 // except when a lowered range is recorded.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -60,6 +61,11 @@ struct EncoderSettings {
   // The controller takes G64 P: the preamble bounds its blending by chord_tolerance_mm, so that
   // a plain G64 (LinuxCNC: no bound) cannot round the written vertices further.
   bool path_blending = true;
+  // The controller takes G43 H n (a tool table): comms::ProgramBlocks writes each tool length
+  // offset of the program as G43 H n and the coordinates without the length (the controller
+  // adds its own). False (grbl): no G43 H; the coordinates hold the length the program's
+  // interpreter applied, and the header says how the tool's length is set.
+  bool length_offsets = true;
 };
 
 // The controller dialect's rules (comms/dialect.hpp, the one place for them) as the encoder's
@@ -194,7 +200,17 @@ class BlockEncoder {
   // where the tool stands), then writes its own line. Throw InputError on a line longer than
   // max_line_chars or a non-finite position, std::logic_error after finish().
   // A G0 to `end` (mm), reached at t_s / s_mm of the plan; the next push() starts from there.
-  void rapid(const Vec3& end, double t_s, double s_mm);
+  // Only the axes of `axes` are written (a rapid from an unknown position names the axes its
+  // program gave, no others), each only when the controller does not hold it already; with
+  // none to write, no line is written.
+  void rapid(const Vec3& end, double t_s, double s_mm,
+             const std::array<bool, 3>& axes = {true, true, true});
+  // The coordinates written from now on are the planned ones less offset_mm: the tool length
+  // the controller adds itself after a G43 H (docs/whole-program.md, "Tool length"). Closes
+  // the open block; the next block writes every axis (the controller's program position
+  // changed with the offset, not the tool).
+  void set_offset(const Vec3& offset_mm);
+  const Vec3& offset() const { return offset_; }
   // A block of words other than motion, e.g. "M3S3000", "G4P1.5", "M5", "M2"; N numbered.
   void words(const std::string& text, double duration_s = 0.0);
   // "(text)" when comments are on; parentheses in text become brackets.
@@ -273,7 +289,9 @@ class BlockEncoder {
   long next_number_ = 1;
   // What the controller holds modally after the blocks written so far.
   std::int64_t written_q_[3] = {0, 0, 0};
-  std::int64_t written_feed_ = -1;  // feed units; −1: none yet
+  bool axis_written_[3] = {false, false, false};  // written_q_[a] is what the controller holds
+  Vec3 offset_ = Vec3::Zero();                    // set_offset()
+  std::int64_t written_feed_ = -1;                // feed units; −1: none yet
   bool g1_written_ = false;
   double time_drift_s_ = 0.0;  // Σ (written − planned duration) of the unlowered blocks
   // The open block.

@@ -37,6 +37,9 @@ struct DialectRules {
   bool o_words = false;             // O-word subroutines and loops
   bool tool_change = true;          // M6
   bool path_blending = true;        // G64 (P tolerance)
+  // G43 H n: the controller adds tool n's length from its own tool table (grbl has no table,
+  // only G43.1 Z<length>, and loses it at reset).
+  bool length_offsets = true;
 };
 const DialectRules& rules(Dialect dialect);
 

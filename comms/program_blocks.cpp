@@ -4,7 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <optional>
 #include <stdexcept>
+
+#include "core/error.hpp"
 
 namespace ncd::comms {
 namespace {
@@ -23,7 +27,7 @@ std::string number(double v, int decimals) {
 
 }  // namespace
 
-std::string event_words(const toolpath::Event& event, int decimals, bool length_offset) {
+std::string event_words(const toolpath::Event& event, int decimals) {
   using namespace toolpath;
   return std::visit(
       [&](const auto& e) -> std::string {
@@ -38,7 +42,7 @@ std::string event_words(const toolpath::Event& event, int decimals, bool length_
           return "G4P" + number(e.seconds, decimals);
         } else if constexpr (std::is_same_v<T, ToolChangeEvent>) {
           const std::string t = std::to_string(e.tool);
-          return "T" + t + "M6" + (length_offset ? "G43H" + t : std::string());
+          return "T" + t + "M6";
         } else if constexpr (std::is_same_v<T, StopEvent>) {
           return e.kind == StopKind::program_stop    ? "M0"
                  : e.kind == StopKind::optional_stop ? "M1"
@@ -89,8 +93,11 @@ std::vector<std::string> ending_blocks(const toolpath::SafeRetract& r,
 
 ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder,
                              const std::vector<double>& segment_start_mm)
-    : encoder_(encoder), decimals_(encoder.settings().decimals) {
+    : encoder_(encoder), decimals_(encoder.settings().decimals), program_(program) {
   using namespace toolpath;
+  if (encoder.settings().length_offsets) {
+    if (auto missing = change_without_length_offset(program)) throw InputError(*missing);
+  }
   // Where to_path() puts each step: an event at the start of a segment, a rapid as a segment
   // of its own. Their places on the walked path are that segment's start and end there.
   std::vector<std::size_t> place;
@@ -109,6 +116,7 @@ ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& enc
       Mark m;
       m.kind = k > 0 ? Kind::Event : Kind::Pre;  // events before the first planned motion: begin()
       m.s0_mm = m.s1_mm = segment_start_mm[k];
+      m.src = step.src;
       m.event = *ev;
       marks_.push_back(std::move(m));
       continue;
@@ -117,9 +125,11 @@ ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& enc
     if (!mo.rapid) continue;
     Mark m;
     m.end = (motion_end(mo) + mo.offset) * mm_per_unit(mo.units);
+    m.src = step.src;
     if (!mo.start_known) {  // from an unknown position: written by begin()
       m.kind = Kind::Pre;
       m.rapid = true;
+      m.axes = mo.end_known;
       marks_.push_back(std::move(m));
     } else if (k != kNoSegment) {
       m.kind = Kind::Rapid;
@@ -135,7 +145,21 @@ void ProgramBlocks::write_event(const toolpath::Event& e) {
     encoder_.comment("MSG, " + msg->text);
     return;
   }
-  const std::string w = event_words(e, decimals_, length_offset_);
+  if (const auto* off = std::get_if<toolpath::ToolOffsetEvent>(&e)) {
+    // The controller's own table gives tool h's length: the blocks leave it out of the
+    // coordinates. G43.1 and G49 leave the controller without one (the coordinates hold the
+    // program's G43.1 length, as the planned path does).
+    if (!encoder_.settings().length_offsets) return;  // grbl: the coordinates hold it
+    if (off->h > 0) {
+      encoder_.words("G43H" + std::to_string(off->h));
+      encoder_.set_offset(off->offset * toolpath::mm_per_unit(off->units));
+    } else {
+      encoder_.words("G49");
+      encoder_.set_offset(Vec3::Zero());
+    }
+    return;
+  }
+  const std::string w = event_words(e, decimals_);
   if (w.empty()) return;
   const double dwell = std::holds_alternative<toolpath::DwellEvent>(e)
                            ? std::get<toolpath::DwellEvent>(e).seconds
@@ -143,18 +167,70 @@ void ProgramBlocks::write_event(const toolpath::Event& e) {
   encoder_.words(w, dwell);
 }
 
+// begin() writes a rapid from an unknown position with the axes its program gave; one that
+// moves Z and across goes Z first (the tool never moves sideways below the height the program
+// asked for). Which of them write a Z and an X Y is followed here as the encoder will: an axis
+// is written when the controller does not hold its value (at the encoder's decimals, in the
+// coordinates less the length offset in force).
+std::vector<std::string> ProgramBlocks::split_notes() const {
+  std::vector<std::string> notes;
+  const double scale = std::pow(10.0, decimals_);
+  std::array<std::optional<long long>, 3> held;
+  Vec3 offset = Vec3::Zero();
+  const bool lengths = encoder_.settings().length_offsets;
+  for (std::size_t i = 0; i < marks_.size() && marks_[i].kind == Kind::Pre; ++i) {
+    const Mark& m = marks_[i];
+    if (!m.rapid) {
+      if (const auto* off = std::get_if<toolpath::ToolOffsetEvent>(&m.event); off && lengths) {
+        offset = off->h > 0 ? Vec3(off->offset * toolpath::mm_per_unit(off->units)) : Vec3::Zero();
+        held = {};
+      }
+      continue;
+    }
+    std::array<bool, 3> writes{};
+    std::array<long long, 3> q{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      q[a] = std::llround(
+          (m.end[static_cast<Eigen::Index>(a)] - offset[static_cast<Eigen::Index>(a)]) * scale);
+      writes[a] = m.axes[a] && (!held[a] || *held[a] != q[a]);
+      if (writes[a]) held[a] = q[a];
+    }
+    // A generated job's first rapid is its documented approach (its header says so).
+    if (!writes[2] || !(writes[0] || writes[1]) || m.src.line == 0) continue;
+    std::string across;
+    for (std::size_t a = 0; a < 2; ++a) {
+      if (writes[a]) {
+        across += std::string(across.empty() ? "" : " ") + "XY"[a] +
+                  number(static_cast<double>(q[a]) / scale, decimals_);
+      }
+    }
+    // Short (a line longer than a drip controller's XON level deadlocks its buffer: the
+    // simulated controller's 256 B buffer resumes at 96 B); the first header line names the
+    // file already.
+    const std::string at =
+        m.src.file == 0
+            ? "line " + std::to_string(m.src.line)
+            : std::filesystem::path(toolpath::where(program_, m.src)).filename().string();
+    notes.push_back("ncd: " + at + "'s rapid from an unknown position: G0 Z" +
+                    number(static_cast<double>(q[2]) / scale, decimals_) + " first, then G0 " +
+                    across);
+  }
+  return notes;
+}
+
 void ProgramBlocks::begin(const std::vector<std::string>& header) {
   encoder_.percent_line();
   for (const std::string& h : header) encoder_.comment(h);
+  for (const std::string& h : split_notes()) encoder_.comment(h);
   const EncoderSettings& e = encoder_.settings();
   encoder_.words("G21G90G94G17G40G49" +
                  (e.path_blending ? "G64P" + number(e.chord_tolerance_mm, 6) : std::string()));
   while (next_ < marks_.size() && marks_[next_].kind == Kind::Pre) {
     const Mark& m = marks_[next_++];
     if (m.rapid) {
-      // From an unknown position: up to the target's Z first, then across.
-      encoder_.words("G0Z" + number(m.end.z(), decimals_));
-      encoder_.rapid(m.end, 0.0, 0.0);
+      // From an unknown position, with the axes the program gave: Z first, then across.
+      encoder_.rapid(m.end, 0.0, 0.0, {false, false, m.axes[2]});
+      encoder_.rapid(m.end, 0.0, 0.0, {m.axes[0], m.axes[1], false});
     } else {
       write_event(m.event);
     }

@@ -12,6 +12,7 @@
 // interpolated between the setpoints on either side.
 #pragma once
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,12 +26,9 @@ namespace ncd::comms {
 
 // The words of an event as a block writes them (no N): "M3S3000", "G4P1.5", "T1M6", "M5",
 // "M2"; empty for events the blocks carry otherwise (units: the blocks are always G21; tool
-// offsets: the planned coordinates already hold them; path control: the blocks are within
-// the encoder's chord tolerance).
-// A tool change is "T n M6", followed by "G43 H n" when length_offset is set (the controller
-// then applies the tool table's length; LinuxCNC and ISO controls take it, grbl and the simulated
-// controller do not, and an operator who touches off the tool's programmed point needs none).
-std::string event_words(const toolpath::Event& event, int decimals = 3, bool length_offset = false);
+// length offsets: ProgramBlocks writes them as the controller takes them; path control: the
+// blocks are within the encoder's chord tolerance).
+std::string event_words(const toolpath::Event& event, int decimals = 3);
 
 // The blocks that end a job early (docs/whole-program.md, "Ending early"), without N, from
 // `at`, where the blocks sent so far leave the tool (none: not known):
@@ -56,15 +54,18 @@ class ProgramBlocks {
   // programmed vertices, and the events and rapids go with them.
   ProgramBlocks(const toolpath::Program& program, BlockEncoder& encoder,
                 const std::vector<double>& segment_start_mm);
-  // "%", the header comments, the preamble "G21G90G94G17G40G49" (and "G64P<chord tolerance>"
-  // where the dialect takes G64), then what comes before the first
-  // planned move.
+  // Throws InputError when the encoder's controller takes G43 H (EncoderSettings::
+  // length_offsets) and a tool change of the program is followed by a cut before its length
+  // offset (toolpath::change_without_length_offset).
+  //
+  // "%", the header comments, then a comment for each move the blocks write that the program
+  // did not (a rapid from an unknown position split into Z first, then X Y), the preamble
+  // "G21G90G94G17G40G49" (and "G64P<chord tolerance>" where the dialect takes G64), then what
+  // comes before the first planned move.
   void begin(const std::vector<std::string>& header);
   void push(const motion::Setpoint& sp);
   // What follows the last planned move (M5, M2), finish(), "%".
   void end();
-  // Write "G43 H n" after each tool change (event_words); off by default.
-  void set_length_offset(bool on) { length_offset_ = on; }
 
  private:
   enum class Kind { Event, Rapid, Pre };
@@ -73,8 +74,12 @@ class ProgramBlocks {
     double s0_mm = 0.0, s1_mm = 0.0;
     Vec3 end = Vec3::Zero();  // rapids: where they go
     bool rapid = false;       // a Pre mark that is a rapid from an unknown position
+    std::array<bool, 3> axes{true, true, true};  // a Pre rapid's axes the program gave
+    toolpath::SourceRef src;
     toolpath::Event event;
   };
+  // The header comments for the Pre rapids that begin() splits (Z first, then X Y).
+  std::vector<std::string> split_notes() const;
   void push_at(double s_mm, const motion::Setpoint& sp);
   double fraction_at(double s_mm, const motion::Setpoint& sp) const;
   void write_event(const toolpath::Event& e);
@@ -88,7 +93,7 @@ class ProgramBlocks {
   double seen_s_mm_ = 0.0, seen_t_s_ = 0.0;      // the last setpoint received
   Vec3 seen_p_ = Vec3::Zero();
   int decimals_ = 3;
-  bool length_offset_ = false;
+  const toolpath::Program& program_;
 };
 
 }  // namespace ncd::comms

@@ -318,7 +318,8 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
   std::array<std::optional<double>, 3> axis;
   std::optional<double> p_word;
   std::optional<int> motion;  // 0, 1 or 80 given in this block
-  bool dwell = false, g64 = false;
+  bool dwell = false, g64 = false, g43 = false;
+  std::optional<double> h_word;
   std::string seen;  // letters that may not repeat
   for (const Word& w : words) {
     const bool integer = w.value == std::floor(w.value);
@@ -349,6 +350,8 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
           b.dwell = true;
         } else if (code10 == 640) {
           g64 = true;
+        } else if (code10 == 430) {
+          g43 = true;
         } else if (code10 == 910) {
           return fail(kErrUnsupported,
                       "G91 (incremental) is not supported: send absolute coordinates (G90)");
@@ -361,7 +364,7 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
                    code10 != 900 && code10 != 940) {
           return fail(kErrUnsupported, "G" + text::sig(w.value) +
                                            " is not supported: use G0 G1 G4, or the setup codes "
-                                           "G17 G21 G40 G49 G54 G61 G61.1 G64 G80 G90 G94");
+                                           "G17 G21 G40 G43 G49 G54 G61 G61.1 G64 G80 G90 G94");
         }
         break;
       }
@@ -408,11 +411,20 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
         if (w.value < 0.0) return fail(kErrNegative, "P " + text::sig(w.value) + " is negative");
         p_word = w.value;
         break;
+      case 'H':
+        if (!integer) return fail(kErrNotInteger, "H " + text::sig(w.value) + " is not an integer");
+        if (w.value < 0.0) return fail(kErrNegative, "H " + text::sig(w.value) + " is negative");
+        h_word = w.value;
+        break;
       default:
         return fail(kErrUnsupported, std::string("the word ") + w.letter +
-                                         " is not supported: use N G X Y Z F S M T P");
+                                         " is not supported: use N G X Y Z F S M T P H");
     }
   }
+  // G43 H n: the length of tool n from the controller's table, which this model holds as 0
+  // for every tool: the programmed point is the one the blocks drive.
+  if (g43 && !h_word) return fail(kErrMissingValue, "G43 needs H, the tool table's entry");
+  if (h_word && !g43) return fail(kErrUnsupported, "an H word needs G43 (tool length offset)");
   if (p_word && !dwell && !g64) {
     return fail(kErrUnsupported, "a P word needs G4 (dwell) or G64 (blending tolerance)");
   }

@@ -92,6 +92,13 @@ void restart_job(JobSpec& job, const toolpath::Program& program, std::string_vie
   RestartSpec r;
   r.line = restart_line;
   r.preamble = comms::restart_blocks(at, clearance);
+  for (std::size_t i = 0; i < first; ++i) {
+    const auto* ev = std::get_if<toolpath::Event>(&program.steps[i].item);
+    const auto* off = ev ? std::get_if<toolpath::ToolOffsetEvent>(ev) : nullptr;
+    if (!off) continue;
+    r.length_offset_mm =
+        off->h > 0 ? Vec3(off->offset * toolpath::mm_per_unit(off->units)) : Vec3::Zero();
+  }
 
   toolpath::Program rest;
   rest.files = program.files;

@@ -649,6 +649,10 @@ void Service::start_stream(const motion::Job& job) {
     ls->program->begin(job_.header);
     ls->program->push(start);
   } else {
+    // A restart: the preamble's G43 H is the controller's; the path's coordinates hold ncd's.
+    if (job_.restart && enc.length_offsets) {
+      ls->encoder->set_offset(job_.restart->length_offset_mm);
+    }
     ls->encoder->push(start);
   }
   if (!link.journal.empty()) {

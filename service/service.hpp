@@ -59,6 +59,10 @@ struct RestartSpec {
   // Sent before the first live block: the modes in force at the line and the safe re-entry
   // through the clearance plane (comms::restart_blocks).
   std::vector<std::string> preamble;
+  // The tool length in force at the line (the program's last G43 H before it, from ncd's tool
+  // table), mm: the planned path holds it, the controller adds its own after the preamble's
+  // G43 H, so the blocks leave it out (comms::BlockEncoder::set_offset). Zero after G49/G43.1.
+  Vec3 length_offset_mm = Vec3::Zero();
 };
 
 // A job, checked and ready to run: what the owner made of a request.

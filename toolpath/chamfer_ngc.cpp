@@ -1,8 +1,11 @@
 // RS-274/NGC writer for a chamfer loop (LinuxCNC dialect): a header comment that states every
 // parameter, G21 G90 G94, the tool (T n M6, or a header line asking for it where the controller
-// has no tool change), the spindle (S M3, then G4 P for its spin-up when the machine file gives
-// one), an approach, the closed loop of G1 moves, a retract, M5, M2: the same sequence as the
-// whole job of the blocks (toolpath/whole_program.hpp, docs/whole-program.md).
+// has no tool change) and its length (G43 H n before the first move: without it a Fanuc or
+// LinuxCNC drives the spindle's gauge line, and the tip runs low by the whole tool length; a
+// header line saying how to set it where the controller has no tool table), the spindle (S M3, then
+// G4 P for its spin-up when the machine file gives one), an approach, the closed loop of G1 moves,
+// a retract, M5, M2: the same sequence as the whole job of the blocks (toolpath/whole_program.hpp,
+// docs/whole-program.md).
 //
 // Frames (docs/chamfer.md): by default the drill frame, Z along the drill axis, X0 Y0 on it, Z0
 // at the foot of the common perpendicular with the pipe axis; the header says how the pipe axis
@@ -25,6 +28,14 @@
 namespace ncd::toolpath {
 std::string to_string(ProgramFrame frame) {
   return frame == ProgramFrame::Drill ? "drill" : "pipe";
+}
+
+std::string tool_length_text(ProgramPoint point, int tool, bool length_offset) {
+  const std::string to = point == ProgramPoint::Tip ? "the ball tip" : "the ball centre";
+  const std::string t = std::to_string(tool);
+  if (length_offset) return "tool length: G43 H" + t + ", the controller's table, to " + to;
+  return "tool length: no tool table; set work Z0 at tool " + t + "'s " +
+         (point == ProgramPoint::Tip ? "tip" : "centre") + " or give G43.1 Z";
 }
 
 double default_safe_z_mm(const ChamferSpec& spec) {
@@ -155,6 +166,7 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
   if (!o.tool_change) {
     g << "(load tool " << o.tool << " before the start: this controller has no tool change, M6)\n";
   }
+  g << "(" << tool_length_text(o.point, o.tool, o.length_offset) << ")\n";
   g << "(checks: local " << (ck.local_ok ? "ok" : "INTERFERES") << ", global "
     << (ck.global_ok ? "ok" : "INTERFERES") << ", rod "
     << (!ck.limit_radius_mm ? "not checked"
@@ -171,6 +183,7 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     g << "(no G64 P: this controller has no blending tolerance; its own path mode applies)\n";
   }
   if (o.tool_change) g << "T" << o.tool << " M6\n";
+  if (o.length_offset) g << "G43 H" << o.tool << "\n";
   g << "S" << text::fixed(o.spindle_rpm, 0) << " M3\n";
   if (o.spindle_dwell_s > 0.0) g << "G4 P" << text::fixed(o.spindle_dwell_s, 3) << "\n";
   g << "G0 Z" << text::fixed(o.safe_z_mm, d) << "\n";

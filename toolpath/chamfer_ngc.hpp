@@ -31,11 +31,19 @@ struct NgcOptions {
   // operator to load tool n before the start (docs/whole-program.md).
   int tool = 1;
   bool tool_change = true;
+  // "G43 H n" after the change (before any move): the controller's tool table gives tool n's
+  // length to the programmed point. False for a controller without a tool table (grbl): the
+  // header says to set the length in the work offset (or with G43.1) before the start.
+  bool length_offset = true;
   // "G4 P" after M3 for the spindle to reach its speed ([tool] spindle_dwell_s); 0: none.
   double spindle_dwell_s = 0.0;
 };
 
 std::string to_string(ProgramFrame frame);
+
+// The header line (without parentheses) saying how the tool's length reaches the programmed
+// point: "G43 H n" from the controller's table, or, without one, the work offset or G43.1.
+std::string tool_length_text(ProgramPoint point, int tool, bool length_offset);
 
 // Default clearance: the highest point of the hole's rim on the outer surface (the edge's own
 // surface when the thickness is not given) plus two ball diameters, in the frame the program is

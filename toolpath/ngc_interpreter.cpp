@@ -309,6 +309,7 @@ class Interpreter {
  public:
   Interpreter(const InterpretOptions& o) : opt_(o) {
     params_.assign(kMaxParam + 1, 0.0);
+    param_given_.assign(kMaxParam + 1, false);
     machine_k_ = mm_per_unit(opt_.machine_units);
     units_ = opt_.default_units;
     program_.units = units_;
@@ -454,6 +455,7 @@ class Interpreter {
       }
       last = index;
       params_[static_cast<std::size_t>(index)] = value;
+      param_given_[static_cast<std::size_t>(index)] = true;
       var_lines_.push_back({static_cast<int>(index), line});
     }
   }
@@ -961,6 +963,7 @@ class Interpreter {
     for (const Assign& a : assigns_) {
       if (a.index) {
         params_[static_cast<std::size_t>(a.index)] = a.value;
+        param_given_[static_cast<std::size_t>(a.index)] = true;
       } else if (a.name[0] == '_') {
         globals_[a.name] = a.value;
       } else {
@@ -1514,6 +1517,7 @@ class Interpreter {
     m.tool = tool_;
     m.offset = total_offset() / kk;
     m.start_known = known_[0] && known_[1] && known_[2];
+    for (std::size_t a = 0; a < 3; ++a) m.end_known[a] = known_[a] || pending_known_[a];
     return m;
   }
 
@@ -1670,8 +1674,9 @@ class Interpreter {
     if (b.has_g(430) || b.has_g(431) || b.has_g(490)) {
       refuse_with_comp("change the tool length offset");
       Vec3 off(0, 0, 0);
+      int h = -1;
       if (b.has_g(430)) {
-        int h = tool_;
+        h = tool_;
         if (b.has('h')) {
           const double hv = b.v('h');
           if (hv < 0 || hv != std::floor(hv))
@@ -1694,7 +1699,7 @@ class Interpreter {
       // offset shifts it: the program position stays (rs274 shows it so).
       if (!b.has_m(6)) pos_ += tool_offset_ - off;
       tool_offset_ = off;
-      emit(ToolOffsetEvent{off / k()});
+      emit(ToolOffsetEvent{off / k(), units_, h});
     } else if (b.has('h')) {
       fail("H word without G43; write G43 H" + text::sig(b.v('h')));
     }
@@ -2271,12 +2276,37 @@ class Interpreter {
     if (n == coord_sys_) pos_ += old - g5x();
   }
 
+  // G28 / G30 (LinuxCNC's convert_home): a rapid to the intermediate point the block's words
+  // give (in the current frame and distance mode), then a rapid of the block's axes (all three
+  // when it names none) to the stored position, parameters base..base+2 in machine coordinates
+  // and units, taken back into the program's frame (less the work offset, G92 and the tool
+  // length). A stored position nobody gave is refused: every parameter starts at 0, and a move
+  // to machine zero is what rs274 would print, but on a machine that has its own G28 position
+  // (or a work offset at the part) a rapid there runs into the part.
   void home(const Block& b, int base) {
+    const bool any = b.has('x') || b.has('y') || b.has('z');
+    for (int a = 0; a < 3; ++a) {
+      if ((any && !b.has(static_cast<char>('x' + a))) ||
+          param_given_[static_cast<std::size_t>(base + a)]) {
+        continue;
+      }
+      const std::string g = base == 5161 ? "G28" : "G30";
+      const std::string from = std::to_string(base) + "-" + std::to_string(base + 2);
+      fail(g + " moves " + std::string(1, static_cast<char>('X' + a)) + " to the stored " + g +
+           " position, but no parameter " + std::to_string(base + a) + " is known: " +
+           (opt_.parameter_file.empty()
+                ? std::string("no parameter file is given")
+                : "the parameter file " + opt_.parameter_file + " does not hold it") +
+           ", and a position of 0 would be a rapid to machine zero, on most set-ups into the "
+           "part. Give the machine file's [program] parameter_file a LinuxCNC .var that holds " +
+           from + " (the " + g + " position in machine coordinates and machine units, as the " +
+           "controller has it), set it in the program (" + g + ".1 or #" + std::to_string(base) +
+           "=...), or move with G53 G0 instead");
+    }
     const Vec3 mid = target(b, false);
     line_to(mid, true);
     Vec3 home_prog =
         Vec3(param_len(base), param_len(base + 1), param_len(base + 2)) - total_offset();
-    const bool any = b.has('x') || b.has('y') || b.has('z');
     Vec3 end = mid;
     for (int a = 0; a < 3; ++a) {
       if (!any || b.has(static_cast<char>('x' + a))) {
@@ -2289,7 +2319,10 @@ class Interpreter {
 
   void store_home(int base) {
     const Vec3 abs = pos_ + total_offset();
-    for (int a = 0; a < 3; ++a) params_[static_cast<std::size_t>(base + a)] = abs[a] / machine_k_;
+    for (int a = 0; a < 3; ++a) {
+      params_[static_cast<std::size_t>(base + a)] = abs[a] / machine_k_;
+      param_given_[static_cast<std::size_t>(base + a)] = true;
+    }
   }
 
   void g92(const Block& b) {
@@ -2453,6 +2486,8 @@ class Interpreter {
   std::string norm_;
   std::vector<Assign> assigns_;
   std::vector<double> params_;
+  // Parameters given by the parameter file, an assignment or G28.1/G30.1 (not the start's 0).
+  std::vector<bool> param_given_;
   std::unordered_map<std::string, double> globals_;
   double value_ = 0.0;
   bool value_returned_ = false;

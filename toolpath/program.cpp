@@ -213,6 +213,8 @@ NurbsCurve to_machine(const NurbsCurve& c, const Vec3& offset, double k) {
   return NurbsCurve(c.degree(), c.knots(), pts, c.rational() ? c.weights() : std::vector<double>{});
 }
 
+}  // namespace
+
 std::string where(const Program& p, const SourceRef& s) {
   const std::string file = s.file >= 0 && static_cast<std::size_t>(s.file) < p.files.size()
                                ? p.files[static_cast<std::size_t>(s.file)]
@@ -220,7 +222,38 @@ std::string where(const Program& p, const SourceRef& s) {
   return file + ":" + std::to_string(s.line);
 }
 
-}  // namespace
+// A tool change leaves the length offset of the tool before in force (LinuxCNC and Fanuc alike);
+// until a G43 H (or a G49, the programmer's word that no offset is wanted) the controlled point
+// is the old tool's. A feed, or a rapid that moves Z, before it drives the new tool by the wrong
+// length: by its whole length when no offset was on (G49, the preamble of most programs).
+std::optional<std::string> change_without_length_offset(const Program& program) {
+  std::optional<std::size_t> change;  // the step of the last tool change not yet followed
+  for (std::size_t i = 0; i < program.steps.size(); ++i) {
+    const Step& step = program.steps[i];
+    if (const auto* ev = std::get_if<Event>(&step.item)) {
+      if (std::holds_alternative<ToolChangeEvent>(*ev)) change = i;
+      if (std::holds_alternative<ToolOffsetEvent>(*ev)) change.reset();
+      continue;
+    }
+    if (!change) continue;
+    const Motion& m = std::get<Motion>(step.item);
+    const bool moves_z =
+        m.start_known ? std::abs(motion_end(m).z() - m.start.z()) > 0.0 : m.end_known[2];
+    if (m.rapid && !moves_z) continue;
+    const Step& c = program.steps[*change];
+    const int tool = std::get<ToolChangeEvent>(std::get<Event>(c.item)).tool;
+    const std::string t = std::to_string(tool);
+    return where(program, c.src) + ": the tool change to T" + t + " is followed by " +
+           (m.rapid ? "a rapid in Z" : "a feed move") + " at " + where(program, m.src) +
+           " with no tool length offset for it: the controller would drive the spindle's gauge "
+           "line (or the tool before's length) where the program means the tool's point, "
+           "which runs the tool into the part by its length. Add G43 H" +
+           t +
+           " after the M6 (the controller's tool table gives the length), or G49 after it "
+           "if the tool's length is set in the work offset";
+  }
+  return std::nullopt;
+}
 
 Path to_path(const Program& program, const ToPathOptions& options) {
   Path path;

@@ -6,6 +6,7 @@
 // See docs/ngc-interpreter.md.
 #pragma once
 
+#include <array>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -72,6 +73,9 @@ struct Motion {
   int tool = 0;              // tool in the spindle
   Vec3 offset{0, 0, 0};      // program → machine: work offset + G92 + tool length, program units
   bool start_known = true;   // false until X, Y and Z have all been programmed (or homed)
+  // Axes whose end the program has given (or a move before it); false: the end on that axis is
+  // where the interpreter assumes the machine stands, which nothing on the machine promises.
+  std::array<bool, 3> end_known{true, true, true};
   SourceRef src;
 };
 
@@ -91,7 +95,11 @@ struct ToolChangeEvent {  // M6 (T selects, M6 changes)
   double length = 0.0;  // the new tool's Z offset in the tool table, program units
 };
 struct ToolOffsetEvent {  // G43 / G43.1 / G49: the tool length offset now in force
-  Vec3 offset{0, 0, 0};   // program units
+  Vec3 offset{0, 0, 0};   // program units (units below): what the planned coordinates hold
+  Units units = Units::mm;
+  // G43 H n: the tool table's entry n (the controller's own table gives the length when the
+  // program is written out); -1: G43.1 (a length the program states) or G49 (none).
+  int h = -1;
 };
 enum class StopKind { program_stop, optional_stop, pallet_shuttle };  // M0, M1, M60
 struct StopEvent {
@@ -169,6 +177,15 @@ inline constexpr std::size_t kNoSegment = static_cast<std::size_t>(-1);
 // nothing; a feed move from an unknown position is an InputError. Events that need the machine
 // at rest (M0/M1/M60, M6, dwell, spindle changes) set stop_before on the next segment.
 Path to_path(const Program& program, const ToPathOptions& options = {});
+
+// "file:line" of a step.
+std::string where(const Program& program, const SourceRef& src);
+
+// The first tool change (M6) followed by a feed move, or by a rapid that moves Z, before any
+// tool length offset (G43 H, G43.1, G49): a message naming both lines and the way out; none
+// when every change is followed by its offset. Programs written for a controller with a tool
+// table need it (comms::ProgramBlocks refuses them).
+std::optional<std::string> change_without_length_offset(const Program& program);
 
 // One line per motion or event: "file:line KIND values", the program's units.
 void write_canonical(std::ostream& out, const Program& program);

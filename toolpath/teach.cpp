@@ -56,7 +56,9 @@
 // through each one (the paper rejects approximating splines for the under- and over-cut they
 // cause), in the paper's glued format "G01X28.728Y-6.595Z-0.765", truncated (--truncate, as
 // the paper) or rounded to the stated decimals. Before the first point a rapid to the
-// clearance plane above it; after the last a rapid back up.
+// clearance plane above it; after the last a rapid back up. The program changes no tool (the
+// paper's has none): it takes the length of the tool in the spindle with G43 H (--tool) before
+// its first move, or, for a controller without a tool table, leaves it to the work offset.
 #include "toolpath/teach.hpp"
 
 #include <algorithm>
@@ -309,6 +311,11 @@ void validate(const TeachProgramOptions& o) {
                      " to " + std::to_string(TeachLimits::kMaxDecimals) +
                      " digits after the point (3 is the paper's 1 um)");
   }
+  if (o.tool < 0 || o.tool > 99999) {
+    throw InputError("tool number (--tool) = " + std::to_string(o.tool) +
+                     " is out of range: give the tool table's entry of the tool in the spindle, "
+                     "0 to 99999");
+  }
 }
 
 TeachPath teach(const std::vector<TaughtPoint>& points, const TeachFrame& frame,
@@ -433,8 +440,15 @@ std::string teach_program(const TeachPath& path, const TeachProgramOptions& o) {
     << format_fixed(60.0 * length_mm / o.feed_mm_per_min, 1, Rounding::Nearest) << " s)\n";
   g << "(clearance plane Z" << f(clear_z_mm) << ", " << given(o.clearance_mm)
     << " above the highest point)\n";
+  g << "(no tool change: tool " << o.tool << " must be in the spindle)\n";
+  if (o.length_offset) {
+    g << "(tool length: G43 H" << o.tool << ", the controller's table holds it)\n";
+  } else {
+    g << "(tool length: no G43 H; set the work offset Z for tool " << o.tool << ")\n";
+  }
   g << "G21\n";
   g << "G90F" << shortest(o.feed_mm_per_min) << "S" << shortest(o.spindle_rpm) << "\n";
+  if (o.length_offset) g << "G43H" << o.tool << "\n";
   g << "M03\n";
   const Vec3& first = pts.front().tool_mm;
   g << "G00X" << f(first.x()) << "Y" << f(first.y()) << "Z" << f(clear_z_mm) << "\n";

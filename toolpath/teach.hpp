@@ -100,14 +100,20 @@ struct TeachProgramOptions {
   int decimals = 3;  // digits after the point in coordinates (the paper's)
   Rounding rounding = Rounding::Nearest;
   double clearance_mm = 10.0;  // approach and retract plane above the highest tool point (+Z)
+  // The tool in the spindle (the program changes none): "G43 H tool" before the first move, so
+  // that a controller with a tool table (LinuxCNC, Fanuc) drives the tool's point, not the
+  // spindle's gauge line. length_offset false (a controller without a table, grbl): no G43 H;
+  // the header says to set the length in the work offset.
+  int tool = 1;
+  bool length_offset = true;
 };
 
 // Throws InputError when an option is out of range.
 void validate(const TeachProgramOptions& options);
 
 // The NC program: a header comment stating the frame, D, l, side, precision and the checks,
-// then G21, G90 F S, M03, a rapid above the first point, one G01 X Y Z per point (the first
-// again at the end of a closed loop), a rapid retract, M05, M30. No % lines.
+// then G21, G90 F S, G43 H (options.length_offset), M03, a rapid above the first point, one G01 X Y
+// Z per point (the first again at the end of a closed loop), a rapid retract, M05, M30. No % lines.
 std::string teach_program(const TeachPath& path, const TeachProgramOptions& options);
 
 // v with exactly `decimals` digits after the point: rounded to nearest (the binary value), or

@@ -1,7 +1,8 @@
 // Generated jobs as whole programs (whole_program.hpp, docs/whole-program.md).
 //
 // The sequence, in the program's frame and programmed point (Z up, the part below):
-//   G21 (UnitsEvent), T M6 (ToolChangeEvent; G43 H as the writer is told), M3 S (SpindleEvent), G4
+//   G21 (UnitsEvent), T M6 (ToolChangeEvent), G43 H (ToolOffsetEvent with h = the tool and no
+//   offset of its own: the path is already in the programmed point), M3 S (SpindleEvent), G4
 //   P (DwellEvent); G0 to the clearance plane over the approach point: a rapid from an unknown
 //   position, which
 //     the writers split into "rise to Z first, then X Y" (the tool never moves sideways below
@@ -120,6 +121,7 @@ Program whole_job(const Path& cut, const JobFrame& f) {
   Builder b(f);
   b.event(UnitsEvent{Units::mm});
   if (f.tool_change) b.event(ToolChangeEvent{f.tool, 0.0});
+  if (f.length_offset) b.event(ToolOffsetEvent{Vec3::Zero(), Units::mm, f.tool});
   b.event(SpindleEvent{SpindleDir::cw, f.spindle_rpm});
   b.spindle_on_ = true;
   if (f.spindle_dwell_s > 0.0) b.event(DwellEvent{f.spindle_dwell_s});
@@ -222,6 +224,7 @@ Program chamfer_job(const ChamferPath& path, const NgcOptions& o) {
   f.spindle_dwell_s = o.spindle_dwell_s;
   f.tool = o.tool;
   f.tool_change = o.tool_change;
+  f.length_offset = o.length_offset;
   f.clearance_z_mm = o.safe_z_mm;
   if (s.edge == Edge::Inner) f.axis_xy = program_frame_point(s, Vec3::Zero(), o.frame);
   return whole_job(cut, f);

@@ -26,6 +26,10 @@ struct JobFrame {
   // T n M6 at the start; false where the controller has no tool changer (grbl: M6 is its
   // error:20): the operator loads tool n before the start, as the header says.
   bool tool_change = true;
+  // G43 H n after the change (or at the start, without one): the controller's tool table gives
+  // the tool's length to the programmed point. False where the controller has no tool table
+  // (grbl): the operator sets the length in the work offset, as the header says.
+  bool length_offset = true;
   double clearance_z_mm = 0.0;   // the clearance plane, in the program's frame and point
   double approach_gap_mm = 1.0;  // the rapid descent stops this far above the feed's start
   // Inner edges: the approach goes down this vertical (the drill axis, X Y) and then feeds out

@@ -138,6 +138,24 @@ TEST_F(Serve, BadRequestsAreAnsweredNotFatal) {
   EXPECT_TRUE(c.request({{"cmd", "status"}})["ok"].get<bool>());  // still serving
 }
 
+// A program whose G91 G28 Z0 has no stored position to go to (no parameter file): the submit
+// is answered with the error naming file:line and the parameter; the service goes on.
+TEST_F(Serve, AG28WithNoStoredPositionIsRefusedNamingTheLine) {
+  const std::string prog = write("home.ngc",
+                                 "G21 G90\nG91 G28 Z0\nG90\nG0 X0 Y0 Z5\n"
+                                 "G1 Z-1 F100\nG0 Z5\nM2\n");
+  launch("simulated");
+  Client c(socket_);
+  const json r = c.request({{"cmd", "submit"}, {"job", {{"path", prog}}}});
+  EXPECT_FALSE(r["ok"].get<bool>()) << r.dump();
+  const std::string error = r.value("error", "");
+  EXPECT_NE(error.find("home.ngc:2: G28 moves Z to the stored G28 position, but no parameter "
+                       "5163 is known"),
+            std::string::npos)
+      << error;
+  EXPECT_TRUE(c.request({{"cmd", "status"}})["ok"].get<bool>());
+}
+
 TEST_F(Serve, ClientLeavingDoesNotStopTheJobAndSigtermExitsZero) {
   const std::string cubic = write("cubic.json", ncd::test::kCubicJson);
   launch("wall");

@@ -79,11 +79,12 @@ TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
   EXPECT_EQ(r.lines[0], "(a header)");
   EXPECT_EQ(r.lines[1], "N1G21G90G94G17G40G49G64P0.002");
   EXPECT_EQ(r.lines[2], "N2T3M6");
-  EXPECT_EQ(r.lines[3], "N3M3S1000");
-  EXPECT_EQ(r.lines[4], "N4G4P2.5");
-  EXPECT_EQ(r.lines[5], "N5G0Z20.");        // rise first, from wherever the tool stands
-  EXPECT_EQ(r.lines[6], "N6G0X5.Y5.Z20.");  // then over the approach point
-  EXPECT_EQ(r.lines[7], "N7G0Z0.");         // down the axis to 1 mm above the cut's height
+  EXPECT_EQ(r.lines[3], "N3G43H3");  // the tool's length, from the controller's table
+  EXPECT_EQ(r.lines[4], "N4M3S1000");
+  EXPECT_EQ(r.lines[5], "N5G4P2.5");
+  EXPECT_EQ(r.lines[6], "N6G0Z20.");    // rise first, from wherever the tool stands
+  EXPECT_EQ(r.lines[7], "N7G0X5.Y5.");  // then over the approach point
+  EXPECT_EQ(r.lines[8], "N8G0Z0.");     // down the axis to 1 mm above the cut's height
   std::size_t first_g1 = r.lines.size();
   for (std::size_t i = 0; i < r.lines.size() && first_g1 == r.lines.size(); ++i) {
     const std::size_t at = r.lines[i].find("G1");
@@ -92,7 +93,7 @@ TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
       first_g1 = i;
     }
   }
-  EXPECT_EQ(first_g1, 8u);
+  EXPECT_EQ(first_g1, 9u);
   EXPECT_EQ(r.lines[r.lines.size() - 2].substr(r.lines[r.lines.size() - 2].find('M')), "M5");
   EXPECT_EQ(r.lines.back().substr(r.lines.back().find('M')), "M2");
   // The retract: back to the axis at the cut's height, then up to the clearance plane.
@@ -108,9 +109,9 @@ TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
   // The cut's corners are block ends (the encoder closes at a turn, rest or chord), the loop
   // closes at the start: X10 Y0 Z-1 appears as an end after the corners.
   EXPECT_NE(index_of(r.lines, "X10.Y0."), r.lines.size());
-  // Rapids: over the approach point, down, up (the rise from the unknown position is words).
-  EXPECT_EQ(r.stats.closed_by[static_cast<int>(BlockClose::Rapid)], 3);
-  // Words: preamble, T M6, M3, G4, the rise G0 Z, M5, M2.
+  // Rapids: the rise, over the approach point, down, up.
+  EXPECT_EQ(r.stats.closed_by[static_cast<int>(BlockClose::Rapid)], 4);
+  // Words: preamble, T M6, G43 H, M3, G4, M5, M2.
   EXPECT_EQ(r.stats.closed_by[static_cast<int>(BlockClose::Words)], 7);
   EXPECT_LE(r.stats.chord_error_max_mm, EncoderSettings{}.chord_tolerance_mm);
 }
@@ -118,7 +119,7 @@ TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
 TEST(ProgramBlocks, NoDwellWhenNoneIsConfigured) {
   const Encoded r = encode(square_job(0.0));
   EXPECT_EQ(index_of(r.lines, "G4P"), r.lines.size());
-  EXPECT_EQ(r.lines[4], "N4G0Z20.");
+  EXPECT_EQ(r.lines[5], "N5G0Z20.");
 }
 
 TEST(ProgramBlocks, FramingKnobs) {
@@ -230,11 +231,14 @@ TEST(ChamferJob, Exp3IsTheNgcLoopWithItsApproach) {
   EXPECT_NEAR((toolpath::motion_end(moves[5]) - Vec3(0, 0, first.z())).norm(), 0.0, 1e-12);
   EXPECT_TRUE(moves.back().rapid);
   EXPECT_NEAR(toolpath::motion_end(moves.back()).z(), o.safe_z_mm, 1e-12);
-  // Events: G21, T2, M3 at the NGC's spindle speed, the dwell; M5 and M2 at the end.
+  // Events: G21, T2, G43 H2 (no offset of its own: the path is in the tip already), M3 at the
+  // NGC's spindle speed, the dwell; M5 and M2 at the end.
   const auto& ev = [&](std::size_t i) { return std::get<toolpath::Event>(p.steps[i].item); };
   EXPECT_EQ(std::get<toolpath::ToolChangeEvent>(ev(1)).tool, 2);
-  EXPECT_EQ(std::get<toolpath::SpindleEvent>(ev(2)).rpm, o.spindle_rpm);
-  EXPECT_EQ(std::get<toolpath::DwellEvent>(ev(3)).seconds, 1.0);
+  EXPECT_EQ(std::get<toolpath::ToolOffsetEvent>(ev(2)).h, 2);
+  EXPECT_EQ(std::get<toolpath::ToolOffsetEvent>(ev(2)).offset.norm(), 0.0);
+  EXPECT_EQ(std::get<toolpath::SpindleEvent>(ev(3)).rpm, o.spindle_rpm);
+  EXPECT_EQ(std::get<toolpath::DwellEvent>(ev(4)).seconds, 1.0);
   EXPECT_EQ(std::get<toolpath::EndEvent>(ev(p.steps.size() - 1)).m, 2);
   EXPECT_EQ(std::get<toolpath::SpindleEvent>(ev(p.steps.size() - 2)).dir,
             toolpath::SpindleDir::off);

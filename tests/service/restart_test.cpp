@@ -8,7 +8,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -86,6 +90,33 @@ TEST(Restart, FromALineInsideAMergedRunItsModesAndReentry) {
   EXPECT_NE(std::find(j10.restart->preamble.begin(), j10.restart->preamble.end(), "M8"),
             j10.restart->preamble.end());
   EXPECT_EQ(vertices(*j10.path).front(), Vec3(0, 10, -1));
+}
+
+// With a tool table giving tool 1 75.5 mm, the planned path holds the length (machine
+// coordinates); the preamble takes it back with G43 H1, and the restart records it so that the
+// live blocks leave it out of their coordinates (as ProgramBlocks does for the whole program).
+TEST(Restart, TheLengthOffsetInForceTravelsWithTheRestart) {
+  const std::string text =
+      "G21 G90 G54\nT1 M6\nG43 H1\nS1000 M3\nG0 Z5\nG0 X0 Y0\nG1 Z-1 F300\nG1 X10 Y0\n"
+      "G1 X10 Y10\nM5\nM2\n";
+  const auto table = std::filesystem::temp_directory_path() /
+                     ("ncd_restart_tool_" + std::to_string(::getpid()) + ".tbl");
+  std::ofstream(table) << "T1 P1 Z75.5 D6\n";
+  toolpath::InterpretOptions o;
+  o.tool_table = table.string();
+  const toolpath::Program program = toolpath::interpret_ngc(text, "prog.ngc", o);
+  std::filesystem::remove(table);
+  service::JobSpec j = job_of(program);
+  service::restart_job(j, program, text, 9, std::nullopt);
+  ASSERT_TRUE(j.restart.has_value());
+  EXPECT_EQ(j.restart->length_offset_mm, Vec3(0, 0, 75.5));
+  EXPECT_NE(std::find(j.restart->preamble.begin(), j.restart->preamble.end(), "G43 H1"),
+            j.restart->preamble.end());
+  // The path: line 9's start (10, 0, -1) and end, in machine coordinates (the length added).
+  const std::vector<Vec3> cut = vertices(*j.path);
+  ASSERT_EQ(cut.size(), 2u);
+  EXPECT_EQ(cut[0] - j.restart->length_offset_mm, Vec3(10, 0, -1));
+  EXPECT_EQ(cut[1] - j.restart->length_offset_mm, Vec3(10, 10, -1));
 }
 
 TEST(Restart, ARestartedJobRunsTheMovesFromTheLineOnce) {

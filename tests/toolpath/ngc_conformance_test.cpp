@@ -616,6 +616,29 @@ TEST_F(Conformance, LinuxCncSamplesMatchOrAreRefused) {
   EXPECT_LE(rs_err, 2) << table.str();
 }
 
+// The samples that reach a G28 or G30 (cone.ngc, tool-length-probe.ngc) are refused when no
+// stored position is known, naming file:line and the parameters; given the parameter file they
+// pass it (and each either matches rs274 or is refused later for something else, above).
+TEST_F(Conformance, LinuxCncSamplesWithG28OrG30NeedAStoredPosition) {
+  const auto files = ngc_files(kSamples);
+  if (files.empty()) GTEST_SKIP() << "no samples in " << kSamples;
+  int homes = 0;
+  for (const auto& f : files) {
+    const Outcome none = run(f, "");
+    if (none.kind != Outcome::refused || none.detail.find("stored G") == std::string::npos) {
+      continue;
+    }
+    ++homes;
+    std::printf("  without a parameter file: %s\n", none.detail.substr(0, 110).c_str());
+    EXPECT_NE(none.detail.find(f.string() + ":"), std::string::npos) << none.detail;
+    EXPECT_NE(none.detail.find("[program] parameter_file"), std::string::npos) << none.detail;
+    const Outcome with = run(f);
+    EXPECT_NE(with.kind, Outcome::mismatch) << with.detail;
+    EXPECT_EQ(with.detail.find("stored G"), std::string::npos) << with.detail;
+  }
+  EXPECT_GE(homes, 2);
+}
+
 }  // namespace
 }  // namespace ncd::toolpath
 

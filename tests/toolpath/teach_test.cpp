@@ -436,7 +436,9 @@ TEST(Teach, ProgramReadsBackThroughTheGcodeReader) {
       for (char c : line) EXPECT_TRUE(c >= ' ' && c < 127) << line;
     }
     std::istringstream in(program);
-    const Path read = read_gcode(in, "teach.ngc");
+    InterpretOptions tools;  // the tool in the spindle, whose length G43 H1 takes
+    tools.machine_tools = {o.tool};
+    const Path read = read_gcode(in, "teach.ngc", tools);
     // The rapid to the clearance plane above the first point only sets the position; then the
     // plunge and the cut at F, and a rapid back up.
     ASSERT_EQ(read.segments.size(), 2u);
