@@ -31,7 +31,10 @@ debug: deps
 	@cmake --preset debug >/dev/null
 	@cmake --build --preset debug -j $(JOBS)
 
-demo: release
+# The demo builds only the `ncd` executable; the tests and benchmarks build under `make test`.
+demo: deps
+	@cmake --preset release >/dev/null
+	@cmake --build --preset release -j $(JOBS) --target ncd
 	@scripts/demo.sh $(NCD)
 
 test: format-check test-release test-debug test-fuzz

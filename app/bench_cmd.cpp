@@ -33,10 +33,10 @@
 #include "app/commands.hpp"
 #include "app/cyclictest.hpp"
 #include "app/latency_report.hpp"
-#include "app/output.hpp"
 #include "core/error.hpp"
+#include "core/output_file.hpp"
+#include "geometry/spiral.hpp"
 #include "motion/cycle.hpp"
-#include "toolpath/spiral.hpp"
 
 namespace ncd::app {
 namespace {

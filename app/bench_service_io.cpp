@@ -53,15 +53,15 @@
 #include <optional>
 #include <thread>
 
-#include "app/event_feed.hpp"
+#include "api/event_feed.hpp"
+#include "api/intake.hpp"
+#include "api/mqtt_bridge.hpp"
+#include "api/web_server.hpp"
 #include "app/latency_report.hpp"
-#include "app/output.hpp"
-#include "app/service.hpp"
-#include "app/web_server.hpp"
 #include "core/error.hpp"
-#include "fleet/mqtt_bridge.hpp"
+#include "core/output_file.hpp"
+#include "geometry/spiral.hpp"
 #include "service/service.hpp"
-#include "toolpath/spiral.hpp"
 
 extern char** environ;
 

@@ -6,10 +6,10 @@
 
 #include "app/chamfer_report.hpp"
 #include "app/commands.hpp"
-#include "app/machine_config.hpp"
-#include "app/output.hpp"
-#include "comms/dialect.hpp"
 #include "core/error.hpp"
+#include "core/output_file.hpp"
+#include "gcode/dialect/dialect.hpp"
+#include "service/machine_config.hpp"
 
 namespace ncd::app {
 namespace {

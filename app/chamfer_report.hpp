@@ -5,8 +5,8 @@
 #include <string>
 
 #include "app/svg_plot.hpp"
-#include "toolpath/chamfer.hpp"
-#include "toolpath/chamfer_ngc.hpp"
+#include "cam/chamfer.hpp"
+#include "cam/chamfer_ngc.hpp"
 
 namespace ncd::app {
 

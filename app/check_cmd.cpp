@@ -8,7 +8,7 @@
 // count with their end point only.
 // --save-parameters writes the parameter file back after a program read whole, as LinuxCNC's
 // interpreter does at its exit (docs/ngc-interpreter.md, "Persistent parameters"): checked
-// writable before reading, written to a temporary file renamed over it (app/output.hpp), so a
+// writable before reading, written to a temporary file renamed over it (core/output_file.hpp), so a
 // refused program or a failed write leaves the old file as it was.
 #include <algorithm>
 #include <cmath>
@@ -22,12 +22,12 @@
 #include <string>
 
 #include "app/commands.hpp"
-#include "app/machine_config.hpp"
-#include "app/output.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
-#include "toolpath/ngc_interpreter.hpp"
-#include "toolpath/program.hpp"
+#include "core/output_file.hpp"
+#include "gcode/ngc/interpreter.hpp"
+#include "gcode/program.hpp"
+#include "service/machine_config.hpp"
 
 namespace ncd::app {
 namespace {

@@ -1,6 +1,6 @@
 // `ncd replay`: walk a path against a simulated clock (no sleeping) and report what the machine
 // would do: setpoints per period, a report in numbers, and a plot of the feed. With --blocks,
-// every setpoint also goes through the block encoder (comms/block_encoder.hpp), which writes
+// every setpoint also goes through the block encoder (link/block_encoder.hpp), which writes
 // the NC program a DNC link would carry, within the budget of the machine file's [link].
 //
 // The job runs in the service library (service/service.hpp, docs/service.md), as `ncd serve`'s
@@ -23,20 +23,20 @@
 #include <string>
 
 #include "app/commands.hpp"
-#include "app/job_checks.hpp"
-#include "app/machine_config.hpp"
-#include "app/output.hpp"
-#include "app/setpoint_sink.hpp"
 #include "app/svg_plot.hpp"
-#include "app/whole_run.hpp"
-#include "comms/block_encoder.hpp"
-#include "comms/program_blocks.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
+#include "core/output_file.hpp"
+#include "gcode/path_io.hpp"
+#include "link/block_encoder.hpp"
+#include "link/program_blocks.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
+#include "service/job_checks.hpp"
+#include "service/machine_config.hpp"
 #include "service/service.hpp"
-#include "toolpath/path_io.hpp"
+#include "service/setpoint_file.hpp"
+#include "service/whole_run.hpp"
 
 namespace ncd::app {
 namespace {

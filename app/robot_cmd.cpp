@@ -1,6 +1,6 @@
 // `ncd robot`: the chamfer of a hole through a cylinder for a 6-axis robot holding a rotary bar
 // (paper 002): poses with W, P, R attitudes in the robot frame, as JSON or as a plain text
-// program whose header documents it. The geometry is in toolpath/robot.cpp.
+// program whose header documents it. The geometry is in cam/robot.cpp.
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -14,11 +14,11 @@
 #include <sstream>
 
 #include "app/commands.hpp"
-#include "app/output.hpp"
+#include "cam/robot.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
 #include "core/number_text.hpp"
-#include "toolpath/robot.hpp"
+#include "core/output_file.hpp"
 
 namespace ncd::app {
 namespace {

@@ -10,13 +10,13 @@
 #include <iostream>
 #include <memory>
 
+#include "api/control_server.hpp"
+#include "api/event_feed.hpp"
+#include "api/intake.hpp"
+#include "api/mqtt_bridge.hpp"
+#include "api/web_server.hpp"
 #include "app/commands.hpp"
-#include "app/event_feed.hpp"
-#include "app/service.hpp"
-#include "app/web_server.hpp"
-#include "comms/control_server.hpp"
 #include "core/input_file.hpp"
-#include "fleet/mqtt_bridge.hpp"
 
 namespace ncd::app {
 namespace {
@@ -53,7 +53,7 @@ int run_serve(const ServeArgs& a) {
     web = std::make_unique<WebServer>(io, cfg.http, service, cfg.token, cfg.machine.program);
     std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
   }
-  // The service's events to the observers, drained on this io_context (app/event_feed.hpp).
+  // The service's events to the observers, drained on this io_context (api/event_feed.hpp).
   std::unique_ptr<EventFeed> feed;
   if (bridge || web) {
     feed = std::make_unique<EventFeed>(io, service.subscribe(EventFeed::kCapacity));

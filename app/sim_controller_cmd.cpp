@@ -15,11 +15,11 @@
 #include <random>
 
 #include "app/commands.hpp"
-#include "app/link_options.hpp"
-#include "app/output.hpp"
-#include "comms/sim_controller.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "core/output_file.hpp"
+#include "service/link_options.hpp"
+#include "sim/sim_controller.hpp"
 
 namespace ncd::app {
 namespace {

@@ -18,14 +18,14 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.hpp"
-#include "app/link_options.hpp"
-#include "app/output.hpp"
-#include "comms/dnc_sender.hpp"
-#include "comms/program_file.hpp"
-#include "comms/program_modal.hpp"
-#include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "core/output_file.hpp"
+#include "gcode/dialect/program_modal.hpp"
+#include "link/dnc_sender.hpp"
+#include "link/program_file.hpp"
+#include "link/transfer_journal.hpp"
+#include "service/link_options.hpp"
 
 namespace ncd::app {
 namespace {

@@ -9,10 +9,10 @@
 #include <sstream>
 
 #include "app/commands.hpp"
-#include "app/output.hpp"
+#include "cam/teach.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
-#include "toolpath/teach.hpp"
+#include "core/output_file.hpp"
 
 namespace ncd::app {
 namespace {

@@ -10,10 +10,10 @@
 #include <cmath>
 #include <vector>
 
-#include "comms/block_encoder.hpp"
+#include "cam/chamfer.hpp"
+#include "geometry/nurbs.hpp"
+#include "link/block_encoder.hpp"
 #include "motion/job.hpp"
-#include "toolpath/chamfer.hpp"
-#include "toolpath/nurbs.hpp"
 
 namespace ncd::comms {
 namespace {

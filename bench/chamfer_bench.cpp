@@ -5,7 +5,7 @@
 // with the paper's closed-form edge, the baseline of the numerical intersection).
 #include <benchmark/benchmark.h>
 
-#include "toolpath/chamfer.hpp"
+#include "cam/chamfer.hpp"
 
 namespace ncd::toolpath {
 namespace {

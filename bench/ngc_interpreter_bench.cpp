@@ -9,8 +9,8 @@
 #include <cstring>
 #include <string>
 
-#include "toolpath/ngc_interpreter.hpp"
-#include "toolpath/program.hpp"
+#include "gcode/ngc/interpreter.hpp"
+#include "gcode/program.hpp"
 
 namespace ncd::toolpath {
 namespace {

@@ -1,6 +1,6 @@
 // Look-ahead feed planner: one step() on a long path (cruise, braking and landing mixed), and
 // whole periods per second; the counter "rollouts" is the mean work per step. The fit of dense
-// polylines under G64 Q (interpolator/polyline_fit.cpp) on the dense CAM program, against the
+// polylines under G64 Q (feed/polyline_fit.cpp) on the dense CAM program, against the
 // cost of building the job on the raw polyline in the same run.
 #include <benchmark/benchmark.h>
 
@@ -9,7 +9,7 @@
 #include <optional>
 #include <vector>
 
-#include "interpolator/polyline_fit.hpp"
+#include "feed/polyline_fit.hpp"
 #include "motion/job.hpp"
 #include "motion/planner.hpp"
 #include "tests/common/dense_cam.hpp"

@@ -7,10 +7,10 @@
 #include <cmath>
 #include <memory>
 
+#include "geometry/spiral.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
 #include "service/service.hpp"
-#include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
 namespace {

@@ -9,9 +9,9 @@
 #include <utility>
 #include <vector>
 
-#include "interpolator/curve_walker.hpp"
-#include "interpolator/feed_limits.hpp"
-#include "toolpath/nurbs.hpp"
+#include "feed/curve_walker.hpp"
+#include "feed/feed_limits.hpp"
+#include "geometry/nurbs.hpp"
 
 namespace ncd::interpolator {
 namespace {

@@ -6,7 +6,7 @@
 #include <span>
 
 #include "core/geometry.hpp"
-#include "interpolator/corner_blend.hpp"
+#include "feed/corner_blend.hpp"
 
 namespace ncd::motion {
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "interpolator/corner_blend.hpp"
-#include "interpolator/limit_sampler.hpp"
-#include "interpolator/path_walker.hpp"
-#include "interpolator/polyline_fit.hpp"
+#include "feed/corner_blend.hpp"
+#include "feed/limit_sampler.hpp"
+#include "feed/path_walker.hpp"
+#include "feed/polyline_fit.hpp"
 #include "motion/corner_overlap.hpp"
 #include "motion/planner.hpp"
 #include "motion/step_guard.hpp"
@@ -69,7 +69,7 @@ const char* limit_name(std::uint8_t limit_id);
 
 class Job {
  public:
-  // Copies the path with its corners blended under G64 P (interpolator/corner_blend.hpp): the
+  // Copies the path with its corners blended under G64 P (feed/corner_blend.hpp): the
   // setpoints' arc length s runs along that blended path. Throws InputError on bad limits.
   Job(const toolpath::Path& path, const JobConfig& config);
 
@@ -120,7 +120,7 @@ class Job {
   // Where each segment of the path given to the job starts on path(), mm, and its length last
   // (segments + 1 values; a segment that the fit split starts where its first piece starts).
   std::vector<double> segment_starts_mm() const;
-  // What the smoothing of dense polylines under G64 Q did (interpolator/polyline_fit.hpp); a
+  // What the smoothing of dense polylines under G64 Q did (feed/polyline_fit.hpp); a
   // segment with fitted runs is split, fit_report().source_segment maps path() to the program's.
   const interpolator::FitReport& fit_report() const { return fit_; }
   // The feed limit of the continuous laws at the current position (no corners), mm/s.

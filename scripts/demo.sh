@@ -34,9 +34,10 @@ echo "-- 2. the whole program: plan and walk it at 4 ms, roughness-bounded feed;
   --blocks "$out/exp3-dnc.ngc" 2>&1
 # The order a machinist checks before loading it: spindle at speed, then the clearance plane and
 # the approach, and only then the first cutting move; the same programmed point as exp3.ngc.
-first_cut=$(grep -nE 'G1([^0-9]|$)' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
-spindle=$(grep -n 'M3S' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
-clearance=$(grep -n 'G0Z' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+# Blocks only: the header's comments name the moves too ("(approach: ... G1 down ...)").
+first_cut=$(grep -nE '^[^(]*G1([^0-9]|$)' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+spindle=$(grep -nE '^[^(]*M3S' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
+clearance=$(grep -nE '^[^(]*G0Z' "$out/exp3-dnc.ngc" | head -1 | cut -d: -f1)
 if [ -z "$spindle" ] || [ -z "$clearance" ] || [ "$spindle" -ge "$first_cut" ] ||
   [ "$clearance" -ge "$first_cut" ]; then
   echo "the streamed program cuts before the spindle runs or before the approach" >&2

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes a long spiral NURBS path file for `ncd replay`: an Archimedean spiral from r = 100 mm
 inwards at 0.1 mm pitch, 16 control points per turn, z waving +-2 mm, cubic with integer knots
-(the same path as toolpath/spiral.cpp). 950 turns last about 51 minutes at 6000 mm/min.
+(the same path as geometry/spiral.cpp). 950 turns last about 51 minutes at 6000 mm/min.
 
 usage: scripts/spiral_path.py TURNS > spiral.json
 """

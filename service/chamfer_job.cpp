@@ -1,5 +1,5 @@
 // The chamfer job's path: see chamfer_job.hpp. The loop is closed by repeating its first pose;
-// each cutter location carries the tool axis −e (toolpath/path_io.cpp reads the JSON the same
+// each cutter location carries the tool axis −e (gcode/path_io.cpp reads the JSON the same
 // way). The checks are named in the order the JSON reader reports them (global, local, rod).
 #include "service/chamfer_job.hpp"
 

@@ -8,9 +8,9 @@
 
 #include <optional>
 
-#include "toolpath/chamfer.hpp"
-#include "toolpath/chamfer_ngc.hpp"
-#include "toolpath/path.hpp"
+#include "cam/chamfer.hpp"
+#include "cam/chamfer_ngc.hpp"
+#include "geometry/path.hpp"
 
 namespace ncd::service {
 

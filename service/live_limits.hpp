@@ -20,7 +20,7 @@
 
 #include <cstdint>
 
-#include "interpolator/feed_limits.hpp"
+#include "feed/feed_limits.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
 

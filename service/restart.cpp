@@ -6,10 +6,10 @@
 #include <cstdio>
 #include <string>
 
-#include "comms/program_file.hpp"
-#include "comms/program_modal.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "gcode/dialect/program_modal.hpp"
+#include "link/program_file.hpp"
 
 namespace ncd::service {
 void restart_job(JobSpec& job, const toolpath::Program& program, std::string_view text, int line,

@@ -11,8 +11,8 @@
 #include <optional>
 #include <string_view>
 
+#include "gcode/program.hpp"
 #include "service/service.hpp"
-#include "toolpath/program.hpp"
 
 namespace ncd::service {
 

@@ -61,12 +61,12 @@
 #include <mutex>
 #include <thread>
 
-#include "comms/dialect.hpp"
-#include "comms/live_blocks.hpp"
-#include "comms/program_blocks.hpp"
-#include "comms/transfer_journal.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "gcode/dialect/dialect.hpp"
+#include "link/live_blocks.hpp"
+#include "link/program_blocks.hpp"
+#include "link/transfer_journal.hpp"
 
 namespace ncd::service {
 

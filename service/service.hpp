@@ -1,6 +1,6 @@
 // The ncd service as a library (docs/service.md): a job's lifecycle and its live pipeline,
 // without JSON, without a socket and without an event loop of its own. The owner (`ncd serve`'s
-// JSON mapping in app/service.cpp, `ncd replay` in app/replay_cmd.cpp, or a test) calls the
+// JSON mapping in api/intake.cpp, `ncd replay` in app/replay_cmd.cpp, or a test) calls the
 // commands and poll() from one thread; poll() is the one loop that drains the cycle's setpoints
 // into the sinks, the block encoder, the live block queue and the sender. The state machine is
 // drawn at the top of service.cpp.
@@ -14,16 +14,16 @@
 #include <string>
 #include <vector>
 
-#include "comms/block_encoder.hpp"
-#include "comms/dnc_sender.hpp"
-#include "comms/line_settings.hpp"
+#include "cam/whole_program.hpp"
 #include "core/geometry.hpp"
+#include "gcode/program.hpp"
+#include "geometry/path.hpp"
+#include "link/block_encoder.hpp"
+#include "link/dnc_sender.hpp"
+#include "link/line_settings.hpp"
 #include "motion/cycle.hpp"
 #include "service/events.hpp"
 #include "service/live_limits.hpp"
-#include "toolpath/path.hpp"
-#include "toolpath/program.hpp"
-#include "toolpath/whole_program.hpp"
 
 namespace ncd::service {
 

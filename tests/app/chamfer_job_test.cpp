@@ -7,8 +7,8 @@
 
 #include "app/chamfer_report.hpp"
 #include "core/error.hpp"
+#include "gcode/path_io.hpp"
 #include "service/chamfer_job.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace {
 

@@ -4,8 +4,8 @@
 
 #include <string>
 
-#include "app/machine_config.hpp"
 #include "core/error.hpp"
+#include "service/machine_config.hpp"
 
 namespace ncd::app {
 namespace {

@@ -1,5 +1,5 @@
-// The output rule of every flag that writes a file (app/output.hpp, docs/hardening.md): rename
-// over regular files only; write through to devices, FIFOs and standard output; follow a
+// The output rule of every flag that writes a file (core/output_file.hpp, docs/hardening.md):
+// rename over regular files only; write through to devices, FIFOs and standard output; follow a
 // symbolic link to its target; refuse a directory (exit 2); a write error is an I/O error
 // (exit 1); a signal during a write leaves no temporary file. Device nodes are made in the
 // test's own folder (mknod, as root) so that a regression can never replace the real /dev/null.

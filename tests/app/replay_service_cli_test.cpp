@@ -9,12 +9,12 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "app/machine_config.hpp"
-#include "app/setpoint_sink.hpp"
+#include "gcode/path_io.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
+#include "service/machine_config.hpp"
+#include "service/setpoint_file.hpp"
 #include "tests/app/cli_fixture.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace {
 

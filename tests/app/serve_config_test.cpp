@@ -1,4 +1,4 @@
-// The serve config's one parser (app/service_config.cpp): the service's own keys, the
+// The serve config's one parser (api/service_config.cpp): the service's own keys, the
 // dashboard's [http] and the fleet's [mqtt] read from one parse of the file, and a bad value in
 // any of them refused with the file, the key as table.key, the value, the limit or the accepted
 // values, and a way out.
@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "app/service_config.hpp"
+#include "api/service_config.hpp"
 #include "core/error.hpp"
 
 namespace {

@@ -26,14 +26,14 @@
 #include <string>
 #include <vector>
 
-#include "app/machine_config.hpp"
-#include "app/service.hpp"
-#include "comms/sim_controller.hpp"
+#include "api/intake.hpp"
+#include "cam/chamfer.hpp"
+#include "cam/chamfer_ngc.hpp"
+#include "service/machine_config.hpp"
 #include "service/service.hpp"
+#include "sim/sim_controller.hpp"
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/paced_controller.hpp"
-#include "toolpath/chamfer.hpp"
-#include "toolpath/chamfer_ngc.hpp"
 
 namespace {
 

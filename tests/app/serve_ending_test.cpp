@@ -25,11 +25,11 @@
 #include <string>
 #include <thread>
 
-#include "app/machine_config.hpp"
-#include "comms/sim_controller.hpp"
+#include "cam/chamfer.hpp"
+#include "cam/chamfer_ngc.hpp"
+#include "service/machine_config.hpp"
+#include "sim/sim_controller.hpp"
 #include "tests/app/serve_fixture.hpp"
-#include "toolpath/chamfer.hpp"
-#include "toolpath/chamfer_ngc.hpp"
 
 namespace {
 

@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "comms/sha256.hpp"
+#include "link/sha256.hpp"
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/process.hpp"
 

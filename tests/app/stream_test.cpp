@@ -10,8 +10,8 @@
 #include <optional>
 #include <random>
 
-#include "comms/sha256.hpp"
-#include "comms/transfer_journal.hpp"
+#include "link/sha256.hpp"
+#include "link/transfer_journal.hpp"
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/process.hpp"
 #include "tests/common/seed.hpp"

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "comms/pty.hpp"
+#include "link/pty.hpp"
 #include "tests/app/cli_fixture.hpp"
 
 namespace {

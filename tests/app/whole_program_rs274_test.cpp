@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "comms/dialect.hpp"
+#include "gcode/dialect/dialect.hpp"
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/rs274.hpp"
 

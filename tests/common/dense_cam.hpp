@@ -8,7 +8,7 @@
 #include <cstddef>
 #include <optional>
 
-#include "toolpath/path.hpp"
+#include "geometry/path.hpp"
 
 namespace ncd::test {
 

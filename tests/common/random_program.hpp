@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "toolpath/path.hpp"
+#include "geometry/path.hpp"
 
 namespace ncd::test {
 

@@ -1,4 +1,4 @@
-// Paths that several test binaries walk, as JSON path files (toolpath/path_io.hpp reads them).
+// Paths that several test binaries walk, as JSON path files (gcode/path_io.hpp reads them).
 #pragma once
 
 namespace ncd::test {

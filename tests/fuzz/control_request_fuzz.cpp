@@ -1,6 +1,6 @@
 // Control request lines (comms/control_server's checks), with and without a token. The checks
 // never throw; every refusal is a reply {"ok": false, "error": ...} that serialises as a line.
-#include "comms/control_server.hpp"
+#include "api/control_server.hpp"
 #include "fuzz_common.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -2,7 +2,7 @@
 #include <sstream>
 
 #include "fuzz_common.hpp"
-#include "toolpath/gcode_reader.hpp"
+#include "gcode/gcode_reader.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   std::istringstream in(ncd::fuzz::text_of(data, size));

@@ -1,6 +1,6 @@
 // The machine file (TOML, app/machine_config).
-#include "app/machine_config.hpp"
 #include "fuzz_common.hpp"
+#include "service/machine_config.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text = ncd::fuzz::text_of(data, size);

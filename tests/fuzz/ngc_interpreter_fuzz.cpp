@@ -9,8 +9,8 @@
 #include <string>
 
 #include "core/error.hpp"
-#include "toolpath/ngc_interpreter.hpp"
-#include "toolpath/program.hpp"
+#include "gcode/ngc/interpreter.hpp"
+#include "gcode/program.hpp"
 
 namespace {
 

@@ -1,6 +1,6 @@
 // The service config (TOML, app/service_config). A "machine" key names a file, which is then
 // read: the harness runs in a scratch directory, so only the paths the fuzzer invents are read.
-#include "app/service_config.hpp"
+#include "api/service_config.hpp"
 #include "fuzz_common.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -1,7 +1,7 @@
 // Teach points and frame points (toolpath/teach): the point file, the inline frame points, and
 // a frame made of the first three points read.
+#include "cam/teach.hpp"
 #include "fuzz_common.hpp"
-#include "toolpath/teach.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text = ncd::fuzz::text_of(data, size);

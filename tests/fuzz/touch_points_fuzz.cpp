@@ -1,6 +1,6 @@
 // Robot touch points (toolpath/robot): the file, then the rigid fit of what was read.
+#include "cam/robot.hpp"
 #include "fuzz_common.hpp"
-#include "toolpath/robot.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text = ncd::fuzz::text_of(data, size);

@@ -14,7 +14,7 @@
 #include <limits>
 #include <vector>
 
-#include "interpolator/feed_limits.hpp"
+#include "feed/feed_limits.hpp"
 #include "motion/job.hpp"
 #include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"

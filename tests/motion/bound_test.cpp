@@ -14,7 +14,7 @@
 // On the cubic the jerk-counting bound is also printed split to split against ncd's time there,
 // which must not fall below it by more than a period (the interpolation at the splits).
 // The dense CAM rows (issue 13) walk 20 000 moves of 0.01 mm along an arc of radius 50 mm at
-// F3000 raw and fitted under G64 P0.01 Q0.01 (interpolator/polyline_fit.cpp, docs/planner.md
+// F3000 raw and fitted under G64 P0.01 Q0.01 (feed/polyline_fit.cpp, docs/planner.md
 // §3b), with the coordinates exact and rounded as a CAM post writes them (4 and 3 decimals);
 // the fitted walk must be at least 2× faster than the raw one, every setpoint within Q of the
 // programmed polyline.
@@ -29,7 +29,8 @@
 #include <string>
 #include <vector>
 
-#include "interpolator/feed_limits.hpp"
+#include "feed/feed_limits.hpp"
+#include "gcode/path_io.hpp"
 #include "motion/job.hpp"
 #include "tests/common/dense_cam.hpp"
 #include "tests/common/seed.hpp"
@@ -37,7 +38,6 @@
 #include "tests/motion/chamfer_exp3.hpp"
 #include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace ncd::motion {
 namespace {

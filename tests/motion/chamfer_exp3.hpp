@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "toolpath/chamfer.hpp"
+#include "cam/chamfer.hpp"
 
 namespace ncd::test {
 

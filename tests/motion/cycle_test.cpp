@@ -12,8 +12,8 @@
 #include <thread>
 #include <vector>
 
+#include "gcode/path_io.hpp"
 #include "tests/common/test_paths.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace ncd::motion {
 namespace {

@@ -19,11 +19,11 @@
 #include <string>
 #include <vector>
 
+#include "gcode/path_io.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/motion/planner_machine.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace ncd::motion {
 namespace {

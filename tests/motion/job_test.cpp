@@ -11,11 +11,11 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "gcode/path_io.hpp"
+#include "geometry/spiral.hpp"
 #include "motion/run_stats.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/motion/chamfer_exp3.hpp"
-#include "toolpath/path_io.hpp"
-#include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
 namespace {

@@ -18,10 +18,10 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "gcode/path_io.hpp"
+#include "geometry/spiral.hpp"
 #include "motion/job.hpp"
 #include "tests/common/count_allocations.hpp"
-#include "toolpath/path_io.hpp"
-#include "toolpath/spiral.hpp"
 
 namespace ncd::motion {
 namespace {

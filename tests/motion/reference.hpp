@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "core/geometry.hpp"
-#include "toolpath/path.hpp"
+#include "geometry/path.hpp"
 
 namespace ncd::test {
 

@@ -8,11 +8,11 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "geometry/nurbs.hpp"
 #include "motion/cycle.hpp"
 #include "motion/job.hpp"
 #include "tests/motion/planner_machine.hpp"
 #include "tests/motion/reference.hpp"
-#include "toolpath/nurbs.hpp"
 
 namespace ncd::motion {
 namespace {

@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
+#include "gcode/path_io.hpp"
 #include "service/service.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/service/capture_sink.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace {
 

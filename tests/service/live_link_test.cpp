@@ -19,14 +19,14 @@
 #include <thread>
 #include <vector>
 
-#include "comms/block_encoder.hpp"
-#include "comms/sha256.hpp"
-#include "comms/sim_controller.hpp"
 #include "core/error.hpp"
+#include "gcode/path_io.hpp"
+#include "link/block_encoder.hpp"
+#include "link/sha256.hpp"
 #include "service/service.hpp"
+#include "sim/sim_controller.hpp"
 #include "tests/common/paced_controller.hpp"
 #include "tests/service/capture_sink.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace {
 

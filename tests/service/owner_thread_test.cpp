@@ -10,10 +10,10 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "gcode/path_io.hpp"
 #include "service/service.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/service/capture_sink.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace {
 

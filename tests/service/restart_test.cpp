@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "core/error.hpp"
-#include "toolpath/ngc_interpreter.hpp"
+#include "gcode/ngc/interpreter.hpp"
 
 namespace {
 

@@ -15,10 +15,10 @@
 
 #include "core/error.hpp"
 #include "core/histogram.hpp"
-#include "interpolator/feed_limits.hpp"
+#include "feed/feed_limits.hpp"
+#include "gcode/path_io.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/service/capture_sink.hpp"
-#include "toolpath/path_io.hpp"
 
 namespace {
 

@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
-#include "interpolator/roughness.hpp"
+#include "feed/roughness.hpp"
 #include "surface/cutter.hpp"
 #include "surface/measure.hpp"
 #include "surface/raster.hpp"

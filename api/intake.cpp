@@ -1,0 +1,485 @@
+// `ncd serve`'s JSON mapping (service.hpp). A request's job is checked here as `ncd replay`
+// checks a run (the chamfer's checks and tool, the envelope, the size of the run, the port),
+// wrapped into the whole program `ncd replay` walks (service/whole_run.hpp, docs/whole-program.md),
+// turned into a service::JobSpec and handed to the library, whose state machine is drawn at the
+// top of service/service.cpp. The library's loop runs on a timer of the io_context: every 1 ms
+// while the motion runs, every 20 ms while the controller is still receiving.
+//
+// A submitted job is {"path": FILE} in any format `ncd replay` reads, or a chamfer
+// specification with the parameter names of `ncd chamfer` ("pipe_radius" or "pipe-radius", …).
+// "setpoints": FILE records the job's setpoints in the replay CSV format; "port": DEV streams it
+// live to the controller ("" turns the machine file's [link] device off); "restart_from": LINE
+// (with "clearance_z_mm") restarts an NC program at a line (docs/service.md).
+#include "api/intake.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <iostream>
+#include <utility>
+
+#include "core/error.hpp"
+#include "core/input_file.hpp"
+#include "core/json_input.hpp"
+#include "gcode/ngc/interpreter.hpp"
+#include "gcode/path_io.hpp"
+#include "service/chamfer_job.hpp"
+#include "service/job_checks.hpp"
+#include "service/link_options.hpp"
+#include "service/restart.hpp"
+#include "service/setpoint_file.hpp"
+#include "service/whole_run.hpp"
+
+namespace ncd::app {
+namespace {
+
+using nlohmann::json;
+
+// A request's field as a number, with the key named in the error.
+double number(const json& obj, const std::string& key) {
+  if (!obj.contains(key)) throw InputError("\"" + key + "\" is missing");
+  if (!obj[key].is_number()) throw InputError("\"" + key + "\" must be a number");
+  return obj[key].get<double>();
+}
+
+// The chamfer job: the flags of `ncd chamfer` as JSON keys ('-' or '_').
+service::ChamferJob chamfer_job(const json& spec) {
+  json j;
+  for (const auto& [k, v] : spec.items()) {
+    std::string key = k;
+    for (char& c : key) c = c == '-' ? '_' : c;
+    j[key] = v;
+  }
+  static const char* kKeys[] = {"pipe_radius",      "drill_radius", "ball_radius", "width",
+                                "tolerance",        "edge",         "side",        "rod_radius",
+                                "non_knife_angle",  "no_avoid",     "feed",        "spindle",
+                                "initial_segments", "safe_z"};
+  static const char* kHoleKeys[] = {"drill_tilt_deg", "drill_azimuth_deg", "eccentricity",
+                                    "pipe_half_angle_deg", "pipe_thickness"};
+  for (const auto& [k, v] : j.items()) {
+    if (k == "allow_interference") continue;  // read by submit()
+    if (std::find(std::begin(kKeys), std::end(kKeys), k) == std::end(kKeys) &&
+        std::find(std::begin(kHoleKeys), std::end(kHoleKeys), k) == std::end(kHoleKeys)) {
+      throw InputError("unknown chamfer parameter \"" + k +
+                       "\"; the names are those of `ncd chamfer --help`");
+    }
+  }
+  service::ChamferJob job;
+  toolpath::ChamferSpec& s = job.spec;
+  s.pipe_radius_mm = number(j, "pipe_radius");
+  s.drill_radius_mm = number(j, "drill_radius");
+  s.ball_radius_mm = number(j, "ball_radius");
+  s.width_mm = number(j, "width");
+  if (j.contains("tolerance")) s.tolerance_mm = number(j, "tolerance");
+  const auto word = [&](const char* key, const char* a, const char* b) {
+    if (!j.contains(key)) return true;
+    if (!j[key].is_string() || (j[key] != a && j[key] != b)) {
+      throw InputError(std::string("\"") + key + "\" must be \"" + a + "\" or \"" + b + "\"");
+    }
+    return j[key] == a;
+  };
+  s.edge = word("edge", "inner", "outer") ? toolpath::Edge::Inner : toolpath::Edge::Outer;
+  s.side = word("side", "upper", "lower") ? toolpath::Side::Upper : toolpath::Side::Lower;
+  if (j.contains("rod_radius")) s.rod_radius_mm = number(j, "rod_radius");
+  if (j.contains("non_knife_angle")) {
+    s.non_knife_angle_rad = deg_to_rad(number(j, "non_knife_angle"));
+  }
+  if (j.contains("no_avoid")) {
+    if (!j["no_avoid"].is_boolean()) throw InputError("\"no_avoid\" must be true or false");
+    s.avoid = !j["no_avoid"].get<bool>();
+  }
+  if (j.contains("initial_segments")) {
+    s.initial_segments = static_cast<int>(
+        json_integer(j["initial_segments"], toolpath::ChamferLimits::kMinInitialSegments,
+                     toolpath::ChamferLimits::kMaxInitialSegments, "\"initial_segments\""));
+  }
+  // Inclined, eccentric and cone holes (docs/chamfer.md): the names of `ncd chamfer`.
+  if (j.contains("drill_tilt_deg")) s.drill_tilt_rad = deg_to_rad(number(j, "drill_tilt_deg"));
+  if (j.contains("drill_azimuth_deg")) {
+    s.drill_azimuth_rad = deg_to_rad(number(j, "drill_azimuth_deg"));
+  }
+  if (j.contains("eccentricity")) s.eccentricity_mm = number(j, "eccentricity");
+  if (j.contains("pipe_half_angle_deg")) {
+    s.pipe_half_angle_rad = deg_to_rad(number(j, "pipe_half_angle_deg"));
+  }
+  if (j.contains("pipe_thickness")) s.pipe_thickness_mm = number(j, "pipe_thickness");
+  if (j.contains("feed")) job.feed_mm_per_min = number(j, "feed");
+  if (j.contains("spindle")) job.spindle_rpm = number(j, "spindle");
+  if (j.contains("safe_z")) job.safe_z_mm = number(j, "safe_z");
+  return job;
+}
+
+json vec(const Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+}  // namespace
+
+ServiceConfig load_service_config(const std::string& path) {
+  return parse_service_config(read_input_file(path, "service config, --config"), path);
+}
+
+Service::Service(boost::asio::io_context& io, const ServiceConfig& config)
+    : io_(io),
+      config_(config),
+      core_([&config] {
+        service::ServiceOptions o;
+        o.clock = config.clock;
+        o.realtime = config.realtime;
+        o.log = [](const std::string& line) { std::cerr << "ncd serve: " << line << std::endl; };
+        return o;
+      }()),
+      timer_(io) {}
+
+Service::~Service() {
+  timer_.cancel();
+}
+
+SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
+  if (!req.contains("job") || !req["job"].is_object()) {
+    throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
+  }
+  const json& job = req["job"];
+  bool allow_interference = false;
+  if (const auto allow = job.find("allow_interference"); allow != job.end()) {
+    if (!allow->is_boolean()) {
+      throw InputError("\"job\".\"allow_interference\" must be true or false");
+    }
+    allow_interference = allow->get<bool>();
+  }
+  SubmittedJob out;
+  service::JobSpec& spec = out.spec;
+  std::shared_ptr<toolpath::Path> path;
+  std::string file;  // the path job's file; empty for a chamfer made from parameters
+  if (job.contains("path")) {
+    for (const auto& [key, value] : job.items()) {
+      if (key != "path" && key != "allow_interference") {
+        throw InputError("unknown key \"job\".\"" + key +
+                         "\" in a path job; it takes \"path\" and \"allow_interference\"");
+      }
+    }
+    if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
+    file = job["path"].get<std::string>();
+    path = std::make_shared<toolpath::Path>(toolpath::read_path_file(file, config.machine.program));
+    spec.name = file;
+  } else {
+    service::ChamferJob cj = chamfer_job(job);
+    cj.point = config.machine.tool.programmed_point;  // as `ncd chamfer --machine` writes it
+    path = std::make_shared<toolpath::Path>(service::chamfer_job_path(cj));
+    spec.name = "chamfer";
+  }
+  out.port = config.machine.link.line.device;
+  if (req.contains("port")) {
+    if (!req["port"].is_string()) {
+      throw InputError("\"port\" must be a device name, or \"\" for no streaming");
+    }
+    out.port = req["port"];
+  }
+  std::string setpoints;
+  if (req.contains("setpoints")) {
+    if (!req["setpoints"].is_string()) throw InputError("\"setpoints\" must be a file name");
+    setpoints = req["setpoints"];
+    check_output(setpoints, "\"setpoints\"");
+  }
+  // Before any motion, as `ncd replay` does: the chamfer's checks and tool, then the whole
+  // program around the job (docs/whole-program.md), its envelope, the size of the run, the port.
+  MachineConfig machine = config.machine;
+  const ChamferAcceptance chamfer =
+      accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
+  const bool restart = req.contains("restart_from");
+  if (!restart) {
+    WholeRun whole = whole_run("ncd serve", file, *path, machine);
+    path = std::make_shared<toolpath::Path>(std::move(whole.path));
+    spec.program = std::make_shared<const toolpath::Program>(std::move(whole.program));
+    spec.header = std::move(whole.header);
+    spec.retract = std::move(whole.retract);
+  }
+  check_envelope(*path, machine);
+  check_estimate(estimate_run(*path, machine), !setpoints.empty());
+  if (!out.port.empty()) require_serial_port(out.port, "\"port\"");
+  spec.path = std::move(path);
+  spec.motion.limits = machine.limits;
+  spec.motion.cutting = machine.cutting;
+  spec.rules = service::LiveLimitRules::from(machine.limits);
+  spec.rules.feed = config.live_limits.feed;
+  spec.rules.accel = config.live_limits.accel;
+  spec.rules.jerk = config.live_limits.jerk;
+  spec.rules.chord = config.live_limits.chord;
+  spec.interference_allowed = chamfer.interference_allowed;
+  if (restart) {
+    if (!job.contains("path")) {
+      throw InputError("\"restart_from\" needs a job {\"path\": FILE} of an NC program");
+    }
+    const int line =
+        static_cast<int>(json_integer(req["restart_from"], 1, 100000000, "\"restart_from\""));
+    std::optional<double> clearance;
+    if (req.contains("clearance_z_mm")) clearance = number(req, "clearance_z_mm");
+    if (std::none_of(spec.path->segments.begin(), spec.path->segments.end(),
+                     [](const auto& seg) { return seg.source_line > 0; })) {
+      throw InputError(
+          "\"restart_from\": the job's path has no program lines; only an NC "
+          "program restarts from a line");
+    }
+    const std::string text = read_input_file(file, "\"job\".\"path\"");
+    toolpath::Program program = toolpath::interpret_ngc(text, file, config.machine.program);
+    // The ending of a restarted job: straight up to the highest Z of the whole program, or the
+    // restart's clearance if that is higher.
+    const toolpath::Path planned = toolpath::to_path(program);
+    if (!planned.segments.empty()) {
+      toolpath::SafeRetract r = toolpath::program_retract(program, planned);
+      if (clearance && *clearance > r.clearance_z_mm) {
+        r.clearance_z_mm = *clearance;
+        r.clearance_from = "the restart's \"clearance_z_mm\"";
+      }
+      spec.retract = r;
+    }
+    service::restart_job(spec, program, text, line, clearance);
+  } else if (req.contains("clearance_z_mm")) {
+    throw InputError("\"clearance_z_mm\" goes with \"restart_from\"");
+  }
+  if (!out.port.empty()) {
+    service::LinkSpec link;
+    const LinkConfig& lc = config.machine.link;
+    link.encoder = config.machine.encoder;
+    // The controller's dialect, as `ncd replay --blocks` and `ncd stream` apply it: the
+    // encoder's framing, and every block checked by the sender before it is written.
+    if (lc.dialect) comms::apply_dialect(link.encoder, *lc.dialect);
+    link.sender.dialect = lc.dialect;
+    link.sender.line = lc.line;
+    link.sender.line.device = out.port;
+    link.sender.max_queued_chars = lc.max_queued_chars;
+    link.sender.rx_buffer_bytes = lc.rx_buffer_bytes;
+    link.sender.xoff_timeout_s = lc.xoff_timeout_s;
+    link.sender.reconnect_max_s = lc.reconnect_max_s;
+    link.journal = lc.journal;
+    spec.link = std::move(link);
+  }
+  spec.sink = std::make_unique<SetpointSink>(setpoints);
+  if (chamfer.interference_allowed) out.warning = chamfer.note;
+  return out;
+}
+
+json Service::submit(const json& req) {
+  if (core_.busy()) throw InputError("submit: a job is running; stop it first");
+  SubmittedJob job = submitted_job(req, config_);
+  if (!job.warning.empty()) std::cerr << "ncd serve: " << job.warning << "\n";
+  const std::string name = job.spec.name;
+  core_.submit(std::move(job.spec));
+  port_ = job.port;
+  json reply{{"ok", true}, {"state", service::to_string(core_.state())}, {"job", name}};
+  if (!job.warning.empty()) reply["warning"] = job.warning;
+  return reply;
+}
+
+void Service::run_loop() {
+  loop_armed_ = false;
+  if (core_.poll()) {
+    loop_armed_ = true;
+    const auto every = core_.state() == service::State::Streaming ? std::chrono::milliseconds(20)
+                                                                  : std::chrono::milliseconds(1);
+    timer_.expires_after(every);
+    timer_.async_wait([this](const boost::system::error_code& ec) {
+      if (!ec) run_loop();
+    });
+    return;
+  }
+  if (on_idle_) io_.post(std::exchange(on_idle_, nullptr));
+}
+
+json Service::handle(const json& req) {
+  const std::string cmd = req["cmd"];
+  // Every key of a request is known, or the request is refused: a typo is never ignored.
+  const auto keys_for = [](const std::string& c) -> std::vector<std::string> {
+    if (c == "submit") return {"job", "port", "setpoints", "restart_from", "clearance_z_mm"};
+    if (c == "override") return {"percent"};
+    return {};
+  };
+  const std::vector<std::string> extra = keys_for(cmd);
+  for (const auto& [key, value] : req.items()) {
+    if (key == "cmd" || key == "token") continue;
+    if (std::find(extra.begin(), extra.end(), key) == extra.end()) {
+      std::string known = "\"cmd\"";
+      for (const std::string& k : extra) known += ", \"" + k + "\"";
+      throw InputError("unknown key \"" + key + "\" in a \"" + cmd + "\" request; it takes " +
+                       known + " (and \"token\" when the service has one)");
+    }
+  }
+  if (cmd == "submit") return submit(req);
+  if (cmd == "status") return status();
+  if (cmd == "start") {
+    // The port may have gone since submit.
+    if (core_.state() == service::State::Ready && !port_.empty()) {
+      require_serial_port(port_, "\"port\"");
+    }
+    const std::string realtime = core_.start();
+    if (!loop_armed_) run_loop();
+    return {{"ok", true}, {"state", service::to_string(core_.state())}, {"realtime", realtime}};
+  }
+  if (cmd == "hold") {
+    core_.hold(service::HoldHolder::Operator);
+  } else if (cmd == "resume") {
+    core_.resume(service::HoldHolder::Operator);
+  } else if (cmd == "stop") {
+    core_.stop("stop requested by a client");
+    json reply{{"ok", true}, {"state", service::to_string(core_.state())}};
+    const service::EndingStatus& e = core_.status().ending;
+    if (e.state != service::EndingStatus::State::None) reply["ending"] = to_json(e);
+    const std::string down = core_.link_down_note();
+    if (!down.empty()) reply["warning"] = down;
+    return reply;
+  } else if (cmd == "override") {
+    core_.set_override(number(req, "percent"));
+  } else {
+    throw InputError("unknown command \"" + cmd +
+                     "\"; commands: submit, start, hold, resume, stop, override, status, "
+                     "subscribe");
+  }
+  return {{"ok", true}, {"state", service::to_string(core_.state())}};
+}
+
+json to_json(const service::Status& st) {
+  json s;
+  s["ok"] = true;
+  s["state"] = service::to_string(st.state);
+  s["holder"] = service::to_string(st.holder);
+  s["job"] = st.job.empty() ? json() : json(st.job);
+  if (st.has_job_run) {
+    s["position"] = vec(st.position_mm);
+    s["feed_mm_per_min"] = st.feed_mm_per_min;
+    s["progress"] = st.progress;
+    s["time_left_s"] = st.time_left_s ? json(*st.time_left_s) : json();
+    s["t_s"] = st.t_s;
+    s["line"] = st.line > 0 ? json(st.line) : json();
+    s["binding_limit"] = st.binding_limit.empty() ? json() : json(st.binding_limit);
+    s["feed_limit_mm_per_min"] = st.binding_limit.empty() ? json() : json(st.feed_limit_mm_per_min);
+    s["overruns"] = st.overruns;
+    s["late_wakeups"] = st.late_wakeups;
+  } else {
+    s["position"] = json();
+    s["feed_mm_per_min"] = 0.0;
+    s["progress"] = 0.0;
+    s["time_left_s"] = json();
+    s["line"] = json();
+    s["binding_limit"] = json();
+    s["feed_limit_mm_per_min"] = json();
+    s["overruns"] = 0;
+  }
+  // Non-empty bins only: [from_us, to_us) and the wake-ups that were that late.
+  json bins = json::array();
+  for (std::size_t g = 0; g < st.lateness_bins_ns.size(); ++g) {
+    if (st.lateness_bins_ns[g] == 0) continue;
+    const int coarse = static_cast<int>(g);
+    bins.push_back({{"from_us", LogHistogram::coarse_from(coarse) * 1e-3},
+                    {"to_us", LogHistogram::coarse_from(coarse + 1) * 1e-3},
+                    {"count", st.lateness_bins_ns[g]}});
+  }
+  s["lateness_histogram"] = bins;
+  s["override_percent"] = st.override_percent;
+  s["setpoints"] = st.setpoints;
+  s["accel_max"] = st.accel_max_mm_per_s2;
+  s["jerk_max"] = st.jerk_max_mm_per_s3;
+  s["feed_max_mm_per_min"] = st.feed_max_mm_per_min;
+  s["live_limit_violations"] = {{"feed", st.violations.feed},
+                                {"accel", st.violations.accel},
+                                {"jerk", st.violations.jerk},
+                                {"chord", st.violations.chord}};
+  if (!st.error.empty()) s["job_error"] = st.error;
+  if (st.stopped) {
+    const service::StopReport& r = *st.stopped;
+    s["stopped"] = {{"why", r.why},
+                    {"position", vec(r.position_mm)},
+                    {"s_mm", r.s_mm},
+                    {"length_mm", r.length_mm},
+                    {"line", r.line > 0 ? json(r.line) : json()}};
+  }
+  if (st.interference_allowed) s["interference_allowed"] = true;
+  s["ending"] = st.ending.state == service::EndingStatus::State::None ? json() : to_json(st.ending);
+  if (st.restart_line > 0) s["restart_from_line"] = st.restart_line;
+  s["events_dropped"] = st.events_dropped;
+  if (!st.link) {
+    s["stream"] = json();
+    return s;
+  }
+  const service::LinkStatus& l = *st.link;
+  json k{{"port", l.port},
+         {"settings", l.settings},
+         {"blocks_encoded", l.blocks_encoded},
+         {"chars_encoded", l.chars_encoded},
+         {"blocks_waiting", l.blocks_waiting},
+         {"held_by_link", st.holder == service::HoldHolder::Link},
+         {"last_event", l.last_event}};
+  // The sender's live counters (docs/service.md, "Status"); at the end they equal the report's.
+  const comms::SenderCounts& c = l.counts;
+  k["bytes_written"] = c.bytes_written;
+  k["blocks_taken"] = c.blocks_taken;
+  k["blocks_written"] = c.blocks_written;
+  k["blocks_acked"] = c.blocks_acked >= 0 ? json(c.blocks_acked) : json();
+  k["blocks_executed"] = c.blocks_executed >= 0 ? json(c.blocks_executed) : json();
+  k["xoff_count"] = c.xoff_count;
+  k["xoff_held"] = c.xoff_held;
+  k["controller_buffer_bytes"] = c.buffer_bytes;
+  k["controller_buffer_limit_bytes"] = c.buffer_limit_bytes;
+  k["controller_buffer_basis"] =
+      c.blocks_acked >= 0 ? "unanswered lines (character counting)" : "wire model";
+  k["underruns"] = c.underruns;
+  k["reconnects"] = c.reconnects;
+  k["link_losses"] = c.link_losses;
+  k["done"] = l.done;
+  if (l.done) {
+    const comms::SenderReport& r = l.report;
+    k["completed"] = r.completed;
+    k["failure"] = r.failure;
+    k["blocks_sent"] = r.blocks;
+    k["link_use"] = r.link_use;
+    k["xoff_timeouts"] = r.xoff_timeouts;
+    k["blocks_resent"] = r.blocks_resent;
+    k["program_sha256"] = r.program_sha256;
+  }
+  s["stream"] = std::move(k);
+  return s;
+}
+
+json to_json(const service::EndingStatus& e) {
+  return {{"state", service::to_string(e.state)},
+          {"how", e.how},
+          {"blocks", e.blocks},
+          {"note", e.note}};
+}
+
+json to_json(const service::Event& e) {
+  json j{{"seq", e.seq},
+         {"kind", service::to_string(e.kind)},
+         {"state", service::to_string(e.state)},
+         {"holder", service::to_string(e.holder)},
+         {"job_t_s", e.job_t_s},
+         {"text", std::string(e.message())}};
+  if (e.kind == service::EventKind::Overrun) {
+    j["overruns"] = e.count;
+    j["late_wakeups"] = static_cast<std::int64_t>(e.value);
+  }
+  if (e.kind == service::EventKind::Violation) {
+    j["value"] = e.value;
+    j["limit"] = e.limit;
+  }
+  return j;
+}
+
+json Service::status() {
+  return to_json(core_.status());
+}
+
+void Service::shutdown(std::function<void()> done) {
+  if (!core_.busy()) {
+    io_.post(std::move(done));
+    return;
+  }
+  on_idle_ = std::move(done);
+  core_.shutdown("the service was shut down (SIGTERM or SIGINT)");
+  if (!loop_armed_) run_loop();
+}
+
+void Service::abort_transfer() {
+  core_.abort_transfer("a second SIGTERM or SIGINT during the shutdown");
+  if (!loop_armed_) run_loop();
+}
+
+}  // namespace ncd::app

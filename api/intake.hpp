@@ -1,0 +1,70 @@
+// `ncd serve`'s JSON mapping: control requests to the service library's commands
+// (service/service.hpp) and its status to JSON. The job lifecycle and the live pipeline are the
+// library's; this file owns the request shapes, the checks a request's job passes before any
+// motion (the same as `ncd replay`'s) and the timer that runs the library's loop on the
+// io_context.
+#pragma once
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "api/control_server.hpp"
+#include "api/service_config.hpp"
+#include "service/service.hpp"
+
+namespace ncd::app {
+
+// A submit request's job (docs/service.md, "Jobs"): checked as `ncd replay` checks a run (the
+// chamfer's checks and tool, the envelope, the size of the run, the port) and made into the
+// library's JobSpec: the whole program `ncd replay` walks for the same file and machine
+// (service/whole_run.hpp), or the path alone for a restart. Throws InputError naming the key.
+struct SubmittedJob {
+  service::JobSpec spec;
+  std::string port;     // the DNC port; empty: no streaming
+  std::string warning;  // a failed chamfer run anyway ("allow_interference"); empty otherwise
+};
+SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& config);
+
+class Service : public comms::ControlHandler {
+ public:
+  Service(boost::asio::io_context& io, const ServiceConfig& config);
+  ~Service() override;
+
+  nlohmann::json handle(const nlohmann::json& request) override;
+  nlohmann::json status() override;
+  // SIGTERM/SIGINT: bring any motion to a jerk-limited stop, end the job safely (the ending
+  // reaches the controller first), then call done (on the io_context).
+  void shutdown(std::function<void()> done);
+  // A second signal during the shutdown: give the transfer up (the ending is not sent; the
+  // job's error says what to do at the machine).
+  void abort_transfer();
+  // A new observer's event feed (service::Service::subscribe; api/event_feed.hpp drains it).
+  std::shared_ptr<service::Subscription> subscribe(std::size_t capacity) {
+    return core_.subscribe(capacity);
+  }
+
+ private:
+  nlohmann::json submit(const nlohmann::json& req);
+  void run_loop();  // service::Service::poll() on a timer while a job is under way
+
+  boost::asio::io_context& io_;
+  ServiceConfig config_;
+  service::Service core_;
+  boost::asio::steady_timer timer_;
+  bool loop_armed_ = false;
+  std::string port_;               // the submitted job's DNC port; empty: no streaming
+  std::function<void()> on_idle_;  // shutdown's continuation
+};
+
+// The status snapshot as the socket's JSON (field names with units; README, "ncd serve").
+nlohmann::json to_json(const service::Status& status);
+// How a streamed job that ended early left the machine (docs/service.md, "Ending early").
+nlohmann::json to_json(const service::EndingStatus& ending);
+// One observer event as JSON (field names with units).
+nlohmann::json to_json(const service::Event& event);
+
+}  // namespace ncd::app

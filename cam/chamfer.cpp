@@ -1,0 +1,822 @@
+// Constant-width chamfer of a drilled hole in a pipe: paper 000 (Sato, Sato, Maekawa, CAD 2016)
+// sections 2–4, extended to any drilled hole (inclined, eccentric, cone pipes). Conventions,
+// corrections and decisions: docs/chamfer.md.
+//
+// Geometry. Everything is computed in the drill frame: the drill (radius r) runs along z, the
+// pipe axis is the line p0 + s a with a = (0, cos γ, sin γ) and p0 = (−e, 0, 0), γ the
+// inclination of the drill from the pipe's normal plane and e the eccentricity (the relative
+// position of two lines is their angle and distance; the tilt τ and azimuth φ of ChamferSpec only
+// say where this sits in the pipe frame, see DrillPlacement). The pipe surface is the quadric
+// f(x) = |w|² − (w·a)² − ρ², w = x − p0, ρ = R_s + (w·a) tan ψ (cylinder for ψ = 0).
+//
+// Edge curve by numerical intersection. For a hole that pierces the wall every generator
+// D(θ, z) = (r cos θ, r sin θ, z) of the drill (eq. 1) meets the surface twice, so the edge is
+// a graph over the angle about the drill axis: C(θ) = (r cos θ, r sin θ, z(θ)) with
+// g(θ, z) = f(D(θ, z)) = 0, z the upper (larger) or lower root. g is quadratic in z: its stable
+// root is the start, polished by Newton on the distance-like |w⊥| − ρ to machine precision.
+// The derivatives come from implicit differentiation, with the analytic gradient and the
+// constant Hessian 2(I − (1 + tan²ψ) a aᵀ) of f:
+//
+//     z' = −g_θ / g_z,   z'' = −(g_θθ + 2 g_θz z' + g_zz z'²) / g_z,
+//
+// so t, b, n, κ and k = κ n (eqs. 6–10) are exact to rounding, not finite differences, and the
+// loop closes exactly (C(2π) = C(0)). With γ = e = ψ = 0 this is eq. (4)/(5) itself
+// (C(θ) = (r cos θ, r sin θ, σ sqrt(R_s² − r² cos² θ)), σ = +1 upper, −1 lower), which is kept
+// (EdgeCurve::ClosedForm) as the reference. The pipe normal N_p is ∇f/|∇f| (eq. 16), which
+// points away from the pipe axis. Validation checks the discriminant of g over θ (a dense scan
+// refined by golden section): a generator that misses or grazes a wall surface means the drill
+// does not pierce it completely, and is refused with its θ.
+//
+// Downstream, as in the paper. In the normal plane T at x_p = C(θ) two unit tangents span the
+// wedge to be chamfered (N_H = (cos θ, sin θ, 0), eq. 12):
+//
+//     t1 = s1 (N_H × t)   along the hole surface, into the wall                 eq. (14)
+//     t2 = s2 (t × N_p)   along the pipe surface, away from the hole            eq. (15)
+//
+//           t1 ▲
+//              │      wall
+//              │   A
+//              │  ╱ ╲  ← chamfer of width W = |AB|
+//   hole       │ ╱   ╲
+//              x_p ───B──────► t2        the ball (centre CL, radius R_B) sits on −e,
+//            ╱                           δ deep past x_p:  CL = x_p − (R_B − δ) e   eq. (19)
+//        −e ↙  CL
+//
+// with e = (t1 + α t2)/|t1 + α t2| (eq. 18); α = 1 bisects the wedge. A and B are where the
+// sphere |x − CL| = R_B meets the lines x_p + ζ t1 and x_p + η t2 (eqs. 22–25, the + roots).
+// δ solves G(δ) = |ζ t1 − η t2|² − W² = 0 (eq. 27) by Newton from δ = W/4, safeguarded by the
+// bracket δ ∈ (0, 2 R_B) on which G(0) = −W² < 0; no root means W is wider than the wedge and
+// the ball allow. The width exists only for e·t1 > 0 and e·t2 > 0, i.e. α ∈ (−c, −1/c) with
+// c = t1·t2.
+//
+// Interference (section 4), with the machine's tool axis +z along the drill axis. Local:
+// R_B ≤ 1/|k_e|, k_e = (k·e) e (eqs. 36, 37). Global: the cutter vector −e must not point into
+// the hole surface: −e_z ≤ 0 on inner/upper, ≥ 0 on outer/upper, opposite on lower edges
+// (eq. 40, with the typo r < R_I corrected), which bounds α as eq. (41) does. Where a check
+// fails the θ ranges and the reason are reported (interference_reasons), never clamped. Rod: on an
+// inner edge the rod passes through the hole, so the CL must stay within the cylinder of radius R_R
+// = min(r − R_B sin β, r − R_od) about the drill axis (eq. 42). Algorithm 1 finds the smallest α ≥
+// 1 for which it does. The paper's F(α) of eq. (46) compares |x_p − x_R| with R_B − δ, x_R being
+// where the line x_p + u e meets that cylinder; since CL lies on the same line, F has the sign of
+// F̃(α) = |CL_xy| − R_R, which we use instead: it is exact (no line–ellipse Newton, no degenerate
+// planes c = 0 at θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is
+// checked on. δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved
+// with Illinois regula falsi instead of plain bisection (same bracket, fewer δ solves); the safe
+// end of the final bracket is returned. A θ where no admissible α clears the rod is
+// reported, never hidden.
+//
+// Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length (composite
+// Gauss–Legendre, panels doubled until the total converges, so the step follows the curvature;
+// Newton on eq. 31 to machine precision), each split at its parametric midpoint
+// while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
+// we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
+// midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
+// evaluated at those θ.
+#include "cam/chamfer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/number_text.hpp"
+#include "core/quadrature.hpp"
+
+namespace ncd::toolpath {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kMaxNewton = 100;
+constexpr int kMaxAlphaIterations = 200;
+constexpr double kAlphaTolerance = 1e-13;  // relative width of the final α bracket
+constexpr double kRodToleranceMm = 1e-12;  // ε_α of Algorithm 1, on |CL_xy| − R_R
+constexpr double kAlphaMargin = 1e-9;      // keep α strictly inside the admissible range
+constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c = 0)
+constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π], doubled until
+constexpr int kMaxArcDoublings = 10;       // the total changes by less than kArcTolerance
+constexpr double kArcTolerance = 1e-14;    // (relative)
+constexpr int kPierceScan = 360;           // samples of θ in the piercing check
+constexpr double kMinHalfGapMm = 1e-6;     // upper and lower roots at least 2 µm apart
+constexpr double kMaxHalfAngleRad = kPi / 3.0;
+constexpr double kMinSplitTheta = 1e-9;  // a split below this cannot reach ε
+
+std::string fmt_deg(double rad) {
+  return text::sig(rad_to_deg(rad)) + "°";
+}
+
+// Positive root of ζ² + 2 q a ζ + δ² − 2 δ R_B = 0 (eqs. 23, 25), q = R_B − δ.
+double plus_root(double q, double a, double delta, double ball) {
+  const double disc = q * q * a * a - (delta * delta - 2.0 * delta * ball);
+  return -q * a + std::sqrt(std::max(disc, 0.0));
+}
+
+// g(z) = qa z² + qb z + qc: the pipe surface's implicit f along the drill generator at θ.
+struct Quadratic {
+  double qa = 0.0, qb = 0.0, qc = 0.0;
+  double discriminant() const { return qb * qb - 4.0 * qa * qc; }
+};
+
+Quadratic generator_quadratic(const PipeSurface& s, double r, double cos_t, double sin_t) {
+  const Vec3& a = s.axis_direction;
+  const Vec3 w0 = Vec3(r * cos_t, r * sin_t, 0.0) - s.axis_point;
+  const double aw = a.dot(w0), rho0 = s.radius_mm + s.slope * aw;
+  const double k2 = s.slope * s.slope;
+  return {1.0 - (1.0 + k2) * a.z() * a.z(), 2.0 * (w0.z() - a.z() * aw - s.slope * a.z() * rho0),
+          w0.squaredNorm() - aw * aw - rho0 * rho0};
+}
+
+Quadratic generator_quadratic(const PipeSurface& s, double r, double theta) {
+  return generator_quadratic(s, r, std::cos(theta), std::sin(theta));
+}
+
+// The upper (larger) or lower root of g, from the stable quadratic formula; nullopt where the
+// generator misses the surface. Requires qa > 0 (checked by validate).
+std::optional<double> quadratic_root(const Quadratic& q, bool upper) {
+  const double disc = q.discriminant();
+  if (!(disc >= 0.0) || !(q.qa > 0.0)) return std::nullopt;
+  const double sq = std::sqrt(disc);
+  const double m = -0.5 * (q.qb + std::copysign(sq, q.qb));
+  const double r1 = m / q.qa, r2 = m != 0.0 ? q.qc / m : r1;
+  return upper ? std::max(r1, r2) : std::min(r1, r2);
+}
+
+// That root at θ (given by its cosine and sine), polished by Newton on the distance-like
+// |w⊥| − ρ to machine precision: the start is within rounding of the cancellation in g's
+// constant term, so one or two steps suffice.
+std::optional<double> generator_root(const PipeSurface& s, double r, double cos_t, double sin_t,
+                                     bool upper) {
+  const auto start = quadratic_root(generator_quadratic(s, r, cos_t, sin_t), upper);
+  if (!start) return std::nullopt;
+  double z = *start;
+  const Vec3& a = s.axis_direction;
+  const Vec3 x0(r * cos_t, r * sin_t, 0.0);
+  for (int i = 0; i < 4; ++i) {
+    const Vec3 w = x0 + Vec3(0.0, 0.0, z) - s.axis_point;
+    const double aw = a.dot(w);
+    const Vec3 w_perp = w - aw * a;
+    const double dist = w_perp.norm();
+    const double slope = w_perp.z() / dist - s.slope * a.z();
+    if (!(dist > 0.0) || slope == 0.0) break;
+    const double step = (dist - (s.radius_mm + s.slope * aw)) / slope;
+    z -= step;
+    if (std::abs(step) <= 4.0 * std::numeric_limits<double>::epsilon() * (std::abs(z) + r)) break;
+  }
+  return z;
+}
+
+// Refuses a surface the drill does not pierce completely: a generator that misses or grazes it,
+// or meets the far nappe of a cone.
+void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::string& which) {
+  const double r = spec.drill_radius_mm;
+  const std::string drill = "the drill (r = " + text::sig(r) + " mm, tilt " +
+                            fmt_deg(spec.drill_tilt_rad) + ", eccentricity " +
+                            text::sig(spec.eccentricity_mm) + " mm)";
+  const std::string pipe = "the " + which + " pipe surface (radius " + text::sig(surf.radius_mm) +
+                           " mm at the reference point, half-angle " +
+                           fmt_deg(spec.pipe_half_angle_rad) + ")";
+  const double az = surf.axis_direction.z();
+  if (!(generator_quadratic(surf, r, 0.0).qa > 1e-9)) {
+    throw InputError(drill + " runs at " + fmt_deg(std::acos(std::min(1.0, std::abs(az)))) +
+                     " to the pipe axis, which must exceed the half-angle " +
+                     fmt_deg(std::abs(spec.pipe_half_angle_rad)) + " of " + pipe +
+                     " for a hole through the wall; reduce --drill-tilt-deg");
+  }
+  const auto half_gap = [&](double th) {
+    const Quadratic q = generator_quadratic(surf, r, th);
+    const double d = q.discriminant();
+    return d > 0.0 ? std::sqrt(d) / (2.0 * q.qa) : -std::sqrt(-d) / (2.0 * q.qa);
+  };
+  int worst = 0;
+  double worst_gap = kInf;
+  for (int i = 0; i < kPierceScan; ++i) {
+    const double th = 2.0 * kPi * i / kPierceScan;
+    const double g = half_gap(th);
+    if (g < worst_gap) worst_gap = g, worst = i;
+    for (const bool upper : {true, false}) {
+      if (surf.slope == 0.0) break;  // a cylinder has no far nappe
+      const auto z = quadratic_root(generator_quadratic(surf, r, th), upper);
+      if (z && !(surf.axial_radius(Vec3(r * std::cos(th), r * std::sin(th), *z)) > 0.0)) {
+        throw InputError(drill + " meets " + pipe +
+                         " beyond the cone's apex at θ = " + fmt_deg(th) +
+                         "; move the hole away from the apex (a larger --pipe-radius"
+                         " or a smaller --pipe-half-angle-deg)");
+      }
+    }
+  }
+  // Golden-section refinement of the smallest gap between the neighbouring samples.
+  double lo = 2.0 * kPi * (worst - 1) / kPierceScan, hi = 2.0 * kPi * (worst + 1) / kPierceScan;
+  const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int i = 0; i < 50; ++i) {
+    const double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
+    if (half_gap(x1) < half_gap(x2)) {
+      hi = x2;
+    } else {
+      lo = x1;
+    }
+  }
+  const double th = 0.5 * (lo + hi);
+  worst_gap = std::min(worst_gap, half_gap(th));
+  if (!(worst_gap > kMinHalfGapMm)) {
+    // θ to 0.01°, in [0°, 360°).
+    const double deg = std::round(rad_to_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) * 100.0) / 100.0;
+    throw InputError(drill + " does not pierce " + pipe + " completely: the drill's generator at " +
+                     "θ = " + text::sig(deg >= 360.0 ? 0.0 : deg + 0.0) + "°" +
+                     (worst_gap > -kMinHalfGapMm ? " only grazes it" : " misses it") +
+                     ", so the edge is not a closed loop around the hole (for a cylinder pipe and "
+                     "no tilt: r + |eccentricity| must stay below the radius); reduce "
+                     "--eccentricity, --drill-radius or --drill-tilt-deg");
+  }
+}
+
+}  // namespace
+
+double PipeSurface::implicit(const Vec3& x) const {
+  const Vec3 w = x - axis_point;
+  const double aw = axis_direction.dot(w), rho = radius_mm + slope * aw;
+  return w.squaredNorm() - aw * aw - rho * rho;
+}
+
+Vec3 PipeSurface::gradient(const Vec3& x) const {
+  const Vec3 w = x - axis_point;
+  const double aw = axis_direction.dot(w), rho = radius_mm + slope * aw;
+  return 2.0 * (w - (aw + slope * rho) * axis_direction);
+}
+
+double PipeSurface::axial_radius(const Vec3& x) const {
+  return radius_mm + slope * axis_direction.dot(x - axis_point);
+}
+
+Vec3 DrillPlacement::to_drill(const Vec3& p) const {
+  const Vec3 w = p - origin;
+  return {w.dot(x), w.dot(y), w.dot(z)};
+}
+
+DrillPlacement drill_placement(const ChamferSpec& spec) {
+  const double tau = spec.drill_tilt_rad, phi = spec.drill_azimuth_rad;
+  const Vec3 d(std::sin(tau) * std::sin(phi), std::sin(tau) * std::cos(phi), std::cos(tau));
+  const Vec3 pipe_axis(0.0, 1.0, 0.0);
+  DrillPlacement p;
+  p.z = d;
+  p.y = (pipe_axis - pipe_axis.dot(d) * d).normalized();
+  p.x = p.y.cross(p.z);
+  p.origin = spec.eccentricity_mm * p.x;  // x = Y × d / |Y × d| = n̂
+  return p;
+}
+
+PipeSurface pipe_surface(const ChamferSpec& spec, double radius_mm) {
+  const DrillPlacement p = drill_placement(spec);
+  PipeSurface s;
+  s.axis_point = p.to_drill(Vec3::Zero());
+  s.axis_direction = Vec3(p.x.y(), p.y.y(), p.z.y());  // +Y in drill coordinates
+  s.radius_mm = radius_mm;
+  s.slope = std::tan(spec.pipe_half_angle_rad);
+  return s;
+}
+
+std::optional<double> companion_radius_mm(const ChamferSpec& spec) {
+  if (!spec.pipe_thickness_mm) return std::nullopt;
+  const double radial = *spec.pipe_thickness_mm / std::cos(spec.pipe_half_angle_rad);
+  return spec.edge == Edge::Inner ? spec.pipe_radius_mm + radial : spec.pipe_radius_mm - radial;
+}
+
+std::string to_string(Edge edge) {
+  return edge == Edge::Inner ? "inner" : "outer";
+}
+std::string to_string(Side side) {
+  return side == Side::Upper ? "upper" : "lower";
+}
+
+void validate(const ChamferSpec& s) {
+  require_positive("pipe radius (--pipe-radius) " + text::sig(s.pipe_radius_mm) + " mm",
+                   s.pipe_radius_mm);
+  require_positive("drill radius (--drill-radius)", s.drill_radius_mm);
+  require_positive("ball radius R_B (--ball-radius)", s.ball_radius_mm);
+  require_positive("chamfer width W (--width)", s.width_mm);
+  require_positive("tolerance ε (--tolerance)", s.tolerance_mm);
+  require_finite("drill tilt τ (--drill-tilt-deg)", s.drill_tilt_rad);
+  require_finite("drill azimuth φ (--drill-azimuth-deg)", s.drill_azimuth_rad);
+  require_finite("eccentricity (--eccentricity, mm)", s.eccentricity_mm);
+  require_finite("pipe half-angle ψ (--pipe-half-angle-deg)", s.pipe_half_angle_rad);
+  if (s.drill_tilt_rad < 0.0 || s.drill_tilt_rad >= 0.5 * kPi) {
+    throw InputError("drill tilt τ = " + fmt_deg(s.drill_tilt_rad) +
+                     " must lie in [0°, 90°) (--drill-tilt-deg; the direction of the tilt is "
+                     "--drill-azimuth-deg)");
+  }
+  if (std::abs(s.pipe_half_angle_rad) >= kMaxHalfAngleRad) {
+    throw InputError("pipe half-angle ψ = " + fmt_deg(s.pipe_half_angle_rad) +
+                     " must lie in (−60°, 60°) (--pipe-half-angle-deg; 0 for a cylinder)");
+  }
+  const bool paper_geometry =
+      s.drill_tilt_rad == 0.0 && s.eccentricity_mm == 0.0 && s.pipe_half_angle_rad == 0.0;
+  if (s.edge_curve == EdgeCurve::ClosedForm && !paper_geometry) {
+    throw InputError(
+        "the closed-form edge curve (eq. 4) holds only without tilt, eccentricity "
+        "and cone angle; use the numerical edge curve");
+  }
+  if (s.pipe_thickness_mm) {
+    require_positive("pipe wall thickness (--pipe-thickness)", *s.pipe_thickness_mm);
+    const double other = *companion_radius_mm(s);
+    if (!(other > 0.0)) {
+      throw InputError("pipe wall thickness " + text::sig(*s.pipe_thickness_mm) +
+                       " mm leaves no bore inside the outer radius " + text::sig(s.pipe_radius_mm) +
+                       " mm; use a smaller --pipe-thickness");
+    }
+  }
+  if (s.pipe_half_angle_rad == 0.0 && s.drill_radius_mm >= s.pipe_radius_mm) {
+    throw InputError("drill radius r = " + text::sig(s.drill_radius_mm) +
+                     " mm must be smaller than the pipe radius " + text::sig(s.pipe_radius_mm) +
+                     " mm (a drill as wide as the pipe cuts it in two, and the edge is not a "
+                     "closed curve); use a smaller --drill-radius or the right --pipe-radius");
+  }
+  if (s.tolerance_mm < ChamferLimits::kMinToleranceMm ||
+      s.tolerance_mm > ChamferLimits::kMaxToleranceMm) {
+    throw InputError("tolerance ε = " + text::sig(s.tolerance_mm) + " mm is outside [" +
+                     text::sig(ChamferLimits::kMinToleranceMm) + ", " +
+                     text::sig(ChamferLimits::kMaxToleranceMm) +
+                     "] mm; 0.01 mm is typical (--tolerance)");
+  }
+  if (s.initial_segments < ChamferLimits::kMinInitialSegments ||
+      s.initial_segments > ChamferLimits::kMaxInitialSegments) {
+    throw InputError("initial segments N = " + std::to_string(s.initial_segments) +
+                     " is outside [" + std::to_string(ChamferLimits::kMinInitialSegments) + ", " +
+                     std::to_string(ChamferLimits::kMaxInitialSegments) + "]; the paper uses 60");
+  }
+  if (s.edge == Edge::Inner && s.ball_radius_mm >= s.drill_radius_mm) {
+    throw InputError(
+        "ball radius R_B = " + text::sig(s.ball_radius_mm) +
+        " mm must be smaller than the drill radius r = " + text::sig(s.drill_radius_mm) +
+        " mm to reach an inner edge through the hole; use a smaller --ball-radius");
+  }
+  if (s.rod_radius_mm) {
+    require_positive("rod radius R_od (--rod-radius)", *s.rod_radius_mm);
+    if (*s.rod_radius_mm >= s.drill_radius_mm) {
+      throw InputError("rod radius R_od = " + text::sig(*s.rod_radius_mm) +
+                       " mm must be smaller than the drill radius r = " +
+                       text::sig(s.drill_radius_mm) + " mm, or the rod cannot enter the hole");
+    }
+  }
+  if (s.non_knife_angle_rad) {
+    const double two_beta = *s.non_knife_angle_rad;
+    if (!std::isfinite(two_beta) || two_beta <= 0.0 || two_beta >= kPi) {
+      throw InputError("non-knife angle 2β = " + fmt_deg(two_beta) +
+                       " must lie in (0°, 180°) (--non-knife-angle, degrees)");
+    }
+    if (s.ball_radius_mm * std::sin(0.5 * two_beta) >= s.drill_radius_mm) {
+      throw InputError("non-knife cap radius R_B sin β = " +
+                       text::sig(s.ball_radius_mm * std::sin(0.5 * two_beta)) +
+                       " mm reaches the drill radius r = " + text::sig(s.drill_radius_mm) + " mm");
+    }
+  }
+  if (!paper_geometry) {
+    check_pierces(s, pipe_surface(s, s.pipe_radius_mm), to_string(s.edge));
+  }
+  if (const auto other = companion_radius_mm(s)) {
+    check_pierces(s, pipe_surface(s, *other),
+                  to_string(s.edge == Edge::Inner ? Edge::Outer : Edge::Inner));
+  }
+}
+
+ChamferModel::ChamferModel(const ChamferSpec& spec)
+    : spec_(spec),
+      placement_(drill_placement(spec)),
+      surface_(pipe_surface(spec, spec.pipe_radius_mm)) {
+  validate(spec_);
+  const bool upper = spec_.side == Side::Upper;
+  const bool inner = spec_.edge == Edge::Inner;
+  sign_z_ = upper ? 1.0 : -1.0;
+  sign_t1_ = (inner == upper) ? 1.0 : -1.0;
+  sign_t2_ = upper ? 1.0 : -1.0;
+}
+
+ChamferModel::Jet ChamferModel::jet(double theta) const {
+  const double r = spec_.drill_radius_mm;
+  const double c = std::cos(theta), s = std::sin(theta);
+  if (spec_.edge_curve == EdgeCurve::ClosedForm) {  // eqs. (4), (5)
+    const double rs = spec_.pipe_radius_mm;
+    const double h = std::sqrt(rs * rs - r * r * c * c);
+    const double h1 = r * r * c * s / h;                        // dh/dθ
+    const double h2 = (r * r * (c * c - s * s) - h1 * h1) / h;  // from (h h')' = r² cos 2θ
+    return {
+        {r * c, r * s, sign_z_ * h}, {-r * s, r * c, sign_z_ * h1}, {-r * c, -r * s, sign_z_ * h2}};
+  }
+  // Numerical intersection: the root along the generator, then implicit differentiation.
+  const double z = *generator_root(surface_, r, c, s, spec_.side == Side::Upper);
+  const Vec3 x(r * c, r * s, z);
+  const Vec3 x_theta(-r * s, r * c, 0.0), x_theta2(-r * c, -r * s, 0.0);
+  const Vec3 grad = surface_.gradient(x);
+  const Vec3& a = surface_.axis_direction;
+  const double h = 1.0 + surface_.slope * surface_.slope;  // Hessian 2(I − h a aᵀ)
+  const double a_theta = a.dot(x_theta);
+  const double g_z = grad.z(), g_t = grad.dot(x_theta);
+  const double g_zz = 2.0 * (1.0 - h * a.z() * a.z());
+  const double g_tz = -2.0 * h * a_theta * a.z();
+  const double g_tt = 2.0 * (x_theta.squaredNorm() - h * a_theta * a_theta) + grad.dot(x_theta2);
+  const double z1 = -g_t / g_z;
+  const double z2 = -(g_tt + 2.0 * g_tz * z1 + g_zz * z1 * z1) / g_z;
+  return {x, {x_theta.x(), x_theta.y(), z1}, {x_theta2.x(), x_theta2.y(), z2}};
+}
+
+Vec3 ChamferModel::point(double theta) const {
+  return jet(theta).c;
+}
+
+Vec3 ChamferModel::derivative(double theta) const {
+  return jet(theta).d1;
+}
+
+Vec3 ChamferModel::second_derivative(double theta) const {
+  return jet(theta).d2;
+}
+
+double ChamferModel::speed(double theta) const {
+  return derivative(theta).norm();
+}
+
+EdgeFrame ChamferModel::frame(double theta) const {
+  const double c = std::cos(theta), s = std::sin(theta);
+  const Jet j = jet(theta);
+  const Vec3 &d1 = j.d1, &d2 = j.d2;
+  EdgeFrame f;
+  f.theta_rad = theta;
+  f.xp = j.c;
+  const double v = d1.norm();
+  f.t = d1 / v;
+  f.k = d1.cross(d2).cross(d1) / (v * v * v * v);  // κ n = (C' × C'') × C' / |C'|⁴
+  const Vec3 n_hole(c, s, 0.0);                    // eq. (12)
+  const Vec3 n_pipe = spec_.edge_curve == EdgeCurve::ClosedForm
+                          ? Vec3(f.xp.x(), 0.0, f.xp.z()) / spec_.pipe_radius_mm  // eq. (17)
+                          : surface_.gradient(f.xp).normalized();  // eq. (16), away from the axis
+  f.t1 = sign_t1_ * n_hole.cross(f.t);
+  f.t2 = sign_t2_ * f.t.cross(n_pipe);
+  f.c = f.t1.dot(f.t2);
+  return f;
+}
+
+AlphaRange ChamferModel::alpha_range(const EdgeFrame& f) const {
+  // Width exists: e·t1 ∝ 1 + α c > 0 and e·t2 ∝ c + α > 0.
+  AlphaRange range{std::max(0.0, -f.c), f.c < 0.0 ? -1.0 / f.c : kInf};
+  // Global check: s1 (t1 + α t2)_z ≥ 0 keeps −e_z on the safe side (eq. 40, 41).
+  const double g1 = sign_t1_ * f.t1.z(), g2 = sign_t1_ * f.t2.z();
+  if (g2 < 0.0) range.hi = std::min(range.hi, g1 / -g2);
+  return range;
+}
+
+double ChamferModel::max_width(const EdgeFrame& f, double alpha) const {
+  const Vec3 e = (f.t1 + alpha * f.t2).normalized();
+  const double a = e.dot(f.t1), b = e.dot(f.t2);
+  // At δ = 2 R_B: ζ = 2 R_B a, η = 2 R_B b.
+  return 2.0 * spec_.ball_radius_mm * std::sqrt(std::max(0.0, a * a + b * b - 2.0 * a * b * f.c));
+}
+
+std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha,
+                                                std::optional<double> guess_mm) const {
+  const double rb = spec_.ball_radius_mm, w = spec_.width_mm;
+  const Vec3 e = (f.t1 + alpha * f.t2).normalized();
+  const double a = e.dot(f.t1), b = e.dot(f.t2), c = f.c;
+  if (!(a > 0.0 && b > 0.0) || max_width(f, alpha) <= w) return std::nullopt;
+  // G(δ) and G'(δ) from eqs. (23), (25), (27); ζ' = (aζ + q)/(ζ + q a), q = R_B − δ.
+  auto g_and_slope = [&](double delta, double& slope) {
+    const double q = rb - delta;
+    const double zeta = plus_root(q, a, delta, rb), eta = plus_root(q, b, delta, rb);
+    const double dzeta = (a * zeta + q) / (zeta + q * a);
+    const double deta = (b * eta + q) / (eta + q * b);
+    slope = 2.0 * (zeta * dzeta + eta * deta - c * (dzeta * eta + zeta * deta));
+    return zeta * zeta + eta * eta - 2.0 * c * zeta * eta - w * w;
+  };
+  double lo = 0.0, hi = 2.0 * rb;
+  double delta = guess_mm && *guess_mm > lo && *guess_mm < hi ? *guess_mm : 0.25 * w;
+  for (int i = 0; i < kMaxNewton; ++i) {
+    double slope = 0.0;
+    const double g = g_and_slope(delta, slope);
+    if (g == 0.0) return delta;
+    (g < 0.0 ? lo : hi) = delta;
+    double next = delta - g / slope;
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // Newton left the bracket
+    if (std::abs(next - delta) <= 4.0 * std::numeric_limits<double>::epsilon() * next) {
+      return next;
+    }
+    delta = next;
+  }
+  return delta;  // the bracket has shrunk to rounding level by now
+}
+
+CutterPose ChamferModel::pose(const EdgeFrame& f, double alpha, double delta) const {
+  const double rb = spec_.ball_radius_mm, q = rb - delta;
+  CutterPose p;
+  p.theta_rad = f.theta_rad;
+  p.alpha = alpha;
+  p.delta_mm = delta;
+  p.xp = f.xp;
+  p.e = (f.t1 + alpha * f.t2).normalized();
+  p.cl = f.xp - q * p.e;
+  p.a = f.xp + plus_root(q, p.e.dot(f.t1), delta, rb) * f.t1;
+  p.b = f.xp + plus_root(q, p.e.dot(f.t2), delta, rb) * f.t2;
+  const Vec3 ab = p.b - p.a;
+  p.width_mm = ab.norm();
+  p.projected_width_mm = std::hypot(ab.x(), ab.y());
+  const double ke = std::abs(f.k.dot(p.e));
+  p.inv_ke_mm = ke > 0.0 ? 1.0 / ke : kInf;
+  p.minus_ez = -p.e.z();
+  p.cl_radius_mm = std::hypot(p.cl.x(), p.cl.y());
+  return p;
+}
+
+CutterPose ChamferModel::pose_at(double theta, double alpha) const {
+  const EdgeFrame f = frame(theta);
+  const auto delta = solve_delta(f, alpha);
+  if (!delta) {
+    const AlphaRange range = alpha_range(f);
+    throw InputError(
+        "no chamfer of width W = " + text::sig(spec_.width_mm) + " mm at θ = " + fmt_deg(theta) +
+        " with α = " + text::sig(alpha) + ": the widest the wedge and a " +
+        "ball of R_B = " + text::sig(spec_.ball_radius_mm) + " mm allow there is " +
+        text::sig(max_width(f, alpha)) + " mm (α must also lie in (" + text::sig(range.lo) + ", " +
+        text::sig(range.hi) + ")); use a smaller --width or a larger --ball-radius");
+  }
+  return pose(f, alpha, *delta);
+}
+
+std::optional<double> ChamferModel::rod_limit_radius_mm() const {
+  if (spec_.edge != Edge::Inner) return std::nullopt;
+  std::optional<double> limit;
+  const double r = spec_.drill_radius_mm;
+  if (spec_.rod_radius_mm) limit = r - *spec_.rod_radius_mm;
+  if (spec_.non_knife_angle_rad) {
+    const double cap = r - spec_.ball_radius_mm * std::sin(0.5 * *spec_.non_knife_angle_rad);
+    limit = limit ? std::min(*limit, cap) : cap;
+  }
+  return limit;
+}
+
+double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double delta) const {
+  return pose(f, alpha, delta).cl_radius_mm - *rod_limit_radius_mm();
+}
+
+RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
+  std::optional<double> last_delta;  // warm start: δ moves little between neighbouring α
+  const auto delta_at = [&](double alpha) {
+    last_delta = solve_delta(f, alpha, last_delta);
+    if (!last_delta) (void)pose_at(f.theta_rad, alpha);  // throws the width error, with numbers
+    return *last_delta;
+  };
+  const auto big_f = [&](double alpha) { return rod_interference(f, alpha, delta_at(alpha)); };
+  double f_lo = big_f(1.0);
+  if (f_lo <= 0.0) return {1.0, *last_delta, false, true};
+  // Bracket [1, hi] with F(hi) ≤ 0; hi is inside the admissible and global bounds.
+  const AlphaRange range = alpha_range(f);
+  double lo = 1.0, hi = 0.0, f_hi = 0.0;
+  if (std::isfinite(range.hi)) {
+    hi = range.hi * (1.0 - kAlphaMargin);
+    if (hi <= lo || (f_hi = big_f(hi)) > 0.0) return {1.0, 0.0, false, false};
+  } else {
+    for (hi = 2.0; hi <= kMaxAlphaSearch; hi *= 2.0) {
+      if ((f_hi = big_f(hi)) <= 0.0) break;
+      lo = hi;
+      f_lo = f_hi;
+    }
+    if (f_hi > 0.0) return {1.0, 0.0, false, false};
+  }
+  // Illinois regula falsi: the bracket always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
+  double delta_hi = *last_delta;
+  int side = 0;
+  for (int i = 0;
+       i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi && f_hi < -kRodToleranceMm; ++i) {
+    double mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+    if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
+    const double f_mid = big_f(mid);
+    if (f_mid > 0.0) {
+      lo = mid;
+      f_lo = f_mid;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      hi = mid;
+      f_hi = f_mid;
+      delta_hi = *last_delta;
+      if (side == 1) f_lo *= 0.5;
+      side = 1;
+    }
+  }
+  return {hi, delta_hi, true, true};
+}
+
+double ChamferModel::arc_length(double theta0, double theta1) const {
+  const auto v = [this](double th) { return speed(th); };
+  // The panel count is doubled from half the nominal one until two successive totals agree.
+  int panels = std::max(
+      1, static_cast<int>(std::ceil(std::abs(theta1 - theta0) / (4.0 * kPi / kArcLengthPanels))));
+  double coarse = GaussLegendre10::integrate(v, theta0, theta1, panels);
+  for (int i = 0; i < kMaxArcDoublings; ++i) {
+    panels *= 2;
+    const double fine = GaussLegendre10::integrate(v, theta0, theta1, panels);
+    const bool converged = std::abs(fine - coarse) <= kArcTolerance * std::abs(fine);
+    coarse = fine;
+    if (converged) break;
+  }
+  return coarse;
+}
+
+double ChamferModel::chord_deviation(double theta0, double theta1) const {
+  const Vec3 p0 = point(theta0), p1 = point(theta1);
+  const Vec3 chord = p1 - p0;
+  const double len = chord.norm();
+  const auto distance = [&](double th) {
+    const Vec3 w = point(th) - p0;
+    return len > 0.0 ? w.cross(chord).norm() / len : w.norm();
+  };
+  const double mid = 0.5 * (theta0 + theta1);
+  if (len == 0.0) return distance(mid);
+  // The maximum is where C' ⟂ w⊥ (w⊥ = part of C − p0 normal to the chord): Newton on
+  // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint (eq. 34's sample), kept inside the
+  // piece; every iterate's distance counts.
+  const Vec3 u = chord / len;
+  double best = 0.0, th = mid;
+  for (int i = 0; i < 9; ++i) {
+    const Jet j = jet(th);
+    const Vec3 w = j.c - p0;
+    const Vec3 w_perp = w - w.dot(u) * u;
+    best = std::max(best, w_perp.norm());
+    if (i == 8) break;
+    const Vec3 d1_perp = j.d1 - j.d1.dot(u) * u;
+    const double phi = j.d1.dot(w_perp);
+    const double slope = j.d2.dot(w_perp) + d1_perp.squaredNorm();
+    if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
+    const double next = th - phi / slope;
+    if (!(next > theta0 && next < theta1)) break;
+    const bool converged = std::abs(next - th) <= 1e-13 * (theta1 - theta0);
+    th = next;
+    if (converged) {
+      const Vec3 wc = point(th) - p0;
+      best = std::max(best, (wc - wc.dot(u) * u).norm());
+      break;
+    }
+  }
+  return best;
+}
+
+std::vector<double> ChamferModel::segment() const {
+  const int n = spec_.initial_segments;
+  const double total = arc_length(0.0, 2.0 * kPi);
+  const double ds = total / n;
+  // Equal arcs (eqs. 29–33): θ_k from θ_{k−1} by Newton on ∫ v dθ − Δs, v = |C'|.
+  std::vector<double> start(static_cast<std::size_t>(n) + 1);
+  start[0] = 0.0;
+  double prev = 0.0;
+  for (int k = 1; k < n; ++k) {
+    double th = prev + ds / speed(prev);
+    for (int i = 0; i < kMaxNewton; ++i) {
+      const double step =
+          (GaussLegendre10::integrate([this](double x) { return speed(x); }, prev, th) - ds) /
+          speed(th);
+      th -= step;
+      if (std::abs(step) <= 4.0 * std::numeric_limits<double>::epsilon() * th) break;
+    }
+    start[static_cast<std::size_t>(k)] = th;
+    prev = th;
+  }
+  start[static_cast<std::size_t>(n)] = 2.0 * kPi;
+
+  // Midpoint splits (eq. 34), depth first so the output stays in θ order.
+  std::vector<double> out;
+  std::vector<std::pair<double, double>> stack;
+  for (int k = 0; k < n; ++k) {
+    stack.emplace_back(start[static_cast<std::size_t>(k)], start[static_cast<std::size_t>(k) + 1]);
+    while (!stack.empty()) {
+      const auto [a, b] = stack.back();
+      stack.pop_back();
+      if (chord_deviation(a, b) > spec_.tolerance_mm) {
+        if (b - a < kMinSplitTheta || out.size() + stack.size() > ChamferLimits::kMaxPoints) {
+          throw InputError("tolerance ε = " + text::sig(spec_.tolerance_mm) +
+                           " mm needs more than " + std::to_string(ChamferLimits::kMaxPoints) +
+                           " points; use a larger --tolerance");
+        }
+        const double m = 0.5 * (a + b);
+        stack.emplace_back(m, b);
+        stack.emplace_back(a, m);
+      } else {
+        out.push_back(a);
+      }
+    }
+  }
+  return out;
+}
+
+namespace {
+
+// Maximal runs of consecutive points (cyclically) where `bad` holds, as θ ranges.
+template <class Bad>
+std::vector<ThetaRange> fail_ranges(const std::vector<CutterPose>& pts, Bad bad) {
+  std::vector<ThetaRange> out;
+  const std::size_t n = pts.size();
+  std::size_t start = 0;
+  while (start < n && bad(pts[start])) ++start;  // a run through θ = 0 is closed at its end
+  if (start == n) return n == 0 ? out : std::vector<ThetaRange>{{0.0, 2.0 * kPi}};
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = (start + k) % n;
+    if (!bad(pts[i])) continue;
+    std::size_t j = i;
+    while (k + 1 < n && bad(pts[(start + k + 1) % n])) ++k, j = (start + k) % n;
+    out.push_back({pts[i].theta_rad, pts[j].theta_rad});
+  }
+  return out;
+}
+
+std::string ranges_text(const std::vector<ThetaRange>& ranges) {
+  std::string out;
+  for (std::size_t i = 0; i < ranges.size() && i < 4; ++i) {
+    out += (i ? ", " : "") + std::string("θ ∈ [") + text::sig(rad_to_deg(ranges[i].from_rad)) +
+           "°, " + text::sig(rad_to_deg(ranges[i].to_rad)) + "°]";
+  }
+  if (ranges.size() > 4) out += " and " + std::to_string(ranges.size() - 4) + " more";
+  return out;
+}
+
+}  // namespace
+
+std::string interference_reasons(const ChamferPath& path) {
+  const auto& ck = path.checks;
+  const auto& s = path.spec;
+  std::string out;
+  if (!ck.local_ok) {
+    out += "local: the edge curves more tightly than the ball (1/|k_e| down to " +
+           text::sig(ck.min_inv_ke_mm) + " mm < R_B = " + text::sig(s.ball_radius_mm) + " mm) at " +
+           ranges_text(ck.local_fail) + "; ";
+  }
+  if (!ck.global_ok) {
+    out +=
+        "global: the cutter vector −e points into the hole surface, so the ball coming down "
+        "+Z along the drill axis would cut the hole wall, at " +
+        ranges_text(ck.global_fail) + "; ";
+  }
+  if (!ck.rod_ok) {
+    out += "rod: the cutter location leaves the cylinder of radius R_R = " +
+           text::sig(*ck.limit_radius_mm) + " mm about the drill axis (up to " +
+           text::sig(ck.max_cl_radius_mm) +
+           " mm), so the rod or the non-cutting cap touches the hole, "
+           "at " +
+           ranges_text(ck.rod_fail) + "; ";
+  }
+  if (!out.empty()) out.resize(out.size() - 2);
+  return out;
+}
+
+ChamferPath generate_chamfer(const ChamferSpec& spec) {
+  const ChamferModel model(spec);
+  ChamferPath path;
+  path.spec = spec;
+  const std::vector<double> thetas = model.segment();
+  path.points.reserve(thetas.size());
+  ChamferChecks& ck = path.checks;
+  ck.limit_radius_mm = model.rod_limit_radius_mm();
+  ck.rod_applies = spec.edge == Edge::Inner;
+  ck.min_inv_ke_mm = kInf;
+  ck.max_minus_ez = -kInf;
+  ck.min_minus_ez = kInf;
+  for (const double theta : thetas) {
+    const EdgeFrame f = model.frame(theta);
+    std::optional<CutterPose> pose;
+    if (ck.limit_radius_mm && spec.avoid) {
+      const RodAvoidance rod = model.avoid_rod(f);
+      if (!rod.cleared) ck.uncleared_theta_rad.push_back(theta);
+      if (rod.adjusted) ++ck.adjusted_points;
+      if (rod.cleared) pose = model.pose(f, rod.alpha, rod.delta_mm);
+    }
+    const CutterPose p = pose ? *pose : model.pose_at(theta, 1.0);
+    ck.min_inv_ke_mm = std::min(ck.min_inv_ke_mm, p.inv_ke_mm);
+    ck.max_minus_ez = std::max(ck.max_minus_ez, p.minus_ez);
+    ck.min_minus_ez = std::min(ck.min_minus_ez, p.minus_ez);
+    ck.max_cl_radius_mm = std::max(ck.max_cl_radius_mm, p.cl_radius_mm);
+    path.points.push_back(p);
+  }
+  ck.local_ok = ck.min_inv_ke_mm >= spec.ball_radius_mm;
+  // −e_z ≤ 0 on inner/upper and outer/lower, ≥ 0 on outer/upper and inner/lower.
+  const bool ez_nonpositive = (spec.edge == Edge::Inner) == (spec.side == Side::Upper);
+  ck.global_ok = ez_nonpositive ? ck.max_minus_ez <= 0.0 : ck.min_minus_ez >= 0.0;
+  ck.rod_ok = !ck.limit_radius_mm || ck.max_cl_radius_mm <= *ck.limit_radius_mm;
+  const auto& pts = path.points;
+  ck.local_fail =
+      fail_ranges(pts, [&](const CutterPose& p) { return p.inv_ke_mm < spec.ball_radius_mm; });
+  ck.global_fail = fail_ranges(pts, [&](const CutterPose& p) {
+    return ez_nonpositive ? p.minus_ez > 0.0 : p.minus_ez < 0.0;
+  });
+  if (ck.limit_radius_mm) {
+    ck.rod_fail =
+        fail_ranges(pts, [&](const CutterPose& p) { return p.cl_radius_mm > *ck.limit_radius_mm; });
+  }
+  if (spec.avoid && !ck.uncleared_theta_rad.empty()) {
+    const double th = ck.uncleared_theta_rad.front();
+    const EdgeFrame f = model.frame(th);
+    const AlphaRange range = model.alpha_range(f);
+    throw InputError("the rod limit R_R = " + text::sig(*ck.limit_radius_mm) +
+                     " mm cannot be met at θ = " + fmt_deg(th) + " (and " +
+                     std::to_string(ck.uncleared_theta_rad.size() - 1) +
+                     " more points): no admissible α in [1, " + text::sig(range.hi) +
+                     ") keeps the cutter location that close to the drill axis; use a thinner rod "
+                     "(--rod-radius), a smaller non-knife angle, a smaller ball, or --no-avoid to "
+                     "report the interference instead");
+  }
+  return path;
+}
+
+}  // namespace ncd::toolpath

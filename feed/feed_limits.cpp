@@ -1,0 +1,210 @@
+// Feed limits along a path (docs/feedrate.md §§1–3). The commanded feed at a point is the
+// smallest of five speeds, each a closed form in the local curvature κ = 1/ρ and the contact
+// inclination α:
+//
+//   roughness  f_t(R, α) z N / 60                 Choi's inverse law (paper 004, eqs. 5, 6)
+//   chord      Δs_max / T,  Δs_max = 2 sqrt(2ρε − ε²)     sagitta of a chord of the osculating
+//              circle ≤ ε (Yeh and Hsu, CAD 2002); for ε ≥ ρ every chord up to the diameter 2ρ
+//              is within ε, so Δs_max = 2ρ there (the formula's value at ε = ρ)
+//   accel      sqrt(a_max / κ)                    centripetal acceleration v² κ ≤ a_max
+//   jerk       (j_max / κ²)^(1/3)                 centripetal jerk v³ κ² ≤ j_max (constant κ)
+//   max feed   F_max / 60
+//
+//          chord Δs
+//      ●━━━━━━━━━━━━━━━━●      ε = ρ − sqrt(ρ² − (Δs/2)²)
+//       ╲ ε  ....      ╱
+//         ╲.       . ╱   arc of radius ρ
+//
+// Under JerkBound::vector (docs/planner.md §3c) also the jerk-vector law: the speed at which the
+// tangential scale σ that keeps |jerk| ≤ j_max falls to kMinTangentialScale, and the jump law
+// 2 v sin(φ/2) / T² + 0.75 v² Δκ / T ≤ kJumpJerkShare j_max at corners and curvature jumps.
+// On a straight line (κ = 0) only roughness and the maximum feed remain. The binding limit is
+// reported with the speed; ties go to the first in enum order, so the report is deterministic.
+#include "feed/feed_limits.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/jerk_vector.hpp"
+#include "core/number_text.hpp"
+
+namespace ncd::interpolator {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+FeedLimitResult with_curvature(const MachineLimits& limits, double roughness_mm_per_s,
+                               double curvature_per_mm) {
+  FeedLimitResult best{roughness_mm_per_s, FeedLimit::Roughness};
+  const auto consider = [&best](double feed_mm_per_s, FeedLimit limit) {
+    if (feed_mm_per_s < best.feed_mm_per_s) best = {feed_mm_per_s, limit};
+  };
+  consider(chord_feed_mm_per_s(curvature_per_mm, limits.chord_tolerance_mm, limits.period_s),
+           FeedLimit::Chord);
+  consider(centripetal_accel_feed_mm_per_s(curvature_per_mm, limits.max_accel_mm_per_s2),
+           FeedLimit::CentripetalAccel);
+  consider(centripetal_jerk_feed_mm_per_s(curvature_per_mm, limits.max_jerk_mm_per_s3),
+           FeedLimit::CentripetalJerk);
+  consider(limits.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed);
+  return best;
+}
+
+}  // namespace
+
+const char* to_string(FeedLimit limit) {
+  switch (limit) {
+    case FeedLimit::Roughness:
+      return "roughness";
+    case FeedLimit::Chord:
+      return "chord";
+    case FeedLimit::CentripetalAccel:
+      return "centripetal_accel";
+    case FeedLimit::CentripetalJerk:
+      return "centripetal_jerk";
+    case FeedLimit::MaxFeed:
+      return "max_feed";
+    case FeedLimit::Program:
+      return "program";
+    case FeedLimit::Corner:
+      return "corner";
+    case FeedLimit::JerkVector:
+      return "jerk_vector";
+  }
+  return "unknown";
+}
+
+const char* to_string(JerkBound bound) {
+  return bound == JerkBound::vector ? "vector" : "tangential";
+}
+
+void validate(const MachineLimits& limits) {
+  using R = MachineLimitRanges;
+  require_positive("period_s", limits.period_s);
+  if (limits.period_s < R::kMinPeriodS || limits.period_s > R::kMaxPeriodS) {
+    throw InputError("period_s = " + text::sig(limits.period_s) + " is outside [" +
+                     text::sig(R::kMinPeriodS) + ", " + text::sig(R::kMaxPeriodS) +
+                     "] s; interpolation periods are typically 0.001 to 0.01 s");
+  }
+  require_positive("max_feed_mm_per_min", limits.max_feed_mm_per_min);
+  require_positive("max_accel_mm_per_s2", limits.max_accel_mm_per_s2);
+  require_positive("max_jerk_mm_per_s3", limits.max_jerk_mm_per_s3);
+  require_positive("chord_tolerance_mm", limits.chord_tolerance_mm);
+  require_positive("feed_tolerance_rel", limits.feed_tolerance_rel);
+  if (!(limits.blend_tolerance_mm >= 0.0 && limits.blend_tolerance_mm <= 10.0)) {
+    throw InputError("blend_tolerance_mm = " + text::sig(limits.blend_tolerance_mm) +
+                     " is outside [0, 10] mm: it is the corner deviation a plain G64 allows "
+                     "(0: sharp corners); 0.01 is the default");
+  }
+  require_positive("stall_timeout_s", limits.stall_timeout_s);
+  if (limits.stall_timeout_s < 10.0 * limits.period_s) {
+    throw InputError("stall_timeout_s = " + text::sig(limits.stall_timeout_s) +
+                     " is shorter than 10 periods (" + text::sig(10.0 * limits.period_s) +
+                     " s): the watchdog would fire at every stop; 2 s is the default");
+  }
+  if (limits.feed_tolerance_rel < R::kMinFeedToleranceRel ||
+      limits.feed_tolerance_rel > R::kMaxFeedToleranceRel) {
+    throw InputError("feed_tolerance_rel = " + text::sig(limits.feed_tolerance_rel) +
+                     " is outside [" + text::sig(R::kMinFeedToleranceRel) + ", " +
+                     text::sig(R::kMaxFeedToleranceRel) +
+                     "]: below it double rounding cannot be corrected, above it the feed is "
+                     "not controlled; 1e-10 is the default");
+  }
+}
+
+double chord_step_mm(double curvature_per_mm, double chord_tolerance_mm) {
+  if (!(curvature_per_mm > 0.0)) return kInf;
+  const double rho = 1.0 / curvature_per_mm;
+  const double eps = chord_tolerance_mm;
+  if (eps >= rho) return 2.0 * rho;
+  return 2.0 * std::sqrt(2.0 * rho * eps - eps * eps);
+}
+
+double chord_feed_mm_per_s(double curvature_per_mm, double chord_tolerance_mm, double period_s) {
+  return chord_step_mm(curvature_per_mm, chord_tolerance_mm) / period_s;
+}
+
+double centripetal_accel_feed_mm_per_s(double curvature_per_mm, double max_accel_mm_per_s2) {
+  if (!(curvature_per_mm > 0.0)) return kInf;
+  return std::sqrt(max_accel_mm_per_s2 / curvature_per_mm);
+}
+
+double centripetal_jerk_feed_mm_per_s(double curvature_per_mm, double max_jerk_mm_per_s3) {
+  if (!(curvature_per_mm > 0.0)) return kInf;
+  return std::cbrt(max_jerk_mm_per_s3 / (curvature_per_mm * curvature_per_mm));
+}
+
+FeedLimitResult feed_limit(const MachineLimits& limits, const CuttingParams& cutting,
+                           double curvature_per_mm, double inclination_rad) {
+  return with_curvature(limits, roughness_feed_mm_per_s(cutting, inclination_rad),
+                        curvature_per_mm);
+}
+
+double tangential_scale(const MachineLimits& limits, double kappa, double g, double v,
+                        double budget) {
+  return ncd::tangential_scale(JerkVectorSpan{kappa, g, budget}, v, limits.max_accel_mm_per_s2,
+                               limits.max_jerk_mm_per_s3);
+}
+
+double jerk_vector_feed_mm_per_s(const MachineLimits& limits, double kappa, double g,
+                                 double budget) {
+  if (!(kappa > 0.0) && !(g > 0.0)) return kInf;
+  // tangential_scale decreases in v: bisection on [0, hi] with hi past the crossing.
+  const double target = kMinTangentialScale * budget;
+  double lo = 0.0, hi = 1.0;
+  while (tangential_scale(limits, kappa, g, hi, budget) >= target && hi < 1e9) {
+    lo = hi;
+    hi *= 2.0;
+  }
+  for (int it = 0; it < 80 && hi - lo > 1e-12 * hi; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (tangential_scale(limits, kappa, g, mid, budget) >= target ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+// 2 v sin(φ/2) / T² + 0.75 v² Δκ / T = q J: the positive root in v.
+double jump_feed_mm_per_s(const MachineLimits& limits, double phi, double dkappa) {
+  const double T = limits.period_s;
+  const double lin = 2.0 * std::sin(0.5 * std::max(phi, 0.0)) / (T * T);
+  const double quad = 0.75 * std::max(dkappa, 0.0) / T;
+  const double rhs = kJumpJerkShare * limits.max_jerk_mm_per_s3;
+  if (!(lin > 0.0) && !(quad > 0.0)) return kInf;
+  if (!(quad > 0.0)) return rhs / lin;
+  return 2.0 * rhs / (lin + std::sqrt(lin * lin + 4.0 * quad * rhs));
+}
+
+double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi, double dkappa, double v) {
+  const double T = limits.period_s;
+  return 2.0 * v * std::sin(0.5 * std::max(phi, 0.0)) / (T * T) +
+         0.75 * v * v * std::max(dkappa, 0.0) / T;
+}
+
+Vec3 curvature_vector_per_mm(const toolpath::CurvePoint& point) {
+  const double speed2 = point.d1.squaredNorm();
+  if (!(speed2 > 0.0)) return Vec3::Zero();
+  return point.d1.cross(point.d2).cross(point.d1) / (speed2 * speed2);
+}
+
+double curvature_per_mm(const toolpath::CurvePoint& point) {
+  const double speed = point.d1.norm();
+  if (!(speed > 0.0)) return kInf;
+  return point.d1.cross(point.d2).norm() / (speed * speed * speed);
+}
+
+FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& cutting,
+                              const toolpath::CurvePoint& point) {
+  return feed_limit(limits, cutting, curvature_per_mm(point),
+                    inclination_from_tangent_rad(point.d1));
+}
+
+FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& cutting,
+                              const toolpath::CurvePoint& point, const Vec3& contact_normal,
+                              const Vec3& tool_axis) {
+  return feed_limit(limits, cutting, curvature_per_mm(point),
+                    inclination_from_normal_rad(contact_normal, point.d1, tool_axis));
+}
+
+}  // namespace ncd::interpolator

@@ -1,0 +1,126 @@
+// The feed limit at one point of a path: the smallest of the roughness law (paper 004), the
+// chord error, the centripetal acceleration and jerk, and the machine's maximum feed
+// (docs/feedrate.md §3), with the name of the limit that binds. Explained in feed_limits.cpp.
+// Pure functions, no allocation: the planner samples them along the path.
+#pragma once
+
+#include <string>
+
+#include "core/geometry.hpp"
+#include "feed/roughness.hpp"
+#include "geometry/curve.hpp"
+
+namespace ncd::interpolator {
+
+// Which limit binds; on a tie the first in this order is reported. Program (the F word of the
+// program) and Corner (a polyline vertex or a joint between segments) are applied by the
+// limit sampler along a path (limit_sampler.hpp), not by feed_limit().
+enum class FeedLimit {
+  Roughness,
+  Chord,
+  CentripetalAccel,
+  CentripetalJerk,
+  MaxFeed,
+  Program,
+  Corner,
+  JerkVector
+};
+inline constexpr int kFeedLimitCount = 8;
+
+// "roughness", "chord", "centripetal_accel", "centripetal_jerk", "max_feed", "program",
+// "corner", "jerk_vector".
+const char* to_string(FeedLimit limit);
+
+// Which jerk the limits bound (docs/planner.md §3c). tangential: |d³s/dt³| ≤ j_max and
+// v³κ² ≤ j_max, each on its own. vector: the jerk vector |d³p/dt³| ≤ j_max on curves and at
+// curvature jumps, and the direction change of the setpoints at a corner passed without a stop.
+enum class JerkBound { tangential, vector };
+const char* to_string(JerkBound bound);  // "tangential", "vector"
+
+// Machine and interpolation limits. Defaults are literature values (docs/feedrate.md §3): a_max in
+// 500–3000 mm/s², j_max in 2e4–6e4 mm/s³, a 1 µm chord tolerance, a 4 ms period.
+struct MachineLimits {
+  double period_s = 0.004;              // T, the interpolation period
+  double max_feed_mm_per_min = 6000.0;  // machine maximum feed (100 mm/s)
+  double max_accel_mm_per_s2 = 1000.0;  // a_max, here for the centripetal part
+  double max_jerk_mm_per_s3 = 2e4;      // j_max, here for the centripetal part
+  double chord_tolerance_mm = 0.001;    // ε_c between the chord of a period and the curve
+  double feed_tolerance_rel = 1e-10;    // |arc travelled − Δs| / Δs the walker corrects to
+  double blend_tolerance_mm = 0.01;     // corner deviation allowed without G64 P
+  double stall_timeout_s = 2.0;         // the cycle's no-progress watchdog (motion/cycle.cpp)
+  JerkBound jerk_bound = JerkBound::tangential;
+};
+
+// Under JerkBound::vector (docs/planner.md §3c): the share of j_max a curvature jump or a
+// corner's direction change may take of the third difference of the setpoints (the rest is
+// left to the motion around it), and the lowest tangential scale a curve may ask of the planner
+// (times its budget, 1 − the share of a jump nearby) before its speed is lowered instead.
+inline constexpr double kJumpJerkShare = 0.5;
+inline constexpr double kMinTangentialScale = 0.3;
+// The lowest tangential scale the sampler ever gives: what the planner sizes its look-ahead for.
+inline constexpr double kTangentialScaleFloor = kMinTangentialScale * (1.0 - kJumpJerkShare);
+
+// Ranges that make MachineLimits valid, shared by validation and its messages.
+struct MachineLimitRanges {
+  static constexpr double kMinPeriodS = 1e-5;
+  static constexpr double kMaxPeriodS = 1.0;
+  static constexpr double kMinFeedToleranceRel = 1e-14;  // below it double rounding dominates
+  static constexpr double kMaxFeedToleranceRel = 1e-2;
+};
+
+// Throws InputError naming the value, the limit and a way out.
+void validate(const MachineLimits& limits);
+
+struct FeedLimitResult {
+  double feed_mm_per_s = 0.0;
+  FeedLimit limit = FeedLimit::MaxFeed;
+};
+
+// Largest step Δs whose chord stays within ε of a circle of curvature κ (Yeh and Hsu), mm;
+// +inf on a straight line, the diameter 2ρ once ε ≥ ρ.
+double chord_step_mm(double curvature_per_mm, double chord_tolerance_mm);
+// Δs_max / T, mm/s.
+double chord_feed_mm_per_s(double curvature_per_mm, double chord_tolerance_mm, double period_s);
+// sqrt(a_max / κ), mm/s; +inf at κ = 0.
+double centripetal_accel_feed_mm_per_s(double curvature_per_mm, double max_accel_mm_per_s2);
+// (j_max / κ²)^(1/3), mm/s; +inf at κ = 0.
+double centripetal_jerk_feed_mm_per_s(double curvature_per_mm, double max_jerk_mm_per_s3);
+
+// The minimum of every limit at a point of curvature κ and contact inclination α. Both structs
+// must have passed validate().
+FeedLimitResult feed_limit(const MachineLimits& limits, const CuttingParams& cutting,
+                           double curvature_per_mm, double inclination_rad);
+
+// Jerk vector bound (docs/planner.md §3c). On a curve of curvature κ whose curvature vector
+// turns at |κ' N + κ τ B| = g (1/mm²), a motion with v ≤ v_max, |a_t| ≤ σ a_max and
+// |j_t| ≤ σ j_max has |jerk| ≤ sqrt((σ J + v³κ²)² + (3 v σ A κ + v³ g)²). The largest σ in
+// [0, 1] that keeps it ≤ budget × j_max at v_max; 0 if none does.
+double tangential_scale(const MachineLimits& limits, double curvature_per_mm,
+                        double curvature_turn_per_mm2, double v_max_mm_per_s,
+                        double budget_fraction = 1.0);
+// The speed at which tangential_scale() reaches kMinTangentialScale × budget (+inf on a line).
+double jerk_vector_feed_mm_per_s(const MachineLimits& limits, double curvature_per_mm,
+                                 double curvature_turn_per_mm2, double budget_fraction = 1.0);
+// A corner passed at speed v without a stop: the velocity turns by φ (a jump of 2 v sin(φ/2))
+// and the acceleration jumps by v² Δκ where the curvature vector jumps by Δκ. The third
+// difference of the setpoints sees at most 2 v sin(φ/2) / T² + 0.75 v² Δκ / T; the largest v
+// that keeps it ≤ kJumpJerkShare j_max (+inf where neither turns).
+double jump_feed_mm_per_s(const MachineLimits& limits, double phi_rad,
+                          double curvature_jump_per_mm);
+// That third difference at speed v: 2 v sin(φ/2) / T² + 0.75 v² Δκ / T, mm/s³.
+double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi_rad,
+                           double curvature_jump_per_mm, double v_mm_per_s);
+
+// Curvature |P' × P''| / |P'|³ of a curve point, 1/mm; +inf where P' = 0 (a cusp: stop).
+double curvature_per_mm(const toolpath::CurvePoint& point);
+// Curvature vector κ N = (P' × P'') × P' / |P'|⁴ (zero where P' = 0).
+Vec3 curvature_vector_per_mm(const toolpath::CurvePoint& point);
+// feed_limit with κ from the point and α = asin(t_z) of its tangent (3-axis ball end).
+FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& cutting,
+                              const toolpath::CurvePoint& point);
+// feed_limit with κ from the point and α from a contact normal (see roughness.hpp).
+FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& cutting,
+                              const toolpath::CurvePoint& point, const Vec3& contact_normal,
+                              const Vec3& tool_axis = Vec3::UnitZ());
+
+}  // namespace ncd::interpolator

@@ -1,0 +1,902 @@
+// Controller dialects (see dialect.hpp and docs/dnc-link.md, "Dialects").
+//
+// The grbl model follows grbl 1.1h's own code path for a received line, without copying it:
+//  1. protocol.c keeps a line's characters except those ≤ ' ' (spaces, control characters),
+//     `/` (block delete, ignored), `(…)` and `;…` comments; lower case is raised; a line that
+//     would keep more than 79 characters (LINE_BUFFER_SIZE 80) is answered error:11. An empty
+//     kept line is answered ok.
+//  2. gcode.c step 2 reads words: a letter A–Z (else error:1) and a number read as read_float
+//     does (sign, digits, one point, at most 8 significant digits; no digit: error:2; a second
+//     point ends the number and is then not a letter: error:1). G and M numbers are split into
+//     an 8-bit integer part and a hundredths mantissa; the G codes G0 G1 G2 G3 G4 G10 G17–G19
+//     G20 G21 G28 G28.1 G30 G30.1 G38.2–G38.5 G40 G43.1 G49 G53 G54–G59 G61 G80 G90 G91 G91.1
+//     G92 G92.1 G93 G94 and the M codes M0 M1 M2 M30 M3 M4 M5 M8 M9 are known (M7 and M56 only
+//     in non-default builds); others error:20, a fraction where none is known error:23, two of
+//     one modal group error:21, two axis commands error:24. The value letters are F I J K L N
+//     P R S T X Y Z (others error:20); T above 255 error:38, a repeat error:25, a negative F N
+//     P S T error:4.
+//  3. gcode.c step 3, in its order: N above 10 000 000 (27), F undefined in G93 (22), G4
+//     without P (28), G43.1 with other than Z (37), G10 without axis words (26), without P and
+//     L (28), with P above 6 (29), with L other than 2 or 20 or L2 with R (20), G92 without axis
+//     words (26), G53 outside G0/G1 (30), axis words in G80 (31), a feed motion without a feed
+//     (22), arcs without axis words (26), none in the plane (32), R arcs to the start point
+//     (33) or too short a radius (34), IJK arcs without an offset in the plane (35) or whose
+//     end is off the circle by more than 0.005 mm and 0.1 % (or 0.5 mm) (33), probes without
+//     axis words (26) or to the start point (33), and finally words left unused (36).
+//  4. The accepted block updates the state as step 4 does (units, distance mode, offsets,
+//     G28.1/G30.1, G92, program end resetting G1 G17 G90 G94 G54 M5 M9) and moves the position.
+// The state is what a run of the program on a freshly reset grbl would have, so a program check
+// and the simulated controller, fed the same lines, give the same verdict on every line.
+#include "gcode/dialect/dialect.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <exception>
+#include <numbers>
+#include <vector>
+
+#include "core/error.hpp"
+#include "gcode/ngc/interpreter.hpp"
+
+namespace ncd::comms {
+
+namespace {
+
+constexpr double kMmPerInch = 25.4;
+constexpr double kGrblMaxLineNumber = 10000000.0;
+constexpr double kGrblMaxTool = 255.0;
+constexpr int kGrblKeptChars = 79;
+
+Violation violation(int column, std::string word, int grbl_error, std::string reason,
+                    std::string way_out) {
+  Violation v;
+  v.column = column;
+  v.word = std::move(word);
+  v.grbl_error = grbl_error;
+  v.reason = std::move(reason);
+  v.way_out = std::move(way_out);
+  return v;
+}
+
+// grbl's read_float: [+-] digits with at most one point, at most 8 significant digits kept
+// (further integer digits scale, further fraction digits are dropped). Advances i past the
+// number; false without a digit.
+bool grbl_read_float(std::string_view s, std::size_t& i, double& value) {
+  std::size_t j = i;
+  bool negative = false;
+  if (j < s.size() && (s[j] == '-' || s[j] == '+')) negative = s[j++] == '-';
+  std::uint32_t intval = 0;
+  int exp = 0, ndigit = 0;
+  bool decimal = false;
+  for (; j < s.size(); ++j) {
+    const char c = s[j];
+    if (c >= '0' && c <= '9') {
+      ++ndigit;
+      if (ndigit <= 8) {
+        if (decimal) --exp;
+        intval = intval * 10U + static_cast<std::uint32_t>(c - '0');
+      } else if (!decimal) {
+        ++exp;
+      }
+    } else if (c == '.' && !decimal) {
+      decimal = true;
+    } else {
+      break;
+    }
+  }
+  if (ndigit == 0) return false;
+  const double v = static_cast<double>(intval) * std::pow(10.0, exp);
+  value = negative ? -v : v;
+  i = j;
+  return true;
+}
+
+struct Kept {
+  std::string text;         // the characters grbl keeps, upper case
+  std::vector<int> column;  // their 1-based columns in the raw line
+  int overflow_column = 0;  // the first character beyond 79, 0 if none
+};
+
+Kept grbl_keep(std::string_view raw) {
+  Kept k;
+  bool paren = false, semicolon = false;
+  for (std::size_t i = 0; i < raw.size(); ++i) {
+    const auto c = static_cast<unsigned char>(raw[i]);
+    const int col = static_cast<int>(i) + 1;
+    if (c == '\n' || c == '\r') break;
+    if (semicolon || k.overflow_column != 0) continue;
+    if (paren) {
+      if (c == ')') paren = false;
+      continue;
+    }
+    if (c <= ' ' || c == '/') continue;
+    if (c == '(') {
+      paren = true;
+    } else if (c == ';') {
+      semicolon = true;
+    } else if (static_cast<int>(k.text.size()) >= kGrblKeptChars) {
+      k.overflow_column = col;
+    } else {
+      k.text += static_cast<char>(std::toupper(c));
+      k.column.push_back(col);
+    }
+  }
+  return k;
+}
+
+int bit(int b) {
+  return 1 << b;
+}
+
+// Modal groups (word_bit of gcode.c) and value words.
+enum Group { kG0, kG1, kG2, kG3, kG4, kG5, kG6, kG7, kG8, kG12, kG13, kM4, kM7, kM8 };
+enum Word { kF, kI, kJ, kK, kL, kN, kP, kR, kS, kT, kX, kY, kZ };
+enum AxisCommand { kNone, kNonModal, kMotion, kToolLength };
+
+double dist3(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+}
+
+}  // namespace
+
+Dialect parse_dialect(std::string_view text) {
+  if (text == "iso") return Dialect::iso;
+  if (text == "grbl") return Dialect::grbl;
+  if (text == "linuxcnc") return Dialect::linuxcnc;
+  throw InputError("dialect '" + std::string(text) +
+                   "' is unknown: use iso (Fanuc drip feed), grbl (grbl 1.1) or linuxcnc "
+                   "(RS-274/NGC)");
+}
+
+const char* to_string(Dialect d) {
+  switch (d) {
+    case Dialect::iso:
+      return "iso";
+    case Dialect::grbl:
+      return "grbl";
+    case Dialect::linuxcnc:
+      return "linuxcnc";
+  }
+  return "?";
+}
+
+const DialectRules& rules(Dialect d) {
+  // Fields: percent, N, EOB, line length, ( ) comments, ; comments, expressions, O-words,
+  // M6, G64, G43 H.
+  static const DialectRules iso{true, true, "\n", 0, true, false, false, false, true, true, true};
+  static const DialectRules grbl{false, false, "\n",  kGrblKeptChars, true, true,
+                                 false, false, false, false,          false};
+  // LinuxCNC reads N numbers but needs none; `%` framing keeps rs274 from warning.
+  static const DialectRules linuxcnc{true, false, "\n", 0,    true, true,
+                                     true, true,  true, true, true};
+  switch (d) {
+    case Dialect::iso:
+      return iso;
+    case Dialect::grbl:
+      return grbl;
+    case Dialect::linuxcnc:
+      return linuxcnc;
+  }
+  return linuxcnc;
+}
+
+std::string describe(const Violation& v, Dialect d) {
+  std::string s;
+  if (v.line > 0) s += "line " + std::to_string(v.line) + ", ";
+  s += "column " + std::to_string(v.column);
+  if (!v.word.empty()) s += ", '" + v.word + "'";
+  s += ": " + v.reason;
+  if (d == Dialect::grbl && v.grbl_error > 0) {
+    s += " (grbl answers error:" + std::to_string(v.grbl_error) + ")";
+  }
+  s += " in the " + std::string(to_string(d)) + " dialect; " + v.way_out;
+  return s;
+}
+
+// ---- grbl ----
+
+std::optional<Violation> check_grbl_line(std::string_view line, GrblState& state, GrblBlock* out) {
+  const Kept k = grbl_keep(line);
+  if (k.overflow_column != 0) {
+    return violation(k.overflow_column,
+                     std::string(1, line[static_cast<std::size_t>(k.overflow_column - 1)]),
+                     kGrblOverflow,
+                     "the line keeps more than grbl's 79 characters (spaces and comments not "
+                     "counted; LINE_BUFFER_SIZE 80)",
+                     "split the block, or drop redundant words and digits");
+  }
+  GrblBlock b;
+  if (k.text.empty()) {
+    if (out) *out = b;
+    return std::nullopt;
+  }
+  if (k.text[0] == '$') {
+    return violation(k.column[0], "$", 3, "a grbl system command ($…) is not a program block",
+                     "send settings and $-commands outside the program");
+  }
+  b.empty = false;
+  const std::string& s = k.text;
+
+  // Step 2: the words.
+  int command_words = 0, value_words = 0, axis_words = 0, ijk_words = 0;
+  AxisCommand axis_command = kNone;
+  GrblState blk = state;  // gc_block.modal, copied from the state
+  int non_modal = -1;     // G code × 10: 40, 100, 280, 281, 300, 301, 530, 920, 921
+  std::array<double, 3> xyz{}, ijk{};
+  double f = 0.0, l = 0.0, n = 0.0, p = 0.0, r = 0.0, sv = 0.0, t = 0.0;
+  int word_col[13] = {};
+  int motion_col = 0;
+  bool g49 = false;
+  int non_modal_col = 0;
+  for (std::size_t i = 0; i < s.size();) {
+    const char letter = s[i];
+    const int col = k.column[i];
+    if (letter < 'A' || letter > 'Z') {
+      return violation(col, std::string(1, letter), kGrblExpectedLetter,
+                       "'" + std::string(1, letter) + "' is not a word letter",
+                       "write words as a letter and a number, e.g. G1 X10.5 (no #, [ ], = or "
+                       "a number with two points)");
+    }
+    std::size_t j = i + 1;
+    double value = 0.0;
+    if (!grbl_read_float(s, j, value)) {
+      return violation(col, s.substr(i, std::min<std::size_t>(j + 1, s.size()) - i), kGrblBadNumber,
+                       std::string("the word ") + letter + " has no number",
+                       "give the letter its number, e.g. " + std::string(1, letter) + "0");
+    }
+    const std::string word = s.substr(i, j - i);
+    i = j;
+    // grbl keeps an 8-bit integer part and the hundredths (uint16) of the fraction.
+    const double tr = std::trunc(value);
+    const int int_value = static_cast<int>(
+        static_cast<std::uint8_t>(static_cast<long long>(std::fmod(tr, 256.0) + 256.0) % 256));
+    int mantissa = static_cast<int>(static_cast<std::uint16_t>(
+        static_cast<long long>(std::llround(100.0 * (value - int_value))) & 0xFFFF));
+    const auto unsupported = [&](const std::string& why) {
+      return violation(col, word, kGrblUnsupported, why,
+                       "grbl 1.1 knows G0 G1 G2 G3 G4 G10 G17-G19 G20 G21 G28 G30 G38.2-G38.5 "
+                       "G40 G43.1 G49 G53 G54-G59 G61 G80 G90 G91 G92 G93 G94, M0 M1 M2 M3 M4 "
+                       "M5 M8 M9 M30 and the words F I J K L N P R S T X Y Z: use the ncd "
+                       "writer's grbl dialect");
+    };
+    if (letter == 'G') {
+      int group = 0;
+      switch (int_value) {
+        case 10:
+        case 28:
+        case 30:
+        case 92:
+          if (mantissa == 0) {
+            if (axis_command != kNone) {
+              return violation(col, word, kGrblAxisConflict,
+                               "two commands that use the axis words in one block",
+                               "put each in its own block");
+            }
+            axis_command = kNonModal;
+          }
+          [[fallthrough]];
+        case 4:
+        case 53:
+          group = kG0;
+          non_modal = int_value * 10;
+          non_modal_col = col;
+          if (int_value == 28 || int_value == 30 || int_value == 92) {
+            if (mantissa != 0 && mantissa != 10) return unsupported(word + " is not a grbl code");
+            non_modal += mantissa / 10;
+            mantissa = 0;
+          }
+          break;
+        case 0:
+        case 1:
+        case 2:
+        case 3:
+        case 38:
+          if (axis_command != kNone) {
+            return violation(col, word, kGrblAxisConflict,
+                             "two commands that use the axis words in one block",
+                             "put each in its own block");
+          }
+          axis_command = kMotion;
+          [[fallthrough]];
+        case 80:
+          group = kG1;
+          blk.motion = int_value * 10;
+          motion_col = col;
+          if (int_value == 38) {
+            if (mantissa != 20 && mantissa != 30 && mantissa != 40 && mantissa != 50) {
+              return unsupported(word + " is not a probe cycle grbl knows (G38.2 to G38.5)");
+            }
+            blk.motion = 380 + mantissa / 10;
+            mantissa = 0;
+          }
+          break;
+        case 17:
+        case 18:
+        case 19:
+          group = kG2;
+          blk.plane = int_value - 17;
+          break;
+        case 90:
+        case 91:
+          if (mantissa == 0) {
+            group = kG3;
+            blk.incremental = int_value == 91;
+          } else {
+            group = kG4;
+            if (mantissa != 10 || int_value == 90) {
+              return unsupported(word + " is not supported (grbl has only G91.1)");
+            }
+            mantissa = 0;
+          }
+          break;
+        case 93:
+        case 94:
+          group = kG5;
+          blk.inverse_time = int_value == 93;
+          break;
+        case 20:
+        case 21:
+          group = kG6;
+          blk.inches = int_value == 20;
+          break;
+        case 40:
+          group = kG7;
+          break;
+        case 43:
+        case 49:
+          group = kG8;
+          if (axis_command != kNone) {
+            return violation(col, word, kGrblAxisConflict,
+                             "a tool length command with another axis command in one block",
+                             "put each in its own block");
+          }
+          axis_command = kToolLength;
+          g49 = int_value == 49;
+          if (int_value == 43 && mantissa != 10) {
+            return unsupported(word + " is not supported: grbl has only G43.1 (dynamic, Z)");
+          }
+          mantissa = 0;
+          break;
+        case 54:
+        case 55:
+        case 56:
+        case 57:
+        case 58:
+        case 59:
+          group = kG12;
+          blk.coord_select = int_value - 54;
+          break;
+        case 61:
+          group = kG13;
+          if (mantissa != 0) return unsupported(word + " is not supported (grbl has only G61)");
+          break;
+        default:
+          return unsupported(word + " is not a G code grbl 1.1 knows");
+      }
+      if (mantissa > 0) {
+        return violation(col, word, kGrblNotInteger, word + " has a fraction grbl does not know",
+                         "use the integer code");
+      }
+      if (command_words & bit(group)) {
+        return violation(col, word, kGrblModalGroup,
+                         word + " is the second code of its modal group in the block",
+                         "give one code per modal group a block");
+      }
+      command_words |= bit(group);
+    } else if (letter == 'M') {
+      if (mantissa > 0) {
+        return violation(col, word, kGrblNotInteger, word + " has a fraction",
+                         "M codes are integers");
+      }
+      int group = 0;
+      switch (int_value) {
+        case 0:
+        case 1:
+        case 2:
+        case 30:
+          group = kM4;
+          b.pause = int_value == 0;
+          b.optional_stop = int_value == 1;
+          b.program_end = int_value == 2 || int_value == 30;
+          break;
+        case 3:
+        case 4:
+        case 5:
+          group = kM7;
+          b.spindle = int_value;
+          break;
+        case 8:
+        case 9:
+          group = kM8;
+          b.flood = int_value == 8;
+          break;
+        default:
+          return unsupported(word + (int_value == 6
+                                         ? " (tool change) is not supported by grbl 1.1"
+                                         : " is not an M code grbl 1.1 knows (default build)"));
+      }
+      if (command_words & bit(group)) {
+        return violation(col, word, kGrblModalGroup,
+                         word + " is the second code of its modal group in the block",
+                         "give one code per modal group a block");
+      }
+      command_words |= bit(group);
+    } else {
+      int w = 0;
+      switch (letter) {
+        case 'F':
+          w = kF, f = value;
+          break;
+        case 'I':
+          w = kI, ijk[0] = value, ijk_words |= 1;
+          break;
+        case 'J':
+          w = kJ, ijk[1] = value, ijk_words |= 2;
+          break;
+        case 'K':
+          w = kK, ijk[2] = value, ijk_words |= 4;
+          break;
+        case 'L':
+          w = kL, l = int_value;
+          break;
+        case 'N':
+          w = kN, n = std::trunc(value);
+          break;
+        case 'P':
+          w = kP, p = value;
+          break;
+        case 'R':
+          w = kR, r = value;
+          break;
+        case 'S':
+          w = kS, sv = value;
+          break;
+        case 'T':
+          w = kT;
+          if (value > kGrblMaxTool) {
+            return violation(col, word, kGrblMaxValue, "tool number above grbl's 255",
+                             "use T0 to T255");
+          }
+          t = int_value;
+          break;
+        case 'X':
+          w = kX, xyz[0] = value, axis_words |= 1;
+          break;
+        case 'Y':
+          w = kY, xyz[1] = value, axis_words |= 2;
+          break;
+        case 'Z':
+          w = kZ, xyz[2] = value, axis_words |= 4;
+          break;
+        default:
+          return unsupported(std::string("the word ") + letter + " is not one grbl 1.1 knows");
+      }
+      if (value_words & bit(w)) {
+        return violation(col, word, kGrblRepeated,
+                         std::string("the word ") + letter + " appears twice in the block",
+                         "give each word once");
+      }
+      if ((bit(w) & (bit(kF) | bit(kN) | bit(kP) | bit(kT) | bit(kS))) && value < 0.0) {
+        return violation(col, word, kGrblNegative, word + " is negative",
+                         "F, N, P, S and T take values of 0 or more");
+      }
+      value_words |= bit(w);
+      word_col[w] = col;
+    }
+  }
+
+  // Step 3: the checks, in grbl's order. Their column is the word concerned, else column 1.
+  const int col1 = k.column[0];
+  // The word (letter and number as kept) that starts at a column.
+  const auto word_at = [&](int col) {
+    const auto it = std::find(k.column.begin(), k.column.end(), col);
+    std::size_t i = static_cast<std::size_t>(it - k.column.begin());
+    std::size_t j = i + 1;
+    double ignored = 0.0;
+    if (i < s.size()) grbl_read_float(s, j, ignored);
+    return i < s.size() ? s.substr(i, j - i) : std::string();
+  };
+  const auto fail = [&](int code, int col, std::string why, std::string way_out) {
+    if (col <= 0) col = col1;
+    return violation(col, word_at(col), code, std::move(why), std::move(way_out));
+  };
+  if (axis_words && axis_command == kNone) axis_command = kMotion;
+  if ((value_words & bit(kN)) && n > kGrblMaxLineNumber) {
+    return fail(kGrblLineNumber, word_col[kN], "N is above grbl's 10000000",
+                "number the blocks from 0 to 10000000, or leave N out");
+  }
+  if (blk.inverse_time) {
+    if (axis_command == kMotion && blk.motion != 800 && blk.motion != 0 &&
+        !(value_words & bit(kF))) {
+      return fail(kGrblUndefinedFeed, motion_col, "a G93 (inverse time) motion without F",
+                  "give F on every G93 motion");
+    }
+  } else if (!state.inverse_time) {
+    if (value_words & bit(kF)) {
+      if (blk.inches) f *= kMmPerInch;
+    } else {
+      f = state.feed;
+    }
+  }
+  if (!(value_words & bit(kS))) sv = state.spindle_rpm;
+  if (non_modal == 40) {
+    if (!(value_words & bit(kP))) {
+      return fail(kGrblValueMissing, non_modal_col, "G4 without P, the dwell in seconds",
+                  "write G4 P0.5");
+    }
+    value_words &= ~bit(kP);
+  }
+  const int a0 = blk.plane == 0 ? 0 : blk.plane == 1 ? 2 : 1;
+  const int a1 = blk.plane == 0 ? 1 : blk.plane == 1 ? 0 : 2;
+  const int alin = blk.plane == 0 ? 2 : blk.plane == 1 ? 1 : 0;
+  if (blk.inches) {
+    for (int q = 0; q < 3; ++q) {
+      if (axis_words & (1 << q)) xyz[static_cast<std::size_t>(q)] *= kMmPerInch;
+    }
+  }
+  bool set_tlo = false;
+  double tlo = state.tool_length_mm;
+  if (axis_command == kToolLength) {
+    if (!g49 && axis_words != 4) {
+      return fail(kGrblG43Axis, 0, "G43.1 needs a Z word and no other axis word",
+                  "write G43.1 Z<length>");
+    }
+    set_tlo = true;
+    tlo = g49 ? 0.0 : xyz[2];
+  }
+  std::array<double, 3> block_cs = state.coord_system[static_cast<std::size_t>(blk.coord_select)];
+  std::array<double, 3> home{};
+  std::optional<std::pair<int, std::array<double, 3>>> set_cs;
+  std::optional<std::array<double, 3>> set_g92;
+  std::array<double, 3> target = state.position;
+  if (non_modal == 100) {
+    if (!axis_words)
+      return fail(kGrblNoAxisWords, non_modal_col, "G10 without axis words", "give X, Y or Z");
+    if (!(value_words & (bit(kP) | bit(kL)))) {
+      return fail(kGrblValueMissing, non_modal_col, "G10 without P and L",
+                  "write G10 L2 P1 X… or G10 L20");
+    }
+    const double pv = std::trunc(p);
+    if (pv > 6.0) {
+      return fail(kGrblCoordSystem, word_col[kP], "G10 P above 6 (grbl has G54 to G59)",
+                  "use P0 to P6");
+    }
+    if (l != 20.0) {
+      if (l != 2.0 || (value_words & bit(kR))) {
+        return fail(kGrblUnsupported, word_col[kL],
+                    l == 2.0 ? "G10 L2 with R (rotation) is not supported"
+                             : "G10 with an L other than 2 or 20",
+                    "use G10 L2 or G10 L20 without R");
+      }
+    }
+    value_words &= ~(bit(kL) | bit(kP));
+    const int idx = pv > 0.0 ? static_cast<int>(pv) - 1 : blk.coord_select;
+    std::array<double, 3> data = state.coord_system[static_cast<std::size_t>(idx)];
+    for (std::size_t q = 0; q < 3; ++q) {
+      if (!(axis_words & (1 << q))) continue;
+      data[q] = l == 20.0 ? state.position[q] - state.g92[q] - xyz[q] -
+                                (q == 2 ? state.tool_length_mm : 0.0)
+                          : xyz[q];
+    }
+    set_cs = std::make_pair(idx, data);
+  } else if (non_modal == 920) {
+    if (!axis_words)
+      return fail(kGrblNoAxisWords, non_modal_col, "G92 without axis words", "give X, Y or Z");
+    std::array<double, 3> off{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      off[q] = (axis_words & (1 << q)) ? state.position[q] - block_cs[q] - xyz[q] -
+                                             (q == 2 ? state.tool_length_mm : 0.0)
+                                       : state.g92[q];
+    }
+    set_g92 = off;
+  } else {
+    if (axis_command != kToolLength && axis_words) {
+      for (std::size_t q = 0; q < 3; ++q) {
+        if (!(axis_words & (1 << q))) {
+          target[q] = state.position[q];
+        } else if (non_modal == 530) {
+          target[q] = xyz[q];
+        } else if (!blk.incremental) {
+          target[q] = xyz[q] + block_cs[q] + state.g92[q] + (q == 2 ? state.tool_length_mm : 0.0);
+        } else {
+          target[q] = xyz[q] + state.position[q];
+        }
+      }
+    }
+    if (non_modal == 280 || non_modal == 300) {
+      home = non_modal == 280 ? state.g28 : state.g30;
+      if (!axis_words) axis_command = kNone;
+    } else if (non_modal == 530) {
+      if (blk.motion != 0 && blk.motion != 10) {
+        return fail(kGrblG53Motion, non_modal_col, "G53 outside G0 or G1", "use G53 with G0 or G1");
+      }
+    }
+  }
+  std::array<double, 3> center{};
+  if (blk.motion == 800) {
+    if (axis_words) {
+      return fail(kGrblAxisWordsExist, 0, "axis words with G80 (no motion mode) active",
+                  "give G0 or G1 before the axis words");
+    }
+  } else if (axis_command == kMotion) {
+    if (blk.motion == 0) {
+      if (!axis_words) axis_command = kNone;
+    } else {
+      if (f == 0.0) {
+        return fail(kGrblUndefinedFeed, motion_col, "a feed motion without a feed rate",
+                    "give F (mm/min) on or before the first G1, G2 or G3");
+      }
+      if (blk.motion == 10) {
+        if (!axis_words) axis_command = kNone;
+      } else if (blk.motion == 20 || blk.motion == 30) {
+        if (!axis_words)
+          return fail(kGrblNoAxisWords, motion_col, "an arc without axis words",
+                      "give its end point");
+        if (!(axis_words & ((1 << a0) | (1 << a1)))) {
+          return fail(kGrblNoAxisInPlane, motion_col, "an arc without an axis word in its plane",
+                      "give the end point in the plane (G17: X Y)");
+        }
+        const auto ua0 = static_cast<std::size_t>(a0), ua1 = static_cast<std::size_t>(a1);
+        const double x = target[ua0] - state.position[ua0];
+        const double y = target[ua1] - state.position[ua1];
+        double ci = 0.0, cj = 0.0;
+        if (value_words & bit(kR)) {
+          value_words &= ~bit(kR);
+          if (target == state.position) {
+            return fail(kGrblInvalidTarget, word_col[kR], "an R arc ending where it starts",
+                        "program a full circle with I J K");
+          }
+          double rr = blk.inches ? r * kMmPerInch : r;
+          double h = 4.0 * rr * rr - x * x - y * y;
+          if (h < 0.0) {
+            return fail(kGrblArcRadius, word_col[kR],
+                        "the arc's radius is shorter than half its chord",
+                        "check R against the end point");
+          }
+          h = -std::sqrt(h) / std::hypot(x, y);
+          if (blk.motion == 30) h = -h;
+          if (rr < 0.0) h = -h;
+          ci = 0.5 * (x - y * h);
+          cj = 0.5 * (y + x * h);
+        } else {
+          if (!(ijk_words & ((1 << a0) | (1 << a1)))) {
+            return fail(kGrblNoOffsetsInPlane, motion_col,
+                        "an arc without a centre offset in its plane",
+                        "give I J (G17), I K (G18) or J K (G19), or R");
+          }
+          value_words &= ~(bit(kI) | bit(kJ) | bit(kK));
+          if (blk.inches) {
+            for (auto& v : ijk) v *= kMmPerInch;
+          }
+          ci = ijk[ua0];
+          cj = ijk[ua1];
+          const double target_r = std::hypot(x - ci, y - cj);
+          const double radius = std::hypot(ci, cj);
+          const double dr = std::fabs(target_r - radius);
+          if (dr > 0.005 && (dr > 0.5 || dr > 0.001 * radius)) {
+            return fail(kGrblInvalidTarget, motion_col,
+                        "the arc's end is not on its circle (off by " + std::to_string(dr) + " mm)",
+                        "check I J K against the end point");
+          }
+        }
+        center = state.position;
+        center[ua0] += ci;
+        center[ua1] += cj;
+      } else {  // probes
+        if (!axis_words)
+          return fail(kGrblNoAxisWords, motion_col, "a probe without axis words",
+                      "give its end point");
+        if (target == state.position) {
+          return fail(kGrblInvalidTarget, motion_col, "a probe to where the tool stands",
+                      "give a probe target away from the tool");
+        }
+      }
+    }
+  }
+  value_words &= ~(bit(kN) | bit(kF) | bit(kS) | bit(kT));
+  if (axis_command != kNone) value_words &= ~(bit(kX) | bit(kY) | bit(kZ));
+  if (value_words) {
+    int w = 0;
+    while (!(value_words & bit(w))) ++w;
+    static constexpr char kLetters[] = "FIJKLNPRSTXYZ";
+    return violation(
+        word_col[w], std::string(1, kLetters[w]), kGrblUnusedWords,
+        std::string("the word ") + kLetters[w] + " is not used by any command of the block",
+        "remove it (grbl takes P only with G4 and G10, R and I J K only with arcs)");
+  }
+
+  // Step 4: the block takes effect.
+  GrblState next = blk;
+  next.feed = f;
+  next.spindle_rpm = sv;
+  if (word_col[kS] > 0) b.spindle_rpm = sv;
+  if (word_col[kN] > 0) b.n = static_cast<long>(n);
+  if (word_col[kT] > 0) {
+    next.tool = static_cast<int>(t);
+    b.tool = next.tool;
+  }
+  if (b.spindle) next.spindle = *b.spindle;
+  if (b.flood) next.flood = *b.flood;
+  if (non_modal == 40) b.dwell_s = p;
+  if (set_tlo) next.tool_length_mm = tlo;
+  if (set_cs) {
+    next.coord_system[static_cast<std::size_t>(set_cs->first)] = set_cs->second;
+  }
+  if (non_modal == 281) next.g28 = state.position;
+  if (non_modal == 301) next.g30 = state.position;
+  if (set_g92) next.g92 = *set_g92;
+  if (non_modal == 921) next.g92 = {0.0, 0.0, 0.0};
+  // The motion.
+  const std::array<double, 3> from = state.position;
+  if (non_modal == 280 || non_modal == 300) {
+    b.motion = non_modal;
+    b.rapid = true;
+    b.to = home;
+    b.path_mm = axis_words ? dist3(from, target) + dist3(target, home) : dist3(from, home);
+    next.position = home;
+  } else if (axis_command == kMotion) {
+    b.motion = blk.motion;
+    b.rapid = blk.motion == 0;
+    b.to = target;
+    if (blk.motion == 20 || blk.motion == 30) {
+      const auto ua0 = static_cast<std::size_t>(a0), ua1 = static_cast<std::size_t>(a1);
+      const auto ul = static_cast<std::size_t>(alin);
+      const double sx = from[ua0] - center[ua0], sy = from[ua1] - center[ua1];
+      const double ex = target[ua0] - center[ua0], ey = target[ua1] - center[ua1];
+      double angle = std::atan2(sx * ey - sy * ex, sx * ex + sy * ey);  // CCW positive
+      if (blk.motion == 20) {
+        if (angle >= -1e-9) angle -= 2.0 * std::numbers::pi;
+      } else if (angle <= 1e-9) {
+        angle += 2.0 * std::numbers::pi;
+      }
+      b.path_mm = std::hypot(std::fabs(angle) * std::hypot(sx, sy), target[ul] - from[ul]);
+      // An R arc whose end differs from its start only along the linear axis divides by a
+      // zero chord; grbl's float arithmetic is then undefined. Time it as a straight move.
+      if (!std::isfinite(b.path_mm)) b.path_mm = dist3(from, target);
+    } else {
+      b.path_mm = dist3(from, target);
+    }
+    if (!b.rapid) {
+      if (blk.inverse_time) {
+        b.inverse_time_min = 1.0 / f;
+      } else {
+        b.feed_mm_per_min = f;
+      }
+    }
+    next.position = target;
+  }
+  if (b.program_end) {
+    next.motion = 10;
+    next.plane = 0;
+    next.incremental = false;
+    next.inverse_time = false;
+    next.coord_select = 0;
+    next.spindle = 5;
+    next.flood = false;
+  }
+  state = next;
+  if (out) *out = b;
+  return std::nullopt;
+}
+
+// ---- iso and linuxcnc ----
+
+namespace {
+
+std::optional<Violation> check_iso_line(std::string_view raw) {
+  std::string_view line = raw;
+  while (!line.empty() && (line.back() == '\r' || line.back() == '\n')) line.remove_suffix(1);
+  std::size_t first = line.find_first_not_of(" \t");
+  if (first == std::string_view::npos || line.substr(first) == "%") return std::nullopt;
+  for (std::size_t i = 0; i < line.size();) {
+    const char c = line[i];
+    const int col = static_cast<int>(i) + 1;
+    if (c == ' ' || c == '\t') {
+      ++i;
+    } else if (c == '(') {
+      const auto close = line.find(')', i);
+      if (close == std::string_view::npos) {
+        return violation(col, "(", 0, "a comment without its ')'", "close the comment");
+      }
+      i = close + 1;
+    } else if (c == '/' && i == first) {
+      ++i;  // block delete
+    } else if (std::isalpha(static_cast<unsigned char>(c))) {
+      std::size_t j = i + 1;
+      while (j < line.size() && (line[j] == ' ' || line[j] == '\t')) ++j;
+      if (j < line.size() && (line[j] == '+' || line[j] == '-')) ++j;
+      int digits = 0, points = 0;
+      while (j < line.size() &&
+             (std::isdigit(static_cast<unsigned char>(line[j])) || line[j] == '.')) {
+        if (line[j] == '.') {
+          ++points;
+        } else {
+          ++digits;
+        }
+        ++j;
+      }
+      const std::string word(line.substr(i, j - i));
+      if (digits == 0 || points > 1) {
+        return violation(col, word, 0,
+                         points > 1 ? "a number with two points" : "an address without a number",
+                         "write each word as a letter and one number, e.g. X10.5");
+      }
+      i = j;
+    } else {
+      const char* why = c == '#' || c == '[' || c == ']' || c == '='
+                            ? "variables and expressions (Custom Macro B) are not in the ISO "
+                              "drip-feed common set"
+                        : c == ';' ? "';' is how a listing shows the end of block; ISO code ends "
+                                     "a block with LF"
+                                   : "a character that is not an address, a number or a comment";
+      return violation(col, std::string(1, c), 0, why,
+                       "write the program with plain words (the ncd writer's iso dialect)");
+    }
+  }
+  return std::nullopt;
+}
+
+std::optional<Violation> check_serial_chars(std::string_view line) {
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const auto c = static_cast<unsigned char>(line[i]);
+    if ((c < ' ' && c != '\t' && c != '\r') || c >= 0x7F) {
+      return violation(static_cast<int>(i) + 1, "", 0,
+                       "a control or non-ASCII character (code " + std::to_string(c) + ")",
+                       "remove it; the link carries printable ASCII");
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<Violation> check_line(Dialect d, std::string_view line, DialectState& state) {
+  switch (d) {
+    case Dialect::grbl:
+      return check_grbl_line(line, state.grbl);
+    case Dialect::iso:
+      if (auto v = check_serial_chars(line)) return v;
+      return check_iso_line(line);
+    case Dialect::linuxcnc:
+      return check_serial_chars(line);
+  }
+  return std::nullopt;
+}
+
+std::optional<Violation> check_program(Dialect d, std::string_view text) {
+  DialectState state;
+  long number = 0;
+  std::size_t pos = 0;
+  while (pos < text.size()) {
+    std::size_t end = text.find_first_of("\r\n", pos);
+    if (end == std::string_view::npos) end = text.size();
+    const std::string_view line = text.substr(pos, end - pos);
+    ++number;
+    if (auto v = check_line(d, line, state)) {
+      v->line = number;
+      return v;
+    }
+    pos = end;
+    if (pos < text.size() && text[pos] == '\r') {
+      ++pos;
+      if (pos < text.size() && text[pos] == '\n') ++pos;
+    } else if (pos < text.size()) {
+      ++pos;
+    }
+  }
+  if (d == Dialect::linuxcnc) {
+    try {
+      (void)toolpath::interpret_ngc(std::string(text), "program");
+    } catch (const std::exception& e) {
+      Violation v;
+      v.reason = e.what();
+      v.way_out = "correct the program until `ncd check` accepts it";
+      return v;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace ncd::comms

@@ -1,0 +1,728 @@
+// The RS-274/NGC interpreter: the execution of a block in LinuxCNC's order. The reading and
+// execution order is in interpreter.cpp.
+#include "gcode/ngc/interp.hpp"
+
+namespace ncd::toolpath::ngc {
+
+double Interpreter::k() const {
+  return mm_per_unit(units_);
+}
+
+Vec3 Interpreter::g5x() const {
+  const int base = 5201 + 20 * coord_sys_;
+  return Vec3(param_len(base), param_len(base + 1), param_len(base + 2));
+}
+
+Vec3 Interpreter::total_offset() const {
+  return g5x() + g92_ + tool_offset_;
+}
+
+void Interpreter::check_block(const Block& b) {
+  std::array<int, 16> gg;
+  gg.fill(-1);
+  for (int n = 0; n < b.ng; ++n) {
+    const int c = b.g[static_cast<std::size_t>(n)];
+    const int grp = g_group(c);
+    if (grp < 0) fail(g_name(c) + " is not supported (unknown, or a lathe/remap code); remove it");
+    const std::string r = g_refusal(c);
+    if (!r.empty()) fail(r);
+    auto& slot = gg[static_cast<std::size_t>(grp)];
+    if (slot >= 0 && grp != 0) {
+      fail(g_name(slot) + " and " + g_name(c) + " are in the same modal group; keep one");
+    }
+    if (grp == 0 && slot >= 0 && !(slot == 530 || c == 530)) {
+      fail(g_name(slot) + " and " + g_name(c) + " are both non-modal codes; put them on two lines");
+    }
+    if (grp == 0 && c == 530) continue;
+    slot = c;
+  }
+  std::array<int, 11> mg;
+  mg.fill(-1);
+  for (int n = 0; n < b.nm; ++n) {
+    const int c = b.m[static_cast<std::size_t>(n)];
+    const int grp = m_group(c);
+    if (grp < 0) fail("M" + std::to_string(c) + " is not supported (unknown M code); remove it");
+    if (grp >= 9 || c == 19 || c == 61) fail(m_refusal(c));
+    auto& slot = mg[static_cast<std::size_t>(grp)];
+    if (slot >= 0) {
+      fail("M" + std::to_string(slot) + " and M" + std::to_string(c) +
+           " are in the same modal group; keep one");
+    }
+    slot = c;
+  }
+  for (const char c : {'a', 'b', 'c', 'u', 'v', 'w'}) {
+    if (b.has(c) && b.v(c) != 0.0) {
+      fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) +
+           ": axes other than X, Y, Z are not supported; ncd drives three axes: remove the word");
+    }
+  }
+  if (b.has('e')) fail("E word is not supported (it belongs to G76/M66); remove it");
+  if (b.has('d') && !b.has_g(410) && !b.has_g(420) && !b.has_g(411) && !b.has_g(421)) {
+    fail("D" + text::sig(b.v('d')) +
+         " without G41/G42 (D is the cutter compensation tool or diameter); remove it or add "
+         "G41/G42");
+  }
+}
+
+// A word no code on the line (or the modal motion) reads is an error, as in LinuxCNC.
+void Interpreter::check_words_used(const Block& b, int motion_word, int nonmodal) const {
+  const bool axes = b.has('x') || b.has('y') || b.has('z');
+  const int mm = motion_word >= 0 ? motion_word : (axes && nonmodal < 0 ? motion_mode_ : -1);
+  const bool arc = mm == 20 || mm == 30;
+  const bool cyc = mm == 730 || mm == 810 || mm == 820 || mm == 830 || mm == 850 || mm == 890;
+  const bool nurbs = mm == 52;
+  const bool g64 = b.has_g(640);
+  const auto need = [&](char c, bool ok, const char* users) {
+    if (b.has(c) && !ok) {
+      fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) +
+           " with no code that uses it (" + users + "); remove it");
+    }
+  };
+  need('i', arc, "G2/G3");
+  need('j', arc, "G2/G3");
+  need('k', arc, "G2/G3");
+  need('r', arc || cyc || nonmodal == 100, "G2/G3 R, canned cycles, G10");
+  need('p', arc || cyc || nurbs || g64 || nonmodal == 40 || nonmodal == 100,
+       "G4, G10, G64, G82, G89, G2/G3 turns, G5.2 weights");
+  need('q', g64 || mm == 730 || mm == 830, "G64, G73, G83");
+  need('l', cyc || nurbs || nonmodal == 100 || b.has_g(411) || b.has_g(421),
+       "G10, canned cycles, G5.2, G41.1/G42.1");
+}
+
+double Interpreter::len_word(const Block& b, char c) const {
+  const double v = b.v(c) * k();
+  if (std::abs(v) > kMaxCoordMm) {
+    fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) + " is beyond ±" +
+         text::sig(kMaxCoordMm) + " mm; check the number");
+  }
+  return v;
+}
+
+// While a compensated move waits (docs/ngc-interpreter.md, "Cutter radius compensation"),
+// events wait behind it, as LinuxCNC queues them; messages go out at once, as in LinuxCNC.
+void Interpreter::emit(Event e) {
+  const bool message = std::holds_alternative<MessageEvent>(e);
+  Step st;
+  st.item = std::move(e);
+  st.src = src();
+  if (comp_.pending() && !message) {
+    comp_.event(std::move(st));
+  } else {
+    program_.steps.push_back(std::move(st));
+  }
+}
+
+// LinuxCNC refuses these while compensation is on (G41/G42 even with a radius of 0).
+void Interpreter::refuse_with_comp(const std::string& what) const {
+  if (comp_.on()) {
+    fail("cannot " + what +
+         " with cutter radius compensation on (LinuxCNC refuses it too); turn it off with G40 "
+         "first");
+  }
+}
+
+SourceRef Interpreter::src() const {
+  return SourceRef{static_cast<int>(cur_file_), static_cast<int>(cur_line_ + 1)};
+}
+
+void Interpreter::emit_motion(Motion&& m) {
+  m.src = src();
+  if (start_override_mm_) {  // the first move after G40 starts where the tool stands
+    m.start = *start_override_mm_ / k();
+    start_override_mm_.reset();
+  }
+  Step st;
+  st.src = m.src;
+  st.item = std::move(m);
+  program_.steps.push_back(std::move(st));
+}
+
+Motion Interpreter::base_motion(bool rapid) const {
+  Motion m;
+  const double kk = k();
+  m.start = pos_ / kk;
+  m.units = units_;
+  m.rapid = rapid;
+  m.feed_mode = feed_mode_;
+  m.feed = rapid ? 0.0 : feed_;
+  m.spindle = spindle_;
+  m.spindle_rpm = speed_;
+  m.tool = tool_;
+  m.offset = total_offset() / kk;
+  m.start_known = known_[0] && known_[1] && known_[2];
+  for (std::size_t a = 0; a < 3; ++a) m.end_known[a] = known_[a] || pending_known_[a];
+  return m;
+}
+
+// Axes programmed by the move just emitted are known from now on (its own start was not).
+void Interpreter::settle_known() {
+  for (std::size_t a = 0; a < 3; ++a) {
+    known_[a] = known_[a] || pending_known_[a];
+    pending_known_[a] = false;
+  }
+}
+
+void Interpreter::line_to(const Vec3& end_mm, bool rapid) {
+  if (comp_.offsetting()) {
+    Motion m = base_motion(rapid);
+    m.src = src();
+    comp_call([&] { comp_.line(end_mm, m); });
+    pos_ = comp_.tool();
+    settle_known();
+    return;
+  }
+  Motion m = base_motion(rapid);
+  m.geometry = LineMove{end_mm / k()};
+  emit_motion(std::move(m));
+  pos_ = end_mm;
+  settle_known();
+}
+
+void Interpreter::execute_block(Block& b) {
+  check_block(b);
+  const auto group_code = [&](int grp) {
+    for (int n = 0; n < b.ng; ++n) {
+      if (g_group(b.g[static_cast<std::size_t>(n)]) == grp &&
+          b.g[static_cast<std::size_t>(n)] != 530)
+        return b.g[static_cast<std::size_t>(n)];
+    }
+    return -1;
+  };
+  const int motion_word = group_code(1);
+  const int nonmodal = group_code(0);
+  if (nurbs_open_) {
+    nurbs_line(b, motion_word);
+    return;
+  }
+  check_words_used(b, motion_word, nonmodal);
+  // 1. message
+  if (b.has_message) emit(MessageEvent{b.message});
+  // 2. feed mode
+  if (b.has_g(930)) {
+    if (comp_.on())
+      fail(
+          "G93 (inverse time) with cutter radius compensation on is not supported: LinuxCNC "
+          "times the compensated moves by the programmed lengths; use G94");
+    feed_mode_ = FeedMode::inverse_time;
+  }
+  if (b.has_g(940)) {
+    feed_mode_ = FeedMode::per_minute;
+    feed_ = 0.0;
+  }
+  // 3. F
+  if (b.has('f')) {
+    const double f = b.v('f');
+    if (f < 0.0) fail("negative feed F" + text::sig(f) + "; F must be positive");
+    const double f_mm = feed_mode_ == FeedMode::per_minute ? f * k() : f;
+    if (f != 0.0 && (f_mm < kMinFeedMmPerMin || f_mm > kMaxFeedMmPerMin)) {
+      fail("feed F" + text::sig(f) + " is outside " + text::sig(kMinFeedMmPerMin) + " to " +
+           text::sig(kMaxFeedMmPerMin) +
+           (feed_mode_ == FeedMode::per_minute ? " mm/min" : " 1/min") +
+           "; check the number and the units (G20/G21)");
+    }
+    feed_ = f;
+  }
+  // 4. S
+  bool spindle_changed = false;
+  if (b.has('s')) {
+    double s = b.v('s');
+    if (s < 0.0) fail("negative spindle speed S" + text::sig(s) + "; S must be 0 or more");
+    if (s > kMaxSpindleRpm)
+      fail("spindle speed S" + text::sig(s) + " is above " + text::sig(kMaxSpindleRpm) + " rpm");
+    s = s + 0.0;  // S-0 is 0
+    if (s != speed_) spindle_changed = spindle_ != SpindleDir::off;
+    speed_ = s;
+  }
+  // 5. T
+  if (b.has('t')) {
+    const double t = b.v('t');
+    if (t < 0 || t != std::floor(t) || t > 99999)
+      fail("tool number T" + text::sig(t) + " must be a whole number ≥ 0");
+    const int tn = static_cast<int>(t);
+    if (tn != 0 && !tools_.count(tn)) {
+      fail("tool T" + std::to_string(tn) + " is not in the tool table" +
+           (opt_.tool_table.empty() ? std::string(" (none given)") : " " + opt_.tool_table) +
+           "; add it to the tool table ([program] tool_table)");
+    }
+    selected_tool_ = tn;
+  }
+  // 6. M6
+  if (b.has_m(6)) {
+    refuse_with_comp("change tools (M6)");
+    if (selected_tool_ < 0) fail("M6 without a T word before it; select the tool with T");
+    if (spindle_ != SpindleDir::off) {
+      spindle_ = SpindleDir::off;
+      emit(SpindleEvent{SpindleDir::off, speed_});
+      spindle_changed = false;
+    }
+    tool_ = selected_tool_;
+    const auto it = tools_.find(tool_);
+    const double length = it == tools_.end() ? 0.0 : it->second.z * machine_k_ / k();
+    emit(ToolChangeEvent{tool_, length});
+  }
+  // 7. spindle
+  if (b.has_m(3) || b.has_m(4) || b.has_m(5)) {
+    const SpindleDir d = b.has_m(3)   ? SpindleDir::cw
+                         : b.has_m(4) ? SpindleDir::ccw
+                                      : SpindleDir::off;
+    if (d != spindle_) spindle_changed = true;
+    spindle_ = d;
+  }
+  if (spindle_changed) emit(SpindleEvent{spindle_, speed_});
+  // 8. coolant
+  if (b.has_m(7) || b.has_m(8) || b.has_m(9)) {
+    if (b.has_m(9)) mist_ = flood_ = false;
+    if (b.has_m(7)) mist_ = true;
+    if (b.has_m(8)) flood_ = true;
+    emit(CoolantEvent{mist_, flood_});
+  }
+  // 10. dwell
+  if (nonmodal == 40) {
+    if (!b.has('p')) fail("G4 without P; give the dwell time in seconds, P0.5");
+    const double p = b.v('p');
+    if (p < 0.0 || p > kMaxDwellS)
+      fail("dwell G4 P" + text::sig(p) + " must be from 0 to " + text::sig(kMaxDwellS) + " s");
+    emit(DwellEvent{p});
+  }
+  // 11. plane
+  if ((b.has_g(170) && plane_ != Plane::xy) || (b.has_g(180) && plane_ != Plane::xz) ||
+      b.has_g(190)) {
+    refuse_with_comp("change the plane (or use G19)");
+  }
+  if (b.has_g(170)) plane_ = Plane::xy;
+  if (b.has_g(180)) plane_ = Plane::xz;
+  if (b.has_g(190)) plane_ = Plane::yz;
+  // 12. units
+  if (b.has_g(200) || b.has_g(210)) {
+    const Units u = b.has_g(200) ? Units::inch : Units::mm;
+    if (u != units_) refuse_with_comp("change units");
+    if (u != units_) {
+      units_ = u;
+      emit(UnitsEvent{u});
+    }
+  }
+  // 13. cutter radius compensation
+  if (const int cc = group_code(7); cc >= 0) cutter_comp(b, cc);
+  // 14. tool length offset
+  if (b.has_g(430) || b.has_g(431) || b.has_g(490)) {
+    refuse_with_comp("change the tool length offset");
+    Vec3 off(0, 0, 0);
+    int h = -1;
+    if (b.has_g(430)) {
+      h = tool_;
+      if (b.has('h')) {
+        const double hv = b.v('h');
+        if (hv < 0 || hv != std::floor(hv))
+          fail("G43 H" + text::sig(hv) + ": H must be a tool number");
+        h = static_cast<int>(hv);
+      }
+      if (h != 0) {
+        const auto it = tools_.find(h);
+        if (it == tools_.end())
+          fail("G43 H" + std::to_string(h) + ": tool " + std::to_string(h) +
+               " is not in the tool table; add it");
+        off.z() = it->second.z * machine_k_;
+      }
+    } else if (b.has_g(431)) {
+      if (b.has('z')) off.z() = len_word(b, 'z');
+      if (b.has('x')) off.x() = len_word(b, 'x');
+      if (b.has('y')) off.y() = len_word(b, 'y');
+    }
+    // With M6 on the same line LinuxCNC re-reads the position after the change, before the
+    // offset shifts it: the program position stays (rs274 shows it so).
+    if (!b.has_m(6)) pos_ += tool_offset_ - off;
+    tool_offset_ = off;
+    emit(ToolOffsetEvent{off / k(), units_, h});
+  } else if (b.has('h')) {
+    fail("H word without G43; write G43 H" + text::sig(b.v('h')));
+  }
+  // 15. coordinate system
+  if (const int cs = group_code(12); cs >= 0) {
+    refuse_with_comp("change the coordinate system");
+    const int n = cs < 590 ? (cs - 540) / 10 + 1 : 6 + (cs - 590);
+    const Vec3 old = g5x();
+    coord_sys_ = n;
+    params_[5220] = n;
+    pos_ += old - g5x();
+  }
+  // 16. path control
+  if (const int pc = group_code(13); pc >= 0) {
+    refuse_with_comp("change the path control mode");
+    PathControlEvent e;
+    e.mode = pc == 610   ? PathControl::exact_path
+             : pc == 611 ? PathControl::exact_stop
+                         : PathControl::blend;
+    if (pc == 640) {
+      if (b.has('p')) {
+        if (b.v('p') < 0.0)
+          fail("G64 P" + text::sig(b.v('p')) +
+               ": the blend tolerance must be 0 or more (LinuxCNC would take it as 0); write P0 "
+               "or a positive tolerance");
+        e.p = b.v('p');
+      }
+      if (b.has('q')) {
+        if (b.v('q') < 0.0)
+          fail("G64 Q" + text::sig(b.v('q')) +
+               ": the naive-CAM tolerance must be 0 or more; write Q0 or a positive tolerance");
+        if (!b.has('p')) fail("G64 Q without P; give P as well");
+        e.q = b.v('q');
+      }
+    }
+    e.units = units_;
+    control_ = e;
+    emit(e);
+  }
+  // 17. distance modes
+  if (b.has_g(900)) incremental_ = false;
+  if (b.has_g(910)) incremental_ = true;
+  if (b.has_g(901)) ijk_absolute_ = true;
+  if (b.has_g(911)) ijk_absolute_ = false;
+  // 18. retract mode
+  if (b.has_g(980) || b.has_g(990)) refuse_with_comp("change the retract mode (G98/G99)");
+  if (b.has_g(980)) retract_r_ = false;
+  if (b.has_g(990)) retract_r_ = true;
+  if (b.has_g(970)) { /* rpm mode: the default */
+  }
+  // 19. non-modal
+  bool axes_used = b.has_g(431);
+  if (nonmodal == 100 || nonmodal == 280 || nonmodal == 300 || nonmodal == 281 || nonmodal == 301 ||
+      (nonmodal >= 920 && nonmodal <= 923)) {
+    refuse_with_comp("use " + g_name(nonmodal));
+  }
+  switch (nonmodal) {
+    case 100:
+      g10(b);
+      axes_used = true;
+      break;
+    case 280:
+    case 300:
+      home(b, nonmodal == 280 ? 5161 : 5181);
+      axes_used = true;
+      break;
+    case 281:
+    case 301:
+      store_home(nonmodal == 281 ? 5161 : 5181);
+      break;
+    case 920:
+      g92(b);
+      axes_used = true;
+      break;
+    case 921:
+    case 922:
+      pos_ += g92_;
+      g92_ = Vec3(0, 0, 0);
+      if (nonmodal == 921) {
+        for (int p = 5210; p <= 5219; ++p) params_[static_cast<std::size_t>(p)] = 0.0;
+      }
+      break;
+    case 923: {
+      const Vec3 n(param_len(5211), param_len(5212), param_len(5213));
+      pos_ += g92_ - n;
+      g92_ = n;
+      params_[5210] = 1.0;
+      break;
+    }
+    default:
+      break;
+  }
+  // 20. motion
+  const bool g53 = b.has_g(530);
+  const bool axis_words = b.has('x') || b.has('y') || b.has('z');
+  if (motion_word >= 0) {
+    if (motion_word == 800) {
+      if (axis_words && !axes_used)
+        fail("G80 with X, Y or Z: G80 cancels motion, the axes have no meaning here; remove them");
+      motion_mode_ = -1;
+      cycle_il_known_ = false;
+    } else {
+      motion(b, motion_word, g53);
+    }
+  } else if (axis_words && !axes_used) {
+    if (motion_mode_ < 0)
+      fail(
+          "X, Y or Z with no motion mode active (after G80 or G5.3); program G0 or G1 on this "
+          "line");
+    motion(b, motion_mode_, g53);
+  } else if (g53) {
+    fail("G53 without G0 or G1 on the line; write G53 G0 X...");
+  }
+  // 21. stops
+  for (int n = 0; n < b.nm; ++n) {
+    const int c = b.m[static_cast<std::size_t>(n)];
+    if (c == 0 || c == 1 || c == 60 || c == 2 || c == 30) {
+      // LinuxCNC writes the waiting compensated move before a stop; the end turns it off.
+      comp_call([&] {
+        if (c == 2 || c == 30) {
+          (void)comp_.stop();
+        } else {
+          comp_.flush();
+        }
+      });
+    }
+    if (c == 0) emit(StopEvent{StopKind::program_stop});
+    if (c == 1) emit(StopEvent{StopKind::optional_stop});
+    if (c == 60) emit(StopEvent{StopKind::pallet_shuttle});
+    if (c == 2 || c == 30) {
+      emit(EndEvent{c});
+      ended_ = true;
+      // LinuxCNC's program end selects G54 again (convert_stop): the saved 5220 is 1.
+      coord_sys_ = 1;
+      params_[5220] = 1.0;
+    }
+  }
+}
+
+// Where X, Y, Z words take the position (incremental or absolute, G53 machine coordinates).
+// G40, G41, G42, G41.1, G42.1 (LinuxCNC's convert_cutter_compensation; the algorithm:
+// gcode/cutter_comp.cpp).
+void Interpreter::cutter_comp(const Block& b, int code) {
+  if (code == 400) {
+    if (comp_.offsetting() && !comp_.first_move()) {
+      Vec3 tool{0, 0, 0};
+      comp_call([&] { tool = comp_.stop(); });
+      // LinuxCNC takes the programmed point as the current one from here (an incremental
+      // exit move counts from it); the exit move itself starts where the tool stands.
+      pos_ = comp_.programmed();
+      if ((tool - pos_).norm() > 0.0) start_override_mm_ = tool;
+      arc_not_allowed_ = true;
+    } else {
+      (void)comp_.stop();
+    }
+    return;
+  }
+  const std::string name = g_name(code);
+  if (plane_ == Plane::yz) {
+    fail(name +
+         " in the YZ plane: compensation works in G17 and G18 only (as in LinuxCNC); "
+         "select G17 or G18 first");
+  }
+  if (comp_.on()) fail(name + " with cutter radius compensation already on; add G40 first");
+  if (feed_mode_ == FeedMode::inverse_time) {
+    fail(name +
+         " in inverse time mode (G93) is not supported: LinuxCNC times the compensated moves "
+         "by the programmed lengths; use G94");
+  }
+  double radius_mm = 0.0;
+  if (code == 411 || code == 421) {
+    if (!b.has('d')) fail(name + " with no D word; give the tool diameter, D6 for 6 mm");
+    if (b.has('l')) {
+      fail(plane_ == Plane::xy
+               ? name +
+                     " with an L word, but the plane is not G18 (L is a lathe tool's "
+                     "orientation, as LinuxCNC says); remove L"
+               : name +
+                     " with an L word (a lathe tool's orientation): ncd compensates for mill "
+                     "tools only; remove L");
+    }
+    radius_mm = b.v('d') * k() / 2.0;
+    if (std::abs(radius_mm) > kMaxCoordMm) {
+      fail(name + " D" + text::sig(b.v('d')) + " is beyond ±" + text::sig(kMaxCoordMm) +
+           " mm; check the number");
+    }
+  } else {
+    int t = tool_;
+    if (b.has('d')) {
+      const double d = b.v('d');
+      if (std::abs(d - std::round(d)) >= 1e-4) {
+        fail(name + " D" + text::sig(d) +
+             ": D must be a whole number (a tool of the tool table); write D" +
+             text::sig(std::round(d)) + ", or G" + std::to_string(code / 10) +
+             ".1 D for a diameter");
+      }
+      if (d < 0) fail(name + " D" + text::sig(d) + ": D must be a tool number, 0 or more");
+      t = static_cast<int>(std::lround(d));
+      if (t == 0) t = tool_;  // D0 is the tool in the spindle, as in LinuxCNC
+      if (t != 0 && !tools_.count(t)) {
+        fail(name + " D" + std::to_string(t) + ": tool " + std::to_string(t) +
+             " is not in the tool table; add it ([program] tool_table) or give G" +
+             std::to_string(code / 10) + ".1 D with the diameter");
+      }
+    }
+    const auto it = tools_.find(t);
+    if (it != tools_.end()) {
+      if (it->second.orientation != 0 && it->second.orientation != 9) {
+        fail(name + " with lathe tool " + std::to_string(t) + " (orientation Q" +
+             std::to_string(it->second.orientation) +
+             (plane_ == Plane::xy ? "), but the plane is not G18 (as LinuxCNC says)"
+                                  : "): ncd compensates for mill tools only") +
+             "; use a mill tool");
+      }
+      radius_mm = it->second.diameter * machine_k_ / 2.0;
+    }
+  }
+  comp_.start(code == 410 || code == 411 ? CutterComp::Side::left : CutterComp::Side::right,
+              radius_mm, pos_, k(), plane_);
+  if (start_override_mm_ && comp_.offsetting()) {  // G40 then G41 with no move between
+    comp_.first_written_from(*start_override_mm_);
+    start_override_mm_.reset();
+  }
+}
+
+// With compensation moving the tool, positions are taken from the programmed point (as
+// LinuxCNC's find_ends does).
+Vec3 Interpreter::from() const {
+  return comp_.offsetting() && !comp_.first_move() ? comp_.programmed() : pos_;
+}
+
+Vec3 Interpreter::target(const Block& b, bool g53) {
+  const Vec3 base = from();
+  Vec3 t = base;
+  for (int a = 0; a < 3; ++a) {
+    const char c = static_cast<char>('x' + a);
+    if (!b.has(c)) continue;
+    const double v = len_word(b, c);
+    if (g53) {
+      t[a] = v - total_offset()[a];
+    } else {
+      t[a] = incremental_ ? base[a] + v : v;
+    }
+    if (!incremental_ || g53) pending_known_[static_cast<std::size_t>(a)] = true;
+  }
+  return t;
+}
+
+void Interpreter::motion(Block& b, int code, bool g53) {
+  if (code != motion_mode_ && !(code >= 730 && code <= 890)) cycle_il_known_ = false;
+  if (code < 730 || code > 890) cycle_il_known_ = false;
+  if (g53 && code != 0 && code != 10) fail("G53 only works with G0 or G1; remove G53 or use G0/G1");
+  if (g53 && incremental_) fail("G53 in incremental mode (G91); switch to G90 first");
+  if (g53 && comp_.offsetting())
+    fail("G53 with cutter radius compensation on (LinuxCNC refuses it too); G40 first");
+  if ((code == 20 || code == 30) && arc_not_allowed_) {
+    fail(
+        "the move just after turning cutter compensation off (G40) must be straight, not an arc "
+        "(as in LinuxCNC); program a G1 exit move first");
+  }
+  switch (code) {
+    case 0:
+    case 10: {
+      arc_not_allowed_ = false;
+      if (code == 10) require_feed(b, "G1");
+      const Vec3 t = target(b, g53);
+      line_to(t, code == 0);
+      motion_mode_ = code;
+      return;
+    }
+    case 20:
+    case 30:
+      arc(b, code);
+      motion_mode_ = code;
+      return;
+    case 52:
+      open_nurbs(b);
+      return;
+    case 53:
+      fail("G5.3 without an open G5.2 block; open the block with G5.2 first");
+    default:
+      cycle(b, code);
+      return;
+  }
+}
+
+void Interpreter::require_feed(const Block& b, const char* what) {
+  if (feed_mode_ == FeedMode::inverse_time) {
+    if (!b.has('f'))
+      fail(std::string(what) + " in inverse time mode (G93) without F on the line; add F");
+    if (feed_ == 0.0) fail(std::string(what) + " with inverse time F0; F must be positive");
+  } else if (feed_ == 0.0) {
+    fail(std::string("cannot do ") + what + " with zero feed rate; add an F word");
+  }
+}
+
+void Interpreter::arc(Block& b, int code) {
+  require_feed(b, code == 20 ? "G2" : "G3");
+  const PlaneAxes ax = plane_axes(plane_);
+  const char names[3] = {'x', 'y', 'z'};
+  const char offs[3] = {'i', 'j', 'k'};
+  const bool ijk = b.has('i') || b.has('j') || b.has('k');
+  const bool r_form = b.has('r');
+  if (!ijk && !r_form) fail("arc without R or I, J, K; give the centre (I J K) or the radius (R)");
+  if (ijk && r_form) fail("arc with both R and I, J, K; keep one form");
+  if (ijk && b.has(offs[ax.axis])) {
+    fail(std::string(1, static_cast<char>(std::toupper(offs[ax.axis]))) +
+         " word given for an arc in the " +
+         (plane_ == Plane::xy   ? "XY"
+          : plane_ == Plane::xz ? "XZ"
+                                : "YZ") +
+         " plane; use the plane's two offsets");
+  }
+  if (ijk && ijk_absolute_ && (!b.has(offs[ax.first]) || !b.has(offs[ax.second]))) {
+    fail("absolute arc centre (G90.1) needs both offsets of the plane");
+  }
+  if (!ijk && !b.has(names[ax.first]) && !b.has(names[ax.second])) {
+    fail("R-form arc without an end point in the plane; give the plane's axis words");
+  }
+  const Vec3 end = target(b, false);
+  const double kk = k();
+  const Vec3 start = from();
+  const double c1 = start[ax.first], c2 = start[ax.second];
+  const double e1 = end[ax.first], e2 = end[ax.second];
+  int p = 1;
+  if (b.has('p')) {
+    const double pv = b.v('p');
+    if (pv < 1 || pv > kMaxTurns || std::abs(pv - std::round(pv)) > 1e-6) {
+      fail("arc P" + text::sig(pv) + " (turns) must be a whole number from 1 to " +
+           std::to_string(kMaxTurns));
+    }
+    p = static_cast<int>(std::lround(pv));
+  }
+  double cx = 0.0, cy = 0.0;
+  const double radius_tol = 0.00005 * kMmPerInch;  // RADIUS_TOLERANCE, same in both units
+  if (r_form) {
+    const double r = len_word(b, 'r');
+    if (e1 == c1 && e2 == c2)
+      fail("R-form arc whose end is its start; use the I J K form for a full circle");
+    const double abs_r = std::abs(r);
+    const double m1 = (e1 + c1) / 2.0, m2 = (e2 + c2) / 2.0;
+    double half = std::hypot(m1 - e1, m2 - e2);
+    if (half - abs_r > radius_tol) {
+      fail("arc radius R" + text::sig(b.v('r')) +
+           " is too small to reach the end point; increase R");
+    }
+    if (half / abs_r > 1 - 1e-12) half = abs_r;
+    const double theta =
+        std::atan2(e2 - c2, e1 - c1) + (((code == 20) == (r > 0)) ? -kPi / 2 : kPi / 2);
+    const double turn2 = std::asin(half / abs_r);
+    const double off = abs_r * std::cos(turn2);
+    cx = m1 + off * std::cos(theta);
+    cy = m2 + off * std::sin(theta);
+  } else {
+    const double i1 = b.has(offs[ax.first]) ? len_word(b, offs[ax.first]) : 0.0;
+    const double i2 = b.has(offs[ax.second]) ? len_word(b, offs[ax.second]) : 0.0;
+    cx = ijk_absolute_ ? i1 : c1 + i1;
+    cy = ijk_absolute_ ? i2 : c2 + i2;
+    const double r1 = std::hypot(cx - c1, cy - c2);
+    const double r2 = std::hypot(cx - e1, cy - e2);
+    if (r1 < radius_tol || r2 < radius_tol) fail("zero-radius arc; check I, J, K");
+    const double spiral_abs = (units_ == Units::inch ? 2 * 0.001 * std::sqrt(2.0) * kMmPerInch
+                                                     : 2 * 0.01 * std::sqrt(2.0));
+    const double abs_err = std::abs(r1 - r2);
+    const double rel_err = abs_err / std::max(r1, r2);
+    if (abs_err > spiral_abs * 100.0 || (rel_err > 0.001 && abs_err > spiral_abs)) {
+      fail("radius to end of arc (" + text::sig(r2 / kk) + ") differs from radius to start (" +
+           text::sig(r1 / kk) + "); correct the end point or I, J, K");
+    }
+  }
+  Motion m = base_motion(false);
+  if (comp_.offsetting()) {
+    m.src = src();
+    comp_call([&] { comp_.arc(end, cx, cy, code == 20 ? -p : p, m); });
+    pos_ = comp_.tool();
+    settle_known();
+    return;
+  }
+  ArcMove a;
+  a.end = end / kk;
+  Vec3 c = pos_;
+  c[ax.first] = cx;
+  c[ax.second] = cy;
+  a.centre = c / kk;
+  a.plane = plane_;
+  a.turns = code == 20 ? -p : p;
+  m.geometry = a;
+  emit_motion(std::move(m));
+  pos_ = end;
+  settle_known();
+}
+
+}  // namespace ncd::toolpath::ngc

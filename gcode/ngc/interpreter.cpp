@@ -1,0 +1,83 @@
+// RS-274/NGC interpreter, LinuxCNC 2.9 dialect (docs/ngc-interpreter.md has the full list of
+// what is read and refused, and how the output was checked against LinuxCNC's `rs274`).
+//
+// Each line goes through:
+// 1. Normalisation: comments taken out (the last "( )" comment of a line is the one that counts,
+//    as in LinuxCNC; "(MSG," makes a message), whitespace removed, letters lower-cased.
+// 2. Reading: words letter + real value, where a real value is a number, a parameter #n,
+//    #<name>, a unary function NAME[..] or a bracketed expression [..]. Binary operators
+//    group left to right in five precedence levels (LinuxCNC's manual, "Expressions"):
+//      **  >  * / MOD  >  + -  >  EQ NE GT GE LT LE  >  AND OR XOR
+//    Parameter assignments on a line take effect after the whole line is read.
+// 3. Execution in LinuxCNC's order: message, feed mode, F, S, T, M6, M3/M4/M5, M7/M8/M9, G4,
+//    plane, units, cutter compensation, tool length offset, coordinate system, path control,
+//    distance modes, retract mode, G10/G28/G30/G92, motion (G53 applied), M0/M1/M2/M30/M60.
+//
+// Every length is kept in mm inside; the program model gets program units (what LinuxCNC's
+// canonical commands carry), the stored parameters and the tool table are in machine units.
+// Control flow (O-words) works on the file's lines held in memory: a false `if`, a finished
+// loop or a `break` scans forward to the line with the same label and the wanted keyword.
+#include "gcode/ngc/interp.hpp"
+
+namespace ncd::toolpath::ngc {
+
+Program Interpreter::run(const std::string& text, const std::string& name) {
+  load_tool_table();
+  load_parameters();
+  files_.push_back(std::make_unique<SourceFile>());
+  SourceFile& f = *files_.back();
+  f.name = name;
+  f.text = text;
+  split_lines(f);
+  program_.files.push_back(name);
+  scan_subs(0);
+  coord_sys_ = std::clamp(static_cast<int>(std::lround(params_[5220])), 1, 9);
+  g92_ = params_[5210] != 0.0 ? Vec3(param_len(5211), param_len(5212), param_len(5213))
+                              : Vec3(0, 0, 0);
+  pos_ = -(g5x() + g92_);  // the machine starts at its origin
+  execute_all();
+  comp_call([&] { comp_.flush(); });  // a file that ends without M2 writes its last move
+  return std::move(program_);
+}
+
+// Error position of the line being executed.
+std::string Interpreter::where() const {
+  return files_[cur_file_]->name + ":" + std::to_string(cur_line_ + 1);
+}
+
+std::string Interpreter::line_text() const {
+  if (cur_file_ >= files_.size()) return {};
+  const auto& lines = files_[cur_file_]->lines;
+  return cur_line_ < lines.size() ? std::string(lines[cur_line_]) : std::string();
+}
+
+}  // namespace ncd::toolpath::ngc
+
+namespace ncd::toolpath {
+
+using ngc::Fail;
+using ngc::Interpreter;
+
+Program interpret_ngc(const std::string& text, const std::string& name,
+                      const InterpretOptions& options) {
+  Interpreter in(options);
+  try {
+    Program p = in.run(text, name);
+    in.finish();
+    p.parameter_file_text = in.parameter_file_text();
+    return p;
+  } catch (const Fail& f) {
+    throw InputError(in.where() + ": " + f.what + " (line: \"" + in.line_text() + "\")");
+  }
+}
+
+Program interpret_ngc_file(const std::string& path, const InterpretOptions& options) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open; check the path and its permissions");
+  std::ostringstream s;
+  s << in.rdbuf();
+  if (in.bad()) throw InputError(path + ": read error; check the file");
+  return interpret_ngc(s.str(), path, options);
+}
+
+}  // namespace ncd::toolpath

@@ -1,0 +1,435 @@
+// Machine file reader on toml11. Integers are accepted where a real number is expected
+// (`period_s = 1` is 1.0 s); anything else of the wrong type, an unknown key or table, and a
+// value out of range are InputErrors naming the file and the key. The [link] spellings are
+// those of the line flags (link/line_settings.hpp); [encoder] is checked by the encoder's own
+// validate().
+#include "service/machine_config.hpp"
+
+#include <cmath>
+#include <cstdint>
+#include <toml.hpp>
+
+#include "core/decimal.hpp"
+#include "core/error.hpp"
+#include "core/input_file.hpp"
+#include "core/input_ranges.hpp"
+#include "core/toml_text.hpp"
+
+namespace ncd::app {
+namespace {
+
+double as_real(const toml::value& v, const std::string& where) {
+  if (v.is_floating()) return v.as_floating();
+  if (v.is_integer()) return static_cast<double>(v.as_integer());
+  throw InputError(where + " must be a number, not " + toml::format(v));
+}
+
+// Every TOML integer goes through checked_integer (core/decimal.hpp): in range, or an error
+// naming the key, the value and the range.
+std::int64_t as_int_in(const toml::value& v, const std::string& where, std::int64_t lo,
+                       std::int64_t hi) {
+  if (!v.is_integer()) {
+    throw InputError(where + " must be a whole number from " + std::to_string(lo) + " to " +
+                     std::to_string(hi) + ", not " + toml::format(v));
+  }
+  return checked_integer(v.as_integer(), lo, hi, where);
+}
+
+int as_int(const toml::value& v, const std::string& where) {
+  return static_cast<int>(as_int_in(v, where, 1, 1000));
+}
+
+// A value within its documented range (core/input_ranges.hpp, docs/input-ranges.md).
+void check(double value, const ranges::Range& r, const std::string& where) {
+  checked_range(value, r.lo, r.hi, where, r.unit,
+                "give a value in the range, or leave the key out for the default (see "
+                "config/machine.example.toml)");
+}
+
+// The plausible ranges of the machine file; the interpolator's, the cutting law's and the
+// encoder's own validate() then check the relations between values.
+void check_ranges(const MachineConfig& c, const std::string& name) {
+  const auto& l = c.limits;
+  const auto& k = c.cutting;
+  check(l.period_s, ranges::kPeriodS, name + ": period_s");
+  check(l.max_feed_mm_per_min, ranges::kMaxFeedMmPerMin, name + ": max_feed_mm_per_min");
+  check(l.max_accel_mm_per_s2, ranges::kMaxAccelMmPerS2, name + ": max_accel_mm_per_s2");
+  check(l.max_jerk_mm_per_s3, ranges::kMaxJerkMmPerS3, name + ": max_jerk_mm_per_s3");
+  check(l.chord_tolerance_mm, ranges::kChordToleranceMm, name + ": chord_tolerance_mm");
+  check(k.ball_radius_mm, ranges::kBallRadiusMm, name + ": cutting.ball_radius_mm");
+  check(k.pick_feed_mm, ranges::kPickFeedMm, name + ": cutting.pick_feed_mm");
+  check(k.spindle_rpm, ranges::kSpindleRpm, name + ": cutting.spindle_rpm");
+  check(k.roughness_target_um, ranges::kRoughnessTargetUm, name + ": cutting.roughness_target_um");
+  check(c.link.xoff_timeout_s, ranges::kXoffTimeoutS, name + ": link.xoff_timeout_s");
+  check(c.link.reconnect_max_s, ranges::kReconnectMaxS, name + ": link.reconnect_max_s");
+  const auto& e = c.encoder;
+  check(e.chord_tolerance_mm, ranges::kEncoderChordToleranceMm,
+        name + ": encoder.chord_tolerance_mm");
+  check(e.time_tolerance_s, ranges::kTimeToleranceS, name + ": encoder.time_tolerance_s");
+  check(e.max_block_s, ranges::kMaxBlockS, name + ": encoder.max_block_s");
+}
+
+double as_positive(const toml::value& v, const std::string& where) {
+  const double x = as_real(v, where);
+  if (!std::isfinite(x) || x <= 0.0) {
+    throw InputError(where + " = " + toml::format(v) + " must be a number greater than 0");
+  }
+  return x;
+}
+
+std::string as_text(const toml::value& v, const std::string& where) {
+  if (!v.is_string()) throw InputError(where + " must be a string, not " + toml::format(v));
+  return v.as_string().str;
+}
+
+bool as_bool(const toml::value& v, const std::string& where) {
+  if (!v.is_boolean()) throw InputError(where + " must be true or false, not " + toml::format(v));
+  return v.as_boolean();
+}
+
+// Runs a parser of link/line_settings.hpp, its message prefixed with the file and key.
+template <typename F>
+auto with_where(const std::string& where, F&& parse) {
+  try {
+    return parse();
+  } catch (const InputError& e) {
+    throw InputError(where + ": " + e.what());
+  }
+}
+
+void parse_link(const toml::value& table, const std::string& name, LinkConfig& l) {
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": link." + key;
+    comms::LineSettings& line = l.line;
+    if (key == "device") {
+      line.device = as_text(v, where);
+    } else if (key == "baud") {
+      line.baud = static_cast<int>(as_int_in(v, where, 1, 10000000));
+      with_where(where, [&] {
+        comms::check_baud(line.baud);
+        return 0;
+      });
+    } else if (key == "frame") {
+      const std::string text = as_text(v, where);
+      with_where(where, [&] {
+        comms::parse_frame(text, line);
+        return 0;
+      });
+    } else if (key == "flow") {
+      const std::string text = as_text(v, where);
+      line.flow = with_where(where, [&] { return comms::parse_flow(text); });
+    } else if (key == "protocol") {
+      const std::string text = as_text(v, where);
+      line.protocol = with_where(where, [&] { return comms::parse_protocol(text); });
+    } else if (key == "eob") {
+      const std::string text = as_text(v, where);
+      line.eob = with_where(where, [&] { return comms::parse_eob(text); });
+    } else if (key == "percent") {
+      line.percent_framing = as_bool(v, where);
+    } else if (key == "nul_leader") {
+      line.nul_leader = static_cast<int>(as_int_in(v, where, 0, 1000));
+    } else if (key == "rx_buffer_bytes") {
+      l.rx_buffer_bytes = static_cast<int>(as_int_in(v, where, 1, 1 << 20));
+    } else if (key == "max_queued_chars") {
+      l.max_queued_chars = static_cast<int>(as_int_in(v, where, 1, 65536));
+    } else if (key == "xoff_timeout_s") {
+      l.xoff_timeout_s = as_positive(v, where);
+    } else if (key == "reconnect_max_s") {
+      l.reconnect_max_s = as_positive(v, where);
+    } else if (key == "journal") {
+      l.journal = as_text(v, where);
+    } else if (key == "dialect") {
+      const std::string text = as_text(v, where);
+      l.dialect = with_where(where, [&] { return comms::parse_dialect(text); });
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [link] takes device, baud, frame, flow, protocol, eob, percent, "
+                       "nul_leader, rx_buffer_bytes, max_queued_chars, xoff_timeout_s, "
+                       "reconnect_max_s, journal, dialect");
+    }
+  }
+}
+
+void parse_encoder(const toml::value& table, const std::string& name, comms::EncoderSettings& e) {
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": encoder." + key;
+    if (key == "chord_tolerance_mm") {
+      e.chord_tolerance_mm = as_real(v, where);
+    } else if (key == "feed_band") {
+      e.feed_band = as_real(v, where);
+    } else if (key == "link_margin") {
+      e.link_margin = as_real(v, where);
+    } else if (key == "decimals") {
+      e.decimals = static_cast<int>(as_int_in(v, where, 0, 6));
+    } else if (key == "feed_decimals") {
+      e.feed_decimals = static_cast<int>(as_int_in(v, where, 0, 3));
+    } else if (key == "time_tolerance_s") {
+      e.time_tolerance_s = as_real(v, where);
+    } else if (key == "number_start") {
+      e.number_start = static_cast<long>(as_int_in(v, where, 0, 99999999));
+    } else if (key == "number_step") {
+      e.number_step = static_cast<long>(as_int_in(v, where, 1, 1000));
+    } else if (key == "max_block_s") {
+      e.max_block_s = as_real(v, where);
+    } else if (key == "max_setpoints_per_block") {
+      e.max_setpoints_per_block = static_cast<std::size_t>(as_int_in(v, where, 2, 1 << 20));
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [encoder] takes chord_tolerance_mm, feed_band, link_margin, decimals, "
+                       "feed_decimals, time_tolerance_s, number_start, number_step, "
+                       "max_setpoints_per_block, max_block_s");
+    }
+  }
+}
+
+// [program]: the RS-274/NGC interpreter's setting (docs/ngc-interpreter.md).
+void parse_program(const toml::value& table, const std::string& name,
+                   toolpath::InterpretOptions& p) {
+  const auto units = [&](const toml::value& v, const std::string& where) {
+    const std::string u = as_text(v, where);
+    if (u == "mm") return toolpath::Units::mm;
+    if (u == "inch") return toolpath::Units::inch;
+    throw InputError(where + " = \"" + u + "\" must be \"mm\" or \"inch\"");
+  };
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": program." + key;
+    if (key == "default_units") {
+      p.default_units = units(v, where);
+    } else if (key == "machine_units") {
+      p.machine_units = units(v, where);
+    } else if (key == "tool_table") {
+      p.tool_table = as_text(v, where);
+    } else if (key == "parameter_file") {
+      p.parameter_file = as_text(v, where);
+    } else if (key == "subroutine_path") {
+      if (!v.is_array()) throw InputError(where + " must be a list of folders: [\"subs\"]");
+      p.subroutine_path.clear();
+      for (const auto& d : v.as_array()) p.subroutine_path.push_back(as_text(d, where));
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [program] takes default_units, machine_units, tool_table, "
+                       "parameter_file, subroutine_path");
+    }
+  }
+}
+
+// [envelope]: x_min_mm … z_max_mm, finite, min < max on every axis.
+void parse_envelope(const toml::value& table, const std::string& name, Envelope& e) {
+  static const char* const kAxes = "xyz";
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": envelope." + key;
+    bool known = false;
+    for (int a = 0; a < 3 && !known; ++a) {
+      const std::string axis(1, kAxes[a]);
+      for (const bool is_min : {true, false}) {
+        if (key != axis + (is_min ? "_min_mm" : "_max_mm")) continue;
+        const double x = as_real(v, where);
+        if (!std::isfinite(x) || std::abs(x) > 1e6) {
+          throw InputError(where + " = " + toml::format(v) +
+                           " must be a finite travel within ±1e6 mm (1 km)");
+        }
+        (is_min ? e.min_mm : e.max_mm)[a] = x;
+        known = true;
+      }
+    }
+    if (!known) {
+      throw InputError("unknown key " + where +
+                       "; [envelope] takes x_min_mm, x_max_mm, y_min_mm, y_max_mm, z_min_mm, "
+                       "z_max_mm");
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (!(e.min_mm[a] < e.max_mm[a])) {
+      throw InputError(name + ": envelope." + std::string(1, kAxes[a]) +
+                       "_min_mm = " + std::to_string(e.min_mm[a]) + " must be below " +
+                       std::string(1, kAxes[a]) + "_max_mm = " + std::to_string(e.max_mm[a]));
+    }
+  }
+}
+
+void parse_tool(const toml::value& table, const std::string& name, ToolConfig& t) {
+  for (const auto& [key, v] : table.as_table()) {
+    const std::string where = name + ": tool." + key;
+    if (key == "programmed_point") {
+      const std::string p = as_text(v, where);
+      if (p == "tip") {
+        t.programmed_point = toolpath::ProgramPoint::Tip;
+      } else if (p == "centre") {
+        t.programmed_point = toolpath::ProgramPoint::Centre;
+      } else {
+        throw InputError(where + " = \"" + p +
+                         "\" is neither \"tip\" (the tool length set to the ball tip) nor "
+                         "\"centre\" (set to the ball centre)");
+      }
+    } else if (key == "number") {
+      t.number = static_cast<int>(as_int_in(v, where, 0, 99999));
+    } else if (key == "spindle_dwell_s") {
+      t.spindle_dwell_s = as_real(v, where);
+      checked_range(t.spindle_dwell_s, 0.0, 600.0, where, "s",
+                    "give the spin-up time of the spindle, or 0 for no dwell");
+    } else {
+      throw InputError("unknown key " + where +
+                       "; [tool] takes programmed_point, number, spindle_dwell_s");
+    }
+  }
+}
+
+}  // namespace
+
+MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
+  const toml::value root = parse_toml_text(text, name, "machine file");
+  MachineConfig c;
+  c.source = name;
+  auto& l = c.limits;
+  auto& k = c.cutting;
+  for (const auto& [key, value] : root.as_table()) {
+    const std::string where = name + ": " + key;
+    if (key == "period_s")
+      l.period_s = as_real(value, where);
+    else if (key == "max_feed_mm_per_min")
+      l.max_feed_mm_per_min = as_real(value, where);
+    else if (key == "max_accel_mm_per_s2")
+      l.max_accel_mm_per_s2 = as_real(value, where);
+    else if (key == "max_jerk_mm_per_s3")
+      l.max_jerk_mm_per_s3 = as_real(value, where);
+    else if (key == "chord_tolerance_mm")
+      l.chord_tolerance_mm = as_real(value, where);
+    else if (key == "feed_tolerance_rel")
+      l.feed_tolerance_rel = as_real(value, where);
+    else if (key == "blend_tolerance_mm")
+      l.blend_tolerance_mm = as_real(value, where);
+    else if (key == "stall_timeout_s")
+      l.stall_timeout_s = as_real(value, where);
+    else if (key == "jerk_bound") {
+      const std::string b = as_text(value, where);
+      if (b != "tangential" && b != "vector") {
+        throw InputError(where + " = \"" + b +
+                         "\" is not a jerk bound; use \"tangential\" (|j_t| and v^3 kappa^2 "
+                         "each <= max_jerk, the default) or \"vector\" (the jerk vector <= "
+                         "max_jerk; docs/planner.md section 3c)");
+      }
+      l.jerk_bound =
+          b == "vector" ? interpolator::JerkBound::vector : interpolator::JerkBound::tangential;
+    } else if (key == "cutting") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
+      for (const auto& [ck, cv] : value.as_table()) {
+        const std::string cwhere = name + ": cutting." + ck;
+        if (ck == "ball_radius_mm")
+          k.ball_radius_mm = as_real(cv, cwhere);
+        else if (ck == "pick_feed_mm")
+          k.pick_feed_mm = as_real(cv, cwhere);
+        else if (ck == "teeth")
+          k.teeth = as_int(cv, cwhere);
+        else if (ck == "spindle_rpm")
+          k.spindle_rpm = as_real(cv, cwhere);
+        else if (ck == "roughness_target_um")
+          k.roughness_target_um = as_real(cv, cwhere);
+        else {
+          throw InputError("unknown key " + cwhere +
+                           "; [cutting] takes ball_radius_mm, pick_feed_mm, teeth, spindle_rpm, "
+                           "roughness_target_um");
+        }
+      }
+    } else if (key == "link") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [link]");
+      parse_link(value, name, c.link);
+    } else if (key == "program") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [program]");
+      parse_program(value, name, c.program);
+    } else if (key == "encoder") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [encoder]");
+      parse_encoder(value, name, c.encoder);
+    } else if (key == "envelope") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [envelope]");
+      parse_envelope(value, name, c.envelope);
+    } else if (key == "tool") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [tool]");
+      parse_tool(value, name, c.tool);
+    } else {
+      throw InputError(
+          "unknown key " + where +
+          "; the machine file takes period_s, max_feed_mm_per_min, "
+          "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
+          "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
+          "[cutting], [link], [encoder], [envelope], [program], [tool]");
+    }
+  }
+  c.encoder.line = c.link.line;
+  c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
+  c.program.machine_tools = {c.tool.number};  // the tool the programs ncd writes change to
+  check_ranges(c, name);
+  try {
+    interpolator::validate(c.limits);
+    interpolator::validate(c.cutting);
+    comms::validate(c.encoder);
+  } catch (const InputError& e) {
+    throw InputError(name + ": " + e.what());
+  }
+  return c;
+}
+
+MachineConfig load_machine_config(const std::string& path) {
+  return parse_machine_config(read_input_file(path, "machine file, --machine"), path);
+}
+
+nlohmann::ordered_json to_json(const MachineConfig& c) {
+  nlohmann::ordered_json j;
+  j["source"] = c.source;
+  j["period_s"] = c.limits.period_s;
+  j["max_feed_mm_per_min"] = c.limits.max_feed_mm_per_min;
+  j["max_accel_mm_per_s2"] = c.limits.max_accel_mm_per_s2;
+  j["max_jerk_mm_per_s3"] = c.limits.max_jerk_mm_per_s3;
+  j["chord_tolerance_mm"] = c.limits.chord_tolerance_mm;
+  j["feed_tolerance_rel"] = c.limits.feed_tolerance_rel;
+  j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
+  j["stall_timeout_s"] = c.limits.stall_timeout_s;
+  j["jerk_bound"] = interpolator::to_string(c.limits.jerk_bound);
+  j["cutting"] = {{"ball_radius_mm", c.cutting.ball_radius_mm},
+                  {"pick_feed_mm", c.cutting.pick_feed_mm},
+                  {"teeth", c.cutting.teeth},
+                  {"spindle_rpm", c.cutting.spindle_rpm},
+                  {"roughness_target_um", c.cutting.roughness_target_um}};
+  const comms::LineSettings& line = c.link.line;
+  j["link"] = {{"device", line.device},
+               {"baud", line.baud},
+               {"frame", comms::frame_text(line)},
+               {"flow", comms::to_string(line.flow)},
+               {"protocol", comms::to_string(line.protocol)},
+               {"eob", line.eob == comms::EndOfBlock::CrLf ? "crlf" : "lf"},
+               {"percent", line.percent_framing},
+               {"nul_leader", line.nul_leader},
+               {"rx_buffer_bytes", c.link.rx_buffer_bytes},
+               {"max_queued_chars", c.link.max_queued_chars},
+               {"xoff_timeout_s", c.link.xoff_timeout_s},
+               {"reconnect_max_s", c.link.reconnect_max_s},
+               {"journal", c.link.journal},
+               {"dialect", c.link.dialect ? nlohmann::json(comms::to_string(*c.link.dialect))
+                                          : nlohmann::json(nullptr)}};
+  j["envelope"] = {{"x_min_mm", c.envelope.min_mm.x()}, {"x_max_mm", c.envelope.max_mm.x()},
+                   {"y_min_mm", c.envelope.min_mm.y()}, {"y_max_mm", c.envelope.max_mm.y()},
+                   {"z_min_mm", c.envelope.min_mm.z()}, {"z_max_mm", c.envelope.max_mm.z()}};
+  const comms::EncoderSettings& e = c.encoder;
+  j["encoder"] = {{"chord_tolerance_mm", e.chord_tolerance_mm},
+                  {"feed_band", e.feed_band},
+                  {"link_margin", e.link_margin},
+                  {"decimals", e.decimals},
+                  {"feed_decimals", e.feed_decimals},
+                  {"time_tolerance_s", e.time_tolerance_s},
+                  {"number_start", e.number_start},
+                  {"number_step", e.number_step},
+                  {"max_setpoints_per_block", e.max_setpoints_per_block},
+                  {"max_block_s", e.max_block_s}};
+  j["tool"] = {{"programmed_point",
+                c.tool.programmed_point == toolpath::ProgramPoint::Tip ? "tip" : "centre"},
+               {"number", c.tool.number},
+               {"spindle_dwell_s", c.tool.spindle_dwell_s}};
+  const toolpath::InterpretOptions& p = c.program;
+  j["program"] = {{"default_units", p.default_units == toolpath::Units::inch ? "inch" : "mm"},
+                  {"machine_units", p.machine_units == toolpath::Units::inch ? "inch" : "mm"},
+                  {"tool_table", p.tool_table},
+                  {"parameter_file", p.parameter_file},
+                  {"subroutine_path", p.subroutine_path}};
+  return j;
+}
+
+}  // namespace ncd::app

@@ -1,0 +1,44 @@
+// Setpoints CSV: numbers by std::to_chars with fixed decimals (nm positions, 1e-4 mm/min feed),
+// so the same run gives the same bytes.
+#include "service/setpoint_file.hpp"
+
+#include <charconv>
+#include <filesystem>
+#include <stdexcept>
+
+#include "core/error.hpp"
+
+namespace ncd::app {
+
+SetpointSink::SetpointSink(const std::string& path) {
+  if (path.empty()) return;
+  file_ = std::make_unique<StreamedFile>(path, "--setpoints", 1 << 20);
+  static constexpr char kHeader[] = "t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit\n";
+  file_->write(kHeader, sizeof kHeader - 1);
+}
+
+void SetpointSink::write(const motion::Setpoint& sp) {
+  if (!file_) return;
+  char line[160];
+  char* p = line;
+  char* end = line + sizeof line;
+  const auto put = [&](double v, int decimals) {
+    p = std::to_chars(p, end, v == 0.0 ? 0.0 : v, std::chars_format::fixed, decimals).ptr;
+    *p++ = ',';
+  };
+  put(sp.t_s, 6);
+  put(sp.p.x(), 6);
+  put(sp.p.y(), 6);
+  put(sp.p.z(), 6);
+  put(sp.v_mm_per_s * 60.0, 4);
+  const char* name = motion::limit_name(sp.limit_id);
+  while (*name) *p++ = *name++;
+  *p++ = '\n';
+  file_->write(line, static_cast<std::size_t>(p - line));
+}
+
+void SetpointSink::commit() {
+  if (file_) file_->commit();
+}
+
+}  // namespace ncd::app

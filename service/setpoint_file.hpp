@@ -1,0 +1,29 @@
+// The setpoints file of `ncd replay` and of service jobs: CSV, one row per period
+// (t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit), written as it comes into a temporary file that is
+// renamed when the run succeeds, so a failed run leaves nothing behind.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "core/output_file.hpp"
+#include "motion/job.hpp"
+#include "service/service.hpp"
+
+namespace ncd::app {
+
+class SetpointSink final : public service::SetpointSink {
+ public:
+  // An empty path writes nothing. Throws InputError if the file cannot be created.
+  explicit SetpointSink(const std::string& path);
+  SetpointSink(const SetpointSink&) = delete;
+  SetpointSink& operator=(const SetpointSink&) = delete;
+
+  void write(const motion::Setpoint& sp) override;  // one row, fixed decimals, no allocation
+  void commit() override;                           // flush and rename; throws on failure
+
+ private:
+  std::unique_ptr<StreamedFile> file_;  // null when nothing is recorded
+};
+
+}  // namespace ncd::app

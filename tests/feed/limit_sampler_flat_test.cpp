@@ -1,0 +1,194 @@
+// Flat intervals (feed/limit_sampler.cpp, docs/planner.md "Flat intervals"): where a
+// curvature bound proves the limit is the cap all along an interval, the sampler skips the
+// search for its minimum. The node stream must be the same bit for bit as the one of the full
+// search (SamplerConfig::skip_flat_intervals = false, the reference kept in the sampler): on
+// the spiral, with the cap from the machine, from a program F, on a rapid, where the curvature
+// laws bind, on rational curves (never skipped), on curves with double knots, and on random
+// B-splines of degrees 2–5 (the seed is printed).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <random>
+#include <vector>
+
+#include "feed/limit_sampler.hpp"
+#include "feed/path_walker.hpp"
+#include "gcode/path_io.hpp"
+#include "geometry/spiral.hpp"
+#include "tests/common/seed.hpp"
+
+namespace ncd::interpolator {
+namespace {
+
+struct Stream {
+  std::vector<LimitNode> nodes;
+  std::size_t intervals = 0, flat = 0;
+};
+
+Stream sample(const toolpath::Path& path, const MachineLimits& limits, bool skip) {
+  const PathWalker walker(path, WalkerConfig{});
+  std::vector<double> starts;
+  for (std::size_t k = 0; k <= path.segments.size(); ++k) {
+    starts.push_back(walker.segment_start_mm(k));
+  }
+  CuttingParams cutting;
+  cutting.teeth = 4;
+  cutting.spindle_rpm = 12000.0;
+  SamplerConfig config;
+  config.skip_flat_intervals = skip;
+  LimitSampler sampler(path, starts, limits, cutting, config);
+  Stream out;
+  LimitNode node;
+  while (sampler.next(node)) out.nodes.push_back(node);
+  out.intervals = sampler.curve_intervals();
+  out.flat = sampler.flat_intervals();
+  return out;
+}
+
+// Compares the two streams node by node, exactly; returns the skipped share.
+double expect_same_nodes(const toolpath::Path& path, const MachineLimits& limits,
+                         const std::string& what) {
+  const Stream fast = sample(path, limits, true);
+  const Stream slow = sample(path, limits, false);
+  EXPECT_EQ(slow.flat, 0u) << what;
+  EXPECT_EQ(fast.intervals, slow.intervals) << what;
+  EXPECT_EQ(fast.nodes.size(), slow.nodes.size()) << what;
+  const std::size_t n = std::min(fast.nodes.size(), slow.nodes.size());
+  int reported = 0;
+  for (std::size_t i = 0; i < n && reported < 5; ++i) {
+    const LimitNode& a = fast.nodes[i];
+    const LimitNode& b = slow.nodes[i];
+    const bool same = a.s_mm == b.s_mm && a.feed_mm_per_s == b.feed_mm_per_s &&
+                      a.limit == b.limit && a.left_mm_per_s == b.left_mm_per_s &&
+                      a.right_mm_per_s == b.right_mm_per_s && a.right_limit == b.right_limit;
+    if (!same) {
+      ++reported;
+      ADD_FAILURE() << what << ": node " << i << " differs: s " << a.s_mm << " / " << b.s_mm
+                    << ", feed " << a.feed_mm_per_s << " / " << b.feed_mm_per_s << ", limit "
+                    << to_string(a.limit) << " / " << to_string(b.limit);
+    }
+  }
+  return fast.intervals > 0 ? static_cast<double>(fast.flat) / static_cast<double>(fast.intervals)
+                            : 0.0;
+}
+
+toolpath::Path from_json(const char* json) {
+  return toolpath::read_path_text(json, "test.json");
+}
+
+TEST(LimitSamplerFlat, SpiralAtTheMachineCapSkipsAlmostEveryInterval) {
+  const toolpath::Path path = toolpath::spiral_path(3);
+  const double share = expect_same_nodes(path, MachineLimits{}, "spiral, 6000 mm/min");
+  // 100 mm/s against chord ≈ 210, accel ≈ 300, roughness ≥ 105 mm/s at r ≥ 99.7 mm.
+  EXPECT_GT(share, 0.95);
+}
+
+TEST(LimitSamplerFlat, ProgramFeedAndRapidCaps) {
+  toolpath::Path path = toolpath::spiral_path(2);
+  path.segments[0].feed_mm_per_min = 3000.0;
+  EXPECT_GT(expect_same_nodes(path, MachineLimits{}, "spiral, F3000"), 0.95);
+  path.segments[0].feed_mm_per_min = 6000.0;  // equal to the machine's: MaxFeed wins ties
+  EXPECT_GT(expect_same_nodes(path, MachineLimits{}, "spiral, F6000"), 0.95);
+  path.segments[0].feed_mm_per_min.reset();
+  path.segments[0].rapid = true;
+  MachineLimits fast;
+  fast.max_feed_mm_per_min = 9000.0;  // above the roughness law, which a rapid ignores
+  EXPECT_GT(expect_same_nodes(path, fast, "spiral, G0 at 9000"), 0.9);
+}
+
+TEST(LimitSamplerFlat, WhereTheCurvatureLawsBindNothingIsSkipped) {
+  const toolpath::Path path = toolpath::spiral_path(2);
+  MachineLimits limits;
+  limits.max_feed_mm_per_min = 30000.0;  // 500 mm/s: roughness and chord bind everywhere
+  EXPECT_EQ(expect_same_nodes(path, limits, "spiral, 30000 mm/min"), 0.0);
+  limits.max_feed_mm_per_min = 6000.0;
+  limits.chord_tolerance_mm = 1e-5;  // chord feed ≈ 21 mm/s at r = 100 mm
+  EXPECT_EQ(expect_same_nodes(path, limits, "spiral, 0.01 um chord"), 0.0);
+}
+
+TEST(LimitSamplerFlat, RationalCurvesAndSharpKnotsAreNeverSkipped) {
+  // The rational circle of radius 20 mm (double knots) and a cubic with a knot of full
+  // multiplicity (a corner): no bound is claimed, and the nodes are the reference's.
+  const char* circle = R"({"nurbs": {"degree": 2,
+    "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
+    "points": [[200,0,0],[200,200,0],[0,200,0],[-200,200,0],[-200,0,0],[-200,-200,0],
+               [0,-200,0],[200,-200,0],[200,0,0]],
+    "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
+                0.7071067811865476,1]}})";
+  EXPECT_EQ(expect_same_nodes(from_json(circle), MachineLimits{}, "rational circle"), 0.0);
+  const char* corner = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,1,1,1,2,2,2,2],
+    "points": [[0,0,0],[100,0,0],[200,0,0],[300,0,0],[300,100,0],[300,200,0],[300,300,0]]}})";
+  EXPECT_EQ(expect_same_nodes(from_json(corner), MachineLimits{}, "cubic with a corner knot"), 0.0);
+}
+
+TEST(LimitSamplerFlat, StraightAndGentleCurvesWithDoubleKnots) {
+  // Degree 3 with a double interior knot (C¹, so the bound holds across it); a nearly straight
+  // quadratic; a degree-5 curve. Long spans at a low curvature: mostly flat.
+  const char* doubled = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,1,2,2,3,4,4,4,4],
+    "points": [[0,0,0],[100,10,0],[200,0,1],[300,15,0],[400,0,0],[500,10,2],[600,0,0],
+               [700,5,0]]}})";
+  EXPECT_GT(expect_same_nodes(from_json(doubled), MachineLimits{}, "cubic, double knot"), 0.5);
+  const char* line = R"({"nurbs": {"degree": 2, "knots": [0,0,0,1,2,2,2],
+    "points": [[0,0,0],[50,0,0],[100,1e-9,0],[150,0,0]]}})";
+  EXPECT_GT(expect_same_nodes(from_json(line), MachineLimits{}, "nearly straight quadratic"), 0.9);
+  const char* quintic = R"({"nurbs": {"degree": 5, "knots": [0,0,0,0,0,0,1,2,3,3,3,3,3,3],
+    "points": [[0,0,0],[80,20,0],[160,-10,5],[240,30,0],[320,0,-5],[400,25,0],[480,0,0],
+               [560,10,0]]}})";
+  EXPECT_GT(expect_same_nodes(from_json(quintic), MachineLimits{}, "quintic"), 0.3);
+}
+
+TEST(LimitSamplerFlat, RandomBSplinesGiveTheReferenceNodes) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> coord(-100.0, 100.0), gap(0.2, 2.0);
+  std::uniform_int_distribution<int> degree_of(2, 5), extra_of(0, 6), feed_of(0, 3);
+  std::size_t flat = 0, total = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    const int p = degree_of(rng);
+    const int n = p + 1 + extra_of(rng);  // control points
+    std::vector<double> k2(static_cast<std::size_t>(p + 1), 0.0);
+    double u = 0.0;
+    int run = 0;
+    for (int i = 0; i < n - p - 1; ++i) {
+      // Now and then a repeated interior knot: up to p − 1 times (C¹, eligible) or p (a
+      // corner, not).
+      if (i > 0 && run < p && rng() % 4 == 0) {
+        ++run;
+      } else {
+        u += gap(rng);
+        run = 1;
+      }
+      k2.push_back(u);
+    }
+    u += gap(rng);
+    for (int i = 0; i <= p; ++i) k2.push_back(u);
+    std::vector<Vec3> pts;
+    const double scale = trial % 2 == 0 ? 1.0 : 5.0;  // tight curves and gentle ones
+    for (std::size_t i = 0; i + static_cast<std::size_t>(p) + 1 < k2.size(); ++i) {
+      pts.emplace_back(scale * coord(rng), scale * coord(rng), 0.1 * coord(rng));
+    }
+    toolpath::Path path;
+    toolpath::PathSegment seg;
+    seg.geometry = toolpath::NurbsCurve(p, k2, pts);
+    const int f = feed_of(rng);
+    if (f == 1) seg.feed_mm_per_min = 2400.0;
+    if (f == 2) seg.rapid = true;
+    path.segments.push_back(std::move(seg));
+    MachineLimits limits;
+    if (f == 3) limits.max_feed_mm_per_min = 12000.0;
+    const Stream fast = sample(path, limits, true);
+    flat += fast.flat;
+    total += fast.intervals;
+    expect_same_nodes(path, limits,
+                      "random curve " + std::to_string(trial) + " (degree " + std::to_string(p) +
+                          ", seed " + std::to_string(seed) + ")");
+  }
+  std::cout << "[ flat     ] " << flat << " of " << total << " curve intervals\n";
+  EXPECT_GT(flat, total / 4) << "seed " << seed;  // the skip is exercised
+  EXPECT_LT(flat, total) << "seed " << seed;      // and so is the search
+}
+
+}  // namespace
+}  // namespace ncd::interpolator
