@@ -10,10 +10,11 @@
 #      and walk it at 4 ms with the roughness-bounded feed (paper 004) and encode the setpoints
 #      and the events into NC blocks that fit the link;
 #   3. start a simulated controller on a pseudo-terminal (19 200 baud, 7E2, XON/XOFF, 256-byte
-#      buffer) and drip-feed the blocks to it; it executes them in real time (about 20 s).
+#      buffer) and drip-feed the blocks to it; it executes them in real time (about 35 s).
+# NCD_DEMO_OUT sets the folder (default out/demo; the suite's Demo.RunsEndToEnd uses its own).
 set -euo pipefail
 ncd=${1:-build/release/app/ncd}
-out=out/demo
+out=${NCD_DEMO_OUT:-out/demo}
 mkdir -p "$out"
 rm -f "$out/cnc" "$out"/*.journal
 geometry=(--pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01
