@@ -6,9 +6,13 @@
 #                                      runs
 #   scripts/fuzz.sh run [SECONDS]      SECONDS of fuzzing each (default 60, FUZZ_SECONDS in make),
 #                                      new inputs kept in build/fuzz/corpus/<name>/
+#   FUZZ_HARNESS=pipeline scripts/fuzz.sh …   only that harness (default: every one)
 # Exits non-zero on the first finding (a crash, a sanitizer report, an escaped exception, a
 # timeout of 10 s on one input, more than 2 GB of memory); the input is saved as
 # build/fuzz/artifacts/<name>-crash-… and can be replayed with build/fuzz/tests/fuzz/ncd_fuzz_<name> FILE.
+# The pipeline harness walks a whole job per input (seconds under the sanitizers, flowsnake.ngc
+# about 20 s): its timeout is 120 s, and `corpus` gives it its seeds and 100 mutated inputs
+# (PIPELINE_RUNS sets the mutations) instead of 2000.
 set -euo pipefail
 mode=${1:-corpus}
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -29,6 +33,7 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 for src in "${harnesses[@]}"; do
   stem=$(basename "$src" .cpp)
   name=${stem%_fuzz}
+  if [ -n "${FUZZ_HARNESS:-}" ] && [ "$name" != "$FUZZ_HARNESS" ]; then continue; fi
   exe=$bin/ncd_fuzz_$name
   seeds=$root/tests/fuzz/corpus/$name
   if [ ! -x "$exe" ]; then echo "$exe is missing: build the fuzz preset first (make fuzz-build)" >&2; exit 1; fi
@@ -39,10 +44,17 @@ for src in "${harnesses[@]}"; do
     work=$scratch/$name
   fi
   mkdir -p "$work"
-  echo "fuzz $name: ${limit[*]} from $(ls "$seeds" | wc -l) seeds"
+  timeout=10
+  args=("${limit[@]}")
+  if [ "$name" = pipeline ]; then
+    timeout=120
+    # libFuzzer's -runs counts the seeds too.
+    if [ "$mode" = corpus ]; then args=(-seed=1 -runs=$(($(ls "$seeds" | wc -l) + ${PIPELINE_RUNS:-100}))); fi
+  fi
+  echo "fuzz $name: ${args[*]} from $(ls "$seeds" | wc -l) seeds"
   # The harness runs in the scratch directory: files the fuzzer names (a service config's
   # "machine") are looked up there, not in the source tree.
-  (cd "$scratch" && "$exe" "${limit[@]}" -timeout=10 -rss_limit_mb=2048 \
+  (cd "$scratch" && "$exe" "${args[@]}" -timeout=$timeout -rss_limit_mb=2048 \
       -print_final_stats=0 -artifact_prefix="$root/build/fuzz/artifacts/$name-" \
       "$work" "$seeds" 2>"$scratch/$name.log") || {
     echo "fuzz $name FAILED; the log follows, the input is in build/fuzz/artifacts/" >&2

@@ -1,16 +1,13 @@
 // Replaces the global operator new and delete with a malloc/free pair that counts every heap
 // allocation of the test binary, to prove that a hot path (NURBS eval, a walker step, a cycle
-// period) makes none. Include it from exactly one file of a test binary.
+// period) makes none. Include it from exactly one file of a test binary; other files read the
+// counters through tests/common/allocation_counters.hpp.
 #pragma once
 
-#include <atomic>
 #include <cstdlib>
 #include <new>
 
-namespace ncd::test {
-inline std::atomic<long> g_allocations{0};
-inline std::atomic<long> g_allocated_bytes{0};  // requested, summed (frees not subtracted)
-}  // namespace ncd::test
+#include "tests/common/allocation_counters.hpp"
 
 void* operator new(std::size_t size) {
   ncd::test::g_allocations.fetch_add(1, std::memory_order_relaxed);
