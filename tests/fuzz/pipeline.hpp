@@ -62,10 +62,10 @@
 #include <unistd.h>
 
 #include "core/error.hpp"
-#include "interpolator/feed_limits.hpp"
+#include "feed/feed_limits.hpp"
 #include "motion/job.hpp"
-#include "toolpath/ngc_interpreter.hpp"
-#include "toolpath/program.hpp"
+#include "gcode/ngc/interpreter.hpp"
+#include "gcode/program.hpp"
 
 namespace ncd::fuzz::pipeline {
 
