@@ -54,7 +54,7 @@ void install_handler() {
     struct sigaction sa {};
     sa.sa_handler = remove_temporaries;
     sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESETHAND;
+    sa.sa_flags = static_cast<int>(SA_RESETHAND);
     ::sigaction(sig, &sa, nullptr);
   }
 }
