@@ -60,7 +60,7 @@ class Service : public comms::ControlHandler {
   std::function<void()> on_idle_;  // shutdown's continuation
 };
 
-// The status snapshot as the socket's JSON (field names with units; README, "ncd serve").
+// The status snapshot as the socket's JSON (field names with units; docs/cmd-serve.md).
 nlohmann::json to_json(const service::Status& status);
 // How a streamed job that ended early left the machine (docs/service.md, "Ending early").
 nlohmann::json to_json(const service::EndingStatus& ending);

@@ -115,7 +115,7 @@ void register_serve(CLI::App& app, Runner& run) {
   auto a = std::make_shared<ServeArgs>();
   CLI::App* c = app.add_subcommand(
       "serve",
-      "Run as a service: newline-delimited JSON requests on a control socket (see README). "
+      "Run as a service: newline-delimited JSON requests on a control socket (see docs/cmd-serve.md). "
       "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
   c->add_option("--config", a->config,
                 "service config (TOML): listen, token, machine, clock, realtime, [live_limits], "

@@ -111,7 +111,7 @@ BENCHMARK(BM_PlannerWholePath)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 // A zig-zag of 40 legs of 5 mm with 150° turns, walked whole by the job: arg 0 keeps its
 // corners sharp (G64 P0: stops, no line of setpoints), arg 10 passes them within 0.01 mm
-// (docs/planner.md §3d: the line of setpoints and an overlap at each corner). The baseline is
+// (docs/planner.md §3b: the line of setpoints and an overlap at each corner). The baseline is
 // arg 0 in the same run; items are emitted periods, and "simulated_s" the motion's duration.
 void BM_JobZigZagCorners(benchmark::State& state) {
   std::vector<Vec3> pts{Vec3::Zero()};

@@ -1,4 +1,4 @@
-// Smoothing of dense polylines under G64 P Q (docs/planner.md §3b).
+// Smoothing of dense polylines under G64 P Q (docs/planner.md §3d).
 //
 // CAM systems write curves as runs of short G1 moves (chords within their own tolerance,
 // often with coordinates rounded to 1 µm). Walked as a polyline, each vertex is a small corner

@@ -1,6 +1,6 @@
 // Smoothing of dense polylines under G64 P Q: runs of short, gently turning G1 moves are
 // replaced by a cubic B-spline proven to lie within Q of them. The algorithm, the run rules and
-// the proof are explained in polyline_fit.cpp and docs/planner.md §3b.
+// the proof are explained in polyline_fit.cpp and docs/planner.md §3d.
 #pragma once
 
 #include <cstddef>

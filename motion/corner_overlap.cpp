@@ -1,4 +1,4 @@
-// Corner overlap (docs/planner.md §3d).
+// Corner overlap (docs/planner.md §3b).
 //
 // At a sharp corner V that the planner passes with a full stop, the motion along the piece in
 // (direction d_in) ends as r(t), the distance still to go, and the motion along the piece out

@@ -1,5 +1,5 @@
 // Passing a sharp corner without its stop: the end of one move and the start of the next,
-// superposed in time (docs/planner.md §3d). Plain data in, a period count out; no allocation.
+// superposed in time (docs/planner.md §3b). Plain data in, a period count out; no allocation.
 #pragma once
 
 #include <cstddef>

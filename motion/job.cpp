@@ -93,7 +93,7 @@ void validate_path(const toolpath::Path& path) {
 }
 
 // The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
-// first (docs/planner.md §3b); the corners left between polyline parts are then blended.
+// first (docs/planner.md §3d); the corners left between polyline parts are then blended.
 toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
                             interpolator::FitReport* fit, interpolator::BlendReport* report) {
   interpolator::validate(c.limits);
@@ -116,7 +116,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kLineStepsPerPrepare = 3;
 
 // The planner steps before a rest that fill the line to its capacity in time (docs/planner.md
-// §3d): from n steps before it the line grows by (r − 1)/r of them, and the rest's decision
+// §3b): from n steps before it the line grows by (r − 1)/r of them, and the rest's decision
 // waits ⌈(m + 4)/r⌉ periods more for the m + 4 setpoints after it while the head moves on; the
 // longest overlap m then still has its m + 3 setpoints before the rest:
 // n ≥ r/(r − 1) · (m + 4 + ⌈(m + 4)/r⌉), one more for rounding.
@@ -205,7 +205,7 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
   // Every limit is capped by the machine's maximum feed: size the planner for it now, so
   // that nothing allocates once the cycle runs.
   planner_.reserve_for_speed(config.limits.max_feed_mm_per_min / 60.0);
-  // Sharp corners that may be passed without their stops (docs/planner.md §3d): the setpoints
+  // Sharp corners that may be passed without their stops (docs/planner.md §3b): the setpoints
   // then wait in a line long enough to hold a whole overlap and three setpoints on each side.
   if (!blend_.sharp.empty()) {
     const auto& l = config.limits;
@@ -364,7 +364,7 @@ Setpoint Job::raw_step() {
   return sp;
 }
 
-// The line of setpoints (docs/planner.md §3d), filled by prepare(): within deep_within_mm_ of
+// The line of setpoints (docs/planner.md §3b), filled by prepare(): within deep_within_mm_ of
 // the stretch's stop, or while a rest waits for its decision, the planner runs up to line_cap_
 // periods ahead (kLineStepsPerPrepare steps a period at most), so that at each rest on a sharp
 // corner the motion after it is known while the motion before it is still in the line; the overlap

@@ -50,13 +50,13 @@ struct Setpoint {
   double feed_limit_mm_per_s = 0.0;
   std::size_t segment = 0;  // the segment of path() the setpoint belongs to
   // The period that ends here ran the end of one move and the start of the next at once, at a
-  // sharp corner passed without its stop (docs/planner.md §3d): p lies within the move's G64 P
+  // sharp corner passed without its stop (docs/planner.md §3b): p lies within the move's G64 P
   // of the programmed corner, off path() but for the last such setpoint; s sums the two moves'
   // progress, v is the speed, a and j the larger of the two moves' own.
   bool overlapped = false;
 };
 
-// What passing sharp corners without their stops did (docs/planner.md §3d).
+// What passing sharp corners without their stops did (docs/planner.md §3b).
 struct OverlapReport {
   std::size_t corners = 0;        // corners overlapped
   std::size_t periods_saved = 0;  // setpoints fewer than with their stops

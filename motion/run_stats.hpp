@@ -45,7 +45,7 @@ struct RunStats {
   double accel_max_mm_per_s2 = 0.0;  // tangential
   double jerk_max_mm_per_s3 = 0.0;   // tangential (the planner's j, bounded by j_max)
   // The jerk the axes feel: |p_k − 3 p_k−1 + 3 p_k−2 − p_k−3| / T³ from the setpoints, the
-  // largest so far. Not bounded by j_max (docs/planner.md §3b): on a curve it adds v³κ² and
+  // largest so far. Not bounded by j_max (docs/planner.md §3c): on a curve it adds v³κ² and
   // 3 v a κ to the tangential jerk. last_p_mm holds the three previous setpoints.
   double jerk_vector_max_mm_per_s3 = 0.0;
   std::array<Vec3, 3> last_p_mm{};

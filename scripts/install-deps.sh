@@ -6,8 +6,8 @@ pkgs=(build-essential cmake ninja-build clang-format pkg-config
       libeigen3-dev libboost-dev libserial-dev libgtest-dev libgmock-dev libbenchmark-dev
       libcli11-dev nlohmann-json3-dev libtoml11-dev libfmt-dev libspdlog-dev libssl-dev rt-tests
       zlib1g-dev                    # zlib: the PNG writer of ncd simulate
-      libpaho-mqttpp-dev libpaho-mqtt-dev mosquitto mosquitto-clients  # MQTT: ncd serve [mqtt], tests/fleet
-      openssl                       # the test certificates of the TLS tests (tests/fleet, tests/web)
+      libpaho-mqttpp-dev libpaho-mqtt-dev mosquitto mosquitto-clients  # MQTT: ncd serve [mqtt], tests/api
+      openssl                       # the test certificates of the TLS tests (tests/api, tests/web)
       clang-14 libclang-rt-14-dev   # clang-14, libclang-rt: the libFuzzer harnesses (make fuzz)
       chromium chromium-driver      # the web dashboard's browser test (tests/web)
       "$@")                         # more packages a caller asks for (scripts/install-judges.sh)

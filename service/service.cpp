@@ -1005,7 +1005,7 @@ Status Service::status() const {
     r.position_mm = last_.p;
     r.s_mm = last_.s_mm;
     r.length_mm = cycle_->length_mm();
-    const std::size_t seg = last_.segment;  // the walker may be ahead (docs/planner.md §3d)
+    const std::size_t seg = last_.segment;  // the walker may be ahead (docs/planner.md §3b)
     // The job's own path: fitted dense runs (G64 Q) split a program segment, each part keeps
     // its source line.
     const auto& segs = cycle_->job().path().segments;

@@ -296,7 +296,7 @@ struct SimLog {
   long banners_lost = 0;  // sent while the port was closed or no sender had it open
 };
 
-// The log as the JSON `--log` writes (field names in README, `ncd sim-controller`).
+// The log as the JSON `--log` writes (field names in docs/cmd-sim-controller.md).
 nlohmann::json to_json(const SimLog& log);
 // The settings part of it.
 nlohmann::json settings_json(const SimControllerConfig& config);

@@ -191,7 +191,7 @@ TEST_F(Replay, JerkVectorBoundFromTheMachineFile) {
 }
 
 // A square under G64 P0.01 from an NC program: its three corners are passed without their
-// stops (docs/planner.md §3d) and the report says so; under G64 P0 the same program stops at
+// stops (docs/planner.md §3b) and the report says so; under G64 P0 the same program stops at
 // each and takes 21 periods (84 ms) longer, the periods the report gives as saved.
 TEST_F(Replay, CornersPassedWithoutTheirStopsAreReported) {
   const std::string machine =

@@ -87,7 +87,7 @@ struct RandomProgram {
     toolpath::PathSegment s;
     common(s);
     if (s.feed_mm_per_min) s.feed_mm_per_min = std::min(*s.feed_mm_per_min, 3000.0);
-    // Half of the dense runs under G64 get a Q (the fit of docs/planner.md §3b), and then their
+    // Half of the dense runs under G64 get a Q (the fit of docs/planner.md §3d), and then their
     // points rounded to 1 µm as a CAM post writes them (the first stays where the last move
     // ended): noise for the fit to smooth.
     if (s.path_control == toolpath::PathControl::blend && pick(2) == 0) {

@@ -15,7 +15,7 @@
 // which must not fall below it by more than a period (the interpolation at the splits).
 // The dense CAM rows (issue 13) walk 20 000 moves of 0.01 mm along an arc of radius 50 mm at
 // F3000 raw and fitted under G64 P0.01 Q0.01 (feed/polyline_fit.cpp, docs/planner.md
-// §3b), with the coordinates exact and rounded as a CAM post writes them (4 and 3 decimals);
+// §3d), with the coordinates exact and rounded as a CAM post writes them (4 and 3 decimals);
 // the fitted walk must be at least 2× faster than the raw one, every setpoint within Q of the
 // programmed polyline.
 #include <gtest/gtest.h>
@@ -201,7 +201,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
                               const std::vector<double>& legs) {
     double b = 0.0;
     for (const double d : legs) b += test::scurve_time_s(d, v_mm_per_s, kA, kJ);
-    // Under G64 the sharp corners are overlapped (docs/planner.md §3d): the exact-stop bound
+    // Under G64 the sharp corners are overlapped (docs/planner.md §3b): the exact-stop bound
     // less the periods the job reports saved there.
     std::size_t saved = 0;
     const double t = ncd_duration_s(p, &saved);
@@ -246,7 +246,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     std::size_t saved = 0;
     const double t = ncd_duration_s(p, &saved);
     row("drilling 5 holes", t, b, "exact-stop S-curves");
-    // Its moves are G1 (no rapids): the corners over the holes are overlapped (§3d).
+    // Its moves are G1 (no rapids): the corners over the holes are overlapped (§3b).
     std::printf("  drilling: %zu periods saved at the corners over the holes\n", saved);
     EXPECT_LE(t, 1.05 * b);
     EXPECT_GE(t, b - 0.004 * static_cast<double>(saved + 1));
@@ -356,7 +356,7 @@ Path polyline_path(const std::vector<Vec3>& pts, toolpath::PathControl mode,
 
 // G64 P0.01 against G61.1 (exact stop) on the square and the zig-zag, under both jerk
 // bounds: every setpoint within P of the programmed polyline (brute force over every piece),
-// never slower than exact stop, and faster where the corner overlap (docs/planner.md §3d) keeps
+// never slower than exact stop, and faster where the corner overlap (docs/planner.md §3b) keeps
 // its jerk-vector limit: everywhere under "tangential" (√2 j_max), at the zig-zag's 150° turns
 // under "vector" (0.52 j_max there; the square's 90° corners would take √2 j_max and stop).
 TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {

@@ -154,7 +154,7 @@ TEST(JerkVector, TableOfTheBoundPaths) {
     const char* name;
     Path path;
     bool lines_with_stops;  // straight legs, rest at every corner
-    bool overlapped;        // straight legs, corners passed without their stops (§3d)
+    bool overlapped;        // straight legs, corners passed without their stops (§3b)
   } cases[] = {
       {"circle R20", toolpath::read_path_text(ncd::test::kCircleJson, "circle"), false, false},
       {"cubic", toolpath::read_path_text(ncd::test::kCubicJson, "cubic"), false, false},

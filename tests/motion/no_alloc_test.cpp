@@ -57,7 +57,7 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
     EXPECT_GT(periods, 100);
     EXPECT_GE(job.stops_mm().size(), 3u);
     // The corner at (20, 0) is passed without its stop under "tangential" (docs/planner.md
-    // §3d): the line of setpoints and its overlaps allocate nothing either.
+    // §3b): the line of setpoints and its overlaps allocate nothing either.
     EXPECT_GT(job.delay_periods(), 0U);
     if (bound == interpolator::JerkBound::tangential) {
       EXPECT_GE(job.overlap_report().corners, 1U);

@@ -1,4 +1,4 @@
-// Sharp corners passed without their stops under G64 P (docs/planner.md §3d). The reference is
+// Sharp corners passed without their stops under G64 P (docs/planner.md §3b). The reference is
 // the same program with its corners kept sharp (G64 P0), run by the same planner: the overlapped
 // run must be exactly that run with, at each corner, the last m setpoints before the rest and
 // the first m after it added together (the superposition, checked here setpoint by setpoint),
@@ -268,7 +268,7 @@ TEST(Overlap, HoldAroundAnOverlappedCornerKeepsEveryLimit) {
 // there it acts from the period its final descent to rest starts, if that is sooner.
 TEST(Overlap, FarFromAStopAHoldActsAtOnce) {
   // A 90° corner at F6000, a 150° turn at F600 (at that feed the 90° corner gets an arc).
-  // The zone is 37 periods (docs/planner.md §3d, m_max = 14 at these limits) at the fastest the
+  // The zone is 37 periods (docs/planner.md §3b, m_max = 14 at these limits) at the fastest the
   // move may go: 200 % of its feed, at most the maximum feed.
   for (const double feed : {6000.0, 600.0}) {
     const std::vector<Vec3> pts = {

@@ -14,7 +14,7 @@
 //     the tangential acceleration and jerk (differences of the planned s) within their limits;
 //     the acceleration vector |Δ²p|/T² within √2 a_max (tangential and centripetal each ≤ a_max);
 //   - no stall: never 2 s without 0.1 µm of progress.
-// A sharp corner passed without its stop (docs/planner.md §3d) superposes the end of one move
+// A sharp corner passed without its stop (docs/planner.md §3b) superposes the end of one move
 // and the start of the next: those setpoints lie off the walked path, so they are held to the
 // programmed geometry (within the move's P, chord midpoints too) and to the jerk vector
 // (j_max under "vector", √2 j_max under "tangential") instead of the walked path and the
@@ -120,7 +120,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
     }
     // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
     // ends at its corner): its G64 P under G64, the machine's blend_tolerance_mm under a plain
-    // G64; none under G61 or G61.1. A dense run fitted under G64 Q (docs/planner.md §3b) is a
+    // G64; none under G61 or G61.1. A dense run fitted under G64 Q (docs/planner.md §3d) is a
     // cubic in the walked path, in a polyline of the program: its tolerance is Q.
     const std::size_t walked = sp.segment;
     const PathSegment& held = path.segments[job.fit_report().source_segment[walked]];
@@ -293,7 +293,7 @@ TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
 
 // Random polylines of sharp corners under G64 P (turns of 20–170°, legs of 0.2–20 mm, P of
 // 1 µm–0.1 mm, feeds of 600–6000 mm/min, 3D), under both jerk bounds: every corner that gets
-// no arc is a candidate for the corner overlap (docs/planner.md §3d), so these programs check
+// no arc is a candidate for the corner overlap (docs/planner.md §3b), so these programs check
 // it far more often than the mixed ones above. Seed printed; the count of overlapped corners too.
 TEST(Property, RandomSharpCornersArePassedWithinEveryLimit) {
   const std::uint64_t seed = test::seed();

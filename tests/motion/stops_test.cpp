@@ -318,7 +318,7 @@ TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {
              test::scurve_time_s(5.0, 100.0, kA, kJ);
   }
   // The bottom of each hole, a reversal, stops. The corners at the rapids keep their stops too
-  // (a rapid is never overlapped, docs/planner.md §3d): nothing is saved here.
+  // (a rapid is never overlapped, docs/planner.md §3b): nothing is saved here.
   const double saved_s = static_cast<double>(r.overlap_saved) * kT;
   std::cout << "drilling: " << r.duration_s << " s, exact-stop bound " << bound << " s, " << saved_s
             << " s saved at the corners\n";
