@@ -113,10 +113,10 @@ int run_serve(const ServeArgs& a) {
 
 void register_serve(CLI::App& app, Runner& run) {
   auto a = std::make_shared<ServeArgs>();
-  CLI::App* c = app.add_subcommand(
-      "serve",
-      "Run as a service: newline-delimited JSON requests on a control socket (see docs/cmd-serve.md). "
-      "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
+  CLI::App* c = app.add_subcommand("serve",
+                                   "Run as a service: newline-delimited JSON requests on a control "
+                                   "socket (see docs/cmd-serve.md). "
+                                   "Runs until SIGTERM or SIGINT, which stop any motion cleanly.");
   c->add_option("--config", a->config,
                 "service config (TOML): listen, token, machine, clock, realtime, [live_limits], "
                 "[http] (the web dashboard), [mqtt] (the fleet's broker); see "
