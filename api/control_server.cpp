@@ -83,11 +83,6 @@ std::string to_line(const Json& value) {
   return value.dump(-1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
-// {"ok": false, "error": message}.
-Json error_reply(std::string message) {
-  return {{"ok", false}, {"error", std::move(message)}};
-}
-
 // A number as JSON writes it (5000.0, 0.5), for messages.
 std::string number_text(double value) {
   return Json(value).dump();
@@ -172,7 +167,6 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void consume(const char* data, std::size_t size);
   void on_line(std::string_view line);
   Json answer(std::string_view line, std::optional<double>& subscribe_hz);
-  Json handler_reply(const Json& request);
   void start_stream(double hz);
   void stop_stream();
   void tick(std::uint64_t stream);
@@ -266,34 +260,7 @@ Json Connection::answer(std::string_view line, std::optional<double>& subscribe_
     subscribe_hz = check.subscribe_hz;
     return std::move(check.reply);
   }
-  return handler_reply(check.request);
-}
-
-// Calls the handler and makes its reply well formed: an object with "ok", and "error" if false.
-Json Connection::handler_reply(const Json& request) {
-  Json reply;
-  try {
-    reply = server_->handler.handle(request);
-  } catch (const InputError& e) {
-    return error_reply(e.what());
-  } catch (const std::exception& e) {
-    return error_reply(std::string("internal error: ") + e.what());
-  } catch (...) {
-    return error_reply("internal error: unknown exception");
-  }
-  if (!reply.is_object()) {
-    return error_reply(std::string("internal error: the reply is a JSON ") + reply.type_name() +
-                       ", not an object");
-  }
-  const auto ok = reply.find("ok");
-  if (ok == reply.end()) {
-    reply["ok"] = true;
-  } else if (!ok->is_boolean()) {
-    return error_reply("internal error: the reply's \"ok\" is not true or false");
-  } else if (!ok->get<bool>() && !reply.contains("error")) {
-    reply["error"] = "the request failed and the service gave no reason";
-  }
-  return reply;
+  return handler_reply([this](const Json& r) { return server_->handler.handle(r); }, check.request);
 }
 
 // Sends a status line now and then every 1/hz s on absolute deadlines.
@@ -662,6 +629,36 @@ void ControlServer::close() {
 
 std::size_t ControlServer::connections() const {
   return state_->count.load();
+}
+
+Json error_reply(std::string message) {
+  return {{"ok", false}, {"error", std::move(message)}};
+}
+
+Json handler_reply(const std::function<Json(const Json&)>& call, const Json& request) {
+  Json reply;
+  try {
+    reply = call(request);
+  } catch (const InputError& e) {
+    return error_reply(e.what());
+  } catch (const std::exception& e) {
+    return error_reply(std::string("internal error: ") + e.what());
+  } catch (...) {
+    return error_reply("internal error: unknown exception");
+  }
+  if (!reply.is_object()) {
+    return error_reply(std::string("internal error: the reply is a JSON ") + reply.type_name() +
+                       ", not an object");
+  }
+  const auto ok = reply.find("ok");
+  if (ok == reply.end()) {
+    reply["ok"] = true;
+  } else if (!ok->is_boolean()) {
+    return error_reply("internal error: the reply's \"ok\" is not true or false");
+  } else if (!ok->get<bool>() && !reply.contains("error")) {
+    reply["error"] = "the request failed and the service gave no reason";
+  }
+  return reply;
 }
 
 }  // namespace ncd::comms

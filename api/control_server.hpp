@@ -9,6 +9,7 @@
 #include <boost/asio/io_context.hpp>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -62,6 +63,16 @@ struct RequestCheck {
   std::optional<double> subscribe_hz;  // a valid subscribe's rate
 };
 RequestCheck check_request(std::string_view line, const ServerOptions& options);
+
+// {"ok": false, "error": message}.
+nlohmann::json error_reply(std::string message);
+// The reply of one request that passed check_request, as the socket, the web dashboard and MQTT
+// all send it: call(request), made well formed. An InputError becomes {"ok":false,"error":what},
+// any other exception "internal error: what"; a reply that is not an object, or whose "ok" is
+// not a boolean, is an internal error; "ok": true is added when left out, and a false "ok"
+// without "error" gets one.
+nlohmann::json handler_reply(const std::function<nlohmann::json(const nlohmann::json&)>& call,
+                             const nlohmann::json& request);
 
 class ControlServer {
  public:

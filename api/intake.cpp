@@ -118,7 +118,7 @@ ServiceConfig load_service_config(const std::string& path) {
   return parse_service_config(read_input_file(path, "service config, --config"), path);
 }
 
-Service::Service(boost::asio::io_context& io, const ServiceConfig& config)
+Intake::Intake(boost::asio::io_context& io, const ServiceConfig& config)
     : io_(io),
       config_(config),
       core_([&config] {
@@ -130,7 +130,7 @@ Service::Service(boost::asio::io_context& io, const ServiceConfig& config)
       }()),
       timer_(io) {}
 
-Service::~Service() {
+Intake::~Intake() {
   timer_.cancel();
 }
 
@@ -258,7 +258,7 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   return out;
 }
 
-json Service::submit(const json& req) {
+json Intake::submit(const json& req) {
   if (core_.busy()) throw InputError("submit: a job is running; stop it first");
   SubmittedJob job = submitted_job(req, config_);
   if (!job.warning.empty()) std::cerr << "ncd serve: " << job.warning << "\n";
@@ -270,7 +270,7 @@ json Service::submit(const json& req) {
   return reply;
 }
 
-void Service::run_loop() {
+void Intake::run_loop() {
   loop_armed_ = false;
   if (core_.poll()) {
     loop_armed_ = true;
@@ -285,7 +285,7 @@ void Service::run_loop() {
   if (on_idle_) io_.post(std::exchange(on_idle_, nullptr));
 }
 
-json Service::handle(const json& req) {
+json Intake::handle(const json& req) {
   const std::string cmd = req["cmd"];
   // Every key of a request is known, or the request is refused: a typo is never ignored.
   const auto keys_for = [](const std::string& c) -> std::vector<std::string> {
@@ -463,11 +463,11 @@ json to_json(const service::Event& e) {
   return j;
 }
 
-json Service::status() {
+json Intake::status() {
   return to_json(core_.status());
 }
 
-void Service::shutdown(std::function<void()> done) {
+void Intake::shutdown(std::function<void()> done) {
   if (!core_.busy()) {
     io_.post(std::move(done));
     return;
@@ -477,7 +477,7 @@ void Service::shutdown(std::function<void()> done) {
   if (!loop_armed_) run_loop();
 }
 
-void Service::abort_transfer() {
+void Intake::abort_transfer() {
   core_.abort_transfer("a second SIGTERM or SIGINT during the shutdown");
   if (!loop_armed_) run_loop();
 }

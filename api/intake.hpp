@@ -29,10 +29,13 @@ struct SubmittedJob {
 };
 SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& config);
 
-class Service : public comms::ControlHandler {
+// The one request handler of `ncd serve`: the control socket, the web dashboard and MQTT all
+// hand their requests to handle() and read status() (it was app::Service, beside the library's
+// service::Service).
+class Intake : public comms::ControlHandler {
  public:
-  Service(boost::asio::io_context& io, const ServiceConfig& config);
-  ~Service() override;
+  Intake(boost::asio::io_context& io, const ServiceConfig& config);
+  ~Intake() override;
 
   nlohmann::json handle(const nlohmann::json& request) override;
   nlohmann::json status() override;

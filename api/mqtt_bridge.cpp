@@ -142,9 +142,7 @@ std::string connect_failure_text(int rc, bool tls) {
   }
 }
 
-json error_reply(const std::string& message) {
-  return json{{"ok", false}, {"error", message}};
-}
+using comms::error_reply;
 
 void* seq_context(std::uint64_t seq) {
   return reinterpret_cast<void*>(static_cast<std::uintptr_t>(seq));
@@ -469,23 +467,8 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
     }
   }
 
-  // As the control socket does: exceptions become error replies, "ok" is added.
-  json call_handler(const json& request) {
-    json reply;
-    try {
-      reply = command_fn(request);
-    } catch (const InputError& e) {
-      return error_reply(e.what());
-    } catch (const std::exception& e) {
-      return error_reply(std::string("internal error: ") + e.what());
-    }
-    if (!reply.is_object()) {
-      return error_reply(std::string("internal error: the reply is a JSON ") + reply.type_name() +
-                         ", not an object");
-    }
-    if (!reply.contains("ok")) reply["ok"] = true;
-    return reply;
-  }
+  // As the control socket does (comms::handler_reply).
+  json call_handler(const json& request) { return comms::handler_reply(command_fn, request); }
 
   void stop(double timeout_s) {
     if (stopped) return;

@@ -42,7 +42,7 @@ struct BridgeCounters {
 
 class MqttBridge {
  public:
-  // The status snapshot (Service::status()) and the command handler (Service::handle()), both
+  // The status snapshot (Intake::status()) and the command handler (Intake::handle()), both
   // called on the io_context's thread.
   using StatusFn = std::function<nlohmann::json()>;
   using CommandFn = std::function<nlohmann::json(const nlohmann::json&)>;

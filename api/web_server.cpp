@@ -76,9 +76,7 @@ constexpr std::size_t kMaxHeaderBytes = 8192;
 constexpr auto kHttpTimeout = std::chrono::seconds(30);
 constexpr const char* kAssetNames[] = {"index.html", "app.js", "style.css"};
 
-Json error_reply(std::string message) {
-  return {{"ok", false}, {"error", std::move(message)}};
-}
+using comms::error_reply;
 
 std::string to_text(const Json& value) {
   return value.dump(-1, ' ', false, Json::error_handler_t::replace);
@@ -151,21 +149,9 @@ struct WebServer::State {
     return std::nullopt;
   }
 
-  // The handler's reply, well formed as the control socket makes it.
+  // The handler's reply, well formed as the control socket makes it (comms::handler_reply).
   Json handle(const Json& request) {
-    Json reply;
-    try {
-      reply = handler.handle(request);
-    } catch (const InputError& e) {
-      return error_reply(e.what());
-    } catch (const std::exception& e) {
-      return error_reply(std::string("internal error: ") + e.what());
-    } catch (...) {
-      return error_reply("internal error: unknown exception");
-    }
-    if (!reply.is_object()) return error_reply("internal error: the reply is not an object");
-    if (!reply.contains("ok")) reply["ok"] = true;
-    return reply;
+    return comms::handler_reply([this](const Json& r) { return handler.handle(r); }, request);
   }
 
   // The preview of a path job just submitted (a file); a chamfer job has none here.

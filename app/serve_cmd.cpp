@@ -31,7 +31,7 @@ int run_serve(const ServeArgs& a) {
   if (!a.config.empty()) cfg = load_service_config(a.config);
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
-  Service service(io, cfg);
+  Intake service(io, cfg);
   comms::ServerOptions options;
   options.token = cfg.token;
   comms::ListenAddress address = comms::ListenAddress::parse(cfg.listen);
