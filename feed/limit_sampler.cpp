@@ -78,6 +78,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include "core/error.hpp"
 #include "core/number_text.hpp"
@@ -203,9 +204,36 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
     if (k > 0) {
       const Vec3 d_in = direction(k - 1, true), d_out = direction(k, false);
       const double dk = (curvature_vector(k, false) - curvature_vector(k - 1, true)).norm();
-      const FeedLimitResult corner =
-          corner_speed(d_in, d_out, std::max(curvature(k - 1, true), curvature(k, false)), dk);
-      if (path.segments[k].stop_before ||
+      const double kappa = std::max(curvature(k - 1, true), curvature(k, false));
+      FeedLimitResult corner = corner_speed(d_in, d_out, kappa, dk);
+      // Two joints within one period's step: a segment between them shorter than the step at
+      // the corner speed puts both in one chord, which deviates by their summed turn (with the
+      // short segment's own), not by either alone (the law above, with φ the sum, capped at π).
+      const double step_mm =
+          std::min(corner.feed_mm_per_s, limits_.max_feed_mm_per_min / 60.0) * limits_.period_s;
+      const auto length = [&](std::size_t j) { return starts_mm_[j + 1] - starts_mm_[j]; };
+      const auto turn = [](const Vec3& a, const Vec3& b) {
+        return a.isZero() || b.isZero() ? 0.0 : std::acos(std::clamp(a.dot(b), -1.0, 1.0));
+      };
+      double phi_sum = turn(d_in, d_out);
+      const double phi_alone = phi_sum;
+      if (k + 1 < n && length(k) < step_mm) {
+        phi_sum +=
+            turn(d_out, direction(k, true)) + turn(direction(k, true), direction(k + 1, false));
+      }
+      if (k >= 2 && length(k - 1) < step_mm) {
+        phi_sum += turn(direction(k - 1, false), d_in) +
+                   turn(direction(k - 2, true), direction(k - 1, false));
+      }
+      if (phi_sum > phi_alone) {
+        const double v =
+            polyline_corner_speed_mm_per_s(limits_, std::min(phi_sum, std::numbers::pi), kappa);
+        if (v < corner.feed_mm_per_s) corner = {v, FeedLimit::Corner};
+      }
+      // A summed turn can slow even a tangent joint below the stop threshold: it rests there.
+      const bool summed_stop =
+          phi_sum > phi_alone && !(corner.feed_mm_per_s >= stop_below_mm_per_s());
+      if (path.segments[k].stop_before || summed_stop ||
           must_stop(d_in, d_out, path.segments[k - 1].path_control, corner)) {
         if (stops_mm_.empty() || starts_mm_[k] > stops_mm_.back()) {
           stops_mm_.push_back(starts_mm_[k]);
