@@ -1686,6 +1686,8 @@ struct SimController::Impl {
     live_sent.store(bytes_sent, std::memory_order_relaxed);
     live_t.store(now_s(), std::memory_order_relaxed);
     live_resets.store(static_cast<long>(log.resets.size()), std::memory_order_relaxed);
+    const std::array<double, 3> p = position_at(now_s());
+    for (std::size_t k = 0; k < 3; ++k) live_position[k].store(p[k], std::memory_order_relaxed);
     live_end_executed.store(log.program_end_executed, std::memory_order_release);
   }
 
@@ -1776,6 +1778,7 @@ struct SimController::Impl {
   std::atomic<std::uint64_t> live_noise{0}, live_sent{0};
   std::atomic<double> live_t{0.0};
   std::atomic<long> live_resets{0};
+  std::array<std::atomic<double>, 3> live_position{};
 };
 
 SimController::SimController(SimControllerConfig config)
@@ -1821,6 +1824,9 @@ SimProgress SimController::progress() const noexcept {
   p.bytes_sent = impl_->live_sent.load(std::memory_order_relaxed);
   p.t_s = impl_->live_t.load(std::memory_order_relaxed);
   p.resets = impl_->live_resets.load(std::memory_order_relaxed);
+  for (std::size_t k = 0; k < 3; ++k) {
+    p.position_mm[k] = impl_->live_position[k].load(std::memory_order_relaxed);
+  }
   return p;
 }
 

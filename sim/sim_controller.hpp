@@ -310,6 +310,8 @@ struct SimProgress {
   std::uint64_t noise_bytes_sent = 0, bytes_sent = 0;  // bytes_sent: written to the pty
   double t_s = 0.0;                                    // the controller's time
   long resets = 0;
+  // The machine position at t_s (MPos): where the move executing (or its hold) has got to.
+  std::array<double, 3> position_mm{};
 };
 
 class SimController {
