@@ -63,9 +63,9 @@
 
 #include "core/error.hpp"
 #include "feed/feed_limits.hpp"
-#include "motion/job.hpp"
 #include "gcode/ngc/interpreter.hpp"
 #include "gcode/program.hpp"
+#include "motion/job.hpp"
 
 namespace ncd::fuzz::pipeline {
 
