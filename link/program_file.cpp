@@ -6,6 +6,7 @@
 
 #include "core/error.hpp"
 #include "core/input_file.hpp"
+#include "gcode/lexer.hpp"
 #include "link/sha256.hpp"
 
 namespace ncd::comms {
@@ -24,16 +25,12 @@ std::string line_text(std::string_view raw) {
 
 int grbl_line_chars(std::string_view text) {
   int n = 0;
-  bool paren = false;
-  for (const char c : text) {
-    if (paren) {
-      paren = c != ')';
-    } else if (c == ';') {
-      break;
-    } else if (c == '(') {
-      paren = true;
-    } else if (static_cast<unsigned char>(c) > ' ' && c != '/') {
-      ++n;
+  gcode::Lexer lex(text);
+  for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
+    if (t.kind == gcode::Token::Kind::Comment) continue;
+    for (std::size_t i = t.at; i < t.end; ++i) {
+      const auto c = static_cast<unsigned char>(text[i]);
+      if (c > ' ' && c != '/') ++n;
     }
   }
   return n;

@@ -13,6 +13,7 @@
 
 #include "core/error.hpp"
 #include "gcode/dialect/dialect_detail.hpp"
+#include "gcode/lexer.hpp"
 #include "gcode/ngc/interpreter.hpp"
 
 namespace ncd::comms {
@@ -78,55 +79,43 @@ std::string describe(const Violation& v, Dialect d) {
 
 namespace {
 
+// A word of the ISO common set: a letter and one number with at most one point.
+std::optional<Violation> check_iso_word(std::string_view line, const gcode::Token& t) {
+  const std::size_t run_end = gcode::number_run_end(line, t);
+  const std::string_view run = line.substr(t.number_at, run_end - t.number_at);
+  const auto points = std::count(run.begin(), run.end(), '.');
+  if (t.digits && points <= 1) return std::nullopt;
+  return violation(t.column(), std::string(line.substr(t.at, run_end - t.at)), 0,
+                   points > 1 ? "a number with two points" : "an address without a number",
+                   "write each word as a letter and one number, e.g. X10.5");
+}
+
 std::optional<Violation> check_iso_line(std::string_view raw) {
   std::string_view line = raw;
   while (!line.empty() && (line.back() == '\r' || line.back() == '\n')) line.remove_suffix(1);
   std::size_t first = line.find_first_not_of(" \t");
   if (first == std::string_view::npos || line.substr(first) == "%") return std::nullopt;
-  for (std::size_t i = 0; i < line.size();) {
-    const char c = line[i];
-    const int col = static_cast<int>(i) + 1;
-    if (c == ' ' || c == '\t') {
-      ++i;
-    } else if (c == '(') {
-      const auto close = line.find(')', i);
-      if (close == std::string_view::npos) {
-        return violation(col, "(", 0, "a comment without its ')'", "close the comment");
-      }
-      i = close + 1;
-    } else if (c == '/' && i == first) {
-      ++i;  // block delete
-    } else if (std::isalpha(static_cast<unsigned char>(c))) {
-      std::size_t j = i + 1;
-      while (j < line.size() && (line[j] == ' ' || line[j] == '\t')) ++j;
-      if (j < line.size() && (line[j] == '+' || line[j] == '-')) ++j;
-      int digits = 0, points = 0;
-      while (j < line.size() &&
-             (std::isdigit(static_cast<unsigned char>(line[j])) || line[j] == '.')) {
-        if (line[j] == '.') {
-          ++points;
-        } else {
-          ++digits;
-        }
-        ++j;
-      }
-      const std::string word(line.substr(i, j - i));
-      if (digits == 0 || points > 1) {
-        return violation(col, word, 0,
-                         points > 1 ? "a number with two points" : "an address without a number",
-                         "write each word as a letter and one number, e.g. X10.5");
-      }
-      i = j;
-    } else {
-      const char* why = c == '#' || c == '[' || c == ']' || c == '='
-                            ? "variables and expressions (Custom Macro B) are not in the ISO "
-                              "drip-feed common set"
-                        : c == ';' ? "';' is how a listing shows the end of block; ISO code ends "
-                                     "a block with LF"
-                                   : "a character that is not an address, a number or a comment";
-      return violation(col, std::string(1, c), 0, why,
-                       "write the program with plain words (the ncd writer's iso dialect)");
+  gcode::Lexer lex(line);
+  for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
+    if (t.kind == gcode::Token::Kind::Comment && !t.semicolon) {
+      if (!t.closed)
+        return violation(t.column(), "(", 0, "a comment without its ')'", "close the comment");
+      continue;
     }
+    if (t.kind == gcode::Token::Kind::Word) {
+      if (auto v = check_iso_word(line, t)) return v;
+      continue;
+    }
+    const char c = line[t.at];
+    if (c == '/' && t.at == first) continue;  // block delete
+    const char* why = c == '#' || c == '[' || c == ']' || c == '='
+                          ? "variables and expressions (Custom Macro B) are not in the ISO "
+                            "drip-feed common set"
+                      : c == ';' ? "';' is how a listing shows the end of block; ISO code ends "
+                                   "a block with LF"
+                                 : "a character that is not an address, a number or a comment";
+    return violation(t.column(), std::string(1, c), 0, why,
+                     "write the program with plain words (the ncd writer's iso dialect)");
   }
   return std::nullopt;
 }

@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "gcode/dialect/dialect_detail.hpp"
+#include "gcode/lexer.hpp"
 
 namespace ncd::comms {
 
@@ -95,28 +96,23 @@ struct Kept {
   int overflow_column = 0;  // the first character beyond 79, 0 if none
 };
 
+// Step 1: the kept characters of the line up to its first CR or LF, comments out (the lexer,
+// gcode/lexer.hpp, says what a comment is).
 Kept grbl_keep(std::string_view raw) {
   Kept k;
-  bool paren = false, semicolon = false;
-  for (std::size_t i = 0; i < raw.size(); ++i) {
-    const auto c = static_cast<unsigned char>(raw[i]);
-    const int col = static_cast<int>(i) + 1;
-    if (c == '\n' || c == '\r') break;
-    if (semicolon || k.overflow_column != 0) continue;
-    if (paren) {
-      if (c == ')') paren = false;
-      continue;
-    }
-    if (c <= ' ' || c == '/') continue;
-    if (c == '(') {
-      paren = true;
-    } else if (c == ';') {
-      semicolon = true;
-    } else if (static_cast<int>(k.text.size()) >= kGrblKeptChars) {
-      k.overflow_column = col;
-    } else {
+  const std::string_view line = raw.substr(0, raw.find_first_of("\r\n"));
+  gcode::Lexer lex(line);
+  for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
+    if (t.kind == gcode::Token::Kind::Comment) continue;
+    for (std::size_t i = t.at; i < t.end; ++i) {
+      const auto c = static_cast<unsigned char>(line[i]);
+      if (c <= ' ' || c == '/') continue;
+      if (static_cast<int>(k.text.size()) >= kGrblKeptChars) {
+        k.overflow_column = static_cast<int>(i) + 1;
+        return k;
+      }
       k.text += static_cast<char>(std::toupper(c));
-      k.column.push_back(col);
+      k.column.push_back(static_cast<int>(i) + 1);
     }
   }
   return k;

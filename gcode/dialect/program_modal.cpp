@@ -12,115 +12,110 @@
 
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "gcode/lexer.hpp"
 
 namespace ncd::comms {
-BlockMotion ProgramModal::apply(std::string_view text) {
-  BlockMotion m;
+namespace {
+
+// The words of one block that act after all are read.
+struct BlockWords {
   std::array<std::optional<double>, 3> axis;
-  std::optional<int> motion;
-  bool dwell = false, m6 = false;
+  std::optional<int> motion;  // 0 1 2 3, or -1 for G80
+  bool dwell = false, m6 = false, known = true;
   std::optional<int> t_word;
-  std::optional<double> h_word;
-  for (std::size_t i = 0; i < text.size();) {
-    const char c = text[i];
-    if (c == '(') {
-      const auto close = text.find(')', i);
-      if (close == std::string_view::npos) break;
-      i = close + 1;
-      continue;
+  std::optional<double> h_word;  // -1 for a G43 without H: the tool's own length
+};
+
+void read_g(long g10, ModalState& s, BlockWords& w) {
+  if (g10 == 0 || g10 == 10 || g10 == 20 || g10 == 30) {
+    w.motion = static_cast<int>(g10 / 10);
+  } else if (g10 == 800) {
+    w.motion = -1;
+  } else if (g10 == 40) {
+    w.dwell = true;
+  } else if (g10 == 200 || g10 == 210) {
+    s.inch = g10 == 200;
+  } else if (g10 == 900 || g10 == 910) {
+    s.absolute = g10 == 900;
+  } else if (g10 >= 540 && g10 <= 590 && g10 % 10 == 0) {
+    s.work_offset = static_cast<int>(g10 / 10);
+  } else if (g10 == 490) {
+    s.length_offset.reset();
+  } else if (g10 == 430) {
+    w.h_word = w.h_word.value_or(-1.0);
+  } else if (g10 == 280 || g10 == 300 || g10 == 530 || g10 == 920 || g10 == 930) {
+    w.known = false;
+  }
+}
+
+void read_word(char letter, double v, ModalState& s, BlockWords& w) {
+  switch (letter) {
+    case 'G':
+      read_g(std::lround(v * 10.0), s, w);
+      break;
+    case 'M': {
+      const long mc = std::lround(v);
+      if (mc == 3 || mc == 4 || mc == 5) s.spindle = static_cast<int>(mc);
+      if (mc == 6) w.m6 = true;
+      if (mc == 7) s.mist = true;
+      if (mc == 8) s.flood = true;
+      if (mc == 9) s.mist = s.flood = false;
+      break;
     }
-    if (c == ';') break;
-    if (!std::isalpha(static_cast<unsigned char>(c))) {
-      ++i;
-      continue;
-    }
-    const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-    ++i;
-    while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
-    std::size_t j = i;
-    if (j < text.size() && (text[j] == '+' || text[j] == '-')) ++j;
-    while (j < text.size() &&
-           (std::isdigit(static_cast<unsigned char>(text[j])) != 0 || text[j] == '.')) {
-      ++j;
-    }
-    double v = 0.0;
-    const char* first = text.data() + i;
-    if (first < text.data() + j && *first == '+') ++first;
-    const auto r = std::from_chars(first, text.data() + j, v);
-    i = j;
-    if (r.ec != std::errc()) {
-      m.known = false;
-      continue;
-    }
-    const long g10 = std::lround(v * 10.0);
-    switch (letter) {
-      case 'G':
-        if (g10 == 0 || g10 == 10 || g10 == 20 || g10 == 30) {
-          motion = static_cast<int>(g10 / 10);
-        } else if (g10 == 800) {
-          motion = -1;
-        } else if (g10 == 40) {
-          dwell = true;
-        } else if (g10 == 200 || g10 == 210) {
-          state_.inch = g10 == 200;
-        } else if (g10 == 900 || g10 == 910) {
-          state_.absolute = g10 == 900;
-        } else if (g10 >= 540 && g10 <= 590 && g10 % 10 == 0) {
-          state_.work_offset = static_cast<int>(g10 / 10);
-        } else if (g10 == 490) {
-          state_.length_offset.reset();
-        } else if (g10 == 430) {
-          h_word = h_word.value_or(-1.0);
-        } else if (g10 == 280 || g10 == 300 || g10 == 530 || g10 == 920 || g10 == 930) {
-          m.known = false;
-        }
-        break;
-      case 'M': {
-        const long mc = std::lround(v);
-        if (mc == 3 || mc == 4 || mc == 5) state_.spindle = static_cast<int>(mc);
-        if (mc == 6) m6 = true;
-        if (mc == 7) state_.mist = true;
-        if (mc == 8) state_.flood = true;
-        if (mc == 9) state_.mist = state_.flood = false;
-        break;
-      }
-      case 'T':
-        t_word = static_cast<int>(std::lround(v));
-        break;
-      case 'H':
-        h_word = v;
-        break;
-      case 'S':
-        state_.speed_rpm = v;
-        break;
-      case 'F':
-        state_.feed = v;
-        break;
-      case 'X':
-      case 'Y':
-      case 'Z':
-        axis[static_cast<std::size_t>(letter - 'X')] = v;
-        break;
-      default:
-        break;
+    case 'T':
+      w.t_word = static_cast<int>(std::lround(v));
+      break;
+    case 'H':
+      w.h_word = v;
+      break;
+    case 'S':
+      s.speed_rpm = v;
+      break;
+    case 'F':
+      s.feed = v;
+      break;
+    case 'X':
+    case 'Y':
+    case 'Z':
+      w.axis[static_cast<std::size_t>(letter - 'X')] = v;
+      break;
+    default:
+      break;
+  }
+}
+
+}  // namespace
+
+BlockMotion ProgramModal::apply(std::string_view text) {
+  BlockWords w;
+  gcode::Lexer lex(text);
+  for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
+    if (t.kind != gcode::Token::Kind::Word) continue;  // comments and stray characters
+    if (const auto v = gcode::word_value(text, t)) {
+      read_word(t.letter, *v, state_, w);
+    } else {
+      w.known = false;
     }
   }
-  if (t_word) {
-    if (m6 || !state_.tool_changed) state_.tool = t_word;
+  if (w.t_word) {
+    if (w.m6 || !state_.tool_changed) state_.tool = w.t_word;
   }
-  if (m6) state_.tool_changed = true;
-  if (h_word)
-    state_.length_offset = *h_word >= 0.0 ? static_cast<int>(*h_word) : state_.tool.value_or(0);
-  if (motion) state_.motion = *motion;
-  m.dwell = dwell;
-  const bool has_axis = axis[0] || axis[1] || axis[2];
+  if (w.m6) state_.tool_changed = true;
+  if (w.h_word) {
+    state_.length_offset = *w.h_word >= 0.0 ? static_cast<int>(*w.h_word) : state_.tool.value_or(0);
+  }
+  if (w.motion) state_.motion = *w.motion;
+  BlockMotion m;
+  m.known = w.known;
+  m.dwell = w.dwell;
+  const bool has_axis = w.axis[0] || w.axis[1] || w.axis[2];
   m.from_mm = state_.position_mm;
-  if (has_axis && !dwell && state_.motion >= 0) {
+  if (has_axis && !w.dwell && state_.motion >= 0) {
     const double unit = state_.inch ? 25.4 : 1.0;
     for (std::size_t k = 0; k < 3; ++k) {
-      if (!axis[k]) continue;
+      if (!w.axis[k]) continue;
       state_.position_mm[k] =
-          state_.absolute ? *axis[k] * unit : state_.position_mm[k] + *axis[k] * unit;
+          state_.absolute ? *w.axis[k] * unit : state_.position_mm[k] + *w.axis[k] * unit;
     }
     m.motion = true;
   }

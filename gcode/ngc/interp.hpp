@@ -21,6 +21,7 @@
 #include "core/error.hpp"
 #include "core/number_text.hpp"
 #include "gcode/cutter_comp.hpp"
+#include "gcode/lexer.hpp"
 #include "gcode/ngc/interpreter.hpp"
 
 namespace ncd::toolpath::ngc {

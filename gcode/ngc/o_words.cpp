@@ -4,28 +4,29 @@
 
 namespace ncd::toolpath::ngc {
 
-// The normalised text of a line (lower case, no spaces, comments out) into `out`; the last
-// comment's text into `comment`. Returns false for a line with an unclosed comment.
+// The normalised text of a line (lower case, no blanks, comments out; the lexer, gcode/lexer.hpp,
+// says what a comment is) into `out`; the last '( )' comment's text into `comment`. LinuxCNC
+// refuses a comment without its ')' and a '(' inside a comment.
 void Interpreter::normalise(std::string_view line, std::string& out, std::string* comment,
                             bool* has_comment) {
   out.clear();
-  for (std::size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (c == ';') break;
-    if (c == '(') {
-      const std::size_t close = line.find(')', i + 1);
-      if (close == std::string_view::npos) fail("comment '(' is not closed on this line; add ')'");
-      const std::size_t nested = line.find('(', i + 1);
-      if (nested < close) fail("nested '(' inside a comment; remove the inner '('");
+  gcode::Lexer lex(line);
+  for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
+    if (t.kind == gcode::Token::Kind::Comment) {
+      if (t.semicolon) break;
+      if (!t.closed) fail("comment '(' is not closed on this line; add ')'");
+      if (t.nested) fail("nested '(' inside a comment; remove the inner '('");
       if (comment) {
-        *comment = std::string(line.substr(i + 1, close - i - 1));
+        *comment = std::string(t.text);
         *has_comment = true;
       }
-      i = close;
       continue;
     }
-    if (c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f') continue;
-    out.push_back(c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c);
+    for (std::size_t i = t.at; i < t.end; ++i) {
+      const char c = line[i];
+      if (c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f') continue;
+      out.push_back(c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c);
+    }
   }
 }
 
