@@ -178,26 +178,48 @@ void Interpreter::line_to(const Vec3& end_mm, bool rapid) {
   settle_known();
 }
 
+namespace {
+
+// The block's G code of modal group `grp` (G53 aside: it modifies a motion), or -1.
+int group_code(const Block& b, int grp) {
+  for (int n = 0; n < b.ng; ++n) {
+    const int code = b.g[static_cast<std::size_t>(n)];
+    if (g_group(code) == grp && code != 530) return code;
+  }
+  return -1;
+}
+
+}  // namespace
+
+// A block is executed in LinuxCNC's order (interp_convert.cc, convert_...); the step numbers are
+// that order's, and each step is a function below.
 void Interpreter::execute_block(Block& b) {
   check_block(b);
-  const auto group_code = [&](int grp) {
-    for (int n = 0; n < b.ng; ++n) {
-      if (g_group(b.g[static_cast<std::size_t>(n)]) == grp &&
-          b.g[static_cast<std::size_t>(n)] != 530)
-        return b.g[static_cast<std::size_t>(n)];
-    }
-    return -1;
-  };
-  const int motion_word = group_code(1);
-  const int nonmodal = group_code(0);
+  const int motion_word = group_code(b, 1);
+  const int nonmodal = group_code(b, 0);
   if (nurbs_open_) {
     nurbs_line(b, motion_word);
     return;
   }
   check_words_used(b, motion_word, nonmodal);
-  // 1. message
-  if (b.has_message) emit(MessageEvent{b.message});
-  // 2. feed mode
+  if (b.has_message) emit(MessageEvent{b.message});  // 1. message
+  set_feed(b);                                       // 2. feed mode, 3. F
+  set_spindle_and_tool(b);                           // 4. S, 5. T, 6. M6, 7. spindle
+  set_coolant(b);                                    // 8. coolant
+  if (nonmodal == 40) dwell(b);                      // 10. dwell
+  set_plane_and_units(b);                            // 11. plane, 12. units
+  if (const int cc = group_code(b, 7); cc >= 0) cutter_comp(b, cc);  // 13. cutter compensation
+  set_tool_length_offset(b);                                         // 14. tool length offset
+  if (const int cs = group_code(b, 12); cs >= 0) select_coordinate_system(cs);  // 15.
+  if (const int pc = group_code(b, 13); pc >= 0) set_path_control(b, pc);       // 16.
+  set_distance_and_retract_modes(b);                      // 17. distance modes, 18. retract mode
+  const bool axes_used = execute_non_modal(b, nonmodal);  // 19. non-modal
+  execute_motion(b, motion_word, axes_used);              // 20. motion
+  execute_stops(b);                                       // 21. stops
+}
+
+// 2. feed mode, 3. F
+void Interpreter::set_feed(const Block& b) {
   if (b.has_g(930)) {
     if (comp_.on())
       fail(
@@ -209,7 +231,6 @@ void Interpreter::execute_block(Block& b) {
     feed_mode_ = FeedMode::per_minute;
     feed_ = 0.0;
   }
-  // 3. F
   if (b.has('f')) {
     const double f = b.v('f');
     if (f < 0.0) fail("negative feed F" + text::sig(f) + "; F must be positive");
@@ -222,6 +243,10 @@ void Interpreter::execute_block(Block& b) {
     }
     feed_ = f;
   }
+}
+
+// 4. S, 5. T, 6. M6, 7. spindle: one spindle event for all four.
+void Interpreter::set_spindle_and_tool(const Block& b) {
   // 4. S
   bool spindle_changed = false;
   if (b.has('s')) {
@@ -269,21 +294,28 @@ void Interpreter::execute_block(Block& b) {
     spindle_ = d;
   }
   if (spindle_changed) emit(SpindleEvent{spindle_, speed_});
-  // 8. coolant
-  if (b.has_m(7) || b.has_m(8) || b.has_m(9)) {
-    if (b.has_m(9)) mist_ = flood_ = false;
-    if (b.has_m(7)) mist_ = true;
-    if (b.has_m(8)) flood_ = true;
-    emit(CoolantEvent{mist_, flood_});
-  }
-  // 10. dwell
-  if (nonmodal == 40) {
-    if (!b.has('p')) fail("G4 without P; give the dwell time in seconds, P0.5");
-    const double p = b.v('p');
-    if (p < 0.0 || p > kMaxDwellS)
-      fail("dwell G4 P" + text::sig(p) + " must be from 0 to " + text::sig(kMaxDwellS) + " s");
-    emit(DwellEvent{p});
-  }
+}
+
+// 8. coolant
+void Interpreter::set_coolant(const Block& b) {
+  if (!b.has_m(7) && !b.has_m(8) && !b.has_m(9)) return;
+  if (b.has_m(9)) mist_ = flood_ = false;
+  if (b.has_m(7)) mist_ = true;
+  if (b.has_m(8)) flood_ = true;
+  emit(CoolantEvent{mist_, flood_});
+}
+
+// 10. dwell (G4)
+void Interpreter::dwell(const Block& b) {
+  if (!b.has('p')) fail("G4 without P; give the dwell time in seconds, P0.5");
+  const double p = b.v('p');
+  if (p < 0.0 || p > kMaxDwellS)
+    fail("dwell G4 P" + text::sig(p) + " must be from 0 to " + text::sig(kMaxDwellS) + " s");
+  emit(DwellEvent{p});
+}
+
+// 11. plane, 12. units
+void Interpreter::set_plane_and_units(const Block& b) {
   // 11. plane
   if ((b.has_g(170) && plane_ != Plane::xy) || (b.has_g(180) && plane_ != Plane::xz) ||
       b.has_g(190)) {
@@ -301,9 +333,10 @@ void Interpreter::execute_block(Block& b) {
       emit(UnitsEvent{u});
     }
   }
-  // 13. cutter radius compensation
-  if (const int cc = group_code(7); cc >= 0) cutter_comp(b, cc);
-  // 14. tool length offset
+}
+
+// 14. tool length offset (G43, G43.1, G49)
+void Interpreter::set_tool_length_offset(const Block& b) {
   if (b.has_g(430) || b.has_g(431) || b.has_g(490)) {
     refuse_with_comp("change the tool length offset");
     Vec3 off(0, 0, 0);
@@ -336,42 +369,48 @@ void Interpreter::execute_block(Block& b) {
   } else if (b.has('h')) {
     fail("H word without G43; write G43 H" + text::sig(b.v('h')));
   }
-  // 15. coordinate system
-  if (const int cs = group_code(12); cs >= 0) {
-    refuse_with_comp("change the coordinate system");
-    const int n = cs < 590 ? (cs - 540) / 10 + 1 : 6 + (cs - 590);
-    const Vec3 old = g5x();
-    coord_sys_ = n;
-    params_[5220] = n;
-    pos_ += old - g5x();
-  }
-  // 16. path control
-  if (const int pc = group_code(13); pc >= 0) {
-    refuse_with_comp("change the path control mode");
-    PathControlEvent e;
-    e.mode = pc == 610   ? PathControl::exact_path
-             : pc == 611 ? PathControl::exact_stop
-                         : PathControl::blend;
-    if (pc == 640) {
-      if (b.has('p')) {
-        if (b.v('p') < 0.0)
-          fail("G64 P" + text::sig(b.v('p')) +
-               ": the blend tolerance must be 0 or more (LinuxCNC would take it as 0); write P0 "
-               "or a positive tolerance");
-        e.p = b.v('p');
-      }
-      if (b.has('q')) {
-        if (b.v('q') < 0.0)
-          fail("G64 Q" + text::sig(b.v('q')) +
-               ": the naive-CAM tolerance must be 0 or more; write Q0 or a positive tolerance");
-        if (!b.has('p')) fail("G64 Q without P; give P as well");
-        e.q = b.v('q');
-      }
+}
+
+// 15. coordinate system (G54 … G59.3)
+void Interpreter::select_coordinate_system(int cs) {
+  refuse_with_comp("change the coordinate system");
+  const int n = cs < 590 ? (cs - 540) / 10 + 1 : 6 + (cs - 590);
+  const Vec3 old = g5x();
+  coord_sys_ = n;
+  params_[5220] = n;
+  pos_ += old - g5x();
+}
+
+// 16. path control (G61, G61.1, G64 P Q)
+void Interpreter::set_path_control(const Block& b, int pc) {
+  refuse_with_comp("change the path control mode");
+  PathControlEvent e;
+  e.mode = pc == 610   ? PathControl::exact_path
+           : pc == 611 ? PathControl::exact_stop
+                       : PathControl::blend;
+  if (pc == 640) {
+    if (b.has('p')) {
+      if (b.v('p') < 0.0)
+        fail("G64 P" + text::sig(b.v('p')) +
+             ": the blend tolerance must be 0 or more (LinuxCNC would take it as 0); write P0 "
+             "or a positive tolerance");
+      e.p = b.v('p');
     }
-    e.units = units_;
-    control_ = e;
-    emit(e);
+    if (b.has('q')) {
+      if (b.v('q') < 0.0)
+        fail("G64 Q" + text::sig(b.v('q')) +
+             ": the naive-CAM tolerance must be 0 or more; write Q0 or a positive tolerance");
+      if (!b.has('p')) fail("G64 Q without P; give P as well");
+      e.q = b.v('q');
+    }
   }
+  e.units = units_;
+  control_ = e;
+  emit(e);
+}
+
+// 17. distance modes, 18. retract mode
+void Interpreter::set_distance_and_retract_modes(const Block& b) {
   // 17. distance modes
   if (b.has_g(900)) incremental_ = false;
   if (b.has_g(910)) incremental_ = true;
@@ -383,7 +422,10 @@ void Interpreter::execute_block(Block& b) {
   if (b.has_g(990)) retract_r_ = true;
   if (b.has_g(970)) { /* rpm mode: the default */
   }
-  // 19. non-modal
+}
+
+// 19. non-modal codes (G10, G28, G30, G92 …); true when they took the block's axis words.
+bool Interpreter::execute_non_modal(const Block& b, int nonmodal) {
   bool axes_used = b.has_g(431);
   if (nonmodal == 100 || nonmodal == 280 || nonmodal == 300 || nonmodal == 281 || nonmodal == 301 ||
       (nonmodal >= 920 && nonmodal <= 923)) {
@@ -425,7 +467,11 @@ void Interpreter::execute_block(Block& b) {
     default:
       break;
   }
-  // 20. motion
+  return axes_used;
+}
+
+// 20. motion: the block's motion word, or the modal motion for bare axis words.
+void Interpreter::execute_motion(Block& b, int motion_word, bool axes_used) {
   const bool g53 = b.has_g(530);
   const bool axis_words = b.has('x') || b.has('y') || b.has('z');
   if (motion_word >= 0) {
@@ -446,7 +492,10 @@ void Interpreter::execute_block(Block& b) {
   } else if (g53) {
     fail("G53 without G0 or G1 on the line; write G53 G0 X...");
   }
-  // 21. stops
+}
+
+// 21. stops (M0, M1, M60, M2, M30)
+void Interpreter::execute_stops(const Block& b) {
   for (int n = 0; n < b.nm; ++n) {
     const int c = b.m[static_cast<std::size_t>(n)];
     if (c == 0 || c == 1 || c == 60 || c == 2 || c == 30) {

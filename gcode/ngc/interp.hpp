@@ -209,6 +209,18 @@ class Interpreter {
   void settle_known();
   void line_to(const Vec3& end_mm, bool rapid);
   void execute_block(Block& b);
+  void set_feed(const Block& b);
+  void set_spindle_and_tool(const Block& b);
+  void set_coolant(const Block& b);
+  void dwell(const Block& b);
+  void set_plane_and_units(const Block& b);
+  void set_tool_length_offset(const Block& b);
+  void select_coordinate_system(int cs);
+  void set_path_control(const Block& b, int pc);
+  void set_distance_and_retract_modes(const Block& b);
+  bool execute_non_modal(const Block& b, int nonmodal);
+  void execute_motion(Block& b, int motion_word, bool axes_used);
+  void execute_stops(const Block& b);
   void cutter_comp(const Block& b, int code);
   Vec3 from() const;
   Vec3 target(const Block& b, bool g53);
