@@ -4,7 +4,21 @@
 
 namespace ncd::toolpath::ngc {
 
-void Interpreter::cycle(Block& b, int code) {
+namespace {
+
+Vec3 cycle_point(const PlaneAxes& ax, double a1, double b1, double c1) {
+  Vec3 p;
+  p[ax.first] = a1;
+  p[ax.second] = b1;
+  p[ax.axis] = c1;
+  return p;
+}
+
+}  // namespace
+
+// The words of a canned cycle, checked, with the sticky values of the previous one where the
+// block leaves them out (LinuxCNC's convert_cycle).
+Interpreter::CycleWords Interpreter::cycle_words(const Block& b, int code) {
   refuse_with_comp("use canned cycles");
   if (code != 730 && code != 810 && code != 820 && code != 830 && code != 850 && code != 890) {
     fail(g_name(code) + " is not supported; use G73 G81 G82 G83 G85 G89");
@@ -12,9 +26,9 @@ void Interpreter::cycle(Block& b, int code) {
   if (feed_ == 0.0) fail("canned cycle " + g_name(code) + " with zero feed rate; add F");
   if (feed_mode_ == FeedMode::inverse_time)
     fail("canned cycle in inverse time mode (G93); use G94");
-  const PlaneAxes ax = plane_axes(plane_);
-  const char depth_word = static_cast<char>('x' + ax.axis);
-  double r_val = 0.0;
+  const char depth_word = static_cast<char>('x' + plane_axes(plane_).axis);
+  CycleWords w;
+  double& r_val = w.r;
   if (b.has('r')) {
     r_val = len_word(b, 'r');
   } else if (motion_mode_ == code) {
@@ -22,7 +36,7 @@ void Interpreter::cycle(Block& b, int code) {
   } else {
     fail(g_name(code) + " without R (the retract plane) the first time; add R");
   }
-  long repeats = 1;
+  long& repeats = w.repeats;
   if (b.has('l')) {
     const double l = b.v('l');
     if (l < 1 || l > 100000 || l != std::floor(l))
@@ -33,8 +47,9 @@ void Interpreter::cycle(Block& b, int code) {
     fail(g_name(code) + " without " + std::string(1, static_cast<char>(std::toupper(depth_word))) +
          " (the bottom) the first time; add it");
   }
-  const double depth_val = b.has(depth_word) ? len_word(b, depth_word) : cycle_cc_;
-  double p_val = 0.0, q_val = 0.0;
+  w.depth = b.has(depth_word) ? len_word(b, depth_word) : cycle_cc_;
+  double& p_val = w.p;
+  double& q_val = w.q;
   if (code == 820 || code == 890) {
     if (!b.has('p') && motion_mode_ != code)
       fail(g_name(code) + " without P (dwell) the first time; add P");
@@ -49,9 +64,16 @@ void Interpreter::cycle(Block& b, int code) {
     if (q_val <= 0.0)
       fail(g_name(code) + " Q" + text::sig(q_val / k()) + ": the peck must be positive");
   }
-  if (b.has('p') && code != 820 && code != 890) {
-    // LinuxCNC ignores P there; so do we, silently as it does.
-  }
+  // P in other cycles: LinuxCNC ignores it there; so do we, silently as it does.
+  return w;
+}
+
+void Interpreter::cycle(Block& b, int code) {
+  const CycleWords w = cycle_words(b, code);
+  const double r_val = w.r, depth_val = w.depth, p_val = w.p, q_val = w.q;
+  const long repeats = w.repeats;
+  const PlaneAxes ax = plane_axes(plane_);
+  const char depth_word = static_cast<char>('x' + ax.axis);
   const double current_cc0 = pos_[ax.axis];
   if (!cycle_il_known_) {
     cycle_il_ = current_cc0;
@@ -79,13 +101,7 @@ void Interpreter::cycle(Block& b, int code) {
   if (r < cc)
     fail("the R plane is below the bottom of the " + g_name(code) + " cycle; R must be above " +
          std::string(1, static_cast<char>(std::toupper(depth_word))));
-  const auto at = [&](double a1, double b1, double c1) {
-    Vec3 p;
-    p[ax.first] = a1;
-    p[ax.second] = b1;
-    p[ax.axis] = c1;
-    return p;
-  };
+  const auto at = [&](double a1, double b1, double c1) { return cycle_point(ax, a1, b1, c1); };
   if (old_cc < r) {
     line_to(at(pos_[ax.first], pos_[ax.second], r), true);
     old_cc = r;
@@ -100,7 +116,6 @@ void Interpreter::cycle(Block& b, int code) {
     e.units = units_;
     emit(e);
   }
-  const double clearance = 0.010 * kMmPerInch;  // LinuxCNC 2.9 G73/G83 rapid clearance
   for (long rep = repeats; rep > 0; --rep) {
     aa += aa_inc;
     bb += bb_inc;
@@ -111,43 +126,7 @@ void Interpreter::cycle(Block& b, int code) {
       line_to(at(aa, bb, clear_cc), true);
       if (clear_cc > r) line_to(at(aa, bb, r), true);
     }
-    switch (code) {
-      case 810:
-        line_to(at(aa, bb, cc), false);
-        line_to(at(aa, bb, clear_cc), true);
-        break;
-      case 820:
-        line_to(at(aa, bb, cc), false);
-        emit(DwellEvent{p_val});
-        line_to(at(aa, bb, clear_cc), true);
-        break;
-      case 730:
-      case 830: {
-        long pecks = 0;
-        for (double d = r - q_val; d > cc; d -= q_val) {
-          if (++pecks > 100000)
-            fail("peck Q is too small for the depth: more than 100000 pecks; increase Q");
-          line_to(at(aa, bb, d), false);
-          if (code == 830) line_to(at(aa, bb, r), true);
-          line_to(at(aa, bb, d + clearance), true);
-        }
-        line_to(at(aa, bb, cc), false);
-        line_to(at(aa, bb, clear_cc), true);
-        break;
-      }
-      case 850:
-        line_to(at(aa, bb, cc), false);
-        line_to(at(aa, bb, r), false);
-        line_to(at(aa, bb, clear_cc), true);
-        break;
-      case 890:
-        line_to(at(aa, bb, cc), false);
-        emit(DwellEvent{p_val});
-        line_to(at(aa, bb, clear_cc), false);
-        break;
-      default:
-        break;
-    }
+    cycle_hole(code, w, ax, aa, bb, r, cc, clear_cc);
   }
   if (switch_mode) emit(saved);
   pos_ = at(aa, bb, clear_cc);
@@ -156,6 +135,52 @@ void Interpreter::cycle(Block& b, int code) {
   cycle_p_ = p_val;
   cycle_q_ = q_val;
   motion_mode_ = code;
+}
+
+// One hole of a cycle, from the R plane down and back to the clearance (LinuxCNC's
+// convert_cycle_g81 … g89).
+void Interpreter::cycle_hole(int code, const CycleWords& w, const PlaneAxes& ax, double aa,
+                             double bb, double r, double cc, double clear_cc) {
+  const double p_val = w.p, q_val = w.q;
+  const double clearance = 0.010 * kMmPerInch;  // LinuxCNC 2.9 G73/G83 rapid clearance
+  const auto at = [&](double a1, double b1, double c1) { return cycle_point(ax, a1, b1, c1); };
+  switch (code) {
+    case 810:
+      line_to(at(aa, bb, cc), false);
+      line_to(at(aa, bb, clear_cc), true);
+      break;
+    case 820:
+      line_to(at(aa, bb, cc), false);
+      emit(DwellEvent{p_val});
+      line_to(at(aa, bb, clear_cc), true);
+      break;
+    case 730:
+    case 830: {
+      long pecks = 0;
+      for (double d = r - q_val; d > cc; d -= q_val) {
+        if (++pecks > 100000)
+          fail("peck Q is too small for the depth: more than 100000 pecks; increase Q");
+        line_to(at(aa, bb, d), false);
+        if (code == 830) line_to(at(aa, bb, r), true);
+        line_to(at(aa, bb, d + clearance), true);
+      }
+      line_to(at(aa, bb, cc), false);
+      line_to(at(aa, bb, clear_cc), true);
+      break;
+    }
+    case 850:
+      line_to(at(aa, bb, cc), false);
+      line_to(at(aa, bb, r), false);
+      line_to(at(aa, bb, clear_cc), true);
+      break;
+    case 890:
+      line_to(at(aa, bb, cc), false);
+      emit(DwellEvent{p_val});
+      line_to(at(aa, bb, clear_cc), false);
+      break;
+    default:
+      break;
+  }
 }
 
 }  // namespace ncd::toolpath::ngc

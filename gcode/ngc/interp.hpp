@@ -229,7 +229,14 @@ class Interpreter {
   void arc(Block& b, int code);
 
   // ---- cycles.cpp: canned cycles (LinuxCNC's convert_cycle_xy and its plane variants) -----------
+  struct CycleWords {
+    double r = 0.0, depth = 0.0, p = 0.0, q = 0.0;  // R, the bottom, dwell P, peck Q
+    long repeats = 1;                               // L
+  };
   void cycle(Block& b, int code);
+  CycleWords cycle_words(const Block& b, int code);
+  void cycle_hole(int code, const CycleWords& w, const PlaneAxes& ax, double aa, double bb,
+                  double r, double cc, double clear_cc);
 
   // ---- offsets.cpp: G10, G28/G30, G92 -----------------------------------------------------------
   void g10(const Block& b);
