@@ -179,6 +179,12 @@ class Interpreter {
   std::string expand_debug(const std::string& text) const;
   bool condition(const OLine& o);
   void execute_oword(const OLine& o);
+  void o_return(const OLine& o);
+  void o_call(const OLine& o);
+  void o_while(const OLine& o);
+  void o_repeat(const OLine& o);
+  void o_endrepeat(const OLine& o);
+  void o_break_or_continue(const OLine& o);
   void branch_skip(const std::string& label);
 
   std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>::iterator load_sub_file(

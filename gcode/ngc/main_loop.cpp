@@ -193,6 +193,8 @@ bool Interpreter::condition(const OLine& o) {
   return read_expression(norm_, i) != 0.0;
 }
 
+// An O-word line met in the flow of the program: subroutines, branches and loops (LinuxCNC's
+// interp_o_word.cc). Each keyword's work is a function below.
 void Interpreter::execute_oword(const OLine& o) {
   const std::string& k = o.keyword;
   Frame& fr = frames_.back();
@@ -201,143 +203,159 @@ void Interpreter::execute_oword(const OLine& o) {
     // Definition met in the flow: skip its body.
     const std::size_t end = seek(o.label, {"endsub"}, found);
     next_line_ = end + 1;
-    return;
-  }
-  if (k == "endsub" || k == "return") {
-    if (frames_.size() == 1) fail("o" + o.label + " " + k + " outside a subroutine; remove it");
-    std::size_t i = o.args_at;
-    double returned = 0.0;
-    value_returned_ = false;
-    if (i < norm_.size() && norm_[i] == '[') {
-      returned = read_expression(norm_, i);
-      value_returned_ = true;
-    }
-    value_ = returned;
-    for (std::size_t p = 0; p < 30; ++p) params_[p + 1] = fr.saved[p];
-    const std::size_t ret_file = fr.file, ret_line = fr.return_line;
-    frames_.pop_back();
-    cur_file_ = ret_file;
-    next_line_ = ret_line;
-    return;
-  }
-  if (k == "call") {
-    std::array<double, 30> args{};
-    std::size_t i = o.args_at;
-    std::size_t n = 0;
-    while (i < norm_.size() && norm_[i] == '[') {
-      if (n >= 30) fail("more than 30 arguments to o" + o.label + " call");
-      args[n++] = read_expression(norm_, i);
-    }
-    if (i != norm_.size())
-      fail("unexpected '" + norm_.substr(i) + "' after o" + o.label + " call arguments");
-    auto it = subs_.find(o.label);
-    if (it == subs_.end()) it = load_sub_file(o.label);
-    if (frames_.size() > kMaxCallDepth) {
-      fail("subroutine calls nested deeper than " + std::to_string(kMaxCallDepth) +
-           "; a recursion that never ends?");
-    }
-    Frame nf;
-    nf.file = cur_file_;
-    nf.return_line = next_line_;
-    nf.sub = o.label;
-    for (std::size_t p = 0; p < 30; ++p) {
-      nf.saved[p] = params_[p + 1];
-      params_[p + 1] = args[p];
-    }
-    frames_.push_back(std::move(nf));
-    cur_file_ = it->second.first;
-    next_line_ = it->second.second + 1;
-    return;
-  }
-  if (k == "if") {
-    if (condition(o)) return;
-    branch_skip(o.label);
-    return;
-  }
-  if (k == "elseif" || k == "else") {
+  } else if (k == "endsub" || k == "return") {
+    o_return(o);
+  } else if (k == "call") {
+    o_call(o);
+  } else if (k == "if") {
+    if (!condition(o)) branch_skip(o.label);
+  } else if (k == "elseif" || k == "else") {
     // Reached in the flow: the branch before was taken.
     next_line_ = seek(o.label, {"endif"}, found) + 1;
-    return;
-  }
-  if (k == "endif") return;
-  if (k == "do") {
+  } else if (k == "endif") {
+  } else if (k == "do") {
     fr.loops[o.label] = Loop{Loop::do_loop, cur_line_, 0};
-    return;
-  }
-  if (k == "while") {
-    const auto it = fr.loops.find(o.label);
-    if (it != fr.loops.end() && it->second.kind == Loop::do_loop) {
-      if (condition(o)) {
-        next_line_ = it->second.start + 1;
-      } else {
-        fr.loops.erase(it);
-      }
-      return;
-    }
-    if (condition(o)) {
-      fr.loops[o.label] = Loop{Loop::while_loop, cur_line_, 0};
-    } else {
-      fr.loops.erase(o.label);
-      next_line_ = seek(o.label, {"endwhile"}, found) + 1;
-    }
-    return;
-  }
-  if (k == "endwhile") {
+  } else if (k == "while") {
+    o_while(o);
+  } else if (k == "endwhile") {
     const auto it = fr.loops.find(o.label);
     if (it == fr.loops.end()) fail("o" + o.label + " endwhile without its while; add it");
     next_line_ = it->second.start;
-    return;
+  } else if (k == "repeat") {
+    o_repeat(o);
+  } else if (k == "endrepeat") {
+    o_endrepeat(o);
+  } else if (k == "break" || k == "continue") {
+    o_break_or_continue(o);
+  } else {
+    fail("unknown O-word keyword '" + k +
+         "'; use sub endsub call return if elseif else endif "
+         "while endwhile do repeat endrepeat break continue");
   }
-  if (k == "repeat") {
-    std::size_t i = o.args_at;
-    if (i >= norm_.size() || norm_[i] != '[') fail("o" + o.label + " repeat needs a count [n]");
-    const double n = read_expression(norm_, i);
-    if (n > 1e9) fail("repeat count " + text::sig(n) + " is absurd; at most 1e9");
-    const long count = static_cast<long>(std::round(n));
-    if (count <= 0) {
-      next_line_ = seek(o.label, {"endrepeat"}, found) + 1;
-    } else {
-      fr.loops[o.label] = Loop{Loop::repeat_loop, cur_line_, count};
-    }
-    return;
+}
+
+// endsub, return [value]: back to the caller, its parameters #1-#30 restored.
+void Interpreter::o_return(const OLine& o) {
+  const std::string& k = o.keyword;
+  Frame& fr = frames_.back();
+  if (frames_.size() == 1) fail("o" + o.label + " " + k + " outside a subroutine; remove it");
+  std::size_t i = o.args_at;
+  double returned = 0.0;
+  value_returned_ = false;
+  if (i < norm_.size() && norm_[i] == '[') {
+    returned = read_expression(norm_, i);
+    value_returned_ = true;
   }
-  if (k == "endrepeat") {
-    const auto it = fr.loops.find(o.label);
-    if (it == fr.loops.end()) fail("o" + o.label + " endrepeat without its repeat; add it");
-    if (--it->second.remaining > 0) {
+  value_ = returned;
+  for (std::size_t p = 0; p < 30; ++p) params_[p + 1] = fr.saved[p];
+  const std::size_t ret_file = fr.file, ret_line = fr.return_line;
+  frames_.pop_back();
+  cur_file_ = ret_file;
+  next_line_ = ret_line;
+}
+
+// call [args]: a new frame with #1-#30 set to the arguments.
+void Interpreter::o_call(const OLine& o) {
+  std::array<double, 30> args{};
+  std::size_t i = o.args_at;
+  std::size_t n = 0;
+  while (i < norm_.size() && norm_[i] == '[') {
+    if (n >= 30) fail("more than 30 arguments to o" + o.label + " call");
+    args[n++] = read_expression(norm_, i);
+  }
+  if (i != norm_.size())
+    fail("unexpected '" + norm_.substr(i) + "' after o" + o.label + " call arguments");
+  auto it = subs_.find(o.label);
+  if (it == subs_.end()) it = load_sub_file(o.label);
+  if (frames_.size() > kMaxCallDepth) {
+    fail("subroutine calls nested deeper than " + std::to_string(kMaxCallDepth) +
+         "; a recursion that never ends?");
+  }
+  Frame nf;
+  nf.file = cur_file_;
+  nf.return_line = next_line_;
+  nf.sub = o.label;
+  for (std::size_t p = 0; p < 30; ++p) {
+    nf.saved[p] = params_[p + 1];
+    params_[p + 1] = args[p];
+  }
+  frames_.push_back(std::move(nf));
+  cur_file_ = it->second.first;
+  next_line_ = it->second.second + 1;
+}
+
+// while [cond]: the end of a do loop, or the head of a while loop.
+void Interpreter::o_while(const OLine& o) {
+  Frame& fr = frames_.back();
+  std::string found;
+  const auto it = fr.loops.find(o.label);
+  if (it != fr.loops.end() && it->second.kind == Loop::do_loop) {
+    if (condition(o)) {
       next_line_ = it->second.start + 1;
     } else {
       fr.loops.erase(it);
     }
-    return;
+  } else if (condition(o)) {
+    fr.loops[o.label] = Loop{Loop::while_loop, cur_line_, 0};
+  } else {
+    fr.loops.erase(o.label);
+    next_line_ = seek(o.label, {"endwhile"}, found) + 1;
   }
-  if (k == "break" || k == "continue") {
-    const auto it = fr.loops.find(o.label);
-    if (it == fr.loops.end()) fail("o" + o.label + " " + k + " outside its loop");
-    const Loop loop = it->second;
-    if (loop.kind == Loop::do_loop && k == "continue") {
-      fail("o" + o.label +
-           " continue inside a do loop: LinuxCNC leaves the loop there, "
-           "which is rarely meant; use a while loop");
-    }
-    if (loop.kind == Loop::repeat_loop) {
-      fail("o" + o.label + " " + k + " inside a repeat loop: LinuxCNC allows " + k +
-           " only in while and do loops; use a while loop with a counter");
-    }
-    const std::size_t end = loop.kind == Loop::while_loop ? seek(o.label, {"endwhile"}, found)
-                            : loop.kind == Loop::do_loop  ? seek(o.label, {"while"}, found)
-                                                          : seek(o.label, {"endrepeat"}, found);
-    if (k == "break") {
-      fr.loops.erase(o.label);
-      next_line_ = end + 1;
-    } else {
-      next_line_ = loop.kind == Loop::while_loop ? loop.start : end;
-    }
-    return;
+}
+
+// repeat [n]
+void Interpreter::o_repeat(const OLine& o) {
+  Frame& fr = frames_.back();
+  std::string found;
+  std::size_t i = o.args_at;
+  if (i >= norm_.size() || norm_[i] != '[') fail("o" + o.label + " repeat needs a count [n]");
+  const double n = read_expression(norm_, i);
+  if (n > 1e9) fail("repeat count " + text::sig(n) + " is absurd; at most 1e9");
+  const long count = static_cast<long>(std::round(n));
+  if (count <= 0) {
+    next_line_ = seek(o.label, {"endrepeat"}, found) + 1;
+  } else {
+    fr.loops[o.label] = Loop{Loop::repeat_loop, cur_line_, count};
   }
-  fail("unknown O-word keyword '" + k +
-       "'; use sub endsub call return if elseif else endif "
-       "while endwhile do repeat endrepeat break continue");
+}
+
+void Interpreter::o_endrepeat(const OLine& o) {
+  Frame& fr = frames_.back();
+  const auto it = fr.loops.find(o.label);
+  if (it == fr.loops.end()) fail("o" + o.label + " endrepeat without its repeat; add it");
+  if (--it->second.remaining > 0) {
+    next_line_ = it->second.start + 1;
+  } else {
+    fr.loops.erase(it);
+  }
+}
+
+// break, continue: out of the loop, or to its next turn.
+void Interpreter::o_break_or_continue(const OLine& o) {
+  const std::string& k = o.keyword;
+  Frame& fr = frames_.back();
+  std::string found;
+  const auto it = fr.loops.find(o.label);
+  if (it == fr.loops.end()) fail("o" + o.label + " " + k + " outside its loop");
+  const Loop loop = it->second;
+  if (loop.kind == Loop::do_loop && k == "continue") {
+    fail("o" + o.label +
+         " continue inside a do loop: LinuxCNC leaves the loop there, "
+         "which is rarely meant; use a while loop");
+  }
+  if (loop.kind == Loop::repeat_loop) {
+    fail("o" + o.label + " " + k + " inside a repeat loop: LinuxCNC allows " + k +
+         " only in while and do loops; use a while loop with a counter");
+  }
+  const std::size_t end = loop.kind == Loop::while_loop ? seek(o.label, {"endwhile"}, found)
+                          : loop.kind == Loop::do_loop  ? seek(o.label, {"while"}, found)
+                                                        : seek(o.label, {"endrepeat"}, found);
+  if (k == "break") {
+    fr.loops.erase(o.label);
+    next_line_ = end + 1;
+  } else {
+    next_line_ = loop.kind == Loop::while_loop ? loop.start : end;
+  }
 }
 
 // A false if/elseif: on to the next elseif (evaluated), else or endif of the label.
