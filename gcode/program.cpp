@@ -255,41 +255,111 @@ std::optional<std::string> change_without_length_offset(const Program& program) 
   return std::nullopt;
 }
 
-Path to_path(const Program& program, const ToPathOptions& options) {
+namespace {
+
+// What to_path carries from step to step.
+struct PathState {
   Path path;
-  path.source = program.files.empty() ? std::string() : program.files.front();
   bool stop_pending = false;
   bool open = false;  // path.segments.back() is a Polyline the next line may extend
   PathControl control = PathControl::blend;
   std::optional<double> blend_mm, smooth_mm;
-  std::vector<std::size_t>* place = options.segment_of_step;
-  if (place) place->assign(program.steps.size(), kNoSegment);
   // Where the machine stands (mm, machine coordinates): the end of the last planned motion.
   std::optional<Vec3> machine_at;
   bool tool_changed = false;  // a tool change since that motion
+};
+
+// Every event ends the run: it happens at a segment boundary, which corner blending moves with
+// the corner (ProgramBlocks finds it there).
+void apply_event(const Event& ev, PathState& st) {
+  st.open = false;
+  std::visit(
+      [&](const auto& e) {
+        using T = std::decay_t<decltype(e)>;
+        if constexpr (std::is_same_v<T, PathControlEvent>) {
+          st.control = e.mode;
+          const double k = mm_per_unit(e.units);
+          st.blend_mm = e.p ? std::optional<double>(*e.p * k) : std::nullopt;
+          st.smooth_mm = e.q ? std::optional<double>(*e.q * k) : std::nullopt;
+        } else if constexpr (std::is_same_v<T, DwellEvent> || std::is_same_v<T, ToolChangeEvent> ||
+                             std::is_same_v<T, StopEvent> || std::is_same_v<T, SpindleEvent>) {
+          st.stop_pending = true;
+          if constexpr (std::is_same_v<T, ToolChangeEvent>) st.tool_changed = true;
+        }
+      },
+      ev);
+}
+
+// The start of a motion in mm, machine coordinates. A tool change with its length offset on the
+// same line (T3 M6 G43 H3): LinuxCNC re-reads the position after the change, so the program
+// position stays and the offset moves the machine's (rs274 shows it so, and the interpreter
+// follows). The machine does not jump: the next move starts where it stands. A line or a rapid
+// is taken from there; an arc or a curve is defined from the program position and would not
+// start on the machine's.
+Vec3 motion_start_mm(const Program& program, const Motion& m, double k, PathState& st) {
+  Vec3 start_mm = (m.start + m.offset) * k;
+  const std::optional<Vec3>& at = st.machine_at;
+  const bool jumps = at && (start_mm - *at).norm() > 1e-9 * std::max(1.0, at->norm());
+  if (jumps && st.tool_changed) {
+    if (!std::holds_alternative<LineMove>(m.geometry)) {
+      throw InputError(where(program, m.src) +
+                       ": an arc or curve right after a tool change whose length offset was "
+                       "set on the change's own line starts " +
+                       std::to_string((start_mm - *at).norm()) +
+                       " mm from where the machine stands; move to its start with G0 or G1 "
+                       "first, or give G43 H on the line after M6");
+    }
+    start_mm = *at;
+  }
+  st.tool_changed = false;
+  st.machine_at = (motion_end(m) + m.offset) * k;
+  return start_mm;
+}
+
+// A line that extends the open polyline (same feed and spindle, no stop between): true if taken.
+bool extend_polyline(const Motion& m, const Vec3& end_mm, const std::optional<double>& feed,
+                     const std::optional<double>& spindle, PathState& st) {
+  // Each rapid is its own segment (ProgramBlocks).
+  if (!st.open || st.stop_pending || m.rapid) return false;
+  PathSegment& last = st.path.segments.back();
+  if (last.rapid != m.rapid || last.feed_mm_per_min != feed || last.spindle_rpm != spindle ||
+      m.feed_mode != FeedMode::per_minute) {
+    return false;
+  }
+  std::get<Polyline>(last.geometry).points.push_back(end_mm);
+  return true;
+}
+
+// The geometry of a motion as a new segment, in mm and machine coordinates.
+std::variant<Polyline, NurbsCurve> motion_geometry(const Program& program, const Motion& m,
+                                                   const Vec3& start_mm, double k,
+                                                   const ToPathOptions& options) {
+  if (const auto* line = std::get_if<LineMove>(&m.geometry)) {
+    return Polyline{{start_mm, (line->end + m.offset) * k}, {}};
+  }
+  if (const auto* arc = std::get_if<ArcMove>(&m.geometry)) {
+    return arc_nurbs(m, *arc, options.helix_tolerance_mm, where(program, m.src));
+  }
+  if (const auto* nm = std::get_if<NurbsMove>(&m.geometry)) {
+    return to_machine(nm->curve, m.offset, k);
+  }
+  Polyline out = std::get<PolylineMove>(m.geometry).polyline;
+  for (Vec3& p : out.points) p = (p + m.offset) * k;
+  return out;
+}
+
+}  // namespace
+
+Path to_path(const Program& program, const ToPathOptions& options) {
+  PathState st;
+  st.path.source = program.files.empty() ? std::string() : program.files.front();
+  std::vector<std::size_t>* place = options.segment_of_step;
+  if (place) place->assign(program.steps.size(), kNoSegment);
   for (std::size_t i = 0; i < program.steps.size(); ++i) {
     const Step& step = program.steps[i];
     if (const auto* ev = std::get_if<Event>(&step.item)) {
-      // Every event ends the run: it happens at a segment boundary, which corner blending
-      // moves with the corner (ProgramBlocks finds it there).
-      open = false;
-      if (place) (*place)[i] = path.segments.size();
-      std::visit(
-          [&](const auto& e) {
-            using T = std::decay_t<decltype(e)>;
-            if constexpr (std::is_same_v<T, PathControlEvent>) {
-              control = e.mode;
-              const double k = mm_per_unit(e.units);
-              blend_mm = e.p ? std::optional<double>(*e.p * k) : std::nullopt;
-              smooth_mm = e.q ? std::optional<double>(*e.q * k) : std::nullopt;
-            } else if constexpr (std::is_same_v<T, DwellEvent> ||
-                                 std::is_same_v<T, ToolChangeEvent> ||
-                                 std::is_same_v<T, StopEvent> || std::is_same_v<T, SpindleEvent>) {
-              stop_pending = true;
-              if constexpr (std::is_same_v<T, ToolChangeEvent>) tool_changed = true;
-            }
-          },
-          *ev);
+      if (place) (*place)[i] = st.path.segments.size();
+      apply_event(*ev, st);
       continue;
     }
     const Motion& m = std::get<Motion>(step.item);
@@ -311,74 +381,29 @@ Path to_path(const Program& program, const ToPathOptions& options) {
     }
     const std::optional<double> spindle =
         m.spindle == SpindleDir::off ? std::nullopt : std::optional<double>(m.spindle_rpm);
-    Vec3 start_mm = (m.start + m.offset) * k;
-    // A tool change with its length offset on the same line (T3 M6 G43 H3): LinuxCNC re-reads
-    // the position after the change, so the program position stays and the offset moves the
-    // machine's (rs274 shows it so, and the interpreter follows). The machine does not jump:
-    // the next move starts where it stands. A line or a rapid is taken from there; an arc or a
-    // curve is defined from the program position and would not start on the machine's.
-    const bool jumps =
-        machine_at && (start_mm - *machine_at).norm() > 1e-9 * std::max(1.0, machine_at->norm());
-    if (jumps && tool_changed) {
-      if (!std::holds_alternative<LineMove>(m.geometry)) {
-        throw InputError(where(program, m.src) +
-                         ": an arc or curve right after a tool change whose length offset was "
-                         "set on the change's own line starts " +
-                         std::to_string((start_mm - *machine_at).norm()) +
-                         " mm from where the machine stands; move to its start with G0 or G1 "
-                         "first, or give G43 H on the line after M6");
-      }
-      start_mm = *machine_at;
-    }
-    tool_changed = false;
-    machine_at = (motion_end(m) + m.offset) * k;
+    const Vec3 start_mm = motion_start_mm(program, m, k, st);
     if (const auto* line = std::get_if<LineMove>(&m.geometry)) {
-      const Vec3 end_mm = (line->end + m.offset) * k;
-      if (open && !stop_pending && !m.rapid) {  // each rapid is its own segment (ProgramBlocks)
-        PathSegment& last = path.segments.back();
-        if (last.rapid == m.rapid && last.feed_mm_per_min == feed && last.spindle_rpm == spindle &&
-            m.feed_mode == FeedMode::per_minute) {
-          std::get<Polyline>(last.geometry).points.push_back(end_mm);
-          if (place) (*place)[i] = path.segments.size() - 1;
-          continue;
-        }
+      if (extend_polyline(m, (line->end + m.offset) * k, feed, spindle, st)) {
+        if (place) (*place)[i] = st.path.segments.size() - 1;
+        continue;
       }
-      PathSegment seg;
-      seg.geometry = Polyline{{start_mm, end_mm}, {}};
-      path.segments.push_back(std::move(seg));
-      open = m.feed_mode == FeedMode::per_minute;
-    } else if (const auto* arc = std::get_if<ArcMove>(&m.geometry)) {
-      PathSegment seg;
-      seg.geometry = arc_nurbs(m, *arc, options.helix_tolerance_mm, where(program, m.src));
-      path.segments.push_back(std::move(seg));
-      open = false;
-    } else if (const auto* nm = std::get_if<NurbsMove>(&m.geometry)) {
-      PathSegment seg;
-      seg.geometry = to_machine(nm->curve, m.offset, k);
-      path.segments.push_back(std::move(seg));
-      open = false;
-    } else {
-      const auto& pl = std::get<PolylineMove>(m.geometry).polyline;
-      Polyline out = pl;
-      for (Vec3& p : out.points) p = (p + m.offset) * k;
-      PathSegment seg;
-      seg.geometry = std::move(out);
-      path.segments.push_back(std::move(seg));
-      open = false;
     }
-    PathSegment& seg = path.segments.back();
-    if (place) (*place)[i] = path.segments.size() - 1;
+    PathSegment seg;
+    seg.geometry = motion_geometry(program, m, start_mm, k, options);
+    st.open = std::holds_alternative<LineMove>(m.geometry) && m.feed_mode == FeedMode::per_minute;
+    if (place) (*place)[i] = st.path.segments.size();
     seg.feed_mm_per_min = feed;
     seg.spindle_rpm = spindle;
     seg.rapid = m.rapid;
     seg.source_line = m.src.line;
-    seg.path_control = control;
-    seg.blend_tolerance_mm = blend_mm;
-    seg.smoothing_tolerance_mm = smooth_mm;
-    seg.stop_before = stop_pending;
-    stop_pending = false;
+    seg.path_control = st.control;
+    seg.blend_tolerance_mm = st.blend_mm;
+    seg.smoothing_tolerance_mm = st.smooth_mm;
+    seg.stop_before = st.stop_pending;
+    st.stop_pending = false;
+    st.path.segments.push_back(std::move(seg));
   }
-  return path;
+  return std::move(st.path);
 }
 
 namespace {
