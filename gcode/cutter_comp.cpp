@@ -339,6 +339,90 @@ void CutterComp::line(const Vec3& end_global_mm, Motion m) {
   prog_ = end_mm;
 }
 
+// The first move after G41/G42 as an arc (LinuxCNC's convert_arc_comp1): an entry arc from
+// the tool's position to the offset end, about a new centre.
+void CutterComp::entry_arc(const Vec3& end_mm, double cx, double cy, int turns, const Motion& m) {
+  const double r = radius_mm_;
+  const double px = end_mm.x(), py = end_mm.y();
+  const bool inside = inside_arc(side_, turns);
+  if (std::hypot(px - tool_.x(), py - tool_.y()) <= r) {
+    refuse("the cutter compensation entry arc ends within the tool radius (" +
+           std::to_string(r / mm_per_unit_) +
+           ") of its start: LinuxCNC refuses it; start the entry farther from the contour");
+  }
+  if (inside && std::hypot(cx - tool_.x(), cy - tool_.y()) <= r) {
+    refuse("the tool radius (" + std::to_string(r / mm_per_unit_) +
+           ") is not less than the arc's radius with the tool inside the arc; use a smaller "
+           "tool or a larger arc");
+  }
+  const double tx = tool_.x(), ty = tool_.y();
+  const double g = inside ? heading(cx - px, cy - py) : heading(px - cx, py - cy);
+  const double ex = px + r * std::cos(g), ey = py + r * std::sin(g);
+  // The new centre: on the line from the new end towards C, at half the chord over the cosine
+  // of the angle between that line and the chord.
+  const double half_chord = std::hypot(ty - ey, tx - ex) / 2.0;
+  const double towards = heading(cx - ex, cy - ey);
+  const double ang = heading(tx - ex, ty - ey) - towards;
+  if (std::abs(std::cos(ang)) < kCosTol) {
+    refuse(
+        "the cutter compensation entry arc cannot be made (the tool radius is not less than "
+        "the arc's radius); use a smaller tool or a larger arc");
+  }
+  const double dist = half_chord / std::cos(ang);
+  const double ncx = ex + dist * std::cos(towards), ncy = ey + dist * std::sin(towards);
+  const double spiral_tol =
+      mm_per_unit_ == 1.0 ? 2 * 0.01 * std::sqrt(2.0) : 2 * 0.001 * std::sqrt(2.0) * mm_per_unit_;
+  if (std::abs(std::hypot(ncx - ex, ncy - ey) - std::hypot(ncx - tx, ncy - ty)) > spiral_tol) {
+    refuse("cutter compensation entry arc: the radii to its ends differ; change the entry");
+  }
+  enqueue_arc(Vec3(ex, ey, end_mm.z()), ncx, ncy, turns, sweep_of(tx, ty, ncx, ncy, turns, ex, ey),
+              m);
+  first_ = false;
+  prog_ = end_mm;
+  tool_ = Vec3(ex, ey, end_mm.z());
+}
+
+// An arc in a concave corner (LinuxCNC's convert_arc_comp2): the tool stops where its offset
+// path meets the new offset circle, from a line (offset line) or an arc (offset circle).
+void CutterComp::concave_arc_corner(const Entry& prev_entry, double cx, double cy, int turns,
+                                    bool inside, double arc_r, double theta, double beta) {
+  const Entry* prev = &prev_entry;
+  const double r = radius_mm_;
+  if (!prev->arc) {  // line → arc: the new offset circle meets the old offset line
+    const double off_line = arc_r * std::sin(beta - kPi / 2);
+    const double dist = inside ? arc_r - r : arc_r + r;
+    const double l = (inside ? off_line + r : off_line - r) / dist;
+    if (l > 1.0 || l < -1.0) {
+      refuse(
+          "arc move in a concave corner cannot be reached by the tool without gouging (as in "
+          "LinuxCNC); use a smaller tool or open the corner");
+    }
+    const double at = inside ? theta + (turns > 0 ? 1.0 : -1.0) * std::asin(l)
+                             : theta + kPi - (turns > 0 ? 1.0 : -1.0) * std::asin(l);
+    move_end_and_write(cx + dist * std::cos(at), cy + dist * std::sin(at));
+  } else {  // arc → arc: the two offset circles meet
+    const double r_old = std::hypot(prev->cx - prev->end_mm.x(), prev->cy - prev->end_mm.y());
+    const double r_new = inside ? arc_r - r : arc_r + r;
+    const double cc = std::hypot(prev->cx - cx, prev->cy - cy);
+    if (r_old == 0.0 || cc == 0.0) {
+      refuse(
+          "arc to arc motion with cutter compensation: the arcs have the same centre (LinuxCNC "
+          "refuses it); put a straight move between them");
+    }
+    const double c = (r_old * r_old + cc * cc - r_new * r_new) / (2 * r_old * cc);
+    if (c > 1.0 || c < -1.0) {
+      refuse(
+          "arc to arc motion makes a corner the compensated tool cannot fit in without gouging "
+          "(as in LinuxCNC); use a smaller tool or open the corner");
+    }
+    const double back = std::acos(c);
+    const double towards = heading(cx - prev->cx, cy - prev->cy);
+    const bool same = inside_arc(side_, prev->turns) == (turns > 0);
+    const double at = towards + (same ? back : -back);
+    move_end_and_write(prev->cx + r_old * std::cos(at), prev->cy + r_old * std::sin(at));
+  }
+}
+
 void CutterComp::arc(const Vec3& end_global_mm, double cx, double cy, int turns, Motion m) {
   const Vec3 end_mm = to_local(end_global_mm);
   const double r = radius_mm_;
@@ -346,41 +430,7 @@ void CutterComp::arc(const Vec3& end_global_mm, double cx, double cy, int turns,
   const bool inside = inside_arc(side_, turns);
   const double arc_r = std::hypot(cx - px, cy - py);
   if (first_) {
-    if (std::hypot(px - tool_.x(), py - tool_.y()) <= r) {
-      refuse("the cutter compensation entry arc ends within the tool radius (" +
-             std::to_string(r / mm_per_unit_) +
-             ") of its start: LinuxCNC refuses it; start the entry farther from the contour");
-    }
-    if (inside && std::hypot(cx - tool_.x(), cy - tool_.y()) <= r) {
-      refuse("the tool radius (" + std::to_string(r / mm_per_unit_) +
-             ") is not less than the arc's radius with the tool inside the arc; use a smaller "
-             "tool or a larger arc");
-    }
-    const double tx = tool_.x(), ty = tool_.y();
-    const double g = inside ? heading(cx - px, cy - py) : heading(px - cx, py - cy);
-    const double ex = px + r * std::cos(g), ey = py + r * std::sin(g);
-    // The new centre: on the line from the new end towards C, at half the chord over the cosine
-    // of the angle between that line and the chord.
-    const double half_chord = std::hypot(ty - ey, tx - ex) / 2.0;
-    const double towards = heading(cx - ex, cy - ey);
-    const double ang = heading(tx - ex, ty - ey) - towards;
-    if (std::abs(std::cos(ang)) < kCosTol) {
-      refuse(
-          "the cutter compensation entry arc cannot be made (the tool radius is not less than "
-          "the arc's radius); use a smaller tool or a larger arc");
-    }
-    const double dist = half_chord / std::cos(ang);
-    const double ncx = ex + dist * std::cos(towards), ncy = ey + dist * std::sin(towards);
-    const double spiral_tol =
-        mm_per_unit_ == 1.0 ? 2 * 0.01 * std::sqrt(2.0) : 2 * 0.001 * std::sqrt(2.0) * mm_per_unit_;
-    if (std::abs(std::hypot(ncx - ex, ncy - ey) - std::hypot(ncx - tx, ncy - ty)) > spiral_tol) {
-      refuse("cutter compensation entry arc: the radii to its ends differ; change the entry");
-    }
-    enqueue_arc(Vec3(ex, ey, end_mm.z()), ncx, ncy, turns,
-                sweep_of(tx, ty, ncx, ncy, turns, ex, ey), m);
-    first_ = false;
-    prog_ = end_mm;
-    tool_ = Vec3(ex, ey, end_mm.z());
+    entry_arc(end_mm, cx, cy, turns, m);
     return;
   }
   const double ox = prog_.x(), oy = prog_.y();
@@ -414,39 +464,7 @@ void CutterComp::arc(const Vec3& end_global_mm, double cx, double cy, int turns,
           "inside corner with cutter compensation right after a stop (M0/M1/M60): LinuxCNC's "
           "result is undefined here; move the stop before G41/G42 or after G40");
     }
-    if (!prev->arc) {  // line → arc: the new offset circle meets the old offset line
-      const double off_line = arc_r * std::sin(beta - kPi / 2);
-      const double dist = inside ? arc_r - r : arc_r + r;
-      const double l = (inside ? off_line + r : off_line - r) / dist;
-      if (l > 1.0 || l < -1.0) {
-        refuse(
-            "arc move in a concave corner cannot be reached by the tool without gouging (as in "
-            "LinuxCNC); use a smaller tool or open the corner");
-      }
-      const double at = inside ? theta + (turns > 0 ? 1.0 : -1.0) * std::asin(l)
-                               : theta + kPi - (turns > 0 ? 1.0 : -1.0) * std::asin(l);
-      move_end_and_write(cx + dist * std::cos(at), cy + dist * std::sin(at));
-    } else {  // arc → arc: the two offset circles meet
-      const double r_old = std::hypot(prev->cx - prev->end_mm.x(), prev->cy - prev->end_mm.y());
-      const double r_new = inside ? arc_r - r : arc_r + r;
-      const double cc = std::hypot(prev->cx - cx, prev->cy - cy);
-      if (r_old == 0.0 || cc == 0.0) {
-        refuse(
-            "arc to arc motion with cutter compensation: the arcs have the same centre (LinuxCNC "
-            "refuses it); put a straight move between them");
-      }
-      const double c = (r_old * r_old + cc * cc - r_new * r_new) / (2 * r_old * cc);
-      if (c > 1.0 || c < -1.0) {
-        refuse(
-            "arc to arc motion makes a corner the compensated tool cannot fit in without gouging "
-            "(as in LinuxCNC); use a smaller tool or open the corner");
-      }
-      const double back = std::acos(c);
-      const double towards = heading(cx - prev->cx, cy - prev->cy);
-      const bool same = inside_arc(side_, prev->turns) == (turns > 0);
-      const double at = towards + (same ? back : -back);
-      move_end_and_write(prev->cx + r_old * std::cos(at), prev->cy + r_old * std::sin(at));
-    }
+    concave_arc_corner(*prev, cx, cy, turns, inside, arc_r, theta, beta);
     enqueue_arc(end, cx, cy, turns, sweep, m);
   } else if (beta > kCornerTol) {  // outside corner: an arc about P first
     const double mid_x = ox + r * std::cos(delta), mid_y = oy + r * std::sin(delta);

@@ -72,6 +72,9 @@ class CutterComp {
                    const Motion& m);
   void write_queue();                           // LinuxCNC's dequeue_canons
   void move_end_and_write(double x, double y);  // LinuxCNC's move_endpoint_and_flush
+  void entry_arc(const Vec3& end_mm, double cx, double cy, int turns, const Motion& m);
+  void concave_arc_corner(const Entry& prev, double cx, double cy, int turns, bool inside,
+                          double arc_r, double theta, double beta);
   void set_anchor(double x, double y) {
     anchor_x_ = x;
     anchor_y_ = y;
