@@ -67,7 +67,13 @@ Vec3 program_point(const ChamferSpec& spec, const CutterPose& pose, ProgramPoint
   return p;
 }
 
-std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
+namespace {
+
+bool is_paper_case(const ChamferSpec& s) {
+  return s.drill_tilt_rad == 0.0 && s.eccentricity_mm == 0.0;
+}
+
+void check_options(const ChamferPath& path, const NgcOptions& o) {
   const ChamferSpec& s = path.spec;
   require_positive("feed (--feed, mm/min)", o.feed_mm_per_min);
   require_positive("spindle speed (--spindle, rpm)", o.spindle_rpm);
@@ -88,27 +94,29 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
                      "and its rod are checked along the drill axis; use --frame drill and set up "
                      "the part with the drill axis vertical as the program's header says");
   }
+}
+
+// The top of the ball along the loop and the loop's length, in the program's frame (mm).
+struct LoopExtent {
+  double top_mm = -1e300, length_mm = 0.0;
+};
+
+LoopExtent loop_extent(const ChamferPath& path, const NgcOptions& o) {
+  const ChamferSpec& s = path.spec;
   const auto at = [&](std::size_t i) { return program_point(s, path.points[i], o.point, o.frame); };
-  double top = -1e300, length = 0.0;
+  LoopExtent e;
   for (std::size_t i = 0; i < path.points.size(); ++i) {
     const Vec3 p = at(i);
     const Vec3 q = at((i + 1) % path.points.size());
-    top = std::max(top, p.z() + (o.point == ProgramPoint::Tip ? 2.0 : 1.0) * s.ball_radius_mm);
-    length += (q - p).norm();
+    e.top_mm =
+        std::max(e.top_mm, p.z() + (o.point == ProgramPoint::Tip ? 2.0 : 1.0) * s.ball_radius_mm);
+    e.length_mm += (q - p).norm();
   }
-  if (o.safe_z_mm <= top) {
-    throw InputError("safe Z = " + text::fixed(o.safe_z_mm, 3) +
-                     " mm is not above the top of the ball " + "along the loop (" +
-                     text::fixed(top, 3) + " mm); use a larger --safe-z");
-  }
-  const int d = o.decimals;
-  const auto xyz = [d](const Vec3& p) {
-    return "X" + text::fixed(p.x(), d) + " Y" + text::fixed(p.y(), d) + " Z" +
-           text::fixed(p.z(), d);
-  };
-  const ChamferChecks& ck = path.checks;
-  std::ostringstream g;
-  if (o.percent) g << "%\n";
+  return e;
+}
+
+// The chamfer's data as comments: edge, pipe, drill, ball, width, tolerance, rod.
+void write_spec_comments(std::ostream& g, const ChamferSpec& s) {
   g << "(ncd chamfer: constant-width chamfer of a drilled hole in a pipe, Sato et al. 2016)\n";
   g << "(edge " << to_string(s.edge) << " " << to_string(s.side) << ", pipe surface radius "
     << text::fixed(s.pipe_radius_mm, 4) << " mm, drill radius " << text::fixed(s.drill_radius_mm, 4)
@@ -121,7 +129,7 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     << (s.non_knife_angle_rad ? text::fixed(rad_to_deg(*s.non_knife_angle_rad), 3) + " deg"
                               : "not given")
     << ", rod avoidance " << (s.avoid ? "on" : "off (alpha = 1)") << ")\n";
-  const bool paper = s.drill_tilt_rad == 0.0 && s.eccentricity_mm == 0.0;
+  const bool paper = is_paper_case(s);
   if (!paper || s.pipe_half_angle_rad != 0.0 || s.pipe_thickness_mm) {
     g << "(drill tilt " << text::fixed(rad_to_deg(s.drill_tilt_rad), 3) << " deg, azimuth "
       << text::fixed(rad_to_deg(s.drill_azimuth_rad), 3) << " deg, eccentricity "
@@ -130,8 +138,13 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
       << (s.pipe_thickness_mm ? text::fixed(*s.pipe_thickness_mm, 4) + " mm" : "not given")
       << ")\n";
   }
+}
+
+// The program's frame and the part's set-up as comments.
+void write_frame_comments(std::ostream& g, const ChamferSpec& s, const NgcOptions& o) {
+  const int d = o.decimals;
   const Vec3 axis_xy = program_frame_point(s, Vec3::Zero(), o.frame);  // drill axis at z = 0
-  if (paper) {
+  if (is_paper_case(s)) {
     g << "(frame: X0 Y0 on the drill axis, Z0 on the pipe axis, pipe along Y, units mm)\n";
   } else if (o.frame == ProgramFrame::Pipe) {
     g << "(frame: PIPE frame: pipe axis along Y through X0 Z0, drill axis vertical through X"
@@ -158,6 +171,32 @@ std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
     g << "(LOWER EDGE: written for the part TURNED OVER, rotated 180 deg about the pipe axis Y:"
          " X -> -X, Z -> -Z)\n";
   }
+}
+
+}  // namespace
+
+std::string chamfer_program(const ChamferPath& path, const NgcOptions& o) {
+  const ChamferSpec& s = path.spec;
+  check_options(path, o);
+  const auto at = [&](std::size_t i) { return program_point(s, path.points[i], o.point, o.frame); };
+  const LoopExtent extent = loop_extent(path, o);
+  const double top = extent.top_mm, length = extent.length_mm;
+  if (o.safe_z_mm <= top) {
+    throw InputError("safe Z = " + text::fixed(o.safe_z_mm, 3) +
+                     " mm is not above the top of the ball " + "along the loop (" +
+                     text::fixed(top, 3) + " mm); use a larger --safe-z");
+  }
+  const int d = o.decimals;
+  const auto xyz = [d](const Vec3& p) {
+    return "X" + text::fixed(p.x(), d) + " Y" + text::fixed(p.y(), d) + " Z" +
+           text::fixed(p.z(), d);
+  };
+  const ChamferChecks& ck = path.checks;
+  std::ostringstream g;
+  if (o.percent) g << "%\n";
+  write_spec_comments(g, s);
+  write_frame_comments(g, s, o);
+  const Vec3 axis_xy = program_frame_point(s, Vec3::Zero(), o.frame);  // drill axis at z = 0
   g << "(programmed point: "
     << (o.point == ProgramPoint::Tip ? "ball TIP = centre - " + text::fixed(s.ball_radius_mm, 4) +
                                            " mm in Z; tool length set to the tip"
