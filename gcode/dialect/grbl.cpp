@@ -170,6 +170,8 @@ Violation unsupported(int col, const std::string& word, const std::string& why) 
 }
 
 // A G word (step 2): its modal group, the motion or non-modal command, the axis command.
+// Longer than the house's 100 lines on purpose: it is gcode.c's table of G codes in full, one
+// case per code as grbl has it, so the two can be read side by side.
 std::optional<Violation> read_g(const std::string& word, int col, int int_value, int mantissa,
                                 Words& w) {
   int group = 0;

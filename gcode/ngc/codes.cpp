@@ -12,6 +12,8 @@ std::string g_name(int code10) {
   return "G" + std::to_string(code10 / 10) + (code10 % 10 ? "." + std::to_string(code10 % 10) : "");
 }
 
+// Longer than the house's 100 lines on purpose: LinuxCNC's modal group table (gees[] in
+// interp_array.cc) in full, one case per code.
 int g_group(int c) {
   switch (c) {
     case 40:
