@@ -41,33 +41,9 @@ std::string point_text(const Vec3& p) {
          ")";
 }
 
-void validate(int degree, const std::vector<double>& knots, const std::vector<Vec3>& points,
-              const std::vector<double>& weights) {
-  if (degree < NurbsCurve::kMinDegree || degree > NurbsCurve::kMaxDegree) {
-    throw InputError("NURBS degree = " + std::to_string(degree) + " is out of range: it must be " +
-                     std::to_string(NurbsCurve::kMinDegree) + " to " +
-                     std::to_string(NurbsCurve::kMaxDegree) +
-                     "; re-approximate the curve with a supported degree");
-  }
-  const auto p = static_cast<std::size_t>(degree);
-  if (points.size() < p + 1) {
-    throw InputError("NURBS of degree " + std::to_string(degree) + " has " +
-                     std::to_string(points.size()) + " control points, fewer than degree + 1 = " +
-                     std::to_string(p + 1) + "; add control points or lower the degree");
-  }
-  if (knots.size() != points.size() + p + 1) {
-    throw InputError("NURBS knot vector has " + std::to_string(knots.size()) + " knots, but " +
-                     std::to_string(points.size()) + " control points of degree " +
-                     std::to_string(degree) +
-                     " need points + degree + 1 = " + std::to_string(points.size() + p + 1) +
-                     "; give one knot per point plus degree + 1");
-  }
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!points[i].allFinite()) {
-      throw InputError("NURBS control point[" + std::to_string(i) + "] = " + point_text(points[i]) +
-                       " is not finite; every coordinate must be a number");
-    }
-  }
+// The knot vector: finite, non-decreasing, clamped (p + 1 equal knots at each end), and no
+// interior knot repeated more than p times.
+void validate_knots(const std::vector<double>& knots, std::size_t p) {
   for (std::size_t i = 0; i < knots.size(); ++i) {
     if (!std::isfinite(knots[i])) {
       throw InputError("NURBS knot[" + std::to_string(i) + "] = " + text::shortest(knots[i]) +
@@ -112,41 +88,75 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
     }
     i = j + 1;
   }
-  if (!weights.empty()) {
-    if (weights.size() != points.size()) {
-      throw InputError("NURBS has " + std::to_string(weights.size()) + " weights for " +
-                       std::to_string(points.size()) +
-                       " control points; give one weight per point, or none for a "
-                       "non-rational B-spline");
-    }
-    for (std::size_t i = 0; i < weights.size(); ++i) {
-      if (!std::isfinite(weights[i]) || weights[i] <= 0.0) {
-        throw InputError("NURBS weight[" + std::to_string(i) + "] = " + text::shortest(weights[i]) +
-                         " is invalid: weights must be finite and greater than 0; fix the "
-                         "weight or drop the weights for a non-rational curve");
-      }
-    }
-    // The weights of one span's p + 1 points (a sliding window): see kMaxSpanWeightRatio.
-    for (std::size_t first = 0; first + p < weights.size(); ++first) {
-      std::size_t lo = first, hi = first;
-      for (std::size_t i = first; i <= first + p; ++i) {
-        if (weights[i] < weights[lo]) lo = i;
-        if (weights[i] > weights[hi]) hi = i;
-      }
-      const double ratio = weights[hi] / weights[lo];
-      if (ratio > NurbsCurve::kMaxSpanWeightRatio) {
-        throw InputError(
-            "NURBS weight[" + std::to_string(hi) + "] = " + text::shortest(weights[hi]) + " is " +
-            text::shortest(ratio) + " times weight[" + std::to_string(lo) +
-            "] = " + text::shortest(weights[lo]) + " within one span (points " +
-            std::to_string(first) + ".." + std::to_string(first + p) +
-            "); the ratio may be at most " + text::shortest(NurbsCurve::kMaxSpanWeightRatio) +
-            ": such a curve runs almost straight into a near-corner that cannot be walked at "
-            "speed (docs/feedrate.md §5.1); re-export the curve with weights nearer "
-            "to 1, or as a polyline or a corner (G1 moves)");
-      }
+}
+
+// The weights: one per point, finite and positive, and within one span's window at most
+// kMaxSpanWeightRatio apart.
+void validate_weights(const std::vector<double>& weights, std::size_t point_count, std::size_t p) {
+  if (weights.size() != point_count) {
+    throw InputError("NURBS has " + std::to_string(weights.size()) + " weights for " +
+                     std::to_string(point_count) +
+                     " control points; give one weight per point, or none for a "
+                     "non-rational B-spline");
+  }
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    if (!std::isfinite(weights[i]) || weights[i] <= 0.0) {
+      throw InputError("NURBS weight[" + std::to_string(i) + "] = " + text::shortest(weights[i]) +
+                       " is invalid: weights must be finite and greater than 0; fix the "
+                       "weight or drop the weights for a non-rational curve");
     }
   }
+  // The weights of one span's p + 1 points (a sliding window): see kMaxSpanWeightRatio.
+  for (std::size_t first = 0; first + p < weights.size(); ++first) {
+    std::size_t lo = first, hi = first;
+    for (std::size_t i = first; i <= first + p; ++i) {
+      if (weights[i] < weights[lo]) lo = i;
+      if (weights[i] > weights[hi]) hi = i;
+    }
+    const double ratio = weights[hi] / weights[lo];
+    if (ratio > NurbsCurve::kMaxSpanWeightRatio) {
+      throw InputError(
+          "NURBS weight[" + std::to_string(hi) + "] = " + text::shortest(weights[hi]) + " is " +
+          text::shortest(ratio) + " times weight[" + std::to_string(lo) +
+          "] = " + text::shortest(weights[lo]) + " within one span (points " +
+          std::to_string(first) + ".." + std::to_string(first + p) +
+          "); the ratio may be at most " + text::shortest(NurbsCurve::kMaxSpanWeightRatio) +
+          ": such a curve runs almost straight into a near-corner that cannot be walked at "
+          "speed (docs/feedrate.md §5.1); re-export the curve with weights nearer "
+          "to 1, or as a polyline or a corner (G1 moves)");
+    }
+  }
+}
+
+void validate(int degree, const std::vector<double>& knots, const std::vector<Vec3>& points,
+              const std::vector<double>& weights) {
+  if (degree < NurbsCurve::kMinDegree || degree > NurbsCurve::kMaxDegree) {
+    throw InputError("NURBS degree = " + std::to_string(degree) + " is out of range: it must be " +
+                     std::to_string(NurbsCurve::kMinDegree) + " to " +
+                     std::to_string(NurbsCurve::kMaxDegree) +
+                     "; re-approximate the curve with a supported degree");
+  }
+  const auto p = static_cast<std::size_t>(degree);
+  if (points.size() < p + 1) {
+    throw InputError("NURBS of degree " + std::to_string(degree) + " has " +
+                     std::to_string(points.size()) + " control points, fewer than degree + 1 = " +
+                     std::to_string(p + 1) + "; add control points or lower the degree");
+  }
+  if (knots.size() != points.size() + p + 1) {
+    throw InputError("NURBS knot vector has " + std::to_string(knots.size()) + " knots, but " +
+                     std::to_string(points.size()) + " control points of degree " +
+                     std::to_string(degree) +
+                     " need points + degree + 1 = " + std::to_string(points.size() + p + 1) +
+                     "; give one knot per point plus degree + 1");
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) {
+      throw InputError("NURBS control point[" + std::to_string(i) + "] = " + point_text(points[i]) +
+                       " is not finite; every coordinate must be a number");
+    }
+  }
+  validate_knots(knots, p);
+  if (!weights.empty()) validate_weights(weights, points.size(), p);
 }
 
 }  // namespace
