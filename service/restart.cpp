@@ -12,14 +12,12 @@
 #include "link/program_file.hpp"
 
 namespace ncd::service {
-void restart_job(JobSpec& job, const toolpath::Program& program, std::string_view text, int line,
-                 std::optional<double> clearance_z_mm, const toolpath::ToPathOptions& options) {
-  const std::string at_line = "\"restart_from\" = " + std::to_string(line);
-  if (line < 1) {
-    throw InputError(at_line + " is not a line: give the 1-based line of the program");
-  }
-  // The first motion of the main file on the line or after it, in execution order; before it,
-  // the program must run its lines in order (no loop, no subroutine).
+namespace {
+
+// The first motion of the main file on the line or after it, in execution order; before it,
+// the program must run its lines in order (no loop, no subroutine).
+std::size_t first_motion_from(const toolpath::Program& program, std::string_view text, int line,
+                              const std::string& at_line) {
   std::size_t first = program.steps.size();
   int previous = 0;
   for (std::size_t k = 0; k < program.steps.size(); ++k) {
@@ -43,14 +41,21 @@ void restart_job(JobSpec& job, const toolpath::Program& program, std::string_vie
     throw InputError(at_line + ": no motion starts on that line or after it; the program has " +
                      std::to_string(std::count(text.begin(), text.end(), '\n')) + " lines");
   }
-  const toolpath::Motion& m = std::get<toolpath::Motion>(program.steps[first].item);
-  const double k = m.units == toolpath::Units::inch ? 25.4 : 1.0;
-  const Vec3 start_work_mm = m.start * k;
+  return first;
+}
 
+// The modal state before `restart_line`, read by the link's modal reader, and the highest Z a
+// move reached before it (-1e300 if none).
+struct ModalBefore {
   comms::ProgramModal modal;
   double max_z_mm = -1e300;
+};
+
+ModalBefore modal_before(std::string_view text, int restart_line, const std::string& at_line) {
+  ModalBefore out;
+  comms::ProgramModal& modal = out.modal;
+  double& max_z_mm = out.max_z_mm;
   std::size_t pos = 0;
-  const int restart_line = m.src.line;
   for (int n = 1; n < restart_line && pos <= text.size(); ++n) {
     const std::size_t nl = std::min(text.find('\n', pos), text.size());
     const std::string block = comms::block_of_line(std::string(text.substr(pos, nl - pos)));
@@ -64,7 +69,25 @@ void restart_job(JobSpec& job, const toolpath::Program& program, std::string_vie
     }
     if (b.motion) max_z_mm = std::max(max_z_mm, b.to_mm[2]);
   }
-  const comms::ModalState& at = modal.state();
+  return out;
+}
+
+}  // namespace
+
+void restart_job(JobSpec& job, const toolpath::Program& program, std::string_view text, int line,
+                 std::optional<double> clearance_z_mm, const toolpath::ToPathOptions& options) {
+  const std::string at_line = "\"restart_from\" = " + std::to_string(line);
+  if (line < 1) {
+    throw InputError(at_line + " is not a line: give the 1-based line of the program");
+  }
+  const std::size_t first = first_motion_from(program, text, line, at_line);
+  const toolpath::Motion& m = std::get<toolpath::Motion>(program.steps[first].item);
+  const double k = m.units == toolpath::Units::inch ? 25.4 : 1.0;
+  const Vec3 start_work_mm = m.start * k;
+  const int restart_line = m.src.line;
+  const ModalBefore before = modal_before(text, restart_line, at_line);
+  const double max_z_mm = before.max_z_mm;
+  const comms::ModalState& at = before.modal.state();
   const Vec3 modal_mm(at.position_mm[0], at.position_mm[1], at.position_mm[2]);
   if ((modal_mm - start_work_mm).norm() > 1e-6 * (1.0 + modal_mm.norm())) {
     throw InputError(at_line + ": the modal reader puts line " + std::to_string(restart_line) +
