@@ -15,8 +15,10 @@ Path read_gcode(std::istream& in, const std::string& name, const InterpretOption
   Path path = to_path(program);
   if (path.segments.empty()) {
     throw InputError(name +
-                     ": the program contains no move from a known position; it needs a G0 to "
-                     "X, Y and Z, then G0/G1/G2/G3/G5.2 moves");
+                     ": the program contains no move from a known position; give where the "
+                     "machine stands (ncd replay --start X,Y,Z in machine mm, or start_mm in the "
+                     "machine file's [machine] table), or begin the program with a G0 to X, Y "
+                     "and Z");
   }
   path.source = name;
   return path;

@@ -34,7 +34,18 @@ Program Interpreter::run(const std::string& text, const std::string& name) {
   coord_sys_ = std::clamp(static_cast<int>(std::lround(params_[5220])), 1, 9);
   g92_ = params_[5210] != 0.0 ? Vec3(param_len(5211), param_len(5212), param_len(5213))
                               : Vec3(0, 0, 0);
-  pos_ = -(g5x() + g92_);  // the machine starts at its origin
+  if (opt_.start_machine_mm) {
+    if (!opt_.start_machine_mm->allFinite()) {
+      throw InputError("the start position (" + text::sig(opt_.start_machine_mm->x()) + ", " +
+                       text::sig(opt_.start_machine_mm->y()) + ", " +
+                       text::sig(opt_.start_machine_mm->z()) +
+                       ") mm is not a position; give three numbers, e.g. --start 0,0,50");
+    }
+    pos_ = *opt_.start_machine_mm - (g5x() + g92_);
+    known_ = {true, true, true};
+  } else {
+    pos_ = -(g5x() + g92_);  // the machine starts at its origin, no axis known
+  }
   execute_all();
   comp_call([&] { comp_.flush(); });  // a file that ends without M2 writes its last move
   return std::move(program_);

@@ -3,6 +3,7 @@
 // docs/ngc-interpreter.md.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,12 @@ struct InterpretOptions {
   std::vector<std::string> subroutine_path;  // folders searched for o<name> call → name.ngc
   bool block_delete = false;                 // true: lines starting with '/' are skipped (rs274 -b)
   long max_blocks = 20'000'000;              // executed blocks before a runaway loop is reported
+  // Where the machine stands when the program starts (machine coordinates, mm, no tool length
+  // offset): `ncd replay --start`, the machine file's start_mm, or the controller's reported
+  // position. Given, every axis is known from the first line, as in LinuxCNC; not given, the
+  // machine is taken to stand at its origin but no axis is known until the program moves it
+  // there, and a feed move before that is refused.
+  std::optional<Vec3> start_machine_mm;
 };
 
 // Interprets a whole program; `name` (a file name) prefixes every error message and becomes

@@ -420,5 +420,38 @@ TEST(GcodeReader, ErrorQuotesTheLineText) {
   }
 }
 
+// The start position (machine coordinates): every axis is known from the first line, as in
+// LinuxCNC, so a program may begin with a feed move; the G54 offset of the parameter file and a
+// G92 on the way are applied to the program's words, not to where the machine stands.
+TEST(GcodeReader, AGivenStartPositionMakesEveryAxisKnownFromTheFirstLine) {
+  InterpretOptions o;
+  o.start_machine_mm = Vec3(1.0, 2.0, 3.0);
+  std::istringstream in("G21 G90\nG1 X10 F100\nG92 X0\nG1 X5\nM2\n");
+  const Path p = read_gcode(in, "start.ngc", o);
+  ASSERT_EQ(p.segments.size(), 1u);
+  const Polyline& l = polyline(p, 0);
+  ASSERT_EQ(l.points.size(), 3u);
+  EXPECT_EQ(l.points[0], Vec3(1.0, 2.0, 3.0));
+  EXPECT_EQ(l.points[1], Vec3(10.0, 2.0, 3.0));
+  EXPECT_EQ(l.points[2], Vec3(15.0, 2.0, 3.0));  // G92 X0 at X10: X5 is machine X15
+  // A rapid first is planned from the start, not taken as an unplanned positioning.
+  std::istringstream rapid("G0 Z50\nM2\n");
+  const Path r = read_gcode(rapid, "rapid.ngc", o);
+  ASSERT_EQ(r.segments.size(), 1u);
+  EXPECT_EQ(polyline(r, 0).points.front(), Vec3(1.0, 2.0, 3.0));
+  EXPECT_EQ(polyline(r, 0).points.back(), Vec3(1.0, 2.0, 50.0));
+  // Not given: the same program is refused, naming the way out.
+  std::istringstream again("G21 G90\nG1 X10 F100\nM2\n");
+  try {
+    (void)read_gcode(again, "start.ngc");
+    FAIL() << "a feed move from an unknown position was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--start X,Y,Z"), std::string::npos) << e.what();
+  }
+  o.start_machine_mm = Vec3(0.0, std::nan(""), 0.0);
+  std::istringstream nan_start("G1 X1 F100\n");
+  EXPECT_THROW((void)read_gcode(nan_start, "nan.ngc", o), InputError);
+}
+
 }  // namespace
 }  // namespace ncd::toolpath
