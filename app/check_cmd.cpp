@@ -36,7 +36,7 @@ using toolpath::Motion;
 using toolpath::Program;
 
 struct CheckArgs {
-  std::string file, machine, tool_table, parameter_file;
+  std::string file, machine, tool_table, parameter_file, start;
   bool json = false;
   bool summary_only = false;
   bool save_parameters = false;
@@ -136,6 +136,7 @@ int run_check(const CheckArgs& a) {
   if (!a.machine.empty()) machine = load_machine_config(a.machine);
   toolpath::InterpretOptions opt = machine.program;
   if (!a.tool_table.empty()) opt.tool_table = a.tool_table;
+  if (!a.start.empty()) opt.start_machine_mm = parse_position_mm(a.start, "--start");
   if (!a.parameter_file.empty()) opt.parameter_file = a.parameter_file;
   if (a.save_parameters) {
     if (opt.parameter_file.empty()) {
@@ -223,6 +224,9 @@ void register_check(CLI::App& app, Runner& run) {
   c->add_option("--machine", a->machine,
                 "machine file (TOML): limits for the time estimate, [program] for the reader");
   c->add_option("--tool-table", a->tool_table, "LinuxCNC tool table (overrides [program])");
+  c->add_option("--start", a->start,
+                "X,Y,Z: where the machine stands when the program starts, machine mm (overrides "
+                "[program] start_mm)");
   c->add_option("--parameter-file", a->parameter_file,
                 "LinuxCNC parameter file, .var (overrides [program]); read, and written back "
                 "with --save-parameters");

@@ -46,6 +46,7 @@ constexpr double kMaxSimulatedS = 100.0 * 3600.0;  // a runaway guard: 100 h of 
 
 struct ReplayArgs {
   std::string path, machine, setpoints, report, plot, blocks;
+  std::string start, tool_table;  // override the machine file's [program] start_mm, tool_table
   std::optional<double> chord_tolerance_mm;  // overrides [encoder] chord_tolerance_mm
   bool quiet = false;
   bool allow_interference = false;
@@ -313,7 +314,16 @@ int run_replay(const ReplayArgs& a) {
   MachineConfig machine;  // the documented defaults unless --machine
   if (!a.machine.empty()) machine = load_machine_config(a.machine);
   if (a.chord_tolerance_mm) machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
-  const toolpath::Path path = toolpath::read_path_file(a.path, machine.program);
+  if (!a.start.empty()) machine.program.start_machine_mm = parse_position_mm(a.start, "--start");
+  if (!a.tool_table.empty()) machine.program.tool_table = a.tool_table;
+  toolpath::Path path;
+  try {
+    path = toolpath::read_path_file(a.path, machine.program);
+  } catch (const NoMotionError& e) {
+    // Nothing to walk is an answer, not a failure; no output file is written.
+    if (!a.quiet) std::cerr << "replay: no motion: " << e.what() << "\n";
+    return 0;
+  }
   // Before any motion: the chamfer's checks and tool, the envelope, the size of the run.
   const ChamferAcceptance chamfer =
       accept_chamfer(path, machine, a.allow_interference, "--allow-interference");
@@ -502,6 +512,13 @@ void register_replay(CLI::App& app, Runner& run) {
   c->add_option("--machine", a->machine,
                 "machine file (TOML: period, limits, tolerances, [cutting]); default: the "
                 "documented defaults, see config/machine.example.toml");
+  c->add_option("--start", a->start,
+                "X,Y,Z: where the machine stands when the program starts, machine mm (overrides "
+                "the machine file's [program] start_mm); unset, a program must reach X, Y and Z "
+                "with a rapid before its first feed move");
+  c->add_option("--tool-table", a->tool_table,
+                "LinuxCNC tool table, lines such as 'T1 P1 Z12.5 D6 ;ball' (overrides the "
+                "machine file's [program] tool_table)");
   c->add_option("--setpoints", a->setpoints,
                 "CSV of one row per period: t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit");
   c->add_option("--report", a->report, "JSON report of the run");

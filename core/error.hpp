@@ -17,6 +17,13 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A program that moves nothing (only modes, comments, M2): an InputError to a command that
+// needs motion; `ncd replay` reports it as "no motion" and exits 0.
+class NoMotionError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 class LimitError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

@@ -5,6 +5,9 @@
 // validate().
 #include "service/machine_config.hpp"
 
+#include <filesystem>
+
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <toml.hpp>
@@ -201,6 +204,23 @@ void parse_program(const toml::value& table, const std::string& name,
       p.tool_table = as_text(v, where);
     } else if (key == "parameter_file") {
       p.parameter_file = as_text(v, where);
+    } else if (key == "start_mm") {
+      // Where the machine stands when a program starts (machine coordinates, mm).
+      if (!v.is_array() || v.as_array().size() != 3) {
+        throw InputError(where +
+                         " must be three numbers, the machine position in mm: "
+                         "start_mm = [0.0, 0.0, 50.0]");
+      }
+      Vec3 at;
+      for (std::size_t a = 0; a < 3; ++a) {
+        at[static_cast<Eigen::Index>(a)] = as_real(v.as_array()[a], where);
+        if (!std::isfinite(at[static_cast<Eigen::Index>(a)]) ||
+            std::abs(at[static_cast<Eigen::Index>(a)]) > 1e6) {
+          throw InputError(where + " = " + toml::format(v) +
+                           " must hold finite positions within ±1e6 mm (1 km)");
+        }
+      }
+      p.start_machine_mm = at;
     } else if (key == "subroutine_path") {
       if (!v.is_array()) throw InputError(where + " must be a list of folders: [\"subs\"]");
       p.subroutine_path.clear();
@@ -208,7 +228,7 @@ void parse_program(const toml::value& table, const std::string& name,
     } else {
       throw InputError("unknown key " + where +
                        "; [program] takes default_units, machine_units, tool_table, "
-                       "parameter_file, subroutine_path");
+                       "parameter_file, subroutine_path, start_mm");
     }
   }
 }
@@ -368,8 +388,47 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
   return c;
 }
 
+namespace {
+
+// A path the machine file names, taken relative to the file's folder (as LinuxCNC takes an INI
+// file's TOOL_TABLE), not to the folder the command runs in.
+void relative_to(const std::filesystem::path& folder, std::string& path) {
+  if (path.empty() || std::filesystem::path(path).is_absolute()) return;
+  path = (folder / path).lexically_normal().string();
+}
+
+}  // namespace
+
+Vec3 parse_position_mm(const std::string& text, const std::string& what) {
+  Vec3 at;
+  std::size_t from = 0;
+  for (int a = 0; a < 3; ++a) {
+    const std::size_t comma = a < 2 ? text.find(',', from) : text.size();
+    const std::string part =
+        comma == std::string::npos ? std::string() : text.substr(from, comma - from);
+    double v = 0.0;
+    const char* first = part.data();
+    const char* last = part.data() + part.size();
+    const auto r = std::from_chars(first, last, v);
+    if (comma == std::string::npos || part.empty() || r.ec != std::errc() || r.ptr != last ||
+        !std::isfinite(v) || std::abs(v) > 1e6) {
+      throw InputError(what + " \"" + text +
+                       "\" is not a position: give X,Y,Z in machine mm within ±1e6, e.g. " + what +
+                       " 0,0,50");
+    }
+    at[a] = v;
+    from = comma + 1;
+  }
+  return at;
+}
+
 MachineConfig load_machine_config(const std::string& path) {
-  return parse_machine_config(read_input_file(path, "machine file, --machine"), path);
+  MachineConfig c = parse_machine_config(read_input_file(path, "machine file, --machine"), path);
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  relative_to(folder, c.program.tool_table);
+  relative_to(folder, c.program.parameter_file);
+  for (std::string& d : c.program.subroutine_path) relative_to(folder, d);
+  return c;
 }
 
 nlohmann::ordered_json to_json(const MachineConfig& c) {
@@ -429,6 +488,10 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                   {"tool_table", p.tool_table},
                   {"parameter_file", p.parameter_file},
                   {"subroutine_path", p.subroutine_path}};
+  if (p.start_machine_mm) {
+    const Vec3& at = *p.start_machine_mm;
+    j["program"]["start_mm"] = {at.x(), at.y(), at.z()};
+  }
   return j;
 }
 

@@ -70,6 +70,10 @@ struct MachineConfig {
 // Reads and validates a machine file; throws InputError naming the file, the key and the value.
 MachineConfig load_machine_config(const std::string& path);
 
+// A machine position "X,Y,Z" in mm, as a flag gives it (`what` names the flag in messages).
+// Throws InputError naming the text, the form and an example.
+Vec3 parse_position_mm(const std::string& text, const std::string& what);
+
 // The same on TOML text already in memory; `name` stands for the file in messages.
 MachineConfig parse_machine_config(const std::string& text, const std::string& name);
 

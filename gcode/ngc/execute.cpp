@@ -191,6 +191,17 @@ int group_code(const Block& b, int grp) {
 
 }  // namespace
 
+// The way out of a tool missing from the table: which table, how to give one, and its format.
+std::string Interpreter::missing_tool_way_out(int tool) const {
+  const std::string t = std::to_string(tool);
+  return (opt_.tool_table.empty()
+              ? std::string(" (none is given: pass --tool-table FILE, or set tool_table in the "
+                            "machine file's [program] table)")
+              : " " + opt_.tool_table) +
+         "; add a line for it in LinuxCNC's format, e.g. 'T" + t + " P" + t +
+         " Z0 D6 ;length Z and diameter D in machine units'";
+}
+
 // A block is executed in LinuxCNC's order (interp_convert.cc, convert_...); the step numbers are
 // that order's, and each step is a function below.
 void Interpreter::execute_block(Block& b) {
@@ -265,9 +276,7 @@ void Interpreter::set_spindle_and_tool(const Block& b) {
       fail("tool number T" + text::sig(t) + " must be a whole number ≥ 0");
     const int tn = static_cast<int>(t);
     if (tn != 0 && !tools_.count(tn)) {
-      fail("tool T" + std::to_string(tn) + " is not in the tool table" +
-           (opt_.tool_table.empty() ? std::string(" (none given)") : " " + opt_.tool_table) +
-           "; add it to the tool table ([program] tool_table)");
+      fail("tool T" + std::to_string(tn) + " is not in the tool table" + missing_tool_way_out(tn));
     }
     selected_tool_ = tn;
   }
@@ -353,7 +362,7 @@ void Interpreter::set_tool_length_offset(const Block& b) {
         const auto it = tools_.find(h);
         if (it == tools_.end())
           fail("G43 H" + std::to_string(h) + ": tool " + std::to_string(h) +
-               " is not in the tool table; add it");
+               " is not in the tool table" + missing_tool_way_out(h));
         off.z() = it->second.z * machine_k_;
       }
     } else if (b.has_g(431)) {
@@ -583,7 +592,7 @@ void Interpreter::cutter_comp(const Block& b, int code) {
       if (t == 0) t = tool_;  // D0 is the tool in the spindle, as in LinuxCNC
       if (t != 0 && !tools_.count(t)) {
         fail(name + " D" + std::to_string(t) + ": tool " + std::to_string(t) +
-             " is not in the tool table; add it ([program] tool_table) or give G" +
+             " is not in the tool table" + missing_tool_way_out(t) + ", or give G" +
              std::to_string(code / 10) + ".1 D with the diameter");
       }
     }

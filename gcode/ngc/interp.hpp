@@ -215,6 +215,7 @@ class Interpreter {
   void settle_known();
   void line_to(const Vec3& end_mm, bool rapid);
   void execute_block(Block& b);
+  std::string missing_tool_way_out(int tool) const;
   void set_feed(const Block& b);
   void set_spindle_and_tool(const Block& b);
   void set_coolant(const Block& b);

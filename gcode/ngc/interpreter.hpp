@@ -25,9 +25,9 @@ struct InterpretOptions {
   bool block_delete = false;                 // true: lines starting with '/' are skipped (rs274 -b)
   long max_blocks = 20'000'000;              // executed blocks before a runaway loop is reported
   // Where the machine stands when the program starts (machine coordinates, mm, no tool length
-  // offset): `ncd replay --start`, the machine file's start_mm, or the controller's reported
-  // position. Given, every axis is known from the first line, as in LinuxCNC; not given, the
-  // machine is taken to stand at its origin but no axis is known until the program moves it
+  // offset): `ncd replay --start`, the machine file's [program] start_mm, or the controller's
+  // reported position. Given, every axis is known from the first line, as in LinuxCNC; not given,
+  // the machine is taken to stand at its origin but no axis is known until the program moves it
   // there, and a feed move before that is refused.
   std::optional<Vec3> start_machine_mm;
 };

@@ -261,6 +261,81 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
   }
 }
 
+// The machine file's paths are relative to the file (as LinuxCNC reads an INI's TOOL_TABLE), and
+// its start position lets a program begin with a feed move, as on the machine: the first
+// setpoint is the start, the walk reaches the programmed end.
+TEST_F(Replay, TheMachineFilesToolTableAndStartPositionAreItsOwn) {
+  fs::create_directories(dir_ / "cell");
+  write("cell/tool.tbl", "T1 P1 Z0 D6 ;ball\n");
+  const std::string machine =
+      write("cell/m.toml", "[program]\ntool_table = \"tool.tbl\"\nstart_mm = [0.0, 0.0, 5.0]\n");
+  const std::string program = write("p.ngc", "G21 G90\nT1 M6\nG1 X10 F600\nG0 Z5\nM2\n");
+  const Run run = replay_with(program, machine);
+  ASSERT_EQ(run.r.status, 0) << run.r.err;
+  const fs::path csv = dir_ / "sp.csv";
+  ASSERT_EQ(
+      ncd("replay " + program + " --machine " + machine + " -q --setpoints " + csv.string()).status,
+      0);
+  std::istringstream rows(slurp(csv));
+  std::string header, first, line, last;
+  std::getline(rows, header);
+  std::getline(rows, first);
+  while (std::getline(rows, line)) last = line;
+  // Rows: t, x, y, z (mm), v, binding.
+  const auto xyz = [](const std::string& row) {
+    std::istringstream in(row);
+    std::string cell;
+    std::getline(in, cell, ',');
+    Vec3 p;
+    for (int a = 0; a < 3; ++a) {
+      std::getline(in, cell, ',');
+      p[a] = std::stod(cell);
+    }
+    return p;
+  };
+  EXPECT_LT((xyz(first) - Vec3(0, 0, 5)).norm(), 1e-3) << first;
+  EXPECT_EQ(xyz(last), Vec3(10, 0, 5)) << last;
+  // Without the start the same program is refused, and the message names the ways out.
+  const std::string no_start = write("cell/n.toml", "[program]\ntool_table = \"tool.tbl\"\n");
+  const CmdResult refused = ncd("replay " + program + " --machine " + no_start + " -q");
+  EXPECT_EQ(refused.status, 2);
+  EXPECT_NE(refused.err.find("--start X,Y,Z"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("start_mm"), std::string::npos) << refused.err;
+  const std::string bad = write("cell/b.toml", "[program]\nstart_mm = [0.0, 5.0]\n");
+  const CmdResult r = ncd("replay " + program + " --machine " + bad + " -q");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("program.start_mm must be three numbers"), std::string::npos) << r.err;
+}
+
+// The flags override the machine file: --start and --tool-table; a missing tool names both ways
+// to give a table and shows a line of its format; a malformed start is a clear error.
+TEST_F(Replay, StartAndToolTableFlagsOverrideTheMachineFile) {
+  const std::string table = write("tools.tbl", "T4 P4 Z0 D6.35 ;flat end mill\n");
+  const std::string program = write("t4.ngc", "G21 G90\nT4 M6\nG1 Z-1 F300\nG0 Z5\nM2\n");
+  const std::string machine = write("m.toml", "");
+  const CmdResult missing =
+      ncd("replay " + program + " --machine " + machine + " --start 0,0,5 -q");
+  EXPECT_EQ(missing.status, 2);
+  for (const char* part : {"tool T4 is not in the tool table", "--tool-table FILE",
+                           "[program] table", "'T4 P4 Z0 D6"}) {
+    EXPECT_NE(missing.err.find(part), std::string::npos) << part << "\n" << missing.err;
+  }
+  const CmdResult ok = ncd("replay " + program + " --machine " + machine +
+                           " --start 0,0,5 --tool-table " + table + " -q");
+  EXPECT_EQ(ok.status, 0) << ok.err;
+  // A program that moves nothing replays as "no motion", exit 0.
+  const CmdResult none = ncd("replay " + write("none.ngc", "G21 G90 (setup only)\nM2\n"));
+  EXPECT_EQ(none.status, 0) << none.err;
+  EXPECT_NE(none.err.find("no motion"), std::string::npos) << none.err;
+  for (const char* bad : {"0,0", "0,0,x", "1,2,3,4", "0,0,1e9"}) {
+    const CmdResult r = ncd("replay " + program + " --start " + std::string(bad) + " -q");
+    EXPECT_EQ(r.status, 2) << bad;
+    EXPECT_NE(r.err.find("is not a position: give X,Y,Z in machine mm"), std::string::npos)
+        << bad << "\n"
+        << r.err;
+  }
+}
+
 // A G5.2 block whose first point repeats the current position (LinuxCNC accepts it; ncd refused
 // it as "a cusp"): walked from rest to rest, within F600, ending exactly at the last point.
 TEST_F(Replay, NurbsWithARepeatedFirstPointIsWalked) {

@@ -293,7 +293,7 @@ TEST(GcodeReader, RejectsUnsupportedAndMalformedInputWithLineNumbers) {
   expect_error("G1 X1 Y1 Z1 F100\n", "test.ngc:1:", "unknown position");
   expect_error("G0 X0 Y0 Z0\nG1 X1\n", "test.ngc:2:", "zero feed rate");
   expect_error("%\nG0 X0 Y0 Z0\nG0 X1\n", "test.ngc:3:", "neither a closing % line");
-  expect_error("(nothing)\n", "test.ngc: ", "contains no move");
+  expect_error("(nothing)\n", "test.ngc: ", "moves nothing");
   expect_error(start + "G2 X1 Y1\n", "test.ngc:4:", "arc without R or I, J, K");
   expect_error(start + "G2 X1 Y1 R0.1\n", "test.ngc:4:", "too small to reach the end point");
   expect_error(start + "G2 X1 Y0 I3\n", "test.ngc:4:", "differs from radius to start");
