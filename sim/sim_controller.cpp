@@ -15,8 +15,9 @@
 //    loop catches up as a UART's FIFO would, and never exceeds the line's rate overall. In drip
 //    mode each character of such a burst keeps its own arrival time and the executor and the
 //    flow control run between characters, as the controller's receive interrupt would have
-//    them. A DC3 that was due more than kLateFlowS before the loop could send it (xoff_late)
-//    holds what the sender wrote before it could see it (the rest of the burst and what waits in
+//    them. A DC3 that was due more than kLateFlowS before the loop could send it, or before its
+//    write reached the pty (the loop's thread kept from running in between) (xoff_late), holds
+//    what the sender wrote before it could see it (the rest of the burst and what waits in
 //    the kernel, no more than the line could carry meanwhile) until DC1, and those characters obey
 //    every DC3 until they have all been read, as the sender's flow control would have had them: the
 //    simulation's lateness is never blamed on the sender. A pty carries no framing, no parity and
@@ -534,9 +535,42 @@ struct SimController::Impl {
     if (n > 0) {
       out.erase(0, static_cast<std::size_t>(n));
       bytes_sent += static_cast<std::uint64_t>(n);
+      if (xoff_at_out) {
+        if (*xoff_at_out < static_cast<std::size_t>(n)) {
+          xoff_written(now_s());
+        } else {
+          *xoff_at_out -= static_cast<std::size_t>(n);
+        }
+      }
     } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
       out.clear();
+      xoff_at_out.reset();
     }
+  }
+
+  // Drip: the flow control's DC3 has reached the sender, at t. A loop kept from running between
+  // the DC3's decision (at xoff_due_t) and its write (a loaded machine) let the sender go on
+  // writing meanwhile, which it could not have helped: a UART sends DC3 within a character
+  // time. What it wrote meanwhile waits until DC1, as its own flow control would have held it
+  // (the same rule as a DC3 found late while reading a burst, in receive()).
+  void xoff_written(double t) {
+    xoff_at_out.reset();
+    if (alarmed || !told_xoff) return;
+    const double late_s = t - xoff_due_t;
+    if (late_s <= kLateFlowS) return;
+    hold_late_written(late_s);
+  }
+
+  // The characters the sender wrote while a DC3 was late by late_s (no more than the line could
+  // have carried meanwhile: a sender writing faster than the line gets no pass for the excess)
+  // obey DC3 until they have all been read.
+  void hold_late_written(double late_s) {
+    int in_kernel = 0;
+    if (::ioctl(pty.master(), FIONREAD, &in_kernel) != 0) in_kernel = 0;
+    const std::size_t waiting = backlog.size() + static_cast<std::size_t>(in_kernel);
+    const auto could_send = static_cast<std::size_t>(late_s * cps) + 1;
+    late_written_end = std::max(late_written_end, taken + std::min(waiting, could_send));
+    ++log.xoff_late;
   }
 
   // ---- connections ----
@@ -556,6 +590,7 @@ struct SimController::Impl {
     link_event(t, "sender_connected");
     ::tcflush(pty.held_slave(), TCIFLUSH);  // nothing stale for the new sender
     out.clear();
+    xoff_at_out.reset();
     if (xon_xoff) send_flow(told_xoff);
     if (!drip && cfg.reset_on_open) reset(t, "port_opened");
   }
@@ -565,6 +600,7 @@ struct SimController::Impl {
     link_event(t, "sender_disconnected");
     ::tcflush(pty.held_slave(), TCIFLUSH);
     out.clear();
+    xoff_at_out.reset();
     ++reply_epoch;
     // What it wrote is in the kernel; read it all now (a read, unlike FIONREAD, also waits for
     // the pty's flip buffer), so that the new sender's bytes, which follow, are told apart.
@@ -603,6 +639,7 @@ struct SimController::Impl {
           cfg.line.device + " back in " + text::sig(cfg.faults.down_s) + " s");
     down_until = t + cfg.faults.down_s;
     out.clear();
+    xoff_at_out.reset();
     backlog.clear();  // in flight when the line went down
     late_written_end = 0;
     ++reply_epoch;
@@ -670,7 +707,7 @@ struct SimController::Impl {
       execute(t_i);
       on_byte(buf[i], t_i);
       const bool was_xoff = told_xoff;
-      flow();
+      flow(t_i);
       const std::uint64_t taken_here = taken - got + i + 1;
       const bool late = t - t_i > kLateFlowS;
       if (told_xoff && !was_xoff && (late || taken_here < late_written_end)) {
@@ -681,16 +718,8 @@ struct SimController::Impl {
         backlog.insert(0, buf.data() + i + 1, rest);
         taken = taken_here;
         credit = 0.0;
-        if (late) {
-          int in_kernel = 0;
-          if (::ioctl(pty.master(), FIONREAD, &in_kernel) != 0) in_kernel = 0;
-          // No more than the line could have carried while the DC3 was late: a sender writing
-          // faster than the line gets no pass for the excess.
-          const std::size_t waiting = backlog.size() + static_cast<std::size_t>(in_kernel);
-          const auto could_send = static_cast<std::size_t>((t - t_i) * cps) + 1;
-          late_written_end = std::max(late_written_end, taken + std::min(waiting, could_send));
-          ++log.xoff_late;
-        }
+        if (late) hold_late_written(t - t_i);
+        xoff_due_t = t;  // the rest of its lateness, until the write, is the write's
         break;
       }
     }
@@ -1568,12 +1597,19 @@ struct SimController::Impl {
     }
   }
 
-  void flow() {
+  // The flow control at t: DC3 at high water (and in storms and holds), DC1 at low water.
+  void flow(double t) {
     if (!xon_xoff || !pty.is_open() || alarmed) return;
     if (!fill_xoff && fill >= xoff_at) fill_xoff = true;
     if (fill_xoff && fill <= xon_at) fill_xoff = false;
     const bool want = fill_xoff || storm_until.has_value() || hold_until.has_value();
-    if (want != told_xoff) send_flow(want);
+    if (want == told_xoff) return;
+    send_flow(want);
+    xoff_at_out.reset();
+    if (want && !out.empty()) {  // its write is timed (flush_out)
+      xoff_at_out = out.size() - 1;
+      xoff_due_t = t;
+    }
   }
 
   // ---- the loop ----
@@ -1616,10 +1652,10 @@ struct SimController::Impl {
       if (cycle_start_request.exchange(false)) cycle_start(t);
       if (pty.is_open()) on_slave_events(t);
       receive(t, readable);
-      flow();  // DC3 when the fill reached high water, before a block starting now frees room
+      flow(t);  // DC3 when the fill reached high water, before a block starting now frees room
       execute(t);
       faults(t);
-      flow();
+      flow(t);
       publish();  // before the bytes go out, so a sender reading them sees this state
       flush_out();
 
@@ -1740,6 +1776,9 @@ struct SimController::Impl {
   // Drip: the end (in bytes taken) of what the sender wrote before it could see a DC3 the loop
   // sent late; up to there the wire obeys DC3 as the sender would have.
   std::uint64_t late_written_end = 0;
+  // Drip: where in `out` the last DC3 waits to be written, and when it was due.
+  std::optional<std::size_t> xoff_at_out;
+  double xoff_due_t = 0.0;
   std::optional<double> storm_until, hold_until;
   double next_storm = 0.0, next_noise = 0.0;
   bool alarmed = false;
