@@ -40,7 +40,7 @@ void Session::ack_line(const std::string& line) {
     on_status(*st);
     return;
   }
-  if (ending_ == Ending::Holding || ending_ == Ending::Resetting) {
+  if (end_.step == Ending::Holding || end_.step == Ending::Resetting) {
     ending_line(line);
     return;
   }
@@ -177,22 +177,22 @@ std::size_t Session::queued_moves() const {
 }
 
 Vec3 Session::work_position(const GrblStatus& st) {
-  if (st.wco) wco_ = *st.wco;
+  if (st.wco) status_.wco = *st.wco;
   if (st.wpos) return *st.wpos;
   const Vec3 m = st.mpos.value_or(Vec3{});
-  return {m[0] - wco_[0], m[1] - wco_[1], m[2] - wco_[2]};
+  return {m[0] - status_.wco[0], m[1] - status_.wco[1], m[2] - status_.wco[2]};
 }
 
 void Session::on_status(const GrblStatus& st) {
   ++report_.status_reports;
-  status_supported_ = true;
-  last_status_ = st;
-  last_position_ = work_position(st);
-  have_status_ = true;
-  if (phase_ == Phase::Startup) spoke_ = true;
+  status_.supported = true;
+  status_.last = st;
+  status_.position = work_position(st);
+  status_.have = true;
+  if (phase_ == Phase::Startup) start_.spoke = true;
   if (phase_ != Phase::Ready && !stopping_) return;  // startup and recovery read it themselves
   if (!track_ok_ || st.state == "Alarm") return;
-  track(st, last_position_);
+  track(st, status_.position);
 }
 
 void Session::track(const GrblStatus& st, const Vec3& pos) {
@@ -255,11 +255,11 @@ void Session::basis(const char* how) {
 void Session::poll_status() {
   if (s_.status_hz <= 0.0) return;
   const double now = now_s();
-  if (now < next_poll_s_) return;
-  next_poll_s_ = now + 1.0 / s_.status_hz;
+  if (now < status_.next_poll_s) return;
+  status_.next_poll_s = now + 1.0 / s_.status_hz;
   write_raw("?");
-  if (++polls_ >= 20 && !have_status_ && status_supported_) {
-    status_supported_ = false;
+  if (++status_.polls >= 20 && !status_.have && status_.supported) {
+    status_.supported = false;
     report_.execution_basis = "not known: the controller does not answer '?'";
     report_.notes.push_back(
         "the controller answered no status report: executed blocks are not known; "

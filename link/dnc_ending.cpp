@@ -16,30 +16,30 @@ void Session::begin_ending() {
   while (items_.size() > keep) items_.pop_back();
   cur_off_ = 0;
   if (!motion_written_) {
-    ending_ = Ending::NotNeeded;
+    end_.step = Ending::NotNeeded;
     e.not_needed = true;
     emit(SenderEvent::Kind::Ending, report_.blocks,
          "ending the job: no move had been sent, the controller never moved");
     return;
   }
-  ending_ = Ending::Holding;
-  ending_t0_ = now_s();
-  have_status_ = false;
+  end_.step = Ending::Holding;
+  end_.t0_s = now_s();
+  status_.have = false;
   write_raw("!?");
-  next_poll_s_ = now_s() + 0.1;
+  status_.next_poll_s = now_s() + 0.1;
   emit(SenderEvent::Kind::Ending, report_.blocks,
        "ending the job: feed hold (!), waiting for Hold:0 before the reset");
 }
 
 void Session::ending_step() {
   const double now = now_s();
-  if (ending_ == Ending::Holding) {
-    if (have_status_ && last_status_) {
-      const std::string& state = last_status_->state;
+  if (end_.step == Ending::Holding) {
+    if (status_.have && status_.last) {
+      const std::string& state = status_.last->state;
       if (state == "Hold:0") {
         report_.ending.held = true;
         report_.ending.held_t_s = now;
-        report_.ending.held_at_mm = last_position_;
+        report_.ending.held_at_mm = status_.position;
         reset_for_ending();
         return;
       }
@@ -49,19 +49,19 @@ void Session::ending_step() {
         return;
       }
     }
-    if (now - ending_t0_ > kEndingHoldTimeoutS) {
+    if (now - end_.t0_s > kEndingHoldTimeoutS) {
       fail_ending("after the feed hold (!) the controller did not report Hold:0 within " +
                   fixed(kEndingHoldTimeoutS, 0) + " s" +
-                  (last_status_ ? " (last status " + last_status_->state + ")" : ""));
+                  (status_.last ? " (last status " + status_.last->state + ")" : ""));
       return;
     }
-    if (now >= next_poll_s_) {
-      next_poll_s_ = now + 0.1;
+    if (now >= status_.next_poll_s) {
+      status_.next_poll_s = now + 0.1;
       write_raw("?");
     }
     return;
   }
-  if (now - ending_t0_ > s_.startup_timeout_s) {  // Resetting
+  if (now - end_.t0_s > s_.startup_timeout_s) {  // Resetting
     fail_ending("no banner within " + fixed(s_.startup_timeout_s, 1) +
                 " s after the soft reset (0x18)");
   }
@@ -70,10 +70,10 @@ void Session::ending_step() {
 // Hold:0: what grbl queued is not known executed; the reset drops it.
 void Session::reset_for_ending() {
   dropped_note(first_unexecuted());
-  ending_first_unexecuted_ = first_unexecuted();
+  end_.first_unexecuted = first_unexecuted();
   write_raw(std::string(1, '\x18'));
-  ending_ = Ending::Resetting;
-  ending_t0_ = now_s();
+  end_.step = Ending::Resetting;
+  end_.t0_s = now_s();
   items_.clear();
   queued_.clear();
   sent_items_ = 0;
@@ -86,15 +86,15 @@ void Session::reset_for_ending() {
 void Session::ending_line(const std::string& line) {
   if (line.rfind("ALARM", 0) == 0) {
     fail_ending("the controller raised " + line +
-                (ending_ == Ending::Resetting ? " on the reset: it is locked until $X" : ""));
+                (end_.step == Ending::Resetting ? " on the reset: it is locked until $X" : ""));
   } else if (is_banner(line)) {
-    if (ending_ == Ending::Holding) {
+    if (end_.step == Ending::Holding) {
       fail_ending("the controller reset by itself before its hold was complete ('" + line + "')");
       return;
     }
     report_.ending.reset = true;
     send_ending();
-  } else if (line == "ok" && ending_ == Ending::Holding && sent_items_ > 0) {
+  } else if (line == "ok" && end_.step == Ending::Holding && sent_items_ > 0) {
     take_ok();  // a line written before the hold, queued: the reset drops it
   }
 }
@@ -111,10 +111,10 @@ void Session::send_ending() {
     it.geo = modal.apply(l);
     items_.push_back(std::move(it));
   }
-  ending_ = Ending::Sending;
+  end_.step = Ending::Sending;
   track_ok_ = true;
-  have_status_ = false;
-  next_poll_s_ = 0.0;
+  status_.have = false;
+  status_.next_poll_s = 0.0;
   emit(SenderEvent::Kind::Ending, report_.blocks,
        "the controller was held and reset; sending the ending (" + std::to_string(lines.size()) +
            " lines)");
@@ -208,13 +208,13 @@ HaltReport Session::safe_halt() {
     std::optional<GrblStatus> rest;
     while (now_s() - t0 < s_.halt_timeout_s) {
       if (now_s() >= next_ask) {
-        have_status_ = false;
+        status_.have = false;
         write_raw("?");
         next_ask = now_s() + 0.05;
       }
       read_input();
-      if (have_status_ && last_status_ && at_rest(last_status_->state)) {
-        rest = last_status_;
+      if (status_.have && status_.last && at_rest(status_.last->state)) {
+        rest = status_.last;
         break;
       }
       if (report_.status_reports == reports0 && now_s() - t0 > 2.0) break;
@@ -222,7 +222,7 @@ HaltReport Session::safe_halt() {
     }
     h.rest_s = now_s() - t0;
     if (!rest) {
-      h.state = last_status_ && report_.status_reports > reports0 ? last_status_->state : "";
+      h.state = status_.last && report_.status_reports > reports0 ? status_.last->state : "";
       h.detail = report_.status_reports == reports0
                      ? "it answers no status report, so whether its motion has stopped "
                        "cannot be told; it was held (!) and not reset (a reset in motion "
@@ -260,18 +260,18 @@ HaltReport Session::safe_halt() {
 void Session::read_state() {
   if (!link_) return;
   try {
-    have_status_ = false;
+    status_.have = false;
     const double t0 = now_s();
     double next_ask = t0;
-    while (!have_status_ && now_s() - t0 < 1.0) {
+    while (!status_.have && now_s() - t0 < 1.0) {
       if (now_s() >= next_ask) {
         write_raw("?");
         next_ask = now_s() + 0.25;
       }
       read_input();
-      if (!have_status_) link_->wait(5, false);
+      if (!status_.have) link_->wait(5, false);
     }
-    if (have_status_ && last_status_) report_.controller_state = last_status_->state;
+    if (status_.have && status_.last) report_.controller_state = status_.last->state;
     if (report_.controller_state == "Alarm") report_.position_may_be_lost = true;
   } catch (const LinkError&) {
   }

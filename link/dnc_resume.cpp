@@ -4,8 +4,6 @@
 // The algorithm: the top of dnc_sender.cpp; docs/dnc-link.md, "Rules".
 #include "link/dnc_session.hpp"
 
-#include <thread>
-
 #include "link/program_file.hpp"
 #include "link/transfer_journal.hpp"
 
@@ -17,45 +15,79 @@ void Session::recovering() {
     give_up("the controller gave no status within 5 s after the link came back");
     return;
   }
-  if (have_status_ && last_status_ &&
-      (last_status_->state == "Idle" || last_status_->state == "Hold:0")) {
-    decide_resume(*last_status_, last_position_);
+  if (status_.have && status_.last &&
+      (status_.last->state == "Idle" || status_.last->state == "Hold:0")) {
+    decide_resume(*status_.last, status_.position);
     return;
   }
-  if (now >= next_poll_s_) {
-    next_poll_s_ = now + 0.2;
+  if (now >= status_.next_poll_s) {
+    status_.next_poll_s = now + 0.2;
     write_raw("?");
   }
 }
 
 // The controller is held or idle after a lost link: resume only if the position proves
-// which blocks it holds (see the top of this file).
+// which blocks it holds (see the top of dnc_sender.cpp). The steps: the counts of Bf: must be
+// readable; a stopped spindle tells a restart; a full planner may hide a line; the position
+// then names the last block the controller received; what it lacks of the queued ones, or a
+// block without motion right after it, stops the job; else the job resumes after it.
 void Session::decide_resume(const GrblStatus& st, const Vec3& pos) {
   const std::string where = " (position " + fixed(pos[0], 3) + ", " + fixed(pos[1], 3) + ", " +
                             fixed(pos[2], 3) + ", " + st.state + ")";
+  if (!buffers_countable(st, where)) return;
+  const ResumeCandidates c = resume_candidates();
+  if (restarted_unseen(c, st, where)) return;
+  if (*st.free_blocks == 0 && c.written > 0) {
+    // grbl's protocol loop takes a whole line out of the receive ring and then waits for a
+    // free planner block: such a line is in neither count of Bf:, and runs when room frees.
+    give_up(
+        "after the lost link the controller's planner is full, so a line it received may "
+        "be waiting for room, counted nowhere: which blocks it holds cannot be told" +
+        where);
+    return;
+  }
+  const auto held = static_cast<std::size_t>(std::max(0, s_.planner_blocks - *st.free_blocks));
+  const std::optional<long> last = last_received(c, held, pos, where);
+  if (!last || !holds_what_was_queued(c, *last, where)) return;
+  resume_after(c, *last, held, st, where);
+}
+
+// Bf: tells how many blocks the planner holds, and its receive buffer is empty: no line waits
+// there unread. Else gives up (false).
+bool Session::buffers_countable(const GrblStatus& st, const std::string& where) {
   if (!st.free_blocks) {
     give_up(
         "after the lost link the status has no Bf: field, so the blocks the controller "
         "holds cannot be counted (grbl: $10=2 or 3)" +
         where);
-    return;
+    return false;
   }
   if (st.free_bytes && *st.free_bytes < s_.rx_buffer_bytes) {
     give_up("after the lost link the controller's receive buffer still holds " +
             std::to_string(s_.rx_buffer_bytes - *st.free_bytes) +
             " bytes, lines not yet read: which blocks they are cannot be told" + where);
-    return;
+    return false;
   }
-  // Candidates: queued (ok'd) blocks, then the lines written on the lost connection.
-  std::vector<const Item*> cands;
-  for (const Item& it : queued_) cands.push_back(&it);
-  const std::size_t n_queued = cands.size();
-  const std::size_t written = sent_items_ + (cur_off_ > 0 ? 1 : 0);
-  for (std::size_t i = 0; i < written && i < items_.size(); ++i) cands.push_back(&items_[i]);
-  // A restart (a power-up) stops the spindle; its banner is lost while the port is closed.
-  // If the program has the spindle turning before and through every block the controller may
-  // hold, a stopped spindle (FS:…,0) tells that the controller reset and lost its queue.
-  const bool spindle_steady = std::all_of(cands.begin(), cands.end(), [&](const Item* it) {
+  return true;
+}
+
+// Candidates: queued (ok'd) blocks, then the lines written on the lost connection.
+Session::ResumeCandidates Session::resume_candidates() const {
+  ResumeCandidates c;
+  for (const Item& it : queued_) c.items.push_back(&it);
+  c.queued = c.items.size();
+  c.written = sent_items_ + (cur_off_ > 0 ? 1 : 0);
+  for (std::size_t i = 0; i < c.written && i < items_.size(); ++i) c.items.push_back(&items_[i]);
+  return c;
+}
+
+// A restart (a power-up) stops the spindle; its banner is lost while the port is closed.
+// If the program has the spindle turning before and through every block the controller may
+// hold, a stopped spindle (FS:…,0) tells that the controller reset and lost its queue. Gives
+// up (true) then.
+bool Session::restarted_unseen(const ResumeCandidates& c, const GrblStatus& st,
+                               const std::string& where) {
+  const bool spindle_steady = std::all_of(c.items.begin(), c.items.end(), [&](const Item* it) {
     return it->spindle_on == last_spindle_on_;
   });
   if (spindle_steady && last_spindle_on_ && st.spindle_rpm && *st.spindle_rpm <= 0.0) {
@@ -65,109 +97,133 @@ void Session::decide_resume(const GrblStatus& st, const Vec3& pos) {
         "has it turning: the controller has reset (a restart whose banner was sent while the "
         "port was closed), so its queue and its modes are gone" +
         where);
-    return;
+    return true;
   }
-  cands.resize(n_queued);
-  if (*st.free_blocks == 0 && written > 0) {
-    // grbl's protocol loop takes a whole line out of the receive ring and then waits for a
-    // free planner block: such a line is in neither count of Bf:, and runs when room frees.
-    give_up(
-        "after the lost link the controller's planner is full, so a line it received may "
-        "be waiting for room, counted nowhere: which blocks it holds cannot be told" +
-        where);
-    return;
-  }
-  for (std::size_t i = 0; i < written && i < items_.size(); ++i) cands.push_back(&items_[i]);
-  const auto held = static_cast<std::size_t>(std::max(0, s_.planner_blocks - *st.free_blocks));
-  // The last candidate the controller received: index into cands, or -1 for "none".
-  long last = -1;
-  if (cands.empty()) {
+  return false;
+}
+
+// The last candidate the controller received: index into c.items, or -1 for "none"; nullopt
+// when the position does not prove it (given up).
+std::optional<long> Session::last_received(const ResumeCandidates& c, std::size_t held,
+                                           const Vec3& pos, const std::string& where) {
+  if (c.items.empty()) {
     if (last_end_ && dist(*last_end_, pos) > kPositionTolMm) {
       give_up(
           "after the lost link the controller is not where the last move known executed "
           "ended, and it holds nothing ncd sent: it has moved or reset meanwhile" +
           where);
-      return;
+      return std::nullopt;
     }
-    last = -1;
-  } else if (held == 0) {
-    int hits = 0;
-    for (std::size_t i = 0; i < cands.size(); ++i) {
-      if (cands[i]->geo.motion && dist(cands[i]->geo.to_mm, pos) <= kPositionTolMm) {
-        ++hits;
-        last = static_cast<long>(i);
-      }
-    }
-    const bool moves =
-        std::any_of(cands.begin(), cands.end(), [](const Item* it) { return it->geo.motion; });
-    if (hits != 1) {
-      if (hits == 0 && n_queued == cands.size() && !moves && last_end_ &&
-          dist(*last_end_, pos) <= kPositionTolMm) {
-        // Nothing in flight and no move queued: the controller is where the last move known
-        // executed ended, so all it had ran.
-        last = static_cast<long>(cands.size()) - 1;
-      } else if (hits == 0) {
-        report_.position_may_be_lost = pos[0] == 0.0 && pos[1] == 0.0 && pos[2] == 0.0;
-        give_up(
-            "after the lost link the controller is at rest where none of the blocks it may "
-            "have ends (a controller that restarted, its banner lost while the port was "
-            "closed, counts its position from 0 again)" +
-            where);
-        return;
-      } else {
-        give_up("after the lost link the position matches " + std::to_string(hits) +
-                " end points of the blocks the controller may have" + where);
-        return;
-      }
-    }
-  } else {
-    int hits = 0;
-    long e = -1;
-    bool at_end = false;
-    for (std::size_t i = 0; i < cands.size(); ++i) {
-      if (!cands[i]->geo.motion) continue;
-      double u = 0.0;
-      if (to_segment(pos, cands[i]->geo.from_mm, cands[i]->geo.to_mm, u) <= kPositionTolMm &&
-          (u > 0.0 || dist(pos, cands[i]->geo.from_mm) > kPositionTolMm)) {
-        ++hits;
-        e = static_cast<long>(i);
-        at_end = dist(pos, cands[i]->geo.to_mm) <= kPositionTolMm;
-      }
-    }
-    if (hits != 1) {
-      give_up("after the lost link the position lies on " + std::to_string(hits) +
-              " of the blocks the controller may have" + where);
-      return;
-    }
-    // The planner holds `held` moves starting with e (or with the move after e, at its end).
-    std::size_t need = at_end ? held : held - 1;
-    last = e;
-    for (std::size_t i = static_cast<std::size_t>(e) + 1; i < cands.size() && need > 0; ++i) {
-      if (cands[i]->geo.motion) {
-        --need;
-        last = static_cast<long>(i);
-      }
-    }
-    if (need > 0) {
-      give_up("after the lost link the controller holds " + std::to_string(held) +
-              " moves, more than ncd sent" + where);
-      return;
+    return -1;
+  }
+  return held == 0 ? last_received_at_rest(c, pos, where)
+                   : last_received_in_motion(c, held, pos, where);
+}
+
+// The planner is empty: the position is the end point of exactly one candidate move.
+std::optional<long> Session::last_received_at_rest(const ResumeCandidates& c, const Vec3& pos,
+                                                   const std::string& where) {
+  const std::vector<const Item*>& cands = c.items;
+  long last = -1;
+  int hits = 0;
+  for (std::size_t i = 0; i < cands.size(); ++i) {
+    if (cands[i]->geo.motion && dist(cands[i]->geo.to_mm, pos) <= kPositionTolMm) {
+      ++hits;
+      last = static_cast<long>(i);
     }
   }
-  if (last + 1 < static_cast<long>(n_queued)) {
+  const bool moves =
+      std::any_of(cands.begin(), cands.end(), [](const Item* it) { return it->geo.motion; });
+  if (hits != 1) {
+    if (hits == 0 && c.queued == cands.size() && !moves && last_end_ &&
+        dist(*last_end_, pos) <= kPositionTolMm) {
+      // Nothing in flight and no move queued: the controller is where the last move known
+      // executed ended, so all it had ran.
+      last = static_cast<long>(cands.size()) - 1;
+    } else if (hits == 0) {
+      report_.position_may_be_lost = pos[0] == 0.0 && pos[1] == 0.0 && pos[2] == 0.0;
+      give_up(
+          "after the lost link the controller is at rest where none of the blocks it may "
+          "have ends (a controller that restarted, its banner lost while the port was "
+          "closed, counts its position from 0 again)" +
+          where);
+      return std::nullopt;
+    } else {
+      give_up("after the lost link the position matches " + std::to_string(hits) +
+              " end points of the blocks the controller may have" + where);
+      return std::nullopt;
+    }
+  }
+  return last;
+}
+
+// The planner holds `held` moves: the position lies inside exactly one candidate move's
+// segment, and the planner holds that move and the ones after it (or, at its end, the ones
+// after it).
+std::optional<long> Session::last_received_in_motion(const ResumeCandidates& c, std::size_t held,
+                                                     const Vec3& pos, const std::string& where) {
+  const std::vector<const Item*>& cands = c.items;
+  int hits = 0;
+  long e = -1;
+  bool at_end = false;
+  for (std::size_t i = 0; i < cands.size(); ++i) {
+    if (!cands[i]->geo.motion) continue;
+    double u = 0.0;
+    if (to_segment(pos, cands[i]->geo.from_mm, cands[i]->geo.to_mm, u) <= kPositionTolMm &&
+        (u > 0.0 || dist(pos, cands[i]->geo.from_mm) > kPositionTolMm)) {
+      ++hits;
+      e = static_cast<long>(i);
+      at_end = dist(pos, cands[i]->geo.to_mm) <= kPositionTolMm;
+    }
+  }
+  if (hits != 1) {
+    give_up("after the lost link the position lies on " + std::to_string(hits) +
+            " of the blocks the controller may have" + where);
+    return std::nullopt;
+  }
+  // The planner holds `held` moves starting with e (or with the move after e, at its end).
+  std::size_t need = at_end ? held : held - 1;
+  long last = e;
+  for (std::size_t i = static_cast<std::size_t>(e) + 1; i < cands.size() && need > 0; ++i) {
+    if (cands[i]->geo.motion) {
+      --need;
+      last = static_cast<long>(i);
+    }
+  }
+  if (need > 0) {
+    give_up("after the lost link the controller holds " + std::to_string(held) +
+            " moves, more than ncd sent" + where);
+    return std::nullopt;
+  }
+  return last;
+}
+
+// The controller has every block it had queued, and the block after the last one it received
+// is a move (whether a block without motion arrived cannot be told). Else gives up (false).
+bool Session::holds_what_was_queued(const ResumeCandidates& c, long last,
+                                    const std::string& where) {
+  if (last + 1 < static_cast<long>(c.queued)) {
     give_up(
         "after the lost link the position says the controller lacks blocks it had "
         "queued" +
         where);
-    return;
+    return false;
   }
   const std::size_t next = static_cast<std::size_t>(last + 1);
-  if (next < cands.size() && !cands[next]->geo.motion) {
-    give_up("after the lost link it cannot be told whether block '" + trim_eob(cands[next]->bytes) +
-            "' (no motion) reached the controller" + where);
-    return;
+  if (next < c.items.size() && !c.items[next]->geo.motion) {
+    give_up("after the lost link it cannot be told whether block '" +
+            trim_eob(c.items[next]->bytes) + "' (no motion) reached the controller" + where);
+    return false;
   }
-  // The controller has cands[0 .. last]: queue the written ones it received, resend the rest.
+  return true;
+}
+
+// The controller has c.items[0 .. last]: queue the written ones it received, resend the rest
+// after the half-line flush, and go on (cycle start `~` when it was held).
+void Session::resume_after(const ResumeCandidates& c, long last, std::size_t held,
+                           const GrblStatus& st, const std::string& where) {
+  const std::size_t next = static_cast<std::size_t>(last + 1);
+  const std::size_t n_queued = c.queued, written = c.written;
   const std::size_t received = next > n_queued ? next - n_queued : 0;
   for (std::size_t i = 0; i < received; ++i) {
     Item it = std::move(items_.front());

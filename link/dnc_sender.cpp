@@ -85,6 +85,13 @@
 // written, the source not ready and not over, the controller not holding, after the first
 // block, and not while the owner holds the motion feeding the source (set_source_held) or in
 // the dry spell that continues after such a hold.
+//
+// Where it lives. This file: the public API and the run loop (one pass: read, account, write,
+// confirm), taking blocks from the source, the live counters and the report. The session's
+// state: dnc_session.hpp. Drip feed, DC1/DC3 and CTS: dnc_drip.cpp. Acknowledged streaming
+// (answers, character counting, status tracking): dnc_ack.cpp; its start-up: dnc_startup.cpp. A
+// lost link, resuming and the journal: dnc_resume.cpp. Ending early and the safe halt:
+// dnc_ending.cpp. The N-word and `;` text helpers: dnc_block_text.cpp.
 #include "link/dnc_sender.hpp"
 
 #include "link/dnc_session.hpp"
@@ -232,11 +239,11 @@ bool Session::step() {
   if (ack_) {
     if (phase_ == Phase::Startup) startup();
     if (phase_ == Phase::Recovering) recovering();
-    if (phase_ == Phase::Ready && ending_ == Ending::None &&
+    if (phase_ == Phase::Ready && end_.step == Ending::None &&
         end_requested_.load(std::memory_order_acquire)) {
       begin_ending();
     }
-    if (ending_ == Ending::Holding || ending_ == Ending::Resetting) {
+    if (end_.step == Ending::Holding || end_.step == Ending::Resetting) {
       ending_step();
     } else if (phase_ == Phase::Ready) {
       write_ack();
@@ -250,13 +257,13 @@ bool Session::step() {
   watch_underrun();
   progress();
   if (done()) {
-    if (ending_ == Ending::Sending) {  // the ending, not the program, went to its end
+    if (end_.step == Ending::Sending) {  // the ending, not the program, went to its end
       report_.ending.sent = true;
       report_.ending.executed = status_known();
       emit(SenderEvent::Kind::Ending, report_.blocks,
            std::string("the ending was ") +
                (status_known() ? "executed (the controller is idle)" : "queued"));
-    } else if (ending_ == Ending::None) {
+    } else if (end_.step == Ending::None) {
       report_.completed = true;
     }
     return false;
@@ -270,8 +277,8 @@ int Session::wait_ms() const {
 }
 
 bool Session::done() const {
-  if (ending_ == Ending::NotNeeded) return true;
-  if (ending_ == Ending::Holding || ending_ == Ending::Resetting) return false;
+  if (end_.step == Ending::NotNeeded) return true;
+  if (end_.step == Ending::Holding || end_.step == Ending::Resetting) return false;
   if (!source_done_) return false;
   if (ack_) return phase_ == Phase::Ready && items_.empty() && (queued_.empty() || !status_known());
   return std::all_of(items_.begin(), items_.end(), [&](const Item& it) {
@@ -400,8 +407,8 @@ bool Session::reopen(const std::atomic<bool>& stop) {
       opened_once_ = true;
       phase_ = Phase::Startup;
       phase_t0_ = now_s();
-      have_status_ = false;
-      next_poll_s_ = 0.0;
+      status_.have = false;
+      status_.next_poll_s = 0.0;
       set_hold(false);
       return true;
     } catch (const LinkError& e) {
@@ -447,9 +454,9 @@ void Session::finish() {
                          : 0.0;
   if (report_.completed && ack_ && status_known()) pop_done(queued_moves());
   report_.blocks_confirmed = report_.completed ? report_.blocks : first_unexecuted();
-  if (ending_ == Ending::Sending || ending_ == Ending::NotNeeded) {
+  if (end_.step == Ending::Sending || end_.step == Ending::NotNeeded) {
     report_.blocks_confirmed =
-        ending_first_unexecuted_ >= 0 ? ending_first_unexecuted_ : report_.blocks_confirmed;
+        end_.first_unexecuted >= 0 ? end_.first_unexecuted : report_.blocks_confirmed;
   }
   if (report_.ending.requested && !report_.ending.sent && !report_.ending.not_needed &&
       report_.ending.failure.empty()) {
@@ -457,8 +464,8 @@ void Session::finish() {
         report_.failure.empty() ? "the transfer was stopped first" : report_.failure;
   }
   if (ack_ && status_known()) report_.blocks_executed = executed_count_;
-  if (ack_ && report_.controller_state.empty() && last_status_) {
-    report_.controller_state = last_status_->state;
+  if (ack_ && report_.controller_state.empty() && status_.last) {
+    report_.controller_state = status_.last->state;
   }
   if (ack_ && !status_known() && report_.execution_basis.empty()) {
     report_.execution_basis = "not known";

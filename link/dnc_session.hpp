@@ -18,6 +18,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/number_text.hpp"
 #include "gcode/dialect/dialect.hpp"
@@ -95,11 +96,18 @@ class Session {
  private:
   enum class Phase { Startup, Ready, Recovering };
   enum class Ending { None, NotNeeded, Holding, Resetting, Sending };
+  // After a lost link (decide_resume): the blocks the controller may hold, oldest first: the
+  // queued ones (answered ok), then the lines written on the lost connection.
+  struct ResumeCandidates {
+    std::vector<const Item*> items;
+    std::size_t queued = 0;   // the first `queued` of items were answered ok
+    std::size_t written = 0;  // lines written on the lost connection (a partial one too)
+  };
 
   double now_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
   double hold_now_s() const { return s_.hold_clock ? s_.hold_clock->now_s() : now_s(); }
   bool over() const { return !report_.failure.empty(); }
-  bool status_known() const { return s_.status_hz > 0.0 && status_supported_; }
+  bool status_known() const { return s_.status_hz > 0.0 && status_.supported; }
 
   // dnc_sender.cpp: the run loop, taking blocks, the report
   void publish();
@@ -157,6 +165,18 @@ class Session {
   // dnc_resume.cpp: a lost link, resuming, the journal
   void recovering();
   void decide_resume(const GrblStatus& st, const Vec3& pos);
+  bool buffers_countable(const GrblStatus& st, const std::string& where);
+  ResumeCandidates resume_candidates() const;
+  bool restarted_unseen(const ResumeCandidates& c, const GrblStatus& st, const std::string& where);
+  std::optional<long> last_received(const ResumeCandidates& c, std::size_t held, const Vec3& pos,
+                                    const std::string& where);
+  std::optional<long> last_received_at_rest(const ResumeCandidates& c, const Vec3& pos,
+                                            const std::string& where);
+  std::optional<long> last_received_in_motion(const ResumeCandidates& c, std::size_t held,
+                                              const Vec3& pos, const std::string& where);
+  bool holds_what_was_queued(const ResumeCandidates& c, long last, const std::string& where);
+  void resume_after(const ResumeCandidates& c, long last, std::size_t held, const GrblStatus& st,
+                    const std::string& where);
   std::int64_t resume_point() const;
   std::int64_t first_unexecuted() const;
   void confirm_journal();
@@ -190,9 +210,12 @@ class Session {
   const std::atomic<bool>& end_requested_;
   const DncSender::EndingFn& ending_fn_;
   const std::atomic<bool>& source_held_;
-  Ending ending_ = Ending::None;
-  double ending_t0_ = 0.0;
-  std::int64_t ending_first_unexecuted_ = -1;
+  // ack: ending early (end_with; dnc_ending.cpp).
+  struct EndingState {
+    Ending step = Ending::None;
+    double t0_s = 0.0;                   // the step began (now_s)
+    std::int64_t first_unexecuted = -1;  // at the reset for the ending
+  } end_;
   bool motion_written_ = false;  // a line with motion went out
   const bool ack_;
   const double cps_;
@@ -228,22 +251,30 @@ class Session {
   bool opened_once_before_ = false;  // ack: a connection carried blocks before this one
   Phase phase_ = Phase::Startup;
   double phase_t0_ = 0.0;
-  bool woke_ = false;
-  // ack start-up: the controller spoke (banner, status, answer); `?` asked; the wake-up line
-  // and `$X` await their answers; status polls; a hold met at start-up was halted; a line
-  // (anything but real-time bytes) was written on the first connection.
-  bool spoke_ = false, asked_ = false, wake_pending_ = false, unlock_pending_ = false;
-  bool unlock_tried_ = false, start_halted_ = false, wrote_line_ = false;
-  int start_polls_ = 0;
+  // ack start-up (dnc_startup.cpp): the wake-up line was sent; the controller spoke (banner,
+  // status, answer); `?` asked; the wake-up line and `$X` await their answers; `$X` was sent; a
+  // hold met at start-up was halted; status polls.
+  struct AckStartup {
+    bool woke = false;
+    bool spoke = false, asked = false, wake_pending = false, unlock_pending = false;
+    bool unlock_tried = false, halted = false;
+    int polls = 0;
+  } start_;
+  // A line (anything but real-time bytes) was written on the first connection.
+  bool wrote_line_ = false;
   std::string rejected_reply_;    // the error:N of the rejected block
   bool last_spindle_on_ = false;  // after the last block known executed
   std::optional<Vec3> last_end_;  // where the last move known executed ended
   bool stopping_ = false, reset_seen_ = false, track_ok_ = true;
-  bool status_supported_ = true, have_status_ = false;
-  long polls_ = 0;
-  double next_poll_s_ = 0.0;
-  std::optional<GrblStatus> last_status_;
-  Vec3 last_position_{}, wco_{};
+  // ack: grbl's status reports (dnc_ack.cpp): it answers `?`; a report came since asked; polls
+  // sent; the next poll; the last report, its work position and the last work offset (WCO:).
+  struct StatusReports {
+    bool supported = true, have = false;
+    long polls = 0;
+    double next_poll_s = 0.0;
+    std::optional<GrblStatus> last;
+    Vec3 position{}, wco{};
+  } status_;
   std::int64_t journaled_ = -1;
   double journal_at_s_ = -1.0;
   double next_progress_s_ = 1.0;

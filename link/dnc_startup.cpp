@@ -15,19 +15,20 @@ void Session::startup_line(const std::string& line) {
     }
     report_.startup = "banner";
     track_ok_ = true;  // the banner that opens the job, not a reset in it
-    spoke_ = true;
-    woke_ = wake_pending_ = false;  // a reset cleared its buffers (and any wake-up line)
-    have_status_ = false;           // its state now: ask again
-    next_poll_s_ = now_s();
+    start_.spoke = true;
+    // A reset cleared its buffers (and any wake-up line).
+    start_.woke = start_.wake_pending = false;
+    status_.have = false;  // its state now: ask again
+    status_.next_poll_s = now_s();
     emit(SenderEvent::Kind::Opened, resume_point(), "the controller said '" + line + "'");
     return;
   }
   const bool answer = line == "ok" || line.rfind("error:", 0) == 0;
-  if (answer && wake_pending_) {
+  if (answer && start_.wake_pending) {
     // The wake-up line is the half-line flush: refused (error:N) as it should be, or `ok`
     // when it completed a half line ending in a `;` comment an earlier connection left.
-    wake_pending_ = false;
-    spoke_ = true;
+    start_.wake_pending = false;
+    start_.spoke = true;
     if (report_.startup != "banner") report_.startup = "woken";
     if (line == "ok") {
       report_.notes.push_back(
@@ -35,8 +36,8 @@ void Session::startup_line(const std::string& line) {
           "connection had left in the controller's line buffer; the controller queued it");
     }
     emit(SenderEvent::Kind::Opened, resume_point(), "the controller answered the wake-up line");
-  } else if (answer && unlock_pending_) {
-    unlock_pending_ = false;
+  } else if (answer && start_.unlock_pending) {
+    start_.unlock_pending = false;
     if (line == "ok") {
       report_.notes.push_back("the controller's alarm lock was cleared with $X (--unlock)");
     } else {
@@ -62,15 +63,15 @@ void Session::startup() {
     if (now_s() - phase_t0_ >= std::min(s_.banner_wait_s, 1.0)) {
       phase_ = Phase::Recovering;
       phase_t0_ = now_s();
-      have_status_ = false;
+      status_.have = false;
       write_raw("!?");
-      next_poll_s_ = now_s() + 0.2;
+      status_.next_poll_s = now_s() + 0.2;
     }
     return;
   }
   const double since = now_s() - phase_t0_;
   const bool ask = s_.status_hz > 0.0;
-  if (!spoke_) {
+  if (!start_.spoke) {
     if (since >= s_.startup_timeout_s) {
       report_.failure = "the controller on " + s_.line.device + " did not speak within " +
                         fixed(s_.startup_timeout_s, 1) +
@@ -81,46 +82,46 @@ void Session::startup() {
       return;
     }
     if (since < s_.banner_wait_s) return;
-    if (ask && !asked_) {
-      asked_ = true;
+    if (ask && !start_.asked) {
+      start_.asked = true;
       emit(SenderEvent::Kind::Opened, resume_point(),
            "no banner within " + fixed(s_.banner_wait_s, 1) + " s: asking its status ('?')");
       write_raw("?");
-    } else if (!woke_ && (!ask || since >= s_.banner_wait_s + 0.5)) {
+    } else if (!start_.woke && (!ask || since >= s_.banner_wait_s + 0.5)) {
       emit(SenderEvent::Kind::Opened, resume_point(),
            "no banner and no status: waking the controller with a line it must refuse");
       wake();
     }
     return;
   }
-  if (wake_pending_ || unlock_pending_) return;  // their answers come first
+  if (start_.wake_pending || start_.unlock_pending) return;  // their answers come first
   if (!ask) {
-    if (!woke_ && report_.startup != "banner") return wake();
+    if (!start_.woke && report_.startup != "banner") return wake();
     phase_ = Phase::Ready;
     return;
   }
-  if (!have_status_) {
-    if (now_s() >= next_poll_s_) {
-      if (++start_polls_ > 8) {  // 2 s without a status: a controller without `?`
+  if (!status_.have) {
+    if (now_s() >= status_.next_poll_s) {
+      if (++start_.polls > 8) {  // 2 s without a status: a controller without `?`
         report_.notes.push_back(
             "the controller answered no status report at start-up: its state (alarm, hold) "
             "was not checked");
-        if (!woke_ && report_.startup != "banner") return wake();
+        if (!start_.woke && report_.startup != "banner") return wake();
         phase_ = Phase::Ready;
         return;
       }
       write_raw("?");
-      next_poll_s_ = now_s() + 0.25;
+      status_.next_poll_s = now_s() + 0.25;
     }
     return;
   }
-  start_state(last_status_->state);
+  start_state(status_.last->state);
 }
 
 // The first line after opening: the half-line flush, which grbl must refuse (or which ends a
 // half line inside a `;` comment an earlier connection left: then that block is queued).
 void Session::wake() {
-  woke_ = wake_pending_ = true;
+  start_.woke = start_.wake_pending = true;
   wrote_line_ = true;
   write_raw(std::string(kFlushText) + "\n");
 }
@@ -131,35 +132,36 @@ void Session::start_state(std::string state) {  // a copy: the halt below reads 
   if (state == "Idle") {
     // A half line an earlier connection left is flushed before the first block; a banner
     // (a reset) has cleared it.
-    if (!woke_ && report_.startup != "banner") return wake();
+    if (!start_.woke && report_.startup != "banner") return wake();
     phase_ = Phase::Ready;
     return;
   }
   if (state == "Alarm") {
     report_.position_may_be_lost = true;
-    if (!s_.unlock || unlock_tried_) {
-      report_.failure = unlock_tried_ ? std::string(
-                                            "the controller stays in alarm after $X (grbl keeps "
-                                            "a hard-limit or door alarm until "
-                                            "the cause is cleared); nothing was sent")
-                                      : "the controller is in alarm (locked: grbl refuses every "
-                                        "line with error:9 until $X); "
-                                        "nothing was sent";
+    if (!s_.unlock || start_.unlock_tried) {
+      report_.failure = start_.unlock_tried
+                            ? std::string(
+                                  "the controller stays in alarm after $X (grbl keeps "
+                                  "a hard-limit or door alarm until "
+                                  "the cause is cleared); nothing was sent")
+                            : "the controller is in alarm (locked: grbl refuses every "
+                              "line with error:9 until $X); "
+                              "nothing was sent";
       return;
     }
-    if (!woke_ && report_.startup != "banner") return wake();
-    unlock_pending_ = unlock_tried_ = true;
+    if (!start_.woke && report_.startup != "banner") return wake();
+    start_.unlock_pending = start_.unlock_tried = true;
     wrote_line_ = true;
     emit(SenderEvent::Kind::Opened, resume_point(),
          "the controller is in alarm: unlocking it with $X (--unlock)");
     write_raw("$X\n");
-    have_status_ = false;
-    next_poll_s_ = now_s() + 0.25;
+    status_.have = false;
+    status_.next_poll_s = now_s() + 0.25;
     return;
   }
-  if (state.rfind("Hold", 0) == 0 && !start_halted_) {
+  if (state.rfind("Hold", 0) == 0 && !start_.halted) {
     // Held: grbl reads no line until `~` or a reset, and `~` would run what it still holds.
-    start_halted_ = true;
+    start_.halted = true;
     emit(SenderEvent::Kind::Opened, resume_point(),
          "the controller is held (" + state + "): bringing it to a safe halt before sending");
     const HaltReport h = safe_halt();
@@ -171,10 +173,11 @@ void Session::start_state(std::string state) {  // a copy: the halt below reads 
     }
     report_.notes.push_back("the controller was held (" + state + ") at start-up; ncd halted " +
                             "it (" + halt_text(h) + ") before sending");
-    woke_ = wake_pending_ = false;  // the reset cleared its buffers: no half line is left
+    // The reset cleared its buffers: no half line is left.
+    start_.woke = start_.wake_pending = false;
     report_.startup = "banner";
-    have_status_ = false;
-    next_poll_s_ = now_s();
+    status_.have = false;
+    status_.next_poll_s = now_s();
     return;
   }
   report_.failure =
