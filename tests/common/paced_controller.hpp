@@ -1,7 +1,7 @@
 // The simulated controller on its own thread in simulated time, for a live sender in the same
 // process (tests/service/live_link_test.cpp, tests/app/serve_whole_job_test.cpp). Its clock is a
 // ManualClock that the test moves on. The sender, though, paces its writes by a model of the
-// wire on the wall clock (link/dnc_sender.cpp; only its timing of the controller's holds takes
+// wire on the wall clock (link/dnc_drip.cpp; only its timing of the controller's holds takes
 // a clock, SenderSettings::hold_clock), so:
 //   - the controller's time is never let fall behind the wall clock: each step moves it on by
 //     dt, or to the wall time elapsed if that is later, in increments of dt (a loaded machine
