@@ -134,22 +134,28 @@ Intake::~Intake() {
   timer_.cancel();
 }
 
-SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
-  if (!req.contains("job") || !req["job"].is_object()) {
-    throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
+namespace {
+
+// "job"."allow_interference": false when absent.
+bool allow_interference_of(const json& job) {
+  const auto allow = job.find("allow_interference");
+  if (allow == job.end()) return false;
+  if (!allow->is_boolean()) {
+    throw InputError("\"job\".\"allow_interference\" must be true or false");
   }
-  const json& job = req["job"];
-  bool allow_interference = false;
-  if (const auto allow = job.find("allow_interference"); allow != job.end()) {
-    if (!allow->is_boolean()) {
-      throw InputError("\"job\".\"allow_interference\" must be true or false");
-    }
-    allow_interference = allow->get<bool>();
-  }
-  SubmittedJob out;
-  service::JobSpec& spec = out.spec;
+  return allow->get<bool>();
+}
+
+// The job's path: a file ("path": an NC program or a path file) or a chamfer made from
+// parameters.
+struct JobPath {
   std::shared_ptr<toolpath::Path> path;
   std::string file;  // the path job's file; empty for a chamfer made from parameters
+  std::string name;  // the job's name: the file, or "chamfer"
+};
+
+JobPath job_path(const json& job, const ServiceConfig& config) {
+  JobPath out;
   if (job.contains("path")) {
     for (const auto& [key, value] : job.items()) {
       if (key != "path" && key != "allow_interference") {
@@ -158,28 +164,108 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
       }
     }
     if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
-    file = job["path"].get<std::string>();
-    path = std::make_shared<toolpath::Path>(toolpath::read_path_file(file, config.machine.program));
-    spec.name = file;
+    out.file = job["path"].get<std::string>();
+    out.path = std::make_shared<toolpath::Path>(
+        toolpath::read_path_file(out.file, config.machine.program));
+    out.name = out.file;
   } else {
     service::ChamferJob cj = chamfer_job(job);
     cj.point = config.machine.tool.programmed_point;  // as `ncd chamfer --machine` writes it
-    path = std::make_shared<toolpath::Path>(service::chamfer_job_path(cj));
-    spec.name = "chamfer";
+    out.path = std::make_shared<toolpath::Path>(service::chamfer_job_path(cj));
+    out.name = "chamfer";
   }
-  out.port = config.machine.link.line.device;
+  return out;
+}
+
+// "port": the machine file's device unless the request names one ("" for no streaming).
+std::string port_of(const json& req, const ServiceConfig& config) {
+  std::string port = config.machine.link.line.device;
   if (req.contains("port")) {
     if (!req["port"].is_string()) {
       throw InputError("\"port\" must be a device name, or \"\" for no streaming");
     }
-    out.port = req["port"];
+    port = req["port"];
   }
+  return port;
+}
+
+// "setpoints": the file to write them to, checked before the job is made; "" for none.
+std::string setpoints_of(const json& req) {
   std::string setpoints;
   if (req.contains("setpoints")) {
     if (!req["setpoints"].is_string()) throw InputError("\"setpoints\" must be a file name");
     setpoints = req["setpoints"];
     check_output(setpoints, "\"setpoints\"");
   }
+  return setpoints;
+}
+
+// "restart_from": the NC program of a path job restarted at a line, with the ending of a
+// restarted job: straight up to the highest Z of the whole program, or the restart's
+// clearance if that is higher.
+void restart_at_line(const json& req, const json& job, const std::string& file,
+                     const ServiceConfig& config, service::JobSpec& spec) {
+  if (!job.contains("path")) {
+    throw InputError("\"restart_from\" needs a job {\"path\": FILE} of an NC program");
+  }
+  const int line =
+      static_cast<int>(json_integer(req["restart_from"], 1, 100000000, "\"restart_from\""));
+  std::optional<double> clearance;
+  if (req.contains("clearance_z_mm")) clearance = number(req, "clearance_z_mm");
+  if (std::none_of(spec.path->segments.begin(), spec.path->segments.end(),
+                   [](const auto& seg) { return seg.source_line > 0; })) {
+    throw InputError(
+        "\"restart_from\": the job's path has no program lines; only an NC "
+        "program restarts from a line");
+  }
+  const std::string text = read_input_file(file, "\"job\".\"path\"");
+  toolpath::Program program = toolpath::interpret_ngc(text, file, config.machine.program);
+  const toolpath::Path planned = toolpath::to_path(program);
+  if (!planned.segments.empty()) {
+    toolpath::SafeRetract r = toolpath::program_retract(program, planned);
+    if (clearance && *clearance > r.clearance_z_mm) {
+      r.clearance_z_mm = *clearance;
+      r.clearance_from = "the restart's \"clearance_z_mm\"";
+    }
+    spec.retract = r;
+  }
+  service::restart_job(spec, program, text, line, clearance);
+}
+
+// The link of a job that streams to `port`, from the machine file's [link] and [encoder].
+service::LinkSpec link_spec(const ServiceConfig& config, const std::string& port) {
+  service::LinkSpec link;
+  const LinkConfig& lc = config.machine.link;
+  link.encoder = config.machine.encoder;
+  // The controller's dialect, as `ncd replay --blocks` and `ncd stream` apply it: the
+  // encoder's framing, and every block checked by the sender before it is written.
+  if (lc.dialect) comms::apply_dialect(link.encoder, *lc.dialect);
+  link.sender.dialect = lc.dialect;
+  link.sender.line = lc.line;
+  link.sender.line.device = port;
+  link.sender.max_queued_chars = lc.max_queued_chars;
+  link.sender.rx_buffer_bytes = lc.rx_buffer_bytes;
+  link.sender.xoff_timeout_s = lc.xoff_timeout_s;
+  link.sender.reconnect_max_s = lc.reconnect_max_s;
+  link.journal = lc.journal;
+  return link;
+}
+
+}  // namespace
+
+SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
+  if (!req.contains("job") || !req["job"].is_object()) {
+    throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
+  }
+  const json& job = req["job"];
+  const bool allow_interference = allow_interference_of(job);
+  SubmittedJob out;
+  service::JobSpec& spec = out.spec;
+  JobPath source = job_path(job, config);
+  std::shared_ptr<toolpath::Path> path = std::move(source.path);
+  spec.name = source.name;
+  out.port = port_of(req, config);
+  const std::string setpoints = setpoints_of(req);
   // Before any motion, as `ncd replay` does: the chamfer's checks and tool, then the whole
   // program around the job (docs/whole-program.md), its envelope, the size of the run, the port.
   MachineConfig machine = config.machine;
@@ -187,7 +273,7 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
       accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
   const bool restart = req.contains("restart_from");
   if (!restart) {
-    WholeRun whole = whole_run("ncd serve", file, *path, machine);
+    WholeRun whole = whole_run("ncd serve", source.file, *path, machine);
     path = std::make_shared<toolpath::Path>(std::move(whole.path));
     spec.program = std::make_shared<const toolpath::Program>(std::move(whole.program));
     spec.header = std::move(whole.header);
@@ -206,53 +292,11 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   spec.rules.chord = config.live_limits.chord;
   spec.interference_allowed = chamfer.interference_allowed;
   if (restart) {
-    if (!job.contains("path")) {
-      throw InputError("\"restart_from\" needs a job {\"path\": FILE} of an NC program");
-    }
-    const int line =
-        static_cast<int>(json_integer(req["restart_from"], 1, 100000000, "\"restart_from\""));
-    std::optional<double> clearance;
-    if (req.contains("clearance_z_mm")) clearance = number(req, "clearance_z_mm");
-    if (std::none_of(spec.path->segments.begin(), spec.path->segments.end(),
-                     [](const auto& seg) { return seg.source_line > 0; })) {
-      throw InputError(
-          "\"restart_from\": the job's path has no program lines; only an NC "
-          "program restarts from a line");
-    }
-    const std::string text = read_input_file(file, "\"job\".\"path\"");
-    toolpath::Program program = toolpath::interpret_ngc(text, file, config.machine.program);
-    // The ending of a restarted job: straight up to the highest Z of the whole program, or the
-    // restart's clearance if that is higher.
-    const toolpath::Path planned = toolpath::to_path(program);
-    if (!planned.segments.empty()) {
-      toolpath::SafeRetract r = toolpath::program_retract(program, planned);
-      if (clearance && *clearance > r.clearance_z_mm) {
-        r.clearance_z_mm = *clearance;
-        r.clearance_from = "the restart's \"clearance_z_mm\"";
-      }
-      spec.retract = r;
-    }
-    service::restart_job(spec, program, text, line, clearance);
+    restart_at_line(req, job, source.file, config, spec);
   } else if (req.contains("clearance_z_mm")) {
     throw InputError("\"clearance_z_mm\" goes with \"restart_from\"");
   }
-  if (!out.port.empty()) {
-    service::LinkSpec link;
-    const LinkConfig& lc = config.machine.link;
-    link.encoder = config.machine.encoder;
-    // The controller's dialect, as `ncd replay --blocks` and `ncd stream` apply it: the
-    // encoder's framing, and every block checked by the sender before it is written.
-    if (lc.dialect) comms::apply_dialect(link.encoder, *lc.dialect);
-    link.sender.dialect = lc.dialect;
-    link.sender.line = lc.line;
-    link.sender.line.device = out.port;
-    link.sender.max_queued_chars = lc.max_queued_chars;
-    link.sender.rx_buffer_bytes = lc.rx_buffer_bytes;
-    link.sender.xoff_timeout_s = lc.xoff_timeout_s;
-    link.sender.reconnect_max_s = lc.reconnect_max_s;
-    link.journal = lc.journal;
-    spec.link = std::move(link);
-  }
+  if (!out.port.empty()) spec.link = link_spec(config, out.port);
   spec.sink = std::make_unique<SetpointSink>(setpoints);
   if (chamfer.interference_allowed) out.warning = chamfer.note;
   return out;
@@ -336,6 +380,49 @@ json Intake::handle(const json& req) {
   return {{"ok", true}, {"state", service::to_string(core_.state())}};
 }
 
+namespace {
+
+// "stream" of the status: the link's encoder and sender, as they stand.
+json stream_json(const service::LinkStatus& l, bool held_by_link) {
+  json k{{"port", l.port},
+         {"settings", l.settings},
+         {"blocks_encoded", l.blocks_encoded},
+         {"chars_encoded", l.chars_encoded},
+         {"blocks_waiting", l.blocks_waiting},
+         {"held_by_link", held_by_link},
+         {"last_event", l.last_event}};
+  // The sender's live counters (docs/service.md, "Status"); at the end they equal the report's.
+  const comms::SenderCounts& c = l.counts;
+  k["bytes_written"] = c.bytes_written;
+  k["blocks_taken"] = c.blocks_taken;
+  k["blocks_written"] = c.blocks_written;
+  k["blocks_acked"] = c.blocks_acked >= 0 ? json(c.blocks_acked) : json();
+  k["blocks_executed"] = c.blocks_executed >= 0 ? json(c.blocks_executed) : json();
+  k["xoff_count"] = c.xoff_count;
+  k["xoff_held"] = c.xoff_held;
+  k["controller_buffer_bytes"] = c.buffer_bytes;
+  k["controller_buffer_limit_bytes"] = c.buffer_limit_bytes;
+  k["controller_buffer_basis"] =
+      c.blocks_acked >= 0 ? "unanswered lines (character counting)" : "wire model";
+  k["underruns"] = c.underruns;
+  k["reconnects"] = c.reconnects;
+  k["link_losses"] = c.link_losses;
+  k["done"] = l.done;
+  if (l.done) {
+    const comms::SenderReport& r = l.report;
+    k["completed"] = r.completed;
+    k["failure"] = r.failure;
+    k["blocks_sent"] = r.blocks;
+    k["link_use"] = r.link_use;
+    k["xoff_timeouts"] = r.xoff_timeouts;
+    k["blocks_resent"] = r.blocks_resent;
+    k["program_sha256"] = r.program_sha256;
+  }
+  return k;
+}
+
+}  // namespace
+
 json to_json(const service::Status& st) {
   json s;
   s["ok"] = true;
@@ -395,46 +482,7 @@ json to_json(const service::Status& st) {
   s["ending"] = st.ending.state == service::EndingStatus::State::None ? json() : to_json(st.ending);
   if (st.restart_line > 0) s["restart_from_line"] = st.restart_line;
   s["events_dropped"] = st.events_dropped;
-  if (!st.link) {
-    s["stream"] = json();
-    return s;
-  }
-  const service::LinkStatus& l = *st.link;
-  json k{{"port", l.port},
-         {"settings", l.settings},
-         {"blocks_encoded", l.blocks_encoded},
-         {"chars_encoded", l.chars_encoded},
-         {"blocks_waiting", l.blocks_waiting},
-         {"held_by_link", st.holder == service::HoldHolder::Link},
-         {"last_event", l.last_event}};
-  // The sender's live counters (docs/service.md, "Status"); at the end they equal the report's.
-  const comms::SenderCounts& c = l.counts;
-  k["bytes_written"] = c.bytes_written;
-  k["blocks_taken"] = c.blocks_taken;
-  k["blocks_written"] = c.blocks_written;
-  k["blocks_acked"] = c.blocks_acked >= 0 ? json(c.blocks_acked) : json();
-  k["blocks_executed"] = c.blocks_executed >= 0 ? json(c.blocks_executed) : json();
-  k["xoff_count"] = c.xoff_count;
-  k["xoff_held"] = c.xoff_held;
-  k["controller_buffer_bytes"] = c.buffer_bytes;
-  k["controller_buffer_limit_bytes"] = c.buffer_limit_bytes;
-  k["controller_buffer_basis"] =
-      c.blocks_acked >= 0 ? "unanswered lines (character counting)" : "wire model";
-  k["underruns"] = c.underruns;
-  k["reconnects"] = c.reconnects;
-  k["link_losses"] = c.link_losses;
-  k["done"] = l.done;
-  if (l.done) {
-    const comms::SenderReport& r = l.report;
-    k["completed"] = r.completed;
-    k["failure"] = r.failure;
-    k["blocks_sent"] = r.blocks;
-    k["link_use"] = r.link_use;
-    k["xoff_timeouts"] = r.xoff_timeouts;
-    k["blocks_resent"] = r.blocks_resent;
-    k["program_sha256"] = r.program_sha256;
-  }
-  s["stream"] = std::move(k);
+  s["stream"] = st.link ? stream_json(*st.link, st.holder == service::HoldHolder::Link) : json();
   return s;
 }
 

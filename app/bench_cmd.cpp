@@ -198,47 +198,25 @@ nlohmann::ordered_json percentiles_json(const LatencyPercentiles& p) {
   return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}};
 }
 
-// The whole subcommand: ncd's run, then cyclictest's, the report on stdout and in --json.
-int run_bench_latency(const BenchLatencyArgs& a) {
-  if (a.with_service_io) {
-    if (a.stress) {
-      throw InputError(
-          "--stress and --with-service-io do not go together: the second compares the service "
-          "with and without its observers on the machine as it is; leave one out");
-    }
-    ServiceIoBenchArgs s;
-    s.seconds = a.seconds;
-    s.rounds = a.rounds;
-    s.period_ms = a.period_ms;
-    s.status_hz = a.status_hz;
-    s.broker = a.mqtt_broker;
-    s.json = a.json;
-    return run_bench_service_io(s);
-  }
-  if (a.seconds <= 0) throw InputError("--seconds must be > 0, got " + std::to_string(a.seconds));
-  const double period_us = a.period_ms * 1e3;
-  if (!(std::isfinite(period_us) && period_us >= 10.0 && period_us <= 1e6)) {
-    throw InputError("--period-ms " + std::to_string(a.period_ms) +
-                     " is outside 0.01..1000 ms; give the cycle's period in milliseconds");
-  }
-  motion::JobConfig cfg;  // default machine limits and cutting parameters
-  cfg.limits.period_s = a.period_ms * 1e-3;
-  const int turns = spiral_turns_for(a.seconds, cfg.limits.max_feed_mm_per_min / 60.0);
-  const toolpath::Path path = toolpath::spiral_path(turns);
-  std::printf(
-      "ncd bench latency: %d s at a %s ms period, spiral NURBS of %d turns, default "
-      "machine limits%s\n",
-      a.seconds, format_us(a.period_ms).c_str(), turns, a.stress ? ", under --stress" : "");
-  std::unique_ptr<CpuStress> stress;
+// --with-service-io: the service without and with its observers (app/bench_service_io.hpp).
+int run_with_service_io(const BenchLatencyArgs& a) {
   if (a.stress) {
-    stress = std::make_unique<CpuStress>();
-    std::printf("  %s\n", stress->note().c_str());
+    throw InputError(
+        "--stress and --with-service-io do not go together: the second compares the service "
+        "with and without its observers on the machine as it is; leave one out");
   }
-  std::fflush(stdout);
+  ServiceIoBenchArgs s;
+  s.seconds = a.seconds;
+  s.rounds = a.rounds;
+  s.period_ms = a.period_ms;
+  s.status_hz = a.status_hz;
+  s.broker = a.mqtt_broker;
+  s.json = a.json;
+  return run_bench_service_io(s);
+}
 
-  const NcdRun ncd = run_ncd(path, cfg, a.seconds);
+void print_ncd_run(const NcdRun& ncd, const LatencyPercentiles& late) {
   const motion::CycleStats& st = ncd.stats;
-  const LatencyPercentiles late = percentiles_us_from_ns(st.lateness_ns);
   std::printf(
       "ncd cycle: %lld periods in %.2f s (%lld before the stop, %d job%s), %lld setpoints popped, "
       "%lld lost\n"
@@ -256,86 +234,138 @@ int run_bench_latency(const BenchLatencyArgs& a) {
       format_us(st.compute_ns.quantile(0.99) * 1e-3).c_str(),
       format_us(st.compute_ns.max() * 1e-3).c_str(), format_histogram_us(st.lateness_ns).c_str());
   std::fflush(stdout);
+}
 
-  std::vector<LatencyRow> rows = {{"ncd", late}};
-  CyclictestRun ct;
-  std::string ct_reason = "--no-cyclictest";
-  if (!a.no_cyclictest) {
-    CyclictestOptions o;
-    o.interval_us = static_cast<int>(std::lround(period_us));
-    o.seconds = a.seconds;
-    o.priority = motion::CycleOptions{}.fifo_priority;
-    o.histogram_max_us = std::min(100000, std::max(1000, 4 * o.interval_us));
-    ct = run_cyclictest(o);
-    std::printf("cyclictest: %s\n", ct.command.c_str());
-    for (const std::string& n : ct.notes) std::printf("  note: %s\n", n.c_str());
-    if (ct.ok) {
-      rows.push_back({"cyclictest", ct.percentiles.us});
-    } else {
-      ct_reason = ct.reason;
-      std::printf("  no result: %s\n", ct.reason.c_str());
-    }
+// cyclictest's run after ncd's, and why there is no result when there is none.
+struct CyclictestStep {
+  CyclictestRun run;
+  std::string reason = "--no-cyclictest";
+};
+
+CyclictestStep run_cyclictest_after(const BenchLatencyArgs& a, double period_us) {
+  CyclictestStep ct;
+  if (a.no_cyclictest) return ct;
+  CyclictestOptions o;
+  o.interval_us = static_cast<int>(std::lround(period_us));
+  o.seconds = a.seconds;
+  o.priority = motion::CycleOptions{}.fifo_priority;
+  o.histogram_max_us = std::min(100000, std::max(1000, 4 * o.interval_us));
+  ct.run = run_cyclictest(o);
+  std::printf("cyclictest: %s\n", ct.run.command.c_str());
+  for (const std::string& n : ct.run.notes) std::printf("  note: %s\n", n.c_str());
+  if (!ct.run.ok) {
+    ct.reason = ct.run.reason;
+    std::printf("  no result: %s\n", ct.run.reason.c_str());
   }
+  return ct;
+}
+
+// What the bench ran besides the two runs: the spiral and the stress thread's note.
+struct BenchSetup {
+  int turns = 0;
+  std::string stress_note;  // empty without --stress
+};
+
+nlohmann::ordered_json bench_json(const BenchLatencyArgs& a, const BenchSetup& setup,
+                                  const NcdRun& ncd, const LatencyPercentiles& late,
+                                  const CyclictestStep& ct, const P99Verdict& verdict) {
+  const motion::CycleStats& st = ncd.stats;
+  nlohmann::ordered_json j;
+  j["seconds"] = a.seconds;
+  j["period_ms"] = a.period_ms;
+  j["stress"] = a.stress;
+  j["stress_note"] = a.stress ? nlohmann::ordered_json(setup.stress_note) : nullptr;
+  j["realtime"] = {{"fifo", ncd.grant.fifo},
+                   {"memory_locked", ncd.grant.memory_locked},
+                   {"cpu_latency_held", ncd.grant.cpu_latency_held},
+                   {"message", ncd.grant.message}};
+  j["path"] = {{"kind", "spiral NURBS"}, {"turns", setup.turns}};
+  j["jobs"] = ncd.jobs;
+  j["wall_s"] = ncd.wall_s;
+  j["periods"] = st.periods;
+  j["periods_before_stop"] = ncd.periods_in_window;
+  j["setpoints"] = ncd.setpoints;
+  j["setpoints_lost"] = st.setpoints_lost;
+  j["lateness_us"] = percentiles_json(late);
+  nlohmann::ordered_json bins = nlohmann::ordered_json::array();
+  for (const HistogramBin& b : histogram_bins_us(st.lateness_ns)) {
+    bins.push_back({{"from_us", b.from_us}, {"to_us", b.to_us}, {"count", b.count}});
+  }
+  j["lateness_histogram"] = bins;
+  j["late_wakeups"] = st.late_wakeups;
+  j["caught_up_periods"] = st.caught_up;
+  j["overruns"] = st.overruns;
+  j["compute_us"] = {{"median", st.compute_ns.quantile(0.5) * 1e-3},
+                     {"p99", st.compute_ns.quantile(0.99) * 1e-3},
+                     {"max", st.compute_ns.max() * 1e-3}};
+  if (ct.run.ok) {
+    j["cyclictest"] = {{"lateness_us", percentiles_json(ct.run.percentiles.us)},
+                       {"samples", ct.run.histogram.samples()},
+                       {"overflows", ct.run.histogram.overflows},
+                       {"command", ct.run.command},
+                       {"notes", ct.run.notes}};
+    j["cyclictest_reason"] = nullptr;
+    j["p99_ratio"] = verdict.ratio ? nlohmann::ordered_json(*verdict.ratio) : nullptr;
+    j["p99_ratio_limit"] = kP99RatioLimit;
+    j["p99_within_limit"] = verdict.ratio ? nlohmann::ordered_json(verdict.within) : nullptr;
+  } else {
+    j["cyclictest"] = nullptr;
+    j["cyclictest_reason"] = ct.reason;
+    j["p99_ratio"] = nullptr;
+    j["p99_ratio_limit"] = kP99RatioLimit;
+    j["p99_within_limit"] = nullptr;
+  }
+  return j;
+}
+
+// The whole subcommand: ncd's run, then cyclictest's, the report on stdout and in --json.
+int run_bench_latency(const BenchLatencyArgs& a) {
+  if (a.with_service_io) return run_with_service_io(a);
+  if (a.seconds <= 0) throw InputError("--seconds must be > 0, got " + std::to_string(a.seconds));
+  const double period_us = a.period_ms * 1e3;
+  if (!(std::isfinite(period_us) && period_us >= 10.0 && period_us <= 1e6)) {
+    throw InputError("--period-ms " + std::to_string(a.period_ms) +
+                     " is outside 0.01..1000 ms; give the cycle's period in milliseconds");
+  }
+  motion::JobConfig cfg;  // default machine limits and cutting parameters
+  cfg.limits.period_s = a.period_ms * 1e-3;
+  BenchSetup setup;
+  setup.turns = spiral_turns_for(a.seconds, cfg.limits.max_feed_mm_per_min / 60.0);
+  const toolpath::Path path = toolpath::spiral_path(setup.turns);
+  std::printf(
+      "ncd bench latency: %d s at a %s ms period, spiral NURBS of %d turns, default "
+      "machine limits%s\n",
+      a.seconds, format_us(a.period_ms).c_str(), setup.turns, a.stress ? ", under --stress" : "");
+  std::unique_ptr<CpuStress> stress;
+  if (a.stress) {
+    stress = std::make_unique<CpuStress>();
+    setup.stress_note = stress->note();
+    std::printf("  %s\n", stress->note().c_str());
+  }
+  std::fflush(stdout);
+
+  const NcdRun ncd = run_ncd(path, cfg, a.seconds);
+  const LatencyPercentiles late = percentiles_us_from_ns(ncd.stats.lateness_ns);
+  print_ncd_run(ncd, late);
+  const CyclictestStep ct = run_cyclictest_after(a, period_us);
+  std::vector<LatencyRow> rows = {{"ncd", late}};
+  if (ct.run.ok) rows.push_back({"cyclictest", ct.run.percentiles.us});
   std::printf("\n%s", format_latency_table(rows).c_str());
   P99Verdict verdict;
-  if (ct.ok) {
-    verdict = p99_verdict(late.p99_us, ct.percentiles.us.p99_us, kP99RatioLimit);
+  if (ct.run.ok) {
+    verdict = p99_verdict(late.p99_us, ct.run.percentiles.us.p99_us, kP99RatioLimit);
     std::printf("%s\n", verdict.line.c_str());
   }
-  std::printf("setpoints lost: %lld\n", static_cast<long long>(st.setpoints_lost));
+  const std::int64_t lost = ncd.stats.setpoints_lost;
+  std::printf("setpoints lost: %lld\n", static_cast<long long>(lost));
   std::fflush(stdout);
 
   if (!a.json.empty()) {
-    nlohmann::ordered_json j;
-    j["seconds"] = a.seconds;
-    j["period_ms"] = a.period_ms;
-    j["stress"] = a.stress;
-    j["stress_note"] = stress ? nlohmann::ordered_json(stress->note()) : nullptr;
-    j["realtime"] = {{"fifo", ncd.grant.fifo},
-                     {"memory_locked", ncd.grant.memory_locked},
-                     {"cpu_latency_held", ncd.grant.cpu_latency_held},
-                     {"message", ncd.grant.message}};
-    j["path"] = {{"kind", "spiral NURBS"}, {"turns", turns}};
-    j["jobs"] = ncd.jobs;
-    j["wall_s"] = ncd.wall_s;
-    j["periods"] = st.periods;
-    j["periods_before_stop"] = ncd.periods_in_window;
-    j["setpoints"] = ncd.setpoints;
-    j["setpoints_lost"] = st.setpoints_lost;
-    j["lateness_us"] = percentiles_json(late);
-    nlohmann::ordered_json bins = nlohmann::ordered_json::array();
-    for (const HistogramBin& b : histogram_bins_us(st.lateness_ns)) {
-      bins.push_back({{"from_us", b.from_us}, {"to_us", b.to_us}, {"count", b.count}});
-    }
-    j["lateness_histogram"] = bins;
-    j["late_wakeups"] = st.late_wakeups;
-    j["caught_up_periods"] = st.caught_up;
-    j["overruns"] = st.overruns;
-    j["compute_us"] = {{"median", st.compute_ns.quantile(0.5) * 1e-3},
-                       {"p99", st.compute_ns.quantile(0.99) * 1e-3},
-                       {"max", st.compute_ns.max() * 1e-3}};
-    if (ct.ok) {
-      j["cyclictest"] = {{"lateness_us", percentiles_json(ct.percentiles.us)},
-                         {"samples", ct.histogram.samples()},
-                         {"overflows", ct.histogram.overflows},
-                         {"command", ct.command},
-                         {"notes", ct.notes}};
-      j["cyclictest_reason"] = nullptr;
-      j["p99_ratio"] = verdict.ratio ? nlohmann::ordered_json(*verdict.ratio) : nullptr;
-      j["p99_ratio_limit"] = kP99RatioLimit;
-      j["p99_within_limit"] = verdict.ratio ? nlohmann::ordered_json(verdict.within) : nullptr;
-    } else {
-      j["cyclictest"] = nullptr;
-      j["cyclictest_reason"] = ct_reason;
-      j["p99_ratio"] = nullptr;
-      j["p99_ratio_limit"] = kP99RatioLimit;
-      j["p99_within_limit"] = nullptr;
-    }
-    write_output(a.json, j.dump(1) + "\n");
+    write_output(a.json, bench_json(a, setup, ncd, late, ct, verdict).dump(1) + "\n");
   }
-  if (st.setpoints_lost != 0) {
+  if (lost != 0) {
     std::fprintf(stderr, "ncd: %lld setpoints lost: the consumer fell behind the cycle\n",
-                 static_cast<long long>(st.setpoints_lost));
+                 static_cast<long long>(lost));
     return 1;
   }
   return 0;

@@ -430,9 +430,7 @@ Json kind_json(const KindSum& k) {
   return j;
 }
 
-}  // namespace
-
-int run_bench_service_io(const ServiceIoBenchArgs& a) {
+void check_args(const ServiceIoBenchArgs& a) {
   if (a.seconds <= 0) throw InputError("--seconds must be > 0, got " + std::to_string(a.seconds));
   if (a.rounds < 1 || a.rounds > kMaxRounds) {
     throw InputError("--rounds " + std::to_string(a.rounds) + " is outside 1.." +
@@ -449,244 +447,326 @@ int run_bench_service_io(const ServiceIoBenchArgs& a) {
                      format_us(HttpLimits::kMaxStatusHz) +
                      " (the dashboard's status rates); give the rate of the page and of MQTT");
   }
-  const std::string load_before = load_average();
-  std::unique_ptr<OwnBroker> own_broker;
-  std::string broker = a.broker;
-  if (broker.empty()) {
-    own_broker = std::make_unique<OwnBroker>();
-    broker = own_broker->url();
-  }
-  const std::string root = "ncd/bench/" + std::to_string(::getpid()) + "/";
-  MqttCounter watcher(broker, root);
+}
 
+// What every phase shares: the broker and the topics, the rate, and the job.
+struct PhaseSetup {
+  std::string broker, root;
+  bool own_broker = false;  // mosquitto started by the bench
+  double status_hz = 0.0;
+  int seconds = 0;
   motion::JobConfig job_cfg;  // default machine limits and cutting parameters
-  job_cfg.limits.period_s = a.period_ms * 1e-3;
-  // Turns for one phase at the machine's maximum feed, with half again as margin (as the plain
-  // bench's spiral); a job that ends early only shortens its phase.
-  const double needed_mm = 1.5 * a.seconds * job_cfg.limits.max_feed_mm_per_min / 60.0 + 1000.0;
   int turns = 1;
-  while (turns < 900 && toolpath::spiral_length_mm(turns) < needed_mm) ++turns;
-  const auto path = std::make_shared<const toolpath::Path>(toolpath::spiral_path(turns));
+  std::shared_ptr<const toolpath::Path> path;
+};
 
+// The spiral of one phase: turns for one phase at the machine's maximum feed, with half again
+// as margin (as the plain bench's spiral); a job that ends early only shortens its phase.
+void size_the_job(PhaseSetup& p, double period_ms) {
+  p.job_cfg.limits.period_s = period_ms * 1e-3;
+  const double needed_mm = 1.5 * p.seconds * p.job_cfg.limits.max_feed_mm_per_min / 60.0 + 1000.0;
+  p.turns = 1;
+  while (p.turns < 900 && toolpath::spiral_length_mm(p.turns) < needed_mm) ++p.turns;
+  p.path = std::make_shared<const toolpath::Path>(toolpath::spiral_path(p.turns));
+}
+
+void print_header(const ServiceIoBenchArgs& a, const PhaseSetup& p,
+                  const std::string& load_before) {
   std::printf(
       "ncd bench latency --with-service-io: %d round%s of %d s per phase at a %s ms period, "
       "spiral NURBS of %d turns, default machine limits\n"
       "  with: the dashboard's WebSocket read by a client at %s status frames/s, MQTT status at "
       "%s Hz to %s%s\n"
       "  load average before: %s\n",
-      a.rounds, a.rounds == 1 ? "" : "s", a.seconds, format_us(a.period_ms).c_str(), turns,
-      format_us(a.status_hz).c_str(), format_us(a.status_hz).c_str(), broker.c_str(),
-      own_broker ? " (mosquitto, started by the bench)" : "", load_before.c_str());
+      a.rounds, a.rounds == 1 ? "" : "s", a.seconds, format_us(a.period_ms).c_str(), p.turns,
+      format_us(a.status_hz).c_str(), format_us(a.status_hz).c_str(), p.broker.c_str(),
+      p.own_broker ? " (mosquitto, started by the bench)" : "", load_before.c_str());
   std::fflush(stdout);
+}
 
-  asio::io_context io;
-  auto work = asio::make_work_guard(io);
-  service::ServiceOptions so;
-  so.clock = motion::ClockKind::Wall;
-  so.realtime = true;
-  service::Service core(so);
-  PollLoop loop(io, core);
-  std::thread io_thread([&io] {
-    for (;;) {
-      try {
-        io.run();
-        return;
-      } catch (const std::exception& e) {
-        std::fprintf(stderr, "ncd bench: internal error on the io thread: %s\n", e.what());
-      }
-    }
-  });
-  struct JoinIo {
-    asio::io_context& io;
-    std::thread& t;
-    decltype(work)& w;
-    ~JoinIo() {
-      w.reset();
-      io.stop();
-      if (t.joinable()) t.join();
-    }
-  } join_io{io, io_thread, work};
-
-  std::vector<PhaseResult> phases;
-  std::string realtime;
-  for (int round = 0; round < a.rounds; ++round) {
-    for (int k = 0; k < 2; ++k) {
-      const bool with = (k == 1) != (round % 2 == 1);  // without, with | with, without | …
-      PhaseResult r;
-      r.with = with;
-      Observers obs(io);
-      if (with) {
-        on_io(io, [&] {
-          obs.handler = std::make_unique<StatusOnly>(core);
-          fleet::MqttConfig mc;
-          mc.broker = broker;
-          mc.client_id = "ncd-bench-" + std::to_string(::getpid());
-          mc.topic_root = root;
-          mc.status_hz = a.status_hz;
-          StatusOnly& h = *obs.handler;
-          obs.bridge = std::make_unique<fleet::MqttBridge>(
-              io, mc, [&h] { return h.status(); },
-              [&h](const nlohmann::json& req) { return h.handle(req); });
-          obs.bridge->start();
-          HttpConfig hc;
-          hc.listen = "tcp:127.0.0.1:0";
-          hc.status_hz = a.status_hz;
-          obs.web =
-              std::make_unique<WebServer>(io, hc, h, std::nullopt, toolpath::InterpretOptions{});
-          obs.feed = std::make_unique<EventFeed>(io, core.subscribe(EventFeed::kCapacity));
-          fleet::MqttBridge& b = *obs.bridge;
-          WebServer& w = *obs.web;
-          obs.feed->add_sink([&b](const nlohmann::json& e) { b.push_event(e); });
-          obs.feed->add_sink([&w](const nlohmann::json& e) { w.push_event(e); });
-          obs.feed->start();
-        });
-        obs.reader = std::make_unique<WsReader>(obs.web->port());
-        const WsReader* reader = obs.reader.get();
-        // Both observers at work before the job starts: a status frame read, the bridge up.
-        const auto end = Clock::now() + kConnectTimeout;
-        while (reader->received().status.load() == 0 || !obs.bridge->connected() ||
-               watcher.received().status.load() == 0) {
-          if (Clock::now() > end) {
-            throw InputError("the observers did not start within 10 s (WebSocket frames " +
-                             std::to_string(reader->received().status.load()) + ", MQTT bridge " +
-                             (obs.bridge->connected() ? "up" : "down") +
-                             (reader->error().empty() ? "" : ", " + reader->error()) +
-                             "); check the broker " + broker);
-          }
-          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+// The service as `ncd serve` holds it: its io_context on a thread of its own, poll() every
+// 1 ms while a job runs; the destructor stops the io thread and joins it.
+struct ServiceOnIo {
+  ServiceOnIo() : work(asio::make_work_guard(io)), core(options()), loop(io, core) {
+    thread = std::thread([this] {
+      for (;;) {
+        try {
+          io.run();
+          return;
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "ncd bench: internal error on the io thread: %s\n", e.what());
         }
       }
-      const ReceivedCount ws0 = obs.reader ? snapshot(obs.reader->received()) : ReceivedCount{};
-      const ReceivedCount mq0 = snapshot(watcher.received());
-      const auto t0 = Clock::now();
-      on_io(io, [&] {
-        service::JobSpec job;
-        job.name = "bench spiral";
-        job.path = path;
-        job.motion = job_cfg;
-        job.rules = service::LiveLimitRules::from(job_cfg.limits);
-        core.submit(std::move(job));
-        const std::string grant = core.start();
-        if (realtime.empty()) realtime = grant;
-        loop.arm();
-      });
-      const auto deadline = t0 + std::chrono::seconds(a.seconds);
-      while (Clock::now() < deadline && on_io(io, [&] { return core.busy(); })) {
-        std::this_thread::sleep_until(
-            std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
-      }
-      on_io(io, [&] {
-        if (core.busy()) core.stop("the bench's phase is over");
-      });
-      while (on_io(io, [&] { return core.busy(); })) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      }
-      r.job_s = std::chrono::duration<double>(Clock::now() - t0).count();
-      if (obs.reader) r.ws = snapshot(obs.reader->received()) - ws0;
-      r.mqtt = snapshot(watcher.received()) - mq0;
-      const service::Status st = on_io(io, [&] { return core.status(); });
-      if (st.state == service::State::Error) {
-        throw std::runtime_error("the bench's job ended in error: " + st.error);
-      }
-      r.stats = on_io(io, [&] {
-        const motion::CycleStats* stats = core.cycle_stats();
-        if (stats == nullptr) throw std::runtime_error("the bench's job has no cycle statistics");
-        return *stats;
-      });
-      if (with) {
-        r.bridge = obs.bridge->counters();
-        obs.teardown();
-        r.ws_error = obs.reader_error;
-      }
-      const LatencyPercentiles p = percentiles_us_from_ns(r.stats.lateness_ns);
-      std::printf("phase %zu %-7s %6.2f s, %lld periods: lateness p50 %s, p99 %s, max %s us",
-                  phases.size() + 1, with ? "with" : "without", r.job_s,
-                  static_cast<long long>(r.stats.periods), format_us(p.p50_us).c_str(),
-                  format_us(p.p99_us).c_str(), format_us(p.max_us).c_str());
-      if (with) {
-        std::printf(
-            "; WebSocket %lld status + %lld event frames, MQTT %lld status + %lld event "
-            "messages",
-            static_cast<long long>(r.ws.status), static_cast<long long>(r.ws.events),
-            static_cast<long long>(r.mqtt.status), static_cast<long long>(r.mqtt.events));
-      }
-      std::printf("\n");
-      std::fflush(stdout);
-      phases.push_back(std::move(r));
-    }
+    });
   }
-  const std::string load_after = load_average();
+  ~ServiceOnIo() {
+    work.reset();
+    io.stop();
+    if (thread.joinable()) thread.join();
+  }
+  ServiceOnIo(const ServiceOnIo&) = delete;
+  ServiceOnIo& operator=(const ServiceOnIo&) = delete;
+  static service::ServiceOptions options() {
+    service::ServiceOptions so;
+    so.clock = motion::ClockKind::Wall;
+    so.realtime = true;
+    return so;
+  }
 
+  asio::io_context io;
+  asio::executor_work_guard<asio::io_context::executor_type> work;
+  service::Service core;
+  PollLoop loop;
+  std::thread thread;
+};
+
+// A "with" phase's observers, made on the io thread: the MQTT bridge, the web server and the
+// event feed to both; then the page's reader; both at work before the job starts (a status
+// frame read, the bridge up).
+void start_observers(ServiceOnIo& s, const MqttCounter& watcher, const PhaseSetup& p,
+                     Observers& obs) {
+  on_io(s.io, [&] {
+    obs.handler = std::make_unique<StatusOnly>(s.core);
+    fleet::MqttConfig mc;
+    mc.broker = p.broker;
+    mc.client_id = "ncd-bench-" + std::to_string(::getpid());
+    mc.topic_root = p.root;
+    mc.status_hz = p.status_hz;
+    StatusOnly& h = *obs.handler;
+    obs.bridge = std::make_unique<fleet::MqttBridge>(
+        s.io, mc, [&h] { return h.status(); },
+        [&h](const nlohmann::json& req) { return h.handle(req); });
+    obs.bridge->start();
+    HttpConfig hc;
+    hc.listen = "tcp:127.0.0.1:0";
+    hc.status_hz = p.status_hz;
+    obs.web = std::make_unique<WebServer>(s.io, hc, h, std::nullopt, toolpath::InterpretOptions{});
+    obs.feed = std::make_unique<EventFeed>(s.io, s.core.subscribe(EventFeed::kCapacity));
+    fleet::MqttBridge& b = *obs.bridge;
+    WebServer& w = *obs.web;
+    obs.feed->add_sink([&b](const nlohmann::json& e) { b.push_event(e); });
+    obs.feed->add_sink([&w](const nlohmann::json& e) { w.push_event(e); });
+    obs.feed->start();
+  });
+  obs.reader = std::make_unique<WsReader>(obs.web->port());
+  const WsReader* reader = obs.reader.get();
+  const auto end = Clock::now() + kConnectTimeout;
+  while (reader->received().status.load() == 0 || !obs.bridge->connected() ||
+         watcher.received().status.load() == 0) {
+    if (Clock::now() > end) {
+      throw InputError("the observers did not start within 10 s (WebSocket frames " +
+                       std::to_string(reader->received().status.load()) + ", MQTT bridge " +
+                       (obs.bridge->connected() ? "up" : "down") +
+                       (reader->error().empty() ? "" : ", " + reader->error()) +
+                       "); check the broker " + p.broker);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
+// Submits and starts the job, lets it run for the phase's seconds (or to its end), stops it
+// and waits until the stop ramp is over; the first start's realtime grant goes to `realtime`.
+void run_job(ServiceOnIo& s, const PhaseSetup& p, std::string& realtime, Clock::time_point t0) {
+  on_io(s.io, [&] {
+    service::JobSpec job;
+    job.name = "bench spiral";
+    job.path = p.path;
+    job.motion = p.job_cfg;
+    job.rules = service::LiveLimitRules::from(p.job_cfg.limits);
+    s.core.submit(std::move(job));
+    const std::string grant = s.core.start();
+    if (realtime.empty()) realtime = grant;
+    s.loop.arm();
+  });
+  const auto deadline = t0 + std::chrono::seconds(p.seconds);
+  while (Clock::now() < deadline && on_io(s.io, [&] { return s.core.busy(); })) {
+    std::this_thread::sleep_until(std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
+  }
+  on_io(s.io, [&] {
+    if (s.core.busy()) s.core.stop("the bench's phase is over");
+  });
+  while (on_io(s.io, [&] { return s.core.busy(); })) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
+void print_phase(const PhaseResult& r, std::size_t number) {
+  const LatencyPercentiles p = percentiles_us_from_ns(r.stats.lateness_ns);
+  std::printf("phase %zu %-7s %6.2f s, %lld periods: lateness p50 %s, p99 %s, max %s us", number,
+              r.with ? "with" : "without", r.job_s, static_cast<long long>(r.stats.periods),
+              format_us(p.p50_us).c_str(), format_us(p.p99_us).c_str(),
+              format_us(p.max_us).c_str());
+  if (r.with) {
+    std::printf(
+        "; WebSocket %lld status + %lld event frames, MQTT %lld status + %lld event "
+        "messages",
+        static_cast<long long>(r.ws.status), static_cast<long long>(r.ws.events),
+        static_cast<long long>(r.mqtt.status), static_cast<long long>(r.mqtt.events));
+  }
+  std::printf("\n");
+  std::fflush(stdout);
+}
+
+// One phase, with or without the observers; its line on stdout (phase `number`).
+PhaseResult run_phase(ServiceOnIo& s, const MqttCounter& watcher, const PhaseSetup& p, bool with,
+                      std::string& realtime, std::size_t number) {
+  PhaseResult r;
+  r.with = with;
+  Observers obs(s.io);
+  if (with) start_observers(s, watcher, p, obs);
+  const ReceivedCount ws0 = obs.reader ? snapshot(obs.reader->received()) : ReceivedCount{};
+  const ReceivedCount mq0 = snapshot(watcher.received());
+  const auto t0 = Clock::now();
+  run_job(s, p, realtime, t0);
+  r.job_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  if (obs.reader) r.ws = snapshot(obs.reader->received()) - ws0;
+  r.mqtt = snapshot(watcher.received()) - mq0;
+  const service::Status st = on_io(s.io, [&] { return s.core.status(); });
+  if (st.state == service::State::Error) {
+    throw std::runtime_error("the bench's job ended in error: " + st.error);
+  }
+  r.stats = on_io(s.io, [&] {
+    const motion::CycleStats* stats = s.core.cycle_stats();
+    if (stats == nullptr) throw std::runtime_error("the bench's job has no cycle statistics");
+    return *stats;
+  });
+  if (with) {
+    r.bridge = obs.bridge->counters();
+    obs.teardown();
+    r.ws_error = obs.reader_error;
+  }
+  print_phase(r, number);
+  return r;
+}
+
+// The phases of each kind summed, and p99(with) / p99(without) against the limit.
+struct Summary {
   KindSum without, with;
+  LatencyPercentiles p0, p1;
+  std::optional<double> ratio;
+  bool within = false;
+  std::int64_t lost = 0;
+};
+
+Summary summarise(const std::vector<PhaseResult>& phases) {
+  Summary s;
   for (const PhaseResult& r : phases) {
-    KindSum& k = r.with ? with : without;
+    KindSum& k = r.with ? s.with : s.without;
     add_stats(k.stats, r.stats);
     k.job_s += r.job_s;
     ++k.phases;
   }
-  const LatencyPercentiles p0 = percentiles_us_from_ns(without.stats.lateness_ns);
-  const LatencyPercentiles p1 = percentiles_us_from_ns(with.stats.lateness_ns);
-  std::optional<double> ratio;
-  if (p0.p99_us > 0.0) ratio = p1.p99_us / p0.p99_us;
-  const bool within = ratio && *ratio <= kServiceIoP99RatioLimit;
-  std::printf("realtime: %s\n", realtime.c_str());
-  std::printf("\n%s", format_latency_table({{"without", p0}, {"with page+MQTT", p1}}).c_str());
-  if (ratio) {
-    std::printf("p99 with / without = %.3f (limit %.2g): %s\n", *ratio, kServiceIoP99RatioLimit,
-                within ? "within the limit" : "above the limit");
+  s.p0 = percentiles_us_from_ns(s.without.stats.lateness_ns);
+  s.p1 = percentiles_us_from_ns(s.with.stats.lateness_ns);
+  if (s.p0.p99_us > 0.0) s.ratio = s.p1.p99_us / s.p0.p99_us;
+  s.within = s.ratio && *s.ratio <= kServiceIoP99RatioLimit;
+  s.lost = s.without.stats.setpoints_lost + s.with.stats.setpoints_lost;
+  return s;
+}
+
+// What the run saw besides the phases: the realtime grant and the load average.
+struct RunNotes {
+  std::string realtime, load_before, load_after;
+};
+
+void print_summary(const Summary& s, const RunNotes& n) {
+  std::printf("realtime: %s\n", n.realtime.c_str());
+  std::printf("\n%s", format_latency_table({{"without", s.p0}, {"with page+MQTT", s.p1}}).c_str());
+  if (s.ratio) {
+    std::printf("p99 with / without = %.3f (limit %.2g): %s\n", *s.ratio, kServiceIoP99RatioLimit,
+                s.within ? "within the limit" : "above the limit");
   } else {
     std::printf("p99 with / without: no ratio (p99 without is %s us)\n",
-                format_us(p0.p99_us).c_str());
+                format_us(s.p0.p99_us).c_str());
   }
-  std::printf("load average before %s, after %s\n", load_before.c_str(), load_after.c_str());
-  const std::int64_t lost = without.stats.setpoints_lost + with.stats.setpoints_lost;
-  std::printf("setpoints lost: %lld\n", static_cast<long long>(lost));
+  std::printf("load average before %s, after %s\n", n.load_before.c_str(), n.load_after.c_str());
+  std::printf("setpoints lost: %lld\n", static_cast<long long>(s.lost));
   std::fflush(stdout);
+}
 
-  if (!a.json.empty()) {
-    Json j;
-    j["mode"] = "with_service_io";
-    j["seconds_per_phase"] = a.seconds;
-    j["rounds"] = a.rounds;
-    j["period_ms"] = a.period_ms;
-    j["status_hz"] = a.status_hz;
-    j["broker"] = {{"url", broker}, {"started_by_bench", own_broker != nullptr}};
-    j["realtime"] = realtime;
-    j["load_average_before"] = load_before;
-    j["load_average_after"] = load_after;
-    Json list = Json::array();
-    for (const PhaseResult& r : phases) {
-      Json p;
-      p["kind"] = r.with ? "with" : "without";
-      p["job_s"] = r.job_s;
-      p["periods"] = r.stats.periods;
-      p["lateness_us"] = percentiles_json(percentiles_us_from_ns(r.stats.lateness_ns));
-      p["overruns"] = r.stats.overruns;
-      p["setpoints_lost"] = r.stats.setpoints_lost;
-      if (r.with) {
-        p["websocket_frames"] = received_json(r.ws, r.job_s);
-        p["websocket_error"] = r.ws_error.empty() ? Json() : Json(r.ws_error);
-        p["mqtt_messages"] = received_json(r.mqtt, r.job_s);
-        p["bridge"] = {{"status_published", r.bridge.status_published},
-                       {"events_published", r.bridge.events_published},
-                       {"events_dropped", r.bridge.events_dropped}};
-      } else {
-        p["websocket_frames"] = nullptr;
-        p["mqtt_messages"] = received_json(r.mqtt, r.job_s);
-      }
-      list.push_back(p);
-    }
-    j["phases"] = list;
-    j["without"] = kind_json(without);
-    j["with"] = kind_json(with);
-    j["p99_ratio"] = ratio ? Json(*ratio) : Json();
-    j["p99_ratio_limit"] = kServiceIoP99RatioLimit;
-    j["p99_within_limit"] = ratio ? Json(within) : Json();
-    write_output(a.json, j.dump(1) + "\n");
+Json phase_json(const PhaseResult& r) {
+  Json p;
+  p["kind"] = r.with ? "with" : "without";
+  p["job_s"] = r.job_s;
+  p["periods"] = r.stats.periods;
+  p["lateness_us"] = percentiles_json(percentiles_us_from_ns(r.stats.lateness_ns));
+  p["overruns"] = r.stats.overruns;
+  p["setpoints_lost"] = r.stats.setpoints_lost;
+  if (r.with) {
+    p["websocket_frames"] = received_json(r.ws, r.job_s);
+    p["websocket_error"] = r.ws_error.empty() ? Json() : Json(r.ws_error);
+    p["mqtt_messages"] = received_json(r.mqtt, r.job_s);
+    p["bridge"] = {{"status_published", r.bridge.status_published},
+                   {"events_published", r.bridge.events_published},
+                   {"events_dropped", r.bridge.events_dropped}};
+  } else {
+    p["websocket_frames"] = nullptr;
+    p["mqtt_messages"] = received_json(r.mqtt, r.job_s);
   }
-  if (lost != 0) {
+  return p;
+}
+
+Json run_json(const ServiceIoBenchArgs& a, const PhaseSetup& p, const RunNotes& n,
+              const std::vector<PhaseResult>& phases, const Summary& s) {
+  Json j;
+  j["mode"] = "with_service_io";
+  j["seconds_per_phase"] = a.seconds;
+  j["rounds"] = a.rounds;
+  j["period_ms"] = a.period_ms;
+  j["status_hz"] = a.status_hz;
+  j["broker"] = {{"url", p.broker}, {"started_by_bench", p.own_broker}};
+  j["realtime"] = n.realtime;
+  j["load_average_before"] = n.load_before;
+  j["load_average_after"] = n.load_after;
+  Json list = Json::array();
+  for (const PhaseResult& r : phases) list.push_back(phase_json(r));
+  j["phases"] = list;
+  j["without"] = kind_json(s.without);
+  j["with"] = kind_json(s.with);
+  j["p99_ratio"] = s.ratio ? Json(*s.ratio) : Json();
+  j["p99_ratio_limit"] = kServiceIoP99RatioLimit;
+  j["p99_within_limit"] = s.ratio ? Json(s.within) : Json();
+  return j;
+}
+
+}  // namespace
+
+int run_bench_service_io(const ServiceIoBenchArgs& a) {
+  check_args(a);
+  RunNotes notes;
+  notes.load_before = load_average();
+  PhaseSetup setup;
+  std::unique_ptr<OwnBroker> own_broker;
+  setup.broker = a.broker;
+  if (setup.broker.empty()) {
+    own_broker = std::make_unique<OwnBroker>();
+    setup.broker = own_broker->url();
+  }
+  setup.own_broker = own_broker != nullptr;
+  setup.root = "ncd/bench/" + std::to_string(::getpid()) + "/";
+  setup.status_hz = a.status_hz;
+  setup.seconds = a.seconds;
+  MqttCounter watcher(setup.broker, setup.root);
+  size_the_job(setup, a.period_ms);
+  print_header(a, setup, notes.load_before);
+
+  ServiceOnIo svc;
+  std::vector<PhaseResult> phases;
+  for (int round = 0; round < a.rounds; ++round) {
+    for (int k = 0; k < 2; ++k) {
+      const bool with = (k == 1) != (round % 2 == 1);  // without, with | with, without | …
+      phases.push_back(run_phase(svc, watcher, setup, with, notes.realtime, phases.size() + 1));
+    }
+  }
+  notes.load_after = load_average();
+
+  const Summary summary = summarise(phases);
+  print_summary(summary, notes);
+  if (!a.json.empty())
+    write_output(a.json, run_json(a, setup, notes, phases, summary).dump(1) + "\n");
+  if (summary.lost != 0) {
     std::fprintf(stderr, "ncd: %lld setpoints lost: the service loop fell behind the cycle\n",
-                 static_cast<long long>(lost));
+                 static_cast<long long>(summary.lost));
     return 1;
   }
   return 0;

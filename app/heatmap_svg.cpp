@@ -125,13 +125,16 @@ std::string encode_png_rgb(int width, int height, const std::vector<std::uint8_t
   return png;
 }
 
-std::string render_heatmap_svg(const HeatMap& m) {
-  if (m.nx <= 0 || m.ny <= 0 ||
-      m.values.size() != static_cast<std::size_t>(m.nx) * static_cast<std::size_t>(m.ny)) {
-    throw std::runtime_error("render_heatmap_svg: the values do not match the size");
-  }
+namespace {
+
+// The colour scale's range: the finite values' (0..1 when there are none), at least 1e-12 wide.
+struct ValueRange {
+  double lo = 0.0, hi = 1.0;
+};
+
+ValueRange value_range(const std::vector<double>& values) {
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (const double v : m.values) {
+  for (const double v : values) {
     if (std::isfinite(v)) {
       lo = std::min(lo, v);
       hi = std::max(hi, v);
@@ -139,7 +142,12 @@ std::string render_heatmap_svg(const HeatMap& m) {
   }
   if (!std::isfinite(lo)) lo = 0.0, hi = 1.0;
   if (hi - lo < 1e-12) hi = lo + 1.0;
-  // Picture: at most max_image_px a side, sampling the nearest cell.
+  return {lo, hi};
+}
+
+// The picture as PNG: at most max_image_px a side, sampling the nearest cell; cells without a
+// value grey.
+std::string heatmap_png(const HeatMap& m, double lo, double hi) {
   const int step = std::max(1, (std::max(m.nx, m.ny) + m.max_image_px - 1) / m.max_image_px);
   const int w = (m.nx + step - 1) / step, h = (m.ny + step - 1) / step;
   std::vector<std::uint8_t> rgb(static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 3);
@@ -159,6 +167,18 @@ std::string render_heatmap_svg(const HeatMap& m) {
       rgb[o + 2] = c[2];
     }
   }
+  return encode_png_rgb(w, h, rgb);
+}
+
+}  // namespace
+
+std::string render_heatmap_svg(const HeatMap& m) {
+  if (m.nx <= 0 || m.ny <= 0 ||
+      m.values.size() != static_cast<std::size_t>(m.nx) * static_cast<std::size_t>(m.ny)) {
+    throw std::runtime_error("render_heatmap_svg: the values do not match the size");
+  }
+  const ValueRange range = value_range(m.values);
+  const double lo = range.lo, hi = range.hi;
   // Plot area keeps the patch's aspect ratio within 760 × 520 px.
   const double ax = m.x_max_mm - m.x_min_mm, ay = m.y_max_mm - m.y_min_mm;
   const double scale = std::min(760.0 / ax, 520.0 / ay);
@@ -180,7 +200,7 @@ std::string render_heatmap_svg(const HeatMap& m) {
        text::sig(pw, 4) + "\" height=\"" + text::sig(ph, 4) +
        "\" preserveAspectRatio=\"none\" style=\"image-rendering:pixelated\" "
        "href=\"data:image/png;base64," +
-       base64(encode_png_rgb(w, h, rgb)) + "\"/>\n";
+       base64(heatmap_png(m, lo, hi)) + "\"/>\n";
   s += "<rect x=\"" + text::sig(left, 4) + "\" y=\"" + text::sig(top, 4) + "\" width=\"" +
        text::sig(pw, 4) + "\" height=\"" + text::sig(ph, 4) +
        "\" fill=\"none\" stroke=\"black\"/>\n";

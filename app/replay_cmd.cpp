@@ -306,74 +306,59 @@ void print_blocks(const comms::EncoderStats& b, const std::string& file) {
   }
 }
 
-int run_replay(const ReplayArgs& a) {
+// What replay walks, read and checked before any motion: the machine, the path, the chamfer's
+// checks and tool, the whole program around the path, its envelope and the size of the run.
+struct ReplayInput {
+  MachineConfig machine;  // the documented defaults unless --machine
+  toolpath::Path path;
+  ChamferAcceptance chamfer;
+  WholeRun whole;
+};
+
+ReplayInput read_input(const ReplayArgs& a) {
   check_output(a.report, "--report");
   check_output(a.plot, "--plot");
   check_output(a.setpoints, "--setpoints");
   check_output(a.blocks, "--blocks");
-  MachineConfig machine;  // the documented defaults unless --machine
-  if (!a.machine.empty()) machine = load_machine_config(a.machine);
-  if (a.chord_tolerance_mm) machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
-  if (!a.start.empty()) machine.program.start_machine_mm = parse_position_mm(a.start, "--start");
-  if (!a.tool_table.empty()) machine.program.tool_table = a.tool_table;
-  toolpath::Path path;
-  try {
-    path = toolpath::read_path_file(a.path, machine.program);
-  } catch (const NoMotionError& e) {
-    // Nothing to walk is an answer, not a failure; no output file is written.
-    if (!a.quiet) std::cerr << "replay: no motion: " << e.what() << "\n";
-    return 0;
-  }
+  ReplayInput in;
+  if (!a.machine.empty()) in.machine = load_machine_config(a.machine);
+  if (a.chord_tolerance_mm) in.machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
+  if (!a.start.empty()) in.machine.program.start_machine_mm = parse_position_mm(a.start, "--start");
+  if (!a.tool_table.empty()) in.machine.program.tool_table = a.tool_table;
+  in.path = toolpath::read_path_file(a.path, in.machine.program);
   // Before any motion: the chamfer's checks and tool, the envelope, the size of the run.
-  const ChamferAcceptance chamfer =
-      accept_chamfer(path, machine, a.allow_interference, "--allow-interference");
-  if (!chamfer.note.empty()) std::cerr << "replay: " << chamfer.note << "\n";
-  const WholeRun whole = whole_run("ncd replay", a.path, path, machine, a.path_only);
-  check_envelope(whole.path, machine);
-  check_estimate(estimate_run(whole.path, machine), !a.setpoints.empty());
-  ReplayRecord rec;
-  rec.cfg.limits = machine.limits;
-  rec.cfg.cutting = machine.cutting;
-  rec.quiet = a.quiet;
-  SetpointSink sink(a.setpoints);
-  rec.file = &sink;
-  // The block encoder, when a program is asked for: checked before the walk starts.
-  std::unique_ptr<ProgramFile> program;
-  std::unique_ptr<comms::BlockEncoder> encoder;
-  std::unique_ptr<comms::ProgramBlocks> program_blocks;
-  PlotBuckets block_plot;
-  // Every written line against the controller's dialect ([link] dialect), as it is written: a
-  // program the controller cannot take is refused (exit 2) and nothing is written.
-  long written_lines = 0;
-  comms::DialectState dialect_state;
-  const auto dialect_check = [&](const std::string& line) {
+  in.chamfer = accept_chamfer(in.path, in.machine, a.allow_interference, "--allow-interference");
+  if (!in.chamfer.note.empty()) std::cerr << "replay: " << in.chamfer.note << "\n";
+  in.whole = whole_run("ncd replay", a.path, in.path, in.machine, a.path_only);
+  check_envelope(in.whole.path, in.machine);
+  check_estimate(estimate_run(in.whole.path, in.machine), !a.setpoints.empty());
+  return in;
+}
+
+// --blocks: the block encoder and the NC program it writes, with the feed it writes for the
+// plot. Every written line is checked against the controller's dialect ([link] dialect) as it
+// is written: a program the controller cannot take is refused (exit 2) and nothing is written.
+// Not movable: the encoder's callback holds it.
+struct BlockOutput {
+  BlockOutput() = default;
+  BlockOutput(const BlockOutput&) = delete;
+  BlockOutput& operator=(const BlockOutput&) = delete;
+
+  void check(const std::string& line) {
     ++written_lines;
-    if (!machine.link.dialect) return;
-    if (auto v = comms::check_line(*machine.link.dialect, line, dialect_state)) {
+    if (!dialect) return;
+    if (auto v = comms::check_line(*dialect, line, dialect_state)) {
       v->line = written_lines;
       throw InputError("--blocks: the program breaks the machine's controller dialect: " +
-                       comms::describe(*v, *machine.link.dialect) + ". Nothing was written.");
+                       comms::describe(*v, *dialect) + ". Nothing was written.");
     }
-  };
-  // The job, on the simulated clock and the owner's thread. Replay's acceptance rule judges the
-  // whole run from its statistics, so the live limit rules only count (Report).
-  service::ServiceOptions so;
-  so.clock = motion::ClockKind::Simulated;
-  so.realtime = false;
-  so.cycle_thread = false;
-  so.ring_capacity = 16;  // one setpoint in flight
-  service::Service svc(so);
-  service::JobSpec spec;
-  spec.name = path.source;
-  spec.path = std::make_shared<const toolpath::Path>(whole.path);
-  spec.motion = rec.cfg;
-  spec.rules = service::LiveLimitRules::from(rec.cfg.limits);
-  spec.rules.feed = spec.rules.accel = spec.rules.jerk = spec.rules.chord =
-      service::RuleAction::Report;
-  spec.interference_allowed = chamfer.interference_allowed;
-  spec.sink = std::make_unique<ReplayRecorder>(rec);
-  svc.submit(std::move(spec));  // builds the job once: a path the machine cannot run is refused
-  if (!a.blocks.empty()) {
+  }
+
+  // Checks the encoder's settings (the dialect applied to them, in the machine too), opens the
+  // program and starts its blocks with the whole program's header; before the walk starts.
+  void open(const ReplayArgs& a, ReplayInput& in, const service::Service& svc) {
+    MachineConfig& machine = in.machine;
+    dialect = machine.link.dialect;
     try {
       comms::validate(machine.encoder);
     } catch (const InputError& e) {
@@ -382,27 +367,154 @@ int run_replay(const ReplayArgs& a) {
     }
     if (machine.link.dialect) comms::apply_dialect(machine.encoder, *machine.link.dialect);
     program = std::make_unique<ProgramFile>(a.blocks);
-    if (chamfer.interference_allowed) {
+    if (in.chamfer.interference_allowed) {
       const std::string note =
           "(ncd: the chamfer failed its interference checks; written because of "
           "--allow-interference)";
-      dialect_check(note);
+      check(note);
       program->write(note);
     }
     encoder = std::make_unique<comms::BlockEncoder>(
-        machine.encoder, [&program, &block_plot, &dialect_check](const comms::EncodedBlock& b) {
-          dialect_check(b.text);
+        machine.encoder, [this](const comms::EncodedBlock& b) {
+          check(b.text);
           program->write(b.text);
           if (b.positioning || b.feed_mm_per_min <= 0.0) return;
-          block_plot.add(b.start_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
-          block_plot.add(b.end_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
+          plot.add(b.start_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
+          plot.add(b.end_t_s, b.feed_mm_per_min, b.feed_mm_per_min, 0.0);
         });
     const motion::Job* built = svc.submitted_job();  // the events go where its segments start
     if (!built) throw std::logic_error("replay: the service holds no submitted job");
-    program_blocks =
-        std::make_unique<comms::ProgramBlocks>(whole.program, *encoder, built->segment_starts_mm());
-    if (!a.path_only) program_blocks->begin(whole.header);  // --path-only: the blocks alone
-    rec.blocks = program_blocks.get();
+    blocks = std::make_unique<comms::ProgramBlocks>(in.whole.program, *encoder,
+                                                    built->segment_starts_mm());
+    if (!a.path_only) blocks->begin(in.whole.header);  // --path-only: the blocks alone
+  }
+
+  std::unique_ptr<ProgramFile> program;
+  std::unique_ptr<comms::BlockEncoder> encoder;
+  std::unique_ptr<comms::ProgramBlocks> blocks;
+  PlotBuckets plot;  // the feed written in the blocks
+  long written_lines = 0;
+  comms::DialectState dialect_state;
+  std::optional<comms::Dialect> dialect;
+};
+
+// The job, on the simulated clock and the owner's thread.
+service::ServiceOptions replay_service_options() {
+  service::ServiceOptions so;
+  so.clock = motion::ClockKind::Simulated;
+  so.realtime = false;
+  so.cycle_thread = false;
+  so.ring_capacity = 16;  // one setpoint in flight
+  return so;
+}
+
+// Replay's acceptance rule judges the whole run from its statistics, so the live limit rules
+// only count (Report).
+service::JobSpec replay_job(const ReplayInput& in, ReplayRecord& rec) {
+  service::JobSpec spec;
+  spec.name = in.path.source;
+  spec.path = std::make_shared<const toolpath::Path>(in.whole.path);
+  spec.motion = rec.cfg;
+  spec.rules = service::LiveLimitRules::from(rec.cfg.limits);
+  spec.rules.feed = spec.rules.accel = spec.rules.jerk = spec.rules.chord =
+      service::RuleAction::Report;
+  spec.interference_allowed = in.chamfer.interference_allowed;
+  spec.sink = std::make_unique<ReplayRecorder>(rec);
+  return spec;
+}
+
+// How the run ended: the step rule's or the watchdog's fault, or the acceptance rule's refusal
+// (empty: accepted), and the sampling time of the look-ahead.
+struct RunEnd {
+  std::string refused;
+  double lookahead_ns = 0.0;
+  double wall_s = 0.0;
+};
+
+// The report and the plot, written whether the run was accepted or not (to show why).
+void write_report_and_plot(const ReplayArgs& a, const ReplayInput& in, const motion::Job& job,
+                           const ReplayRecord& rec, const RunEnd& end, const BlockOutput& out) {
+  const std::string& source = in.path.source;
+  if (!a.report.empty()) {
+    nlohmann::ordered_json report = report_json(rec.st, in.machine, source, job, end.lookahead_ns);
+    report["accepted"] = end.refused.empty();
+    report["interference_allowed"] = in.chamfer.interference_allowed;
+    report["refused"] =
+        end.refused.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(end.refused);
+    if (out.encoder) {
+      nlohmann::ordered_json blocks = {{"file", a.blocks}};
+      blocks.update(comms::to_json(out.encoder->stats()));
+      report["blocks"] = std::move(blocks);
+    }
+    write_output(a.report, report.dump(1) + "\n", "--report");
+  }
+  if (!a.plot.empty()) {
+    write_output(
+        a.plot,
+        render_svg(replay_figure(rec.plot, out.encoder ? &out.plot : nullptr, in.machine, source)),
+        "--plot");
+  }
+}
+
+// The summary on standard error.
+void print_summary(const ReplayArgs& a, const MachineConfig& machine, const std::string& source,
+                   const motion::Job& job, const motion::RunStats& st, double wall_s,
+                   const comms::BlockEncoder* encoder) {
+  std::fprintf(stderr,
+               "replay: %s\n  path length       %.4f mm in %lld periods of %.4g s = %.3f s\n"
+               "  feed              max %.1f mm/min; roughness max %.3f um (target %.3f um)\n"
+               "  feed error        max %.3g, rms %.3g (true arc against planned, steps >= 1 um);"
+               " max %.3g mm\n"
+               "  drift             %.3g mm; chord error max %.3g mm (tolerance %.3g mm)\n"
+               "  accel, jerk max   %.1f mm/s2, %.0f mm/s3 (tangential); limit violations %lld\n"
+               "  jerk vector max   %.0f mm/s3 (from the setpoints); bound in force: %s\n"
+               "  corners (G64 P)   %zu rounded by arcs, %zu overlapped (%zu periods saved, "
+               "%.4g mm from the corner at most)\n"
+               "  step time         median %.0f ns, p99 %.0f ns; replayed in %.2f s "
+               "(%.0f periods/s)\n",
+               source.c_str(), st.path_length_mm, static_cast<long long>(st.cycles),
+               machine.limits.period_s, st.duration_s, st.feed_max_mm_per_s * 60.0,
+               st.roughness_max_um, machine.cutting.roughness_target_um, st.feed_error_max_rel,
+               st.feed_error_rms_rel(), st.feed_error_max_abs_mm, st.drift_mm(),
+               st.chord_error_max_mm, machine.limits.chord_tolerance_mm, st.accel_max_mm_per_s2,
+               st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
+               st.jerk_vector_max_mm_per_s3, motion::jerk_bound_in_force(machine.limits.jerk_bound),
+               job.blend_report().corners, job.overlap_report().corners,
+               job.overlap_report().periods_saved, job.overlap_report().max_deviation_mm,
+               st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
+               static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
+  if (job.delay_periods() > 0) {  // the corner overlap's line of setpoints (planner.md §3b)
+    std::fprintf(stderr,
+                 "  hold, override    act up to %zu periods (%.0f ms) late within %.1f mm of a "
+                 "stop, for the corner overlap; elsewhere in the next period\n",
+                 job.delay_periods(),
+                 1e3 * machine.limits.period_s * static_cast<double>(job.delay_periods()),
+                 job.line_depth_within_mm());
+  }
+  if (encoder) print_blocks(encoder->stats(), a.blocks);
+}
+
+int run_replay(const ReplayArgs& a) {
+  ReplayInput in;
+  try {
+    in = read_input(a);
+  } catch (const NoMotionError& e) {
+    // Nothing to walk is an answer, not a failure; no output file is written.
+    if (!a.quiet) std::cerr << "replay: no motion: " << e.what() << "\n";
+    return 0;
+  }
+  ReplayRecord rec;
+  rec.cfg.limits = in.machine.limits;
+  rec.cfg.cutting = in.machine.cutting;
+  rec.quiet = a.quiet;
+  SetpointSink sink(a.setpoints);
+  rec.file = &sink;
+  BlockOutput out;  // --blocks; checked before the walk starts
+  service::Service svc(replay_service_options());
+  svc.submit(replay_job(in, rec));  // builds the job once: a path the machine cannot run is refused
+  if (!a.blocks.empty()) {
+    out.open(a, in, svc);
+    rec.blocks = out.blocks.get();
   }
   const auto wall0 = std::chrono::steady_clock::now();
   rec.next_progress = wall0 + std::chrono::seconds(2);
@@ -410,91 +522,37 @@ int run_replay(const ReplayArgs& a) {
   const motion::Job& job = *svc.job();
   rec.length_mm = job.length_mm();
   rec.st.path_length_mm = job.length_mm();
-  if (program_blocks) {
+  if (out.blocks) {
     // The start of the path, where the machine stands at rest before the first period.
     motion::Setpoint start;
     start.p = job.walker().position();
-    program_blocks->push(start);
+    out.blocks->push(start);
   }
   while (svc.poll()) {
   }
-  const service::Status end = svc.status();
+  const service::Status status = svc.status();
+  RunEnd end;
   // The step rule (this setpoint is not emitted, the run ends there) or the no-progress
   // watchdog: the cycle's message.
-  const std::string fault = end.state == service::State::Error ? end.error : std::string();
-  const motion::RunStats& st = rec.st;
-  const motion::JobConfig& cfg = rec.cfg;
-  const double lookahead_ns =
+  end.refused = status.state == service::State::Error ? status.error : std::string();
+  end.lookahead_ns =
       rec.lookahead_ns +
       (svc.cycle_stats() ? static_cast<double>(svc.cycle_stats()->first_window_ns) : 0.0);
-  const PlotBuckets& plot = rec.plot;
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  const std::string source = path.source;
-  if (program_blocks) program_blocks->end();
+  end.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  if (out.blocks) out.blocks->end();
   // The acceptance rule: a run that stopped on the step rule, or whose numbers show a violation
   // or a drift, writes its report and plot (to show why) but no setpoints and no blocks.
-  std::string refused = fault;
-  if (refused.empty()) refused = motion::refusal(st, cfg);
-  if (!a.report.empty()) {
-    nlohmann::ordered_json report = report_json(st, machine, source, job, lookahead_ns);
-    report["accepted"] = refused.empty();
-    report["interference_allowed"] = chamfer.interference_allowed;
-    report["refused"] =
-        refused.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(refused);
-    if (encoder) {
-      nlohmann::ordered_json blocks = {{"file", a.blocks}};
-      blocks.update(comms::to_json(encoder->stats()));
-      report["blocks"] = std::move(blocks);
-    }
-    write_output(a.report, report.dump(1) + "\n", "--report");
-  }
-  if (!a.plot.empty()) {
-    write_output(a.plot,
-                 render_svg(replay_figure(plot, encoder ? &block_plot : nullptr, machine, source)),
-                 "--plot");
-  }
-  if (!refused.empty()) {
-    throw LimitError(source + ": " + refused +
+  if (end.refused.empty()) end.refused = motion::refusal(rec.st, rec.cfg);
+  write_report_and_plot(a, in, job, rec, end, out);
+  if (!end.refused.empty()) {
+    throw LimitError(in.path.source + ": " + end.refused +
                      "; no setpoints and no blocks were written (exit 3; the report and the plot "
                      "show the run)");
   }
   sink.commit();
-  if (program) program->commit();
+  if (out.program) out.program->commit();
   if (!a.quiet) {
-    std::fprintf(stderr,
-                 "replay: %s\n  path length       %.4f mm in %lld periods of %.4g s = %.3f s\n"
-                 "  feed              max %.1f mm/min; roughness max %.3f um (target %.3f um)\n"
-                 "  feed error        max %.3g, rms %.3g (true arc against planned, steps >= 1 um);"
-                 " max %.3g mm\n"
-                 "  drift             %.3g mm; chord error max %.3g mm (tolerance %.3g mm)\n"
-                 "  accel, jerk max   %.1f mm/s2, %.0f mm/s3 (tangential); limit violations %lld\n"
-                 "  jerk vector max   %.0f mm/s3 (from the setpoints); bound in force: %s\n"
-                 "  corners (G64 P)   %zu rounded by arcs, %zu overlapped (%zu periods saved, "
-                 "%.4g mm from the corner at most)\n"
-                 "  step time         median %.0f ns, p99 %.0f ns; replayed in %.2f s "
-                 "(%.0f periods/s)\n",
-                 source.c_str(), st.path_length_mm, static_cast<long long>(st.cycles),
-                 machine.limits.period_s, st.duration_s, st.feed_max_mm_per_s * 60.0,
-                 st.roughness_max_um, machine.cutting.roughness_target_um, st.feed_error_max_rel,
-                 st.feed_error_rms_rel(), st.feed_error_max_abs_mm, st.drift_mm(),
-                 st.chord_error_max_mm, machine.limits.chord_tolerance_mm, st.accel_max_mm_per_s2,
-                 st.jerk_max_mm_per_s3, static_cast<long long>(st.limit_violations()),
-                 st.jerk_vector_max_mm_per_s3,
-                 motion::jerk_bound_in_force(machine.limits.jerk_bound), job.blend_report().corners,
-                 job.overlap_report().corners, job.overlap_report().periods_saved,
-                 job.overlap_report().max_deviation_mm, st.step_time_ns.quantile(0.5),
-                 st.step_time_ns.quantile(0.99), wall_s,
-                 static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
-    if (job.delay_periods() > 0) {  // the corner overlap's line of setpoints (planner.md §3b)
-      std::fprintf(stderr,
-                   "  hold, override    act up to %zu periods (%.0f ms) late within %.1f mm of a "
-                   "stop, for the corner overlap; elsewhere in the next period\n",
-                   job.delay_periods(),
-                   1e3 * machine.limits.period_s * static_cast<double>(job.delay_periods()),
-                   job.line_depth_within_mm());
-    }
-    if (encoder) print_blocks(encoder->stats(), a.blocks);
+    print_summary(a, in.machine, in.path.source, job, rec.st, end.wall_s, out.encoder.get());
   }
   return 0;
 }

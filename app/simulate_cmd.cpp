@@ -248,30 +248,121 @@ struct CaseResult {
   surface::SimStats stats;
 };
 
-int run_case(const SimulateArgs& a) {
-  const Setup s = setup_of(a);
-  const PaperCase* paper = nullptr;
-  for (const auto& c : kPaper) {
-    if (a.case_name == c.name) paper = &c;
-  }
+// The raster of a --case run: the paper's inclination and f_t/f_p, or --alpha-deg and --ft-mm.
+struct CaseRaster {
+  const PaperCase* paper = nullptr;  // null for --case raster
   double alpha_deg = 0.0, ft_mm = 0.0;
-  if (paper) {
+};
+
+CaseRaster case_raster(const SimulateArgs& a, const Setup& s) {
+  CaseRaster c;
+  for (const auto& p : kPaper) {
+    if (a.case_name == p.name) c.paper = &p;
+  }
+  if (c.paper) {
     if (a.alpha_deg || a.ft_mm) {
       throw InputError(
           "--case " + a.case_name + " fixes the inclination and the feed per " +
           "tooth of the paper's figure: drop --alpha-deg/--ft-mm, or use --case raster");
     }
-    alpha_deg = paper->alpha_deg;
-    ft_mm = paper->ft_over_fp * s.pick_feed_mm;
+    c.alpha_deg = c.paper->alpha_deg;
+    c.ft_mm = c.paper->ft_over_fp * s.pick_feed_mm;
   } else {
     if (!a.alpha_deg || !a.ft_mm) {
       throw InputError("--case raster needs --alpha-deg and --ft-mm (the inclination and the " +
                        std::string("feed per tooth)"));
     }
-    alpha_deg = *a.alpha_deg;
-    ft_mm = *a.ft_mm;
+    c.alpha_deg = *a.alpha_deg;
+    c.ft_mm = *a.ft_mm;
   }
-  const surface::RasterSpec spec = raster_spec(a, s, alpha_deg, ft_mm);
+  return c;
+}
+
+// The model's R_max for the raster (paper 004 eqs. 2-4), the outside branch's and the critical
+// inclination between the two.
+struct CaseModel {
+  double model_um = 0.0, out_um = 0.0;
+  std::optional<double> alpha_c;
+};
+
+CaseModel case_model(const Setup& s, const CaseRaster& c) {
+  const double alpha = deg_to_rad(c.alpha_deg);
+  const double r_mm = s.tool.radius_mm, fp = s.pick_feed_mm;
+  CaseModel m;
+  m.model_um = interpolator::roughness_mm(r_mm, fp, c.ft_mm, alpha) * 1e3;
+  m.out_um = interpolator::roughness_outside_mm(r_mm, fp, c.ft_mm) * 1e3;
+  m.alpha_c = interpolator::critical_angle_rad(r_mm, fp, c.ft_mm);
+  return m;
+}
+
+nlohmann::ordered_json raster_json(const Setup& s, const CaseRaster& c,
+                                   const surface::RasterSpec& spec, const surface::RasterRun& run) {
+  const double fp = s.pick_feed_mm;
+  return {{"pick_feed_mm", fp},
+          {"feed_per_tooth_mm", c.ft_mm},
+          {"ft_over_fp", r4(c.ft_mm / fp)},
+          {"inclination_deg", c.alpha_deg},
+          {"milling", c.alpha_deg > 0   ? "up (climbing)"
+                      : c.alpha_deg < 0 ? "down"
+                                        : "level"},
+          {"stock_mm", spec.stock_mm},
+          {"zigzag", spec.zigzag},
+          {"phase_step_deg", spec.phase_step_deg},
+          {"passes", run.passes},
+          {"feed_mm_per_min", r4(run.feed_mm_per_min)}};
+}
+
+nlohmann::ordered_json difference_json(const surface::Roughness& r, const CaseModel& m,
+                                       const PaperCase* paper) {
+  nlohmann::ordered_json diff;
+  diff["simulation_minus_model"] = r4(r.rmax_um - m.model_um);
+  if (paper) {
+    diff["simulation_minus_paper"] = r4(r.rmax_um - paper->paper_um);
+    diff["model_minus_paper"] = r4(m.model_um - paper->paper_um);
+    diff["within_issue_tolerance"] = std::abs(r.rmax_um - paper->paper_um) <= paper->tolerance_um;
+  }
+  return diff;
+}
+
+nlohmann::ordered_json window_range_json(const surface::RmaxMap& rm, double model_um) {
+  double wmax = 0.0, wmin = std::numeric_limits<double>::infinity();
+  for (const auto& w : rm.windows) {
+    wmax = std::max(wmax, w.rmax_um);
+    wmin = std::min(wmin, w.rmax_um);
+  }
+  return {{"window_mm", {r4(rm.window_x_mm), r4(rm.window_y_mm)}},
+          {"windows", rm.windows.size()},
+          {"max_um", r4(wmax)},
+          {"min_um", r4(wmin)},
+          {"model_um", r4(model_um)}};
+}
+
+// ", paper 10.7 um" for a paper's case; "" for a raster.
+std::string paper_note(const PaperCase* paper) {
+  return paper ? ", paper " + std::to_string(paper->paper_um).substr(0, 4) + " um" : "";
+}
+
+Pictures case_pictures(const SimulateArgs& a, const Setup& s, const CaseRaster& c,
+                       const surface::Roughness& r, double model_um) {
+  Pictures p;
+  char title[160];
+  std::snprintf(
+      title, sizeof title, "%s%s: alpha = %g deg, f_t = %g mm, f_p = %g mm, r = %g mm, %d teeth",
+      a.case_name.c_str(), c.paper ? (std::string(" (paper ") + c.paper->figure + ")").c_str() : "",
+      c.alpha_deg, c.ft_mm, s.pick_feed_mm, s.tool.radius_mm, s.tool.teeth);
+  p.title = title;
+  char note[200];
+  std::snprintf(note, sizeof note, "R_max simulated %.2f um, model %.2f um%s", r.rmax_um, model_um,
+                paper_note(c.paper).c_str());
+  p.notes.emplace_back(note);
+  p.model_um = model_um;
+  return p;
+}
+
+int run_case(const SimulateArgs& a) {
+  const Setup s = setup_of(a);
+  const CaseRaster c = case_raster(a, s);
+  const surface::RasterSpec spec = raster_spec(a, s, c.alpha_deg, c.ft_mm);
   const surface::RasterRun run = surface::make_raster(spec, s.tool);
   ZMap map(run.grid, run.initial);
   surface::SimOptions opt;
@@ -283,36 +374,21 @@ int run_case(const SimulateArgs& a) {
                      std::to_string(r.uncut_cells) +
                      " cells of the patch uncut: raise --stock-mm above the expected R_max");
   }
-  const double alpha = deg_to_rad(alpha_deg);
-  const double r_mm = s.tool.radius_mm, fp = s.pick_feed_mm;
-  const double model_um = interpolator::roughness_mm(r_mm, fp, ft_mm, alpha) * 1e3;
-  const double out_um = interpolator::roughness_outside_mm(r_mm, fp, ft_mm) * 1e3;
-  const auto alpha_c = interpolator::critical_angle_rad(r_mm, fp, ft_mm);
-  const std::vector<double> model_by_move(run.moves.size(), model_um);
-  const double wx = a.window_x_mm.value_or(s.tool.teeth * ft_mm);
-  const double wy = a.window_y_mm.value_or(fp);
+  const CaseModel m = case_model(s, c);
+  const std::vector<double> model_by_move(run.moves.size(), m.model_um);
+  const double wx = a.window_x_mm.value_or(s.tool.teeth * c.ft_mm);
+  const double wy = a.window_y_mm.value_or(s.pick_feed_mm);
   const surface::RmaxMap rm = surface::rmax_map(map, wx, wy, model_by_move, &run.nominal);
 
   nlohmann::ordered_json j;
   j["case"] = a.case_name;
-  if (paper) {
-    j["paper"] = {{"figure", paper->figure},
-                  {"rmax_um", paper->paper_um},
-                  {"issue_tolerance_um", paper->tolerance_um}};
+  if (c.paper) {
+    j["paper"] = {{"figure", c.paper->figure},
+                  {"rmax_um", c.paper->paper_um},
+                  {"issue_tolerance_um", c.paper->tolerance_um}};
   }
   j["tool"] = tool_json(s.tool);
-  j["raster"] = {{"pick_feed_mm", fp},
-                 {"feed_per_tooth_mm", ft_mm},
-                 {"ft_over_fp", r4(ft_mm / fp)},
-                 {"inclination_deg", alpha_deg},
-                 {"milling", alpha_deg > 0   ? "up (climbing)"
-                             : alpha_deg < 0 ? "down"
-                                             : "level"},
-                 {"stock_mm", spec.stock_mm},
-                 {"zigzag", spec.zigzag},
-                 {"phase_step_deg", spec.phase_step_deg},
-                 {"passes", run.passes},
-                 {"feed_mm_per_min", r4(run.feed_mm_per_min)}};
+  j["raster"] = raster_json(s, c, spec, run);
   j["grid"] = {{"cell_um", r4(map.cell_mm() * 1e3)},
                {"nx", map.nx()},
                {"ny", map.ny()},
@@ -320,176 +396,184 @@ int run_case(const SimulateArgs& a) {
                {"y_mm", {map.y0_mm(), r4(map.y0_mm() + map.ny() * map.cell_mm())}}};
   j["simulation"] = sim_json(st, map);
   j["rmax_um"] = roughness_json(r);
-  j["model"] = {
-      {"rmax_um", r4(model_um)},
-      {"branch", model_um > out_um ? "eq. 3 (dead centre)" : "eq. 2 (outside)"},
-      {"critical_angle_deg", alpha_c ? nlohmann::ordered_json(r4(rad_to_deg(*alpha_c))) : nullptr}};
-  nlohmann::ordered_json diff;
-  diff["simulation_minus_model"] = r4(r.rmax_um - model_um);
-  if (paper) {
-    diff["simulation_minus_paper"] = r4(r.rmax_um - paper->paper_um);
-    diff["model_minus_paper"] = r4(model_um - paper->paper_um);
-    diff["within_issue_tolerance"] = std::abs(r.rmax_um - paper->paper_um) <= paper->tolerance_um;
-  }
-  j["difference_um"] = diff;
-  double wmax = 0.0, wmin = std::numeric_limits<double>::infinity();
-  for (const auto& w : rm.windows) {
-    wmax = std::max(wmax, w.rmax_um);
-    wmin = std::min(wmin, w.rmax_um);
-  }
-  j["rmax_map"] = {{"window_mm", {r4(rm.window_x_mm), r4(rm.window_y_mm)}},
-                   {"windows", rm.windows.size()},
-                   {"max_um", r4(wmax)},
-                   {"min_um", r4(wmin)},
-                   {"model_um", r4(model_um)}};
+  j["model"] = {{"rmax_um", r4(m.model_um)},
+                {"branch", m.model_um > m.out_um ? "eq. 3 (dead centre)" : "eq. 2 (outside)"},
+                {"critical_angle_deg",
+                 m.alpha_c ? nlohmann::ordered_json(r4(rad_to_deg(*m.alpha_c))) : nullptr}};
+  j["difference_um"] = difference_json(r, m, c.paper);
+  j["rmax_map"] = window_range_json(rm, m.model_um);
   write_output(a.report, j.dump(2) + "\n");
 
-  Pictures p;
-  char title[160];
-  std::snprintf(
-      title, sizeof title, "%s%s: alpha = %g deg, f_t = %g mm, f_p = %g mm, r = %g mm, %d teeth",
-      a.case_name.c_str(), paper ? (std::string(" (paper ") + paper->figure + ")").c_str() : "",
-      alpha_deg, ft_mm, fp, r_mm, s.tool.teeth);
-  p.title = title;
-  char note[200];
-  std::snprintf(
-      note, sizeof note, "R_max simulated %.2f um, model %.2f um%s", r.rmax_um, model_um,
-      paper ? (", paper " + std::to_string(paper->paper_um).substr(0, 4) + " um").c_str() : "");
-  p.notes.emplace_back(note);
-  p.model_um = model_um;
-  write_pictures(a, map, run.nominal, r, rm, p);
+  write_pictures(a, map, run.nominal, r, rm, case_pictures(a, s, c, r, m.model_um));
   if (!a.quiet) {
-    std::fprintf(
-        stderr,
-        "ncd simulate %s: R_max %.2f um (along %.2f, across %.2f), model %.2f um%s; "
-        "%lld cells, %.3g cell updates in %.2f s on %d threads (%.3g /s)\n",
-        a.case_name.c_str(), r.rmax_um, r.along_um, r.across_um, model_um,
-        paper ? (", paper " + std::to_string(paper->paper_um).substr(0, 4) + " um").c_str() : "",
-        static_cast<long long>(map.cells()), static_cast<double>(st.cell_updates), st.seconds,
-        st.threads, st.updates_per_s());
+    std::fprintf(stderr,
+                 "ncd simulate %s: R_max %.2f um (along %.2f, across %.2f), model %.2f um%s; "
+                 "%lld cells, %.3g cell updates in %.2f s on %d threads (%.3g /s)\n",
+                 a.case_name.c_str(), r.rmax_um, r.along_um, r.across_um, m.model_um,
+                 paper_note(c.paper).c_str(), static_cast<long long>(map.cells()),
+                 static_cast<double>(st.cell_updates), st.seconds, st.threads, st.updates_per_s());
   }
   return 0;
 }
 
-int run_fig6(const SimulateArgs& a) {
-  const Setup s = setup_of(a);
-  const double fp = s.pick_feed_mm, r_mm = s.tool.radius_mm;
+// One point of Fig. 6: the raster at inclination alpha and f_t = ratio f_p, simulated, against
+// the model.
+struct Fig6Point {
+  double simulated_um = 0.0, model_um = 0.0, cell_um = 0.0, seconds = 0.0;
+  std::int64_t updates = 0;
+};
+
+Fig6Point fig6_point(const SimulateArgs& a, const Setup& s, double alpha_deg, double ratio) {
+  const double fp = s.pick_feed_mm;
+  const double ft = ratio * fp;
+  surface::RasterSpec spec = raster_spec(a, s, alpha_deg, ft);
+  if (!a.cell_um) spec.cell_mm = ft / 50.0;
+  const surface::RasterRun run = surface::make_raster(spec, s.tool);
+  ZMap map(run.grid, run.initial);
+  surface::SimOptions opt;
+  opt.threads = a.threads;
+  const surface::SimStats st = surface::simulate(map, s.tool, run.moves, opt);
+  Fig6Point p;
+  p.seconds = st.seconds;
+  p.updates = st.cell_updates;
+  const surface::Roughness r = surface::measure(map, run.nominal, {0, map.nx(), 0, map.ny()});
+  if (r.uncut_cells > 0) {
+    throw InputError("the stock left cells uncut at alpha = " + std::to_string(alpha_deg) +
+                     " deg: raise --stock-mm");
+  }
+  p.simulated_um = r.rmax_um;
+  p.model_um = interpolator::roughness_mm(s.tool.radius_mm, fp, ft, deg_to_rad(alpha_deg)) * 1e3;
+  p.cell_um = map.cell_mm() * 1e3;
+  return p;
+}
+
+// The whole sweep of Fig. 6 (α 0..30° by 2.5°, f_t/f_p 0.2..1.0 by 0.1): the error map, the
+// points, the curves of four inclinations and the largest difference.
+struct Fig6 {
   std::vector<double> alphas, ratios;
-  for (int k = 0; k <= 12; ++k) alphas.push_back(2.5 * k);
-  for (int k = 2; k <= 10; ++k) ratios.push_back(0.1 * k);
   nlohmann::ordered_json points = nlohmann::ordered_json::array();
   HeatMap err;
-  err.nx = static_cast<int>(ratios.size());
-  err.ny = static_cast<int>(alphas.size());
-  err.values.assign(static_cast<std::size_t>(err.nx * err.ny), 0.0);
+  std::vector<Series> curves;
   double worst = 0.0, worst_alpha = 0.0, worst_ratio = 0.0, seconds = 0.0;
   std::int64_t updates = 0;
-  std::vector<Series> curves;
-  for (std::size_t ia = 0; ia < alphas.size(); ++ia) {
+};
+
+Fig6 sweep_fig6(const SimulateArgs& a, const Setup& s) {
+  Fig6 f;
+  for (int k = 0; k <= 12; ++k) f.alphas.push_back(2.5 * k);
+  for (int k = 2; k <= 10; ++k) f.ratios.push_back(0.1 * k);
+  f.err.nx = static_cast<int>(f.ratios.size());
+  f.err.ny = static_cast<int>(f.alphas.size());
+  f.err.values.assign(static_cast<std::size_t>(f.err.nx * f.err.ny), 0.0);
+  for (std::size_t ia = 0; ia < f.alphas.size(); ++ia) {
     Series sim{"", {}, {}, "#1f77b4"}, model{"", {}, {}, "#d62728", true};
-    for (std::size_t ir = 0; ir < ratios.size(); ++ir) {
-      const double ft = ratios[ir] * fp;
-      surface::RasterSpec spec = raster_spec(a, s, alphas[ia], ft);
-      if (!a.cell_um) spec.cell_mm = ft / 50.0;
-      const surface::RasterRun run = surface::make_raster(spec, s.tool);
-      ZMap map(run.grid, run.initial);
-      surface::SimOptions opt;
-      opt.threads = a.threads;
-      const surface::SimStats st = surface::simulate(map, s.tool, run.moves, opt);
-      seconds += st.seconds;
-      updates += st.cell_updates;
-      const surface::Roughness r = surface::measure(map, run.nominal, {0, map.nx(), 0, map.ny()});
-      if (r.uncut_cells > 0) {
-        throw InputError("the stock left cells uncut at alpha = " + std::to_string(alphas[ia]) +
-                         " deg: raise --stock-mm");
+    for (std::size_t ir = 0; ir < f.ratios.size(); ++ir) {
+      const Fig6Point p = fig6_point(a, s, f.alphas[ia], f.ratios[ir]);
+      f.seconds += p.seconds;
+      f.updates += p.updates;
+      const double d = p.simulated_um - p.model_um;
+      f.err.values[ia * f.ratios.size() + ir] = d;
+      if (std::abs(d) > std::abs(f.worst)) {
+        f.worst = d;
+        f.worst_alpha = f.alphas[ia];
+        f.worst_ratio = f.ratios[ir];
       }
-      const double m = interpolator::roughness_mm(r_mm, fp, ft, deg_to_rad(alphas[ia])) * 1e3;
-      const double d = r.rmax_um - m;
-      err.values[ia * ratios.size() + ir] = d;
-      if (std::abs(d) > std::abs(worst)) {
-        worst = d;
-        worst_alpha = alphas[ia];
-        worst_ratio = ratios[ir];
-      }
-      points.push_back({{"alpha_deg", alphas[ia]},
-                        {"ft_over_fp", r4(ratios[ir])},
-                        {"cell_um", r4(map.cell_mm() * 1e3)},
-                        {"simulated_um", r4(r.rmax_um)},
-                        {"model_um", r4(m)},
-                        {"difference_um", r4(d)}});
-      sim.x.push_back(ratios[ir]);
-      sim.y.push_back(r.rmax_um);
-      model.x.push_back(ratios[ir]);
-      model.y.push_back(m);
+      f.points.push_back({{"alpha_deg", f.alphas[ia]},
+                          {"ft_over_fp", r4(f.ratios[ir])},
+                          {"cell_um", r4(p.cell_um)},
+                          {"simulated_um", r4(p.simulated_um)},
+                          {"model_um", r4(p.model_um)},
+                          {"difference_um", r4(d)}});
+      sim.x.push_back(f.ratios[ir]);
+      sim.y.push_back(p.simulated_um);
+      model.x.push_back(f.ratios[ir]);
+      model.y.push_back(p.model_um);
       if (!a.quiet) {
         std::fprintf(stderr, "alpha %4.1f deg, f_t/f_p %.1f: simulated %6.2f um, model %6.2f um\n",
-                     alphas[ia], ratios[ir], r.rmax_um, m);
+                     f.alphas[ia], f.ratios[ir], p.simulated_um, p.model_um);
       }
     }
     if (ia % 4 == 0) {  // 0, 10, 20, 30 degrees on the curves' plot
       char name[64];
-      std::snprintf(name, sizeof name, "simulated, alpha = %g deg", alphas[ia]);
+      std::snprintf(name, sizeof name, "simulated, alpha = %g deg", f.alphas[ia]);
       sim.name = name;
-      std::snprintf(name, sizeof name, "model, alpha = %g deg", alphas[ia]);
+      std::snprintf(name, sizeof name, "model, alpha = %g deg", f.alphas[ia]);
       model.name = name;
       static const char* colors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd"};
       sim.color = model.color = colors[(ia / 4) % 4];
-      curves.push_back(sim);
-      curves.push_back(model);
+      f.curves.push_back(sim);
+      f.curves.push_back(model);
     }
   }
+  return f;
+}
+
+nlohmann::ordered_json fig6_json(const Setup& s, const Fig6& f) {
   nlohmann::ordered_json j;
   j["case"] = "fig6";
   j["tool"] = tool_json(s.tool);
-  j["pick_feed_mm"] = fp;
-  j["grid"] = {{"alpha_deg", alphas},
+  j["pick_feed_mm"] = s.pick_feed_mm;
+  j["grid"] = {{"alpha_deg", f.alphas},
                {"ft_over_fp", {0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0}}};
-  j["max_abs_difference_um"] = r4(std::abs(worst));
-  j["at"] = {
-      {"alpha_deg", worst_alpha}, {"ft_over_fp", r4(worst_ratio)}, {"difference_um", r4(worst)}};
+  j["max_abs_difference_um"] = r4(std::abs(f.worst));
+  j["at"] = {{"alpha_deg", f.worst_alpha},
+             {"ft_over_fp", r4(f.worst_ratio)},
+             {"difference_um", r4(f.worst)}};
   j["paper_max_error_um"] = 1.8;
-  j["simulation"] = {{"cell_updates", updates},
-                     {"seconds", r4(seconds)},
-                     {"cells_updated_per_s",
-                      seconds > 0.0 ? std::round(static_cast<double>(updates) / seconds) : 0.0}};
-  j["points"] = points;
-  write_output(a.report, j.dump(2) + "\n");
-  if (!a.plot.empty()) {
-    err.title = "Fig. 6 redone: simulated minus model R_max";
-    err.value_label = "difference (um)";
-    char note[160];
-    std::snprintf(note, sizeof note,
-                  "largest |difference| %.2f um at alpha = %g deg, f_t/f_p = %.1f (paper: 1.8 um); "
-                  "r = %g mm, f_p = %g mm, %d teeth",
-                  std::abs(worst), worst_alpha, worst_ratio, r_mm, fp, s.tool.teeth);
-    err.notes = {note};
-    err.x_min_mm = 0.15;
-    err.x_max_mm = 1.05;
-    err.y_min_mm = -1.25;
-    err.y_max_mm = 31.25;
-    err.x_label = "f_t / f_p";
-    err.y_label = "alpha (deg)";
-    write_output(a.plot, render_heatmap_svg(err));
-  }
+  j["simulation"] = {
+      {"cell_updates", f.updates},
+      {"seconds", r4(f.seconds)},
+      {"cells_updated_per_s",
+       f.seconds > 0.0 ? std::round(static_cast<double>(f.updates) / f.seconds) : 0.0}};
+  j["points"] = f.points;
+  return j;
+}
+
+// --plot: the map of simulated minus model R_max.
+void write_fig6_plot(const std::string& file, const Setup& s, const Fig6& f) {
+  HeatMap err = f.err;
+  err.title = "Fig. 6 redone: simulated minus model R_max";
+  err.value_label = "difference (um)";
+  char note[160];
+  std::snprintf(note, sizeof note,
+                "largest |difference| %.2f um at alpha = %g deg, f_t/f_p = %.1f (paper: 1.8 um); "
+                "r = %g mm, f_p = %g mm, %d teeth",
+                std::abs(f.worst), f.worst_alpha, f.worst_ratio, s.tool.radius_mm, s.pick_feed_mm,
+                s.tool.teeth);
+  err.notes = {note};
+  err.x_min_mm = 0.15;
+  err.x_max_mm = 1.05;
+  err.y_min_mm = -1.25;
+  err.y_max_mm = 31.25;
+  err.x_label = "f_t / f_p";
+  err.y_label = "alpha (deg)";
+  write_output(file, render_heatmap_svg(err));
+}
+
+int run_fig6(const SimulateArgs& a) {
+  const Setup s = setup_of(a);
+  const Fig6 f = sweep_fig6(a, s);
+  write_output(a.report, fig6_json(s, f).dump(2) + "\n");
+  if (!a.plot.empty()) write_fig6_plot(a.plot, s, f);
   if (!a.profile.empty()) {
-    Figure f;
-    f.title = "Fig. 6 redone: R_max against f_t/f_p, simulated (solid) and model (dashed)";
-    f.x_label = "f_t / f_p";
-    f.panels = {Panel{"R_max", "R_max (um)", curves, {}, {}}};
-    f.panel_height_px = 420;
-    write_output(a.profile, render_svg(f));
+    Figure fig;
+    fig.title = "Fig. 6 redone: R_max against f_t/f_p, simulated (solid) and model (dashed)";
+    fig.x_label = "f_t / f_p";
+    fig.panels = {Panel{"R_max", "R_max (um)", f.curves, {}, {}}};
+    fig.panel_height_px = 420;
+    write_output(a.profile, render_svg(fig));
   }
   if (!a.quiet) {
     std::fprintf(stderr,
                  "ncd simulate fig6: largest |simulated - model| %.2f um at alpha = %g deg, "
                  "f_t/f_p = %.1f (paper: 1.8 um)\n",
-                 std::abs(worst), worst_alpha, worst_ratio);
+                 std::abs(f.worst), f.worst_alpha, f.worst_ratio);
   }
   return 0;
 }
 
-int run_setpoints(const SimulateArgs& a) {
-  const Setup s = setup_of(a);
+// The setpoints of --setpoints as moves of the tool, after the flags that go with them.
+std::vector<surface::Move> read_moves(const SimulateArgs& a, const Setup& s) {
   if (a.patch.size() != 4) {
     throw InputError(
         "--setpoints needs --patch X0 Y0 X1 Y1 (mm): the part of the work to simulate");
@@ -501,14 +585,25 @@ int run_setpoints(const SimulateArgs& a) {
   }
   std::ifstream in(a.setpoints);
   if (!in) throw InputError("cannot open --setpoints " + a.setpoints + ": check the path");
-  const std::vector<surface::Move> moves = surface::read_setpoints_csv(in, a.setpoints, s.tool);
+  std::vector<surface::Move> moves = surface::read_setpoints_csv(in, a.setpoints, s.tool);
   if (!(std::abs(a.slope_deg) < 60.0)) {
     throw InputError("--slope-deg " + std::to_string(a.slope_deg) + " is outside (-60, 60)");
   }
-  // The model for each move: its feed per tooth and inclination. The default cell follows the
-  // feed per tooth that most of the path's length was cut at (the median over length), not the
-  // slow setpoints of corners and starts.
-  std::vector<double> model_um(moves.size());
+  return moves;
+}
+
+// The model for each move: its feed per tooth and inclination. The default cell follows the
+// feed per tooth that most of the path's length was cut at (the median over length), not the
+// slow setpoints of corners and starts.
+struct MoveModels {
+  std::vector<double> model_um;  // per move
+  double ft_median = 0.0;        // mm, over length
+};
+
+MoveModels move_models(const SimulateArgs& a, const Setup& s,
+                       const std::vector<surface::Move>& moves) {
+  MoveModels out;
+  out.model_um.resize(moves.size());
   std::vector<std::pair<double, double>> ft_len;  // (f_t, length)
   const double zn = s.tool.teeth * s.tool.spindle_rpm;
   double total_len = 0.0;
@@ -521,31 +616,27 @@ int run_setpoints(const SimulateArgs& a) {
       ft_len.emplace_back(ft, d.norm());
       total_len += d.norm();
     }
-    model_um[k] = interpolator::roughness_mm(
-                      s.tool.radius_mm, s.pick_feed_mm, ft,
-                      d.norm() > 0.0 ? interpolator::inclination_from_tangent_rad(d) : 0.0) *
-                  1e3;
+    out.model_um[k] = interpolator::roughness_mm(
+                          s.tool.radius_mm, s.pick_feed_mm, ft,
+                          d.norm() > 0.0 ? interpolator::inclination_from_tangent_rad(d) : 0.0) *
+                      1e3;
   }
   if (ft_len.empty()) throw InputError(a.setpoints + ": the tool never moves");
   std::sort(ft_len.begin(), ft_len.end());
-  double ft_median = ft_len.back().first, run_len = 0.0;
+  double run_len = 0.0;
+  out.ft_median = ft_len.back().first;
   for (const auto& [ft, len] : ft_len) {
     run_len += len;
     if (run_len >= 0.5 * total_len) {
-      ft_median = ft;
+      out.ft_median = ft;
       break;
     }
   }
-  surface::GridSpec g{a.patch[0], a.patch[2], a.patch[1], a.patch[3],
-                      a.cell_um ? *a.cell_um * 1e-3 : ft_median / 100.0};
-  surface::InitialSurface init;
-  init.z0_mm = *a.surface_z_mm;
-  init.grad_x = std::tan(deg_to_rad(a.slope_deg));
-  ZMap map(g, init);
-  surface::SimOptions opt;
-  opt.threads = a.threads;
-  const surface::SimStats st = surface::simulate(map, s.tool, moves, opt);
-  const surface::CellRegion all{0, map.nx(), 0, map.ny()};
+  return out;
+}
+
+// Refuses a patch the tool never cut; says how much of it was not cut.
+void check_cut(const SimulateArgs& a, const ZMap& map) {
   std::int64_t uncut = 0;
   for (int j = 0; j < map.ny(); ++j) {
     for (int i = 0; i < map.nx(); ++i) uncut += map.cut_by(i, j) < 0;
@@ -561,24 +652,52 @@ int run_setpoints(const SimulateArgs& a) {
                  "map counts only windows cut wholly\n",
                  static_cast<long long>(uncut), static_cast<long long>(map.cells()));
   }
+}
+
+// The windows cut wholly: the worst one's R_max and the model there, the model's largest.
+struct WindowSummary {
+  double worst = 0.0, worst_model = std::nan(""), model_max = 0.0;
+  std::size_t cut_windows = 0;
+};
+
+WindowSummary summarise_windows(const surface::RmaxMap& rm) {
+  WindowSummary w;
+  for (const auto& win : rm.windows) {
+    if (!win.cut) continue;
+    ++w.cut_windows;
+    if (win.rmax_um > w.worst) {
+      w.worst = win.rmax_um;
+      w.worst_model = win.model_um;
+    }
+    if (std::isfinite(win.model_um)) w.model_max = std::max(w.model_max, win.model_um);
+  }
+  return w;
+}
+
+int run_setpoints(const SimulateArgs& a) {
+  const Setup s = setup_of(a);
+  const std::vector<surface::Move> moves = read_moves(a, s);
+  const MoveModels models = move_models(a, s, moves);
+  const double ft_median = models.ft_median;
+  surface::GridSpec g{a.patch[0], a.patch[2], a.patch[1], a.patch[3],
+                      a.cell_um ? *a.cell_um * 1e-3 : ft_median / 100.0};
+  surface::InitialSurface init;
+  init.z0_mm = *a.surface_z_mm;
+  init.grad_x = std::tan(deg_to_rad(a.slope_deg));
+  ZMap map(g, init);
+  surface::SimOptions opt;
+  opt.threads = a.threads;
+  const surface::SimStats st = surface::simulate(map, s.tool, moves, opt);
+  const surface::CellRegion all{0, map.nx(), 0, map.ny()};
+  check_cut(a, map);
   const Plane ref =
       a.nominal_z_mm ? Plane{*a.nominal_z_mm, init.grad_x, 0.0} : surface::fit_plane(map, all);
   const surface::Roughness r = surface::measure(map, ref, all);
   const double w = std::max(s.pick_feed_mm, s.tool.teeth * ft_median);
   const surface::RmaxMap rm =
-      surface::rmax_map(map, a.window_x_mm.value_or(w), a.window_y_mm.value_or(w), model_um,
+      surface::rmax_map(map, a.window_x_mm.value_or(w), a.window_y_mm.value_or(w), models.model_um,
                         a.nominal_z_mm ? &ref : nullptr);
-  double worst = 0.0, worst_model = std::nan(""), model_max = 0.0;
-  std::size_t cut_windows = 0;
-  for (const auto& win : rm.windows) {
-    if (!win.cut) continue;
-    ++cut_windows;
-    if (win.rmax_um > worst) {
-      worst = win.rmax_um;
-      worst_model = win.model_um;
-    }
-    if (std::isfinite(win.model_um)) model_max = std::max(model_max, win.model_um);
-  }
+  const WindowSummary ws = summarise_windows(rm);
   nlohmann::ordered_json j;
   j["setpoints"] = a.setpoints;
   j["moves"] = moves.size();
@@ -592,17 +711,17 @@ int run_setpoints(const SimulateArgs& a) {
                                              : "least-squares plane of the patch";
   j["rmax_map"] = {{"window_mm", {r4(rm.window_x_mm), r4(rm.window_y_mm)}},
                    {"windows", rm.windows.size()},
-                   {"windows_wholly_cut", cut_windows},
-                   {"max_um", r4(worst)},
-                   {"model_at_max_um", num_or_null(worst_model)},
-                   {"model_max_um", r4(model_max)}};
+                   {"windows_wholly_cut", ws.cut_windows},
+                   {"max_um", r4(ws.worst)},
+                   {"model_at_max_um", num_or_null(ws.worst_model)},
+                   {"model_max_um", r4(ws.model_max)}};
   write_output(a.report, j.dump(2) + "\n");
   Pictures p;
   p.title = "ncd simulate " + a.setpoints;
   char note[160];
   std::snprintf(note, sizeof note,
                 "%zu moves, f_t median %.4f mm, f_p %.3g mm; worst window R_max %.2f um",
-                moves.size(), ft_median, s.pick_feed_mm, worst);
+                moves.size(), ft_median, s.pick_feed_mm, ws.worst);
   p.notes.emplace_back(note);
   if (!a.nominal_z_mm) p.window_reference = "each window's best plane";
   write_pictures(a, map, ref, r, rm, p);
@@ -612,7 +731,7 @@ int run_setpoints(const SimulateArgs& a) {
                  "%d threads (%.3g /s); worst window R_max %.2f um\n",
                  moves.size(), static_cast<long long>(map.cells()),
                  static_cast<double>(st.cell_updates), st.seconds, st.threads, st.updates_per_s(),
-                 worst);
+                 ws.worst);
   }
   return 0;
 }

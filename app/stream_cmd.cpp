@@ -237,8 +237,8 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
       {"journal", journal}};
 }
 
-int run_stream(const StreamArgs& a) {
-  const comms::LineSettings line = line_settings(a.link, a.port);
+// The flags alone, before the program is read.
+void check_flags(const StreamArgs& a, const comms::LineSettings& line) {
   require_positive("--xoff-timeout (s)", a.xoff_timeout_s);
   require_positive("--reconnect-max (s)", a.reconnect_max_s);
   if (a.max_queued_chars < 1 || a.max_queued_chars > 4096) {
@@ -255,8 +255,7 @@ int run_stream(const StreamArgs& a) {
   if (a.restart_from != 0 && (a.resume || a.restart)) {
     throw InputError("--restart-from excludes --resume and --restart: it starts a new transfer");
   }
-  const bool ack = line.protocol == comms::Protocol::Ack;
-  if (ack && line.eob == comms::EndOfBlock::CrLf) {
+  if (line.protocol == comms::Protocol::Ack && line.eob == comms::EndOfBlock::CrLf) {
     throw InputError(
         "--eob crlf with --protocol ack: grbl ends a line at CR and at LF, so CR LF "
         "is a block and an empty line, answered by two oks, and character "
@@ -272,9 +271,24 @@ int run_stream(const StreamArgs& a) {
   }
   require_positive("--banner-wait (s)", a.banner_wait_s);
   require_positive("--startup-timeout (s)", a.startup_timeout_s);
+}
+
+// The program, read once before the port is opened, and the controller's dialect.
+struct CheckedProgram {
+  comms::ProgramSummary summary;
+  std::optional<comms::Dialect> dialect;
+};
+
+// The program's blocks against the dialect, the longest block grbl keeps and the range of
+// --restart-from. Nothing is sent when it fails.
+CheckedProgram check_program(const StreamArgs& a, const comms::LineSettings& line) {
+  const bool ack = line.protocol == comms::Protocol::Ack;
   const int max_block = ack ? a.rx_buffer_bytes - 2 : 4096;
-  const comms::ProgramSummary program = comms::scan_program(a.program, line.data_bits, max_block);
-  const std::optional<comms::Dialect> dialect = dialect_of(a.link);
+  CheckedProgram out;
+  out.summary = comms::scan_program(a.program, line.data_bits, max_block);
+  const comms::ProgramSummary& program = out.summary;
+  out.dialect = dialect_of(a.link);
+  const std::optional<comms::Dialect>& dialect = out.dialect;
   if (dialect) {  // before the port is opened: nothing is sent
     if (const auto v = comms::check_program_file(a.program, *dialect)) {
       throw InputError(a.program + ": " + comms::describe(*v, *dialect) + "; nothing was sent");
@@ -292,89 +306,98 @@ int run_stream(const StreamArgs& a) {
                      " is out of range: the program has blocks 1 to " +
                      std::to_string(program.blocks));
   }
-  std::vector<std::string> preamble;
-  if (a.restart_from > 0) {
-    double max_z = 0.0;
-    const comms::ModalState at = state_before(a.program, a.restart_from, max_z);
-    double clearance = 0.0;
-    if (a.clearance_z_mm) {
-      clearance = *a.clearance_z_mm;
-    } else if (max_z > -1e299) {
-      clearance = max_z;
-    } else {
-      throw InputError("--restart-from " + std::to_string(a.restart_from) +
-                       ": no move before it says where the clearance plane is: give "
-                       "--clearance-z MM (work coordinates)");
-    }
-    if (clearance < at.position_mm[2]) {
-      throw InputError("--clearance-z " + text::fixed(clearance, 3) + " is below block " +
-                       std::to_string(a.restart_from) + "'s start at Z " +
-                       text::fixed(at.position_mm[2], 3) +
-                       ": give a clearance plane above the part");
-    }
-    preamble = comms::restart_blocks(at, clearance, dialect);
-  }
-  require_serial_port(a.port, "--port");  // a file or a missing port: exit 2 now, no retries
+  return out;
+}
 
-  // The journal: resume where a previous transfer of the same program stopped.
-  const std::string journal_path =
-      a.no_journal ? "" : (a.journal.empty() ? a.program + ".journal" : a.journal);
-  std::int64_t first_block = a.restart_from > 0 ? a.restart_from - 1 : 0;
-  if (!journal_path.empty() && !a.restart && a.restart_from == 0) {
-    const auto previous = comms::TransferJournal::read(journal_path);
-    if (previous && !previous->complete) {
-      if (previous->program_sha256 != program.sha256) {
-        throw InputError("the journal " + journal_path +
-                         " belongs to a different program (its checksum differs): pass "
-                         "--restart to send this program from the start, or --journal FILE");
-      }
-      if (ack) {  // with or without --resume: where grbl stands says where to restart
-        comms::SenderSettings probe;
-        probe.line = line;
-        probe.banner_wait_s = a.banner_wait_s;
-        throw InputError(advice_after_stop(probe, a.program, *previous, journal_path));
-      }
-      if (a.resume && !a.skips_repeated_n) {
-        throw InputError(
-            "--resume on a drip-feed link: the journal's block " +
-            std::to_string(previous->confirmed + 1) +
-            " is the first the controller surely lacks, but it may have received more, and it "
-            "would run them twice; pass --controller-skips-repeated-n if its manual says it "
-            "discards repeated N numbers, or check the machine and use --restart-from N");
-      }
-      if (!a.resume) {
-        throw InputError(
-            "a transfer of " + a.program + " stopped at block " +
-            std::to_string(previous->confirmed + 1) + " of " + std::to_string(previous->blocks) +
-            " (journal " + journal_path + "): " +
-            (a.skips_repeated_n
-                 ? "pass --resume to continue there"
-                 : "a drip-feed controller may have received blocks after it and runs a block it "
-                   "receives twice, so pass --resume --controller-skips-repeated-n only if its "
-                   "manual says it discards repeated N numbers, or check the machine and pass "
-                   "--restart-from N") +
-            ", or --restart to send it all again");
-      }
-      first_block = previous->confirmed;
-      if (previous->settings != comms::describe(line)) {
-        std::cerr << "ncd stream: warning: the journal was written at " << previous->settings
-                  << ", now " << comms::describe(line) << "\n";
-      }
-    } else if (a.resume) {
-      throw InputError("--resume: there is no unfinished transfer in " + journal_path +
-                       "; run without --resume to send the program");
-    }
+// --restart-from N: the blocks that bring the machine to N's start (the modal state in force
+// at N, up to the clearance plane, over N's start, down at feed); none without it.
+std::vector<std::string> restart_preamble(const StreamArgs& a,
+                                          const std::optional<comms::Dialect>& dialect) {
+  if (a.restart_from <= 0) return {};
+  double max_z = 0.0;
+  const comms::ModalState at = state_before(a.program, a.restart_from, max_z);
+  double clearance = 0.0;
+  if (a.clearance_z_mm) {
+    clearance = *a.clearance_z_mm;
+  } else if (max_z > -1e299) {
+    clearance = max_z;
+  } else {
+    throw InputError("--restart-from " + std::to_string(a.restart_from) +
+                     ": no move before it says where the clearance plane is: give "
+                     "--clearance-z MM (work coordinates)");
   }
-  std::unique_ptr<comms::TransferJournal> journal;
-  if (!journal_path.empty()) {
-    comms::JournalState start;
-    start.program_sha256 = program.sha256;
-    start.settings = comms::describe(line);
-    start.blocks = program.blocks;
-    start.confirmed = first_block;
-    journal = std::make_unique<comms::TransferJournal>(journal_path, start);
+  if (clearance < at.position_mm[2]) {
+    throw InputError("--clearance-z " + text::fixed(clearance, 3) + " is below block " +
+                     std::to_string(a.restart_from) + "'s start at Z " +
+                     text::fixed(at.position_mm[2], 3) + ": give a clearance plane above the part");
   }
+  return comms::restart_blocks(at, clearance, dialect);
+}
 
+// An unfinished transfer in the journal: refused with what to do, or (--resume on a drip link
+// whose controller skips repeated N) the block to resume at.
+std::int64_t resume_block(const StreamArgs& a, const comms::LineSettings& line,
+                          const comms::JournalState& previous, const std::string& journal_path,
+                          const std::string& sha256) {
+  if (previous.program_sha256 != sha256) {
+    throw InputError("the journal " + journal_path +
+                     " belongs to a different program (its checksum differs): pass "
+                     "--restart to send this program from the start, or --journal FILE");
+  }
+  // grbl, with or without --resume: where it stands says where to restart.
+  if (line.protocol == comms::Protocol::Ack) {
+    comms::SenderSettings probe;
+    probe.line = line;
+    probe.banner_wait_s = a.banner_wait_s;
+    throw InputError(advice_after_stop(probe, a.program, previous, journal_path));
+  }
+  if (a.resume && !a.skips_repeated_n) {
+    throw InputError(
+        "--resume on a drip-feed link: the journal's block " +
+        std::to_string(previous.confirmed + 1) +
+        " is the first the controller surely lacks, but it may have received more, and it "
+        "would run them twice; pass --controller-skips-repeated-n if its manual says it "
+        "discards repeated N numbers, or check the machine and use --restart-from N");
+  }
+  if (!a.resume) {
+    throw InputError(
+        "a transfer of " + a.program + " stopped at block " +
+        std::to_string(previous.confirmed + 1) + " of " + std::to_string(previous.blocks) +
+        " (journal " + journal_path + "): " +
+        (a.skips_repeated_n
+             ? "pass --resume to continue there"
+             : "a drip-feed controller may have received blocks after it and runs a block it "
+               "receives twice, so pass --resume --controller-skips-repeated-n only if its "
+               "manual says it discards repeated N numbers, or check the machine and pass "
+               "--restart-from N") +
+        ", or --restart to send it all again");
+  }
+  if (previous.settings != comms::describe(line)) {
+    std::cerr << "ncd stream: warning: the journal was written at " << previous.settings << ", now "
+              << comms::describe(line) << "\n";
+  }
+  return previous.confirmed;
+}
+
+// The first block to send (0-based): --restart-from's, or where a previous transfer of the
+// same program stopped (its journal), or the first.
+std::int64_t first_block_to_send(const StreamArgs& a, const comms::LineSettings& line,
+                                 const std::string& journal_path, const std::string& sha256) {
+  const std::int64_t first_block = a.restart_from > 0 ? a.restart_from - 1 : 0;
+  if (journal_path.empty() || a.restart || a.restart_from != 0) return first_block;
+  const auto previous = comms::TransferJournal::read(journal_path);
+  if (previous && !previous->complete)
+    return resume_block(a, line, *previous, journal_path, sha256);
+  if (a.resume) {
+    throw InputError("--resume: there is no unfinished transfer in " + journal_path +
+                     "; run without --resume to send the program");
+  }
+  return first_block;
+}
+
+comms::SenderSettings sender_settings(const StreamArgs& a, const comms::LineSettings& line,
+                                      const std::vector<std::string>& preamble,
+                                      const std::optional<comms::Dialect>& dialect) {
   comms::SenderSettings settings;
   settings.line = line;
   settings.max_queued_chars = a.max_queued_chars;
@@ -388,40 +411,37 @@ int run_stream(const StreamArgs& a) {
   settings.controller_skips_repeated_n = a.skips_repeated_n;
   settings.preamble = preamble;
   settings.dialect = dialect;
-  settings.halt_on_stop = ack;  // Ctrl-C: hold grbl, reset it once at rest (docs/dnc-link.md)
+  // Ctrl-C: hold grbl, reset it once at rest (docs/dnc-link.md)
+  settings.halt_on_stop = line.protocol == comms::Protocol::Ack;
   settings.unlock = a.unlock;
-  comms::ProgramFile source(a.program);
-  const bool quiet = a.quiet;
-  comms::DncSender sender(settings, source, [quiet](const comms::SenderEvent& e) {
-    if (quiet && e.kind == comms::SenderEvent::Kind::Progress) return;
-    std::cerr << "ncd stream: [" << text::fixed(e.t_s, 3) << " s] " << e.text << std::endl;
-  });
-  sender.set_journal(journal.get());
-  sender.resume_from(first_block);
-  if (!quiet) {
-    std::cerr << "ncd stream: " << a.program << ": " << program.blocks << " blocks, "
-              << program.bytes << " bytes, sha256 " << program.sha256 << "\n"
-              << "ncd stream: " << comms::describe(line) << " carries "
-              << text::fixed(comms::chars_per_s(line), 0) << " characters/s; at least "
-              << text::fixed(static_cast<double>(program.bytes) / comms::chars_per_s(line), 1)
-              << " s on the wire"
-              << (first_block > 0 ? "; resuming at block " + std::to_string(first_block + 1) : "")
-              << std::endl;
-    for (const std::string& p : preamble) std::cerr << "ncd stream: restart: " << p << "\n";
-  }
+  return settings;
+}
 
+void print_start(const StreamArgs& a, const comms::LineSettings& line,
+                 const comms::ProgramSummary& program, std::int64_t first_block,
+                 const std::vector<std::string>& preamble) {
+  std::cerr << "ncd stream: " << a.program << ": " << program.blocks << " blocks, " << program.bytes
+            << " bytes, sha256 " << program.sha256 << "\n"
+            << "ncd stream: " << comms::describe(line) << " carries "
+            << text::fixed(comms::chars_per_s(line), 0) << " characters/s; at least "
+            << text::fixed(static_cast<double>(program.bytes) / comms::chars_per_s(line), 1)
+            << " s on the wire"
+            << (first_block > 0 ? "; resuming at block " + std::to_string(first_block + 1) : "")
+            << std::endl;
+  for (const std::string& p : preamble) std::cerr << "ncd stream: restart: " << p << "\n";
+}
+
+void catch_stop_signals() {
   g_stop.store(false);
   struct sigaction sa {};
   sa.sa_handler = on_stop_signal;
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  const comms::SenderReport r = sender.run(g_stop);
+}
 
-  if (!a.report.empty()) {
-    write_output(a.report, report_json(r, line, a.program, program, journal_path).dump(2) + "\n");
-  }
-  // The program, then the transfer: what was sent, queued, executed.
+// The program, then the transfer: what was sent, queued, executed.
+void print_transfer(const comms::SenderReport& r, const comms::ProgramSummary& program, bool ack) {
   std::cout << "program: " << program.blocks << " blocks, " << program.bytes << " bytes, sha256 "
             << program.sha256 << "\n";
   std::cout << (r.completed ? "done: "
@@ -440,10 +460,11 @@ int run_stream(const StreamArgs& a) {
             << " link losses, " << r.reconnects << " resumed, " << r.blocks_resent
             << " blocks resent, " << r.noise_bytes << " noise bytes ignored\n";
   for (const std::string& n : r.notes) std::cout << "note: " << n << "\n";
-  if (r.completed) {
-    if (!journal_path.empty()) std::filesystem::remove(journal_path);
-    return 0;
-  }
+}
+
+// A transfer that did not complete: where it stopped, why, and what to do next.
+void print_unfinished(const StreamArgs& a, const comms::SenderReport& r, bool ack, bool journal,
+                      std::int64_t program_blocks) {
   if (r.stopped) {
     std::cout << "stopped; the first block not known " << (ack ? "executed" : "sent") << " is "
               << r.blocks_confirmed + 1 << "\n";
@@ -454,9 +475,56 @@ int run_stream(const StreamArgs& a) {
   if (ack && !r.controller_state.empty()) {
     std::cout << "controller: " << r.controller_state << "\n";
   }
-  const std::string next =
-      next_step(r, ack, a.skips_repeated_n, !journal_path.empty(), program.blocks);
+  const std::string next = next_step(r, ack, a.skips_repeated_n, journal, program_blocks);
   if (!next.empty()) std::cout << "next: " << next << "\n";
+}
+
+int run_stream(const StreamArgs& a) {
+  const comms::LineSettings line = line_settings(a.link, a.port);
+  check_flags(a, line);
+  const bool ack = line.protocol == comms::Protocol::Ack;
+  const CheckedProgram checked = check_program(a, line);
+  const comms::ProgramSummary& program = checked.summary;
+  const std::vector<std::string> preamble = restart_preamble(a, checked.dialect);
+  require_serial_port(a.port, "--port");  // a file or a missing port: exit 2 now, no retries
+
+  // The journal: resume where a previous transfer of the same program stopped.
+  const std::string journal_path =
+      a.no_journal ? "" : (a.journal.empty() ? a.program + ".journal" : a.journal);
+  const std::int64_t first_block = first_block_to_send(a, line, journal_path, program.sha256);
+  std::unique_ptr<comms::TransferJournal> journal;
+  if (!journal_path.empty()) {
+    comms::JournalState start;
+    start.program_sha256 = program.sha256;
+    start.settings = comms::describe(line);
+    start.blocks = program.blocks;
+    start.confirmed = first_block;
+    journal = std::make_unique<comms::TransferJournal>(journal_path, start);
+  }
+
+  comms::ProgramFile source(a.program);
+  const bool quiet = a.quiet;
+  comms::DncSender sender(sender_settings(a, line, preamble, checked.dialect), source,
+                          [quiet](const comms::SenderEvent& e) {
+                            if (quiet && e.kind == comms::SenderEvent::Kind::Progress) return;
+                            std::cerr << "ncd stream: [" << text::fixed(e.t_s, 3) << " s] "
+                                      << e.text << std::endl;
+                          });
+  sender.set_journal(journal.get());
+  sender.resume_from(first_block);
+  if (!quiet) print_start(a, line, program, first_block, preamble);
+  catch_stop_signals();
+  const comms::SenderReport r = sender.run(g_stop);
+
+  if (!a.report.empty()) {
+    write_output(a.report, report_json(r, line, a.program, program, journal_path).dump(2) + "\n");
+  }
+  print_transfer(r, program, ack);
+  if (r.completed) {
+    if (!journal_path.empty()) std::filesystem::remove(journal_path);
+    return 0;
+  }
+  print_unfinished(a, r, ack, !journal_path.empty(), program.blocks);
   return 3;
 }
 
