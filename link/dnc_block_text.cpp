@@ -4,12 +4,16 @@
 #include <cctype>
 #include <charconv>
 
+#include "gcode/lexer.hpp"
+
 namespace ncd::comms::dnc_detail {
 
+// The first token is an N word whose digits follow the letter at once (the lexer,
+// gcode/lexer.hpp, reads the words).
 bool starts_with_n_word(const std::string& text) {
-  const auto p = text.find_first_not_of(" \t");
-  return p != std::string::npos && (text[p] == 'N' || text[p] == 'n') && p + 1 < text.size() &&
-         std::isdigit(static_cast<unsigned char>(text[p + 1])) != 0;
+  const gcode::Token t = gcode::Lexer(text).next();
+  return t.kind == gcode::Token::Kind::Word && t.letter == 'N' && t.number_at == t.at + 1 &&
+         t.number_at < text.size() && std::isdigit(static_cast<unsigned char>(text[t.number_at]));
 }
 
 std::optional<long> n_word(const std::string& text) {
@@ -23,17 +27,7 @@ std::optional<long> n_word(const std::string& text) {
 
 // A `;` that grbl reads as a comment to the end of the line (not inside `( )`).
 bool has_semicolon_comment(std::string_view text) {
-  bool paren = false;
-  for (const char c : text) {
-    if (paren) {
-      paren = c != ')';
-    } else if (c == '(') {
-      paren = true;
-    } else if (c == ';') {
-      return true;
-    }
-  }
-  return false;
+  return gcode::has_semicolon_comment(text);
 }
 
 }  // namespace ncd::comms::dnc_detail

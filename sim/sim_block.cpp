@@ -7,37 +7,181 @@
 #include <vector>
 
 #include "core/number_text.hpp"
+#include "gcode/lexer.hpp"
 #include "sim/sim_impl.hpp"
 
 namespace ncd::comms {
 
 namespace {
 
-// Reads a number at text[i] ([+-] digits [. digits] or . digits); advances i. False if none.
-bool read_number(std::string_view text, std::size_t& i, double& value) {
-  std::size_t j = i;
-  bool negative = false;
-  if (j < text.size() && (text[j] == '+' || text[j] == '-')) negative = text[j++] == '-';
-  const std::size_t start = j;
-  bool digits = false;
-  while (j < text.size() && std::isdigit(static_cast<unsigned char>(text[j]))) {
-    ++j;
-    digits = true;
-  }
-  if (j < text.size() && text[j] == '.') {
-    ++j;
-    while (j < text.size() && std::isdigit(static_cast<unsigned char>(text[j]))) {
-      ++j;
-      digits = true;
+struct SimWord {
+  char letter;  // upper case
+  double value;
+};
+
+struct SimFailure {
+  int code;
+  std::string message;
+};
+
+// A block's words, read with the project's lexer (gcode/lexer.hpp): a letter, blanks, a number.
+// A comment ends nothing but itself; ';' and an unclosed '(' run to the end of the line.
+std::optional<SimFailure> sim_words(std::string_view text, std::vector<SimWord>& words) {
+  gcode::Lexer lex(text);
+  for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
+    if (t.kind == gcode::Token::Kind::Comment) continue;
+    if (t.kind == gcode::Token::Kind::Char) {
+      return SimFailure{kErrExpectedLetter,
+                        std::string("'") + text[t.at] + "' is not a word letter"};
     }
+    const std::optional<double> v = gcode::word_value(text, t);
+    if (!v) {
+      return SimFailure{kErrBadNumber,
+                        std::string("the word ") + t.letter + " has no valid number"};
+    }
+    words.push_back({t.letter, *v});
   }
-  if (!digits) return false;
-  double v = 0.0;
-  const auto r = std::from_chars(text.data() + start, text.data() + j, v);
-  if (r.ec != std::errc() || !std::isfinite(v)) return false;
-  value = negative ? -v : v;
-  i = j;
-  return true;
+  return std::nullopt;
+}
+
+// What the words of one block set, before the block is settled.
+struct SimRead {
+  SimModal next;
+  SimBlock b;
+  std::array<std::optional<double>, 3> axis;
+  std::optional<double> p_word;
+  std::optional<int> motion;  // 0, 1 or 80 given in this block
+  bool dwell = false, g64 = false, g43 = false;
+  std::optional<double> h_word;
+};
+
+std::optional<SimFailure> read_sim_g(const SimWord& w, SimRead& st) {
+  switch (w.letter) {
+    case 'G': {
+      const long code10 = std::lround(w.value * 10.0);
+      if (std::abs(w.value * 10.0 - static_cast<double>(code10)) > 1e-6) {
+        return SimFailure{kErrUnsupported, "G" + text::sig(w.value) + " is not a G code"};
+      }
+      if (code10 == 0 || code10 == 10 || code10 == 800) {
+        if (st.motion) return SimFailure{kErrModalGroup, "two motion codes in one block"};
+        st.motion = static_cast<int>(code10 / 10);
+      } else if (code10 == 40) {
+        st.dwell = true;
+        st.b.dwell = true;
+      } else if (code10 == 640) {
+        st.g64 = true;
+      } else if (code10 == 430) {
+        st.g43 = true;
+      } else if (code10 == 910) {
+        return SimFailure{kErrUnsupported,
+                          "G91 (incremental) is not supported: send absolute coordinates (G90)"};
+      } else if (code10 == 200) {
+        return SimFailure{kErrUnsupported, "G20 (inch) is not supported: send mm (G21)"};
+      } else if (code10 == 20 || code10 == 30) {
+        return SimFailure{kErrUnsupported, "G2/G3 arcs are not supported: send G1 segments"};
+      } else if (code10 != 170 && code10 != 210 && code10 != 400 && code10 != 490 &&
+                 code10 != 540 && code10 != 610 && code10 != 611 && code10 != 800 &&
+                 code10 != 900 && code10 != 940) {
+        return SimFailure{kErrUnsupported,
+                          "G" + text::sig(w.value) +
+                              " is not supported: use G0 G1 G4, or the setup codes "
+                              "G17 G21 G40 G43 G49 G54 G61 G61.1 G64 G80 G90 G94"};
+      }
+      break;
+    }
+    default:
+      break;
+  }
+  return std::nullopt;
+}
+
+std::optional<SimFailure> read_sim_m(const SimWord& w, bool integer, SimRead& st) {
+  switch (w.letter) {
+    case 'M': {
+      if (!integer)
+        return SimFailure{kErrNotInteger, "M" + text::sig(w.value) + " is not an integer"};
+      const int m = static_cast<int>(w.value);
+      if (m == 2 || m == 30) {
+        st.b.program_end = true;
+      } else if (m == 0) {
+        st.b.pause = true;
+      } else if (m == 1) {
+        st.b.optional_stop = true;
+      } else if (m == 3 || m == 4 || m == 5) {
+        st.b.spindle = m;
+      } else if (m == 6) {
+        st.b.tool_change = true;
+      } else if (m == 8 || m == 9) {
+        st.b.coolant = m == 8;
+      } else {
+        return SimFailure{
+            kErrUnsupported,
+            "M" + std::to_string(m) + " is not supported: use M0 M1 M2 M3 M4 M5 M6 M8 M9 M30"};
+      }
+      break;
+    }
+    default:
+      break;
+  }
+  return std::nullopt;
+}
+
+std::optional<SimFailure> read_sim_word(const SimWord& w, SimRead& st) {
+  const bool integer = w.value == std::floor(w.value);
+  switch (w.letter) {
+    case 'N':
+      if (!integer) {
+        return SimFailure{kErrNotInteger, "N " + text::sig(w.value) + " is not an integer"};
+      }
+      if (w.value < 0.0 || w.value > 99999999.0) {
+        return SimFailure{kErrBadLineNumber,
+                          "N " + text::sig(w.value) + " is outside 0 … 99999999"};
+      }
+      st.b.n = static_cast<long>(w.value);
+      break;
+    case 'G':
+      return read_sim_g(w, st);
+    case 'M':
+      return read_sim_m(w, integer, st);
+    case 'X':
+    case 'Y':
+    case 'Z':
+      st.axis[static_cast<std::size_t>(w.letter - 'X')] = w.value;
+      break;
+    case 'F':
+      if (w.value < 0.0)
+        return SimFailure{kErrNegative, "F " + text::sig(w.value) + " is negative"};
+      st.next.feed_mm_per_min = w.value;
+      break;
+    case 'S':
+      if (w.value < 0.0)
+        return SimFailure{kErrNegative, "S " + text::sig(w.value) + " is negative"};
+      st.b.spindle_rpm = w.value;
+      break;
+    case 'T':
+      if (!integer)
+        return SimFailure{kErrNotInteger, "T " + text::sig(w.value) + " is not an integer"};
+      if (w.value < 0.0)
+        return SimFailure{kErrNegative, "T " + text::sig(w.value) + " is negative"};
+      st.b.tool = static_cast<int>(w.value);
+      break;
+    case 'P':
+      if (w.value < 0.0)
+        return SimFailure{kErrNegative, "P " + text::sig(w.value) + " is negative"};
+      st.p_word = w.value;
+      break;
+    case 'H':
+      if (!integer)
+        return SimFailure{kErrNotInteger, "H " + text::sig(w.value) + " is not an integer"};
+      if (w.value < 0.0)
+        return SimFailure{kErrNegative, "H " + text::sig(w.value) + " is negative"};
+      st.h_word = w.value;
+      break;
+    default:
+      return SimFailure{kErrUnsupported, std::string("the word ") + w.letter +
+                                             " is not supported: use N G X Y Z F S M T P H"};
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -50,143 +194,27 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
     r.block = SimBlock{};
     return r;
   };
-  struct Word {
-    char letter;
-    double value;
-  };
-  std::vector<Word> words;
-  for (std::size_t i = 0; i < text.size();) {
-    const char c = text[i];
-    if (c == ' ' || c == '\t') {
-      ++i;
-    } else if (c == '(') {
-      const auto close = text.find(')', i);
-      if (close == std::string_view::npos) break;  // an unclosed comment runs to the end
-      i = close + 1;
-    } else if (c == ';') {
-      break;
-    } else if (std::isalpha(static_cast<unsigned char>(c))) {
-      const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-      ++i;
-      while (i < text.size() && (text[i] == ' ' || text[i] == '\t')) ++i;
-      double v = 0.0;
-      if (!read_number(text, i, v)) {
-        return fail(kErrBadNumber, std::string("the word ") + letter + " has no valid number");
-      }
-      words.push_back({letter, v});
-    } else {
-      return fail(kErrExpectedLetter, std::string("'") + c + "' is not a word letter");
-    }
-  }
-
-  SimModal next = modal;
-  SimBlock b;
-  std::array<std::optional<double>, 3> axis;
-  std::optional<double> p_word;
-  std::optional<int> motion;  // 0, 1 or 80 given in this block
-  bool dwell = false, g64 = false, g43 = false;
-  std::optional<double> h_word;
+  std::vector<SimWord> words;
+  if (auto f = sim_words(text, words)) return fail(f->code, std::move(f->message));
+  SimRead st;
+  st.next = modal;
   std::string seen;  // letters that may not repeat
-  for (const Word& w : words) {
-    const bool integer = w.value == std::floor(w.value);
+  for (const SimWord& w : words) {
     if (w.letter != 'G' && w.letter != 'M') {
       if (seen.find(w.letter) != std::string::npos) {
         return fail(kErrRepeatedWord, std::string("the word ") + w.letter + " appears twice");
       }
       seen += w.letter;
     }
-    switch (w.letter) {
-      case 'N':
-        if (!integer) return fail(kErrNotInteger, "N " + text::sig(w.value) + " is not an integer");
-        if (w.value < 0.0 || w.value > 99999999.0) {
-          return fail(kErrBadLineNumber, "N " + text::sig(w.value) + " is outside 0 … 99999999");
-        }
-        b.n = static_cast<long>(w.value);
-        break;
-      case 'G': {
-        const long code10 = std::lround(w.value * 10.0);
-        if (std::abs(w.value * 10.0 - static_cast<double>(code10)) > 1e-6) {
-          return fail(kErrUnsupported, "G" + text::sig(w.value) + " is not a G code");
-        }
-        if (code10 == 0 || code10 == 10 || code10 == 800) {
-          if (motion) return fail(kErrModalGroup, "two motion codes in one block");
-          motion = static_cast<int>(code10 / 10);
-        } else if (code10 == 40) {
-          dwell = true;
-          b.dwell = true;
-        } else if (code10 == 640) {
-          g64 = true;
-        } else if (code10 == 430) {
-          g43 = true;
-        } else if (code10 == 910) {
-          return fail(kErrUnsupported,
-                      "G91 (incremental) is not supported: send absolute coordinates (G90)");
-        } else if (code10 == 200) {
-          return fail(kErrUnsupported, "G20 (inch) is not supported: send mm (G21)");
-        } else if (code10 == 20 || code10 == 30) {
-          return fail(kErrUnsupported, "G2/G3 arcs are not supported: send G1 segments");
-        } else if (code10 != 170 && code10 != 210 && code10 != 400 && code10 != 490 &&
-                   code10 != 540 && code10 != 610 && code10 != 611 && code10 != 800 &&
-                   code10 != 900 && code10 != 940) {
-          return fail(kErrUnsupported, "G" + text::sig(w.value) +
-                                           " is not supported: use G0 G1 G4, or the setup codes "
-                                           "G17 G21 G40 G43 G49 G54 G61 G61.1 G64 G80 G90 G94");
-        }
-        break;
-      }
-      case 'M': {
-        if (!integer) return fail(kErrNotInteger, "M" + text::sig(w.value) + " is not an integer");
-        const int m = static_cast<int>(w.value);
-        if (m == 2 || m == 30) {
-          b.program_end = true;
-        } else if (m == 0) {
-          b.pause = true;
-        } else if (m == 1) {
-          b.optional_stop = true;
-        } else if (m == 3 || m == 4 || m == 5) {
-          b.spindle = m;
-        } else if (m == 6) {
-          b.tool_change = true;
-        } else if (m == 8 || m == 9) {
-          b.coolant = m == 8;
-        } else {
-          return fail(kErrUnsupported, "M" + std::to_string(m) +
-                                           " is not supported: use M0 M1 M2 M3 M4 M5 M6 M8 M9 M30");
-        }
-        break;
-      }
-      case 'X':
-      case 'Y':
-      case 'Z':
-        axis[static_cast<std::size_t>(w.letter - 'X')] = w.value;
-        break;
-      case 'F':
-        if (w.value < 0.0) return fail(kErrNegative, "F " + text::sig(w.value) + " is negative");
-        next.feed_mm_per_min = w.value;
-        break;
-      case 'S':
-        if (w.value < 0.0) return fail(kErrNegative, "S " + text::sig(w.value) + " is negative");
-        b.spindle_rpm = w.value;
-        break;
-      case 'T':
-        if (!integer) return fail(kErrNotInteger, "T " + text::sig(w.value) + " is not an integer");
-        if (w.value < 0.0) return fail(kErrNegative, "T " + text::sig(w.value) + " is negative");
-        b.tool = static_cast<int>(w.value);
-        break;
-      case 'P':
-        if (w.value < 0.0) return fail(kErrNegative, "P " + text::sig(w.value) + " is negative");
-        p_word = w.value;
-        break;
-      case 'H':
-        if (!integer) return fail(kErrNotInteger, "H " + text::sig(w.value) + " is not an integer");
-        if (w.value < 0.0) return fail(kErrNegative, "H " + text::sig(w.value) + " is negative");
-        h_word = w.value;
-        break;
-      default:
-        return fail(kErrUnsupported, std::string("the word ") + w.letter +
-                                         " is not supported: use N G X Y Z F S M T P H");
-    }
+    if (auto f = read_sim_word(w, st)) return fail(f->code, std::move(f->message));
   }
+  SimModal& next = st.next;
+  SimBlock& b = st.b;
+  const auto& axis = st.axis;
+  const auto& p_word = st.p_word;
+  const auto& motion = st.motion;
+  const bool dwell = st.dwell, g64 = st.g64, g43 = st.g43;
+  const auto& h_word = st.h_word;
   // G43 H n: the length of tool n from the controller's table, which this model holds as 0
   // for every tool: the programmed point is the one the blocks drive.
   if (g43 && !h_word) return fail(kErrMissingValue, "G43 needs H, the tool table's entry");
