@@ -9,6 +9,7 @@
 //     corners are gentle enough or P large enough.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -312,6 +313,57 @@ TEST(Blend, PlainG64TakesTheMachinesBlendTolerance) {
       EXPECT_EQ(w.blended, 0u);
     }
     EXPECT_LT((w.sp.back().p - pts.back()).norm(), 1e-9);
+  }
+}
+
+// G61, G61.1 and G64 P0 (and a plain G64 with blend_tolerance_mm 0) hold every programmed end
+// point exactly: a setpoint lands on it, gentle corners included (passed at the sampler's corner
+// speed they would be missed by up to the chord tolerance). G64 P0.01 passes them within P.
+TEST(Blend, ExactModesAndP0HoldEveryEndPointExactly) {
+  const std::vector<Vec3> pts{{0, 0, 0}, {10, 0, 0}, {20, 1, 0}, {30, 1.5, 0}, {40, 4, 0}};
+  const auto nearest = [&](const std::vector<Setpoint>& sp, const Vec3& v) {
+    double d = v.norm();  // the start, before the first period
+    Vec3 before = Vec3::Zero();
+    for (const Setpoint& x : sp) {
+      d = std::min(d, test::distance_to_segment(v, before, x.p));
+      before = x.p;
+    }
+    return d;
+  };
+  const auto on_a_setpoint = [&](const std::vector<Setpoint>& sp, const Vec3& v) {
+    return std::any_of(sp.begin(), sp.end(),
+                       [&](const Setpoint& x) { return (x.p - v).norm() <= 1e-9; });
+  };
+  struct Case {
+    const char* name;
+    PathControl mode;
+    std::optional<double> p_mm;
+    double machine_tolerance_mm;
+  };
+  for (const Case& c : {Case{"G61", PathControl::exact_stop, std::nullopt, 0.01},
+                        Case{"G61.1", PathControl::exact_path, std::nullopt, 0.01},
+                        Case{"G64 P0", PathControl::blend, 0.0, 0.01},
+                        Case{"G64, blend_tolerance_mm 0", PathControl::blend, std::nullopt, 0.0},
+                        Case{"G64 P0.01", PathControl::blend, 0.01, 0.01}}) {
+    Path path;
+    path.segments.push_back(move(pts, 3000.0, c.p_mm, c.mode));
+    JobConfig config = test::planner_machine();
+    config.limits.blend_tolerance_mm = c.machine_tolerance_mm;
+    const Walk w = run(path, config);
+    double worst = 0.0;
+    bool exact = true;
+    for (std::size_t v = 1; v + 1 < pts.size(); ++v) {
+      worst = std::max(worst, nearest(w.sp, pts[v]));
+      exact = exact && on_a_setpoint(w.sp, pts[v]);
+    }
+    std::printf("%s: %.3f s, end points passed %.2g mm away at most, %s\n", c.name, w.duration_s,
+                worst, exact ? "each on a setpoint" : "not all on a setpoint");
+    if (c.p_mm.value_or(c.machine_tolerance_mm) > 0.0 && c.mode == PathControl::blend) {
+      EXPECT_LE(worst, 0.01) << c.name;
+      EXPECT_FALSE(exact) << c.name << ": the gentle corners are passed, not stopped at";
+    } else {
+      EXPECT_TRUE(exact) << c.name;
+    }
   }
 }
 
