@@ -267,7 +267,8 @@ Canonical canonical_path(const std::string& text) {
 // chord, and every breach.
 struct Verdict {
   double worst_mm = 0.0, worst_of_p = 0.0;  // the farthest setpoint, and its distance / P
-  std::vector<std::string> breaches;
+  std::vector<std::string> breaches;        // the first few, described
+  std::vector<std::size_t> breached_moves;  // rs274's move of every breach
 };
 
 std::string where(const V3& p) {
@@ -296,6 +297,7 @@ void check_setpoints(const std::vector<Piece>& pieces, const std::vector<V3>& sp
     double tol = pieces[at].tolerance_mm;
     if (at > 0) tol = std::max(tol, pieces[at - 1].tolerance_mm);
     if (best / tol > v.worst_of_p) v.worst_of_p = best / tol, v.worst_mm = best;
+    if (best > tol) v.breached_moves.push_back(at);
     if (best > tol && v.breaches.size() < 8) {
       char b[200];
       std::snprintf(b, sizeof b, "setpoint %zu %s is %.4f mm from rs274's path (P %.4f)", n,
@@ -332,6 +334,7 @@ void check_end_points(const std::vector<Piece>& pieces, const std::vector<V3>& s
       }
     }
     if (sp.size() == 1) passed = norm(m.end - sp[0]) <= m.tolerance_mm;
+    if (!passed) v.breached_moves.push_back(k);
     if (passed) {
       from = i;
       allowance = 0.0;
@@ -348,6 +351,7 @@ void check_end_points(const std::vector<Piece>& pieces, const std::vector<V3>& s
   }
   if (!pieces.empty() && !sp.empty()) {
     if (norm(sp.back() - pieces.back().end) > pieces.back().slack_mm) {
+      v.breached_moves.push_back(pieces.size() - 1);
       v.breaches.push_back("the final setpoint " + where(sp.back()) + " is not rs274's " +
                            where(pieces.back().end));
     }
@@ -359,6 +363,7 @@ enum class Kind { match, differs, refused, rs274_refuses, not_comparable };
 struct Outcome {
   Kind kind = Kind::differs;
   std::string detail;
+  std::size_t first_breach = 0, last_breach = 0;  // rs274's moves where it differs
 };
 
 class Workspace {
@@ -494,7 +499,12 @@ Outcome walk_and_compare(const fs::path& program) {
   s << path.pieces.size() << " moves, " << sp.size() << " setpoints, farthest " << v.worst_mm
     << " mm (" << v.worst_of_p << " of P)";
   for (const std::string& b : v.breaches) s << "\n  " << b;
-  return {v.breaches.empty() ? Kind::match : Kind::differs, s.str()};
+  Outcome o{v.breaches.empty() ? Kind::match : Kind::differs, s.str()};
+  if (!v.breached_moves.empty()) {
+    o.first_breach = *std::min_element(v.breached_moves.begin(), v.breached_moves.end());
+    o.last_breach = *std::max_element(v.breached_moves.begin(), v.breached_moves.end());
+  }
+  return o;
 }
 
 class WalkedPath : public ::testing::TestWithParam<fs::path> {
@@ -505,17 +515,25 @@ class WalkedPath : public ::testing::TestWithParam<fs::path> {
 };
 
 // Programs whose walk differs from rs274's for a reason in the interpreter (gcode/), not in the
-// planner, each with the reason: its test expects the difference and fails once it is gone, so
-// that the entry is removed with the fix.
-const std::map<std::string, std::string> kInterpreterDifferences = {
+// planner, each with the reason and rs274's moves (0-based, in its canonical output) where it
+// differs: elsewhere the walk must match. Its test expects the difference and fails once it is
+// gone, so that the entry is removed with the fix.
+struct Known {
+  std::string reason;
+  std::size_t first_move, last_move;
+};
+const std::map<std::string, Known> kInterpreterDifferences = {
     {"skeleton.ngc",
-     "T1 M06 G43 H1 on one line after moves of zero length only: ncd's path starts at the "
-     "offset position (Z +12.7 mm) instead of where the machine stands (gcode/program.cpp skips "
-     "zero-length moves before it records the machine's position, motion_start_mm)"},
+     {"T1 M06 G43 H1 on one line after moves of zero length only: ncd's path starts at the "
+      "offset position (Z +12.7 mm) instead of where the machine stands (gcode/program.cpp "
+      "skips zero-length moves before it records the machine's position, motion_start_mm); "
+      "the end points after it are then looked for 12.7 mm of travel too early",
+      2, 5}},
     {"useful-subroutines.ngc",
-     "after G40 the next move (G0 Z only) keeps the programmed X Y under compensation, where "
-     "LinuxCNC keeps the tool's compensated position (0.0313 in, 0.79 mm, apart; the 0.236 mm "
-     "reported in issue 32 is this)"},
+     {"after G40 the next move (G0 Z only) keeps the programmed X Y under compensation, where "
+      "LinuxCNC keeps the tool's compensated position (0.0313 in, 0.79 mm, apart; the 0.236 mm "
+      "reported in issue 32 is this)",
+      18, 19}},
 };
 
 TEST_P(WalkedPath, IsRs274sPathWithinP) {
@@ -529,7 +547,9 @@ TEST_P(WalkedPath, IsRs274sPathWithinP) {
                                                           : kInterpreterDifferences.end();
   if (known != kInterpreterDifferences.end()) {
     EXPECT_EQ(o.kind, Kind::differs)
-        << file << " no longer differs (" << known->second << "): remove it from the list";
+        << file << " no longer differs (" << known->second.reason << "): remove it from the list";
+    EXPECT_GE(o.first_breach, known->second.first_move) << file << ": " << o.detail;
+    EXPECT_LE(o.last_breach, known->second.last_move) << file << ": " << o.detail;
     return;
   }
   EXPECT_TRUE(o.kind != Kind::differs) << file << ": " << o.detail;
