@@ -149,6 +149,29 @@ std::vector<double> numbers(const std::string& args) {
   return v;
 }
 
+// An arc's radii at both ends, start angle, sweep (`turns` as rs274 prints it: its sign the
+// direction, counter-clockwise positive, |turns| − 1 full turns more) and length.
+void set_sweep(Piece& m, int turns) {
+  const auto& axes = m.axes;
+  const double u0 = m.start[axes[0]] - m.cu, v0 = m.start[axes[1]] - m.cv;
+  const double u1 = m.end[axes[0]] - m.cu, v1 = m.end[axes[1]] - m.cv;
+  m.r0 = std::hypot(u0, v0);
+  m.r1 = std::hypot(u1, v1);
+  m.t0 = std::atan2(v0, u0);
+  const double turn = 2.0 * std::numbers::pi;
+  double sweep = std::atan2(v1, u1) - m.t0;
+  if (turns > 0) {
+    while (sweep <= 1e-12) sweep += turn;
+    sweep += turn * (turns - 1);
+  } else {
+    while (sweep >= -1e-12) sweep -= turn;
+    sweep -= turn * (-turns - 1);
+  }
+  m.sweep = sweep;
+  m.length_mm =
+      std::hypot(std::abs(sweep) * std::max(m.r0, m.r1), m.end[axes[2]] - m.start[axes[2]]);
+}
+
 // rs274's canonical moves as a path from machine 0,0,0, with the P of each move.
 Canonical canonical_path(const std::string& text) {
   Canonical c;
@@ -236,24 +259,7 @@ Canonical canonical_path(const std::string& text) {
       const V3 cm = machine(centre);
       m.cu = cm[axes[0]];
       m.cv = cm[axes[1]];
-      const int turns = static_cast<int>(std::lround(v[4]));
-      const double u0 = m.start[axes[0]] - m.cu, v0 = m.start[axes[1]] - m.cv;
-      const double u1 = m.end[axes[0]] - m.cu, v1 = m.end[axes[1]] - m.cv;
-      m.r0 = std::hypot(u0, v0);
-      m.r1 = std::hypot(u1, v1);
-      m.t0 = std::atan2(v0, u0);
-      const double turn = 2.0 * std::numbers::pi;
-      double sweep = std::atan2(v1, u1) - m.t0;
-      if (turns > 0) {
-        while (sweep <= 1e-12) sweep += turn;
-        sweep += turn * (turns - 1);
-      } else {
-        while (sweep >= -1e-12) sweep -= turn;
-        sweep -= turn * (-turns - 1);
-      }
-      m.sweep = sweep;
-      m.length_mm =
-          std::hypot(std::abs(sweep) * std::max(m.r0, m.r1), m.end[axes[2]] - m.start[axes[2]]);
+      set_sweep(m, static_cast<int>(std::lround(v[4])));
     } else {
       continue;
     }
