@@ -136,7 +136,10 @@ Corner plan_corner(const Vec3& a, const Vec3& v, const Vec3& b, double p_mm, dou
   if (c.phi_rad < kMinTurnRad || c.half_cos < kMinHalfCos) return c;
   const double one_minus = 2.0 * std::pow(std::sin(0.25 * c.phi_rad), 2);  // 1 − cos(φ/2), exact
   const double tan_half = std::tan(0.5 * c.phi_rad);
-  const double r_p = p_mm / one_minus;  // the arc's midpoint lies R (1 − cos(φ/2)) off both legs
+  // The arc's midpoint lies R (1 − cos(φ/2)) / cos(φ/2) from the vertex (the programmed end
+  // point) and R (1 − cos(φ/2)) off both legs: P bounds the first, which is the larger, less
+  // the chord tolerance, by which a chord between two setpoints on the arc lies farther.
+  const double r_p = std::max(p_mm - l.chord_tolerance_mm, 0.0) * c.half_cos / one_minus;
   c.tangent_mm = std::min({r_p * tan_half, 0.5 * l_in, 0.5 * l_out});
   c.radius_mm = c.tangent_mm / tan_half;
   if (!(c.tangent_mm >= kMinTangentMm) || !std::isfinite(c.radius_mm)) return c;
@@ -278,7 +281,8 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
       spans.push_back({c.v, end, c.half_cos, c.radius_mm * c.phi_rad});
       at = end;
       ++rep.corners;
-      rep.max_deviation_mm = std::max(rep.max_deviation_mm, c.radius_mm * (1.0 - c.half_cos));
+      rep.max_deviation_mm =
+          std::max(rep.max_deviation_mm, c.radius_mm * (1.0 - c.half_cos) / c.half_cos);
     };
     for (std::size_t v = 1; v < pts.size(); ++v) {
       const Corner* c = v + 1 < pts.size() ? &inner[v - 1] : &joint[k];

@@ -95,6 +95,16 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kFineBelowCap = 0.999;
 constexpr double kFineStep = 0.005;
 
+// The mode that decides whether a corner is a rest. G64 P0 (or a plain G64 with
+// blend_tolerance_mm 0) holds its end points exactly, as G61.1 does: its corners are rests
+// (docs/planner.md §3a; passed at the corner speed they would be missed by up to ε_c).
+toolpath::PathControl corner_mode(const toolpath::PathSegment& s, const MachineLimits& l) {
+  if (s.path_control != toolpath::PathControl::blend) return s.path_control;
+  const double p_mm = s.blend_tolerance_mm.value_or(l.blend_tolerance_mm);
+  return std::isfinite(p_mm) && p_mm > 0.0 ? toolpath::PathControl::blend
+                                           : toolpath::PathControl::exact_path;
+}
+
 // The argument of the minimum of a unimodal f on [a, b], by golden section, to width tol.
 template <typename F>
 double golden_section_min(F&& f, double a, double b, double tol) {
@@ -234,7 +244,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       const bool summed_stop =
           phi_sum > phi_alone && !(corner.feed_mm_per_s >= stop_below_mm_per_s());
       if (path.segments[k].stop_before || summed_stop ||
-          must_stop(d_in, d_out, path.segments[k - 1].path_control, corner)) {
+          must_stop(d_in, d_out, corner_mode(path.segments[k - 1], limits_), corner)) {
         if (stops_mm_.empty() || starts_mm_[k] > stops_mm_.back()) {
           stops_mm_.push_back(starts_mm_[k]);
         }
@@ -276,7 +286,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
           }
           continue;
         }
-        if (must_stop(d_in, d_out, path.segments[k].path_control, corner)) {
+        if (must_stop(d_in, d_out, corner_mode(path.segments[k], limits_), corner)) {
           if (stops_mm_.empty() || s > stops_mm_.back()) stops_mm_.push_back(s);
         } else {
           inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner, share});
@@ -407,7 +417,8 @@ bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const
   const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
   const Vec3 d_in = unit_or_zero(line.points[vertex] - line.points[vertex - 1]);
   const Vec3 d_out = unit_or_zero(line.points[vertex + 1] - line.points[vertex]);
-  return must_stop(d_in, d_out, path_.segments[segment].path_control, corner_speed(d_in, d_out));
+  return must_stop(d_in, d_out, corner_mode(path_.segments[segment], limits_),
+                   corner_speed(d_in, d_out));
 }
 
 // κ: the larger curvature of the two sides at the corner (curves meeting there): the chord

@@ -19,6 +19,8 @@
 // measured on the setpoints themselves:
 //   - every setpoint and chord midpoint, and the continuous motion at the quarter points of
 //     each period, within the move's G64 P of the two pieces;
+//   - the vertex (the programmed end point) within P of a chord of the result: the superposed
+//     path's apex lies farther from the vertex than from the pieces, by 1 / cos(φ/2);
 //   - the continuous motion within the chord tolerance of each period's chord;
 //   - |Δp|/T ≤ the maximum feed, |Δ²p|/T² ≤ a_max, |Δ³p|/T³ ≤ the jerk-vector limit, over the
 //     window and three setpoints on each side of it;
@@ -33,6 +35,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace ncd::motion {
 namespace {
@@ -102,7 +105,13 @@ bool feasible(const SharpCorner& c, const OverlapLimits& l, std::span<const Over
       if (!(segment_distance_mm(x, a, b) <= l.chord_tolerance_mm)) return false;
     }
   }
-  return true;
+  // The programmed end point, the vertex, is passed within P: by a chord of the setpoints, the
+  // line the machine interpolates between them.
+  double to_vertex = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 1; i < n; ++i) {
+    to_vertex = std::min(to_vertex, segment_distance_mm(c.vertex_mm, q[i - 1], q[i]));
+  }
+  return to_vertex <= tol;
 }
 
 }  // namespace

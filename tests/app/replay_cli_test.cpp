@@ -416,13 +416,18 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   // (The peak use is 78.6 % against the 80 % margin: a sampler change that moved a few nodes
   // once lowered one 0.0197 mm block from 98.5 to 86 mm/min. The short-move landing of
   // docs/planner.md §6 made the approach's stops steeper and the program 0.116 s shorter; it
-  // also lowers a 0.002 mm block at the turn after a stop from 15 to 11 mm/min: 4 blocks.)
+  // also lowers a 0.002 mm block at the turn after a stop from 15 to 11 mm/min: 4 blocks.
+  // Issue 32's blend arcs pass the programmed end point within P: the approach's arc at
+  // s = 21.58 mm is smaller (R sized to the vertex), its blocks are cut to 0.013 mm instead of
+  // 0.020 mm, and the link lowers 2 blocks (0.028 mm) from 101 to 55 mm/min and the block after
+  // the stop (0.0002 mm) from 15 to 5.5 mm/min: 3 blocks, by at most half.)
   EXPECT_LE(b["feed_lowered"]["blocks"].get<int>(), 4);
   for (const auto& range : b["feed_lowered"]["range_list"]) {
     EXPECT_NE(range["reason"].get<std::string>().find("the link"), std::string::npos) << range;
     EXPECT_GE(range["lowered_feed_min_mm_per_min"].get<double>(),
-              0.7 * range["planned_feed_mm_per_min"].get<double>())
+              0.35 * range["planned_feed_mm_per_min"].get<double>())
         << range;
+    EXPECT_LE(range["s_to_mm"].get<double>() - range["s_from_mm"].get<double>(), 0.1) << range;
   }
   EXPECT_LE(b["duration_s"].get<double>(), b["planned_duration_s"].get<double>() + 0.02);
   EXPECT_EQ(b["queue_model"]["underruns"].get<int>(), 0);

@@ -9,6 +9,7 @@
 //     corners are gentle enough or P large enough.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -76,32 +77,77 @@ Path with_mode(Path p, PathControl mode) {
 }
 
 // Largest distance of the walked geometry, sampled every ~1 µm, from the programmed polyline,
-// and the largest curvature met on it.
+// the largest curvature met on it, and (if asked) how far it passes from the programmed end
+// point it passes farthest from (the inner vertices: the ends are walked exactly).
 void sample_walked(const Path& walked, const std::vector<Vec3>& program, double& max_dev_mm,
-                   double& max_kappa) {
+                   double& max_kappa, double* max_vertex_mm = nullptr) {
   max_dev_mm = 0.0;
   max_kappa = 0.0;
+  // The distance from a vertex is sharply curved near the apex: the nearest sample's u is
+  // refined by a ternary search over its two neighbouring intervals.
+  std::vector<double> vertex(program.size(), std::numeric_limits<double>::infinity());
+  std::vector<double> vertex_u(program.size(), 0.0);
+  std::vector<const NurbsCurve*> vertex_curve(program.size(), nullptr);
+  const NurbsCurve* curve = nullptr;
+  double u_at = 0.0;
+  const auto near_vertices = [&](const Vec3& q) {
+    for (std::size_t v = 1; v + 1 < program.size(); ++v) {
+      const double d = (q - program[v]).norm();
+      if (d < vertex[v]) vertex[v] = d, vertex_u[v] = u_at, vertex_curve[v] = curve;
+    }
+  };
+  double du = 0.0;
   for (const auto& seg : walked.segments) {
     if (const auto* line = std::get_if<Polyline>(&seg.geometry)) {
+      curve = nullptr;
       for (const auto& q : line->points) {
         max_dev_mm = std::max(max_dev_mm, distance_to_program(program, q));
+        near_vertices(q);
       }
       continue;
     }
     const auto& c = std::get<NurbsCurve>(seg.geometry);
-    const int n = static_cast<int>((c.u_end() - c.u_begin()) / 0.001) + 100;
+    // Every ~1 µm: u runs over the control polygon's length at most (the knots may be scaled).
+    double polygon_mm = 0.0;
+    for (std::size_t i = 1; i < c.points().size(); ++i) {
+      polygon_mm += (c.points()[i] - c.points()[i - 1]).norm();
+    }
+    const int n = static_cast<int>(polygon_mm / 0.001) + 100;
+    curve = &c;
+    du = (c.u_end() - c.u_begin()) / n;
     for (int i = 0; i <= n; ++i) {
-      const auto p = c.eval(c.u_begin() + (c.u_end() - c.u_begin()) * i / n);
+      u_at = c.u_begin() + (c.u_end() - c.u_begin()) * i / n;
+      const auto p = c.eval(u_at);
       max_dev_mm = std::max(max_dev_mm, distance_to_program(program, p.p));
       max_kappa = std::max(max_kappa, p.d1.cross(p.d2).norm() / std::pow(p.d1.norm(), 3));
+      near_vertices(p.p);
+    }
+  }
+  if (max_vertex_mm) {
+    *max_vertex_mm = 0.0;
+    for (std::size_t v = 1; v + 1 < program.size(); ++v) {
+      if (!vertex_curve[v]) continue;
+      const NurbsCurve& c = *vertex_curve[v];
+      const auto dist = [&](double u) { return (c.eval(u).p - program[v]).norm(); };
+      double lo = std::max(c.u_begin(), vertex_u[v] - du);
+      double hi = std::min(c.u_end(), vertex_u[v] + du);
+      for (int k = 0; k < 100; ++k) {
+        const double a = lo + (hi - lo) / 3.0, b = hi - (hi - lo) / 3.0;
+        (dist(a) < dist(b) ? hi : lo) = dist(a) < dist(b) ? b : a;
+      }
+      vertex[v] = std::min(vertex[v], dist(0.5 * (lo + hi)));
+    }
+    for (std::size_t v = 1; v + 1 < program.size(); ++v) {
+      *max_vertex_mm = std::max(*max_vertex_mm, vertex[v]);
     }
   }
 }
 
 // The arc of a corner turning by phi within p, in closed form, and the speed its curve laws
 // allow (centripetal acceleration and jerk, chord error of one period, the feed).
+// The midpoint lies R (1 − cos(φ/2)) / cos(φ/2) from the vertex: P less the chord tolerance.
 double arc_radius_mm(double phi, double p_mm) {
-  return p_mm / (1.0 - std::cos(0.5 * phi));  // the midpoint R (1 − cos(φ/2)) off both legs
+  return (p_mm - kEps) * std::cos(0.5 * phi) / (1.0 - std::cos(0.5 * phi));
 }
 double arc_speed(double r_mm, double feed) {
   const double chord = 2.0 * std::sqrt(2.0 * r_mm * kEps - kEps * kEps) / kT;
@@ -188,10 +234,13 @@ TEST(Blend, GentleZigZagStaysWithinPAndBeatsExactStopAndTheSharpCorner) {
   double worst = 0.0;
   for (const auto& sp : g64.sp) worst = std::max(worst, distance_to_program(pts, sp.p));
   EXPECT_LE(worst, p_mm * (1.0 + 1e-9));
-  double dev = 0.0, kappa = 0.0;
-  sample_walked(g64.walked, pts, dev, kappa);
-  EXPECT_LE(dev, p_mm * (1.0 + 1e-9));
-  EXPECT_GE(dev, 0.999 * p_mm);  // the corner is rounded by all of P, no less
+  double dev = 0.0, kappa = 0.0, vertex = 0.0;
+  sample_walked(g64.walked, pts, dev, kappa, &vertex);
+  // Every programmed end point is passed within P: by P less the chord tolerance, no less (a
+  // chord between setpoints on the arc lies up to the chord tolerance farther).
+  EXPECT_LE(vertex, p_mm - kEps + 1e-9);
+  EXPECT_GE(vertex, 0.999 * (p_mm - kEps));
+  EXPECT_LE(dev, (p_mm - kEps) * std::cos(0.5 * phi) + 1e-9);  // off the pieces: cos(φ/2) less
   const double r_mm = arc_radius_mm(phi, p_mm);
   EXPECT_NEAR(kappa, 1.0 / r_mm, 1e-6 / r_mm);
   EXPECT_LT((g64.sp.back().p - pts.back()).norm(), 1e-9);
@@ -248,19 +297,73 @@ TEST(Blend, PlainG64TakesTheMachinesBlendTolerance) {
     JobConfig c = test::planner_machine();
     c.limits.blend_tolerance_mm = tol_mm;
     const Walk w = run(path, c);
-    double dev = 0.0, kappa = 0.0;
-    sample_walked(w.walked, pts, dev, kappa);
+    double dev = 0.0, kappa = 0.0, vertex = 0.0;
+    sample_walked(w.walked, pts, dev, kappa, &vertex);
     for (const Setpoint& sp : w.sp) dev = std::max(dev, distance_to_program(pts, sp.p));
-    std::printf("plain G64, blend_tolerance_mm %.2f: %zu corners rounded, deviation %.5f mm\n",
-                tol_mm, w.blended, dev);
+    std::printf(
+        "plain G64, blend_tolerance_mm %.2f: %zu corners rounded, deviation %.5f mm, end "
+        "points passed %.5f mm away at most\n",
+        tol_mm, w.blended, dev, vertex);
     EXPECT_LE(dev, tol_mm + 1e-9);
+    EXPECT_LE(vertex, tol_mm + 1e-9);
     if (tol_mm > 0.0) {
       EXPECT_EQ(w.blended, 11u);
-      EXPECT_GE(dev, 0.999 * tol_mm);  // rounded by the whole tolerance, as G64 P would
+      EXPECT_GE(vertex, 0.999 * (tol_mm - kEps));  // rounded by the whole tolerance, as G64 P
     } else {
       EXPECT_EQ(w.blended, 0u);
     }
     EXPECT_LT((w.sp.back().p - pts.back()).norm(), 1e-9);
+  }
+}
+
+// G61, G61.1 and G64 P0 (and a plain G64 with blend_tolerance_mm 0) hold every programmed end
+// point exactly: a setpoint lands on it, gentle corners included (passed at the sampler's corner
+// speed they would be missed by up to the chord tolerance). G64 P0.01 passes them within P.
+TEST(Blend, ExactModesAndP0HoldEveryEndPointExactly) {
+  const std::vector<Vec3> pts{{0, 0, 0}, {10, 0, 0}, {20, 1, 0}, {30, 1.5, 0}, {40, 4, 0}};
+  const auto nearest = [&](const std::vector<Setpoint>& sp, const Vec3& v) {
+    double d = v.norm();  // the start, before the first period
+    Vec3 before = Vec3::Zero();
+    for (const Setpoint& x : sp) {
+      d = std::min(d, test::distance_to_segment(v, before, x.p));
+      before = x.p;
+    }
+    return d;
+  };
+  const auto on_a_setpoint = [&](const std::vector<Setpoint>& sp, const Vec3& v) {
+    return std::any_of(sp.begin(), sp.end(),
+                       [&](const Setpoint& x) { return (x.p - v).norm() <= 1e-9; });
+  };
+  struct Case {
+    const char* name;
+    PathControl mode;
+    std::optional<double> p_mm;
+    double machine_tolerance_mm;
+  };
+  for (const Case& c : {Case{"G61", PathControl::exact_stop, std::nullopt, 0.01},
+                        Case{"G61.1", PathControl::exact_path, std::nullopt, 0.01},
+                        Case{"G64 P0", PathControl::blend, 0.0, 0.01},
+                        Case{"G64, blend_tolerance_mm 0", PathControl::blend, std::nullopt, 0.0},
+                        Case{"G64 P0.01", PathControl::blend, 0.01, 0.01}}) {
+    Path path;
+    path.segments.push_back(move(pts, 3000.0, c.p_mm, c.mode));
+    JobConfig config = test::planner_machine();
+    config.limits.blend_tolerance_mm = c.machine_tolerance_mm;
+    const Walk w = run(path, config);
+    double worst = 0.0;
+    bool exact = true;
+    for (std::size_t v = 1; v + 1 < pts.size(); ++v) {
+      worst = std::max(worst, nearest(w.sp, pts[v]));
+      exact = exact && on_a_setpoint(w.sp, pts[v]);
+    }
+    std::printf("%s: %.3f s, end points passed %.2g mm away at most, %s\n", c.name, w.duration_s,
+                worst, exact ? "each on a setpoint" : "not all on a setpoint");
+    if (c.p_mm.value_or(c.machine_tolerance_mm) > 0.0 && c.mode == PathControl::blend) {
+      EXPECT_LE(worst, 0.01) << c.name;
+      EXPECT_FALSE(exact) << c.name << ": the gentle corners are passed, not stopped at";
+    } else {
+      EXPECT_TRUE(exact) << c.name;
+    }
   }
 }
 

@@ -62,14 +62,23 @@ double distance_to_polyline(const std::vector<Vec3>& pts, const Vec3& q) {
 
 // The limits measured on setpoints (the start point first): the largest deviation from the
 // polyline (setpoints and chord midpoints), speed, acceleration vector and jerk vector.
+// Also the distance at which the programmed end point passed farthest from is passed: the
+// nearest chord between two setpoints, for each inner vertex.
 struct Measured {
-  double deviation_mm = 0.0, speed = 0.0, accel = 0.0, jerk = 0.0;
+  double deviation_mm = 0.0, speed = 0.0, accel = 0.0, jerk = 0.0, vertex_mm = 0.0;
 };
 
 Measured measure(const std::vector<Vec3>& program, const std::vector<Setpoint>& sp) {
   Measured m;
   std::vector<Vec3> p{program.front()};
   for (const Setpoint& s : sp) p.push_back(s.p);
+  for (std::size_t v = 1; v + 1 < program.size(); ++v) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 1; k < p.size(); ++k) {
+      nearest = std::min(nearest, test::distance_to_segment(program[v], p[k - 1], p[k]));
+    }
+    m.vertex_mm = std::max(m.vertex_mm, nearest);
+  }
   for (std::size_t k = 1; k < p.size(); ++k) {
     m.deviation_mm = std::max({m.deviation_mm, distance_to_polyline(program, p[k]),
                                distance_to_polyline(program, 0.5 * (p[k] + p[k - 1]))});
@@ -166,6 +175,7 @@ TEST(Overlap, IsTheSharpRunWithEachCornersEndsAddedTogether) {
       EXPECT_EQ(ms.size(), c.pts.size() - 2) << c.name << ": every corner a rest of the sharp run";
       EXPECT_EQ(sharp.size() - over.size(), static_cast<std::size_t>(saved)) << c.name;
       EXPECT_LE(g.deviation_mm, 0.01 * (1.0 + 1e-9)) << c.name;
+      EXPECT_LE(g.vertex_mm, 0.01 * (1.0 + 1e-9)) << c.name << ": an end point passed beyond P";
       EXPECT_LE(g.speed, kVmax * (1.0 + 1e-9)) << c.name;
       EXPECT_LE(g.accel, kA * (1.0 + 1e-9)) << c.name;
       const double j_limit = bound == JerkBound::vector ? kJ : std::sqrt(2.0) * kJ;
@@ -251,6 +261,7 @@ TEST(Overlap, HoldAroundAnOverlappedCornerKeepsEveryLimit) {
     EXPECT_LE((sp.back().p - pts.back()).norm(), 1e-9);
     const Measured g = measure(pts, sp);
     EXPECT_LE(g.deviation_mm, 0.01 * (1.0 + 1e-9));
+    EXPECT_LE(g.vertex_mm, 0.01 * (1.0 + 1e-9));
     EXPECT_LE(g.speed, kVmax * (1.0 + 1e-9));
     EXPECT_LE(g.accel, std::sqrt(2.0) * kA * (1.0 + 1e-9));
     EXPECT_LE(g.jerk, std::sqrt(2.0) * kJ * (1.0 + 1e-9));
