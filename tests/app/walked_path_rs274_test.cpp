@@ -51,7 +51,7 @@ namespace fs = std::filesystem;
 using V3 = std::array<double, 3>;
 
 // true: `ncd replay --start 0,0,0` on the program; false: the G53 G0 line in a copy (see top).
-constexpr bool kStartFlag = false;
+constexpr bool kStartFlag = true;
 
 const fs::path kSamples = "/usr/share/linuxcnc/ncfiles";
 constexpr double kBlendToleranceMm = 0.01;  // the machine file's default blend_tolerance_mm
