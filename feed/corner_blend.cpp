@@ -1,27 +1,32 @@
 // Corner blending under G64 P (docs/planner.md §3a).
 //
 // A corner between two straight pieces turning by φ (the angle between the directions d_in
-// and d_out) is replaced by the circular arc tangent to both pieces whose midpoint lies P off
-// the programmed path (P: the move's G64 P, or blend_tolerance_mm under a plain G64; below):
+// and d_out) is replaced by the circular arc tangent to both pieces whose midpoint passes the
+// vertex V, the programmed end point, at P − ε_c (P: the move's G64 P, or blend_tolerance_mm
+// under a plain G64; ε_c the chord tolerance; below):
 //
-//            V                     R = P / (1 − cos(φ/2))     (the arc's midpoint lies
-//      ─────●─────                 L = R tan(φ/2)              R (1 − cos(φ/2)) = P off both
-//     d_in ╱ ╲                                                 pieces, R (1/cos(φ/2) − 1)
-//         ●‿‿‿●   arc: rational quadratic Bézier               from V)
-//       tangent points   V − L d_in, V, V + L d_out with weights 1, cos(φ/2), 1 (a circle)
+//            V                     R = (P − ε_c) cos(φ/2) / (1 − cos(φ/2))
+//      ─────●─────                 L = R tan(φ/2)
+//     d_in ╱ ╲                     (the midpoint lies R (1/cos(φ/2) − 1) = P − ε_c from V and
+//         ●‿‿‿●                     R (1 − cos(φ/2)) = (P − ε_c) cos(φ/2) off both pieces)
+//       tangent points   arc: rational quadratic Bézier V − L d_in, V, V + L d_out with
+//                        weights 1, cos(φ/2), 1 (a circle)
 //
-// A point of the arc that has turned by α from its tangent point lies R (1 − cos α) off that
-// piece, at most P at the midpoint: every point of the arc is within P of the programmed path
-// (LinuxCNC's G64 P semantics: the path deviates at most P from the programmed one). The
-// tangent length is capped at half of each neighbouring piece, so that the arcs of
-// consecutive corners never overlap; R shrinks with it (R = L / tan(φ/2)).
+// The midpoint is the arc's point nearest V, and a chord between two setpoints on the arc lies
+// at most ε_c farther inside: the walked path passes every programmed end point within P
+// (issue 32; LinuxCNC's circular blends are within P of the vertex too). A point of the arc that
+// has turned by α from its tangent point lies R (1 − cos α) off that piece, less than P: the arc
+// stays within P of the programmed path. (Sized to lie P off the pieces, as before issue 32, it
+// passed V at P / cos(φ/2): 1.41 P at 90°.) The tangent length is capped at half of each
+// neighbouring piece, so that the arcs of consecutive corners never overlap; R shrinks with it
+// (R = L / tan(φ/2)).
 //
-// Among the curves tangent to both pieces that stay within P of them, the arc has the
-// smallest largest curvature, so its curve laws (centripetal acceleration √(a/κ), centripetal
+// Among the curves tangent to both pieces that pass within a distance of the vertex, the arc has
+// the smallest largest curvature, so its curve laws (centripetal acceleration √(a/κ), centripetal
 // jerk (j/κ²)^(1/3), chord error) give the highest constant speed through the corner.
-// LinuxCNC's tp rounds corners with arcs too, but keeps them within P of the vertex (a radius
-// smaller by cos(φ/2)); grbl keeps the sharp corner and bounds the speed by its junction
-// deviation (the sampler's rule at unblended corners, §2).
+// LinuxCNC's tp rounds corners with arcs within P of the vertex too; grbl keeps the sharp
+// corner and bounds the speed by its junction deviation (the sampler's rule at unblended
+// corners, §2).
 //
 // Whether to blend: the arc is walked at its constant speed v_arc; the sharp corner is passed
 // at the sampler's corner speed v_c, or with a full stop where v_c < a_max T. Each choice
@@ -29,10 +34,10 @@
 // cap, or less on a leg too short to reach it) down to the corner speed, less the time that
 // distance takes at V, plus the time through the slow zone (the arc and one period of travel
 // on each side, or 4 v_c T). The arc is taken only where it costs less: at 1 µm chord
-// tolerance and the default limits a 90° corner at P0.01 mm allows 2.3 mm/s through its arc,
-// slower than stopping, so it stops; at P0.5 mm it is rounded. Under the jerk-vector bound
-// (docs/planner.md §3c) the arc's ends are curvature jumps, and the whole arc is estimated at
-// their jump speed.
+// tolerance and the default limits a 90° corner at P0.01 mm allows 2.1 mm/s through its arc
+// (R 0.022 mm, the centripetal jerk law), slower than stopping, so it stops; at P0.5 mm it is
+// rounded. Under the jerk-vector bound (docs/planner.md §3c) the arc's ends are curvature jumps,
+// and the whole arc is estimated at their jump speed.
 //
 // Where: corners between straight pieces of moves under G64 with P > 0, inside a polyline
 // and at the joint with the next move, when both are plain polylines (no contact normals,
