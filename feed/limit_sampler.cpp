@@ -909,13 +909,13 @@ bool LimitSampler::next_interval(Interval& iv) {
     }
     // Rest refinement: where the motion rests at a point whose limit dips towards 0 (a
     // repeated control point), the intervals double away from it and halve towards it.
-    bool innermost = false;
+    bool innermost = false, rest_at_start = false, rest_at_end = false;
     double rest_d_mm = 0.0;
     const double d1 = rest_first_mm();
     const bool at_knot = u_ == c.u_begin() || (knot_ > 0 && knots[knot_ - 1] == u_);
     if (rest_origin_mm_ < 0.0 && at_knot && is_rest_mm(s_) && needs_rest_refinement(segment_, u_)) {
       rest_origin_mm_ = s_;
-      innermost = true;
+      innermost = rest_at_start = true;
       rest_d_mm = d1;
       const double ue = u_at_arc(c, u_, u1, d1);
       if (ue < u1) {
@@ -960,7 +960,7 @@ bool LimitSampler::next_interval(Interval& iv) {
           end_rest = false;
           rest_origin_mm_ = -1.0;
         } else {
-          innermost = true;
+          innermost = rest_at_end = true;
           rest_d_mm = std::max(rest_d_mm, d_mm);
         }
       }
@@ -984,18 +984,35 @@ bool LimitSampler::next_interval(Interval& iv) {
     fine_ = v.feed_mm_per_s < kFineBelowCap * segment_cap(segment_).feed_mm_per_s &&
             std::abs(v.feed_mm_per_s - last_curve_v_) > kFineStep * v.feed_mm_per_s;
     last_curve_v_ = v.feed_mm_per_s;
+    bool raised = false;
     if (innermost) {
       // The first (last) period's travel from (to) rest: no jerk-limited motion is faster
       // there than the rest speed, so the limit's dip to 0 at the point itself is not a cap.
       // The segment's own caps (its programmed feed, the machine's maximum) are, whatever the
       // speed reachable: a move programmed slower than the rest speed (G93 F0.5 over 8 mm is
-      // 3.9 mm/min) keeps its feed up to the rest.
+      // 3.9 mm/min) keeps its feed up to the rest. Nor is a limit the rest speed does not cover:
+      // where the limit is below the rest speed at some distance from the rest (a tiny helix,
+      // whose chord law is low all along, not a dip at the point), the raise stops at it
+      // (rest_uncovered_min_mm_per_s).
       const FeedLimitResult cap = segment_cap(segment_);
-      const double v_rest = rest_speed_mm_per_s(rest_d_mm);
-      if (v_rest >= cap.feed_mm_per_s) {
-        v = cap;
-      } else {
-        v.feed_mm_per_s = std::max(v.feed_mm_per_s, v_rest);
+      double raise = std::min(rest_speed_mm_per_s(rest_d_mm), cap.feed_mm_per_s);
+      const double u_mid =
+          rest_at_start && rest_at_end ? 0.5 * (u_ + u1) : (rest_at_start ? u1 : u_);
+      if (rest_at_start && raise > v.feed_mm_per_s) {
+        raise = std::min(raise, rest_uncovered_min_mm_per_s(segment_, u_, u_mid, v.feed_mm_per_s,
+                                                            open_end && u_mid == u1));
+      }
+      if (rest_at_end && raise > v.feed_mm_per_s) {
+        raise = std::min(raise,
+                         rest_uncovered_min_mm_per_s(segment_, u1, u_mid, v.feed_mm_per_s, false));
+      }
+      if (raise > v.feed_mm_per_s) {
+        raised = true;
+        if (raise >= cap.feed_mm_per_s) {
+          v = cap;
+        } else {
+          v.feed_mm_per_s = raise;
+        }
       }
     }
     iv.a_mm = s_;
@@ -1004,7 +1021,7 @@ bool LimitSampler::next_interval(Interval& iv) {
     iv.limit = v.limit;
     iv.kappa_per_mm = iv.turn_per_mm2 = 0.0;
     iv.jump_share = 0.0;
-    iv.rest_speed = innermost;
+    iv.rest_speed = raised;
     if (limits_.jerk_bound == JerkBound::vector) curve_turn(segment_, u_, u1, iv);
     apply_zones(iv);
     bound_jerk_vector(iv);
@@ -1140,6 +1157,35 @@ bool LimitSampler::is_rest_mm(double s_mm) const {
 // v = (4.5 J d²)^(1/3). The acceleration limit only lowers it.
 double LimitSampler::rest_speed_mm_per_s(double distance_mm) const {
   return std::cbrt(4.5 * limits_.max_jerk_mm_per_s3 * distance_mm * distance_mm);
+}
+
+// The lowest limit on [u_rest, u_far] (u_far on either side) that the rest speed does not
+// cover, +inf if it covers all (docs/planner.md §3, "Rest refinement"). A motion that rests at
+// u_rest is no faster than v_rest(x) at distance x from it, so on a piece of the arc whose far
+// end lies at x_far a limit of at least v_rest(x_far) holds by itself; a piece whose minimum
+// m_i is below that needs the interval's limit at most m_i. The pieces halve in u towards the
+// rest, [u_rest + h/2^(i+1), u_rest + h/2^i] for i < kRestPieces, each minimum searched as
+// every interval's; the search ends where v_rest(x_far) is at most the interval's minimum
+// `floor` (every nearer piece is covered then) or a piece has brought the answer down to it.
+// The last 2^-kRestPieces of the interval (nanometres) is the repeated control point's own:
+// there the curve laws grow like x^(1/3) and x^(1/4), faster than v_rest ∝ x^(2/3).
+double LimitSampler::rest_uncovered_min_mm_per_s(std::size_t segment, double u_rest, double u_far,
+                                                 double floor_mm_per_s, bool open_far) const {
+  constexpr int kRestPieces = 12;
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  double lowest = kInf;
+  double h = u_far - u_rest;
+  for (int i = 0; i < kRestPieces && lowest > floor_mm_per_s; ++i, h *= 0.5) {
+    const double ub = u_rest + h, ua = u_rest + 0.5 * h;
+    const double x_far = gauss_arc_mm(c, std::min(u_rest, ub), std::max(u_rest, ub));
+    const double v_rest = rest_speed_mm_per_s(x_far);
+    if (!(v_rest > floor_mm_per_s)) break;
+    const bool open = open_far && i == 0 && ub > ua;
+    const double m =
+        interval_min_on_curve(segment, std::min(ua, ub), std::max(ua, ub), open).feed_mm_per_s;
+    if (m < v_rest) lowest = std::min(lowest, m);
+  }
+  return lowest;
 }
 
 // The travel of the first period from rest at full jerk, J T³ / 6.

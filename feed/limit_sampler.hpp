@@ -105,6 +105,8 @@ class LimitSampler {
   // (a repeated control point: zero parametric speed), see limit_sampler.cpp.
   bool is_rest_mm(double s_mm) const;
   double rest_speed_mm_per_s(double distance_mm) const;
+  double rest_uncovered_min_mm_per_s(std::size_t segment, double u_rest, double u_far,
+                                     double floor_mm_per_s, bool open_far) const;
   double rest_first_mm() const;
   bool needs_rest_refinement(std::size_t segment, double u) const;
   double u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi, double arc_mm) const;

@@ -24,9 +24,13 @@
 //   - the continuous motion within the chord tolerance of each period's chord;
 //   - |Δp|/T ≤ the maximum feed, |Δ²p|/T² ≤ a_max, |Δ³p|/T³ ≤ the jerk-vector limit, over the
 //     window and three setpoints on each side of it;
-//   - in each superposed period |Δp|/T within the feed limit of both moves there: the sum of
-//     two motions is never faster than the slower move allows (a cut's F word holds while the
-//     rapid after it starts).
+//   - in each superposed period |Δp|/T, and the superposed speed |v_in d_in + v_out d_out| at
+//     every instant of it, within the feed limit of both moves there: the sum of two motions is
+//     never faster than the slower move allows (a cut's F word holds while the rapid after it
+//     starts). The instant's speed is bounded by the corners of the box of both moves' speed
+//     ranges in the period (its square is convex in them); the mean alone let the setpoint's
+//     speed pass the limit by 6e-6 (16.6667651 mm/s against the F word's 16.6666667:
+//     pipeline fuzzer finding overlap_speed_above_limit).
 // The jerk-vector limit is j_max under jerk_bound = "vector" and √2 j_max under "tangential"
 // (two components each within j_max, as the property tests bound the acceleration vector by
 // √2 a_max there); the Job passes it. The candidates are tried from the longest down.
@@ -58,6 +62,29 @@ double s_within(std::span<const OverlapSample> w, std::size_t k, double h) {
 
 Vec3 superposed(const SharpCorner& c, double s_rest, double s_in, double s_out) {
   return c.vertex_mm - (s_rest - s_in) * c.d_in + (s_out - s_rest) * c.d_out;
+}
+
+// The highest speed of the 1-D motion during the period that ends at w[k]: v(h) is a quadratic
+// in h, largest at an end or at h = −a/j.
+double period_top_speed(std::span<const OverlapSample> w, std::size_t k, double T) {
+  const OverlapSample& x = w[k - 1];
+  const double j = w[k].j_mm_per_s3;
+  const auto v = [&](double h) { return x.v_mm_per_s + h * (x.a_mm_per_s2 + 0.5 * h * j); };
+  double top = std::max(v(0.0), v(T));
+  if (j != 0.0) {
+    const double h = -x.a_mm_per_s2 / j;
+    if (h > 0.0 && h < T) top = std::max(top, v(h));
+  }
+  return top;
+}
+
+// A bound on the superposed speed |v_in d_in + v_out d_out| at every instant of a period in
+// which the two speeds lie in [0, x] and [0, y]: its square v_in² + v_out² + 2 v_in v_out c
+// (c = d_in · d_out) is convex in (v_in, v_out) for |c| ≤ 1, so its largest value on that box
+// is at a corner of it: x², y² or x² + y² + 2xyc.
+double superposed_top_speed(double x, double y, double c) {
+  x = std::max(x, 0.0), y = std::max(y, 0.0);
+  return std::sqrt(std::max({x * x, y * y, x * x + y * y + 2.0 * x * y * c}));
 }
 
 bool feasible(const SharpCorner& c, const OverlapLimits& l, std::span<const OverlapSample> w,
@@ -95,6 +122,11 @@ bool feasible(const SharpCorner& c, const OverlapLimits& l, std::span<const Over
         std::min({w[rest - mu + k - 1].v_limit_mm_per_s, w[rest - mu + k].v_limit_mm_per_s,
                   w[rest + k - 1].v_limit_mm_per_s, w[rest + k].v_limit_mm_per_s});
     if (!((b - a).norm() <= v_limit * T)) return false;
+    // The speed itself, not only the period's mean: at every instant of the period (a cut's
+    // F word and the limit curve bound the speed, as the planner holds them on a raw motion).
+    const double top = superposed_top_speed(period_top_speed(w, rest - mu + k, T),
+                                            period_top_speed(w, rest + k, T), c.d_in.dot(c.d_out));
+    if (!(top <= v_limit)) return false;
     if (!(corner_distance_mm(c, b) <= tol) || !(corner_distance_mm(c, 0.5 * (a + b)) <= tol)) {
       return false;
     }

@@ -34,7 +34,8 @@ struct OverlapLimits {
 // it become the m − 1 setpoints w[rest − m + k] + w[rest + k] − V (k = 1 … m − 1), and every
 // limit holds on the result: speed, acceleration vector and jerk vector by differences of the
 // setpoints (three on each side of the window included), the speed of each superposed period
-// within both moves' feed limits there (the slower of the two), every setpoint, chord midpoint and
+// (its mean |Δp|/T and its speed at every instant) within both moves' feed limits there (the
+// slower of the two), every setpoint, chord midpoint and
 // point of the continuous motion within the corner's tolerance of its two pieces, and the
 // continuous motion within the chord tolerance of each chord. 0 if none does. The samples
 // used must be raw, on the corner's straight pieces, and inside w.

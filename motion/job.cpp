@@ -326,7 +326,12 @@ Setpoint Job::step() {
   Setpoint sp = line_cap_ == 0 ? raw_step() : delayed_step();
   if (plan_fault_.fault != StepFault::None) sp.fault = StepFault::Plan;  // in this step's fill
   if (sp.fault != StepFault::None) return sp;
-  sp.fault = guard_.check(sp.t_s, sp.s_mm, sp.planned_ds_mm, sp.p);
+  // The step rule's Δs: the planned step of the motion the setpoint makes (at an overlapped
+  // corner the superposed one, not the sum of both moves' progress).
+  const double step_ds_mm = line_cap_ != 0 && here_.superposed_step_mm >= 0.0
+                                ? here_.superposed_step_mm
+                                : sp.planned_ds_mm;
+  sp.fault = guard_.check(sp.t_s, sp.s_mm, step_ds_mm, sp.p);
   return sp;
 }
 
@@ -399,6 +404,7 @@ Setpoint Job::delayed_step() {
   if (line_n_ == 0) {             // done: repeat the end
     here_.sp.t_s = static_cast<double>(++emitted_) * config_.limits.period_s;
     here_.sp.planned_ds_mm = 0.0;
+    here_.superposed_step_mm = -1.0;
     return here_.sp;
   }
   here_ = line_at(0);
@@ -420,6 +426,7 @@ void Job::line_push(const Setpoint& sp, bool rest) {
   e.curve_u = walker_.curve_u();
   e.rest = rest;
   e.raw = true;
+  e.superposed_step_mm = -1.0;
   ++line_n_;
 }
 
@@ -494,6 +501,9 @@ void Job::try_overlap(std::size_t rest) {
       e.sp.chord_error_mm = o.chord_error_mm;
       e.sp.overlapped = true;
     }
+    const double ds_in = in.sp.s_mm - line_at(rest - mu + k - 1).sp.s_mm;
+    const double ds_out = go.sp.s_mm - line_at(rest + k - 1).sp.s_mm;
+    e.superposed_step_mm = (ds_in * c->d_in + ds_out * c->d_out).norm();
     line_scratch_[k - 1] = e;
     overlap_.max_deviation_mm = std::max(overlap_.max_deviation_mm, corner_distance_mm(*c, o.p_mm));
   }

@@ -137,6 +137,10 @@ class Job {
     double curve_u = 0.0;
     bool rest = false;  // the planner rests here between two stretches (not yet decided)
     bool raw = true;    // the planner's own setpoint, not part of an overlap
+    // A period of an overlapped corner: the length of the superposed motion's planned step,
+    // |Δs_in d_in + Δs_out d_out|, which the step rule takes as its Δs (its s sums both moves'
+    // progress, up to twice as much at a turn of more than 90°); < 0 elsewhere.
+    double superposed_step_mm = -1.0;
   };
   bool raw_done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
   bool feed_planner();  // the planner's look-ahead from the sampler

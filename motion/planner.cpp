@@ -799,10 +799,13 @@ bool Planner::land_with(std::size_t n, LandBase base) {
   for (int pass = 0; pass < 2; ++pass) {
     Kin y{};
     end_state(y);
-    // (Aimed a hair short of L, 1e-12 relative: rounding must not carry the last period past
-    // the last limit sample, which the exact checks refuse; the end snaps onto L. Not when
-    // already that close: a landing from there must still move forward.)
-    const double hair = 1e-12 * std::max(1.0, length_mm_);
+    // (Aimed a hair short of L: rounding must not carry the last period past the last limit
+    // sample, which the exact checks refuse; the end snaps onto L, and snap_fits() holds the
+    // jerk the snap adds. The hair was 1e-12 L: 5.7e-10 mm at L = 567 mm, a third difference
+    // 0.04 mm/s³ above j_max at T = 2.2 ms, a finding of the pipeline fuzzer; 256 ε L is
+    // above the rounding of the periods' sums and 4000 times smaller. Not when already that
+    // close: a landing from there must still move forward.)
+    const double hair = 256.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, length_mm_);
     const double aim_mm = length_mm_ - x_.s_mm > 4.0 * hair ? length_mm_ - hair : length_mm_;
     const Eigen::Vector3d r(-y.a_mm_per_s2 / T, -y.v_mm_per_s / (T * T),
                             (aim_mm - y.s_mm) / (T * T * T));
@@ -813,9 +816,10 @@ bool Planner::land_with(std::size_t n, LandBase base) {
     }
   }
   Cursor cur;
-  Kin y = x_;
+  Kin y = x_, end = x_;
   for (std::size_t i = 0; i < n; ++i) {
     if (!check_period(y, land_j_[i], cur, override_applied_, length_mm_)) return false;
+    end = cubic_step(y, land_j_[i]);
     y = advance(y, land_j_[i]);
   }
   const double tol_s = 1e-9 * std::max(1.0, length_mm_);
@@ -823,6 +827,29 @@ bool Planner::land_with(std::size_t n, LandBase base) {
       std::abs(y.a_mm_per_s2) > 1e3 * a_eps_) {
     return false;
   }
+  return snap_fits(n, end) && take_landing(n);
+}
+
+// The landing's end (s, v, a) snaps onto (L, 0, 0), and the next stretch starts from there at
+// rest. The third differences of s over the three periods around the snap are the B-spline
+// means of the jerks (weights 1/6, 2/3, 1/6), the next stretch's included (at most j_max), plus
+// δs/T³, −2δs/T³ − δv/T² − δa/2T and δs/T³ + δv/T² − δa/2T for the snap δ = (L − s, v, a)
+// (worked out symbolically). So with P = 2|δs|/T³ + |δv|/T² + |δa|/2T, the last jerk within
+// j_max − 6P and the two before it within j_max − 1.2P keep every third difference within
+// j_max: the last weighs 1/6 in the mean the snap's third term joins, the other two 5/6 in the
+// second's.
+bool Planner::snap_fits(std::size_t n, const Kin& end) const {
+  const double T = period_s_;
+  const double snap = 2.0 * std::abs(length_mm_ - end.s_mm) / (T * T * T) +
+                      std::abs(end.v_mm_per_s) / (T * T) + std::abs(end.a_mm_per_s2) / (2.0 * T);
+  if (std::abs(land_j_[n - 1]) > j_max_ - 6.0 * snap) return false;
+  for (std::size_t i = n - 3; i + 1 < n; ++i) {
+    if (std::abs(land_j_[i]) > j_max_ - 1.2 * snap) return false;
+  }
+  return true;
+}
+
+bool Planner::take_landing(std::size_t n) {
   std::swap(plan_, land_j_);
   plan_n_ = n;
   plan_pos_ = 0;

@@ -196,6 +196,8 @@ class Planner {
   void take_best(double j, std::uint8_t limit_id);
   enum class LandBase { zero, plan, scurve, reach };  // what a landing's correction starts from
   bool land_with(std::size_t n, LandBase base);
+  bool snap_fits(std::size_t n, const Kin& end) const;  // the end snap within the jerk limit
+  bool take_landing(std::size_t n);                     // land_with's jerks become the plan
   bool scurve_base(std::size_t n);
   double reach_base(std::size_t n, double v_cap, double jerk_fraction);
   double v_settle(const Kin& x) const;

@@ -6,10 +6,16 @@
 //   (3) walk:         |p_k − p_{k−1}| ≤ Δs_k·(1 + m) + ε
 //
 // with Δs_k the planned arc length of period k (the planner's s(t+T) − s(t)), p_k the position,
-// T the period, m = kStepMarginRel and ε = kStepSlackMm. (2) holds for any motion whose
-// tangential acceleration stays within a_max: the second difference of s over spacing T is
-// a(ξ)·T² for some ξ (mean value theorem). (3) holds because a chord is never longer than its
-// arc, and the walker makes the arc equal to Δs within feed_tolerance_rel ≤ 1e-2 < m. So a
+// T the period, m = kStepMarginRel and ε = kStepSlackMm. In a period of a corner passed
+// without its stop (docs/planner.md §3b) two moves run at once along straight pieces d_in and
+// d_out, and Δs_k is the length of their superposed planned step, |Δs_in d_in + Δs_out d_out|
+// (the job passes it): the setpoint's s sums both moves' progress, up to twice the step at a
+// turn of more than 90°, and the sum refused correct overlaps (a pipeline fuzzer finding,
+// 0.01136 mm against 0.01104). The overlap's own rule holds |Δp| ≤ v_max T and
+// |Δ²p| ≤ a_max T² there, which give (1) and (2) for that step (| |u| − |w| | ≤ |u − w|). (2) holds
+// for any motion whose tangential acceleration stays within a_max: the second difference of s over
+// spacing T is a(ξ)·T² for some ξ (mean value theorem). (3) holds because a chord is never longer
+// than its arc, and the walker makes the arc equal to Δs within feed_tolerance_rel ≤ 1e-2 < m. So a
 // setpoint that fails any of them is a fault of the computation, never of the input: the job
 // stops there, that setpoint is not emitted, and the caller reports the fault (exit 3 in
 // `ncd replay`, state "error" in the service). The chord tolerance is a limit of the finish,

@@ -71,6 +71,42 @@ TEST(PipelineFuzz, TwoJointsAroundAShortArcInOnePeriodKeepTheChordTolerance) {
   expect_walked("chord_two_joints_in_one_period");
 }
 
+// Finding: a G1 into a helix of 2.4 um radius (three turns, G20), chord tolerance 0.15 um, on a
+// machine of 47 331 mm/s^3 and T 7 ms. The helix stops at each half turn (its knots turn), and
+// the rest refinement raised the innermost interval of every stretch to the rest speed,
+// 1.16 mm/s, though the chord law allows 0.237 mm/s all along: the periods leaving each rest
+// deviated 0.199 um (0.319 um in the fuzzer's input, 2.1x the tolerance). The raise now stops at
+// the lowest limit the rest speed does not cover (feed/limit_sampler.cpp).
+TEST(PipelineFuzz, RestRaiseOnATinyHelixKeepsTheChordTolerance) {
+  expect_walked("rest_raise_on_a_tiny_helix");
+}
+
+// Finding: a corner passed without its stop under the jerk-vector bound, at F1000: the overlap
+// rule held each superposed period's mean speed |dp|/T within the feed limit, but not the speed
+// at the period's end, |v_in d_in + v_out d_out|, which reached 16.6667436 mm/s against the F
+// word's 16.6666667. The rule now bounds the speed at every instant (motion/corner_overlap.cpp).
+TEST(PipelineFuzz, OverlapSpeedWithinTheLimitAtEveryInstant) {
+  expect_walked("overlap_speed_above_the_limit");
+}
+
+// Finding: a corner of 130 degrees passed without its stop at F149 (the machine's maximum):
+// the overlapped setpoints' s sums both moves' progress, and the step rule took that sum as the
+// planned step, 0.01136 mm against at most 0.01104 mm, and stopped a correct job. The job now
+// hands the rule the superposed step |ds_in d_in + ds_out d_out| there (motion/job.cpp).
+// (Found on c983d4b; main's later corner blending may round that corner instead.)
+TEST(PipelineFuzz, OverlapStepRuleTakesTheSuperposedStep) {
+  expect_walked("overlap_step_rule_summed_progress");
+}
+
+// Finding: a landing aimed 1e-12 of its stretch's length L short of the stretch end, then
+// snapped onto it: here 4.5e-10 mm, at T = 2.2 ms a third difference of s 0.042 mm/s^3 above
+// j_max (7e-6 relative) where the next stretch starts at full jerk. The hair is now 256 eps L,
+// and a landing is taken only if its last jerks leave room for what the snap adds
+// (motion/planner.cpp, snap_fits).
+TEST(PipelineFuzz, LandingSnapKeepsTheJerkLimit) {
+  expect_walked("landing_snap_jerk");
+}
+
 TEST(PipelineFuzz, EverySeedIsWalkedOrRefusedNeverAViolation) {
   std::vector<fs::path> seeds;
   for (const auto& e : fs::directory_iterator(kCorpus)) seeds.push_back(e.path());
