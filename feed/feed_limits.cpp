@@ -90,6 +90,24 @@ FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, cons
   return r;
 }
 
+// The walker puts each setpoint on the planned arc length to feed_tolerance_rel of the
+// period's step (docs/feedrate.md), so a second difference of the setpoints may differ from
+// the planned motion's by 2 tol v T / T², a third by 4 tol v T / T³ (v up to the maximum
+// feed): the axis limits the planner is given are lowered by that much (at most by half).
+double axis_accel_for_planner(const MachineLimits& limits, std::size_t axis) {
+  const double a = limits.axes[axis].max_accel_mm_per_s2;
+  const double err =
+      2.0 * limits.feed_tolerance_rel * limits.max_feed_mm_per_min / 60.0 / limits.period_s;
+  return std::max(a - err, 0.5 * a);
+}
+
+double axis_jerk_for_planner(const MachineLimits& limits, std::size_t axis) {
+  const double j = limits.axes[axis].max_jerk_mm_per_s3;
+  const double err = 4.0 * limits.feed_tolerance_rel * limits.max_feed_mm_per_min / 60.0 /
+                     (limits.period_s * limits.period_s);
+  return std::max(j - err, 0.5 * j);
+}
+
 AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
                        const std::array<bool, 3>& bends) {
   double a = limits.max_accel_mm_per_s2, j = limits.max_jerk_mm_per_s3;
@@ -97,8 +115,8 @@ AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
     const double ti = std::min(std::abs(tangent_max[static_cast<int>(i)]), 1.0);
     if (!(ti > 0.0)) continue;
     const double share = bends[i] ? kAxisTangentialShare : 1.0;
-    a = std::min(a, share * limits.axes[i].max_accel_mm_per_s2 / ti);
-    j = std::min(j, share * limits.axes[i].max_jerk_mm_per_s3 / ti);
+    a = std::min(a, share * axis_accel_for_planner(limits, i) / ti);
+    j = std::min(j, share * axis_jerk_for_planner(limits, i) / ti);
   }
   return {a / limits.max_accel_mm_per_s2, j / limits.max_jerk_mm_per_s3};
 }

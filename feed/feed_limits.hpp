@@ -109,6 +109,10 @@ struct AxisScales {
 };
 AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
                        const std::array<bool, 3>& bends);
+// An axis's acceleration and jerk as the planner is given them: the machine file's, lowered by
+// what the walker's arc-length tolerance may add to the setpoints' differences (+inf: none).
+double axis_accel_for_planner(const MachineLimits& limits, std::size_t axis);
+double axis_jerk_for_planner(const MachineLimits& limits, std::size_t axis);
 // The lowest scales axis_scales() can give (tangent components of 1, every axis bent): what the
 // planner sizes its look-ahead for.
 AxisScales axis_scale_floor(const MachineLimits& limits);

@@ -439,19 +439,24 @@ FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
     if (v < r.feed_mm_per_s) r = {v, FeedLimit::JerkVector};
   }
   if (limits_.has_axis_limits() && phi >= kMinTurnRad) {
-    // The junction law with the acceleration the axes allow along the direction change
-    // (docs/planner.md §3f): min(a_max, min_i a_i / |u_i|), u the unit of d_out − d_in.
-    const Vec3 u = unit_or_zero(d_out - d_in);
-    double a = limits_.max_accel_mm_per_s2;
+    // Per-axis limits (docs/planner.md §3f). The junction law with the acceleration the axes
+    // allow along the direction change, min(a_max, min_i a_i / |u_i|), u the unit of
+    // d_out − d_in; and the velocity jump v |Δd_i| of each axis, which the second difference
+    // of the setpoints sees within one period: v |Δd_i| ≤ (1 − kAxisTangentialShare) a_i T,
+    // the tangential motion around the corner keeping the rest (its intervals bend).
+    const Vec3 dd = d_out - d_in, u = unit_or_zero(dd);
+    const double T = limits_.period_s, keep = 1.0 - kAxisTangentialShare;
+    double a = limits_.max_accel_mm_per_s2, v_jump = kInf;
     for (int i = 0; i < 3; ++i) {
-      if (std::abs(u[i]) > 0.0) {
-        a = std::min(
-            a, limits_.axes[static_cast<std::size_t>(i)].max_accel_mm_per_s2 / std::abs(u[i]));
-      }
+      const double ai = axis_accel_for_planner(limits_, static_cast<std::size_t>(i));
+      if (std::abs(u[i]) > 0.0) a = std::min(a, ai / std::abs(u[i]));
+      if (std::abs(dd[i]) > 0.0) v_jump = std::min(v_jump, keep * ai * T / std::abs(dd[i]));
     }
     const double c = std::cos(0.5 * phi);
-    const double v = std::sqrt(a * limits_.chord_tolerance_mm * c / (1.0 - c));
-    if (c < 1.0 && v < r.feed_mm_per_s) r = {v, FeedLimit::Corner};
+    const double junction =
+        c < 1.0 ? std::sqrt(a * limits_.chord_tolerance_mm * c / (1.0 - c)) : kInf;
+    const double v = std::min(junction, v_jump);
+    if (v < r.feed_mm_per_s) r = {v, FeedLimit::Corner};
   }
   return r;
 }
@@ -768,6 +773,12 @@ void LimitSampler::apply_zones(Interval& iv) const {
     // jerk budget holds within two periods' travel of it.
     if (share > 0.0 && iv.a_mm < center_mm + 2.0 * half && iv.b_mm > center_mm - 2.0 * half) {
       iv.jump_share = std::max(iv.jump_share, share);
+    }
+    // Per-axis limits: the periods whose second difference sees the corner's jump keep the
+    // tangential share (docs/planner.md §3f).
+    if (limits_.has_axis_limits() && iv.a_mm < center_mm + 2.0 * half &&
+        iv.b_mm > center_mm - 2.0 * half) {
+      iv.bends = true;
     }
     if (iv.a_mm < center_mm + half && iv.b_mm > center_mm - half &&
         corner.feed_mm_per_s < iv.v_mm_per_s) {
@@ -1155,9 +1166,10 @@ void LimitSampler::refuse_cusp(const toolpath::Path& path, std::size_t k,
 }
 
 // Per-axis limits (docs/planner.md §3f): the largest |t_i| of a curve interval from its tangent
-// at both ends and the middle, plus half the angle the tangent turns between neighbouring
-// samples (a unit vector turning by θ changes each component by at most θ); 1 on an axis where
-// a sample has no tangent (|C'| = 0: a repeated control point).
+// at both ends and the middle, plus θ²/2 for the angle θ the tangent turns between neighbouring
+// samples (a component of a unit vector turning smoothly by θ along a great circle exceeds the
+// larger of its end values by at most θ²/8: four times that, measured, not proven); 1 on an
+// axis where a sample has no tangent (|C'| = 0: a repeated control point).
 void LimitSampler::curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1,
                                      Interval& iv) const {
   const double u_end = u1 < c.u_end() ? std::max(u0, std::nextafter(u1, -kInf)) : u1;
@@ -1171,7 +1183,8 @@ void LimitSampler::curve_tangent_max(const toolpath::NurbsCurve& c, double u0, d
   const auto angle = [](const Vec3& a, const Vec3& b) {
     return std::atan2(a.cross(b).norm(), a.dot(b));
   };
-  const double margin = 0.5 * std::max(angle(t[0], t[1]), angle(t[1], t[2])) + 1e-12;
+  const double turn = std::max(angle(t[0], t[1]), angle(t[1], t[2]));
+  const double margin = 0.5 * turn * turn + 1e-9;
   const Vec3 hi = t[0].cwiseAbs().cwiseMax(t[1].cwiseAbs()).cwiseMax(t[2].cwiseAbs());
   iv.tangent_max = (hi + Vec3::Constant(margin)).cwiseMin(1.0);
 }
