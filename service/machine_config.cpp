@@ -316,9 +316,9 @@ void parse_axes(const toml::value& table, const std::string& name,
       const auto in_range = [&](const ranges::Range& r) {
         const double x = as_real(v, where);
         checked_range(x, r.lo, r.hi, where, r.unit,
-                      "give the axis's limit in that range, or leave the key out: the axis is "
-                      "then bounded by the path limit [machine] " +
-                          key + " only");
+                      "give the axis's limit in that range, or leave the key out: the axis is then "
+                      "bounded by the path's " +
+                          key + " (the file's top level) only");
         return x;
       };
       if (key == "max_feed_mm_per_min")
