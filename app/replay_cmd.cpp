@@ -230,6 +230,7 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["jerk_max"] = st.jerk_max_mm_per_s3;
   j["jerk_vector_max"] = st.jerk_vector_max_mm_per_s3;
   j["jerk_bound"] = motion::jerk_bound_in_force(m.limits.jerk_bound);
+  if (m.limits.has_axis_limits()) j["axis_peaks"] = motion::axis_peaks_json(st, m.limits);
   // Corners under G64 P (docs/planner.md §3a, §3b): rounded by an arc, or passed without their
   // stop by overlapping the two moves; the deviation is the farthest overlapped setpoint's. The
   // setpoints then wait up to setpoint_delay_periods, within setpoint_delay_within_mm of a stop.
@@ -483,6 +484,7 @@ void print_summary(const ReplayArgs& a, const MachineConfig& machine, const std:
                job.overlap_report().periods_saved, job.overlap_report().max_deviation_mm,
                st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
+  std::fputs(motion::axis_peaks_text(st, machine.limits).c_str(), stderr);  // per-axis (§3f)
   if (job.delay_periods() > 0) {  // the corner overlap's line of setpoints (planner.md §3b)
     std::fprintf(stderr,
                  "  hold, override    act up to %zu periods (%.0f ms) late within %.1f mm of a "

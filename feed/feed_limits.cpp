@@ -18,6 +18,11 @@
 // Under JerkBound::vector (docs/planner.md §3c) also the jerk-vector law: the speed at which the
 // tangential scale σ that keeps |jerk| ≤ j_max falls to kMinTangentialScale, and the jump law
 // 2 v sin(φ/2) / T² + 0.75 v² Δκ / T ≤ kJumpJerkShare j_max at corners and curvature jumps.
+// Per-axis limits (docs/planner.md §3f), where the machine file gives [axis.x|y|z]: the axis
+// speed min_i vmax_i / |t_i|, and on a curve the centripetal acceleration v² |k_i| and the
+// centripetal jerk v³ κ² |t_i| of each axis held to (1 − kAxisTangentialShare) of its limit;
+// the tangential acceleration and jerk of an interval are held to the axes' share by the
+// planner (axis_scales()).
 // On a straight line (κ = 0) only roughness and the maximum feed remain. The binding limit is
 // reported with the speed; ties go to the first in enum order, so the report is deterministic.
 #include "feed/feed_limits.hpp"
@@ -26,6 +31,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 #include "core/error.hpp"
 #include "core/jerk_vector.hpp"
@@ -53,6 +59,71 @@ FeedLimitResult with_curvature(const MachineLimits& limits, double roughness_mm_
 }
 
 }  // namespace
+
+bool AxisLimits::any() const {
+  return std::isfinite(max_feed_mm_per_min) || std::isfinite(max_accel_mm_per_s2) ||
+         std::isfinite(max_jerk_mm_per_s3);
+}
+
+bool MachineLimits::has_axis_limits() const {
+  return axes[0].any() || axes[1].any() || axes[2].any();
+}
+
+FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, const Vec3& k) {
+  FeedLimitResult r{kInf, FeedLimit::MaxFeed};
+  const double kappa = k.norm(), keep = 1.0 - kAxisTangentialShare;
+  for (int i = 0; i < 3; ++i) {
+    const AxisLimits& ax = limits.axes[static_cast<std::size_t>(i)];
+    const double ti = std::abs(t[i]), ki = std::abs(k[i]);
+    if (ti > 0.0 && ax.max_feed_mm_per_min / 60.0 / ti < r.feed_mm_per_s) {
+      r = {ax.max_feed_mm_per_min / 60.0 / ti, FeedLimit::MaxFeed};
+    }
+    if (ki > 0.0) {
+      const double v = std::sqrt(keep * ax.max_accel_mm_per_s2 / ki);
+      if (v < r.feed_mm_per_s) r = {v, FeedLimit::CentripetalAccel};
+    }
+    if (ti > 0.0 && kappa > 0.0) {
+      const double v = std::cbrt(keep * ax.max_jerk_mm_per_s3 / (kappa * kappa * ti));
+      if (v < r.feed_mm_per_s) r = {v, FeedLimit::CentripetalJerk};
+    }
+  }
+  return r;
+}
+
+// The walker puts each setpoint on the planned arc length to feed_tolerance_rel of the
+// period's step (docs/feedrate.md), so a second difference of the setpoints may differ from
+// the planned motion's by 2 tol v T / T², a third by 4 tol v T / T³ (v up to the maximum
+// feed): the axis limits the planner is given are lowered by that much (at most by half).
+double axis_accel_for_planner(const MachineLimits& limits, std::size_t axis) {
+  const double a = limits.axes[axis].max_accel_mm_per_s2;
+  const double err =
+      2.0 * limits.feed_tolerance_rel * limits.max_feed_mm_per_min / 60.0 / limits.period_s;
+  return std::max(a - err, 0.5 * a);
+}
+
+double axis_jerk_for_planner(const MachineLimits& limits, std::size_t axis) {
+  const double j = limits.axes[axis].max_jerk_mm_per_s3;
+  const double err = 4.0 * limits.feed_tolerance_rel * limits.max_feed_mm_per_min / 60.0 /
+                     (limits.period_s * limits.period_s);
+  return std::max(j - err, 0.5 * j);
+}
+
+AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
+                       const std::array<bool, 3>& bends) {
+  double a = limits.max_accel_mm_per_s2, j = limits.max_jerk_mm_per_s3;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double ti = std::min(std::abs(tangent_max[static_cast<int>(i)]), 1.0);
+    if (!(ti > 0.0)) continue;
+    const double share = bends[i] ? kAxisTangentialShare : 1.0;
+    a = std::min(a, share * axis_accel_for_planner(limits, i) / ti);
+    j = std::min(j, share * axis_jerk_for_planner(limits, i) / ti);
+  }
+  return {a / limits.max_accel_mm_per_s2, j / limits.max_jerk_mm_per_s3};
+}
+
+AxisScales axis_scale_floor(const MachineLimits& limits) {
+  return axis_scales(limits, Vec3(1.0, 1.0, 1.0), {true, true, true});
+}
 
 const char* to_string(FeedLimit limit) {
   switch (limit) {
@@ -99,6 +170,20 @@ void validate(const MachineLimits& limits) {
                      "(0: sharp corners); 0.01 is the default");
   }
   require_positive("stall_timeout_s", limits.stall_timeout_s);
+  const char* axis_names[3] = {"x", "y", "z"};
+  for (std::size_t i = 0; i < 3; ++i) {
+    const AxisLimits& ax = limits.axes[i];
+    const std::string at = std::string("axis.") + axis_names[i] + ".";
+    for (const auto& [key, value] : {std::pair{"max_feed_mm_per_min", ax.max_feed_mm_per_min},
+                                     std::pair{"max_accel_mm_per_s2", ax.max_accel_mm_per_s2},
+                                     std::pair{"max_jerk_mm_per_s3", ax.max_jerk_mm_per_s3}}) {
+      if (!(value > 0.0) || std::isnan(value)) {
+        throw InputError(at + key + " = " + text::sig(value) +
+                         " must be greater than 0; leave the key out for no limit of the axis's "
+                         "own (the path limit then bounds it)");
+      }
+    }
+  }
   if (limits.stall_timeout_s < 10.0 * limits.period_s) {
     throw InputError("stall_timeout_s = " + text::sig(limits.stall_timeout_s) +
                      " is shorter than 10 periods (" + text::sig(10.0 * limits.period_s) +

@@ -4,6 +4,8 @@
 // Pure functions, no allocation: the planner samples them along the path.
 #pragma once
 
+#include <array>
+#include <limits>
 #include <string>
 
 #include "core/geometry.hpp"
@@ -37,6 +39,20 @@ const char* to_string(FeedLimit limit);
 enum class JerkBound { tangential, vector };
 const char* to_string(JerkBound bound);  // "tangential", "vector"
 
+// One axis's own limits (the machine file's [axis.x], [axis.y], [axis.z]; docs/planner.md §3f).
+// +inf: not given, the axis is bounded by the path limits only.
+struct AxisLimits {
+  double max_feed_mm_per_min = std::numeric_limits<double>::infinity();
+  double max_accel_mm_per_s2 = std::numeric_limits<double>::infinity();
+  double max_jerk_mm_per_s3 = std::numeric_limits<double>::infinity();
+  bool any() const;
+};
+
+// The share of an axis's acceleration (and jerk) that the curve laws leave to the tangential
+// motion where a curve moves that axis normally (docs/planner.md §3f): the centripetal part is
+// held to (1 − share) of the axis's limit, so the planner keeps at least share of it.
+inline constexpr double kAxisTangentialShare = 0.5;
+
 // Machine and interpolation limits. Defaults are literature values (docs/feedrate.md §3): a_max in
 // 500–3000 mm/s², j_max in 2e4–6e4 mm/s³, a 1 µm chord tolerance, a 4 ms period.
 struct MachineLimits {
@@ -49,6 +65,8 @@ struct MachineLimits {
   double blend_tolerance_mm = 0.01;     // corner deviation allowed without G64 P
   double stall_timeout_s = 2.0;         // the cycle's no-progress watchdog (motion/cycle.cpp)
   JerkBound jerk_bound = JerkBound::tangential;
+  std::array<AxisLimits, 3> axes{};  // X, Y, Z; the path limits above stay a further cap
+  bool has_axis_limits() const;
 };
 
 // Under JerkBound::vector (docs/planner.md §3c): the share of j_max a curvature jump or a
@@ -75,6 +93,29 @@ struct FeedLimitResult {
   double feed_mm_per_s = 0.0;
   FeedLimit limit = FeedLimit::MaxFeed;
 };
+
+// Per-axis limits (docs/planner.md §3f) at a point with unit tangent t and curvature vector k
+// (κ N): the axis speed min_i vmax_i / |t_i| (reported as MaxFeed), and where the curve bends,
+// the centripetal acceleration v² |k_i| ≤ (1 − kAxisTangentialShare) a_i and the centripetal
+// jerk v³ κ |k_i| ... see feed_limits.cpp; +inf (MaxFeed) without axis limits.
+FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& unit_tangent,
+                                const Vec3& curvature_vector_per_mm);
+// The tangential acceleration and jerk the axes allow on a stretch whose unit tangent has
+// components at most tangent_max[i] and which bends an axis where bends[i] (then that axis keeps
+// kAxisTangentialShare of its limit for the tangential motion): as fractions of the path's
+// a_max and j_max, each in (0, 1].
+struct AxisScales {
+  double accel = 1.0, jerk = 1.0;
+};
+AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
+                       const std::array<bool, 3>& bends);
+// An axis's acceleration and jerk as the planner is given them: the machine file's, lowered by
+// what the walker's arc-length tolerance may add to the setpoints' differences (+inf: none).
+double axis_accel_for_planner(const MachineLimits& limits, std::size_t axis);
+double axis_jerk_for_planner(const MachineLimits& limits, std::size_t axis);
+// The lowest scales axis_scales() can give (tangent components of 1, every axis bent): what the
+// planner sizes its look-ahead for.
+AxisScales axis_scale_floor(const MachineLimits& limits);
 
 // Largest step Δs whose chord stays within ε of a circle of curvature κ (Yeh and Hsu), mm;
 // +inf on a straight line, the diameter 2ρ once ε ≥ ρ.

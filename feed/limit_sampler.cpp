@@ -438,6 +438,26 @@ FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
         jump_feed_mm_per_s(limits_, phi < kMinTurnRad ? 0.0 : phi, curvature_jump_per_mm);
     if (v < r.feed_mm_per_s) r = {v, FeedLimit::JerkVector};
   }
+  if (limits_.has_axis_limits() && phi >= kMinTurnRad) {
+    // Per-axis limits (docs/planner.md §3f). The junction law with the acceleration the axes
+    // allow along the direction change, min(a_max, min_i a_i / |u_i|), u the unit of
+    // d_out − d_in; and the velocity jump v |Δd_i| of each axis, which the second difference
+    // of the setpoints sees within one period: v |Δd_i| ≤ (1 − kAxisTangentialShare) a_i T,
+    // the tangential motion around the corner keeping the rest (its intervals bend).
+    const Vec3 dd = d_out - d_in, u = unit_or_zero(dd);
+    const double T = limits_.period_s, keep = 1.0 - kAxisTangentialShare;
+    double a = limits_.max_accel_mm_per_s2, v_jump = kInf;
+    for (int i = 0; i < 3; ++i) {
+      const double ai = axis_accel_for_planner(limits_, static_cast<std::size_t>(i));
+      if (std::abs(u[i]) > 0.0) a = std::min(a, ai / std::abs(u[i]));
+      if (std::abs(dd[i]) > 0.0) v_jump = std::min(v_jump, keep * ai * T / std::abs(dd[i]));
+    }
+    const double c = std::cos(0.5 * phi);
+    const double junction =
+        c < 1.0 ? std::sqrt(a * limits_.chord_tolerance_mm * c / (1.0 - c)) : kInf;
+    const double v = std::min(junction, v_jump);
+    if (v < r.feed_mm_per_s) r = {v, FeedLimit::Corner};
+  }
   return r;
 }
 
@@ -454,8 +474,12 @@ FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) cons
   const auto& seg = path_.segments[segment];
   const auto& c = std::get<toolpath::NurbsCurve>(seg.geometry);
   if (seg.rapid) {  // no cutting: the curve laws without the roughness law (a blended rapid)
-    const double kappa = curvature_per_mm(c.eval(u));
+    const toolpath::CurvePoint at = c.eval(u);
+    const double kappa = curvature_per_mm(at);
     FeedLimitResult r = segment_cap(segment);
+    if (limits_.has_axis_limits()) {
+      r = min_of(r, axis_feed_limit(limits_, unit_or_zero(at.d1), curvature_vector_per_mm(at)));
+    }
     r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
                    FeedLimit::Chord});
     r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
@@ -463,7 +487,10 @@ FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) cons
     return min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
                       FeedLimit::CentripetalJerk});
   }
-  return min_of(feed_limit_at(limits_, cutting_, c.eval(u)), segment_cap(segment));
+  const toolpath::CurvePoint at = c.eval(u);
+  const FeedLimitResult r = min_of(feed_limit_at(limits_, cutting_, at), segment_cap(segment));
+  if (!limits_.has_axis_limits()) return r;
+  return min_of(r, axis_feed_limit(limits_, unit_or_zero(at.d1), curvature_vector_per_mm(at)));
 }
 
 FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t piece) const {
@@ -473,6 +500,9 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
   const Vec3 dir = unit_or_zero(pts[piece + 1] - pts[piece]);
   FeedLimitResult r = segment_cap(segment);
   const double kappa = piece_curvature_per_mm(segment, piece);
+  if (limits_.has_axis_limits()) {  // a dense piece's curvature vector: at most κ on each axis
+    r = min_of(r, axis_feed_limit(limits_, dir, kappa * Vec3::Ones()));
+  }
   if (seg.rapid) {  // no cutting: the curve laws without the roughness law
     r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
                    FeedLimit::Chord});
@@ -618,6 +648,10 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
                 centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
                 centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3)});
   if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_);
+  if (limits_.has_axis_limits()) {  // the axis laws at |t_i| ≤ 1 and |k_i| ≤ κ
+    const FeedLimitResult ax = axis_feed_limit(limits_, Vec3::Ones(), kappa * Vec3::Ones());
+    floor_mm_per_s = std::min(floor_mm_per_s, ax.feed_mm_per_s);
+  }
   return floor_mm_per_s > segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
 }
 
@@ -740,6 +774,12 @@ void LimitSampler::apply_zones(Interval& iv) const {
     if (share > 0.0 && iv.a_mm < center_mm + 2.0 * half && iv.b_mm > center_mm - 2.0 * half) {
       iv.jump_share = std::max(iv.jump_share, share);
     }
+    // Per-axis limits: the periods whose second difference sees the corner's jump keep the
+    // tangential share (docs/planner.md §3f).
+    if (limits_.has_axis_limits() && iv.a_mm < center_mm + 2.0 * half &&
+        iv.b_mm > center_mm - 2.0 * half) {
+      iv.bends = true;
+    }
     if (iv.a_mm < center_mm + half && iv.b_mm > center_mm - half &&
         corner.feed_mm_per_s < iv.v_mm_per_s) {
       iv.v_mm_per_s = corner.feed_mm_per_s;
@@ -829,6 +869,8 @@ bool LimitSampler::next_interval(Interval& iv) {
       iv.turn_per_mm2 = 0.0;
       iv.jump_share = 0.0;
       iv.rest_speed = false;
+      iv.tangent_max = (line->points[piece_ + 1] - line->points[piece_]).normalized().cwiseAbs();
+      iv.bends = piece_curvature_per_mm(segment_, piece_) > 0.0;
       apply_zones(iv);
       bound_jerk_vector(iv);
       s_ = b;
@@ -1022,6 +1064,7 @@ bool LimitSampler::next_interval(Interval& iv) {
     iv.kappa_per_mm = iv.turn_per_mm2 = 0.0;
     iv.jump_share = 0.0;
     iv.rest_speed = raised;
+    if (limits_.has_axis_limits()) curve_tangent_max(c, u_, u1, iv);
     if (limits_.jerk_bound == JerkBound::vector) curve_turn(segment_, u_, u1, iv);
     apply_zones(iv);
     bound_jerk_vector(iv);
@@ -1139,6 +1182,44 @@ void LimitSampler::refuse_cusp(const toolpath::Path& path, std::size_t k,
       "there into two segments (a corner the motion stops at)");
 }
 
+// Per-axis limits (docs/planner.md §3f): the largest |t_i| of a curve interval from its tangent
+// at both ends and the middle, plus θ²/2 for the angle θ the tangent turns between neighbouring
+// samples (a component of a unit vector turning smoothly by θ along a great circle exceeds the
+// larger of its end values by at most θ²/8: four times that, measured, not proven); 1 on an
+// axis where a sample has no tangent (|C'| = 0: a repeated control point).
+void LimitSampler::curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1,
+                                     Interval& iv) const {
+  const double u_end = u1 < c.u_end() ? std::max(u0, std::nextafter(u1, -kInf)) : u1;
+  const Vec3 t[3] = {unit_or_zero(c.derivative(u0)), unit_or_zero(c.derivative(0.5 * (u0 + u_end))),
+                     unit_or_zero(c.derivative(u_end))};
+  iv.bends = c.degree() >= 2;
+  if (t[0].isZero() || t[1].isZero() || t[2].isZero()) {
+    iv.tangent_max = Vec3::Ones();
+    return;
+  }
+  const auto angle = [](const Vec3& a, const Vec3& b) {
+    return std::atan2(a.cross(b).norm(), a.dot(b));
+  };
+  const double turn = std::max(angle(t[0], t[1]), angle(t[1], t[2]));
+  const double margin = 0.5 * turn * turn + 1e-9;
+  const Vec3 hi = t[0].cwiseAbs().cwiseMax(t[1].cwiseAbs()).cwiseMax(t[2].cwiseAbs());
+  iv.tangent_max = (hi + Vec3::Constant(margin)).cwiseMin(1.0);
+}
+
+// Per-axis limits: the interval's speed at most min_i vmax_i / max|t_i| (its sampled largest
+// tangent components; also where the rest refinement raised it).
+void LimitSampler::axis_bound(Interval& iv) const {
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double ti = iv.tangent_max[static_cast<int>(i)];
+    if (!(ti > 0.0)) continue;
+    const double v = limits_.axes[i].max_feed_mm_per_min / 60.0 / ti;
+    if (v < iv.v_mm_per_s) {
+      iv.v_mm_per_s = v;
+      iv.limit = FeedLimit::MaxFeed;
+    }
+  }
+}
+
 JerkVectorSpan LimitSampler::jerk_span_of(const Interval& iv) const {
   if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return {};
   return {iv.kappa_per_mm, iv.turn_per_mm2, 1.0 - iv.jump_share};
@@ -1238,6 +1319,7 @@ bool LimitSampler::next(LimitNode& out) {
   Interval iv{};
   while (next_interval(iv)) {
     if (iv.b_mm <= iv.a_mm) continue;  // nothing to limit on a zero-length piece
+    if (limits_.has_axis_limits()) axis_bound(iv);
     if (iv.v_mm_per_s < pending_.feed_mm_per_s) {
       pending_.feed_mm_per_s = iv.v_mm_per_s;
       pending_.limit = iv.limit;
@@ -1245,6 +1327,9 @@ bool LimitSampler::next(LimitNode& out) {
     pending_.right_mm_per_s = iv.v_mm_per_s;
     pending_.right_limit = iv.limit;
     pending_.jerk_span = jerk_span_of(iv);
+    if (limits_.has_axis_limits()) {
+      pending_.axis_scale = axis_scales(limits_, iv.tangent_max, {iv.bends, iv.bends, iv.bends});
+    }
     out = pending_;
     pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf, {}};
     return true;

@@ -27,6 +27,10 @@ struct LimitNode {
   // span is exact for its interval, so it is not shared); none under JerkBound::tangential.
   JerkVectorSpan jerk_span;
   FeedLimit right_limit = FeedLimit::MaxFeed;  // the law of right_mm_per_s
+  // With per-axis limits (docs/planner.md §3f): the tangential acceleration and jerk the axes
+  // allow on the interval that starts at the node, as fractions of a_max and j_max (1: no
+  // constraint beyond the path's).
+  AxisScales axis_scale{};
 };
 
 struct SamplerConfig {
@@ -79,7 +83,14 @@ class LimitSampler {
     double kappa_per_mm = 0.0, turn_per_mm2 = 0.0;
     double jump_share = 0.0;  // of j_max, taken by a jump within two periods' travel
     bool rest_speed = false;  // raised to the rest speed (exempt from the curve laws)
+    // Per-axis limits: the largest |t_i| on the interval (a sampled curve: with a margin for
+    // the tangent's turn) and whether the interval bends (its axes keep a share for the
+    // centripetal part, kAxisTangentialShare).
+    Vec3 tangent_max = Vec3::Ones();
+    bool bends = true;
   };
+  void axis_bound(Interval& iv) const;
+  void curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1, Interval& iv) const;
   void bound_jerk_vector(Interval& iv) const;
   JerkVectorSpan jerk_span_of(const Interval& iv) const;
   void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;

@@ -114,6 +114,18 @@ bool feasible(const SharpCorner& c, const OverlapLimits& l, std::span<const Over
                     l.max_jerk_vector_mm_per_s3 * T * T * T)) {
       return false;
     }
+    for (int a = 0; a < 3; ++a) {  // per-axis limits
+      const auto ai = static_cast<std::size_t>(a);
+      if (!(std::abs(q[i][a] - q[i - 1][a]) <= l.axis_feed_mm_per_s[ai] * T)) return false;
+      if (i >= 2 && !(std::abs(q[i][a] - 2.0 * q[i - 1][a] + q[i - 2][a]) <=
+                      l.axis_accel_mm_per_s2[ai] * T * T)) {
+        return false;
+      }
+      if (i >= 3 && !(std::abs(q[i][a] - 3.0 * q[i - 1][a] + 3.0 * q[i - 2][a] - q[i - 3][a]) <=
+                      l.axis_jerk_mm_per_s3[ai] * T * T * T)) {
+        return false;
+      }
+    }
   }
   // The periods that end at the superposed setpoints k = 1 … m.
   for (std::size_t k = 1; k <= mu; ++k) {

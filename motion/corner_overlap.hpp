@@ -2,6 +2,9 @@
 // superposed in time (docs/planner.md §3b). Plain data in, a period count out; no allocation.
 #pragma once
 
+#include <array>
+#include <limits>
+
 #include <cstddef>
 #include <span>
 
@@ -21,12 +24,19 @@ struct OverlapSample {
   double chord_error_mm = 0.0;  // overlap_setpoints' result: the period's chord error
 };
 
+inline constexpr double kNoAxisLimit = std::numeric_limits<double>::infinity();
+
 struct OverlapLimits {
   double period_s = 0.004;
   double max_feed_mm_per_s = 100.0;
   double max_accel_mm_per_s2 = 1000.0;     // |Δ²p|/T² of the result
   double max_jerk_vector_mm_per_s3 = 2e4;  // |Δ³p|/T³ of the result
   double chord_tolerance_mm = 0.001;       // the continuous motion against each chord
+  // Per-axis limits (docs/planner.md §3f): each axis's |Δp_i|/T, |Δ²p_i|/T², |Δ³p_i|/T³ of the
+  // result (+inf: none).
+  std::array<double, 3> axis_feed_mm_per_s{kNoAxisLimit, kNoAxisLimit, kNoAxisLimit};
+  std::array<double, 3> axis_accel_mm_per_s2{kNoAxisLimit, kNoAxisLimit, kNoAxisLimit};
+  std::array<double, 3> axis_jerk_mm_per_s3{kNoAxisLimit, kNoAxisLimit, kNoAxisLimit};
 };
 
 // The most periods m ≤ m_max by which the motion that rests at the corner at w[rest] may be

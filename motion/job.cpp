@@ -33,6 +33,11 @@ PlannerLimits planner_limits(const JobConfig& c) {
   p.min_tangential_scale = c.limits.jerk_bound == interpolator::JerkBound::vector
                                ? interpolator::kTangentialScaleFloor
                                : 1.0;
+  // With per-axis limits, down to the axes' lowest share of a_max and j_max (§3f).
+  if (c.limits.has_axis_limits()) {
+    const interpolator::AxisScales floor = interpolator::axis_scale_floor(c.limits);
+    p.min_tangential_scale = std::min({p.min_tangential_scale, floor.accel, floor.jerk});
+  }
   return p;
 }
 
@@ -221,6 +226,11 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
                                                     ? l.max_jerk_mm_per_s3
                                                     : std::sqrt(2.0) * l.max_jerk_mm_per_s3;
     overlap_limits_.chord_tolerance_mm = l.chord_tolerance_mm;
+    for (std::size_t i = 0; i < 3; ++i) {
+      overlap_limits_.axis_feed_mm_per_s[i] = l.axes[i].max_feed_mm_per_min / 60.0;
+      overlap_limits_.axis_accel_mm_per_s2[i] = l.axes[i].max_accel_mm_per_s2;
+      overlap_limits_.axis_jerk_mm_per_s3[i] = l.axes[i].max_jerk_mm_per_s3;
+    }
     deep_within_mm_ = line_deep_within_mm(path_, segment_starts(walker_, path_.segments.size()),
                                           bounds_, l, line_deep_steps(overlap_max_));
   }
@@ -266,8 +276,9 @@ bool Job::feed_planner() {
   // A node and the interval after it (the sampler's minimum there; +inf at a stretch's end).
   const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
                         const JerkVectorSpan& span, double v_after_mm_per_s,
-                        interpolator::FeedLimit after) {
-    return take({s_mm, v_mm_per_s, id(limit), span, v_after_mm_per_s, id(after)});
+                        interpolator::FeedLimit after, const interpolator::AxisScales& axis) {
+    return take(
+        {s_mm, v_mm_per_s, id(limit), span, v_after_mm_per_s, id(after), axis.accel, axis.jerk});
   };
   while (planner_.wants_samples()) {
     if (carry_n_ > 0) {
@@ -295,24 +306,29 @@ bool Job::feed_planner() {
       // interval of the node before, which holds the stop).
       const bool past = node.s_mm > end + tol;
       const JerkVectorSpan span = node.jerk_span, first = past ? last_span_ : span;
-      if (!push(length, left, node.limit, JerkVectorSpan{}, kInf, node.limit)) return false;
+      if (!push(length, left, node.limit, JerkVectorSpan{}, kInf, node.limit, {})) return false;
       const double right = past ? left : node.right_mm_per_s;
-      carry_[0] = {0.0, right, id(node.limit), first, past ? kInf : right, id(node.right_limit)};
+      const interpolator::AxisScales axis = past ? last_axis_ : node.axis_scale;
+      carry_[0] = {
+          0.0,        right,    id(node.limit), first, past ? kInf : right, id(node.right_limit),
+          axis.accel, axis.jerk};
       // (A zero limit after the stop is refused when the next stretch takes it.)
       carry_n_ = 1;
       stop_taken_early_ = node.s_mm < end;
       if (past) {  // no node fell on the stop: keep this one for the next
-        carry_[1] = {node.s_mm - end,     node.feed_mm_per_s,  id(node.limit), span,
-                     node.right_mm_per_s, id(node.right_limit)};
+        carry_[1] = {
+            node.s_mm - end,     node.feed_mm_per_s,   id(node.limit),        span,
+            node.right_mm_per_s, id(node.right_limit), node.axis_scale.accel, node.axis_scale.jerk};
         carry_n_ = 2;
       }
       break;  // the planner has its end
     }
     if (!push(node.s_mm - start, node.feed_mm_per_s, node.limit, node.jerk_span,
-              node.right_mm_per_s, node.right_limit)) {
+              node.right_mm_per_s, node.right_limit, node.axis_scale)) {
       return false;
     }
     last_span_ = node.jerk_span;
+    last_axis_ = node.axis_scale;
   }
   return true;
 }

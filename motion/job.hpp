@@ -173,6 +173,7 @@ class Job {
   LimitSample carry_[2]{};         // samples of the next stretch read before it began
   bool stop_taken_early_ = false;  // the last stretch ended on a node short of its stop
   JerkVectorSpan last_span_;       // the curve span of the last node pushed (its interval)
+  interpolator::AxisScales last_axis_{};  // the axis scales of the last node pushed
   std::size_t carry_n_ = 0;
   StepGuard guard_;
   // The look-ahead's fault (fault() == Plan): where, and the sample refused and why (a zero

@@ -385,6 +385,7 @@ PushResult Planner::push(const LimitSample& in) {
   if (span.curvature_per_mm != 0.0 || span.turn_per_mm2 != 0.0 || span.budget != 1.0) {
     any_scaled_ = true;
   }
+  if (in.accel_scale != 1.0 || in.jerk_scale != 1.0) any_axis_ = true;
   ++count_;
   count_high_water_ = std::max(count_high_water_, count_);
   ahead_high_water_mm_ = std::max(ahead_high_water_mm_, in.s_mm - x_.s_mm);
@@ -411,6 +412,10 @@ PushResult Planner::classify(const LimitSample& in) const {
   if (constrained && !(span.curvature_per_mm >= 0.0 && std::isfinite(span.curvature_per_mm) &&
                        span.turn_per_mm2 >= 0.0 && std::isfinite(span.turn_per_mm2) &&
                        span.budget > 0.0 && span.budget <= 1.0)) {
+    return PushResult::SpanInvalid;
+  }
+  if (!(in.accel_scale > 0.0 && in.accel_scale <= 1.0 && in.jerk_scale > 0.0 &&
+        in.jerk_scale <= 1.0)) {
     return PushResult::SpanInvalid;
   }
   if (count_ == 0 && periods_ == 0 && in.s_mm != 0.0) return PushResult::FirstNotAtZero;
@@ -512,9 +517,17 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
   if (count_ < 2) return false;
   while (c.segment + 2 < count_ && sample(c.segment + 1).s_mm <= x.s_mm) ++c.segment;
   JerkVectorSpan span;  // the curve over the period's span: largest κ and g, smallest budget
+  const double a_hi_abs = std::max(std::abs(x.a_mm_per_s2), std::abs(a1));
   for (std::size_t k = c.segment; k + 1 < count_; ++k) {
     const double lim = interval_limit(k) * scale;
     if (v_hi > lim * (1.0 + kRelSlack)) return false;
+    if (any_axis_) {  // per-axis limits: the tangential a and j the interval's axes allow
+      const LimitSample& q = sample(k);
+      if (std::abs(j) > j_max_ * q.jerk_scale * (1.0 + kRelSlack) ||
+          a_hi_abs > a_max_ * q.accel_scale * (1.0 + kRelSlack)) {
+        return false;
+      }
+    }
     if (any_scaled_) {  // the curve of the interval that starts at sample k
       const JerkVectorSpan q = sample(k).jerk_span;
       span.curvature_per_mm = std::max(span.curvature_per_mm, q.curvature_per_mm);
@@ -525,8 +538,7 @@ bool Planner::check_period(const Kin& x, double j, Cursor& c, double scale, doub
       if (!any_scaled_) return true;
       // The jerk vector (docs/planner.md §3c) at the period's highest speed and |a| (a is
       // linear in the period, so its ends bound it).
-      const double a_hi = std::max(std::abs(x.a_mm_per_s2), std::abs(a1));
-      return jerk_vector_within(span, v_hi, a_hi, j, j_max_, kRelSlack);
+      return jerk_vector_within(span, v_hi, a_hi_abs, j, j_max_, kRelSlack);
     }
   }
   return false;  // beyond the last sample
@@ -567,6 +579,35 @@ void Planner::set_policy_limits() {
   }
   pol_a_ = a_max_ * sigma;
   pol_j_ = j_max_ * sigma;
+  if (any_axis_) {  // per-axis limits: π keeps the smallest of the window (docs/planner.md §3f)
+    // Rounded down to 1/64 (and by 1e-9, for π's rounding): its limits then change only where
+    // the window's axis limits change by a step, and the memo's key holds them.
+    const AxisScale w = window_axis_scale();
+    const auto step_down = [](double x) {
+      const double q = std::floor(x * 64.0) / 64.0;
+      return (q > 0.0 ? q : x) * (1.0 - 1e-9);
+    };
+    pol_a_ = std::min(pol_a_, a_max_ * step_down(w.accel));
+    pol_j_ = std::min(pol_j_, j_max_ * step_down(w.jerk));
+  }
+}
+
+// The smallest axis scales of the window's intervals.
+Planner::AxisScale Planner::window_axis_scale() const {
+  AxisScale w{1.0, 1.0};
+  for (std::size_t i = 0; i < count_; ++i) {
+    w.accel = std::min(w.accel, sample(i).accel_scale);
+    w.jerk = std::min(w.jerk, sample(i).jerk_scale);
+  }
+  return w;
+}
+
+// The axis scales of the interval that holds s.
+Planner::AxisScale Planner::axis_scale_at(double s_mm) const {
+  if (count_ == 0) return {1.0, 1.0};
+  std::size_t i = 0;
+  while (i + 1 < count_ && sample(i + 1).s_mm <= s_mm) ++i;
+  return {sample(i).accel_scale, sample(i).jerk_scale};
 }
 
 double Planner::v_settle(const Kin& x) const {
@@ -719,8 +760,13 @@ bool Planner::rollout_member(double j0, double scale_check, double stop_mm,
                        pol_j_,        pol_final_,     pol_under_, policy_hold_};
   // In a window flat enough for it, the memo's rollout shifted to s (see RolloutKey), if it
   // still rests before the stop point with room for the rounding of s.
-  const bool flat_window =
-      reuse_rollouts_ && !any_scaled_ && blocks_period_ == periods_ && scale_check == blocks_scale_;
+  // (With per-axis limits, a rollout keeps the window's smallest axis limits only if its first
+  // period does: π's own periods keep pol_a_ and pol_j_, which are below them.)
+  const double a1 = x_.a_mm_per_s2 + j0 * period_s_;
+  const bool axes_ok = !any_axis_ || (std::abs(j0) <= pol_j_ &&
+                                      std::abs(x_.a_mm_per_s2) <= pol_a_ && std::abs(a1) <= pol_a_);
+  const bool flat_window = reuse_rollouts_ && !any_scaled_ && axes_ok &&
+                           blocks_period_ == periods_ && scale_check == blocks_scale_;
   if (flat_window && memo_n_ > 0 && key == memo_key_ && window_min() >= memo_v_need_ &&
       x_.s_mm + memo_span_mm_ + 1e-9 * std::max(1.0, length_mm_) <=
           std::min(stop_mm, blocks_stop_mm_)) {
@@ -767,7 +813,8 @@ bool Planner::land_with(std::size_t n, LandBase base) {
   // The reach base's ramps are at the jerk limit already: its correction is weighted by each
   // period's headroom 1 − |j| / j_max, so that it falls on the periods between the ramps.
   const auto weight = [&](std::size_t i) {
-    return base == LandBase::reach ? std::max(0.0, 1.0 - std::abs(land_base_[i]) / j_max_) : 1.0;
+    return base == LandBase::reach ? std::max(0.0, 1.0 - std::abs(land_base_[i]) / land_j_max_)
+                                   : 1.0;
   };
   if (first + 3 > n) return false;
   const double T = period_s_;
@@ -863,7 +910,7 @@ bool Planner::take_landing(std::size_t n) {
 // takes up the averaging. False if no deceleration up to a_max rests on L after n periods.
 bool Planner::scurve_base(std::size_t n) {
   if (n > rollout_cap_) return false;
-  const double T = period_s_, jl = kLandJerk * j_max_;
+  const double T = period_s_, jl = kLandJerk * land_j_max_;
   const auto end_mm = [&](double a_cap) {  // fills land_base_; where it rests (NaN: too long)
     const Profile p = decrease_profile(x_.v_mm_per_s, x_.a_mm_per_s2, 0.0, a_cap, jl, jl);
     const double t0 = static_cast<double>(n) * T - (p.t1 + p.t2 + p.t3);
@@ -884,7 +931,7 @@ bool Planner::scurve_base(std::size_t n) {
     }
     return y.s_mm;
   };
-  double hi = a_max_, lo = 0.05 * a_max_;
+  double hi = land_a_max_, lo = 0.05 * land_a_max_;
   const double s_hi = end_mm(hi), s_lo = end_mm(lo);
   if (!(s_hi >= length_mm_) || s_lo > length_mm_) return false;  // (NaN at lo: too long, fine)
   for (int k = 0; k < 40; ++k) {
@@ -905,13 +952,13 @@ bool Planner::scurve_base(std::size_t n) {
 // 23 % longer on a short line.) Returns the fastest time from here, +inf if none; for n > 0,
 // fills land_base_ with the base of exactly n periods, and returns +inf if there is none.
 double Planner::reach_base(std::size_t n, double v_cap, double jerk_fraction) {
-  const double T = period_s_, jl = jerk_fraction * j_max_;
+  const double T = period_s_, jl = jerk_fraction * land_j_max_;
   const double v0 = x_.v_mm_per_s, a0 = x_.a_mm_per_s2, d = length_mm_ - x_.s_mm;
   Phase ph[7];
   // Rise (or fall) to w, cruise, stop: distance and time without the cruise.
   const auto shape = [&](double w, double* t_s) {
-    change_phases(v0, a0, w, a_max_, jl, ph);
-    change_phases(w, 0.0, 0.0, a_max_, jl, ph + 4);
+    change_phases(v0, a0, w, land_a_max_, jl, ph);
+    change_phases(w, 0.0, 0.0, land_a_max_, jl, ph + 4);
     ph[3] = Phase{0.0, 0.0};
     *t_s = 0.0;
     return run_phases(ph, 7, v0, a0, t_s);
@@ -964,13 +1011,20 @@ double Planner::reach_base(std::size_t n, double v_cap, double jerk_fraction) {
 bool Planner::try_landing() {
   const double T = period_s_;
   const double slack = 4.0 * x_.v_mm_per_s * T + 64.0 * j_max_ * T * T * T;
+  land_a_max_ = a_max_, land_j_max_ = j_max_;
+  if (any_axis_) {  // the landing runs to L inside the window: its axes' smallest scales
+    const AxisScale w = window_axis_scale();
+    land_a_max_ *= w.accel;
+    land_j_max_ *= w.jerk;
+  }
   if (length_mm_ - x_.s_mm > need_mm(x_, 0.0) + slack) return false;
   const std::size_t tail = plan_n_ - plan_pos_;
   // Shorter landings than the plan's first: the earliest rest on L from here. None is shorter
   // than the time-optimal stop from (v, a), whatever the distance; at most kShortLandings tries
   // (bounded work per period).
   constexpr std::size_t kShortLandings = 16;
-  const Profile stop = decrease_profile(x_.v_mm_per_s, x_.a_mm_per_s2, 0.0, a_max_, j_max_, j_max_);
+  const Profile stop =
+      decrease_profile(x_.v_mm_per_s, x_.a_mm_per_s2, 0.0, land_a_max_, land_j_max_, land_j_max_);
   const double t_stop = stop.t1 + stop.t2 + stop.t3;
   const std::size_t n0 =
       std::max<std::size_t>(3, t_stop > 0.0 ? static_cast<std::size_t>(t_stop / T) : 0);
@@ -981,7 +1035,7 @@ bool Planner::try_landing() {
   const double v = x_.v_mm_per_s;
   const bool at_limit = v > 0.0 && v >= limit_at(x_.s_mm) * override_applied_ * (1.0 - 1e-9);
   double n_cruise = std::numeric_limits<double>::infinity();
-  if (v >= a_max_ * T || at_limit) {
+  if (v >= land_a_max_ * T || at_limit) {
     const double t_cruise = t_stop + std::max(length_mm_ - x_.s_mm - need_mm(x_, 0.0), 0.0) / v;
     n_cruise = std::max(std::ceil(t_cruise / T) + 1.0, static_cast<double>(n0 + 2));
   }
@@ -989,10 +1043,10 @@ bool Planner::try_landing() {
   // motion can rest on L, to within the periods (the policy's final ramp is at kFinalJerk).
   // Only when cruising at the limit: below it the follower may still gain before braking.
   if (at_limit) {
-    const double jl = kLandJerk * j_max_;
-    const Profile q = decrease_profile(v, x_.a_mm_per_s2, 0.0, a_max_, jl, jl);
+    const double jl = kLandJerk * land_j_max_;
+    const Profile q = decrease_profile(v, x_.a_mm_per_s2, 0.0, land_a_max_, jl, jl);
     const double d_left =
-        length_mm_ - x_.s_mm - profile_distance(v, x_.a_mm_per_s2, 0.0, a_max_, jl, jl);
+        length_mm_ - x_.s_mm - profile_distance(v, x_.a_mm_per_s2, 0.0, land_a_max_, jl, jl);
     const double t_land = q.t1 + q.t2 + q.t3 + std::max(d_left, 0.0) / v;
     const auto n_land = static_cast<std::size_t>(std::ceil(t_land / T));
     for (std::size_t n = n_land; n < n_land + 2; ++n) {
@@ -1178,7 +1232,12 @@ MotionSample Planner::step() {
       any_scaled_ ? scale_at(x_.s_mm, x_.v_mm_per_s + std::abs(x_.a_mm_per_s2) * period_s_ +
                                           j_max_ * period_s_ * period_s_)
                   : 1.0;
-  const double j_here = sigma * j_max_, a_here = sigma * a_max_;
+  double j_here = sigma * j_max_, a_here = sigma * a_max_;
+  if (any_axis_) {
+    const AxisScale here = axis_scale_at(x_.s_mm);
+    j_here = std::min(j_here, here.jerk * j_max_);
+    a_here = std::min(a_here, here.accel * a_max_);
+  }
   const double j_top = clampj(std::min(j_here, (a_here - x_.a_mm_per_s2) / T), j_here);
   if (rollout(j_top, override_applied_, real_stop, best_, best_n_)) {
     const double a1 = x_.a_mm_per_s2 + j_top * T;

@@ -30,6 +30,10 @@ struct LimitSample {
   // v_max_mm_per_s), and the law that sets it; +inf: the smaller of the two samples.
   double v_after_mm_per_s = std::numeric_limits<double>::infinity();
   std::uint8_t after_limit_id = 0;
+  // Per-axis limits (docs/planner.md §3f): the tangential acceleration and jerk allowed over
+  // the interval from this sample to the next, as fractions of a_max and j_max, in (0, 1].
+  double accel_scale = 1.0;
+  double jerk_scale = 1.0;
 };
 
 // limit_id values the planner reports itself; upstream ids must be below kLimitIdReserved.
@@ -48,7 +52,8 @@ enum class PushResult : std::uint8_t {
   SpeedInvalid,    // v_max not finite or not > 0
   AfterInvalid,    // v_after below v_max (or NaN)
   IdReserved,      // limit_id or after_limit_id >= kLimitIdReserved
-  SpanInvalid,     // jerk_span with a negative or non-finite term, or a budget outside (0, 1]
+  SpanInvalid,     // jerk_span with a negative or non-finite term, or a budget outside (0, 1],
+                   // or an accel_scale or jerk_scale outside (0, 1]
   FirstNotAtZero,  // the first sample's s is not 0
   NotIncreasing,   // s not above the previous sample's
   WindowFull,      // pushed while !wants_samples() said the window was full
@@ -218,6 +223,17 @@ class Planner {
   // in the window (so that every period π simulates keeps the local limits).
   double pol_a_ = 0.0, pol_j_ = 0.0;
   bool any_scaled_ = false;  // a sample with a jerk_span constraint was pushed
+  bool any_axis_ = false;    // a sample with an accel_scale or jerk_scale below 1 was pushed
+  // The smallest accel_scale and jerk_scale of the samples from i on over [s, s1] (per-axis
+  // limits; 1 without them), and of the whole window.
+  struct AxisScale {
+    double accel, jerk;
+  };
+  AxisScale window_axis_scale() const;
+  AxisScale axis_scale_at(double s_mm) const;
+  // A landing's limits: a_max and j_max times the window's axis scales (the landing runs to L
+  // inside the window).
+  double land_a_max_ = 0.0, land_j_max_ = 0.0;
   void set_policy_limits();
   double scale_at(double s_mm, double v_mm_per_s) const;
   double sample_scale(std::size_t i, double v_mm_per_s) const;

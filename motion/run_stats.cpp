@@ -3,6 +3,7 @@
 // violations beyond kViolationRel, roughness, binding limits.
 #include "motion/run_stats.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -15,6 +16,85 @@ double RunStats::feed_error_rms_rel() const {
 
 std::int64_t RunStats::limit_violations() const {
   return violations_feed + violations_accel + violations_jerk + violations_chord;
+}
+
+namespace {
+
+// The per-axis differences of the setpoints (the first three periods only have fewer).
+void record_axes(RunStats& st, double T, const Vec3& p) {
+  const auto& q = st.last_p_mm;
+  for (int i = 0; i < 3; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (st.cycles >= 2) {
+      st.axis_feed_max_mm_per_s[k] =
+          std::max(st.axis_feed_max_mm_per_s[k], std::abs(p[i] - q[2][i]) / T);
+    }
+    if (st.cycles >= 3) {
+      st.axis_accel_max_mm_per_s2[k] = std::max(st.axis_accel_max_mm_per_s2[k],
+                                                std::abs(p[i] - 2.0 * q[2][i] + q[1][i]) / (T * T));
+    }
+    if (st.cycles >= 4) {
+      st.axis_jerk_max_mm_per_s3[k] =
+          std::max(st.axis_jerk_max_mm_per_s3[k],
+                   std::abs(p[i] - 3.0 * q[2][i] + 3.0 * q[1][i] - q[0][i]) / (T * T * T));
+    }
+  }
+}
+
+}  // namespace
+
+std::array<AxisPeak, 3> axis_peaks(const RunStats& st, const interpolator::MachineLimits& l) {
+  std::array<AxisPeak, 3> out{};
+  for (std::size_t i = 0; i < 3; ++i) {
+    const interpolator::AxisLimits& ax = l.axes[i];
+    out[i] = {static_cast<char>('X' + i),     st.axis_feed_max_mm_per_s[i] * 60.0,
+              st.axis_accel_max_mm_per_s2[i], st.axis_jerk_max_mm_per_s3[i],
+              ax.max_feed_mm_per_min,         ax.max_accel_mm_per_s2,
+              ax.max_jerk_mm_per_s3};
+  }
+  return out;
+}
+
+nlohmann::ordered_json axis_peaks_json(const RunStats& st, const interpolator::MachineLimits& l) {
+  const auto lim = [](double x) {
+    return std::isfinite(x) ? nlohmann::ordered_json(x) : nlohmann::ordered_json(nullptr);
+  };
+  nlohmann::ordered_json j = nlohmann::ordered_json::object();
+  for (const AxisPeak& a : axis_peaks(st, l)) {
+    j[std::string(1, static_cast<char>(a.axis - 'X' + 'x'))] = {
+        {"feed_max_mm_per_min", a.feed_mm_per_min},
+        {"feed_limit_mm_per_min", lim(a.feed_limit_mm_per_min)},
+        {"accel_max_mm_per_s2", a.accel_mm_per_s2},
+        {"accel_limit_mm_per_s2", lim(a.accel_limit_mm_per_s2)},
+        {"jerk_max_mm_per_s3", a.jerk_mm_per_s3},
+        {"jerk_limit_mm_per_s3", lim(a.jerk_limit_mm_per_s3)}};
+  }
+  return j;
+}
+
+std::string axis_peaks_text(const RunStats& st, const interpolator::MachineLimits& l) {
+  if (!l.has_axis_limits()) return {};
+  std::string text;
+  for (const AxisPeak& a : axis_peaks(st, l)) {
+    char line[240];
+    const auto lim = [](double x, char* buf, std::size_t n) {
+      if (std::isfinite(x)) {
+        std::snprintf(buf, n, "%.6g", x);
+      } else {
+        std::snprintf(buf, n, "none");
+      }
+      return buf;
+    };
+    char f[32], ac[32], jk[32];
+    std::snprintf(line, sizeof line,
+                  "  axis %c            feed %.1f mm/min (limit %s), accel %.1f mm/s2 (limit %s), "
+                  "jerk %.0f mm/s3 (limit %s)\n",
+                  a.axis, a.feed_mm_per_min, lim(a.feed_limit_mm_per_min, f, sizeof f),
+                  a.accel_mm_per_s2, lim(a.accel_limit_mm_per_s2, ac, sizeof ac), a.jerk_mm_per_s3,
+                  lim(a.jerk_limit_mm_per_s3, jk, sizeof jk));
+    text += line;
+  }
+  return text;
 }
 
 void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double limit_mm_per_s,
@@ -43,6 +123,7 @@ void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double li
     const Vec3 d3 = sp.p - 3.0 * st.last_p_mm[2] + 3.0 * st.last_p_mm[1] - st.last_p_mm[0];
     st.jerk_vector_max_mm_per_s3 = std::max(st.jerk_vector_max_mm_per_s3, d3.norm() / t3);
   }
+  record_axes(st, l.period_s, sp.p);
   st.last_p_mm = {st.last_p_mm[1], st.last_p_mm[2], sp.p};
   st.feed_max_mm_per_s = std::max(st.feed_max_mm_per_s, sp.v_mm_per_s);
   st.roughness_max_um = std::max(st.roughness_max_um, roughness_um);

@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "core/histogram.hpp"
 #include "motion/job.hpp"
 
@@ -49,6 +51,10 @@ struct RunStats {
   // 3 v a κ to the tangential jerk. last_p_mm holds the three previous setpoints.
   double jerk_vector_max_mm_per_s3 = 0.0;
   std::array<Vec3, 3> last_p_mm{};
+  // Per axis (X, Y, Z), from the setpoints' differences: the largest |Δp_i|/T, |Δ²p_i|/T² and
+  // |Δ³p_i|/T³ (docs/planner.md §3f).
+  std::array<double, 3> axis_feed_max_mm_per_s{}, axis_accel_max_mm_per_s2{},
+      axis_jerk_max_mm_per_s3{};
   double feed_max_mm_per_s = 0.0;
   double roughness_max_um = 0.0;
   std::int64_t violations_feed = 0, violations_accel = 0, violations_jerk = 0, violations_chord = 0;
@@ -60,6 +66,24 @@ struct RunStats {
   std::int64_t limit_violations() const;
   double drift_mm() const { return (travelled_mm - path_length_mm) + travelled_carry_mm; }
 };
+
+// One axis's peaks against its own limits (+inf where the machine file gives none), for the
+// reports; ratio: the largest of peak / limit over the three (0 without limits).
+struct AxisPeak {
+  char axis;
+  double feed_mm_per_min, accel_mm_per_s2, jerk_mm_per_s3;
+  double feed_limit_mm_per_min, accel_limit_mm_per_s2, jerk_limit_mm_per_s3;
+  double feed_ratio() const { return feed_mm_per_min / feed_limit_mm_per_min; }
+  double accel_ratio() const { return accel_mm_per_s2 / accel_limit_mm_per_s2; }
+  double jerk_ratio() const { return jerk_mm_per_s3 / jerk_limit_mm_per_s3; }
+};
+std::array<AxisPeak, 3> axis_peaks(const RunStats& stats,
+                                   const interpolator::MachineLimits& limits);
+// The replay report's "axis_peaks": per axis, each peak and its limit (null: none).
+nlohmann::ordered_json axis_peaks_json(const RunStats& stats,
+                                       const interpolator::MachineLimits& limits);
+// The replay's text lines for them ("" without per-axis limits in the machine file).
+std::string axis_peaks_text(const RunStats& stats, const interpolator::MachineLimits& limits);
 
 // Why a finished run must not reach a machine: any limit violation (feed, acceleration, jerk,
 // chord) or an arc-length drift beyond kDriftToleranceMm; empty when it may. The one

@@ -294,6 +294,47 @@ void parse_tool(const toml::value& table, const std::string& name, ToolConfig& t
   }
 }
 
+// [axis.x], [axis.y], [axis.z] (docs/planner.md §3f): each axis's own limits, in the ranges of
+// the path's; a key left out leaves the axis bounded by the path limit only.
+void parse_axes(const toml::value& table, const std::string& name,
+                std::array<interpolator::AxisLimits, 3>& axes) {
+  static constexpr const char* kNames[3] = {"x", "y", "z"};
+  for (const auto& [axis, value] : table.as_table()) {
+    std::size_t i = 0;
+    while (i < 3 && axis != kNames[i]) ++i;
+    if (i == 3) {
+      throw InputError("unknown table " + name + ": [axis." + axis +
+                       "]; the machine file takes [axis.x], [axis.y] and [axis.z]");
+    }
+    const std::string table_name = "axis." + axis;
+    if (!value.is_table()) {
+      throw InputError(name + ": " + table_name + " must be a table: [" + table_name + "]");
+    }
+    interpolator::AxisLimits& ax = axes[i];
+    for (const auto& [key, v] : value.as_table()) {
+      const std::string where = name + ": " + table_name + "." + key;
+      const auto in_range = [&](const ranges::Range& r) {
+        const double x = as_real(v, where);
+        checked_range(x, r.lo, r.hi, where, r.unit,
+                      "give the axis's limit in that range, or leave the key out: the axis is then "
+                      "bounded by the path's " +
+                          key + " (the file's top level) only");
+        return x;
+      };
+      if (key == "max_feed_mm_per_min")
+        ax.max_feed_mm_per_min = in_range(ranges::kMaxFeedMmPerMin);
+      else if (key == "max_accel_mm_per_s2")
+        ax.max_accel_mm_per_s2 = in_range(ranges::kMaxAccelMmPerS2);
+      else if (key == "max_jerk_mm_per_s3")
+        ax.max_jerk_mm_per_s3 = in_range(ranges::kMaxJerkMmPerS3);
+      else {
+        throw InputError("unknown key " + where + "; [" + table_name +
+                         "] takes max_feed_mm_per_min, max_accel_mm_per_s2, max_jerk_mm_per_s3");
+      }
+    }
+  }
+}
+
 }  // namespace
 
 MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
@@ -362,6 +403,11 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
     } else if (key == "envelope") {
       if (!value.is_table()) throw InputError(where + " must be a table: [envelope]");
       parse_envelope(value, name, c.envelope);
+    } else if (key == "axis") {
+      if (!value.is_table()) {
+        throw InputError(where + " must be tables: [axis.x], [axis.y], [axis.z]");
+      }
+      parse_axes(value, name, l.axes);
     } else if (key == "tool") {
       if (!value.is_table()) throw InputError(where + " must be a table: [tool]");
       parse_tool(value, name, c.tool);
@@ -371,7 +417,8 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
           "; the machine file takes period_s, max_feed_mm_per_min, "
           "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
           "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
-          "[cutting], [link], [encoder], [envelope], [program], [tool]");
+          "[cutting], [link], [encoder], [envelope], [program], [tool], [axis.x], [axis.y], "
+          "[axis.z]");
     }
   }
   c.encoder.line = c.link.line;
@@ -443,6 +490,20 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
   j["stall_timeout_s"] = c.limits.stall_timeout_s;
   j["jerk_bound"] = interpolator::to_string(c.limits.jerk_bound);
+  if (c.limits.has_axis_limits()) {  // only when given: without them the JSON is as before
+    static constexpr const char* kNames[3] = {"x", "y", "z"};
+    nlohmann::ordered_json axes = nlohmann::ordered_json::object();
+    for (std::size_t i = 0; i < 3; ++i) {
+      const interpolator::AxisLimits& ax = c.limits.axes[i];
+      const auto limit = [](double x) {
+        return std::isfinite(x) ? nlohmann::ordered_json(x) : nlohmann::ordered_json(nullptr);
+      };
+      axes[kNames[i]] = {{"max_feed_mm_per_min", limit(ax.max_feed_mm_per_min)},
+                         {"max_accel_mm_per_s2", limit(ax.max_accel_mm_per_s2)},
+                         {"max_jerk_mm_per_s3", limit(ax.max_jerk_mm_per_s3)}};
+    }
+    j["axis"] = axes;
+  }
   j["cutting"] = {{"ball_radius_mm", c.cutting.ball_radius_mm},
                   {"pick_feed_mm", c.cutting.pick_feed_mm},
                   {"teeth", c.cutting.teeth},
