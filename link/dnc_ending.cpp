@@ -3,6 +3,7 @@
 // link given up, and the report of what the reset dropped.
 // The algorithm: the top of dnc_sender.cpp; docs/dnc-link.md, "A safe halt", "Ending early".
 #include "link/dnc_session.hpp"
+#include "link/held_position.hpp"
 
 namespace ncd::comms::dnc_detail {
 
@@ -40,6 +41,8 @@ void Session::ending_step() {
         report_.ending.held = true;
         report_.ending.held_t_s = now;
         report_.ending.held_at_mm = status_.position;
+        report_.ending.position_doubt = held_position_doubt(status_.position);
+        if (!report_.ending.position_doubt.empty()) report_.position_may_be_lost = true;
         reset_for_ending();
         return;
       }
@@ -99,9 +102,18 @@ void Session::ending_line(const std::string& line) {
   }
 }
 
+// The held position against the moves the controller may have (link/held_position.hpp).
+std::string Session::held_position_doubt(const Vec3& pos) const {
+  std::vector<HeldCandidate> moves;
+  for (const Item* it : resume_candidates().items) moves.push_back({it->geo, it->bytes});
+  return comms::held_position_doubt(pos, last_end_, moves, kPositionTolMm);
+}
+
 void Session::send_ending() {
-  const std::vector<std::string> lines =
-      ending_fn_ ? ending_fn_(report_.ending.held_at_mm) : std::vector<std::string>{};
+  // A held position that is not trusted gives the ending no position: it then moves nothing.
+  const std::optional<std::array<double, 3>> at =
+      report_.ending.position_doubt.empty() ? report_.ending.held_at_mm : std::nullopt;
+  const std::vector<std::string> lines = ending_fn_ ? ending_fn_(at) : std::vector<std::string>{};
   report_.ending.lines = lines;
   ProgramModal modal;
   for (const std::string& l : lines) {

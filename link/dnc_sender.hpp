@@ -154,6 +154,10 @@ struct EndingReport {
   std::optional<std::array<double, 3>> held_at_mm;  // where the hold left the tool (work)
   double request_t_s = -1.0;  // since the sender started: the request seen, `!` written
   double held_t_s = -1.0;     // Hold:0 seen
+  // Why the held position was not trusted (empty: it was): it lay on none of the moves the
+  // controller was sent and not where the last one known done ended, so the controller has
+  // reset or been moved meanwhile (a power-up counts from 0). The ending then moves nothing.
+  std::string position_doubt;
   std::vector<std::string> lines;
   std::string failure;  // why the ending was not sent
 };

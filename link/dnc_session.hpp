@@ -188,6 +188,7 @@ class Session {
   void reset_for_ending();
   void ending_line(const std::string& line);
   void send_ending();
+  std::string held_position_doubt(const Vec3& pos) const;
   void fail_ending(const std::string& why);
   void controller_reset(const std::string& why);
   void stop_controller(const std::string& why);

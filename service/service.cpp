@@ -868,6 +868,20 @@ void Service::resolve_ending(const comms::SenderReport& r) {
       return;
     }
     ending_.blocks = e.lines;
+    if (e.sent && !e.position_doubt.empty() && e.held_at_mm) {
+      // Reset (spindle and coolant off) and ended, but no retract: where the tool is, is not
+      // known.
+      ending_.state = EndingStatus::State::NotSent;
+      char at[96];
+      std::snprintf(at, sizeof at, "(%.3f, %.3f, %.3f)", (*e.held_at_mm)[0], (*e.held_at_mm)[1],
+                    (*e.held_at_mm)[2]);
+      ending_.note = "the retract was NOT sent: the controller held at " + std::string(at) +
+                     ", and " + e.position_doubt +
+                     "; it was reset (spindle and coolant off) and sent M5 M9 and the program "
+                     "end, and nothing was moved; " +
+                     ending_advice();
+      return;
+    }
     if (e.sent) {
       ending_.state = EndingStatus::State::Sent;
       char held[160] = "";
