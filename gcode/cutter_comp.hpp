@@ -36,6 +36,7 @@ class CutterComp {
   void flush();
 
   bool on() const { return side_ != Side::off; }
+  Side side() const { return side_; }
   // Moves are offset only with a radius above zero (G41 with a tool of diameter 0 changes nothing).
   bool offsetting() const { return on() && radius_mm_ > 0.0; }
   bool first_move() const { return first_; }

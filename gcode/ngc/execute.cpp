@@ -374,6 +374,7 @@ void Interpreter::set_tool_length_offset(const Block& b) {
     // offset shifts it: the program position stays (rs274 shows it so).
     if (!b.has_m(6)) pos_ += tool_offset_ - off;
     tool_offset_ = off;
+    length_offset_on_ = !b.has_g(490);
     emit(ToolOffsetEvent{off / k(), units_, h});
   } else if (b.has('h')) {
     fail("H word without G43; write G43 H" + text::sig(b.v('h')));

@@ -246,17 +246,83 @@ bool Interpreter::named_exists(const std::string& name) const {
   return frames_.back().locals.count(name) > 0;
 }
 
+// LinuxCNC's read-only named parameters (its manual, "Predefined Named Parameters"): the
+// modal state as numbers, G codes times ten (G1 gives 10, G17 170, G55 550, G59.3 593), flags
+// 1 or 0, the position in program units. The values are rs274's at start (its 2.9 reads
+// _vmajor 2.9, _vminor 0): overrides and feed hold enabled (M48, M53), adaptive feed off,
+// radius mode (G8, a mill's); axes A to W, which ncd does not have, read 0.
+// tests/gcode/predefined_params_rs274_test.cpp holds every value against rs274.
 bool Interpreter::predefined(const std::string& name, double* out) const {
   const double k = mm_per_unit(units_);
-  if (name == "_x" || name == "_y" || name == "_z") {
-    if (out) *out = pos_[name[1] - 'x'] / k;
-    return true;
-  }
-  if (name == "_value" || name == "_value_returned") {
-    if (out) *out = name == "_value" ? value_ : (value_returned_ ? 1.0 : 0.0);
-    return true;
-  }
-  return false;
+  const auto flag = [](bool b) { return b ? 1.0 : 0.0; };
+  const auto comp = [&] {
+    switch (comp_.side()) {
+      case CutterComp::Side::left:
+        return 410.0;
+      case CutterComp::Side::right:
+        return 420.0;
+      default:
+        return 400.0;
+    }
+  };
+  const auto coord = [&] {
+    static constexpr double kCodes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
+    return coord_sys_ >= 1 && coord_sys_ <= 9 ? kCodes[coord_sys_ - 1] : 540.0;
+  };
+  const std::map<std::string_view, double> table{
+      {"_vmajor", 2.9},
+      {"_vminor", 0.0},
+      {"_line", static_cast<double>(cur_line_ + 1)},
+      {"_motion_mode", motion_mode_ < 0 ? 800.0 : motion_mode_ * 1.0},
+      {"_plane", plane_ == Plane::xy   ? 170.0
+                 : plane_ == Plane::xz ? 180.0
+                                       : 190.0},
+      {"_ccomp", comp()},
+      {"_metric", flag(units_ == Units::mm)},
+      {"_imperial", flag(units_ == Units::inch)},
+      {"_absolute", flag(!incremental_)},
+      {"_incremental", flag(incremental_)},
+      {"_inverse_time", flag(feed_mode_ == FeedMode::inverse_time)},
+      {"_units_per_minute", flag(feed_mode_ == FeedMode::per_minute)},
+      {"_units_per_rev", 0.0},
+      {"_coord_system", coord()},
+      {"_tool_offset", flag(length_offset_on_)},
+      {"_retract_r_plane", flag(retract_r_)},
+      {"_retract_old_z", flag(!retract_r_)},
+      {"_spindle_rpm_mode", 1.0},
+      {"_spindle_css_mode", 0.0},
+      {"_ijk_absolute_mode", flag(ijk_absolute_)},
+      {"_lathe_diameter_mode", 0.0},
+      {"_lathe_radius_mode", 1.0},
+      {"_spindle_on", flag(spindle_ != SpindleDir::off)},
+      {"_spindle_cw", flag(spindle_ == SpindleDir::cw)},
+      {"_mist", flag(mist_)},
+      {"_flood", flag(flood_)},
+      {"_speed_override", 1.0},
+      {"_feed_override", 1.0},
+      {"_adaptive_feed", 0.0},
+      {"_feed_hold", 1.0},
+      {"_feed", feed_},
+      {"_rpm", speed_},
+      {"_x", pos_.x() / k},
+      {"_y", pos_.y() / k},
+      {"_z", pos_.z() / k},
+      {"_a", 0.0},
+      {"_b", 0.0},
+      {"_c", 0.0},
+      {"_u", 0.0},
+      {"_v", 0.0},
+      {"_w", 0.0},
+      {"_current_tool", static_cast<double>(tool_)},
+      {"_selected_tool", static_cast<double>(selected_tool_)},
+      {"_call_level", static_cast<double>(frames_.size() - 1)},
+      {"_value", value_},
+      {"_value_returned", flag(value_returned_)},
+  };
+  const auto it = table.find(name);
+  if (it == table.end()) return false;
+  if (out) *out = it->second;
+  return true;
 }
 
 double Interpreter::read_parameter(const std::string& s, std::size_t& i) {

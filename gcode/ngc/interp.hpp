@@ -31,7 +31,8 @@ constexpr double kTolEqual = 1e-6;  // LinuxCNC's TOLERANCE_EQUAL for EQ/NE and 
 // Bounds on what a program may ask for (mm, mm/min, rpm, s): beyond them the value is a typo.
 constexpr double kMaxCoordMm = 1e6;
 constexpr double kMinFeedMmPerMin = 1e-3;
-constexpr double kMaxFeedMmPerMin = 1e6;
+constexpr double kMaxFeedMmPerMin = 1e7;  // an F above the machine's maximum runs at it (LinuxCNC's
+                                          // way; 3D_Chips.ngc writes F4.5e6)
 constexpr double kMaxSpindleRpm = 1e6;
 constexpr double kMaxDwellS = 1e5;
 constexpr int kMaxTurns = 10000;
@@ -314,6 +315,7 @@ class Interpreter {
   int tool_ = 0;
   int selected_tool_ = -1;
   Vec3 tool_offset_{0, 0, 0};
+  bool length_offset_on_ = false;  // G43 or G43.1 in force (G49: off)
   int coord_sys_ = 1;
   Vec3 g92_{0, 0, 0};
   int motion_mode_ = -1;   // none, as LinuxCNC starts

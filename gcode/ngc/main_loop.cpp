@@ -158,8 +158,8 @@ std::string Interpreter::expand_debug(const std::string& text) const {
           found = predefined(name, &value);
           if (!found) {
             fail("#<" + name +
-                 "> in a DEBUG comment is not defined; ncd knows no LinuxCNC "
-                 "predefined parameters but _x _y _z _value _value_returned: remove it");
+                 "> in a DEBUG comment is not defined (not one of LinuxCNC's predefined "
+                 "parameters ncd knows: docs/ngc-interpreter.md): remove it");
           }
         }
       } else {
