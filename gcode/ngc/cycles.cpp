@@ -91,6 +91,13 @@ void Interpreter::cycle(Block& b, int code) {
     if (b.has(sw)) bb = len_word(b, sw);
     if (b.has(fw)) pending_known_[static_cast<std::size_t>(ax.first)] = true;
     if (b.has(sw)) pending_known_[static_cast<std::size_t>(ax.second)] = true;
+    if (b.has_polar()) {  // G17 only (check_polar): the hole from @ and ^
+      Vec3 hole = pos_;
+      polar_point(b, pos_, hole);
+      aa = hole.x();
+      bb = hole.y();
+      pending_known_[0] = pending_known_[1] = true;
+    }
     pending_known_[static_cast<std::size_t>(ax.axis)] = true;
   } else {
     if (b.has(fw)) aa_inc = len_word(b, fw);
@@ -119,6 +126,12 @@ void Interpreter::cycle(Block& b, int code) {
   for (long rep = repeats; rep > 0; --rep) {
     aa += aa_inc;
     bb += bb_inc;
+    if (incremental_ && b.has_polar()) {  // each repeat turns or steps out from the last hole
+      Vec3 hole(aa, bb, 0.0);
+      polar_point(b, Vec3(aa, bb, 0.0), hole);
+      aa = hole.x();
+      bb = hole.y();
+    }
     if (rep == repeats && current_cc > r) {
       line_to(at(aa, bb, current_cc), true);
       line_to(at(aa, bb, r), true);

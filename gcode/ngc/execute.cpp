@@ -2,6 +2,8 @@
 // execution order is in interpreter.cpp.
 #include "gcode/ngc/interp.hpp"
 
+#include <numbers>
+
 namespace ncd::toolpath::ngc {
 
 double Interpreter::k() const {
@@ -66,8 +68,9 @@ void Interpreter::check_block(const Block& b) {
 
 // A word no code on the line (or the modal motion) reads is an error, as in LinuxCNC.
 void Interpreter::check_words_used(const Block& b, int motion_word, int nonmodal) const {
-  const bool axes = b.has('x') || b.has('y') || b.has('z');
+  const bool axes = b.has_xyz_or_polar();
   const int mm = motion_word >= 0 ? motion_word : (axes && nonmodal < 0 ? motion_mode_ : -1);
+  if (b.has_polar()) check_polar(b, mm, nonmodal);
   const bool arc = mm == 20 || mm == 30;
   const bool cyc = mm == 730 || mm == 810 || mm == 820 || mm == 830 || mm == 850 || mm == 890;
   const bool nurbs = mm == 52;
@@ -483,7 +486,7 @@ bool Interpreter::execute_non_modal(const Block& b, int nonmodal) {
 // 20. motion: the block's motion word, or the modal motion for bare axis words.
 void Interpreter::execute_motion(Block& b, int motion_word, bool axes_used) {
   const bool g53 = b.has_g(530);
-  const bool axis_words = b.has('x') || b.has('y') || b.has('z');
+  const bool axis_words = b.has_xyz_or_polar();
   if (motion_word >= 0) {
     if (motion_word == 800) {
       if (axis_words && !axes_used)
@@ -637,7 +640,64 @@ Vec3 Interpreter::target(const Block& b, bool g53) {
     }
     if (!incremental_ || g53) pending_known_[static_cast<std::size_t>(a)] = true;
   }
+  if (b.has_polar()) polar_target(b, base, t);
   return t;
+}
+
+// Polar coordinates (LinuxCNC's find_ends): in the XY plane, no X or Y word. Absolute: @ and ^
+// give the point from the origin; @ alone keeps the angle of the position, ^ alone its
+// distance from the origin (0 at the origin). Incremental: @ adds to the distance from the
+// origin, ^ to the angle; neither has a meaning at the origin, nor @ alone in G90.
+void Interpreter::check_polar(const Block& b, int motion, int nonmodal) const {
+  if (b.has('x') || b.has('y')) {
+    fail("X or Y with polar coordinates (@ radius, ^ angle); give one or the other");
+  }
+  if (plane_ != Plane::xy) fail("polar coordinates (@, ^) work in the G17 plane only; add G17");
+  const bool cycle = motion == 730 || (motion >= 810 && motion <= 890);
+  if (nonmodal >= 0 || b.has_g(530) ||
+      (motion != 0 && motion != 10 && motion != 20 && motion != 30 && !cycle)) {
+    fail(
+        "polar coordinates (@, ^) are taken on G0 G1 G2 G3 moves and drilling cycles only; "
+        "write X and Y");
+  }
+}
+
+void Interpreter::polar_target(const Block& b, const Vec3& base, Vec3& t) {
+  polar_point(b, base, t);
+  pending_known_[0] = pending_known_[1] = true;
+}
+
+void Interpreter::polar_point(const Block& b, const Vec3& base, Vec3& t) const {
+  constexpr double kDegToRad = std::numbers::pi / 180.0;
+  const double x = base.x(), y = base.y();
+  const bool at_origin = x == 0.0 && y == 0.0;
+  double radius = std::hypot(x, y), angle = std::atan2(y, x);
+  const bool both = b.polar_radius && b.polar_angle_deg;
+  if (!both || incremental_) {
+    if (!known_[0] || !known_[1]) {
+      fail(
+          "polar coordinates from an unknown position: give both @ and ^ in G90, or move "
+          "to a known X Y first");
+    }
+    if (at_origin && (incremental_ || !b.polar_angle_deg)) {
+      fail(
+          "polar coordinates at the origin need both @ and ^ in G90 (the angle of the origin "
+          "is not defined)");
+    }
+  }
+  if (b.polar_radius) {
+    const double r = *b.polar_radius * k();
+    radius = incremental_ ? radius + r : r;
+  }
+  if (b.polar_angle_deg) {
+    const double a = *b.polar_angle_deg * kDegToRad;
+    angle = incremental_ ? angle + a : a;
+  }
+  t.x() = radius * std::cos(angle);
+  t.y() = radius * std::sin(angle);
+  if (std::abs(t.x()) > kMaxCoordMm || std::abs(t.y()) > kMaxCoordMm) {
+    fail("polar coordinates give X Y beyond ±" + text::sig(kMaxCoordMm) + " mm; check @ and ^");
+  }
 }
 
 void Interpreter::motion(Block& b, int code, bool g53) {

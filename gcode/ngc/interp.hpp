@@ -14,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string_view>
 #include <unordered_map>
@@ -68,7 +69,10 @@ struct Block {
   int nm = 0;
   bool has_message = false;
   std::string message;
+  std::optional<double> polar_radius, polar_angle_deg;  // @ and ^ (program units, degrees)
   bool has(char c) const { return (mask & (1u << (c - 'a'))) != 0; }
+  bool has_polar() const { return polar_radius || polar_angle_deg; }
+  bool has_xyz_or_polar() const { return has('x') || has('y') || has('z') || has_polar(); }
   double v(char c) const { return val[static_cast<std::size_t>(c - 'a')]; }
   bool has_g(int code) const {
     for (int i = 0; i < ng; ++i) {
@@ -232,6 +236,9 @@ class Interpreter {
   void cutter_comp(const Block& b, int code);
   Vec3 from() const;
   Vec3 target(const Block& b, bool g53);
+  void polar_target(const Block& b, const Vec3& base, Vec3& t);
+  void polar_point(const Block& b, const Vec3& base, Vec3& t) const;
+  void check_polar(const Block& b, int motion, int nonmodal) const;
   void motion(Block& b, int code, bool g53);
   void require_feed(const Block& b, const char* what);
   void arc(Block& b, int code);

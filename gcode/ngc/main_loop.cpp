@@ -82,7 +82,7 @@ void Interpreter::execute_line(const std::string* comment) {
     b.has_message = true;
     b.message = expand_debug(comment->substr(comment->find(',') + 1));
   }
-  if (b.ng == 0 && b.nm == 0 && b.mask == 0 && !b.has_message) return;
+  if (b.ng == 0 && b.nm == 0 && b.mask == 0 && !b.has_polar() && !b.has_message) return;
   execute_block(b);
 }
 

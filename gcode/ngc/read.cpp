@@ -22,8 +22,12 @@ void Interpreter::read_block(const std::string& s, std::size_t i, Block& b) {
       assigns_.push_back(std::move(a));
       continue;
     }
-    if (c == '@' || c == '^') {
-      fail("polar coordinates (@ radius, ^ angle) are not supported; write X and Y");
+    if (c == '@' || c == '^') {  // polar coordinates: @ radius, ^ angle
+      ++i;
+      std::optional<double>& w = c == '@' ? b.polar_radius : b.polar_angle_deg;
+      if (w) fail(std::string("word ") + c + " appears twice on the line; keep one");
+      w = read_value(s, i);
+      continue;
     }
     if (c < 'a' || c > 'z') {
       fail("unexpected character '" + std::string(1, c) + "'; expected a word such as X1.5");

@@ -287,23 +287,34 @@ std::string where(const V3& p) {
 
 // Each setpoint against the pieces near a cursor that follows the motion: from the cursor's
 // piece on, as far along the path as the setpoints went since the cursor last moved, plus
-// 0.5 mm; the nearest piece (the earliest on a tie) becomes the cursor. A setpoint near a joint
-// is held to the larger P of the two moves (a blend there belongs to the move that ends at it).
+// 0.5 mm; the earliest piece within its P becomes the cursor, else the nearest (the earliest on
+// a tie). A setpoint near a joint is held to the larger P of the two moves (a blend there
+// belongs to the move that ends at it). Earliest, not nearest: rs274's 4 decimals can put a
+// setpoint that arrives at a drilled hole nearer the later move that leaves it (polar.ngc's
+// ^120 hole: 0.18 um from the move out, 0.8 um from the move in), and the nearest would skip
+// the hole's own feed down.
 void check_setpoints(const std::vector<Piece>& pieces, const std::vector<V3>& sp, Verdict& v) {
   std::size_t cursor = 0;
   double travelled = 0.0;
+  const auto tolerance = [&](std::size_t j) {
+    return j > 0 ? std::max(pieces[j].tolerance_mm, pieces[j - 1].tolerance_mm)
+                 : pieces[j].tolerance_mm;
+  };
   for (std::size_t n = 0; n < sp.size(); ++n) {
     if (n > 0) travelled += norm(sp[n] - sp[n - 1]);
     double best = std::numeric_limits<double>::infinity(), along = 0.0;
     std::size_t at = cursor;
     for (std::size_t j = cursor; j < pieces.size(); ++j) {
       const double d = distance(sp[n], pieces[j]);
+      if (d <= tolerance(j)) {
+        best = d, at = j;
+        break;
+      }
       if (d < best - 1e-12) best = d, at = j;
       if (j > cursor) along += pieces[j].length_mm;
       if (along > travelled + 0.5) break;
     }
-    double tol = pieces[at].tolerance_mm;
-    if (at > 0) tol = std::max(tol, pieces[at - 1].tolerance_mm);
+    const double tol = tolerance(at);
     if (best / tol > v.worst_of_p) v.worst_of_p = best / tol, v.worst_mm = best;
     if (best > tol) v.breached_moves.push_back(at);
     if (best > tol && v.breaches.size() < 8) {
