@@ -44,7 +44,7 @@ void Interpreter::check_block(const Block& b) {
     const int c = b.m[static_cast<std::size_t>(n)];
     const int grp = m_group(c);
     if (grp < 0) fail("M" + std::to_string(c) + " is not supported (unknown M code); remove it");
-    if (grp >= 9 || c == 19 || c == 61) fail(m_refusal(c));
+    if ((grp >= 9 && !(c >= 70 && c <= 73)) || c == 19) fail(m_refusal(c));
     auto& slot = mg[static_cast<std::size_t>(grp)];
     if (slot >= 0) {
       fail("M" + std::to_string(slot) + " and M" + std::to_string(c) +
@@ -87,7 +87,7 @@ void Interpreter::check_words_used(const Block& b, int motion_word, int nonmodal
   need('r', arc || cyc || nonmodal == 100, "G2/G3 R, canned cycles, G10");
   need('p', arc || cyc || nurbs || g64 || nonmodal == 40 || nonmodal == 100,
        "G4, G10, G64, G82, G89, G2/G3 turns, G5.2 weights");
-  need('q', g64 || mm == 730 || mm == 830, "G64, G73, G83");
+  need('q', g64 || mm == 730 || mm == 830 || b.has_m(61), "G64, G73, G83, M61");
   need('l', cyc || nurbs || nonmodal == 100 || b.has_g(411) || b.has_g(421),
        "G10, canned cycles, G5.2, G41.1/G42.1");
 }
@@ -217,11 +217,12 @@ void Interpreter::execute_block(Block& b) {
   }
   check_words_used(b, motion_word, nonmodal);
   if (b.has_message) emit(MessageEvent{b.message});  // 1. message
-  set_feed(b);                                       // 2. feed mode, 3. F
-  set_spindle_and_tool(b);                           // 4. S, 5. T, 6. M6, 7. spindle
-  set_coolant(b);                                    // 8. coolant
-  if (nonmodal == 40) dwell(b);                      // 10. dwell
-  set_plane_and_units(b);                            // 11. plane, 12. units
+  save_restore_modes(b);         // M70-M73, before this line's own words (modes.cpp)
+  set_feed(b);                   // 2. feed mode, 3. F
+  set_spindle_and_tool(b);       // 4. S, 5. T, 6. M6, 7. spindle
+  set_coolant(b);                // 8. coolant
+  if (nonmodal == 40) dwell(b);  // 10. dwell
+  set_plane_and_units(b);        // 11. plane, 12. units
   if (const int cc = group_code(b, 7); cc >= 0) cutter_comp(b, cc);  // 13. cutter compensation
   set_tool_length_offset(b);                                         // 14. tool length offset
   if (const int cs = group_code(b, 12); cs >= 0) select_coordinate_system(cs);  // 15.
@@ -271,6 +272,19 @@ void Interpreter::set_spindle_and_tool(const Block& b) {
     s = s + 0.0;  // S-0 is 0
     if (s != speed_) spindle_changed = spindle_ != SpindleDir::off;
     speed_ = s;
+  }
+  // M61 Q: the tool in the spindle is Q, nothing changes (LinuxCNC's CHANGE_TOOL_NUMBER)
+  if (b.has_m(61)) {
+    if (!b.has('q')) fail("M61 without Q; give the tool number now in the spindle, M61 Q1");
+    const double q = b.v('q');
+    if (q < 0 || q != std::floor(q) || q > 99999)
+      fail("M61 Q" + text::sig(q) + ": Q must be a whole tool number ≥ 0");
+    const int tn = static_cast<int>(q);
+    if (tn != 0 && !tools_.count(tn)) {
+      fail("M61 Q" + std::to_string(tn) + ": tool " + std::to_string(tn) +
+           " is not in the tool table" + missing_tool_way_out(tn));
+    }
+    tool_ = selected_tool_ = tn;
   }
   // 5. T
   if (b.has('t')) {
@@ -378,6 +392,7 @@ void Interpreter::set_tool_length_offset(const Block& b) {
     if (!b.has_m(6)) pos_ += tool_offset_ - off;
     tool_offset_ = off;
     length_offset_on_ = !b.has_g(490);
+    tool_offset_h_ = h;
     emit(ToolOffsetEvent{off / k(), units_, h});
   } else if (b.has('h')) {
     fail("H word without G43; write G43 H" + text::sig(b.v('h')));

@@ -169,8 +169,30 @@ class Interpreter {
     std::size_t start = 0;
     long remaining = 0;
   };
+  // ---- modes.cpp: M70-M73, the modal state saved and restored --------------------------------
+  struct SavedModes {
+    Units units = Units::mm;
+    Plane plane = Plane::xy;
+    bool incremental = false, ijk_absolute = false, retract_r = true;
+    FeedMode feed_mode = FeedMode::per_minute;
+    int coord_sys = 1;
+    bool length_on = false;
+    Vec3 tool_offset{0, 0, 0};
+    int tool_offset_h = -1;
+    CutterComp::Side comp = CutterComp::Side::off;
+    PathControlEvent control{};
+    double feed = 0.0, speed = 0.0;
+    SpindleDir spindle = SpindleDir::off;
+    bool mist = false, flood = false;
+  };
+  SavedModes current_modes() const;
+  void restore_modes(const SavedModes& m, const char* code);
+  void save_restore_modes(const Block& b);
+
   struct Frame {
     std::size_t file = 0;
+    std::optional<SavedModes> m70;  // M70 at this call level (M71 clears it, M72 restores it)
+    std::optional<SavedModes> m73;  // M73: restored when this call returns
     std::size_t return_line = 0;
     std::string sub;
     std::unordered_map<std::string, double> locals;
@@ -323,6 +345,7 @@ class Interpreter {
   int selected_tool_ = -1;
   Vec3 tool_offset_{0, 0, 0};
   bool length_offset_on_ = false;  // G43 or G43.1 in force (G49: off)
+  int tool_offset_h_ = -1;         // its H (ToolOffsetEvent::h)
   int coord_sys_ = 1;
   Vec3 g92_{0, 0, 0};
   int motion_mode_ = -1;   // none, as LinuxCNC starts

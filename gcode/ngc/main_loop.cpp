@@ -247,6 +247,7 @@ void Interpreter::o_return(const OLine& o) {
     value_returned_ = true;
   }
   value_ = returned;
+  if (fr.m73) restore_modes(*fr.m73, "M73");  // the caller's modes back (LinuxCNC's M73)
   for (std::size_t p = 0; p < 30; ++p) params_[p + 1] = fr.saved[p];
   const std::size_t ret_file = fr.file, ret_line = fr.return_line;
   frames_.pop_back();
