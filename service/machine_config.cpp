@@ -104,6 +104,7 @@ void parse_link(const toml::value& table, const std::string& name, LinkConfig& l
   for (const auto& [key, v] : table.as_table()) {
     const std::string where = name + ": link." + key;
     comms::LineSettings& line = l.line;
+    l.keys.insert(key);
     if (key == "device") {
       line.device = as_text(v, where);
     } else if (key == "baud") {
