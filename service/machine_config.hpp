@@ -70,6 +70,10 @@ struct MachineConfig {
     return o;
   }();
   std::string source = "defaults";  // the file it was read from
+  // The keys the file gave, tables' as "table.key" ("program.start_mm"), for the commands that
+  // say where each value came from.
+  std::set<std::string> keys;
+  bool has(const std::string& key) const { return keys.count(key) > 0; }
 };
 
 // Reads and validates a machine file; throws InputError naming the file, the key and the value.

@@ -10,7 +10,6 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "link/sha256.hpp"
 #include "tests/app/serve_fixture.hpp"
 #include "tests/common/process.hpp"
 
@@ -113,8 +112,19 @@ TEST_F(MachineFile, StreamAndControllerTakeTheLinkFromTheFile) {
   EXPECT_TRUE(log["program_end_executed"].get<bool>());
   const std::vector<std::string> want = blocks_of(program);
   EXPECT_EQ(executed(log), want) << "every block executed, once, in order";
-  EXPECT_EQ(log["settings"].get<std::string>().find("19200 7E2 xonxoff drip"), 0U)
-      << log["settings"];
+  // The controller ran at the file's line, as the sender did.
+  const json& set = log["settings"];
+  EXPECT_EQ(set["baud"], 19200) << set.dump();
+  EXPECT_EQ(set["frame"], "7E2") << set.dump();
+  EXPECT_EQ(set["flow"], "xonxoff") << set.dump();
+  EXPECT_EQ(set["protocol"], "drip") << set.dump();
+  EXPECT_EQ(set["dialect"], "iso") << set.dump();
+  EXPECT_EQ(set["buffer_bytes"], 256) << set.dump();
+  EXPECT_EQ(set["link"], link()) << set.dump();
+  // Byte for byte: the controller's checksum of what it received is the program's.
+  const auto sha = s.out.find("sha256 ");
+  ASSERT_NE(sha, std::string::npos) << s.out;
+  EXPECT_EQ(log["program_sha256"], s.out.substr(sha + 7, 64)) << s.out;
   std::printf("exp3-dnc.ngc: %zu blocks executed; stream: %s", want.size(),
               lines_with(s.out, "done:").c_str());
   // Both say where the values came from: the file, and the port among them.
@@ -191,6 +201,36 @@ TEST_F(MachineFile, ControllerNamesTheSendersKeys) {
       << err;
   EXPECT_NE(slurp(dir_ / "cnc.out").find("buffer 1024 B"), std::string::npos)
       << slurp(dir_ / "cnc.out");
+}
+
+// ncd check --machine: the reader's values by origin; --start and --tool-table win and say so.
+TEST_F(MachineFile, CheckSaysWhereItsValuesCameFrom) {
+  const std::string machine =
+      write("m.toml", "max_feed_mm_per_min = 3000.0\n[program]\nstart_mm = [0.0, 0.0, 50.0]\n");
+  const std::string program = write("p.ngc", "G21 G90\nG1 X1 Y2 Z3 F100\nM2\n");
+  CmdResult r = ncd("check " + program + " --machine " + machine + " --summary");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("max_feed_mm_per_min 3000 (feed cap, rapid rate), program.start_mm [0, 0, "
+                       "50] (machine file " +
+                       machine + ")"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("program.tool_table none, program.parameter_file none, "
+                       "program.default_units mm (default: not in " +
+                       machine),
+            std::string::npos)
+      << r.err;
+  r = ncd("check " + program + " --machine " + machine + " --summary --start 1,2,40");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("program.start_mm [1, 2, 40] (--start)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--start 1,2,40 overrides program.start_mm = [0, 0, 50] of " + machine),
+            std::string::npos)
+      << r.err;
+  // The summary follows the value used: from 1,2,40 down to Z3.
+  EXPECT_NE(r.out.find("Z from 3.0000 to 40.0000"), std::string::npos) << r.out;
+  r = ncd("check " + program + " --machine " + machine + " --summary -q");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_EQ(r.err, "") << "-q";
 }
 
 // The service starts a program whose first move is a G1 (from an unknown position) where the
