@@ -349,6 +349,7 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   MachineConfig machine = config.machine;
   // A chamfer made from parameters starts at its clearance plane: only a path file asks.
   out.start = job_start(req, config, job.contains("path") ? out.port : std::string());
+  out.start.applies = job.contains("path");
   machine.program.start_machine_mm = out.start.at_mm;
   JobPath source = job_path(job, config, machine.program);
   std::shared_ptr<toolpath::Path> path = std::move(source.path);
@@ -407,6 +408,22 @@ void Intake::check_still_there() const {
   }
 }
 
+namespace {
+
+// Where a path job starts, in the submit's reply ("start") and the log.
+void log_start(const std::string& name, const JobStart& s, json& reply) {
+  json start{{"position_mm", s.at_mm ? vec(*s.at_mm) : json()},
+             {"from", s.from.empty() ? json() : json(s.from)}};
+  if (!s.note.empty()) start["note"] = s.note;
+  reply["start"] = start;
+  std::cerr << "ncd serve: " << name << " starts at "
+            << (s.at_mm ? position_text(*s.at_mm) + " (" + s.from + ")"
+                        : std::string("an unknown position (its first move is a rapid)"))
+            << (s.note.empty() ? "" : "; " + s.note) << std::endl;
+}
+
+}  // namespace
+
 json Intake::submit(const json& req) {
   if (core_.busy()) throw InputError("submit: a job is running; stop it first");
   SubmittedJob job = submitted_job(req, config_);
@@ -417,14 +434,7 @@ json Intake::submit(const json& req) {
   controller_start_mm_.reset();
   if (job.start.from == "controller") controller_start_mm_ = job.start.at_mm;
   json reply{{"ok", true}, {"state", service::to_string(core_.state())}, {"job", name}};
-  json start{{"position_mm", job.start.at_mm ? vec(*job.start.at_mm) : json()},
-             {"from", job.start.from.empty() ? json() : json(job.start.from)}};
-  if (!job.start.note.empty()) start["note"] = job.start.note;
-  reply["start"] = start;
-  std::cerr << "ncd serve: " << name << " starts at "
-            << (job.start.at_mm ? position_text(*job.start.at_mm) + " (" + job.start.from + ")"
-                                : std::string("an unknown position (its first move is a rapid)"))
-            << (job.start.note.empty() ? "" : "; " + job.start.note) << std::endl;
+  if (job.start.applies) log_start(name, job.start, reply);
   if (!job.warning.empty()) reply["warning"] = job.warning;
   return reply;
 }

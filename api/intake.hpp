@@ -30,7 +30,8 @@ namespace ncd::app {
 struct JobStart {
   std::optional<Vec3> at_mm;  // machine mm, the frame of the path and the blocks; none: unknown
   std::string from;           // "controller", "request", "machine file", or "" when unknown
-  std::string note;  // why the controller's position was not used, or that it won the request's
+  std::string note;     // why the controller's position was not used, or that it won the request's
+  bool applies = true;  // false for a chamfer made from parameters: it starts at its clearance
 };
 // The controller's position as a start, asked with `?` alone (comms::probe_grbl): only an Idle
 // grbl that did not reset on the port's opening and reports its work position.
