@@ -343,5 +343,28 @@ TEST_F(MachineFile, ServedJobStartsWhereTheControllerStands) {
       << slurp(dir_ / "serve.err");
 }
 
+// An Arduino grbl resets when the port opens: its position after the reset tells nothing, so
+// the job starts at the request's "start_mm", and the reply says why the controller's was not
+// used; without "start_mm" the G1-first program is refused.
+TEST_F(MachineFile, ControllerThatResetsOnOpenLeavesTheRequestsStart) {
+  const std::string machine = grbl_machine();
+  auto cnc = controller(machine, "--reset-on-open --boot-s 0.2");
+  const std::string program =
+      write("g1-first.ngc", "G21 G90 G94\nS1000 M3\nG1 X8 Y3 Z10 F600\nM5\nM2\n");
+  launch("wall", "machine = \"" + machine + "\"\n");
+  ServeClient c(socket_);
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", program}}}}), "unknown position",
+               "no start known");
+  const json reply =
+      c.request({{"cmd", "submit"}, {"job", {{"path", program}}}, {"start_mm", {5, 3, 10}}});
+  ASSERT_TRUE(reply["ok"].get<bool>()) << reply.dump();
+  EXPECT_EQ(reply["start"]["from"], "request") << reply.dump();
+  EXPECT_EQ(reply["start"]["position_mm"], json::array({5.0, 3.0, 10.0})) << reply.dump();
+  EXPECT_NE(reply["start"].value("note", "").find("reset when the port opened"), std::string::npos)
+      << reply.dump();
+  const json log = stop_controller(*cnc);
+  EXPECT_EQ(log["executed"].size(), 0U) << "asking where it stands runs nothing";
+}
+
 }  // namespace
 }  // namespace ncd::test
