@@ -2,6 +2,8 @@
 // for `ncd stream` to send to. Runs until SIGTERM or SIGINT (or, with --exit-at-end, until the
 // program end has been executed), then writes --log FILE.json and exits 0. SIGUSR1 is the
 // cycle-start button: it resumes a program stopped by M0 (on the grbl link `~` does the same).
+// The link path and the line come from the flags, else from the [link] of --machine FILE (its
+// device is where the pty is linked), else the defaults (service/link_options.hpp).
 #include <sched.h>
 #include <signal.h>
 #include <cerrno>

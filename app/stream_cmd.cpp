@@ -8,7 +8,9 @@
 // what its status reports said, and after ncd was killed from where grbl's position says it
 // stopped. Exit status: 0 done, 2 invalid input, 3 the job did not complete (interrupted by a
 // reset, an alarm, an error reply or a lost link, or stopped by a signal; the report names the
-// blocks). docs/dnc-link.md has the rules.
+// blocks). docs/dnc-link.md has the rules. The port and the line settings come from the flags,
+// else from the [link] of --machine FILE, else the defaults, and the command says which
+// (service/link_options.hpp, LinkSources).
 #include <atomic>
 #include <csignal>
 #include <cstdio>
