@@ -20,6 +20,7 @@
 #include "core/error.hpp"
 #include "core/input_file.hpp"
 #include "core/json_input.hpp"
+#include "core/number_text.hpp"
 #include "gcode/ngc/interpreter.hpp"
 #include "gcode/path_io.hpp"
 #include "service/chamfer_job.hpp"
@@ -154,7 +155,8 @@ struct JobPath {
   std::string name;  // the job's name: the file, or "chamfer"
 };
 
-JobPath job_path(const json& job, const ServiceConfig& config) {
+JobPath job_path(const json& job, const ServiceConfig& config,
+                 const toolpath::InterpretOptions& program) {
   JobPath out;
   if (job.contains("path")) {
     for (const auto& [key, value] : job.items()) {
@@ -165,8 +167,7 @@ JobPath job_path(const json& job, const ServiceConfig& config) {
     }
     if (!job["path"].is_string()) throw InputError("\"job\".\"path\" must be a file name");
     out.file = job["path"].get<std::string>();
-    out.path = std::make_shared<toolpath::Path>(
-        toolpath::read_path_file(out.file, config.machine.program));
+    out.path = std::make_shared<toolpath::Path>(toolpath::read_path_file(out.file, program));
     out.name = out.file;
   } else {
     service::ChamferJob cj = chamfer_job(job);
@@ -204,7 +205,7 @@ std::string setpoints_of(const json& req) {
 // restarted job: straight up to the highest Z of the whole program, or the restart's
 // clearance if that is higher.
 void restart_at_line(const json& req, const json& job, const std::string& file,
-                     const ServiceConfig& config, service::JobSpec& spec) {
+                     const MachineConfig& machine, service::JobSpec& spec) {
   if (!job.contains("path")) {
     throw InputError("\"restart_from\" needs a job {\"path\": FILE} of an NC program");
   }
@@ -219,7 +220,7 @@ void restart_at_line(const json& req, const json& job, const std::string& file,
         "program restarts from a line");
   }
   const std::string text = read_input_file(file, "\"job\".\"path\"");
-  toolpath::Program program = toolpath::interpret_ngc(text, file, config.machine.program);
+  toolpath::Program program = toolpath::interpret_ngc(text, file, machine.program);
   const toolpath::Path planned = toolpath::to_path(program);
   if (!planned.segments.empty()) {
     toolpath::SafeRetract r = toolpath::program_retract(program, planned);
@@ -251,7 +252,87 @@ service::LinkSpec link_spec(const ServiceConfig& config, const std::string& port
   return link;
 }
 
+// "start_mm": [x, y, z], machine mm; none when the request has no such key.
+std::optional<Vec3> request_start(const json& req) {
+  if (!req.contains("start_mm")) return std::nullopt;
+  const json& v = req["start_mm"];
+  if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
+      !v[2].is_number()) {
+    throw InputError(
+        "\"start_mm\" must be three numbers, where the machine stands in mm: "
+        "\"start_mm\": [0, 0, 50]");
+  }
+  const Vec3 at(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+  if (!at.allFinite() || at.cwiseAbs().maxCoeff() > 1e6) {
+    throw InputError("\"start_mm\": " + v.dump() +
+                     " must hold finite positions within ±1e6 mm (1 km)");
+  }
+  return at;
+}
+
+// The sender's settings for `port` from the machine file's [link], as the job's link will have.
+comms::SenderSettings probe_settings(const ServiceConfig& config, const std::string& port) {
+  comms::SenderSettings s = link_spec(config, port).sender;
+  s.banner_wait_s = kProbeBannerWaitS;
+  return s;
+}
+
 }  // namespace
+
+std::string position_text(const Vec3& at) {
+  return "[" + text::fixed(at.x(), 3) + ", " + text::fixed(at.y(), 3) + ", " +
+         text::fixed(at.z(), 3) + "]";
+}
+
+ControllerPosition controller_position(const comms::SenderSettings& settings) {
+  ControllerPosition out;
+  if (settings.line.protocol != comms::Protocol::Ack) {
+    out.why_not = "a drip-feed controller does not report its position";
+    return out;
+  }
+  const comms::GrblProbe p = comms::probe_grbl(settings, kProbeSettleS);
+  if (!p.spoke) {
+    out.why_not = "the controller's position could not be read (" + p.failure + ")";
+  } else if (p.banner) {
+    out.why_not = "the controller reset when the port opened, so its position tells nothing";
+  } else if (p.state != "Idle") {
+    out.why_not = "the controller is " + p.state + ", not Idle, so its position is not a start";
+  } else if (!p.position) {
+    out.why_not =
+        "the controller reported its machine position without the work offset (WCO), not the "
+        "position in the coordinates ncd sends";
+  } else {
+    out.at_mm = Vec3((*p.position)[0], (*p.position)[1], (*p.position)[2]);
+  }
+  return out;
+}
+
+JobStart job_start(const json& req, const ServiceConfig& config, const std::string& port) {
+  JobStart s;
+  const std::optional<Vec3> requested = request_start(req);
+  if (!port.empty()) {
+    const ControllerPosition c = controller_position(probe_settings(config, port));
+    if (c.at_mm) {
+      s.at_mm = c.at_mm;
+      s.from = "controller";
+      if (requested && (*requested - *c.at_mm).cwiseAbs().maxCoeff() > kSamePositionMm) {
+        s.note = "the controller reports " + position_text(*c.at_mm) +
+                 ", not the request's \"start_mm\" " + position_text(*requested) +
+                 ": the job starts where the controller is";
+      }
+      return s;
+    }
+    s.note = c.why_not;
+  }
+  if (requested) {
+    s.at_mm = requested;
+    s.from = "request";
+  } else if (config.machine.program.start_machine_mm) {
+    s.at_mm = config.machine.program.start_machine_mm;
+    s.from = "machine file";
+  }
+  return s;
+}
 
 SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   if (!req.contains("job") || !req["job"].is_object()) {
@@ -261,14 +342,21 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   const bool allow_interference = allow_interference_of(job);
   SubmittedJob out;
   service::JobSpec& spec = out.spec;
-  JobPath source = job_path(job, config);
+  out.port = port_of(req, config);
+  if (!out.port.empty()) require_serial_port(out.port, "\"port\"");
+  // Where the job starts: the controller's position, else the request's, else the machine
+  // file's [program] start_mm; every reading of the program below starts there.
+  MachineConfig machine = config.machine;
+  // A chamfer made from parameters starts at its clearance plane: only a path file asks.
+  out.start = job_start(req, config, job.contains("path") ? out.port : std::string());
+  out.start.applies = job.contains("path");
+  machine.program.start_machine_mm = out.start.at_mm;
+  JobPath source = job_path(job, config, machine.program);
   std::shared_ptr<toolpath::Path> path = std::move(source.path);
   spec.name = source.name;
-  out.port = port_of(req, config);
   const std::string setpoints = setpoints_of(req);
   // Before any motion, as `ncd replay` does: the chamfer's checks and tool, then the whole
-  // program around the job (docs/whole-program.md), its envelope, the size of the run, the port.
-  MachineConfig machine = config.machine;
+  // program around the job (docs/whole-program.md), its envelope, the size of the run.
   const ChamferAcceptance chamfer =
       accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
   const bool restart = req.contains("restart_from");
@@ -281,7 +369,6 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   }
   check_envelope(*path, machine);
   check_estimate(estimate_run(*path, machine), !setpoints.empty());
-  if (!out.port.empty()) require_serial_port(out.port, "\"port\"");
   spec.path = std::move(path);
   spec.motion.limits = machine.limits;
   spec.motion.cutting = machine.cutting;
@@ -292,7 +379,7 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   spec.rules.chord = config.live_limits.chord;
   spec.interference_allowed = chamfer.interference_allowed;
   if (restart) {
-    restart_at_line(req, job, source.file, config, spec);
+    restart_at_line(req, job, source.file, machine, spec);
   } else if (req.contains("clearance_z_mm")) {
     throw InputError("\"clearance_z_mm\" goes with \"restart_from\"");
   }
@@ -302,6 +389,41 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   return out;
 }
 
+// A job planned from the controller's position starts only if the controller is still there:
+// moved meanwhile (jogged, another program), the first move would not be the one planned.
+void Intake::check_still_there() const {
+  comms::SenderSettings settings = link_spec(config_, port_).sender;
+  settings.banner_wait_s = kProbeBannerWaitS;
+  const ControllerPosition now = controller_position(settings);
+  const Vec3& planned = *controller_start_mm_;
+  if (!now.at_mm) {
+    throw InputError("start: the job was planned from the controller's position " +
+                     position_text(planned) + ", which cannot be read again (" + now.why_not +
+                     "): submit the job again");
+  }
+  if ((*now.at_mm - planned).cwiseAbs().maxCoeff() > kSamePositionMm) {
+    throw InputError("start: the controller moved since the job was submitted, from " +
+                     position_text(planned) + " to " + position_text(*now.at_mm) +
+                     ": submit the job again to plan it from there");
+  }
+}
+
+namespace {
+
+// Where a path job starts, in the submit's reply ("start") and the log.
+void log_start(const std::string& name, const JobStart& s, json& reply) {
+  json start{{"position_mm", s.at_mm ? vec(*s.at_mm) : json()},
+             {"from", s.from.empty() ? json() : json(s.from)}};
+  if (!s.note.empty()) start["note"] = s.note;
+  reply["start"] = start;
+  std::cerr << "ncd serve: " << name << " starts at "
+            << (s.at_mm ? position_text(*s.at_mm) + " (" + s.from + ")"
+                        : std::string("an unknown position (its first move is a rapid)"))
+            << (s.note.empty() ? "" : "; " + s.note) << std::endl;
+}
+
+}  // namespace
+
 json Intake::submit(const json& req) {
   if (core_.busy()) throw InputError("submit: a job is running; stop it first");
   SubmittedJob job = submitted_job(req, config_);
@@ -309,7 +431,10 @@ json Intake::submit(const json& req) {
   const std::string name = job.spec.name;
   core_.submit(std::move(job.spec));
   port_ = job.port;
+  controller_start_mm_.reset();
+  if (job.start.from == "controller") controller_start_mm_ = job.start.at_mm;
   json reply{{"ok", true}, {"state", service::to_string(core_.state())}, {"job", name}};
+  if (job.start.applies) log_start(name, job.start, reply);
   if (!job.warning.empty()) reply["warning"] = job.warning;
   return reply;
 }
@@ -333,7 +458,9 @@ json Intake::handle(const json& req) {
   const std::string cmd = req["cmd"];
   // Every key of a request is known, or the request is refused: a typo is never ignored.
   const auto keys_for = [](const std::string& c) -> std::vector<std::string> {
-    if (c == "submit") return {"job", "port", "setpoints", "restart_from", "clearance_z_mm"};
+    if (c == "submit") {
+      return {"job", "port", "setpoints", "restart_from", "clearance_z_mm", "start_mm"};
+    }
     if (c == "override") return {"percent"};
     return {};
   };
@@ -353,6 +480,7 @@ json Intake::handle(const json& req) {
     // The port may have gone since submit.
     if (core_.state() == service::State::Ready && !port_.empty()) {
       require_serial_port(port_, "\"port\"");
+      if (controller_start_mm_) check_still_there();
     }
     const std::string realtime = core_.start();
     if (!loop_armed_) run_loop();

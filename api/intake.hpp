@@ -10,13 +10,45 @@
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "api/control_server.hpp"
 #include "api/service_config.hpp"
+#include "core/geometry.hpp"
+#include "link/dnc_sender.hpp"
 #include "service/service.hpp"
 
 namespace ncd::app {
+
+// Where a job starts (docs/service.md, "Where a job starts"). A job that streams to a controller
+// that reports its position (grbl: `?` answered with `<Idle|MPos:…|WCO:…>`, or WPos) starts
+// where the controller stands, in the coordinates of the blocks ncd sends (its work
+// coordinates); else at the request's "start_mm"; else at the machine file's [program]
+// start_mm; else nowhere known, and a program whose first feed move comes from an unknown
+// position is refused (its rapids position the machine from wherever it stands).
+struct JobStart {
+  std::optional<Vec3> at_mm;  // machine mm, the frame of the path and the blocks; none: unknown
+  std::string from;           // "controller", "request", "machine file", or "" when unknown
+  std::string note;     // why the controller's position was not used, or that it won the request's
+  bool applies = true;  // false for a chamfer made from parameters: it starts at its clearance
+};
+// The controller's position as a start, asked with `?` alone (comms::probe_grbl): only an Idle
+// grbl that did not reset on the port's opening and reports its work position.
+struct ControllerPosition {
+  std::optional<Vec3> at_mm;
+  std::string why_not;  // when at_mm is none
+};
+// The probe waits this long for a banner before asking, then up to the settle time for an
+// answer (grbl answers `?` within a few ms; an Arduino that resets on open says its banner).
+inline constexpr double kProbeBannerWaitS = 0.25;
+inline constexpr double kProbeSettleS = 2.0;
+// Positions within this of each other, mm, are the same (grbl reports 3 decimals).
+inline constexpr double kSamePositionMm = 0.002;
+ControllerPosition controller_position(const comms::SenderSettings& settings);
+JobStart job_start(const nlohmann::json& request, const ServiceConfig& config,
+                   const std::string& port);
+std::string position_text(const Vec3& at_mm);  // "[1.000, 2.000, 3.000]"
 
 // A submit request's job (docs/service.md, "Jobs"): checked as `ncd replay` checks a run (the
 // chamfer's checks and tool, the envelope, the size of the run, the port) and made into the
@@ -26,6 +58,7 @@ struct SubmittedJob {
   service::JobSpec spec;
   std::string port;     // the DNC port; empty: no streaming
   std::string warning;  // a failed chamfer run anyway ("allow_interference"); empty otherwise
+  JobStart start;       // where the job starts and why
 };
 SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& config);
 
@@ -52,14 +85,17 @@ class Intake : public comms::ControlHandler {
 
  private:
   nlohmann::json submit(const nlohmann::json& req);
-  void run_loop();  // service::Service::poll() on a timer while a job is under way
+  void run_loop();                 // service::Service::poll() on a timer while a job is under way
+  void check_still_there() const;  // start: the controller is where the job was planned from
 
   boost::asio::io_context& io_;
   ServiceConfig config_;
   service::Service core_;
   boost::asio::steady_timer timer_;
   bool loop_armed_ = false;
-  std::string port_;               // the submitted job's DNC port; empty: no streaming
+  std::string port_;  // the submitted job's DNC port; empty: no streaming
+  // The controller's position the submitted job starts from; checked again at start.
+  std::optional<Vec3> controller_start_mm_;
   std::function<void()> on_idle_;  // shutdown's continuation
 };
 

@@ -17,9 +17,11 @@
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "app/commands.hpp"
 #include "core/error.hpp"
@@ -40,7 +42,57 @@ struct CheckArgs {
   bool json = false;
   bool summary_only = false;
   bool save_parameters = false;
+  bool quiet = false;
 };
+
+// With --machine: where the values the reading and the estimate use came from, to stderr (a
+// line per origin, then each flag that overrode the file's value): the flag, the machine file,
+// or the default.
+void print_sources(const CheckArgs& a, const MachineConfig& m,
+                   const toolpath::InterpretOptions& o) {
+  std::vector<std::string> file, flags, defaults, overrides;
+  const auto one = [&](const std::string& key, const std::string& value, const std::string& flag,
+                       const std::string& flag_text, const std::string& file_value) {
+    if (!flag_text.empty()) {
+      flags.push_back(key + " " + value + " (" + flag + ")");
+      if (m.has(key) && file_value != value) {
+        overrides.push_back(flag + " " + flag_text + " overrides " + key + " = " + file_value +
+                            " of " + m.source);
+      }
+    } else {
+      (m.has(key) ? file : defaults).push_back(key + " " + value);
+    }
+  };
+  const auto position = [](const std::optional<Vec3>& at) {
+    return at ? "[" + text::sig(at->x()) + ", " + text::sig(at->y()) + ", " + text::sig(at->z()) +
+                    "]"
+              : std::string("unknown");
+  };
+  const auto none = [](const std::string& s) { return s.empty() ? std::string("none") : s; };
+  one("max_feed_mm_per_min", text::sig(m.limits.max_feed_mm_per_min) + " (feed cap, rapid rate)",
+      "", "", "");
+  one("program.start_mm", position(o.start_machine_mm), "--start", a.start,
+      position(m.program.start_machine_mm));
+  one("program.tool_table", none(o.tool_table), "--tool-table", a.tool_table,
+      none(m.program.tool_table));
+  one("program.parameter_file", none(o.parameter_file), "--parameter-file", a.parameter_file,
+      none(m.program.parameter_file));
+  one("program.default_units", o.default_units == toolpath::Units::inch ? "inch" : "mm", "", "",
+      "");
+  const auto join = [](const std::vector<std::string>& v) {
+    std::string s;
+    for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
+    return s;
+  };
+  if (!file.empty())
+    std::cerr << "ncd check: " << join(file) << " (machine file " << m.source << ")\n";
+  if (!flags.empty()) std::cerr << "ncd check: " << join(flags) << "\n";
+  if (!defaults.empty()) {
+    std::cerr << "ncd check: " << join(defaults) << " (default: not in " << m.source
+              << " nor given as a flag)\n";
+  }
+  for (const std::string& line : overrides) std::cerr << "ncd check: " << line << "\n";
+}
 
 struct Summary {
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
@@ -138,6 +190,7 @@ int run_check(const CheckArgs& a) {
   if (!a.tool_table.empty()) opt.tool_table = a.tool_table;
   if (!a.start.empty()) opt.start_machine_mm = parse_position_mm(a.start, "--start");
   if (!a.parameter_file.empty()) opt.parameter_file = a.parameter_file;
+  if (!a.machine.empty() && !a.quiet) print_sources(a, machine, opt);
   if (a.save_parameters) {
     if (opt.parameter_file.empty()) {
       throw InputError(
@@ -222,7 +275,8 @@ void register_check(CLI::App& app, Runner& run) {
       "events with their source lines, then extents, lengths, time, tools, speeds and feeds");
   c->add_option("FILE", a->file, "the NC program")->required();
   c->add_option("--machine", a->machine,
-                "machine file (TOML): limits for the time estimate, [program] for the reader");
+                "machine file (TOML): limits for the time estimate, [program] for the reader; "
+                "prints where each value came from (a flag wins over the file and says so)");
   c->add_option("--tool-table", a->tool_table, "LinuxCNC tool table (overrides [program])");
   c->add_option("--start", a->start,
                 "X,Y,Z: where the machine stands when the program starts, machine mm (overrides "
@@ -235,6 +289,8 @@ void register_check(CLI::App& app, Runner& run) {
               "G28/G30 homes, G92) back to the parameter file, as LinuxCNC does at exit");
   c->add_flag("--json", a->json, "print JSON instead of text");
   c->add_flag("--summary", a->summary_only, "print the summary only, not the canonical program");
+  c->add_flag("-q,--quiet", a->quiet,
+              "with --machine: do not print where the values came from (stderr)");
   c->callback([a, &run] { run = [a] { return run_check(*a); }; });
 }
 

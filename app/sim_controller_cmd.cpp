@@ -2,6 +2,8 @@
 // for `ncd stream` to send to. Runs until SIGTERM or SIGINT (or, with --exit-at-end, until the
 // program end has been executed), then writes --log FILE.json and exits 0. SIGUSR1 is the
 // cycle-start button: it resumes a program stopped by M0 (on the grbl link `~` does the same).
+// The link path and the line come from the flags, else from the [link] of --machine FILE (its
+// device is where the pty is linked), else the defaults (service/link_options.hpp).
 #include <sched.h>
 #include <signal.h>
 #include <cerrno>
@@ -12,6 +14,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <random>
 
 #include "app/commands.hpp"
@@ -19,6 +22,7 @@
 #include "core/number_text.hpp"
 #include "core/output_file.hpp"
 #include "service/link_options.hpp"
+#include "service/machine_config.hpp"
 #include "sim/sim_controller.hpp"
 
 namespace ncd::app {
@@ -93,10 +97,39 @@ class StopSignals {
   struct sigaction old_usr1_ {};
 };
 
+// The link path, the line and the receive buffer: each from its flag, else from the machine
+// file's [link] (--machine; its device is where the simulated controller's port appears), else
+// the default (service/link_options.hpp). Prints where each value came from.
+void choose_link(const SimArgs& a, comms::SimControllerConfig& cfg) {
+  std::optional<MachineConfig> machine;
+  if (!a.flags.machine.empty()) machine = load_machine_config(a.flags.machine);
+  LinkSources src(a.flags, machine ? &*machine : nullptr);
+  const LinkConfig file = machine ? machine->link : LinkConfig{};
+  const std::string link = src.pick<std::string>(
+      "--link", "device", a.link, file.line.device,
+      [](const std::string& v) { return v.empty() ? std::string("none") : v; });
+  cfg.line = src.line();
+  cfg.line.device = link;
+  cfg.dialect = src.dialect();
+  cfg.buffer_bytes = src.pick<int>(
+      "--buffer", "rx_buffer_bytes", a.buffer, file.rx_buffer_bytes,
+      [](const int& v) { return v == 0 ? std::string("256, or 128 for ack") : std::to_string(v); });
+  const std::string sender = "the sender's: ncd stream and ncd serve";
+  for (const char* key : {"max_queued_chars", "xoff_timeout_s", "reconnect_max_s", "journal"}) {
+    src.unused(key, sender);
+  }
+  if (link.empty()) {
+    throw InputError("no link: give --link PATH (e.g. /tmp/cnc0)" +
+                     std::string(machine ? ", or device = \"/tmp/cnc0\" in " + machine->source +
+                                               " [link] (the port ncd stream opens)"
+                                         : ", or --machine FILE whose [link] names the device"));
+  }
+  for (const std::string& l : src.report()) std::cerr << "ncd sim-controller: " << l << "\n";
+}
+
 int run_sim_controller(const SimArgs& a) {
   comms::SimControllerConfig cfg;
-  cfg.line = line_settings(a.flags, a.link);
-  cfg.buffer_bytes = a.buffer;
+  choose_link(a, cfg);
   if (a.xoff_at != 0) cfg.xoff_at = a.xoff_at;
   if (a.xon_at != -1) cfg.xon_at = a.xon_at;
   cfg.planner_blocks = a.planner_blocks;
@@ -106,7 +139,6 @@ int run_sim_controller(const SimArgs& a) {
   cfg.reset_on_open = a.reset_on_open;
   cfg.report_line_numbers = a.report_line_numbers;
   cfg.boot_s = a.boot_s;
-  cfg.dialect = dialect_of(a.flags);
   cfg.machine_safety = !a.no_machine_safety;
   cfg.tool_change_s = a.tool_change_s;
   cfg.optional_stop = a.optional_stop;
@@ -173,8 +205,9 @@ void register_sim_controller(CLI::App& app, Runner& run) {
       "the line's speed, DC1/DC3 (drip) or grbl 1.1 (ack: ok when queued, 15-block planner, "
       "128-byte buffer, 79 characters a line, ? ! ~ and 0x18), executes the blocks in real time. "
       "Runs until SIGTERM/SIGINT (or --exit-at-end), then writes --log.");
-  c->add_option("--link", a->link, "path of the symbolic link to the pty's slave, e.g. /tmp/cnc0")
-      ->required();
+  c->add_option("--link", a->link,
+                "path of the symbolic link to the pty's slave, e.g. /tmp/cnc0 (default: the "
+                "machine file's [link] device)");
   add_link_flags(*c, a->flags);
   c->add_option("--buffer", a->buffer,
                 "receive buffer, bytes (64 … 1048576; default 256, or grbl's 128 with "
@@ -245,7 +278,10 @@ void register_sim_controller(CLI::App& app, Runner& run) {
                 "fault: random bytes (drip) or garbage lines (ack) to the sender, bytes/s");
   c->add_option("--alarm-after-blocks", f.alarm_after_blocks,
                 "fault: after N blocks raise an alarm (drip: DC3 NAK; ack: ALARM:9) and stop");
-  c->callback([a, &run] { run = [a] { return run_sim_controller(*a); }; });
+  c->callback([a, c, &run] {
+    note_given_flags(*c, a->flags, {"--link", "--buffer"});
+    run = [a] { return run_sim_controller(*a); };
+  });
 }
 
 }  // namespace ncd::app

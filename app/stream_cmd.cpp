@@ -8,7 +8,9 @@
 // what its status reports said, and after ncd was killed from where grbl's position says it
 // stopped. Exit status: 0 done, 2 invalid input, 3 the job did not complete (interrupted by a
 // reset, an alarm, an error reply or a lost link, or stopped by a signal; the report names the
-// blocks). docs/dnc-link.md has the rules.
+// blocks). docs/dnc-link.md has the rules. The port and the line settings come from the flags,
+// else from the [link] of --machine FILE, else the defaults, and the command says which
+// (service/link_options.hpp, LinkSources).
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -16,6 +18,7 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "app/commands.hpp"
 #include "core/error.hpp"
@@ -26,6 +29,7 @@
 #include "link/program_file.hpp"
 #include "link/transfer_journal.hpp"
 #include "service/link_options.hpp"
+#include "service/machine_config.hpp"
 
 namespace ncd::app {
 namespace {
@@ -49,6 +53,9 @@ struct StreamArgs {
   double status_hz = 5.0, banner_wait_s = 2.5, startup_timeout_s = 10.0;
   bool skips_repeated_n = false;
   bool unlock = false;
+  // Chosen by choose_link: the controller's dialect (--dialect or the machine file's).
+  std::optional<comms::Dialect> dialect;
+  std::string port_from = "--port";  // the flag or key that gave the port, for messages
 };
 
 // The modal state in force before block `n` (1-based) and the highest Z reached before it.
@@ -287,7 +294,7 @@ CheckedProgram check_program(const StreamArgs& a, const comms::LineSettings& lin
   CheckedProgram out;
   out.summary = comms::scan_program(a.program, line.data_bits, max_block);
   const comms::ProgramSummary& program = out.summary;
-  out.dialect = dialect_of(a.link);
+  out.dialect = a.dialect;
   const std::optional<comms::Dialect>& dialect = out.dialect;
   if (dialect) {  // before the port is opened: nothing is sent
     if (const auto v = comms::check_program_file(a.program, *dialect)) {
@@ -479,14 +486,57 @@ void print_unfinished(const StreamArgs& a, const comms::SenderReport& r, bool ac
   if (!next.empty()) std::cout << "next: " << next << "\n";
 }
 
-int run_stream(const StreamArgs& a) {
-  const comms::LineSettings line = line_settings(a.link, a.port);
+// The port, the line and the sender's settings: each from its flag, else from the machine file's
+// [link] (--machine), else the default (service/link_options.hpp). Sets them in `a`; returns
+// the line and prints where each value came from unless --quiet.
+comms::LineSettings choose_link(StreamArgs& a) {
+  std::optional<MachineConfig> machine;
+  if (!a.link.machine.empty()) machine = load_machine_config(a.link.machine);
+  LinkSources src(a.link, machine ? &*machine : nullptr);
+  const LinkConfig file = machine ? machine->link : LinkConfig{};
+  const auto word = [](const std::string& v) { return v.empty() ? std::string("none") : v; };
+  const auto number = [](const int& v) { return std::to_string(v); };
+  const auto seconds = [](const double& v) { return text::sig(v) + " s"; };
+  a.port = src.pick<std::string>("--port", "device", a.port, file.line.device, word);
+  comms::LineSettings line = src.line();
+  line.device = a.port;
+  if (machine && a.link.given.count("--port") == 0) {
+    a.port_from = "device in " + machine->source + " [link]";
+  }
+  a.dialect = src.dialect();
+  a.rx_buffer_bytes = src.pick<int>("--rx-buffer", "rx_buffer_bytes", a.rx_buffer_bytes,
+                                    file.rx_buffer_bytes, number);
+  a.max_queued_chars = src.pick<int>("--max-queued", "max_queued_chars", a.max_queued_chars,
+                                     file.max_queued_chars, number);
+  a.xoff_timeout_s = src.pick<double>("--xoff-timeout", "xoff_timeout_s", a.xoff_timeout_s,
+                                      file.xoff_timeout_s, seconds);
+  a.reconnect_max_s = src.pick<double>("--reconnect-max", "reconnect_max_s", a.reconnect_max_s,
+                                       file.reconnect_max_s, seconds);
+  src.unused("journal",
+             "the service's journal of a live job; ncd stream keeps one per program, "
+             "PROGRAM.journal, or --journal FILE");
+  if (a.port.empty()) {
+    throw InputError(
+        "no port: give --port DEVICE (e.g. /dev/ttyS0)" +
+        std::string(machine ? ", or device = \"/dev/ttyS0\" in " + machine->source + " [link]"
+                            : ", or --machine FILE whose [link] names the device"));
+  }
+  if (!a.quiet) {
+    for (const std::string& l : src.report()) std::cerr << "ncd stream: " << l << "\n";
+  }
+  return line;
+}
+
+int run_stream(const StreamArgs& given) {
+  StreamArgs args = given;
+  const comms::LineSettings line = choose_link(args);
+  const StreamArgs& a = args;
   check_flags(a, line);
   const bool ack = line.protocol == comms::Protocol::Ack;
   const CheckedProgram checked = check_program(a, line);
   const comms::ProgramSummary& program = checked.summary;
   const std::vector<std::string> preamble = restart_preamble(a, checked.dialect);
-  require_serial_port(a.port, "--port");  // a file or a missing port: exit 2 now, no retries
+  require_serial_port(a.port, a.port_from);  // a file or a missing port: exit 2 now, no retries
 
   // The journal: resume where a previous transfer of the same program stopped.
   const std::string journal_path =
@@ -539,8 +589,9 @@ void register_stream(CLI::App& app, Runner& run) {
       "the transfer stopped, with what to do next (a restart from the first block not known "
       "executed).");
   c->add_option("program", a->program, "the NC program (one block per line)")->required();
-  c->add_option("--port", a->port, "serial device, e.g. /dev/ttyS0 or a sim-controller link")
-      ->required();
+  c->add_option("--port", a->port,
+                "serial device, e.g. /dev/ttyS0 or a sim-controller link (default: the machine "
+                "file's [link] device)");
   add_link_flags(*c, a->link);
   c->add_option("--max-queued", a->max_queued_chars,
                 "drip: characters allowed ahead of the wire, i.e. how far the sender runs on "
@@ -587,7 +638,12 @@ void register_stream(CLI::App& app, Runner& run) {
               "drip: the controller's manual says it discards a block whose N it already has; "
               "only then are blocks resent after a lost link");
   c->add_flag("-q,--quiet", a->quiet, "no progress lines");
-  c->callback([a, &run] { run = [a] { return run_stream(*a); }; });
+  c->callback([a, c, &run] {
+    note_given_flags(
+        *c, a->link,
+        {"--port", "--rx-buffer", "--max-queued", "--xoff-timeout", "--reconnect-max"});
+    run = [a] { return run_stream(*a); };
+  });
 }
 
 }  // namespace ncd::app

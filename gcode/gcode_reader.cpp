@@ -19,11 +19,13 @@ Path read_gcode(std::istream& in, const std::string& name, const InterpretOption
   });
   if (!moves) throw NoMotionError(name + ": the program moves nothing (no G0/G1/G2/G3/G5.2 move)");
   if (path.segments.empty()) {
-    throw InputError(name +
-                     ": the program contains no move from a known position; give where the "
-                     "machine stands (ncd replay --start X,Y,Z in machine mm, or start_mm in the "
-                     "machine file's [program] table), or begin the program with a G0 to X, Y "
-                     "and Z");
+    throw InputError(
+        name +
+        ": the program contains no move from a known position; give where the "
+        "machine stands (ncd replay --start X,Y,Z in machine mm, \"start_mm\" in an ncd serve "
+        "submit, or start_mm in the machine file's [program] table), or begin the program with a "
+        "G0 to X, Y "
+        "and Z");
   }
   path.source = name;
   return path;

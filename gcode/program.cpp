@@ -368,7 +368,8 @@ Path to_path(const Program& program, const ToPathOptions& options) {
       throw InputError(where(program, m.src) +
                        ": a feed move from an unknown position (X, Y and Z not all programmed "
                        "yet); give where the machine stands (ncd replay --start X,Y,Z in machine "
-                       "mm, or start_mm in the machine file's [program] table), or start the "
+                       "mm, \"start_mm\" in an ncd serve submit, or start_mm in the machine file's "
+                       "[program] table), or start the "
                        "program with a G0 to X, Y and Z");
     }
     const double k = mm_per_unit(m.units);

@@ -104,6 +104,7 @@ void parse_link(const toml::value& table, const std::string& name, LinkConfig& l
   for (const auto& [key, v] : table.as_table()) {
     const std::string where = name + ": link." + key;
     comms::LineSettings& line = l.line;
+    l.keys.insert(key);
     if (key == "device") {
       line.device = as_text(v, where);
     } else if (key == "baud") {
@@ -345,6 +346,10 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
   auto& k = c.cutting;
   for (const auto& [key, value] : root.as_table()) {
     const std::string where = name + ": " + key;
+    c.keys.insert(key);
+    if (value.is_table()) {
+      for (const auto& [sub, v] : value.as_table()) c.keys.insert(key + "." + sub);
+    }
     if (key == "period_s")
       l.period_s = as_real(value, where);
     else if (key == "max_feed_mm_per_min")

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "cam/chamfer_ngc.hpp"
@@ -28,6 +29,10 @@ struct LinkConfig {
   double reconnect_max_s = 30.0;  // longest backoff between attempts to reopen a lost port
   std::string journal;            // transfer journal file; empty: none
   std::optional<comms::Dialect> dialect;  // the controller's dialect (gcode/dialect/dialect.hpp)
+  // The keys the file gave (the rest hold their defaults), for the commands that say where each
+  // value came from (service/link_options.hpp, LinkSources).
+  std::set<std::string> keys;
+  bool has(const std::string& key) const { return keys.count(key) > 0; }
 };
 
 // [envelope]: the machine's travel per axis, mm, in the frame of the programs it runs. Every
@@ -65,6 +70,10 @@ struct MachineConfig {
     return o;
   }();
   std::string source = "defaults";  // the file it was read from
+  // The keys the file gave, tables' as "table.key" ("program.start_mm"), for the commands that
+  // say where each value came from.
+  std::set<std::string> keys;
+  bool has(const std::string& key) const { return keys.count(key) > 0; }
 };
 
 // Reads and validates a machine file; throws InputError naming the file, the key and the value.
