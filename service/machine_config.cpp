@@ -312,7 +312,10 @@ void parse_axes(const toml::value& table, const std::string& name,
       throw InputError(name + ": " + table_name + " must be a table: [" + table_name + "]");
     }
     interpolator::AxisLimits& ax = axes[i];
-    for (const auto& [key, v] : value.as_table()) {
+    for (const auto& entry : value.as_table()) {
+      // (named copies, not a structured binding: clang 14, the fuzz build's, cannot capture one)
+      const std::string& key = entry.first;
+      const toml::value& v = entry.second;
       const std::string where = name + ": " + table_name + "." + key;
       const auto in_range = [&](const ranges::Range& r) {
         const double x = as_real(v, where);
