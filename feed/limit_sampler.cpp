@@ -26,6 +26,8 @@
 // travel, the curve laws at the discrete curvature 2 sin(φ/2) / min(l_in, l_out) of its end
 // vertices (several vertices in one period: the polyline acts as a curve); everywhere the
 // program's F word. Rapids (G0) take the machine maximum and the curve laws of short pieces.
+// The roughness law applies to segments cut by a ball end only (geometry/tool.hpp), with the
+// tool's own radius and teeth where it states them; other tools take the curve laws alone.
 // At a corner (a polyline vertex, a joint, or an interior knot of a NURBS where the tangent
 // turns by φ, next to curvature κ) the speed is bounded by
 //

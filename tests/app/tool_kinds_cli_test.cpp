@@ -220,6 +220,16 @@ TEST_F(ToolKinds, BallEndIsCappedAtTheClosedFormOfItsOwnRadius) {
   EXPECT_NEAR(j["roughness_max_um"].get<double>(), 2.0, 1e-6);
 }
 
+// A ball of its own that the law cannot hold (target 2 um at or above a 1.5 um radius) is
+// refused naming the tool and its line, as [cutting] would be.
+TEST_F(ToolKinds, ABallTheLawCannotHoldIsRefusedNamingTheTool) {
+  const Run run = replay(kPocket, "T1 P1 D0.003 Z10 ;kind=ball\n");
+  EXPECT_EQ(run.r.status, 2) << run.r.err;
+  for (const char* part : {"tool T1", "ball end of radius 0.0015 mm", "roughness_target_um"}) {
+    EXPECT_NE(run.r.err.find(part), std::string::npos) << part << "\n" << run.r.err;
+  }
+}
+
 // A table entry with no kind: nobody said it is a ball end, so the law does not cap it.
 TEST_F(ToolKinds, TableEntryWithNoKindIsNotCapped) {
   const Run run = replay(kPocket, "T1 P1 D6.35 Z10 ;1/4 in cutter\n");
