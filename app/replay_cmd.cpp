@@ -32,6 +32,7 @@
 #include "link/program_blocks.hpp"
 #include "motion/job.hpp"
 #include "motion/run_stats.hpp"
+#include "motion/tool_use.hpp"
 #include "service/job_checks.hpp"
 #include "service/machine_config.hpp"
 #include "service/service.hpp"
@@ -122,6 +123,7 @@ struct ReplayRecord {
   double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
   SetpointSink* file = nullptr;
   comms::ProgramBlocks* blocks = nullptr;  // --blocks; null without
+  std::unique_ptr<motion::ToolUse> tools;  // the tool of each move, the law's caps
   bool quiet = false;
   double length_mm = 0.0;
   std::chrono::steady_clock::time_point next_progress;
@@ -140,6 +142,7 @@ class ReplayRecorder final : public service::SetpointSink {
     const double limit = job.limit_here().feed_mm_per_s;
     const double rough = job.roughness_here_um(sp.v_mm_per_s);
     motion::record(r_.st, r_.cfg, sp, limit, rough, static_cast<double>(times.step_ns));
+    if (r_.tools) r_.tools->add(sp);
     r_.file->write(sp);
     if (r_.blocks) r_.blocks->push(sp);
     r_.plot.add(sp.t_s, sp.v_mm_per_s * 60.0, limit * 60.0, rough);
@@ -438,6 +441,7 @@ void write_report_and_plot(const ReplayArgs& a, const ReplayInput& in, const mot
   const std::string& source = in.path.source;
   if (!a.report.empty()) {
     nlohmann::ordered_json report = report_json(rec.st, in.machine, source, job, end.lookahead_ns);
+    if (rec.tools) report.update(rec.tools->to_json(job));  // tools, tool_runs, capped_moves
     report["accepted"] = end.refused.empty();
     report["interference_allowed"] = in.chamfer.interference_allowed;
     report["refused"] =
@@ -460,7 +464,7 @@ void write_report_and_plot(const ReplayArgs& a, const ReplayInput& in, const mot
 // The summary on standard error.
 void print_summary(const ReplayArgs& a, const MachineConfig& machine, const std::string& source,
                    const motion::Job& job, const motion::RunStats& st, double wall_s,
-                   const comms::BlockEncoder* encoder) {
+                   const comms::BlockEncoder* encoder, const motion::ToolUse* tools) {
   std::fprintf(stderr,
                "replay: %s\n  path length       %.4f mm in %lld periods of %.4g s = %.3f s\n"
                "  feed              max %.1f mm/min; roughness max %.3f um (target %.3f um)\n"
@@ -485,6 +489,7 @@ void print_summary(const ReplayArgs& a, const MachineConfig& machine, const std:
                st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
   std::fputs(motion::axis_peaks_text(st, machine.limits).c_str(), stderr);  // per-axis (§3f)
+  if (tools) std::fputs(tools->text(job).c_str(), stderr);  // each tool, the law's caps
   if (job.delay_periods() > 0) {  // the corner overlap's line of setpoints (planner.md §3b)
     std::fprintf(stderr,
                  "  hold, override    act up to %zu periods (%.0f ms) late within %.1f mm of a "
@@ -514,6 +519,7 @@ int run_replay(const ReplayArgs& a) {
   BlockOutput out;  // --blocks; checked before the walk starts
   service::Service svc(replay_service_options());
   svc.submit(replay_job(in, rec));  // builds the job once: a path the machine cannot run is refused
+  rec.tools = std::make_unique<motion::ToolUse>(*svc.submitted_job());
   if (!a.blocks.empty()) {
     out.open(a, in, svc);
     rec.blocks = out.blocks.get();
@@ -554,7 +560,8 @@ int run_replay(const ReplayArgs& a) {
   sink.commit();
   if (out.program) out.program->commit();
   if (!a.quiet) {
-    print_summary(a, in.machine, in.path.source, job, rec.st, end.wall_s, out.encoder.get());
+    print_summary(a, in.machine, in.path.source, job, rec.st, end.wall_s, out.encoder.get(),
+                  rec.tools.get());
   }
   return 0;
 }

@@ -144,6 +144,9 @@ Program whole_job(const Path& cut, const JobFrame& f) {
   b.event(SpindleEvent{SpindleDir::off, 0.0});
   b.event(EndEvent{2});
   b.p_.files = {cut.source};
+  // Every job ncd generates is cut by the ball end of [cutting] (geometry/tool.hpp): the
+  // roughness law caps it.
+  b.p_.tools[f.tool] = ToolSpec{ToolKind::ball, 0.0, 0, "the machine file's [tool]"};
   return std::move(b.p_);
 }
 

@@ -227,6 +227,10 @@ FeedLimitResult feed_limit(const MachineLimits& limits, const CuttingParams& cut
                         curvature_per_mm);
 }
 
+FeedLimitResult curve_feed_limit(const MachineLimits& limits, double curvature_per_mm) {
+  return with_curvature(limits, kInf, curvature_per_mm);  // MaxFeed is finite: never Roughness
+}
+
 double tangential_scale(const MachineLimits& limits, double kappa, double g, double v,
                         double budget) {
   return ncd::tangential_scale(JerkVectorSpan{kappa, g, budget}, v, limits.max_accel_mm_per_s2,

@@ -156,6 +156,10 @@ double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi_rad,
 double curvature_per_mm(const toolpath::CurvePoint& point);
 // Curvature vector κ N = (P' × P'') × P' / |P'|⁴ (zero where P' = 0).
 Vec3 curvature_vector_per_mm(const toolpath::CurvePoint& point);
+// feed_limit for a tool the roughness law does not model (geometry/tool.hpp: a flat or bull-nose
+// end mill, a drill, a tool of no stated kind): the curve laws and the machine's maximum.
+FeedLimitResult curve_feed_limit(const MachineLimits& limits, double curvature_per_mm);
+
 // feed_limit with κ from the point and α = asin(t_z) of its tangent (3-axis ball end).
 FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& cutting,
                               const toolpath::CurvePoint& point);

@@ -26,6 +26,8 @@
 // travel, the curve laws at the discrete curvature 2 sin(φ/2) / min(l_in, l_out) of its end
 // vertices (several vertices in one period: the polyline acts as a curve); everywhere the
 // program's F word. Rapids (G0) take the machine maximum and the curve laws of short pieces.
+// The roughness law applies to segments cut by a ball end only (geometry/tool.hpp), with the
+// tool's own radius and teeth where it states them; other tools take the curve laws alone.
 // At a corner (a polyline vertex, a joint, or an interior knot of a NURBS where the tangent
 // turns by φ, next to curvature κ) the speed is bounded by
 //
@@ -163,6 +165,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
       cutting_(cutting),
       config_(config) {
   const std::size_t n = path.segments.size();
+  set_tool_laws();  // before any limit is taken (the knot edges below take them)
   joint_corner_.assign(n + 1, FeedLimitResult{kInf, FeedLimit::Corner});
   joint_share_.assign(n + 1, 0.0);
   inner_corners_.resize(n);
@@ -332,7 +335,6 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   }
   // Flat intervals: the bounds of every span of the curves that qualify (see the top).
   span_bounds_.resize(n);
-  roughness_floor_mm_per_s_ = roughness_feed_mm_per_s(cutting_, 0.0);
   for (std::size_t k = 0; k < n; ++k) {
     const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry);
     if (c == nullptr || c->rational() || c->degree() < 2) continue;
@@ -379,6 +381,41 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
           jump(side_limit(k - 1, true).feed_mm_per_s, side_limit(k, false).feed_mm_per_s);
     }
   }
+}
+
+// The roughness law caps a segment cut by a ball end (geometry/tool.hpp), with the tool's own
+// ball radius and teeth where it states them; a ball of its own is checked as [cutting] is.
+void LimitSampler::set_tool_laws() {
+  const std::size_t n = path_.segments.size();
+  seg_cutting_.assign(n, cutting_);
+  law_.assign(n, 0);
+  roughness_floor_mm_per_s_.assign(n, kInf);
+  for (std::size_t k = 0; k < n; ++k) {
+    const toolpath::PathSegment& seg = path_.segments[k];
+    if (seg.rapid || !seg.tool.roughness_law()) continue;
+    CuttingParams& c = seg_cutting_[k];
+    if (seg.tool.radius_mm > 0.0) c.ball_radius_mm = seg.tool.radius_mm;
+    if (seg.tool.teeth > 0) c.teeth = seg.tool.teeth;
+    if (c.ball_radius_mm != cutting_.ball_radius_mm || c.teeth != cutting_.teeth) {
+      try {
+        validate(c);
+      } catch (const InputError& e) {
+        throw InputError(path_.source + ":" + std::to_string(seg.source_line) + ": tool T" +
+                         std::to_string(seg.tool.number) + ", a ball end of radius " +
+                         text::sig(c.ball_radius_mm) + " mm and " + std::to_string(c.teeth) +
+                         " teeth: " + e.what() +
+                         "; correct the tool's entry (D, teeth=) or its kind");
+      }
+    }
+    law_[k] = 1;
+    roughness_floor_mm_per_s_[k] = roughness_feed_mm_per_s(c, 0.0);
+  }
+}
+
+FeedLimitResult LimitSampler::cutting_limit(std::size_t segment, double curvature_per_mm,
+                                            double inclination_rad) const {
+  if (law_[segment] == 0) return curve_feed_limit(limits_, curvature_per_mm);
+  return feed_limit(limits_, seg_cutting_[segment], curvature_per_mm, inclination_rad);
 }
 
 FeedLimitResult LimitSampler::side_limit(std::size_t segment, bool at_end) const {
@@ -488,7 +525,9 @@ FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) cons
                       FeedLimit::CentripetalJerk});
   }
   const toolpath::CurvePoint at = c.eval(u);
-  const FeedLimitResult r = min_of(feed_limit_at(limits_, cutting_, at), segment_cap(segment));
+  const FeedLimitResult r =
+      min_of(cutting_limit(segment, curvature_per_mm(at), inclination_from_tangent_rad(at.d1)),
+             segment_cap(segment));
   if (!limits_.has_axis_limits()) return r;
   return min_of(r, axis_feed_limit(limits_, unit_or_zero(at.d1), curvature_vector_per_mm(at)));
 }
@@ -515,7 +554,7 @@ FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t pi
   for (const std::size_t v : {piece, piece + 1}) {
     const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
                                               : inclination_from_normal_rad(line.normals[v], dir);
-    r = min_of(r, feed_limit(limits_, cutting_, kappa, alpha));
+    r = min_of(r, cutting_limit(segment, kappa, alpha));
   }
   return r;
 }
@@ -647,7 +686,7 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
       std::min({chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
                 centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
                 centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3)});
-  if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_);
+  if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_[segment]);
   if (limits_.has_axis_limits()) {  // the axis laws at |t_i| ≤ 1 and |k_i| ≤ κ
     const FeedLimitResult ax = axis_feed_limit(limits_, Vec3::Ones(), kappa * Vec3::Ones());
     floor_mm_per_s = std::min(floor_mm_per_s, ax.feed_mm_per_s);

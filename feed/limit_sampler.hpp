@@ -71,6 +71,12 @@ class LimitSampler {
   // fraction), without corners: what a setpoint there is checked against.
   FeedLimitResult limit_on_curve(std::size_t segment, double u) const;
   FeedLimitResult limit_on_piece(std::size_t segment, std::size_t piece) const;
+  // The roughness law's parameters for segment `segment`'s tool (the [cutting] ones with the
+  // tool's ball radius and teeth where it states them); nullptr where the law does not cap the
+  // tool (not a ball end, geometry/tool.hpp) or the segment is a rapid.
+  const CuttingParams* cutting_of(std::size_t segment) const {
+    return law_[segment] != 0 ? &seg_cutting_[segment] : nullptr;
+  }
   // The corner speed at vertex v of a polyline segment (v = 0 and the last: the joints).
   FeedLimitResult corner_limit(std::size_t segment, std::size_t vertex) const;
 
@@ -163,7 +169,15 @@ class LimitSampler {
     double d2_max, p_max;
   };
   std::vector<std::vector<SpanBound>> span_bounds_;
-  double roughness_floor_mm_per_s_ = 0.0;  // the roughness law at α = 0, its minimum over α
+  // Per segment: the law's parameters, whether it caps the segment (1) and its value at α = 0,
+  // its minimum over α (+inf where it does not cap).
+  std::vector<CuttingParams> seg_cutting_;
+  std::vector<unsigned char> law_;
+  std::vector<double> roughness_floor_mm_per_s_;
+  void set_tool_laws();
+  // The cutting laws at curvature κ and inclination α on segment `segment` (not a rapid).
+  FeedLimitResult cutting_limit(std::size_t segment, double curvature_per_mm,
+                                double inclination_rad) const;
   FeedLimitResult side_limit(std::size_t segment, bool at_end) const;
   double edge_speed(std::size_t segment, std::size_t vertex) const;
   // Cursor.

@@ -348,6 +348,19 @@ std::variant<Polyline, NurbsCurve> motion_geometry(const Program& program, const
   return out;
 }
 
+// The tool in the spindle as the program's tool list describes it.
+CutterTool cutter_tool(const Program& program, int number) {
+  CutterTool t;
+  t.number = number;
+  t.kind = ToolKind::unknown;
+  if (const auto it = program.tools.find(number); it != program.tools.end()) {
+    t.kind = it->second.kind;
+    t.radius_mm = it->second.radius_mm;
+    t.teeth = it->second.teeth;
+  }
+  return t;
+}
+
 }  // namespace
 
 Path to_path(const Program& program, const ToPathOptions& options) {
@@ -403,6 +416,7 @@ Path to_path(const Program& program, const ToPathOptions& options) {
     seg.blend_tolerance_mm = st.blend_mm;
     seg.smoothing_tolerance_mm = st.smooth_mm;
     seg.stop_before = st.stop_pending;
+    seg.tool = cutter_tool(program, m.tool);
     st.stop_pending = false;
     st.path.segments.push_back(std::move(seg));
   }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -17,6 +18,7 @@
 #include "geometry/nurbs.hpp"
 #include "geometry/path.hpp"
 #include "geometry/polyline.hpp"
+#include "geometry/tool.hpp"
 
 namespace ncd::toolpath {
 
@@ -139,6 +141,10 @@ struct Program {
   // order; other lines of the old file kept in place. Empty when no parameter file was given.
   // Writing it back is the caller's choice (docs/ngc-interpreter.md, "Persistent parameters").
   std::string parameter_file_text;
+  // What is known of each tool the program may cut with (geometry/tool.hpp): the interpreter's
+  // tool table and machine file (tool_catalogue, gcode/ngc/tool_table.hpp), or the generator's
+  // ball end. A tool not listed is of unknown kind: the roughness law does not cap it.
+  std::map<int, ToolSpec> tools;
 };
 
 // Geometry of an arc: radius, signed sweep (rad, + counter-clockwise about the plane's normal
@@ -173,9 +179,10 @@ struct ToPathOptions {
 inline constexpr std::size_t kNoSegment = static_cast<std::size_t>(-1);
 
 // The planner's Path: lines → Polyline runs, arcs → rational quadratic NURBS (exact circles),
-// all in mm and machine coordinates (offset applied). Rapids before X, Y and Z are known add
-// nothing; a feed move from an unknown position is an InputError. Events that need the machine
-// at rest (M0/M1/M60, M6, dwell, spindle changes) set stop_before on the next segment.
+// all in mm and machine coordinates (offset applied), each segment with the tool in the spindle
+// as program.tools describes it (a tool not listed: ToolKind::unknown). Rapids before X, Y and Z
+// are known add nothing; a feed move from an unknown position is an InputError. Events that need
+// the machine at rest (M0/M1/M60, M6, dwell, spindle changes) set stop_before on the next segment.
 Path to_path(const Program& program, const ToPathOptions& options = {});
 
 // "file:line" of a step.

@@ -10,6 +10,7 @@
 
 #include "geometry/nurbs.hpp"
 #include "geometry/polyline.hpp"
+#include "geometry/tool.hpp"
 
 namespace ncd::toolpath {
 
@@ -31,6 +32,7 @@ struct PathSegment {
   std::optional<double> smoothing_tolerance_mm;   // G64 Q: deviation allowed when smoothing runs
   bool stop_before = false;  // the machine must be at rest where this segment starts (an event
                              // that needs rest precedes it: M0/M1, M6, dwell, spindle change)
+  CutterTool tool;           // the tool that cuts it (geometry/tool.hpp): a ball end by default
 };
 
 // What a path made by `ncd chamfer` says about itself (its JSON's "input" and "checks"): the

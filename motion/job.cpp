@@ -604,13 +604,15 @@ interpolator::FeedLimitResult Job::limit_here() const {
 }
 
 double Job::roughness_here_um(double v_mm_per_s) const {
-  const auto& k = config_.cutting;
+  const Place at = place();
+  // A G0 does not cut; a tool the law does not model (not a ball end) has no prediction.
+  const interpolator::CuttingParams* cutting = sampler_.cutting_of(at.segment);
+  if (cutting == nullptr) return 0.0;
+  const auto& k = *cutting;
   const double ft_mm = v_mm_per_s * 60.0 / (k.teeth * k.spindle_rpm);
   const auto r_um = [&](double alpha) {
     return 1000.0 * interpolator::roughness_mm(k.ball_radius_mm, k.pick_feed_mm, ft_mm, alpha);
   };
-  const Place at = place();
-  if (path_.segments[at.segment].rapid) return 0.0;  // a G0 does not cut
   const auto& g = path_.segments[at.segment].geometry;
   if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
     return r_um(interpolator::inclination_from_tangent_rad(c->eval(at.curve_u).d1.normalized()));

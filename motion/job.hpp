@@ -127,7 +127,8 @@ class Job {
   interpolator::FeedLimitResult limit_here() const;
   // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;
   // on a polyline piece the worse of its two ends.
-  double roughness_here_um(double v_mm_per_s) const;  // 0 on a rapid (G0 does not cut)
+  // 0 on a rapid (G0 does not cut) and for a tool the law does not model (geometry/tool.hpp).
+  double roughness_here_um(double v_mm_per_s) const;
 
  private:
   // One setpoint waiting to be emitted, with where the walker stood for it.

@@ -295,6 +295,53 @@ void parse_tool(const toml::value& table, const std::string& name, ToolConfig& t
   }
 }
 
+// [tools.N] (docs/feedrate.md §1.5): what the machine file knows of tool N, kind (required),
+// teeth and radius_mm; merged with the tool table's comments by toolpath::tool_catalogue.
+void parse_tools(const toml::value& table, const std::string& name,
+                 std::map<int, toolpath::ToolSpec>& tools) {
+  for (const auto& [number, value] : table.as_table()) {
+    const std::string where = name + ": tools." + number;
+    int n = -1;
+    const auto r = std::from_chars(number.data(), number.data() + number.size(), n);
+    if (r.ec != std::errc() || r.ptr != number.data() + number.size() || n < 0 || n > 99999) {
+      throw InputError(where + ": \"" + number +
+                       "\" is not a tool number; write [tools.N] with N the tool's T number "
+                       "from 0 to 99999, e.g. [tools.1]");
+    }
+    if (!value.is_table()) {
+      throw InputError(where + " must be a table: [tools." + number + "] kind = \"flat\"");
+    }
+    toolpath::ToolSpec t;
+    t.where = name + " [tools." + number + "]";
+    for (const auto& [key, v] : value.as_table()) {
+      const std::string kwhere = where + "." + key;
+      if (key == "kind") {
+        const std::string k = as_text(v, kwhere);
+        const auto kind = toolpath::tool_kind_from_text(k);
+        if (!kind) {
+          throw InputError(kwhere + " = \"" + k + "\" is not a tool kind; use one of " +
+                           toolpath::kToolKindsText +
+                           " (the roughness law caps ball ends only; docs/feedrate.md 1.5)");
+        }
+        t.kind = *kind;
+      } else if (key == "teeth") {
+        t.teeth = as_int(v, kwhere);
+      } else if (key == "radius_mm") {
+        t.radius_mm = as_real(v, kwhere);
+        check(t.radius_mm, ranges::kBallRadiusMm, kwhere);
+      } else {
+        throw InputError("unknown key " + kwhere + "; [tools.N] takes kind, teeth, radius_mm");
+      }
+    }
+    if (t.kind == toolpath::ToolKind::unknown) {
+      throw InputError(where + " has no kind; give kind = one of " + toolpath::kToolKindsText +
+                       ", or leave the table out (a tool of no stated kind runs at its "
+                       "programmed feed)");
+    }
+    tools[n] = t;
+  }
+}
+
 // [axis.x], [axis.y], [axis.z] (docs/planner.md §3f): each axis's own limits, in the ranges of
 // the path's; a key left out leaves the axis bounded by the path limit only.
 void parse_axes(const toml::value& table, const std::string& name,
@@ -419,14 +466,17 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
     } else if (key == "tool") {
       if (!value.is_table()) throw InputError(where + " must be a table: [tool]");
       parse_tool(value, name, c.tool);
+    } else if (key == "tools") {
+      if (!value.is_table()) throw InputError(where + " must be tables: [tools.1], [tools.2], …");
+      parse_tools(value, name, c.program.declared_tools);
     } else {
       throw InputError(
           "unknown key " + where +
           "; the machine file takes period_s, max_feed_mm_per_min, "
           "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
           "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
-          "[cutting], [link], [encoder], [envelope], [program], [tool], [axis.x], [axis.y], "
-          "[axis.z]");
+          "[cutting], [link], [encoder], [envelope], [program], [tool], [tools.N], [axis.x], "
+          "[axis.y], [axis.z]");
     }
   }
   c.encoder.line = c.link.line;
@@ -551,6 +601,16 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                 c.tool.programmed_point == toolpath::ProgramPoint::Tip ? "tip" : "centre"},
                {"number", c.tool.number},
                {"spindle_dwell_s", c.tool.spindle_dwell_s}};
+  if (!c.program.declared_tools.empty()) {  // [tools.N], only where the file has any
+    nlohmann::ordered_json tools = nlohmann::ordered_json::object();
+    for (const auto& [n, t] : c.program.declared_tools) {
+      nlohmann::ordered_json entry = {{"kind", toolpath::to_string(t.kind)}};
+      if (t.teeth > 0) entry["teeth"] = t.teeth;
+      if (t.radius_mm > 0.0) entry["radius_mm"] = t.radius_mm;
+      tools[std::to_string(n)] = std::move(entry);
+    }
+    j["tools"] = std::move(tools);
+  }
   const toolpath::InterpretOptions& p = c.program;
   j["program"] = {{"default_units", p.default_units == toolpath::Units::inch ? "inch" : "mm"},
                   {"machine_units", p.machine_units == toolpath::Units::inch ? "inch" : "mm"},

@@ -8,6 +8,7 @@
 #include "core/input_file.hpp"
 #include "gcode/dialect/dialect.hpp"
 #include "gcode/ngc/interpreter.hpp"
+#include "gcode/ngc/tool_table.hpp"
 
 namespace ncd::app {
 namespace {
@@ -32,6 +33,22 @@ toolpath::Program bare_program(const toolpath::Path& input) {
   return p;
 }
 
+// A generated job (a chamfer, a path file) is cut by [tool] number, a ball end: the tool table
+// must not declare that tool another kind.
+void check_generated_tool(const MachineConfig& m) {
+  const auto tools = toolpath::tool_catalogue(m.program);
+  const auto it = tools.find(m.tool.number);
+  if (it == tools.end() || it->second.kind == toolpath::ToolKind::ball ||
+      it->second.kind == toolpath::ToolKind::unknown) {
+    return;
+  }
+  throw InputError(it->second.where + ": tool T" + std::to_string(m.tool.number) + " is a " +
+                   toolpath::to_string(it->second.kind) +
+                   ", but the machine file's [tool] number = " + std::to_string(m.tool.number) +
+                   " is the ball end this job is cut with; give [tool] number the ball end's "
+                   "tool, or correct its kind");
+}
+
 }  // namespace
 
 WholeRun whole_run(const std::string& who, const std::string& file, const toolpath::Path& input,
@@ -39,7 +56,7 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
   WholeRun w;
   const std::string name = file.empty() ? "the chamfer job" : file;
   if (path_only) {
-    w.path = input;
+    w.path = input;  // its own tools (a JSON path: the ball end of [cutting])
     w.program = bare_program(input);
     w.header.push_back(who + " --path-only of " + name +
                        ": the path alone, no preamble, "
@@ -61,6 +78,7 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
     w.path = toolpath::to_path(w.program);
     if (!w.path.segments.empty()) w.retract = toolpath::program_retract(w.program, w.path);
   } else {
+    check_generated_tool(m);
     toolpath::JobFrame f;
     f.spindle_rpm = m.cutting.spindle_rpm;
     f.spindle_dwell_s = m.tool.spindle_dwell_s;

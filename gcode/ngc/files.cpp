@@ -1,6 +1,7 @@
 // The RS-274/NGC interpreter: source files, the tool table and the parameter file. The reading and
 // execution order is in interpreter.cpp.
 #include "gcode/ngc/interp.hpp"
+#include "gcode/ngc/tool_table.hpp"
 
 namespace ncd::toolpath::ngc {
 
@@ -28,39 +29,15 @@ std::string Interpreter::read_file(const std::string& path, const char* what) {
   return s.str();
 }
 
-// LinuxCNC tool.tbl: "T<n> P<pocket> Z<offset> D<diameter> ; comment", values in machine units.
+// LinuxCNC tool.tbl (tool_table.hpp): each entry's length, diameter and orientation; the
+// kinds and teeth go to the program's tool list (tool_catalogue). The machine file's [tool] and
+// [tools.N] tools are held too, of zero length and diameter where the table has no entry.
 void Interpreter::load_tool_table() {
   for (const int t : opt_.machine_tools) tools_[t] = {0.0, 0.0, 0};
+  for (const auto& declared : opt_.declared_tools) tools_[declared.first] = {0.0, 0.0, 0};
   if (opt_.tool_table.empty()) return;
-  const std::string text = read_file(opt_.tool_table, "tool table");
-  std::istringstream in(text);
-  std::string line;
-  int no = 0;
-  while (std::getline(in, line)) {
-    ++no;
-    const auto semi = line.find(';');
-    if (semi != std::string::npos) line.resize(semi);
-    std::istringstream ws(line);
-    std::string w;
-    int tool = -1;
-    double z = 0.0, d = 0.0, q = 0.0;
-    while (ws >> w) {
-      const char c = static_cast<char>(std::toupper(static_cast<unsigned char>(w[0])));
-      double v = 0.0;
-      const char* b = w.c_str() + 1;
-      if (*b == '+') ++b;
-      const auto r = std::from_chars(b, w.c_str() + w.size(), v);
-      if (r.ec != std::errc() || r.ptr != w.c_str() + w.size() || !std::isfinite(v)) {
-        throw InputError(opt_.tool_table + ":" + std::to_string(no) + ": malformed word '" + w +
-                         "'; write LETTER NUMBER such as T1 P1 Z0.5 D6");
-      }
-      if (c == 'T') tool = static_cast<int>(v);
-      if (c == 'Z') z = v;
-      if (c == 'D') d = v;
-      if (c == 'Q') q = v;
-    }
-    if (tool < 0) continue;
-    tools_[tool] = {z, d, static_cast<int>(q)};
+  for (const ToolTableEntry& e : read_tool_table(opt_.tool_table)) {
+    tools_[e.tool] = {e.z, e.diameter, e.orientation};
   }
 }
 

@@ -18,6 +18,7 @@
 // Control flow (O-words) works on the file's lines held in memory: a false `if`, a finished
 // loop or a `break` scans forward to the line with the same label and the wanted keyword.
 #include "gcode/ngc/interp.hpp"
+#include "gcode/ngc/tool_table.hpp"
 
 namespace ncd::toolpath::ngc {
 
@@ -76,6 +77,7 @@ Program interpret_ngc(const std::string& text, const std::string& name,
     Program p = in.run(text, name);
     in.finish();
     p.parameter_file_text = in.parameter_file_text();
+    p.tools = tool_catalogue(options);  // each tool's kind, teeth and radius (tool_table.hpp)
     return p;
   } catch (const Fail& f) {
     throw InputError(in.where() + ": " + f.what + " (line: \"" + in.line_text() + "\")");

@@ -3,6 +3,7 @@
 // docs/ngc-interpreter.md.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,6 +21,9 @@ struct InterpretOptions {
   // Tools the machine holds besides the table's (the machine file's [tool] number, which every
   // program ncd writes selects with T n M6): zero length and diameter, the table's entry wins.
   std::vector<int> machine_tools;
+  // Tools the machine file declares ([tools.N]: kind, teeth, radius; geometry/tool.hpp), merged
+  // with the tool table's comments by tool_catalogue (gcode/ngc/tool_table.hpp).
+  std::map<int, ToolSpec> declared_tools;
   std::string parameter_file;                // LinuxCNC .var; empty: all parameters start at 0
   std::vector<std::string> subroutine_path;  // folders searched for o<name> call → name.ngc
   bool block_delete = false;                 // true: lines starting with '/' are skipped (rs274 -b)
