@@ -121,6 +121,21 @@ AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
   return {a / limits.max_accel_mm_per_s2, j / limits.max_jerk_mm_per_s3};
 }
 
+MachineLimits with_axis_jerk(const MachineLimits& limits) {
+  bool any = false;
+  double j = limits.max_jerk_mm_per_s3;
+  for (const AxisLimits& ax : limits.axes) {
+    if (!std::isfinite(ax.max_jerk_mm_per_s3)) continue;
+    any = true;
+    j = std::min(j, ax.max_jerk_mm_per_s3);
+  }
+  if (!any) return limits;
+  MachineLimits out = limits;
+  out.max_jerk_mm_per_s3 = j;
+  out.jerk_bound = JerkBound::vector;
+  return out;
+}
+
 AxisScales axis_scale_floor(const MachineLimits& limits) {
   return axis_scales(limits, Vec3(1.0, 1.0, 1.0), {true, true, true});
 }

@@ -116,6 +116,12 @@ double axis_jerk_for_planner(const MachineLimits& limits, std::size_t axis);
 // The lowest scales axis_scales() can give (tangent components of 1, every axis bent): what the
 // planner sizes its look-ahead for.
 AxisScales axis_scale_floor(const MachineLimits& limits);
+// The limits a job is planned under when an axis has a jerk limit (docs/planner.md §3f): the
+// jerk vector bounded (jerk_bound = vector) by min(j_max, min_i j_i). Each axis's jerk is a
+// component of that vector, so it stays within its own limit wherever the vector bound holds,
+// curvature jumps included; the price is that every direction gets the slowest axis's jerk.
+// Without axis jerk limits the limits are returned as they are.
+MachineLimits with_axis_jerk(const MachineLimits& limits);
 
 // Largest step Δs whose chord stays within ε of a circle of curvature κ (Yeh and Hsu), mm;
 // +inf on a straight line, the diameter 2ρ once ε ≥ ρ.

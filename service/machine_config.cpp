@@ -394,6 +394,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
   c.source = name;
   auto& l = c.limits;
   auto& k = c.cutting;
+  bool jerk_by_axes = false;
   for (const auto& [key, value] : root.as_table()) {
     const std::string where = name + ": " + key;
     c.keys.insert(key);
@@ -418,14 +419,17 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
       l.stall_timeout_s = as_real(value, where);
     else if (key == "jerk_bound") {
       const std::string b = as_text(value, where);
-      if (b != "tangential" && b != "vector") {
+      if (b != "tangential" && b != "vector" && b != "axes") {
         throw InputError(where + " = \"" + b +
                          "\" is not a jerk bound; use \"tangential\" (|j_t| and v^3 kappa^2 "
-                         "each <= max_jerk, the default) or \"vector\" (the jerk vector <= "
-                         "max_jerk; docs/planner.md section 3c)");
+                         "each <= max_jerk, the default), \"vector\" (the jerk vector <= "
+                         "max_jerk; docs/planner.md section 3c) or \"axes\" (the jerk vector <= "
+                         "the smallest [axis.*] max_jerk_mm_per_s3: every axis within its jerk; "
+                         "section 3f)");
       }
       l.jerk_bound =
-          b == "vector" ? interpolator::JerkBound::vector : interpolator::JerkBound::tangential;
+          b == "tangential" ? interpolator::JerkBound::tangential : interpolator::JerkBound::vector;
+      jerk_by_axes = b == "axes";
     } else if (key == "cutting") {
       if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
       for (const auto& [ck, cv] : value.as_table()) {
@@ -478,6 +482,16 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
           "[cutting], [link], [encoder], [envelope], [program], [tool], [tools.N], [axis.x], "
           "[axis.y], [axis.z]");
     }
+  }
+  if (jerk_by_axes) {
+    const auto& ax = l.axes;
+    if (!std::isfinite(ax[0].max_jerk_mm_per_s3) && !std::isfinite(ax[1].max_jerk_mm_per_s3) &&
+        !std::isfinite(ax[2].max_jerk_mm_per_s3)) {
+      throw InputError(name +
+                       ": jerk_bound = \"axes\" needs max_jerk_mm_per_s3 in an [axis.x], "
+                       "[axis.y] or [axis.z] table; give the axes' jerk, or use \"vector\"");
+    }
+    l = interpolator::with_axis_jerk(l);  // the vector bound at the smallest axis jerk (§3f)
   }
   c.encoder.line = c.link.line;
   c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;

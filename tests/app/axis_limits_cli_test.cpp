@@ -54,6 +54,22 @@ TEST(AxisLimitsConfig, TablesAreReadAndKeysLeftOutAreNoLimit) {
   EXPECT_FALSE(to_json(none).contains("axis"));
 }
 
+// jerk_bound = "axes": the jerk vector bounded by the smallest axis jerk (interpolator::
+// with_axis_jerk; its law is held by AxisLimits.TheVectorBoundAtTheSmallestAxisJerk... in
+// test_motion), and without an axis jerk it is an error naming the way out.
+TEST(AxisLimitsConfig, JerkBoundAxesBoundsTheVectorByTheSmallestAxisJerk) {
+  const MachineConfig c = parse_machine_config(
+      "max_jerk_mm_per_s3 = 20000\njerk_bound = \"axes\"\n[axis.z]\nmax_jerk_mm_per_s3 = "
+      "4000\n[axis.x]\nmax_jerk_mm_per_s3 = 9000\n",
+      "m.toml");
+  EXPECT_EQ(c.limits.max_jerk_mm_per_s3, 4000.0);
+  EXPECT_EQ(c.limits.jerk_bound, interpolator::JerkBound::vector);
+  EXPECT_EQ(c.limits.axes[0].max_jerk_mm_per_s3, 9000.0);
+  expect_all(error_of("jerk_bound = \"axes\"\n"),
+             {"m.toml", "jerk_bound = \"axes\"", "max_jerk_mm_per_s3", "[axis.x]", "\"vector\""});
+  expect_all(error_of("jerk_bound = \"axis\"\n"), {"\"axis\"", "\"axes\"", "\"tangential\""});
+}
+
 TEST(AxisLimitsConfig, BadValuesNameTheTableTheKeyTheValueTheRangeAndAWayOut) {
   expect_all(
       error_of("[axis.z]\nmax_accel_mm_per_s2 = 0\n"),
