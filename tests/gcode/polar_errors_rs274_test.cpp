@@ -40,8 +40,7 @@ TEST(PolarCoordinates, WhatRs274RefusesNcdRefusesOnTheSameLine) {
     SCOPED_TRACE(c.name);
     std::ofstream(dir / "p.ngc") << c.program;
     const std::string cmd = "cd '" + dir.path().string() + "' && " +
-                            test::rs274_command(dir.path(), "-g p.ngc out.txt") +
-                            " > log.txt 2>&1";
+                            test::rs274_command(dir.path(), "-g p.ngc out.txt") + " > log.txt 2>&1";
     const int rc = std::system(cmd.c_str());
     std::ifstream lf(dir / "log.txt"), of(dir / "out.txt");
     const std::string log((std::istreambuf_iterator<char>(lf)), std::istreambuf_iterator<char>());
