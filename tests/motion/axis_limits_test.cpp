@@ -287,6 +287,24 @@ double duration_bound_s(const Path& walked, const JobConfig& cfg) {
   return t;
 }
 
+// The planner machine with random per-axis limits: each axis given each limit with probability
+// 3/4, from a tenth of the path's to above it.
+JobConfig random_axis_machine(std::mt19937_64& rng) {
+  const auto uni = [&rng](double a, double b) {
+    return std::uniform_real_distribution<double>(a, b)(rng);
+  };
+  JobConfig cfg = test::planner_machine();
+  for (auto& ax : cfg.limits.axes) {
+    if (uni(0, 1) < 0.75)
+      ax.max_feed_mm_per_min = 6000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
+    if (uni(0, 1) < 0.75)
+      ax.max_accel_mm_per_s2 = 1000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
+    if (uni(0, 1) < 0.75)
+      ax.max_jerk_mm_per_s3 = 20000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
+  }
+  return cfg;
+}
+
 // Random programs under random per-axis limits (each axis given a limit with probability 3/4,
 // from a tenth of the path's to above it). Every axis keeps its feed and acceleration, from the
 // setpoints' differences, within 1 + 1e-9; the duration is at least the independent bound.
@@ -296,21 +314,10 @@ TEST(AxisLimits, RandomProgramsKeepEveryAxisWithinItsLimits) {
   if (const char* env = std::getenv("NCD_PROPERTY_PROGRAMS")) programs = std::atoi(env);
   test::RandomProgram g{std::mt19937_64(seed)};
   std::mt19937_64 rng(seed ^ 0x5eedULL);
-  const auto uni = [&rng](double a, double b) {
-    return std::uniform_real_distribution<double>(a, b)(rng);
-  };
   double worst_feed = 0.0, worst_accel = 0.0, worst_jerk = 0.0;
   double ratio_sum = 0.0, ratio_min = kInf, ratio_max = 0.0;
   for (int n = 0; n < programs; ++n) {
-    JobConfig cfg = test::planner_machine();
-    for (auto& ax : cfg.limits.axes) {
-      if (uni(0, 1) < 0.75)
-        ax.max_feed_mm_per_min = 6000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
-      if (uni(0, 1) < 0.75)
-        ax.max_accel_mm_per_s2 = 1000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
-      if (uni(0, 1) < 0.75)
-        ax.max_jerk_mm_per_s3 = 20000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
-    }
+    JobConfig cfg = random_axis_machine(rng);
     g.at = Vec3::Zero();
     g.heading = Vec3::UnitX();
     g.max_feed_mm_per_min = 0.0;
@@ -347,20 +354,9 @@ TEST(AxisLimits, TheVectorBoundAtTheSmallestAxisJerkHoldsEveryAxissJerk) {
   const int programs = test::sweep_cases(40);
   test::RandomProgram g{std::mt19937_64(seed)};
   std::mt19937_64 rng(seed ^ 0x5eedULL);
-  const auto uni = [&rng](double a, double b) {
-    return std::uniform_real_distribution<double>(a, b)(rng);
-  };
   double worst_feed = 0.0, worst_accel = 0.0, worst_jerk = 0.0;
   for (int n = 0; n < programs; ++n) {
-    JobConfig cfg = test::planner_machine();
-    for (auto& ax : cfg.limits.axes) {
-      if (uni(0, 1) < 0.75)
-        ax.max_feed_mm_per_min = 6000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
-      if (uni(0, 1) < 0.75)
-        ax.max_accel_mm_per_s2 = 1000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
-      if (uni(0, 1) < 0.75)
-        ax.max_jerk_mm_per_s3 = 20000.0 * std::exp(uni(std::log(0.1), std::log(1.5)));
-    }
+    JobConfig cfg = random_axis_machine(rng);
     cfg.limits = interpolator::with_axis_jerk(cfg.limits);
     g.at = Vec3::Zero();
     g.heading = Vec3::UnitX();
