@@ -5,7 +5,8 @@
 // moves the controller may be executing are those it was sent and that are not known done; the
 // last known done ended at last_end. So a trusted position lies within tol_mm of one of those
 // moves (a straight segment from its start to its end: the block encoder writes only G0 and
-// G1), or of last_end. Anywhere else the controller has reset or been moved since: a power-up
+// G1; a G2/G3 would be taken as its chord, so a hold far inside an arc is doubted, the safe
+// side), or of last_end. Anywhere else the controller has reset or been moved since: a power-up
 // counts from 0 again, a jog moves it. A block the modal tracker cannot follow (G28, G53, G92)
 // among them makes every position untrusted.
 #pragma once
