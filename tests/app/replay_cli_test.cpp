@@ -240,7 +240,8 @@ TEST_F(Replay, ConfigurationsThatCannotBeMetAreClearErrors) {
       {"max_accel_mm_per_s2 = -1000\n", cubic, "max_accel"},
       {"period_s = 0\n", cubic, "period"},
       {"max_jerk_mm_per_s3 = \"fast\"\n", cubic, "must be a number"},
-      {"jerk_bound = \"axes\"\n", cubic, "jerk_bound = \"axes\" is not a jerk bound"},
+      {"jerk_bound = \"axis\"\n", cubic, "jerk_bound = \"axis\" is not a jerk bound"},
+      {"jerk_bound = \"axes\"\n", cubic, "jerk_bound = \"axes\" needs max_jerk_mm_per_s3"},
       // A cubic Bézier whose parametric speed vanishes at u = 0.5 (a cusp inside its span):
       // refused up front with the point, not stalled on (docs/planner.md §2, near-cusps).
       {"", write("cusp.json", R"({"feed_mm_per_min": 600, "nurbs": {"degree": 3,
