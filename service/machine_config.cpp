@@ -492,6 +492,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
                        "[axis.y] or [axis.z] table; give the axes' jerk, or use \"vector\"");
     }
     l = interpolator::with_axis_jerk(l);  // the vector bound at the smallest axis jerk (§3f)
+    c.jerk_by_axes = true;
   }
   c.encoder.line = c.link.line;
   c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
@@ -561,7 +562,7 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   j["feed_tolerance_rel"] = c.limits.feed_tolerance_rel;
   j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
   j["stall_timeout_s"] = c.limits.stall_timeout_s;
-  j["jerk_bound"] = interpolator::to_string(c.limits.jerk_bound);
+  j["jerk_bound"] = c.jerk_by_axes ? "axes" : interpolator::to_string(c.limits.jerk_bound);
   if (c.limits.has_axis_limits()) {  // only when given: without them the JSON is as before
     static constexpr const char* kNames[3] = {"x", "y", "z"};
     nlohmann::ordered_json axes = nlohmann::ordered_json::object();

@@ -65,6 +65,7 @@ TEST(AxisLimitsConfig, JerkBoundAxesBoundsTheVectorByTheSmallestAxisJerk) {
   EXPECT_EQ(c.limits.max_jerk_mm_per_s3, 4000.0);
   EXPECT_EQ(c.limits.jerk_bound, interpolator::JerkBound::vector);
   EXPECT_EQ(c.limits.axes[0].max_jerk_mm_per_s3, 9000.0);
+  EXPECT_EQ(to_json(c)["jerk_bound"], "axes");  // the echo says what the file asked for
   expect_all(error_of("jerk_bound = \"axes\"\n"),
              {"m.toml", "jerk_bound = \"axes\"", "max_jerk_mm_per_s3", "[axis.x]", "\"vector\""});
   expect_all(error_of("jerk_bound = \"axis\"\n"), {"\"axis\"", "\"axes\"", "\"tangential\""});
