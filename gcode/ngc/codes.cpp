@@ -117,6 +117,11 @@ int g_group(int c) {
   }
 }
 
+int coord_system_code(int n) {
+  static constexpr int kCodes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
+  return n >= 1 && n <= 9 ? kCodes[n - 1] : 540;
+}
+
 int m_group(int c) {
   switch (c) {
     case 0:

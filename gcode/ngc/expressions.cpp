@@ -265,10 +265,6 @@ bool Interpreter::predefined(const std::string& name, double* out) const {
         return 400.0;
     }
   };
-  const auto coord = [&] {
-    static constexpr double kCodes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
-    return coord_sys_ >= 1 && coord_sys_ <= 9 ? kCodes[coord_sys_ - 1] : 540.0;
-  };
   const std::map<std::string_view, double> table{
       {"_vmajor", 2.9},
       {"_vminor", 0.0},
@@ -285,7 +281,7 @@ bool Interpreter::predefined(const std::string& name, double* out) const {
       {"_inverse_time", flag(feed_mode_ == FeedMode::inverse_time)},
       {"_units_per_minute", flag(feed_mode_ == FeedMode::per_minute)},
       {"_units_per_rev", 0.0},
-      {"_coord_system", coord()},
+      {"_coord_system", static_cast<double>(coord_system_code(coord_sys_))},
       {"_tool_offset", flag(length_offset_on_)},
       {"_retract_r_plane", flag(retract_r_)},
       {"_retract_old_z", flag(!retract_r_)},

@@ -92,6 +92,8 @@ struct Block {
 int g_group(int c);
 
 int m_group(int c);
+// The G code ×10 of coordinate system n (1 = G54 … 9 = G59.3): 540 … 593.
+int coord_system_code(int n);
 
 // Out-of-scope G codes: the refusal text (construct and way out); empty when supported.
 std::string g_refusal(int c);

@@ -49,8 +49,7 @@ void Interpreter::restore_modes(const SavedModes& m, const char* code) {
   retract_r_ = m.retract_r;
   feed_mode_ = m.feed_mode;
   if (m.coord_sys != coord_sys_) {
-    static constexpr int kCodes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
-    select_coordinate_system(kCodes[m.coord_sys - 1]);
+    select_coordinate_system(coord_system_code(m.coord_sys));
   }
   if (m.length_on != length_offset_on_ || m.tool_offset != tool_offset_) {
     pos_ += tool_offset_ - m.tool_offset;

@@ -305,6 +305,14 @@ JobConfig random_axis_machine(std::mt19937_64& rng) {
   return cfg;
 }
 
+// The generator's next program, from the origin along X, at the machine's feed.
+Path program_from_origin(test::RandomProgram& g) {
+  g.at = Vec3::Zero();
+  g.heading = Vec3::UnitX();
+  g.max_feed_mm_per_min = 0.0;
+  return g.program();
+}
+
 // Random programs under random per-axis limits (each axis given a limit with probability 3/4,
 // from a tenth of the path's to above it). Every axis keeps its feed and acceleration, from the
 // setpoints' differences, within 1 + 1e-9; the duration is at least the independent bound.
@@ -318,10 +326,7 @@ TEST(AxisLimits, RandomProgramsKeepEveryAxisWithinItsLimits) {
   double ratio_sum = 0.0, ratio_min = kInf, ratio_max = 0.0;
   for (int n = 0; n < programs; ++n) {
     JobConfig cfg = random_axis_machine(rng);
-    g.at = Vec3::Zero();
-    g.heading = Vec3::UnitX();
-    g.max_feed_mm_per_min = 0.0;
-    const Path path = g.program();
+    const Path path = program_from_origin(g);
     const Walk w = walk(path, cfg);
     ASSERT_TRUE(w.fault.empty()) << "program " << n << " of seed " << seed << ": " << w.fault;
     const AxisRatios r = axis_ratios(w.p, cfg);
@@ -358,10 +363,7 @@ TEST(AxisLimits, TheVectorBoundAtTheSmallestAxisJerkHoldsEveryAxissJerk) {
   for (int n = 0; n < programs; ++n) {
     JobConfig cfg = random_axis_machine(rng);
     cfg.limits = interpolator::with_axis_jerk(cfg.limits);
-    g.at = Vec3::Zero();
-    g.heading = Vec3::UnitX();
-    g.max_feed_mm_per_min = 0.0;
-    const Path path = g.program();
+    const Path path = program_from_origin(g);
     const Walk w = walk(path, cfg);
     ASSERT_TRUE(w.fault.empty()) << "program " << n << " of seed " << seed << ": " << w.fault;
     const AxisRatios r = axis_ratios(w.p, cfg);
