@@ -57,24 +57,33 @@ struct SimArgs {
   comms::SimFaults faults;
 };
 
-// The controller a signal stops; set while run() runs.
+// The controller a signal stops; set while run() runs. A stop or cycle start that arrives before
+// (the pty link exists from the controller's construction, so a caller may signal at once) is
+// held and delivered when the controller is attached.
 std::atomic<comms::SimController*> g_running{nullptr};
+std::atomic<bool> g_stop_pending{false};
+std::atomic<bool> g_cycle_start_pending{false};
 
 extern "C" void sim_controller_on_signal(int signal) {
   comms::SimController* c = g_running.load();
-  if (c == nullptr) return;
   if (signal == SIGUSR1) {
-    c->cycle_start();
+    if (c == nullptr) {
+      g_cycle_start_pending.store(true);
+    } else {
+      c->cycle_start();
+    }
+  } else if (c == nullptr) {
+    g_stop_pending.store(true);
   } else {
     c->request_stop();
   }
 }
 
 // SIGINT and SIGTERM stop the controller while this lives; the old handlers come back after.
+// Installed before the controller (and its link) exists, so no signal finds the default action.
 class StopSignals {
  public:
-  explicit StopSignals(comms::SimController& c) {
-    g_running.store(&c);
+  StopSignals() {
     struct sigaction sa {};
     sa.sa_handler = sim_controller_on_signal;
     sigemptyset(&sa.sa_mask);
@@ -82,11 +91,19 @@ class StopSignals {
     ::sigaction(SIGTERM, &sa, &old_term_);
     ::sigaction(SIGUSR1, &sa, &old_usr1_);
   }
+  // From here signals reach `c`; one held since construction is delivered now.
+  void attach(comms::SimController& c) {
+    g_running.store(&c);
+    if (g_stop_pending.exchange(false)) c.request_stop();
+    if (g_cycle_start_pending.exchange(false)) c.cycle_start();
+  }
+  // Signals no longer reach the controller (a later stop is held, and harmless).
+  void detach() { g_running.store(nullptr); }
   ~StopSignals() {
+    detach();
     ::sigaction(SIGINT, &old_int_, nullptr);
     ::sigaction(SIGTERM, &old_term_, nullptr);
     ::sigaction(SIGUSR1, &old_usr1_, nullptr);
-    g_running.store(nullptr);
   }
   StopSignals(const StopSignals&) = delete;
   StopSignals& operator=(const StopSignals&) = delete;
@@ -160,6 +177,7 @@ int run_sim_controller(const SimArgs& a) {
     }
   }
 
+  StopSignals signals;
   comms::SimController sim(cfg);
   const comms::SimControllerConfig& c = sim.config();
   std::cout << "ncd sim-controller: " << c.line.device << " -> " << sim.device() << ", "
@@ -171,10 +189,9 @@ int run_sim_controller(const SimArgs& a) {
     std::cout << ", planner " << c.planner_blocks << " blocks";
   }
   std::cout << ", seed " << c.seed << "; " << realtime_reception() << std::endl;
-  {
-    StopSignals signals(sim);
-    sim.run();
-  }
+  signals.attach(sim);
+  sim.run();
+  signals.detach();
   const comms::SimLog& log = sim.log();
   std::cout << "ncd sim-controller: " << log.stop_reason << " after "
             << text::fixed(log.duration_s, 2) << " s: " << log.blocks_received << " blocks ("
