@@ -31,6 +31,9 @@ int run_serve(const ServeArgs& a) {
   if (!a.config.empty()) cfg = load_service_config(a.config);
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
+  // Registered before the socket exists, so a signal sent as soon as it appears is queued for
+  // the handler below, never met by the default action (which would skip the safe ending).
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   Intake service(io, cfg);
   comms::ServerOptions options;
   options.token = cfg.token;
@@ -69,7 +72,6 @@ int run_serve(const ServeArgs& a) {
   }
   // The first signal ends any job safely (its ending reaches the controller) and then the
   // service; a second one gives a transfer still under way up.
-  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   std::function<void(const boost::system::error_code&, int)> on_signal;
   bool shutting_down = false;
   on_signal = [&](const boost::system::error_code& ec, int signal) {

@@ -28,11 +28,12 @@ struct SenderSettings {
   int max_queued_chars = 16;    // drip: characters allowed ahead of the wire (stop distance)
   int rx_buffer_bytes = 128;    // ack: controller receive buffer (grbl 128, grblHAL 1024)
   double xoff_timeout_s = 5.0;  // a hold longer than this is reported (and holds the motion)
-  // The clock the controller's holds (XOFF, CTS low) are timed on; null: the wall clock. A test
-  // whose simulated controller runs on a ManualClock gives it here, so that a hold lasts as
-  // long for both ends however the machine's load delays the test's thread.
+  // The clock the controller's holds (XOFF, CTS low) and the reconnect window are timed on;
+  // null: the wall clock. A test whose simulated controller runs on a ManualClock gives it here,
+  // so that a hold or an outage lasts as long for both ends however the machine's load delays
+  // the test's thread.
   std::shared_ptr<const SimClock> hold_clock;
-  double reconnect_max_s = 30.0;  // give up reopening a lost port after this long
+  double reconnect_max_s = 30.0;  // give up reopening a lost port after this long (hold_clock)
   double progress_period_s = 1.0;
   // drip: after a lost link, blocks within this many characters before the first block the
   // wire model cannot vouch for are sent again; the controller discards repeated N numbers.

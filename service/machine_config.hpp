@@ -26,7 +26,7 @@ struct LinkConfig {
   int rx_buffer_bytes = 256;      // the controller's receive buffer
   int max_queued_chars = 16;      // at most this many bytes in the kernel's output queue
   double xoff_timeout_s = 5.0;    // XOFF longer than this holds the motion and is reported
-  double reconnect_max_s = 30.0;  // longest backoff between attempts to reopen a lost port
+  double reconnect_max_s = 30.0;  // how long the sender tries to reopen a lost port, then gives up
   std::string journal;            // transfer journal file; empty: none
   std::optional<comms::Dialect> dialect;  // the controller's dialect (gcode/dialect/dialect.hpp)
   // The keys the file gave (the rest hold their defaults), for the commands that say where each

@@ -231,6 +231,9 @@ void SimController::Impl::feed_hold(double t) {
   ++log.feed_holds;
   if (held || alarmed || grbl_locked) return;  // grbl ignores a hold in alarm
   const bool was_moving = moving(t);
+  // Where the machine is, taken before `held` is set: position_at() of a held machine answers
+  // the hold's position, not yet known here.
+  const std::array<double, 3> now_pos = position_at(t);
   held = true;
   hold_t = t;
   hold_to_end = false;
@@ -248,7 +251,7 @@ void SimController::Impl::feed_hold(double t) {
       remaining_s = left_s - tau / 2.0;
     }
   } else {
-    hold_pos = position_at(t);
+    hold_pos = now_pos;
     remaining_s = busy ? std::max(0.0, busy_end - t) : 0.0;
   }
   log.events.push_back({t, current_seq, current.n, "feed_hold", 0.0});  // the hold begins

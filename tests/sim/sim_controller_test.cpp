@@ -1163,6 +1163,47 @@ std::string grbl_ask(Peer& peer, Running& run, ManualClock& clock, const std::st
   return "(none)";
 }
 
+// A hold that arrives when a move's time is over but the controller's loop has not yet retired
+// it (a loaded machine: the loop runs late) holds where that move ended. The model once answered
+// the hold's position before it knew it: MPos 0,0,0 while the tool stood at the move's end, and
+// ncd's ending then rightly refused to move (link/held_position.hpp). Each round moves the clock
+// past the move's end while a `!` is on the wire, so the loop takes the `!` before it retires
+// the move.
+TEST(SimController, GrblHoldAfterAMoveEndedButBeforeItIsRetiredHoldsAtItsEnd) {
+  TempDir dir;
+  SimControllerConfig cfg = config(dir / "cnc", Protocol::Ack);
+  auto clock = std::make_shared<ManualClock>();
+  cfg.clock = clock;
+  Running run(cfg);
+  Peer peer(cfg.line.device, run.sim);
+  run.start_clock(*clock);
+  const auto x_of = [](const std::string& status) {
+    const auto p = status.find("MPos:");
+    return p == std::string::npos ? -1.0 : std::stod(status.substr(p + 5));
+  };
+  for (int round = 1; round <= 10; ++round) {
+    const std::string move = "G1 X" + std::to_string(round) + " F600\n";  // 0.1 s
+    EXPECT_EQ(grbl_ask(peer, run, *clock, move, "ok"), "ok") << "round " << round;
+    ASSERT_TRUE(run.step(*clock, 0.01));  // the move executes
+    // The `!` goes on the wire; the loop sees it start and waits one character's time, in the
+    // controller's clock, to take it. Then the clock passes the move's end: the loop takes the
+    // `!` before it retires the move.
+    peer.write_all("!");
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    clock->advance(0.5);
+    const std::string held = grbl_ask(peer, run, *clock, "?", "<");
+    EXPECT_EQ(held.substr(0, 8), "<Hold:0|") << "round " << round << ": " << held;
+    EXPECT_NEAR(x_of(held), round, 1e-9) << "round " << round << ": " << held;
+    peer.write_all("~");
+    for (int i = 0; i < 20; ++i) ASSERT_TRUE(run.step(*clock, 0.001));
+  }
+  const SimLog& log = run.stop();
+  EXPECT_EQ(log.feed_holds, 10);
+  EXPECT_TRUE(log.resets.empty());
+  ASSERT_FALSE(log.moves.empty());
+  EXPECT_NEAR(log.moves.back().p[0], 10.0, 1e-9);
+}
+
 // grbl's safe halt (its manual: feed hold, wait for Hold:0, then reset) against a reset during
 // the hold's deceleration. A reset in Hold:1 is a reset in motion: ALARM:3, the lock (every
 // g-code line error:9, `?` Alarm) until `$X`, which answers [MSG:Caution: Unlocked] and ok. The
