@@ -3,7 +3,10 @@
 // out (docs/fleet-mqtt.md, "Configuration").
 #include "api/mqtt_config.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -90,6 +93,16 @@ void check_topic_root(const std::string& root, const std::string& where) {
 
 }  // namespace
 
+std::string default_topic_root() {
+  std::array<char, 256> name{};
+  std::string host = ::gethostname(name.data(), name.size() - 1) == 0 ? name.data() : "";
+  // A host name is one topic level: no '/', and no wildcard a publisher cannot use.
+  for (char& ch : host) {
+    if (ch == '/' || ch == '+' || ch == '#') ch = '-';
+  }
+  return "ncd/" + (host.empty() ? std::string("localhost") : host) + "/";
+}
+
 MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where) {
   if (!table.is_table()) {
     throw InputError(where + " must be a table ([mqtt] with keys " + std::string(kKeys) + ")");
@@ -147,9 +160,7 @@ MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where)
   if (c.broker.find_first_of(" \t\r\n") != std::string::npos) {
     throw InputError(where + ".broker = \"" + c.broker + "\" has white space; remove it");
   }
-  if (c.topic_root.empty()) {
-    throw InputError(where + " has no topic_root; add topic_root = \"ncd/<cell>/<machine>/\"");
-  }
+  if (c.topic_root.empty()) c.topic_root = default_topic_root();
   check_topic_root(c.topic_root, where + ".topic_root");
   if (c.client_id.empty()) {
     c.client_id = c.topic_root.substr(0, c.topic_root.size() - 1);

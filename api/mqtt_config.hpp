@@ -14,7 +14,7 @@ struct MqttConfig {
   std::string client_id;  // default: the topic root with '/' as '-' ("ncd-cell1-m1")
   std::optional<std::string> username, password;
   std::optional<std::string> ca_file, cert_file, key_file;  // TLS: PEM files
-  std::string topic_root;          // "ncd/<cell>/<machine>/", ends with '/'
+  std::string topic_root;          // "ncd/<cell>/<machine>/", ends with '/'; default ncd/<host>/
   double status_hz = 10.0;         // the status topic's rate
   std::size_t queue_bound = 1000;  // events buffered while the broker is away
   double reconnect_min_s = 0.5;    // the first reconnection delay, doubled up to
@@ -31,5 +31,9 @@ inline constexpr double kMinReconnectS = 0.05, kMaxReconnectS = 3600.0;
 // `where` names it in messages ("serve.toml: mqtt"). Throws
 // InputError naming the key, the value, the limit and a way out.
 MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where);
+
+// The topic root when [mqtt] names none: "ncd/<host name>/" (a '/', '+' or '#' in the name
+// becomes '-'; "localhost" if the name cannot be read).
+std::string default_topic_root();
 
 }  // namespace ncd::fleet

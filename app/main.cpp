@@ -3,15 +3,20 @@
 // refused for a limit violation (nothing streamed), 1 an I/O error or an internal failure.
 #include <exception>
 #include <iostream>
+#include <string>
+#include <vector>
 
+#include "app/cli_guide.hpp"
 #include "app/commands.hpp"
 #include "core/error.hpp"
+#include "ncd_commit.hpp"  // NCD_COMMIT, written at build time
 
 int main(int argc, char** argv) {
   CLI::App app{
       "ncd: toolpaths for deburring and chamfering drilled holes, walked in a 4 ms cycle at a "
       "roughness-bounded feed and streamed to a CNC over RS-232 DNC"};
-  app.set_version_flag("--version", std::string("ncd ") + NCD_VERSION);
+  app.set_version_flag("--version",
+                       std::string("ncd ") + NCD_VERSION + " (commit " + NCD_COMMIT + ")");
   app.require_subcommand(1);
   ncd::app::Runner run;
   ncd::app::register_chamfer(app, run);
@@ -24,8 +29,17 @@ int main(int argc, char** argv) {
   ncd::app::register_robot(app, run);
   ncd::app::register_simulate(app, run);
   ncd::app::register_check(app, run);
+  // `ncd help CMD`, -V, and a misspelt command or flag named before CLI11 parses.
+  const ncd::app::GuidedArgs guided =
+      ncd::app::guide_args(app, std::vector<std::string>(argv + 1, argv + argc));
+  if (guided.error) {
+    std::cerr << "ncd: error: " << *guided.error << "\n";
+    return 2;
+  }
+  std::vector<const char*> args{argv[0]};
+  for (const std::string& a : guided.args) args.push_back(a.c_str());
   try {
-    app.parse(argc, argv);
+    app.parse(static_cast<int>(args.size()), args.data());
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;

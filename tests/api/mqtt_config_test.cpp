@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -63,6 +66,21 @@ class TlsFiles {
   std::filesystem::path dir_;
 };
 
+// No topic_root: "ncd/<host name>/", the host name read here with gethostname(2) (and its
+// client id the root with '-' for '/').
+TEST(MqttConfig, TheTopicRootDefaultsToTheHostName) {
+  std::array<char, 256> name{};
+  ASSERT_EQ(::gethostname(name.data(), name.size() - 1), 0);
+  std::string host = name.data();
+  for (char& ch : host) {
+    if (ch == '/' || ch == '+' || ch == '#') ch = '-';
+  }
+  const MqttConfig c = parse("broker = \"tcp://x:1883\"\n");
+  EXPECT_EQ(c.topic_root, "ncd/" + host + "/");
+  EXPECT_EQ(c.client_id, "ncd-" + host);
+  EXPECT_EQ(parse(kMinimal).topic_root, "ncd/c1/m1/");  // a given root wins
+}
+
 TEST(MqttConfig, EveryKeyIsRead) {
   const TlsFiles f;
   const MqttConfig c = parse(
@@ -91,7 +109,6 @@ TEST(MqttConfig, BadValuesAreRefusedWithTheKeyTheValueAndTheLimit) {
   const std::vector<Case> cases = {
       {"topic_root = \"ncd/c1/m1/\"\n", {"no broker", "tcp://HOST:1883"}},
       {"broker = \"http://x:1883\"\ntopic_root = \"a/\"\n", {"http://x:1883", "tcp://"}},
-      {"broker = \"tcp://x:1883\"\n", {"no topic_root"}},
       {"broker = \"tcp://x:1883\"\ntopic_root = \"ncd/c1/m1\"\n",
        {"must end with '/'", "ncd/c1/m1/"}},
       {"broker = \"tcp://x:1883\"\ntopic_root = \"ncd/+/m1/\"\n", {"wildcard"}},

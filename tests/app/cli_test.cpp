@@ -40,6 +40,65 @@ TEST_F(Cli, NoSubcommandOrUnknownFlagIsInvalidInput) {
   EXPECT_EQ(ncd("chamfer --frobnicate 3").status, 2);
 }
 
+// As people type (issue: `--pipe-raduis` said "--pipe-radius is required", `ncd chamfr --help`
+// printed the main help with exit 0): a misspelt command or flag is named, with the nearest
+// known one, exit 2, and nothing runs.
+TEST_F(Cli, MisspeltCommandsAndFlagsAreNamedWithTheNearestOne) {
+  struct Case {
+    std::string args, says;
+  };
+  const std::vector<Case> cases = {
+      {"chamfr --help", "unknown command 'chamfr'; did you mean 'chamfer'?"},
+      {"chamfer --pipe-raduis 18",
+       "unknown flag --pipe-raduis of ncd chamfer; did you mean "
+       "--pipe-radius? (`ncd help chamfer` lists the flags)"},
+      {"replay p.ngc --machin m.toml",
+       "unknown flag --machin of ncd replay; did you mean --machine?"},
+      {"bench latncy", "unknown command 'latncy' of ncd bench; did you mean 'latency'?"},
+      {"bench latency --secnds 1",
+       "unknown flag --secnds of ncd bench latency; did you mean "
+       "--seconds?"},
+      {"--versoin", "unknown flag --versoin of ncd; did you mean --version?"},
+      {"help strem", "unknown command 'strem'; did you mean 'stream'?"},
+      {"frobnicate", "unknown command 'frobnicate'; the commands are chamfer, replay"},
+      {"chamfer -z", "unknown flag -z of ncd chamfer (`ncd help chamfer` lists the flags)"},
+  };
+  for (const Case& c : cases) {
+    const CmdResult r = ncd(c.args);
+    EXPECT_EQ(r.status, 2) << c.args;
+    EXPECT_NE(r.err.find("ncd: error: " + c.says), std::string::npos) << c.args << ": " << r.err;
+  }
+  // Values that look like flags are values: a negative start, a list of them.
+  const CmdResult r = ncd("replay missing.ngc --start -1,-2.5,3");
+  EXPECT_EQ(r.err.find("unknown flag"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, HelpAndVersionAsPeopleType) {
+  const CmdResult help = ncd("help");
+  EXPECT_EQ(help.status, 0);
+  EXPECT_EQ(help.out, ncd("--help").out);
+  const CmdResult chamfer = ncd("help chamfer");
+  EXPECT_EQ(chamfer.status, 0);
+  EXPECT_EQ(chamfer.out, ncd("chamfer --help").out);
+  EXPECT_NE(chamfer.out.find("--pipe-radius"), std::string::npos) << chamfer.out;
+  EXPECT_EQ(ncd("help bench latency").out, ncd("bench latency --help").out);
+  // The version names the commit: the checkout's own, as git describes it.
+  const CmdResult v = ncd("--version");
+  EXPECT_EQ(v.status, 0);
+  EXPECT_EQ(ncd("-V").out, v.out);
+  EXPECT_EQ(v.out.rfind("ncd ", 0), 0U) << v.out;
+  const fs::path head_file = dir_ / "head";
+  const std::string git = "git -C " + std::string(NCD_SOURCE_DIR) + " rev-parse --short=12 HEAD >" +
+                          head_file.string() + " 2>/dev/null";
+  if (std::system(git.c_str()) != 0) {  // a source tree that is not a checkout
+    EXPECT_NE(v.out.find("(commit unknown: not built from a git checkout)"), std::string::npos)
+        << v.out;
+    return;
+  }
+  const std::string head = slurp(head_file).substr(0, 12);
+  EXPECT_NE(v.out.find("(commit " + head), std::string::npos) << v.out << " vs HEAD " << head;
+}
+
 TEST_F(Cli, JsonContractOfExperiment3) {
   const CmdResult r = ncd(kExp3 + " -q");
   ASSERT_EQ(r.status, 0) << r.err;
