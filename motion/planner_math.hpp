@@ -19,8 +19,8 @@ inline double clampj(double j, double j_max) {
 }
 
 inline constexpr double kFinalJerk = 0.9;  // final ramp at 0.9 j_max: the slack absorbs sampling
-// π's second member (see the top, 1): it settles this fraction below a demanding block's level,
-// its final ramp at kUnderFinalJerk j_max (docs/planner.md §4, "The undershooting member").
+// π's second member (the top of planner.cpp, 1): it settles this fraction below a demanding block's
+// level, its final ramp at kUnderFinalJerk j_max (docs/planner.md §4, "The undershooting member").
 inline constexpr double kUndershoot = 0.025;
 inline constexpr double kUnderFinalJerk = 0.95;
 inline constexpr double kLandJerk =

@@ -2,7 +2,7 @@
 // check of one period, π's limits this step (tangential and axis scales), π's tracking jerk
 // (dead-beat, or the period average of the time-optimal profile), the blocks π looks at, and the
 // rollout that runs a first jerk then π to rest, checking every period, with the memo of a
-// cruise (the top, "Cruise").
+// cruise (the top of planner.cpp, "Cruise").
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -196,7 +196,8 @@ double Planner::track(const Kin& x, double w) const {
   return 0.0;
 }
 
-// The brake policy π (see top): settle on the lowest demanding block, else brake to rest.
+// The brake policy π (the top of planner.cpp, 1): settle on the lowest demanding block, else brake
+// to rest.
 double Planner::policy(const Kin& x, Cursor& c, std::uint8_t* binding_id) const {
   if (policy_hold_) return track(x, 0.0);
   while (c.block + 1 < block_count_ && blocks_[c.block].end_mm <= x.s_mm) ++c.block;
