@@ -191,6 +191,104 @@ struct Span {
   double len_mm = 0.0;
 };
 
+// The corner at the joint after each segment k, where its arc may be (it belongs to segment k):
+// a blendable polyline followed by one whose first piece is long enough at its cap.
+std::vector<Corner> plan_joints(const toolpath::Path& path, const MachineLimits& limits,
+                                const std::vector<char>& body) {
+  const std::size_t n = path.segments.size();
+  std::vector<Corner> joint(n);
+  for (std::size_t k = 0; k + 1 < n; ++k) {
+    const PathSegment &s = path.segments[k], &t = path.segments[k + 1];
+    const auto* next = std::get_if<Polyline>(&t.geometry);
+    if (!body[k] || t.stop_before || !next || !next->normals.empty() || next->points.size() < 2) {
+      continue;
+    }
+    if (!((next->points[1] - next->points[0]).norm() >=
+          cap_mm_per_s(t, limits) * limits.period_s)) {
+      continue;
+    }
+    const auto& pts = std::get<Polyline>(s.geometry).points;
+    // The joint's pieces: the last of k and the first of k + 1 (their other ends may be
+    // trimmed by other arcs, each by at most half of the piece).
+    joint[k] =
+        plan_corner(pts[pts.size() - 2], pts.back(), next->points[1], tolerance_mm(s, limits),
+                    cap_mm_per_s(s, limits), cap_mm_per_s(t, limits), limits);
+  }
+  return joint;
+}
+
+// The corners kept sharp, in path order. The straight length on each side is what is left of
+// the piece after its other end's arc (at most half of the piece).
+// Not where a rapid begins or ends: a G0 positions, and the approach and the retract are
+// written to the machine as their programmed points (link/program_blocks.cpp).
+void keep_sharp(BlendReport& rep, const toolpath::Path& path, std::size_t k, const Corner& c,
+                bool joint_corner) {
+  if (!c.eligible || c.blended || path.segments[k].rapid) return;
+  if (joint_corner && path.segments[k + 1].rapid) return;
+  rep.sharp.push_back({c.v, c.d_in, c.d_out, c.tolerance_mm, 0.5 * c.in_mm, 0.5 * c.out_mm, k});
+}
+
+// The corners at the interior vertices of polyline k (none where its body is not blendable);
+// whether any of them, or the joint after it, is blended.
+bool plan_inner_corners(const toolpath::Path& path, const MachineLimits& limits, std::size_t k,
+                        bool body, bool joint_blended, std::vector<Corner>& inner) {
+  const auto& pts = std::get<Polyline>(path.segments[k].geometry).points;
+  inner.clear();
+  bool any = joint_blended;
+  if (body) {
+    for (std::size_t v = 1; v + 1 < pts.size(); ++v) {
+      inner.push_back(plan_corner(
+          pts[v - 1], pts[v], pts[v + 1], tolerance_mm(path.segments[k], limits),
+          cap_mm_per_s(path.segments[k], limits), cap_mm_per_s(path.segments[k], limits), limits));
+      any = any || inner.back().blended;
+    }
+  }
+  return any;
+}
+
+// The lines and arcs of a polyline whose corners are blended, span by span from `at`.
+struct SpanBuilder {
+  std::vector<Span>& spans;
+  BlendReport& rep;
+  Vec3 at;
+
+  void line_to(const Vec3& q) {
+    // Two arcs that each take half of a piece meet (to rounding): no line between them.
+    const double len = (q - at).norm();
+    if (!(len > kMinSpanMm)) return;
+    spans.push_back({0.5 * (at + q), q, 1.0, len});
+    at = q;
+  }
+
+  void arc(const Corner& c) {
+    line_to(c.v - c.tangent_mm * c.d_in);
+    const Vec3 end = c.v + c.tangent_mm * c.d_out;
+    spans.push_back({c.v, end, c.half_cos, c.radius_mm * c.phi_rad});
+    at = end;
+    ++rep.corners;
+    rep.max_deviation_mm =
+        std::max(rep.max_deviation_mm, c.radius_mm * (1.0 - c.half_cos) / c.half_cos);
+  }
+};
+
+// The spans from start as one rational quadratic B-spline: each span a middle control point of
+// weight w and its end, double knots between spans at the arc length so far.
+NurbsCurve spans_curve(const Vec3& start, const std::vector<Span>& spans) {
+  std::vector<Vec3> cp{start};
+  std::vector<double> w{1.0};
+  std::vector<double> knots{0.0, 0.0, 0.0};
+  double u = 0.0;
+  for (std::size_t i = 0; i < spans.size(); ++i) {
+    cp.push_back(spans[i].mid);
+    cp.push_back(spans[i].end);
+    w.push_back(spans[i].w);
+    w.push_back(1.0);
+    u += spans[i].len_mm;
+    knots.insert(knots.end(), i + 1 < spans.size() ? 2 : 3, u);
+  }
+  return NurbsCurve(2, std::move(knots), std::move(cp), std::move(w));
+}
+
 }  // namespace
 
 double polyline_corner_speed_mm_per_s(const MachineLimits& limits, double phi_rad,
@@ -215,102 +313,36 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
   const std::size_t n = path.segments.size();
   std::vector<char> body(n);
   for (std::size_t k = 0; k < n; ++k) body[k] = blendable_body(path.segments[k], limits) ? 1 : 0;
-  // The corner at the joint after segment k, if blended (its arc belongs to segment k).
-  std::vector<Corner> joint(n);
-  for (std::size_t k = 0; k + 1 < n; ++k) {
-    const PathSegment &s = path.segments[k], &t = path.segments[k + 1];
-    const auto* next = std::get_if<Polyline>(&t.geometry);
-    if (!body[k] || t.stop_before || !next || !next->normals.empty() || next->points.size() < 2) {
-      continue;
-    }
-    if (!((next->points[1] - next->points[0]).norm() >=
-          cap_mm_per_s(t, limits) * limits.period_s)) {
-      continue;
-    }
-    const auto& pts = std::get<Polyline>(s.geometry).points;
-    // The joint's pieces: the last of k and the first of k + 1 (their other ends may be
-    // trimmed by other arcs, each by at most half of the piece).
-    joint[k] =
-        plan_corner(pts[pts.size() - 2], pts.back(), next->points[1], tolerance_mm(s, limits),
-                    cap_mm_per_s(s, limits), cap_mm_per_s(t, limits), limits);
-  }
+  const std::vector<Corner> joint = plan_joints(path, limits, body);
   std::vector<Span> spans;
   std::vector<Corner> inner;
-  // The corners kept sharp, in path order. The straight length on each side is what is left of
-  // the piece after its other end's arc (at most half of the piece).
-  // Not where a rapid begins or ends: a G0 positions, and the approach and the retract are
-  // written to the machine as their programmed points (link/program_blocks.cpp).
-  std::size_t k = 0;
-  const auto keep_sharp = [&](const Corner& c, bool joint_corner) {
-    if (!c.eligible || c.blended || path.segments[k].rapid) return;
-    if (joint_corner && path.segments[k + 1].rapid) return;
-    rep.sharp.push_back({c.v, c.d_in, c.d_out, c.tolerance_mm, 0.5 * c.in_mm, 0.5 * c.out_mm, k});
-  };
-  for (k = 0; k < n; ++k) {
+  for (std::size_t k = 0; k < n; ++k) {
     if (!std::holds_alternative<Polyline>(path.segments[k].geometry)) continue;
     const auto& pts = std::get<Polyline>(path.segments[k].geometry).points;
     Vec3 start = pts.front();
     if (k > 0 && joint[k - 1].blended) {
       start = joint[k - 1].v + joint[k - 1].tangent_mm * joint[k - 1].d_out;
     }
-    inner.clear();
-    bool any = joint[k].blended;
-    if (body[k]) {
-      for (std::size_t v = 1; v + 1 < pts.size(); ++v) {
-        inner.push_back(plan_corner(pts[v - 1], pts[v], pts[v + 1],
-                                    tolerance_mm(path.segments[k], limits),
-                                    cap_mm_per_s(path.segments[k], limits),
-                                    cap_mm_per_s(path.segments[k], limits), limits));
-        any = any || inner.back().blended;
-      }
-    }
+    const bool any = plan_inner_corners(path, limits, k, body[k] != 0, joint[k].blended, inner);
     auto& geometry = out.segments[k].geometry;
     if (!any) {
-      for (const Corner& c : inner) keep_sharp(c, false);
-      keep_sharp(joint[k], true);
+      for (const Corner& c : inner) keep_sharp(rep, path, k, c, false);
+      keep_sharp(rep, path, k, joint[k], true);
       std::get<Polyline>(geometry).points.front() = start;
       continue;
     }
     spans.clear();
-    Vec3 at = start;
-    const auto line_to = [&](const Vec3& q) {
-      // Two arcs that each take half of a piece meet (to rounding): no line between them.
-      const double len = (q - at).norm();
-      if (!(len > kMinSpanMm)) return;
-      spans.push_back({0.5 * (at + q), q, 1.0, len});
-      at = q;
-    };
-    const auto arc = [&](const Corner& c) {
-      line_to(c.v - c.tangent_mm * c.d_in);
-      const Vec3 end = c.v + c.tangent_mm * c.d_out;
-      spans.push_back({c.v, end, c.half_cos, c.radius_mm * c.phi_rad});
-      at = end;
-      ++rep.corners;
-      rep.max_deviation_mm =
-          std::max(rep.max_deviation_mm, c.radius_mm * (1.0 - c.half_cos) / c.half_cos);
-    };
+    SpanBuilder build{spans, rep, start};
     for (std::size_t v = 1; v < pts.size(); ++v) {
       const Corner* c = v + 1 < pts.size() ? &inner[v - 1] : &joint[k];
-      keep_sharp(*c, v + 1 == pts.size());
+      keep_sharp(rep, path, k, *c, v + 1 == pts.size());
       if (c->blended) {
-        arc(*c);
+        build.arc(*c);
       } else {
-        line_to(pts[v]);
+        build.line_to(pts[v]);
       }
     }
-    std::vector<Vec3> cp{start};
-    std::vector<double> w{1.0};
-    std::vector<double> knots{0.0, 0.0, 0.0};
-    double u = 0.0;
-    for (std::size_t i = 0; i < spans.size(); ++i) {
-      cp.push_back(spans[i].mid);
-      cp.push_back(spans[i].end);
-      w.push_back(spans[i].w);
-      w.push_back(1.0);
-      u += spans[i].len_mm;
-      knots.insert(knots.end(), i + 1 < spans.size() ? 2 : 3, u);
-    }
-    geometry = NurbsCurve(2, std::move(knots), std::move(cp), std::move(w));
+    geometry = spans_curve(start, spans);
   }
   if (report) *report = rep;
   return out;

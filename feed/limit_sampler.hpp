@@ -105,6 +105,24 @@ class LimitSampler {
   Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
   double vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const;
   bool next_interval(Interval& out);
+  // next_interval's steps (limit_sampler.cpp).
+  struct RestEnds {  // rest refinement: the interval is the innermost at a rest
+    bool innermost = false, at_start = false, at_end = false;
+    double d_mm = 0.0;  // its length from (to) the rest
+  };
+  void next_segment();
+  void piece_interval(const toolpath::Polyline& line, Interval& iv);
+  void curve_interval(const toolpath::NurbsCurve& c, Interval& iv);
+  double curve_step_end_u(const toolpath::NurbsCurve& c, double speed);
+  double no_sliver_before_rest(const toolpath::NurbsCurve& c, double u1) const;
+  double joint_zone_edge_u(const toolpath::NurbsCurve& c, double u1) const;
+  double knot_guard_edge_u(double u1) const;
+  void refine_towards_rest_start(const toolpath::NurbsCurve& c, double& u1, RestEnds& rest);
+  void refine_near_dips(const toolpath::NurbsCurve& c, double& u1) const;
+  bool refine_towards_rest_end(const toolpath::NurbsCurve& c, double& u1, RestEnds& rest);
+  FeedLimitResult curve_interval_limit(double u1, double speed, bool open_end);
+  bool raise_to_rest_speed(const RestEnds& rest, double u1, bool open_end,
+                           FeedLimitResult& v) const;
   void enter_segment();
   FeedLimitResult interval_min_on_curve(std::size_t segment, double u0, double u1,
                                         bool open_end) const;
@@ -175,6 +193,14 @@ class LimitSampler {
   std::vector<unsigned char> law_;
   std::vector<double> roughness_floor_mm_per_s_;
   void set_tool_laws();
+  // The constructor's steps (limit_sampler_setup.cpp).
+  void add_joint(std::size_t k);
+  double summed_turn_rad(std::size_t k, double corner_mm_per_s) const;
+  void add_inner_knots(std::size_t k, const toolpath::NurbsCurve& c);
+  void add_vertex_stops(std::size_t k, const toolpath::Polyline& line);
+  void add_knot_edges(std::size_t k, const toolpath::NurbsCurve& c);
+  static void bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds);
+  void add_joint_edges();
   // The cutting laws at curvature κ and inclination α on segment `segment` (not a rapid).
   FeedLimitResult cutting_limit(std::size_t segment, double curvature_per_mm,
                                 double inclination_rad) const;

@@ -457,6 +457,109 @@ void fit_or_split(const std::vector<Vec3>& p, const std::vector<double>& t, std:
   fit_or_split(p, t, v, b, tol, depth + 1, out, rep);
 }
 
+// A run's distinct points (a zero-length move is skipped), their indices in the polyline, and
+// their arc length from its start.
+struct Distinct {
+  std::vector<Vec3> p;
+  std::vector<std::size_t> orig;
+  std::vector<double> t;
+};
+
+Distinct distinct_points(const std::vector<Vec3>& pts) {
+  Distinct d;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (d.p.empty() || (pts[i] - d.p.back()).norm() > 0.0) {
+      d.t.push_back(d.p.empty() ? 0.0 : d.t.back() + (pts[i] - d.p.back()).norm());
+      d.p.push_back(pts[i]);
+      d.orig.push_back(i);
+    }
+  }
+  return d;
+}
+
+// corner[v]: a real corner at distinct vertex v (1 … m − 1): a reversal, or a turn above
+// kCornerTurnRad both at the vertex and over the chord of λ on each side.
+std::vector<char> find_corners(const Distinct& d, double lambda) {
+  const std::vector<Vec3>& p = d.p;
+  const std::vector<double>& t = d.t;
+  const std::size_t m = p.size() - 1;
+  std::vector<char> corner(m + 1, 0);
+  std::size_t back = 0, ahead = 1;
+  for (std::size_t v = 1; v < m; ++v) {
+    const double fine = turn_rad(p[v] - p[v - 1], p[v + 1] - p[v]);
+    if (fine <= kCornerTurnRad) continue;
+    while (back + 1 < v && t[v] - t[back + 1] >= lambda) ++back;
+    ahead = std::max(ahead, v + 1);
+    while (ahead < m && t[ahead] - t[v] < lambda) ++ahead;
+    corner[v] =
+        fine > kReversalRad || turn_rad(p[v] - p[back], p[ahead] - p[v]) > kCornerTurnRad ? 1 : 0;
+  }
+  return corner;
+}
+
+// The blocks of the run: each long piece alone, each stretch of short pieces between long
+// pieces and real corners fitted (or split where the fit is refused).
+std::vector<Block> fit_blocks(const Distinct& d, const std::vector<char>& corner, double short_mm,
+                              double q, FitReport& rep) {
+  const std::size_t m = d.p.size() - 1;
+  std::vector<Block> blocks;
+  std::size_t a = 0;  // start of the current stretch of short pieces
+  const auto flush = [&](std::size_t b) {
+    if (b > a) fit_or_split(d.p, d.t, a, b, q, 0, blocks, rep);
+  };
+  for (std::size_t i = 0; i < m; ++i) {
+    const bool is_short = d.t[i + 1] - d.t[i] <= short_mm;
+    if (!is_short) {
+      flush(i);
+      blocks.push_back({i, i + 1, std::nullopt});
+      a = i + 1;
+    } else if (i > a && corner[i]) {
+      flush(i);
+      a = i;
+    }
+  }
+  flush(m);
+  return blocks;
+}
+
+// Output of segment k's blocks: polyline parts (original points, duplicates kept) and one
+// NURBS per fitted run; the segment's stop_before stays with the first.
+void emit_blocks(const PathSegment& seg, std::size_t k, const Distinct& d,
+                 std::vector<Block>& blocks, toolpath::Path& out, FitReport& rep) {
+  const auto& pts = std::get<Polyline>(seg.geometry).points;
+  const std::size_t m = d.p.size() - 1;
+  bool first = true;
+  std::vector<Vec3> part;
+  const auto emit = [&](decltype(PathSegment::geometry) g) {
+    PathSegment s = seg;
+    s.geometry = std::move(g);
+    s.stop_before = first && seg.stop_before;
+    first = false;
+    out.segments.push_back(std::move(s));
+    rep.source_segment.push_back(k);
+  };
+  const auto flush_part = [&] {
+    if (part.size() >= 2) emit(Polyline{std::move(part), {}});
+    part.clear();
+  };
+  for (std::size_t j = 0; j < blocks.size(); ++j) {
+    Block& b = blocks[j];
+    if (b.fit) {
+      flush_part();
+      ++rep.runs;
+      rep.spans += b.fit->curve.breakpoints().size() - 1;
+      rep.points += b.b - b.a + 1;
+      rep.max_deviation_mm = std::max(rep.max_deviation_mm, b.fit->deviation_mm);
+      emit(std::move(b.fit->curve));
+      continue;
+    }
+    const std::size_t from = part.empty() ? d.orig[b.a] : d.orig[b.a] + 1;
+    const std::size_t to = b.b == m ? pts.size() - 1 : d.orig[b.b];
+    for (std::size_t i = from; i <= to; ++i) part.push_back(pts[i]);
+  }
+  flush_part();
+}
+
 }  // namespace
 
 std::optional<FittedRun> fit_polyline_run(const std::vector<Vec3>& points, double tolerance_mm) {
@@ -480,91 +583,22 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
       continue;
     }
     const double q = smoothing_mm(seg);
-    const auto& pts = std::get<Polyline>(seg.geometry).points;
-    // Distinct points (a zero-length move is skipped) and their original indices.
-    std::vector<Vec3> p;
-    std::vector<std::size_t> orig;
-    std::vector<double> t;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      if (p.empty() || (pts[i] - p.back()).norm() > 0.0) {
-        t.push_back(p.empty() ? 0.0 : t.back() + (pts[i] - p.back()).norm());
-        p.push_back(pts[i]);
-        orig.push_back(i);
-      }
-    }
-    const std::size_t m = p.size() - 1;  // pieces
+    const Distinct d = distinct_points(std::get<Polyline>(seg.geometry).points);
+    const std::size_t m = d.p.size() - 1;  // pieces
     if (m < kMinRunPieces) {
       keep();
       continue;
     }
     const double short_mm =
         std::max(std::sqrt(8.0 * kRefRadiusMm * q), cap_mm_per_s(seg, limits) * limits.period_s);
-    const double lambda = kCoarseChordPerQ * q;
-    // corner[v]: a real corner at distinct vertex v (1 … m − 1).
-    std::vector<char> corner(m + 1, 0);
-    std::size_t back = 0, ahead = 1;
-    for (std::size_t v = 1; v < m; ++v) {
-      const double fine = turn_rad(p[v] - p[v - 1], p[v + 1] - p[v]);
-      if (fine <= kCornerTurnRad) continue;
-      while (back + 1 < v && t[v] - t[back + 1] >= lambda) ++back;
-      ahead = std::max(ahead, v + 1);
-      while (ahead < m && t[ahead] - t[v] < lambda) ++ahead;
-      corner[v] =
-          fine > kReversalRad || turn_rad(p[v] - p[back], p[ahead] - p[v]) > kCornerTurnRad ? 1 : 0;
-    }
-    std::vector<Block> blocks;
-    std::size_t a = 0;  // start of the current stretch of short pieces
-    const auto flush = [&](std::size_t b) {
-      if (b > a) fit_or_split(p, t, a, b, q, 0, blocks, rep);
-    };
-    for (std::size_t i = 0; i < m; ++i) {
-      const bool is_short = t[i + 1] - t[i] <= short_mm;
-      if (!is_short) {
-        flush(i);
-        blocks.push_back({i, i + 1, std::nullopt});
-        a = i + 1;
-      } else if (i > a && corner[i]) {
-        flush(i);
-        a = i;
-      }
-    }
-    flush(m);
+    const std::vector<char> corner = find_corners(d, kCoarseChordPerQ * q);
+    std::vector<Block> blocks = fit_blocks(d, corner, short_mm, q, rep);
     if (std::none_of(blocks.begin(), blocks.end(),
                      [](const Block& b) { return b.fit.has_value(); })) {
       keep();
       continue;
     }
-    // Output: polyline parts (original points, duplicates kept) and one NURBS per fitted run.
-    bool first = true;
-    std::vector<Vec3> part;
-    const auto emit = [&](decltype(PathSegment::geometry) g) {
-      PathSegment s = seg;
-      s.geometry = std::move(g);
-      s.stop_before = first && seg.stop_before;
-      first = false;
-      out.segments.push_back(std::move(s));
-      rep.source_segment.push_back(k);
-    };
-    const auto flush_part = [&] {
-      if (part.size() >= 2) emit(Polyline{std::move(part), {}});
-      part.clear();
-    };
-    for (std::size_t j = 0; j < blocks.size(); ++j) {
-      Block& b = blocks[j];
-      if (b.fit) {
-        flush_part();
-        ++rep.runs;
-        rep.spans += b.fit->curve.breakpoints().size() - 1;
-        rep.points += b.b - b.a + 1;
-        rep.max_deviation_mm = std::max(rep.max_deviation_mm, b.fit->deviation_mm);
-        emit(std::move(b.fit->curve));
-        continue;
-      }
-      const std::size_t from = part.empty() ? orig[b.a] : orig[b.a] + 1;
-      const std::size_t to = b.b == m ? pts.size() - 1 : orig[b.b];
-      for (std::size_t i = from; i <= to; ++i) part.push_back(pts[i]);
-    }
-    flush_part();
+    emit_blocks(seg, k, d, blocks, out, rep);
   }
   if (report) *report = std::move(rep);
   return out;

@@ -3,6 +3,8 @@
 // the top of planner.cpp.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -180,6 +182,8 @@ class Planner {
   };
   static IntervalLimit interval_between(const LimitSample& p, const LimitSample& q);
   PushResult classify(const LimitSample& sample) const;
+  // (ring_index, sample, interval_limit, cubic_step and advance are inline below the class:
+  // the exact checks and rollouts of planner_policy.cpp call them every simulated period.)
   std::size_t ring_index(std::size_t i) const;  // of the i-th sample of the window
   const LimitSample& sample(std::size_t i) const;
   SpeedRange period_speeds(const Kin& x, double j) const;
@@ -196,6 +200,25 @@ class Planner {
                std::size_t& out_n);
   bool rollout_member(double j0, double scale_check, double stop_mm, std::vector<double>& out,
                       std::size_t& out_n);  // rollout() with π's member in force
+  // step()'s cases (planner.cpp): a landing's next period, a hold, a lowered override, and the
+  // follower, with what they share.
+  struct StepFrame {
+    double real_stop, stop;  // the last sample or L; and that within the horizon
+    bool at_rest;
+    double j_fallback;  // the committed plan's next jerk (0 past its end)
+  };
+  struct TopJerk {
+    double j, a_here;  // j_top, and the acceleration limit it is taken at
+  };
+  MotionSample step_landing();
+  MotionSample step_hold(const StepFrame& f);
+  MotionSample step_override_lowered(const StepFrame& f);
+  MotionSample step_follow(const StepFrame& f);
+  TopJerk top_jerk() const;
+  bool follow_local_limit(const StepFrame& f, double j_top);
+  void bisect_jerk(const StepFrame& f, double j_top);
+  void commit_fallback(const StepFrame& f, std::uint8_t limit_id);
+  std::uint8_t binding_limit(double stop_mm) const;
   bool try_landing();
   bool cut_landing_for_hold();
   void take_best(double j, std::uint8_t limit_id);
@@ -282,6 +305,37 @@ class Planner {
   double pol_final_ = 0.0, pol_under_ = 0.0;
   std::size_t last_rollouts_ = 0;
 };
+
+inline std::size_t Planner::ring_index(std::size_t i) const {
+  const std::size_t k = head_ + i;  // < 2 x the ring's size: a subtraction, not a division
+  return k < ring_.size() ? k : k - ring_.size();
+}
+
+inline const LimitSample& Planner::sample(std::size_t i) const {
+  return ring_[ring_index(i)];
+}
+
+inline double Planner::interval_limit(std::size_t i) const {
+  return i + 1 < count_ ? interval_ring_[ring_index(i)].v_mm_per_s : sample(i).v_max_mm_per_s;
+}
+
+// One period of constant jerk j from x (exact cubic).
+inline Planner::Kin Planner::cubic_step(const Kin& x, double j) const {
+  const double T = period_s_;
+  return Kin{x.s_mm + x.v_mm_per_s * T + 0.5 * x.a_mm_per_s2 * T * T + j * T * T * T / 6.0,
+             x.v_mm_per_s + x.a_mm_per_s2 * T + 0.5 * j * T * T, x.a_mm_per_s2 + j * T};
+}
+
+// cubic_step, with rest snapped to exact zeros.
+inline Planner::Kin Planner::advance(const Kin& x, double j) const {
+  Kin y = cubic_step(x, j);
+  if (std::abs(y.v_mm_per_s) <= v_eps_ && std::abs(y.a_mm_per_s2) <= a_eps_) {
+    y.v_mm_per_s = 0.0;
+    y.a_mm_per_s2 = 0.0;
+  }
+  y.s_mm = std::max(y.s_mm, x.s_mm);
+  return y;
+}
 
 // Pushes samples from curve[next...] while the planner wants them; advances next past each one
 // taken. Stops at the first refusal and returns it.

@@ -386,114 +386,116 @@ void parse_axes(const toml::value& table, const std::string& name,
   }
 }
 
-}  // namespace
+// A top-level limit of the machine file (period_s, max_feed_mm_per_min, …) into l; false if key
+// is not one.
+bool parse_top_limit(const std::string& key, const toml::value& value, const std::string& where,
+                     interpolator::MachineLimits& l) {
+  double* slot = key == "period_s"              ? &l.period_s
+                 : key == "max_feed_mm_per_min" ? &l.max_feed_mm_per_min
+                 : key == "max_accel_mm_per_s2" ? &l.max_accel_mm_per_s2
+                 : key == "max_jerk_mm_per_s3"  ? &l.max_jerk_mm_per_s3
+                 : key == "chord_tolerance_mm"  ? &l.chord_tolerance_mm
+                 : key == "feed_tolerance_rel"  ? &l.feed_tolerance_rel
+                 : key == "blend_tolerance_mm"  ? &l.blend_tolerance_mm
+                 : key == "stall_timeout_s"     ? &l.stall_timeout_s
+                                                : nullptr;
+  if (slot == nullptr) return false;
+  *slot = as_real(value, where);
+  return true;
+}
 
-MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
-  const toml::value root = parse_toml_text(text, name, "machine file");
-  MachineConfig c;
-  c.source = name;
-  auto& l = c.limits;
-  auto& k = c.cutting;
-  bool jerk_by_axes = false;
-  for (const auto& [key, value] : root.as_table()) {
-    const std::string where = name + ": " + key;
-    c.keys.insert(key);
-    if (value.is_table()) {
-      for (const auto& [sub, v] : value.as_table()) c.keys.insert(key + "." + sub);
-    }
-    if (key == "period_s")
-      l.period_s = as_real(value, where);
-    else if (key == "max_feed_mm_per_min")
-      l.max_feed_mm_per_min = as_real(value, where);
-    else if (key == "max_accel_mm_per_s2")
-      l.max_accel_mm_per_s2 = as_real(value, where);
-    else if (key == "max_jerk_mm_per_s3")
-      l.max_jerk_mm_per_s3 = as_real(value, where);
-    else if (key == "chord_tolerance_mm")
-      l.chord_tolerance_mm = as_real(value, where);
-    else if (key == "feed_tolerance_rel")
-      l.feed_tolerance_rel = as_real(value, where);
-    else if (key == "blend_tolerance_mm")
-      l.blend_tolerance_mm = as_real(value, where);
-    else if (key == "stall_timeout_s")
-      l.stall_timeout_s = as_real(value, where);
-    else if (key == "jerk_bound") {
-      const std::string b = as_text(value, where);
-      if (b != "tangential" && b != "vector" && b != "axes") {
-        throw InputError(where + " = \"" + b +
-                         "\" is not a jerk bound; use \"tangential\" (|j_t| and v^3 kappa^2 "
-                         "each <= max_jerk, the default), \"vector\" (the jerk vector <= "
-                         "max_jerk; docs/planner.md section 3c) or \"axes\" (the jerk vector <= "
-                         "the smallest [axis.*] max_jerk_mm_per_s3: every axis within its jerk; "
-                         "section 3f)");
-      }
-      l.jerk_bound =
-          b == "tangential" ? interpolator::JerkBound::tangential : interpolator::JerkBound::vector;
-      jerk_by_axes = b == "axes";
-    } else if (key == "cutting") {
-      if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
-      for (const auto& [ck, cv] : value.as_table()) {
-        const std::string cwhere = name + ": cutting." + ck;
-        if (ck == "ball_radius_mm")
-          k.ball_radius_mm = as_real(cv, cwhere);
-        else if (ck == "pick_feed_mm")
-          k.pick_feed_mm = as_real(cv, cwhere);
-        else if (ck == "teeth")
-          k.teeth = as_int(cv, cwhere);
-        else if (ck == "spindle_rpm")
-          k.spindle_rpm = as_real(cv, cwhere);
-        else if (ck == "roughness_target_um")
-          k.roughness_target_um = as_real(cv, cwhere);
-        else {
-          throw InputError("unknown key " + cwhere +
-                           "; [cutting] takes ball_radius_mm, pick_feed_mm, teeth, spindle_rpm, "
-                           "roughness_target_um");
-        }
-      }
-    } else if (key == "link") {
-      if (!value.is_table()) throw InputError(where + " must be a table: [link]");
-      parse_link(value, name, c.link);
-    } else if (key == "program") {
-      if (!value.is_table()) throw InputError(where + " must be a table: [program]");
-      parse_program(value, name, c.program);
-    } else if (key == "encoder") {
-      if (!value.is_table()) throw InputError(where + " must be a table: [encoder]");
-      parse_encoder(value, name, c.encoder);
-    } else if (key == "envelope") {
-      if (!value.is_table()) throw InputError(where + " must be a table: [envelope]");
-      parse_envelope(value, name, c.envelope);
-    } else if (key == "axis") {
-      if (!value.is_table()) {
-        throw InputError(where + " must be tables: [axis.x], [axis.y], [axis.z]");
-      }
-      parse_axes(value, name, l.axes);
-    } else if (key == "tool") {
-      if (!value.is_table()) throw InputError(where + " must be a table: [tool]");
-      parse_tool(value, name, c.tool);
-    } else if (key == "tools") {
-      if (!value.is_table()) throw InputError(where + " must be tables: [tools.1], [tools.2], …");
-      parse_tools(value, name, c.program.declared_tools);
-    } else {
-      throw InputError(
-          "unknown key " + where +
-          "; the machine file takes period_s, max_feed_mm_per_min, "
-          "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
-          "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
-          "[cutting], [link], [encoder], [envelope], [program], [tool], [tools.N], [axis.x], "
-          "[axis.y], [axis.z]");
+// jerk_bound = "tangential", "vector" or "axes" into l; whether it is "axes" (the vector bound
+// at the smallest axis jerk, set once the [axis.*] tables are read).
+bool parse_jerk_bound(const toml::value& value, const std::string& where,
+                      interpolator::MachineLimits& l) {
+  const std::string b = as_text(value, where);
+  if (b != "tangential" && b != "vector" && b != "axes") {
+    throw InputError(where + " = \"" + b +
+                     "\" is not a jerk bound; use \"tangential\" (|j_t| and v^3 kappa^2 "
+                     "each <= max_jerk, the default), \"vector\" (the jerk vector <= "
+                     "max_jerk; docs/planner.md section 3c) or \"axes\" (the jerk vector <= "
+                     "the smallest [axis.*] max_jerk_mm_per_s3: every axis within its jerk; "
+                     "section 3f)");
+  }
+  l.jerk_bound =
+      b == "tangential" ? interpolator::JerkBound::tangential : interpolator::JerkBound::vector;
+  return b == "axes";
+}
+
+// [cutting]: the roughness law's parameters.
+void parse_cutting(const toml::value& value, const std::string& name,
+                   interpolator::CuttingParams& k) {
+  for (const auto& [ck, cv] : value.as_table()) {
+    const std::string cwhere = name + ": cutting." + ck;
+    if (ck == "ball_radius_mm")
+      k.ball_radius_mm = as_real(cv, cwhere);
+    else if (ck == "pick_feed_mm")
+      k.pick_feed_mm = as_real(cv, cwhere);
+    else if (ck == "teeth")
+      k.teeth = as_int(cv, cwhere);
+    else if (ck == "spindle_rpm")
+      k.spindle_rpm = as_real(cv, cwhere);
+    else if (ck == "roughness_target_um")
+      k.roughness_target_um = as_real(cv, cwhere);
+    else {
+      throw InputError("unknown key " + cwhere +
+                       "; [cutting] takes ball_radius_mm, pick_feed_mm, teeth, spindle_rpm, "
+                       "roughness_target_um");
     }
   }
-  if (jerk_by_axes) {
-    const auto& ax = l.axes;
-    if (!std::isfinite(ax[0].max_jerk_mm_per_s3) && !std::isfinite(ax[1].max_jerk_mm_per_s3) &&
-        !std::isfinite(ax[2].max_jerk_mm_per_s3)) {
-      throw InputError(name +
-                       ": jerk_bound = \"axes\" needs max_jerk_mm_per_s3 in an [axis.x], "
-                       "[axis.y] or [axis.z] table; give the axes' jerk, or use \"vector\"");
-    }
-    l = interpolator::with_axis_jerk(l);  // the vector bound at the smallest axis jerk (§3f)
-    c.jerk_by_axes = true;
+}
+
+// A table of the machine file other than [cutting] ([link], [program], [encoder], [envelope],
+// [axis.*], [tool], [tools.N]) into c; false if key names none.
+bool parse_table(const std::string& key, const toml::value& value, const std::string& where,
+                 const std::string& name, MachineConfig& c) {
+  const auto table = [&](const char* form) {
+    if (!value.is_table()) throw InputError(where + " must be " + form);
+  };
+  if (key == "link") {
+    table("a table: [link]");
+    parse_link(value, name, c.link);
+  } else if (key == "program") {
+    table("a table: [program]");
+    parse_program(value, name, c.program);
+  } else if (key == "encoder") {
+    table("a table: [encoder]");
+    parse_encoder(value, name, c.encoder);
+  } else if (key == "envelope") {
+    table("a table: [envelope]");
+    parse_envelope(value, name, c.envelope);
+  } else if (key == "axis") {
+    table("tables: [axis.x], [axis.y], [axis.z]");
+    parse_axes(value, name, c.limits.axes);
+  } else if (key == "tool") {
+    table("a table: [tool]");
+    parse_tool(value, name, c.tool);
+  } else if (key == "tools") {
+    table("tables: [tools.1], [tools.2], …");
+    parse_tools(value, name, c.program.declared_tools);
+  } else {
+    return false;
   }
+  return true;
+}
+
+// jerk_bound = "axes": the vector bound at the smallest axis jerk (docs/planner.md §3f), which
+// needs an axis jerk.
+void apply_jerk_by_axes(MachineConfig& c, const std::string& name) {
+  const auto& ax = c.limits.axes;
+  if (!std::isfinite(ax[0].max_jerk_mm_per_s3) && !std::isfinite(ax[1].max_jerk_mm_per_s3) &&
+      !std::isfinite(ax[2].max_jerk_mm_per_s3)) {
+    throw InputError(name +
+                     ": jerk_bound = \"axes\" needs max_jerk_mm_per_s3 in an [axis.x], "
+                     "[axis.y] or [axis.z] table; give the axes' jerk, or use \"vector\"");
+  }
+  c.limits = interpolator::with_axis_jerk(c.limits);
+  c.jerk_by_axes = true;
+}
+
+// What the file's values imply (the encoder's line and buffer, the machine's tool), then the
+// ranges and the libraries' own checks, each error naming the file.
+void finish_config(MachineConfig& c, const std::string& name) {
   c.encoder.line = c.link.line;
   c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
   c.program.machine_tools = {c.tool.number};  // the tool the programs ncd writes change to
@@ -505,6 +507,39 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
   } catch (const InputError& e) {
     throw InputError(name + ": " + e.what());
   }
+}
+
+}  // namespace
+
+MachineConfig parse_machine_config(const std::string& text, const std::string& name) {
+  const toml::value root = parse_toml_text(text, name, "machine file");
+  MachineConfig c;
+  c.source = name;
+  bool jerk_by_axes = false;
+  for (const auto& [key, value] : root.as_table()) {
+    const std::string where = name + ": " + key;
+    c.keys.insert(key);
+    if (value.is_table()) {
+      for (const auto& [sub, v] : value.as_table()) c.keys.insert(key + "." + sub);
+    }
+    if (parse_top_limit(key, value, where, c.limits)) continue;
+    if (key == "jerk_bound") {
+      jerk_by_axes = parse_jerk_bound(value, where, c.limits);
+    } else if (key == "cutting") {
+      if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
+      parse_cutting(value, name, c.cutting);
+    } else if (!parse_table(key, value, where, name, c)) {
+      throw InputError(
+          "unknown key " + where +
+          "; the machine file takes period_s, max_feed_mm_per_min, "
+          "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
+          "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
+          "[cutting], [link], [encoder], [envelope], [program], [tool], [tools.N], [axis.x], "
+          "[axis.y], [axis.z]");
+    }
+  }
+  if (jerk_by_axes) apply_jerk_by_axes(c, name);
+  finish_config(c, name);
   return c;
 }
 

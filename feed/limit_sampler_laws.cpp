@@ -1,0 +1,495 @@
+// The limit sampler's laws (the algorithm is explained at the top of limit_sampler.cpp): the
+// feed limit at a point of a curve or a polyline piece, the corner speed at a vertex, joint or
+// knot, and the limit over a whole curve interval: its minimum (five samples, then Brent's
+// method; "Flat intervals" skips it where a bound proves the cap), its largest curvature and
+// curvature turn under JerkBound::vector, and its largest tangent components under per-axis
+// limits. All const: nothing here moves the sampler's cursor.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "feed/corner_blend.hpp"
+#include "feed/limit_sampler.hpp"
+#include "feed/limit_sampler_detail.hpp"
+
+namespace ncd::interpolator {
+
+using namespace sampler_detail;
+
+FeedLimitResult LimitSampler::cutting_limit(std::size_t segment, double curvature_per_mm,
+                                            double inclination_rad) const {
+  if (law_[segment] == 0) return curve_feed_limit(limits_, curvature_per_mm);
+  return feed_limit(limits_, seg_cutting_[segment], curvature_per_mm, inclination_rad);
+}
+
+FeedLimitResult LimitSampler::side_limit(std::size_t segment, bool at_end) const {
+  const auto& g = path_.segments[segment].geometry;
+  if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
+    return limit_on_curve(segment, at_end ? std::nextafter(c->u_end(), -kInf) : c->u_begin());
+  }
+  const auto& line = std::get<toolpath::Polyline>(g);
+  return limit_on_piece(segment, at_end ? line.points.size() - 2 : 0);
+}
+
+// The speed that places the nodes around vertex `vertex` of a polyline (next_zone_edge_mm):
+// its corner speed, or at a joint the corner's or the jump's (joint_edge_).
+double LimitSampler::edge_speed(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  if (vertex == 0) return joint_edge_[segment];
+  if (vertex + 1 == line.points.size()) return joint_edge_[segment + 1];
+  return corner_limit(segment, vertex).feed_mm_per_s;
+}
+
+double LimitSampler::stop_below_mm_per_s() const {
+  return limits_.max_accel_mm_per_s2 * limits_.period_s;
+}
+
+bool LimitSampler::must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
+                             const FeedLimitResult& corner) const {
+  if (d_in.isZero() || d_out.isZero()) return true;  // a zero-length move
+  if (mode == toolpath::PathControl::exact_stop) return true;
+  const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+  if (phi < kMinTurnRad) return false;  // tangent: no corner
+  if (mode == toolpath::PathControl::exact_path) return true;
+  return !(corner.feed_mm_per_s >= stop_below_mm_per_s());
+}
+
+bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  const Vec3 d_in = unit_or_zero(line.points[vertex] - line.points[vertex - 1]);
+  const Vec3 d_out = unit_or_zero(line.points[vertex + 1] - line.points[vertex]);
+  return must_stop(d_in, d_out, corner_mode(path_.segments[segment], limits_),
+                   corner_speed(d_in, d_out));
+}
+
+// κ: the larger curvature of the two sides at the corner (curves meeting there): the chord
+// across the corner then also bows by κ Δs² / 8, so Δs solves
+// (Δs / 2) sin(φ/2) + κ Δs² / 8 = ε_c (for κ = 0: Δs = 2 ε_c / sin(φ/2)).
+// Under JerkBound::vector, also jump_feed_mm_per_s for the turn and the curvature jump Δκ
+// (docs/planner.md §3c); on a tangent joint or a smooth knot that law alone.
+FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
+                                           double curvature_per_mm,
+                                           double curvature_jump_per_mm) const {
+  if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
+  const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+  FeedLimitResult r{polyline_corner_speed_mm_per_s(limits_, phi, curvature_per_mm),
+                    FeedLimit::Corner};
+  if (limits_.jerk_bound == JerkBound::vector && curvature_jump_per_mm > 0.0) {
+    const double v =
+        jump_feed_mm_per_s(limits_, phi < kMinTurnRad ? 0.0 : phi, curvature_jump_per_mm);
+    if (v < r.feed_mm_per_s) r = {v, FeedLimit::JerkVector};
+  }
+  if (limits_.has_axis_limits() && phi >= kMinTurnRad) {
+    // Per-axis limits (docs/planner.md §3f). The junction law with the acceleration the axes
+    // allow along the direction change, min(a_max, min_i a_i / |u_i|), u the unit of
+    // d_out − d_in; and the velocity jump v |Δd_i| of each axis, which the second difference
+    // of the setpoints sees within one period: v |Δd_i| ≤ (1 − kAxisTangentialShare) a_i T,
+    // the tangential motion around the corner keeping the rest (its intervals bend).
+    const Vec3 dd = d_out - d_in, u = unit_or_zero(dd);
+    const double T = limits_.period_s, keep = 1.0 - kAxisTangentialShare;
+    double a = limits_.max_accel_mm_per_s2, v_jump = kInf;
+    for (int i = 0; i < 3; ++i) {
+      const double ai = axis_accel_for_planner(limits_, static_cast<std::size_t>(i));
+      if (std::abs(u[i]) > 0.0) a = std::min(a, ai / std::abs(u[i]));
+      if (std::abs(dd[i]) > 0.0) v_jump = std::min(v_jump, keep * ai * T / std::abs(dd[i]));
+    }
+    const double c = std::cos(0.5 * phi);
+    const double junction =
+        c < 1.0 ? std::sqrt(a * limits_.chord_tolerance_mm * c / (1.0 - c)) : kInf;
+    const double v = std::min(junction, v_jump);
+    if (v < r.feed_mm_per_s) r = {v, FeedLimit::Corner};
+  }
+  return r;
+}
+
+FeedLimitResult LimitSampler::segment_cap(std::size_t segment) const {
+  const auto& seg = path_.segments[segment];
+  FeedLimitResult cap{limits_.max_feed_mm_per_min / 60.0, FeedLimit::MaxFeed};
+  if (!seg.rapid && seg.feed_mm_per_min) {
+    cap = min_of(cap, {*seg.feed_mm_per_min / 60.0, FeedLimit::Program});
+  }
+  return cap;
+}
+
+FeedLimitResult LimitSampler::limit_on_curve(std::size_t segment, double u) const {
+  const auto& seg = path_.segments[segment];
+  const auto& c = std::get<toolpath::NurbsCurve>(seg.geometry);
+  if (seg.rapid) {  // no cutting: the curve laws without the roughness law (a blended rapid)
+    const toolpath::CurvePoint at = c.eval(u);
+    const double kappa = curvature_per_mm(at);
+    FeedLimitResult r = segment_cap(segment);
+    if (limits_.has_axis_limits()) {
+      r = min_of(r, axis_feed_limit(limits_, unit_or_zero(at.d1), curvature_vector_per_mm(at)));
+    }
+    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                   FeedLimit::Chord});
+    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                   FeedLimit::CentripetalAccel});
+    return min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
+                      FeedLimit::CentripetalJerk});
+  }
+  const toolpath::CurvePoint at = c.eval(u);
+  const FeedLimitResult r =
+      min_of(cutting_limit(segment, curvature_per_mm(at), inclination_from_tangent_rad(at.d1)),
+             segment_cap(segment));
+  if (!limits_.has_axis_limits()) return r;
+  return min_of(r, axis_feed_limit(limits_, unit_or_zero(at.d1), curvature_vector_per_mm(at)));
+}
+
+FeedLimitResult LimitSampler::limit_on_piece(std::size_t segment, std::size_t piece) const {
+  const auto& seg = path_.segments[segment];
+  const auto& line = std::get<toolpath::Polyline>(seg.geometry);
+  const auto& pts = line.points;
+  const Vec3 dir = unit_or_zero(pts[piece + 1] - pts[piece]);
+  FeedLimitResult r = segment_cap(segment);
+  const double kappa = piece_curvature_per_mm(segment, piece);
+  if (limits_.has_axis_limits()) {  // a dense piece's curvature vector: at most κ on each axis
+    r = min_of(r, axis_feed_limit(limits_, dir, kappa * Vec3::Ones()));
+  }
+  if (seg.rapid) {  // no cutting: the curve laws without the roughness law
+    r = min_of(r, {chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                   FeedLimit::Chord});
+    r = min_of(r, {centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                   FeedLimit::CentripetalAccel});
+    r = min_of(r, {centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3),
+                   FeedLimit::CentripetalJerk});
+    return r;
+  }
+  for (const std::size_t v : {piece, piece + 1}) {
+    const double alpha = line.normals.empty() ? inclination_from_tangent_rad(dir)
+                                              : inclination_from_normal_rad(line.normals[v], dir);
+    r = min_of(r, cutting_limit(segment, kappa, alpha));
+  }
+  return r;
+}
+
+// The curvature a polyline piece acts with: 0, or on a piece shorter than one period's travel
+// at its cap the discrete curvature of its end vertices (see limit_on_piece).
+double LimitSampler::piece_curvature_per_mm(std::size_t segment, std::size_t piece) const {
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  const FeedLimitResult r = segment_cap(segment);
+  // A piece shorter than one period's travel at the cap: several vertices fall inside one
+  // period, so the polyline acts as a curve, of discrete curvature κ_v = 2 sin(φ_v / 2) /
+  // min(l_in, l_out) at a vertex turning by φ_v (1/R on a polygon inscribed in a circle of
+  // radius R); the piece takes the curve laws at the larger κ of its two ends (across a
+  // joint with the neighbour's piece). Stops are left out: the motion rests there.
+  double kappa = 0.0;
+  if ((pts[piece + 1] - pts[piece]).norm() < r.feed_mm_per_s * limits_.period_s) {
+    const auto& segs = path_.segments;
+    // The piece before a vertex, or after it; across a joint, the neighbour's first or last
+    // piece (a curve's tangent counts as a long piece); zero where there is none or the
+    // motion rests at the vertex.
+    const auto piece_before = [&](std::size_t v) -> Vec3 {
+      if (v > 0) {  // (the last vertex is a joint: piece_after checks it)
+        const bool stop = v + 1 < pts.size() && vertex_is_stop(segment, v);
+        return stop ? Vec3::Zero() : Vec3(pts[v] - pts[v - 1]);
+      }
+      if (segment == 0 || !std::isfinite(joint_corner_[segment].feed_mm_per_s)) {
+        return Vec3::Zero();
+      }
+      if (const auto* l = std::get_if<toolpath::Polyline>(&segs[segment - 1].geometry)) {
+        return l->points.back() - l->points[l->points.size() - 2];
+      }
+      const auto& c = std::get<toolpath::NurbsCurve>(segs[segment - 1].geometry);
+      return 1e9 * unit_or_zero(c.eval(c.u_end()).d1);
+    };
+    const auto piece_after = [&](std::size_t v) -> Vec3 {
+      if (v + 1 < pts.size()) return pts[v + 1] - pts[v];
+      if (segment + 1 == segs.size() || !std::isfinite(joint_corner_[segment + 1].feed_mm_per_s)) {
+        return Vec3::Zero();
+      }
+      if (const auto* l = std::get_if<toolpath::Polyline>(&segs[segment + 1].geometry)) {
+        return l->points[1] - l->points[0];
+      }
+      const auto& c = std::get<toolpath::NurbsCurve>(segs[segment + 1].geometry);
+      return 1e9 * unit_or_zero(c.eval(c.u_begin()).d1);
+    };
+    for (const std::size_t v : {piece, piece + 1}) {
+      const Vec3 in = piece_before(v), out = piece_after(v);
+      const double l_in = in.norm(), l_out = out.norm();
+      if (!(l_in > 0.0 && l_out > 0.0)) continue;
+      const double cos_phi = std::clamp(in.dot(out) / (l_in * l_out), -1.0, 1.0);
+      kappa = std::max(kappa, 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / std::min(l_in, l_out));
+    }
+  }
+  return kappa;
+}
+
+// JerkBound::vector: the discrete curvature vector of an interior vertex where a piece beside
+// it is shorter than one period's travel at the cap (the polyline acts as a curve there:
+// 2 sin(φ/2) / min(l_in, l_out) along the turn); 0 at a vertex between long pieces, where the
+// motion rests, and at the ends.
+Vec3 LimitSampler::vertex_curvature_vector(std::size_t segment, std::size_t vertex) const {
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  if (vertex == 0 || vertex + 1 >= pts.size() || vertex_is_stop(segment, vertex)) {
+    return Vec3::Zero();
+  }
+  const Vec3 in = pts[vertex] - pts[vertex - 1], out = pts[vertex + 1] - pts[vertex];
+  const double l_min = std::min(in.norm(), out.norm());
+  if (!(l_min < segment_cap(segment).feed_mm_per_s * limits_.period_s)) return Vec3::Zero();
+  const Vec3 turn = unit_or_zero(out) - unit_or_zero(in);  // |turn| = 2 sin(φ/2)
+  return turn / l_min;
+}
+
+// The jump of the discrete curvature vector at a vertex of a dense run (the larger of its two
+// sides): a curve whose curvature jumps there, for the jump law's 0.75 v² Δκ / T term.
+double LimitSampler::vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const {
+  if (limits_.jerk_bound != JerkBound::vector) return 0.0;
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  const Vec3 here = vertex_curvature_vector(segment, vertex);
+  const Vec3 before = vertex > 0 ? vertex_curvature_vector(segment, vertex - 1) : Vec3::Zero();
+  const Vec3 after =
+      vertex + 1 < pts.size() ? vertex_curvature_vector(segment, vertex + 1) : Vec3::Zero();
+  return std::max((here - before).norm(), (after - here).norm());
+}
+
+FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vertex) const {
+  const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
+  if (vertex == 0) return joint_corner_[segment];
+  if (vertex + 1 == line.points.size()) return joint_corner_[segment + 1];
+  if (vertex_is_stop(segment, vertex)) return {kInf, FeedLimit::Corner};  // at rest there
+  return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
+                      unit_or_zero(line.points[vertex + 1] - line.points[vertex]), 0.0,
+                      vertex_curvature_jump_per_mm(segment, vertex));
+}
+
+bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
+                                    double speed_u0) const {
+  const auto& bounds = span_bounds_[segment];
+  if (bounds.empty() || !(speed_u0 > 0.0) || !(u1 > u0)) return false;
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  const auto& U = c.knots();
+  const auto p = static_cast<std::size_t>(c.degree());
+  // Every point the search may evaluate lies in [u0 − δ, u1 + δ] (its steps reach tol =
+  // 1e-9 (u1 − u0) past its bracket; the samples round by a few ulp).
+  const double delta = 1e-6 * (u1 - u0) + 1e-12 * std::max(1.0, std::abs(u1));
+  const double lo = std::max(u0 - delta, c.u_begin()), hi = std::min(u1 + delta, c.u_end());
+  const auto span = [&](double u) {  // as NurbsCurve::find_span
+    const auto it = std::upper_bound(U.begin() + static_cast<std::ptrdiff_t>(p),
+                                     U.end() - static_cast<std::ptrdiff_t>(p) - 1, u);
+    return std::max(p, static_cast<std::size_t>(it - U.begin()) - 1);
+  };
+  double d2 = 0.0, e1 = 0.0, e2 = 0.0;
+  for (std::size_t s = span(lo), last = span(hi); s <= last; ++s) {
+    const double h = U[s + 1] - U[s];
+    if (!(h > 0.0)) continue;
+    // Rounding of eval(): |N'| ≤ 2p / h and |N''| ≤ 4p(p − 1) / h² on the span, p + 1 terms,
+    // each off by far less than 1e-12 of its size.
+    const double pp = static_cast<double>(p), terms = pp + 1.0;
+    e1 = std::max(e1, 1e-12 * terms * 2.0 * pp / h * bounds[s].p_max);
+    e2 = std::max(e2, 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * bounds[s].p_max);
+    d2 = std::max(d2, bounds[s].d2_max);
+  }
+  // |C'(u)| ≥ |C'(u0)| − max|C''| |u − u0| (C' is continuous), and κ = |C' × C''| / |C'|³ ≤
+  // |C''| / |C'|².
+  const double d1_min = speed_u0 - (d2 + e2) * (hi - u0 + delta) - 2.0 * e1;
+  if (!(d1_min > 0.0)) return false;
+  const double kappa = (d2 + e2) / (d1_min * d1_min) * (1.0 + 1e-9);
+  const auto& seg = path_.segments[segment];
+  double floor_mm_per_s =
+      std::min({chord_feed_mm_per_s(kappa, limits_.chord_tolerance_mm, limits_.period_s),
+                centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
+                centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3)});
+  if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_[segment]);
+  if (limits_.has_axis_limits()) {  // the axis laws at |t_i| ≤ 1 and |k_i| ≤ κ
+    const FeedLimitResult ax = axis_feed_limit(limits_, Vec3::Ones(), kappa * Vec3::Ones());
+    floor_mm_per_s = std::min(floor_mm_per_s, ax.feed_mm_per_s);
+  }
+  return floor_mm_per_s > segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
+}
+
+FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0, double u1,
+                                                    bool open_end) const {
+  // Five samples; the minimum lies within one sample step of the lowest of them (the limit is
+  // smooth over 0.05 mm), where Brent's method (parabolic steps, golden-section fallback)
+  // finds it in a few evaluations.
+  // open_end: u1 is a knot where the limit jumps; it is left out, since the curve evaluates
+  // there to the span that starts at it, whose limit belongs to the next interval.
+  constexpr int kSamples = 5;
+  if (open_end) u1 = std::max(u0, std::nextafter(u1, -kInf));
+  const double step = (u1 - u0) / (kSamples - 1);
+  FeedLimitResult best{std::numeric_limits<double>::infinity(), FeedLimit::MaxFeed};
+  int at = 0;
+  double f_at = kInf;  // the limit at the lowest sample
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  double speed_lo = kInf, speed_hi = 0.0;
+  int slow = 0;
+  for (int i = 0; i < kSamples; ++i) {
+    const FeedLimitResult f = limit_on_curve(segment, u0 + step * i);
+    if (f.feed_mm_per_s < best.feed_mm_per_s) best = f, at = i, f_at = f.feed_mm_per_s;
+    const double speed = c.derivative(u0 + step * i).norm();
+    if (speed < speed_lo) speed_lo = speed, slow = i;
+    speed_hi = std::max(speed_hi, speed);
+  }
+  // A near-cusp inside a span: where the parametric speed |C'| dips, κ ≈ |C''| / |C'|² peaks
+  // far more narrowly than the samples are spaced (a degree-5 curve of the random programs had
+  // κ = 11 000 /mm within 0.001 mm, between two samples, and its chord error reached 1.2 % over
+  // the tolerance). The dip of |C'| itself is broad: find its bottom (golden section) and take
+  // the limit there too.
+  if (speed_hi > 1.5 * speed_lo) {
+    const double bottom = golden_section_min(
+        [&c](double u) { return c.derivative(u).norm(); }, u0 + step * std::max(slow - 1, 0),
+        u0 + step * std::min(slow + 1, kSamples - 1), 1e-12 * (u1 - u0));
+    best = min_of(best, limit_on_curve(segment, bottom));
+  }
+  double a = u0 + step * std::max(at - 1, 0), b = u0 + step * std::min(at + 1, kSamples - 1);
+  const double tol = 1e-9 * (u1 - u0);
+  constexpr double kGolden = 0.3819660112501051;
+  double x = u0 + step * at, w = x, v = x, e = 0.0, d = 0.0;
+  // Brent starts from the lowest sample's own value: the bottom of a dip of |C'| above may
+  // have lowered `best` below it, and a start below f(x) kept Brent at x (a minimum inside
+  // [a, b] was then missed by up to 0.04 %: LimitSamplerInterval.RandomBSplines, seed 134).
+  double fx = f_at, fw = fx, fv = fx;
+  for (int it = 0; it < 60; ++it) {
+    const double xm = 0.5 * (a + b);
+    if (std::abs(x - xm) <= 2.0 * tol - 0.5 * (b - a)) break;
+    bool golden = true;
+    if (std::abs(e) > tol) {  // parabola through x, w, v
+      const double r = (x - w) * (fx - fv);
+      double q = (x - v) * (fx - fw);
+      double p = (x - v) * q - (x - w) * r;
+      q = 2.0 * (q - r);
+      if (q > 0.0) p = -p;
+      q = std::abs(q);
+      if (std::abs(p) < std::abs(0.5 * q * e) && p > q * (a - x) && p < q * (b - x)) {
+        e = d;
+        d = p / q;
+        golden = false;
+      }
+    }
+    if (golden) {
+      e = (x >= xm ? a : b) - x;
+      d = kGolden * e;
+    }
+    const double u = std::abs(d) >= tol ? x + d : x + (d > 0.0 ? tol : -tol);
+    const FeedLimitResult fu_r = limit_on_curve(segment, u);
+    best = min_of(best, fu_r);
+    const double fu = fu_r.feed_mm_per_s;
+    if (fu <= fx) {
+      (u >= x ? a : b) = x;
+      v = w, fv = fw, w = x, fw = fx, x = u, fx = fu;
+    } else {
+      (u < x ? a : b) = u;
+      if (fu <= fw || w == x) {
+        v = w, fv = fw, w = u, fw = fu;
+      } else if (fu <= fv || v == x || v == w) {
+        v = u, fv = fu;
+      }
+    }
+  }
+  return best;
+}
+
+double LimitSampler::jump_share(double phi, double dk, double v_corner) const {
+  if (limits_.jerk_bound != JerkBound::vector) return 0.0;
+  const double v = std::min(v_corner, limits_.max_feed_mm_per_min / 60.0);
+  const double j = jump_jerk_mm_per_s3(limits_, phi < kMinTurnRad ? 0.0 : phi, dk, v);
+  return std::min(kJumpJerkShare, j / limits_.max_jerk_mm_per_s3);
+}
+
+// JerkBound::vector (docs/planner.md §3c): the largest curvature κ and curvature turn
+// g = |κ' N + κ τ B| on [u0, u1], from nine points: κ from the curvature vector k = κ N, g
+// from the part of Δk / Δs normal to the mid tangent between neighbours (on a circle Δk
+// points along the tangent, so g is 0 to second order). 5 % margin for what lies between.
+void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const {
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  constexpr int kPoints = 9;
+  constexpr double kMinArcMm = 0.02;  // a sliver is sampled over this much of its knot span
+  // The knot span that holds the interval (intervals end at breakpoints).
+  const std::vector<double>& bp = breakpoints_[segment];
+  const auto it = std::upper_bound(bp.begin(), bp.end(), u0);
+  const double span_lo = it == bp.begin() ? c.u_begin() : *(it - 1);
+  const double span_hi = it == bp.end() ? c.u_end() : *it;
+  const auto below = [&](double u) {  // the span's side of a knot
+    return u < c.u_end() ? std::max(span_lo, std::nextafter(u, -kInf)) : u;
+  };
+  double lo = u0, hi = below(std::min(u1, span_hi));
+  const double speed = c.derivative(u0).norm();
+  if (speed > 0.0 && (hi - lo) * speed < kMinArcMm) {
+    // Never onto a span end where the curve rests (a repeated control point: |C'| = 0, and κ
+    // grows without bound towards it): the intervals that halve towards it keep their own.
+    const auto rests = [&c](double u) { return speed_vanishes(c, c.derivative(u)); };
+    const double mid = 0.5 * (lo + hi), half = 0.5 * kMinArcMm / speed;
+    lo = std::max(rests(span_lo) ? u0 : span_lo, mid - half);
+    hi = below(std::min(rests(span_hi) ? std::min(u1, span_hi) : span_hi, mid + half));
+  }
+  double kappa = 0.0, turn = 0.0;
+  toolpath::CurvePoint prev = c.eval(lo);
+  Vec3 k_prev = curvature_vector_per_mm(prev);
+  kappa = k_prev.norm();
+  double u_prev = lo;
+  for (int i = 1; i < kPoints; ++i) {
+    const double u = i + 1 == kPoints ? hi : lo + (hi - lo) * i / (kPoints - 1);
+    const toolpath::CurvePoint p = c.eval(u);
+    const Vec3 k = curvature_vector_per_mm(p);
+    kappa = std::max(kappa, k.norm());
+    const double ds = 0.5 * (prev.d1.norm() + p.d1.norm()) * (u - u_prev);
+    const Vec3 t = unit_or_zero(unit_or_zero(prev.d1) + unit_or_zero(p.d1));
+    const Vec3 dk = k - k_prev;
+    if (ds > 0.0) turn = std::max(turn, (dk - dk.dot(t) * t).norm() / ds);
+    prev = p;
+    k_prev = k;
+    u_prev = u;
+  }
+  iv.kappa_per_mm = 1.05 * kappa;
+  iv.turn_per_mm2 = 1.05 * turn;
+}
+
+// JerkBound::vector: the interval's speed so that the tangential scale it asks for is at least
+// kMinTangentialScale times its budget (jerk_vector_feed_mm_per_s), the budget being what a
+// jump nearby leaves. An interval raised to the rest speed keeps it (as it keeps it against the
+// curve laws).
+void LimitSampler::bound_jerk_vector(Interval& iv) const {
+  if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return;
+  const double budget = 1.0 - iv.jump_share;
+  const double v = jerk_vector_feed_mm_per_s(limits_, iv.kappa_per_mm, iv.turn_per_mm2, budget);
+  if (v < iv.v_mm_per_s) {
+    iv.v_mm_per_s = v;
+    iv.limit = FeedLimit::JerkVector;
+  }
+}
+
+// Per-axis limits (docs/planner.md §3f): the largest |t_i| of a curve interval from its tangent
+// at both ends and the middle, plus θ²/2 for the angle θ the tangent turns between neighbouring
+// samples (a component of a unit vector turning smoothly by θ along a great circle exceeds the
+// larger of its end values by at most θ²/8: four times that, measured, not proven); 1 on an
+// axis where a sample has no tangent (|C'| = 0: a repeated control point).
+void LimitSampler::curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1,
+                                     Interval& iv) const {
+  const double u_end = u1 < c.u_end() ? std::max(u0, std::nextafter(u1, -kInf)) : u1;
+  const Vec3 t[3] = {unit_or_zero(c.derivative(u0)), unit_or_zero(c.derivative(0.5 * (u0 + u_end))),
+                     unit_or_zero(c.derivative(u_end))};
+  iv.bends = c.degree() >= 2;
+  if (t[0].isZero() || t[1].isZero() || t[2].isZero()) {
+    iv.tangent_max = Vec3::Ones();
+    return;
+  }
+  const auto angle = [](const Vec3& a, const Vec3& b) {
+    return std::atan2(a.cross(b).norm(), a.dot(b));
+  };
+  const double turn = std::max(angle(t[0], t[1]), angle(t[1], t[2]));
+  const double margin = 0.5 * turn * turn + 1e-9;
+  const Vec3 hi = t[0].cwiseAbs().cwiseMax(t[1].cwiseAbs()).cwiseMax(t[2].cwiseAbs());
+  iv.tangent_max = (hi + Vec3::Constant(margin)).cwiseMin(1.0);
+}
+
+// Per-axis limits: the interval's speed at most min_i vmax_i / max|t_i| (its sampled largest
+// tangent components; also where the rest refinement raised it).
+void LimitSampler::axis_bound(Interval& iv) const {
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double ti = iv.tangent_max[static_cast<int>(i)];
+    if (!(ti > 0.0)) continue;
+    const double v = limits_.axes[i].max_feed_mm_per_min / 60.0 / ti;
+    if (v < iv.v_mm_per_s) {
+      iv.v_mm_per_s = v;
+      iv.limit = FeedLimit::MaxFeed;
+    }
+  }
+}
+
+JerkVectorSpan LimitSampler::jerk_span_of(const Interval& iv) const {
+  if (limits_.jerk_bound != JerkBound::vector || iv.rest_speed) return {};
+  return {iv.kappa_per_mm, iv.turn_per_mm2, 1.0 - iv.jump_share};
+}
+
+}  // namespace ncd::interpolator
