@@ -102,10 +102,10 @@ void Session::watch_hold() {
            "the controller has held the link for more than " +
                fixed(s_.xoff_timeout_s + explained_s, 1) + " s at block " +
                std::to_string(resume_point() + 1) +
-               (explained_s > 0.0 ? " (" + fixed(s_.xoff_timeout_s, 1) + " s plus " +
-                                        fixed(explained_s, 1) +
-                                        " s for the tool change or dwell it was sent)"
-                                  : std::string()) +
+               (explained_s > 0.0
+                    ? " (" + fixed(s_.xoff_timeout_s, 1) + " s plus " + fixed(explained_s, 1) +
+                          " s for the tool change or dwell it was sent)"
+                    : std::string()) +
                "; waiting");
     }
   }

@@ -492,11 +492,10 @@ void Session::finish() {
   if (!xon_) end_xoff();
   report_.duration_s = now_s();
   report_.bytes_in_flight = report_.completed ? 0 : bytes_in_flight();
-  report_.link_use =
-      report_.duration_s > 0.0
-          ? static_cast<double>(report_.bytes_written - report_.bytes_in_flight) /
-                (report_.duration_s * cps_)
-          : 0.0;
+  report_.link_use = report_.duration_s > 0.0
+                         ? static_cast<double>(report_.bytes_written - report_.bytes_in_flight) /
+                               (report_.duration_s * cps_)
+                         : 0.0;
   if (report_.link_use > 1.0) {
     report_.notes.push_back("the link carried more than its nominal " + fixed(cps_, 0) +
                             " characters/s: the port ignores the baud rate (USB or virtual)");

@@ -249,7 +249,8 @@ class Session {
   std::int64_t noise_events_ = 0;
   bool xon_ = true;
   bool heard_ = false;
-  bool draining_ = false;  // drip: stopping, only the block begun is finished  // a byte came from the controller (or CTS was seen asserted)
+  bool draining_ = false;  // drip: stopping, only the block begun is finished  // a byte came from
+                           // the controller (or CTS was seen asserted)
   // Blocks that make the controller wait, written lately: bytes_written after them, their wait.
   struct WaitMark {
     std::int64_t at_byte = 0;
