@@ -265,10 +265,13 @@ bool Session::step() {
            std::string("the ending was ") +
                (status_known() ? "executed (the controller is idle)" : "queued"));
     } else if (end_.step == Ending::None) {
-      if (!heard_) wait_for_a_word();
+      // Only a transfer from the start: a controller resumed or restarted mid-program (a
+      // journal, --restart-from) is already in receive mode and owes no new DC1.
+      const bool from_start = report_.first_block == 0 && s_.preamble.empty();
+      if (!heard_ && from_start) wait_for_a_word();
       if (over()) return false;
       report_.completed = true;
-      report_.controller_silent = !heard_;
+      report_.controller_silent = !heard_ && from_start;
     }
     return false;
   }
