@@ -15,6 +15,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -45,6 +46,7 @@ struct StreamArgs {
   int max_queued_chars = 16;
   int rx_buffer_bytes = 128;
   double xoff_timeout_s = 5.0;
+  double tool_change_s = 30.0;
   double reconnect_max_s = 30.0;
   bool resume = false, restart = false, no_journal = false, quiet = false;
   long restart_from = 0;  // 1-based block; 0: none
@@ -83,22 +85,68 @@ std::string restart_flag(std::int64_t first) {
   return first <= 0 ? "--restart" : "--restart-from " + std::to_string(first + 1);
 }
 
+// This command as it was typed (/proc/self/cmdline), without the flags that choose where a
+// transfer starts (--resume, --restart, --restart-from N, --controller-skips-repeated-n,
+// --unlock), each argument quoted for the shell where it needs it.
+std::string command_without_start_flags() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::vector<std::string> args;
+  for (std::string a; std::getline(in, a, '\0');) args.push_back(a);
+  if (args.empty()) args = {"ncd", "stream"};
+  std::string out;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--resume" || a == "--restart" || a == "--controller-skips-repeated-n" ||
+        a == "--unlock" || a.rfind("--restart-from=", 0) == 0) {
+      continue;
+    }
+    if (a == "--restart-from") {
+      ++i;  // and its number
+      continue;
+    }
+    const bool plain = !a.empty() && a.find_first_not_of(
+                                         "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLM"
+                                         "NOPQRSTUVWXYZ0123456789_./=:,+-@%") == std::string::npos;
+    std::string quoted = "'";
+    for (char c : a) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    out += (out.empty() ? "" : " ") + (plain ? a : quoted + "'");
+  }
+  return out;
+}
+
+// The advice's flags after "plus: ", and on the next line the whole command to run.
+std::string plus(const std::string& flags) {
+  return "plus: " + flags + "\nrun: " + command_without_start_flags() + " " + flags;
+}
+
 // What to do after a job that did not complete: why, what to check, and the flags to add to the
-// same command after "plus: ".
+// same command after "plus: ", then the command itself after "run: " on the next line.
 std::string next_step(const comms::SenderReport& r, bool ack, bool skips_repeated_n, bool journal,
                       std::int64_t program_blocks) {
   const std::int64_t first = r.blocks_confirmed;
   if (first >= program_blocks) return "every block has run: nothing is left to send";
   if (!ack) {
     if (skips_repeated_n && journal) {
-      return "check the machine, then send the rest with the same port settings plus: --resume "
-             "--controller-skips-repeated-n";
+      return "check the machine, then send the rest with the same port settings " +
+             plus("--resume --controller-skips-repeated-n");
+    }
+    if (r.stopped && r.cut_block < 0 && r.interrupted == false) {
+      return "every block written reached the line: the controller has blocks up to " +
+             std::to_string(first) +
+             " and runs them, and nothing after; check the machine (it stops at the end of "
+             "block " +
+             std::to_string(first) + "), then send the rest with the same port settings " +
+             plus(restart_flag(first));
     }
     return "a drip-feed controller runs what it receives and says nothing: it may have run "
            "blocks up to " +
            std::to_string(first) + " (the first not sent is " + std::to_string(first + 1) +
-           "); check the machine for the first block it has not run, N, then send the rest "
-           "with the same port settings plus: --restart-from N";
+           "); check the machine: if it stopped earlier, use its first block not run instead of " +
+           std::to_string(first + 1) +
+           (r.cut_block >= 0 ? ", and clear its input first (it holds part of block " +
+                                   std::to_string(r.cut_block + 1) + ")"
+                             : std::string()) +
+           "; then send the rest with the same port settings " + plus(restart_flag(first));
   }
   const comms::HaltReport& h = r.halt;
   std::string s;
@@ -109,10 +157,11 @@ std::string next_step(const comms::SenderReport& r, bool ack, bool skips_repeate
     s += "fix block " + std::to_string(r.rejected_block + 1) + " (the controller refused it), ";
   }
   if (r.blocks_executed < 0) {
-    return s +
-           "check the machine for the first block it has not run, N (executed blocks are "
-           "not known without status reports), then send the rest with the same port "
-           "settings plus: --restart-from N";
+    return s + "check the machine: executed blocks are not known without status reports, and " +
+           std::to_string(first + 1) +
+           " is the first not queued; if it stopped earlier, use its first block not run "
+           "instead; then send the rest with the same port settings " +
+           plus(restart_flag(first));
   }
   const bool alarm = r.controller_state == "Alarm";
   if (alarm || r.position_may_be_lost) {
@@ -122,9 +171,8 @@ std::string next_step(const comms::SenderReport& r, bool ack, bool skips_repeate
   } else {
     s += "check the machine";
   }
-  return s +
-         ", then send the rest with the same port settings plus: " + (alarm ? "--unlock " : "") +
-         restart_flag(first);
+  return s + ", then send the rest with the same port settings " +
+         plus((alarm ? "--unlock " : "") + restart_flag(first));
 }
 
 // A grbl transfer that stopped without finishing (ncd was killed): grbl ran on through the
@@ -138,8 +186,11 @@ std::string advice_after_stop(const comms::SenderSettings& settings, const std::
                      "), and grbl ran on through the blocks it had queued, so --resume cannot be "
                      "used";
   const std::string fallback =
-      "; check the machine for the first block it has not run, N, then send the rest with the "
-      "same port settings plus: --restart-from N (or --restart to send it all again)";
+      "; check the machine: " + std::to_string(j.confirmed + 1) +
+      " is the journal's first block not known executed, and grbl may have run past it: if it "
+      "did, use its first block not run instead; then send the rest with the same port "
+      "settings " +
+      plus(restart_flag(j.confirmed));
   const comms::GrblProbe p = comms::probe_grbl(settings, 60.0);
   if (!p.spoke)
     return head + "; where grbl stands could not be read (" + p.failure + ")" + fallback;
@@ -164,16 +215,16 @@ std::string advice_after_stop(const comms::SenderSettings& settings, const std::
   const std::int64_t first = *m.first_not_done;
   if (first >= j.blocks) {
     return head + "; grbl is " + p.state + " at " + at +
-           ", the end of the last move: every "
-           "block has run (pass --restart to send it all again)";
+           ", the end of the last move: every block has run (to send it all again: " +
+           plus("--restart") + ")";
   }
   const bool alarm = p.state == "Alarm";
   return head + "; grbl is " + p.state + " at " + at + ", " +
          (m.at_end ? "the end of block " : "inside block ") + std::to_string(m.move + 1) +
          ", the only block sent that it lies on: check the machine" +
          (alarm ? " (grbl is in alarm, locked until $X: its position may be lost)" : "") +
-         ", then send the rest with the same port settings plus: " + (alarm ? "--unlock " : "") +
-         restart_flag(first);
+         ", then send the rest with the same port settings " +
+         plus((alarm ? "--unlock " : "") + restart_flag(first));
 }
 
 nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettings& line,
@@ -227,6 +278,10 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
       {"blocks_confirmed", r.blocks_confirmed},
       {"blocks_resent", r.blocks_resent},
       {"bytes_written", r.bytes_written},
+      {"bytes_in_flight", r.bytes_in_flight},
+      {"controller_silent", r.controller_silent},
+      {"cut_block", r.cut_block >= 0 ? nlohmann::json(r.cut_block + 1) : nlohmann::json(nullptr)},
+      {"holds_explained", r.holds_explained},
       {"program_bytes", r.program_bytes},
       {"program_sha256", r.program_sha256},
       {"duration_s", r.duration_s},
@@ -247,6 +302,7 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
 // The flags alone, before the program is read.
 void check_flags(const StreamArgs& a, const comms::LineSettings& line) {
   require_positive("--xoff-timeout (s)", a.xoff_timeout_s);
+  require_positive("--tool-change-s (s)", a.tool_change_s);
   require_positive("--reconnect-max (s)", a.reconnect_max_s);
   if (a.max_queued_chars < 1 || a.max_queued_chars > 4096) {
     throw InputError("--max-queued " + std::to_string(a.max_queued_chars) +
@@ -358,26 +414,32 @@ std::int64_t resume_block(const StreamArgs& a, const comms::LineSettings& line,
     probe.banner_wait_s = a.banner_wait_s;
     throw InputError(advice_after_stop(probe, a.program, previous, journal_path));
   }
+  // Without --controller-skips-repeated-n one advice, with or without --resume: the restart
+  // from the journal's block, which a drip controller cannot run twice.
+  const std::string restart_advice =
+      "check the machine: if it stopped before the end of block " +
+      std::to_string(previous.confirmed) + ", use its first block not run instead of " +
+      std::to_string(previous.confirmed + 1) + "; then send the rest with the same port settings " +
+      plus(restart_flag(previous.confirmed)) +
+      "\n(to send it all again: --restart; --resume only for a controller whose manual says it "
+      "discards repeated N numbers, with --controller-skips-repeated-n)";
   if (a.resume && !a.skips_repeated_n) {
-    throw InputError(
-        "--resume on a drip-feed link: the journal's block " +
-        std::to_string(previous.confirmed + 1) +
-        " is the first the controller surely lacks, but it may have received more, and it "
-        "would run them twice; pass --controller-skips-repeated-n if its manual says it "
-        "discards repeated N numbers, or check the machine and use --restart-from N");
+    throw InputError("--resume on a drip-feed link: the journal's block " +
+                     std::to_string(previous.confirmed + 1) +
+                     " is the first the controller surely lacks, but it may have received more, "
+                     "and it would run them twice; " +
+                     restart_advice);
   }
   if (!a.resume) {
-    throw InputError(
-        "a transfer of " + a.program + " stopped at block " +
-        std::to_string(previous.confirmed + 1) + " of " + std::to_string(previous.blocks) +
-        " (journal " + journal_path + "): " +
-        (a.skips_repeated_n
-             ? "pass --resume to continue there"
-             : "a drip-feed controller may have received blocks after it and runs a block it "
-               "receives twice, so pass --resume --controller-skips-repeated-n only if its "
-               "manual says it discards repeated N numbers, or check the machine and pass "
-               "--restart-from N") +
-        ", or --restart to send it all again");
+    throw InputError("a transfer of " + a.program + " stopped at block " +
+                     std::to_string(previous.confirmed + 1) + " of " +
+                     std::to_string(previous.blocks) + " (journal " + journal_path + "): " +
+                     (a.skips_repeated_n
+                          ? "check the machine, then continue there " +
+                                plus("--resume --controller-skips-repeated-n")
+                          : "a drip-feed controller may have received blocks after it and runs a "
+                            "block it receives twice; " +
+                                restart_advice));
   }
   if (previous.settings != comms::describe(line)) {
     std::cerr << "ncd stream: warning: the journal was written at " << previous.settings << ", now "
@@ -410,6 +472,7 @@ comms::SenderSettings sender_settings(const StreamArgs& a, const comms::LineSett
   settings.max_queued_chars = a.max_queued_chars;
   settings.rx_buffer_bytes = a.rx_buffer_bytes;
   settings.xoff_timeout_s = a.xoff_timeout_s;
+  settings.tool_change_s = a.tool_change_s;
   settings.reconnect_max_s = a.reconnect_max_s;
   settings.planner_blocks = a.planner_blocks;
   settings.status_hz = a.status_hz;
@@ -467,6 +530,20 @@ void print_transfer(const comms::SenderReport& r, const comms::ProgramSummary& p
             << " link losses, " << r.reconnects << " resumed, " << r.blocks_resent
             << " blocks resent, " << r.noise_bytes << " noise bytes ignored\n";
   for (const std::string& n : r.notes) std::cout << "note: " << n << "\n";
+}
+
+// Every block went out but nothing ever came back: exit 4 (docs/cmd-stream.md, "Nothing
+// answered").
+int warn_silent(const StreamArgs& a, const comms::SenderReport& r) {
+  const std::string w =
+      "WARNING: nothing ever answered on " + a.port +
+      (a.link.given.count("--port") == 0 ? " (" + a.port_from + ")" : std::string()) +
+      ": no DC1/DC3, no byte at all" +
+      "; check the cable and that the controller is in DNC/receive mode; the " +
+      std::to_string(r.blocks_sent) + " blocks sent may not have arrived (exit 4)";
+  std::cout << w << "\n";
+  std::cerr << "ncd stream: " << w << "\n";
+  return 4;
 }
 
 // A transfer that did not complete: where it stopped, why, and what to do next.
@@ -572,6 +649,7 @@ int run_stream(const StreamArgs& given) {
   print_transfer(r, program, ack);
   if (r.completed) {
     if (!journal_path.empty()) std::filesystem::remove(journal_path);
+    if (r.controller_silent) return warn_silent(a, r);
     return 0;
   }
   print_unfinished(a, r, ack, !journal_path.empty(), program.blocks);
@@ -587,7 +665,8 @@ void register_stream(CLI::App& app, Runner& run) {
       "Send an NC program to a controller over RS-232 DNC (drip feed with XON/XOFF or RTS/CTS, "
       "or grbl-type acknowledged streaming). Exits 0 once the controller has all of it, 3 if "
       "the transfer stopped, with what to do next (a restart from the first block not known "
-      "executed).");
+      "executed, as a command to run), 4 if every block went out but nothing ever answered on "
+      "the line.");
   c->add_option("program", a->program, "the NC program (one block per line)")->required();
   c->add_option("--port", a->port,
                 "serial device, e.g. /dev/ttyS0 or a sim-controller link (default: the machine "
@@ -602,6 +681,10 @@ void register_stream(CLI::App& app, Runner& run) {
       ->capture_default_str();
   c->add_option("--xoff-timeout", a->xoff_timeout_s,
                 "report a hold (XOFF or CTS low) longer than this, in s")
+      ->capture_default_str();
+  c->add_option("--tool-change-s", a->tool_change_s,
+                "the longest a tool change (M6) holds the line, s: a hold while one may run is "
+                "allowed this on top of --xoff-timeout")
       ->capture_default_str();
   c->add_option("--reconnect-max", a->reconnect_max_s,
                 "keep reopening a lost port for this long, in s")

@@ -3,6 +3,7 @@
 // The algorithm: the top of dnc_sender.cpp.
 #include "link/dnc_session.hpp"
 
+#include "link/serial_link.hpp"
 #include "link/transfer_journal.hpp"
 
 namespace ncd::comms::dnc_detail {
@@ -48,7 +49,24 @@ void Session::end_xoff() {
     emit(SenderEvent::Kind::XoffEnd, resume_point(),
          "the controller released the hold (DC1) after " + fixed(held, 1) + " s");
     xoff_reported_ = false;
+  } else if (held > s_.xoff_timeout_s) {
+    ++report_.holds_explained;
+    emit(SenderEvent::Kind::XoffEnd, resume_point(),
+         "the controller released the hold (DC1) after " + fixed(held, 1) +
+             " s, within the wait of the tool change, dwell or stop it was sent");
   }
+}
+
+// The wait the program explains for a hold now: the waits of the blocks written within the
+// last wait_window_chars characters (a controller's buffer holds fewer), older ones dropped.
+double Session::explained_wait_s() {
+  const std::int64_t window = s_.wait_window_chars;
+  while (!waits_.empty() && report_.bytes_written - waits_.front().at_byte > window) {
+    waits_.pop_front();
+  }
+  double wait_s = 0.0;
+  for (const WaitMark& w : waits_) wait_s += w.wait_s;
+  return wait_s;
 }
 
 void Session::alarm(const std::string& text) {
@@ -63,6 +81,7 @@ void Session::watch_hold() {
   double since = xoff_since_s_;
   if (s_.line.flow == Flow::RtsCts) {
     const auto cts = link_->cts();
+    if (cts && *cts) heard_ = true;  // something on the other end drives CTS
     if (cts && !*cts) {
       if (!cts_low_) {
         cts_low_ = true;
@@ -75,11 +94,20 @@ void Session::watch_hold() {
     }
   }
   if (held && !xoff_reported_ && now - since > s_.xoff_timeout_s) {
-    xoff_reported_ = true;
-    ++report_.xoff_timeouts;
-    emit(SenderEvent::Kind::XoffLong, resume_point(),
-         "the controller has held the link for more than " + fixed(s_.xoff_timeout_s, 1) +
-             " s at block " + std::to_string(resume_point() + 1) + "; waiting");
+    const double explained_s = explained_wait_s();
+    if (now - since > s_.xoff_timeout_s + explained_s) {
+      xoff_reported_ = true;
+      ++report_.xoff_timeouts;
+      emit(SenderEvent::Kind::XoffLong, resume_point(),
+           "the controller has held the link for more than " +
+               fixed(s_.xoff_timeout_s + explained_s, 1) + " s at block " +
+               std::to_string(resume_point() + 1) +
+               (explained_s > 0.0
+                    ? " (" + fixed(s_.xoff_timeout_s, 1) + " s plus " + fixed(explained_s, 1) +
+                          " s for the tool change or dwell it was sent)"
+                    : std::string()) +
+               "; waiting");
+    }
   }
   set_hold(xoff_reported_ && held);
 }
@@ -94,6 +122,7 @@ void Session::write_drip() {
       std::max(report_.max_queued_estimate, static_cast<int>(std::ceil(ahead)));
   auto room = static_cast<std::int64_t>(std::floor(s_.max_queued_chars - ahead));
   while (room > 0) {
+    if (draining_ && cur_off_ == 0) return;  // a stop: only the block begun is finished
     if (sent_items_ == items_.size() && !pull()) return;
     Item& it = items_[sent_items_];
     if (cur_off_ == 0 && journal_ != nullptr && it.index >= 0) journal_->note_writing(it.index);
@@ -132,6 +161,39 @@ void Session::confirm_drip() {
     --sent_items_;
   }
   confirm_journal();
+}
+
+// A stop (drip): the block being written is finished and what was written is let reach the
+// line, within stop_drain_s, so that the controller holds whole blocks only and the first
+// block not sent is exact. A block that could not be finished (held by the controller) is
+// named: the controller holds part of it.
+void Session::drain_on_stop() {
+  if (!link_ || over()) return;
+  draining_ = true;
+  const double until = now_s() + s_.stop_drain_s;
+  try {
+    while (now_s() < until) {
+      read_input();
+      if (over()) return;
+      advance_model();
+      watch_hold();
+      write_drip();
+      confirm_drip();
+      if (cur_off_ == 0 && static_cast<double>(conn_written_) <= delivered()) break;
+      link_->wait(5, false);
+    }
+  } catch (const LinkError& e) {
+    report_.notes.push_back("the link failed while the block begun was finished: " +
+                            std::string(e.what()));
+  }
+  if (cur_off_ > 0 && sent_items_ < items_.size()) {
+    report_.cut_block = items_[sent_items_].index;
+    report_.notes.push_back(
+        "block " + std::to_string(report_.cut_block + 1) + " was cut after " +
+        std::to_string(cur_off_) + " of its " + std::to_string(items_[sent_items_].bytes.size()) +
+        " characters (the controller held the line): the controller holds part of it; clear "
+        "its input (reset) before sending again");
+  }
 }
 
 }  // namespace ncd::comms::dnc_detail

@@ -162,6 +162,7 @@ SenderReport Session::run(const std::atomic<bool>& stop) {
     if (halt || stop.load(std::memory_order_relaxed)) {
       report_.stopped = true;
       if (halt && ack_) halt_on_request();
+      if (!ack_) drain_on_stop();
       break;
     }
     if (!link_ && !reopen(stop)) break;
@@ -264,7 +265,13 @@ bool Session::step() {
            std::string("the ending was ") +
                (status_known() ? "executed (the controller is idle)" : "queued"));
     } else if (end_.step == Ending::None) {
+      // Only a transfer from the start: a controller resumed or restarted mid-program (a
+      // journal, --restart-from) is already in receive mode and owes no new DC1.
+      const bool from_start = report_.first_block == 0 && s_.preamble.empty();
+      if (!heard_ && from_start) wait_for_a_word();
+      if (over()) return false;
       report_.completed = true;
+      report_.controller_silent = !heard_ && from_start;
     }
     return false;
   }
@@ -291,6 +298,7 @@ void Session::read_input() {
   while (link_) {
     const std::size_t n = link_->read_some(buf, sizeof buf);
     if (n == 0) return;
+    heard_ = true;
     for (std::size_t i = 0; i < n; ++i) ack_ ? ack_byte(buf[i]) : drip_byte(buf[i]);
   }
 }
@@ -373,6 +381,7 @@ bool Session::pull() {
     it.geo = geo;
     it.n = n_word(text);
     it.spindle_on = spins(modal_.state());
+    it.wait_s = wait_of_block(text, s_.tool_change_s);
     items_.push_back(std::move(it));
     return true;
   }
@@ -380,6 +389,7 @@ bool Session::pull() {
 
 void Session::written(const Item& it) {
   motion_written_ = motion_written_ || it.geo.motion;
+  if (it.wait_s > 0.0) waits_.push_back({report_.bytes_written, it.wait_s});
   if (it.index >= 0 && it.index >= sent_high_) {
     sent_high_ = it.index + 1;
     ++report_.blocks_sent;
@@ -444,17 +454,55 @@ void Session::progress() {
   emit(SenderEvent::Kind::Progress, report_.blocks,
        std::to_string(report_.blocks) + " blocks taken, " + std::to_string(report_.bytes_written) +
            " bytes written, " +
-           fixed(100.0 * static_cast<double>(report_.bytes_written) / (now * cps_), 0) +
+           fixed(100.0 * static_cast<double>(report_.bytes_written - bytes_in_flight()) /
+                     (now * cps_),
+                 0) +
            " % of the line" + (xon_ ? "" : ", held by XOFF") +
            (ack_ && phase_ == Phase::Startup ? ", waiting for the controller to speak" : ""));
+}
+
+// drip, every block delivered and nothing heard yet: a DC1 may be in flight; wait for a byte
+// (or CTS asserted) up to silence_grace_s.
+void Session::wait_for_a_word() {
+  const double until = now_s() + s_.silence_grace_s;
+  try {
+    while (!heard_ && link_ && now_s() < until && !over()) {
+      link_->wait(20, false);
+      read_input();
+      if (s_.line.flow == Flow::RtsCts) {
+        const auto cts = link_->cts();
+        if (cts && *cts) heard_ = true;
+      }
+    }
+  } catch (const LinkError&) {  // the port went away after the last block: still nothing heard
+  }
+}
+
+// Written and not known to have left on the line (SenderReport::bytes_in_flight).
+std::int64_t Session::bytes_in_flight() const {
+  if (ack_) {
+    std::int64_t unwritten = 0;  // of a line begun: counted in unacked_bytes_, not written
+    if (cur_off_ > 0 && sent_items_ < items_.size()) {
+      unwritten = static_cast<std::int64_t>(items_[sent_items_].bytes.size() - cur_off_);
+    }
+    return std::max<std::int64_t>(0, unacked_bytes_ - unwritten);
+  }
+  const double ahead = static_cast<double>(conn_written_) - delivered();
+  return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(ahead)));
 }
 
 void Session::finish() {
   if (!xon_) end_xoff();
   report_.duration_s = now_s();
+  report_.bytes_in_flight = report_.completed ? 0 : bytes_in_flight();
   report_.link_use = report_.duration_s > 0.0
-                         ? static_cast<double>(report_.bytes_written) / (report_.duration_s * cps_)
+                         ? static_cast<double>(report_.bytes_written - report_.bytes_in_flight) /
+                               (report_.duration_s * cps_)
                          : 0.0;
+  if (report_.link_use > 1.0) {
+    report_.notes.push_back("the link carried more than its nominal " + fixed(cps_, 0) +
+                            " characters/s: the port ignores the baud rate (USB or virtual)");
+  }
   if (report_.completed && ack_ && status_known()) pop_done(queued_moves());
   report_.blocks_confirmed = report_.completed ? report_.blocks : first_unexecuted();
   if (end_.step == Ending::Sending || end_.step == Ending::NotNeeded) {

@@ -28,6 +28,18 @@ struct SenderSettings {
   int max_queued_chars = 16;    // drip: characters allowed ahead of the wire (stop distance)
   int rx_buffer_bytes = 128;    // ack: controller receive buffer (grbl 128, grblHAL 1024)
   double xoff_timeout_s = 5.0;  // a hold longer than this is reported (and holds the motion)
+  // A hold the program explains is allowed its wait on top of xoff_timeout_s: the blocks that
+  // make the controller wait (M6: tool_change_s; G4 P: its seconds; M0, M1, M60: the operator,
+  // no bound) among the last wait_window_chars characters written before the hold
+  // (docs/cmd-stream.md, "Holds the program explains").
+  double tool_change_s = 30.0;
+  int wait_window_chars = 1024;
+  // drip: on a stop, the block being written is finished and what was written is let reach the
+  // line (so the controller holds whole blocks only), for up to this long.
+  double stop_drain_s = 5.0;
+  // drip: when the transfer is over and not a byte came back, wait this long for one (a DC1 in
+  // flight) before reporting the controller silent.
+  double silence_grace_s = 1.0;
   // The clock the controller's holds (XOFF, CTS low) and the reconnect window are timed on;
   // null: the wall clock. A test whose simulated controller runs on a ManualClock gives it here,
   // so that a hold or an outage lasts as long for both ends however the machine's load delays
@@ -191,8 +203,21 @@ struct SenderReport {
   std::int64_t blocks_resent = 0;  // sent again after a lost link
   std::int64_t bytes_written = 0;  // everything written, framing and resends included
   std::int64_t program_bytes = 0;  // the blocks with their end of block, once each
+  // Written but not known to have left on the line when the transfer ended: drip, what the
+  // kernel's queue and the wire model say the line has not carried yet; ack, the lines not
+  // answered. 0 for a completed transfer.
+  std::int64_t bytes_in_flight = 0;
   double duration_s = 0.0;
-  double link_use = 0.0;  // bytes_written / (duration · line capacity)
+  // (bytes_written − bytes_in_flight) / (duration · line capacity): the share of the time the
+  // line carried ncd's bytes. Above 1 only on a port that ignores the baud rate (USB, virtual);
+  // a note then says so.
+  double link_use = 0.0;
+  // Not a byte came back from the controller during the whole transfer (no DC1/DC3, no reply,
+  // and with RTS/CTS the CTS line never seen asserted): the blocks may not have arrived.
+  bool controller_silent = false;
+  // drip: a stop cut a block and could not finish it: the controller holds part of it.
+  std::int64_t cut_block = -1;
+  int holds_explained = 0;  // holds longer than xoff_timeout_s within their explained wait
   int xoff_count = 0;
   double xoff_total_s = 0.0;    // on SenderSettings::hold_clock
   double xoff_longest_s = 0.0;  // on SenderSettings::hold_clock

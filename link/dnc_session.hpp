@@ -63,6 +63,7 @@ struct Item {
   BlockMotion geo;                // what the block does
   std::optional<long> n;          // its N
   bool spindle_on = false;        // the program's spindle turns (M3/M4 at S > 0) after it
+  double wait_s = 0.0;            // the controller waits this long for it (wait_of_block)
 };
 
 inline double dist(const Vec3& a, const Vec3& b) {
@@ -134,8 +135,12 @@ class Session {
   void end_xoff();
   void alarm(const std::string& text);
   void watch_hold();
+  double explained_wait_s();
   void write_drip();
   void confirm_drip();
+  void drain_on_stop();
+  void wait_for_a_word();
+  std::int64_t bytes_in_flight() const;
 
   // dnc_ack.cpp: acknowledged streaming (grbl): lines, answers, status tracking
   void ack_byte(char c);
@@ -243,6 +248,15 @@ class Session {
   std::int64_t underruns_ = 0;
   std::int64_t noise_events_ = 0;
   bool xon_ = true;
+  bool heard_ = false;
+  bool draining_ = false;  // drip: stopping, only the block begun is finished  // a byte came from
+                           // the controller (or CTS was seen asserted)
+  // Blocks that make the controller wait, written lately: bytes_written after them, their wait.
+  struct WaitMark {
+    std::int64_t at_byte = 0;
+    double wait_s = 0.0;
+  };
+  std::deque<WaitMark> waits_;
   double xoff_since_s_ = 0.0;
   bool xoff_reported_ = false;
   bool cts_low_ = false;
