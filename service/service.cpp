@@ -56,6 +56,7 @@
 #include "service/service.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <mutex>
@@ -118,6 +119,8 @@ const char* to_string(EventKind k) {
       return "link";
     case EventKind::Violation:
       return "violation";
+    case EventKind::Override:
+      return "override";
   }
   return "state";
 }
@@ -249,6 +252,8 @@ void Service::emit(EventKind kind, const std::string& text, double value, double
   e.state = state_;
   e.holder = holder_;
   e.job_t_s = last_.t_s;
+  e.time_unix_s =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   e.value = value;
   e.limit = limit;
   e.count = count;
@@ -378,7 +383,9 @@ void Service::set_override(double percent) {
   }
   cycle_->set_override(percent / 100.0);
   if (limits_) limits_->set_override(percent / 100.0);
+  const double previous = override_percent_;
   override_percent_ = percent;
+  emit(EventKind::Override, "override " + text::sig(percent) + " %", percent, previous);
 }
 
 void Service::shutdown(const std::string& why) {

@@ -57,10 +57,19 @@ function showEvent(e) {
   const li = document.createElement('li');
   li.className = 'event ' + (e.kind || '');
   const holder = e.holder && e.holder !== 'none' ? ' by the ' + e.holder : '';
-  li.textContent = `${fixed(e.job_t_s, 3)} s · ${e.kind} · ${e.state}${holder} · ${e.text || ''}`;
+  li.textContent = `${eventTime(e)} · ${e.kind} · ${e.state}${holder} · ${e.text || ''}`;
   const list = $('events');
   list.insertBefore(li, list.firstChild);
   while (list.children.length > kEventsShown) list.removeChild(list.lastChild);
+}
+
+// "12:03:41 · 4.216 s": the wall clock of the event (the browser's time zone) and the job's
+// motion time; the motion time only once a job has started (none for idle, ready).
+function eventTime(e) {
+  const wall = typeof e.time_unix_s === 'number'
+    ? new Date(e.time_unix_s * 1000).toLocaleTimeString('en-GB', { hour12: false }) : '-';
+  if (e.state === 'idle' || e.state === 'ready') return wall;
+  return `${wall} · ${fixed(e.job_t_s, 3)} s`;
 }
 
 function setConn(text, ok) {

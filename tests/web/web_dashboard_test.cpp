@@ -23,7 +23,10 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
+#include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <regex>
 #include <thread>
 #include <vector>
@@ -781,6 +784,127 @@ TEST_F(WebDashboard, BrowserLinkPanelShowsTheSocketsLiveCounters) {
   std::cout << "[ measured ] link under the hold: " << k.dump() << "\n";
   page.click("#stop");
   ASSERT_TRUE(page.wait_text("state", "stopped", 60.0)) << page.text("message") << slurp(err_);
+}
+
+// A page of a wall-clock `ncd serve` in headless Chromium (dashboard tests of issue 33): the
+// service, chromedriver and the page, or a skip when no browser is installed.
+class BrowserPage : public WebDashboard {
+ protected:
+  void SetUp() override {
+    WebDashboard::SetUp();
+    chromium_ = find_program({"chromium", "chromium-browser", "google-chrome"});
+    driver_ = find_program({"chromedriver"});
+    if (chromium_.empty() || driver_.empty()) {
+      GTEST_SKIP() << "headless browser test skipped: chromium and chromedriver are not on PATH "
+                      "(apt-get install chromium chromium-driver)";
+    }
+  }
+  // Starts the service (wall clock, 20 status snapshots a second) and opens its page.
+  WebDriver& open(const std::string& extra = "") {
+    port_ = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n", extra, "wall");
+    if (port_ == 0) throw std::runtime_error("the dashboard did not start");
+    const std::uint16_t driver_port = free_port();
+    chromedriver_.emplace(
+        std::vector<std::string>{driver_, "--port=" + std::to_string(driver_port)},
+        (dir_ / "driver.out").string(), (dir_ / "driver.err").string());
+    page_.emplace(driver_port, chromium_, (dir_ / "profile").string());
+    page_->go("http://127.0.0.1:" + std::to_string(port_) + "/");
+    EXPECT_TRUE(page_->wait_text("conn", "connected")) << page_->text("conn");
+    return *page_;
+  }
+  void TearDown() override {
+    page_.reset();  // its session's DELETE quits the browser, then chromedriver is killed
+    chromedriver_.reset();
+    WebDashboard::TearDown();
+  }
+  // Waits up to timeout_s for `pred` on the page's element `id` (its text).
+  bool wait_for(const std::string& id, const std::function<bool(const std::string&)>& pred,
+                double timeout_s = 30.0) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      if (pred(page_->text(id))) return true;
+      std::this_thread::sleep_for(50ms);
+    }
+    return false;
+  }
+  std::string chromium_, driver_;
+  std::uint16_t port_ = 0;
+  std::optional<ncd::test::Process> chromedriver_;
+  std::optional<WebDriver> page_;
+};
+
+double unix_now_s() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// HH:MM:SS of a Unix time in the local time zone (the browser's: the same TZ as this process).
+std::string clock_text(double unix_s) {
+  const std::time_t t = static_cast<std::time_t>(std::floor(unix_s));
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char out[16];
+  std::strftime(out, sizeof out, "%H:%M:%S", &tm);
+  return out;
+}
+
+// Issue 33, "Event times all read 0.000 s": events during a job carry the motion time of the
+// last setpoint (the hold's lies between the socket's t_s read just before and just after it),
+// every event the wall clock (between the test's clock before and after), and the page lists
+// both as "HH:MM:SS · t s"; the events before the first period (submitted) show the clock only.
+TEST_F(BrowserPage, EventsShowTheirWallClockAndMotionTimes) {
+  WebDriver& page = open();
+  WsClient ws(port_);  // an independent reader of the same events
+  const std::string program = write("slow.ngc", kProgram);
+  const double submit_unix_s = unix_now_s();
+  page.type("#program-file", program);
+  page.click("#submit-file");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message");
+  SocketClient sock(socket_);
+  json s;
+  for (int i = 0; i < 400; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["position"][0].get<double>() > 5.0) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  const double t_before_s = sock.request({{"cmd", "status"}})["t_s"].get<double>();
+  const double hold_unix_s = unix_now_s();
+  page.click("#hold");
+  ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
+  const double t_after_s = sock.request({{"cmd", "status"}})["t_s"].get<double>();
+  const double after_unix_s = unix_now_s();
+  json hold;
+  for (int i = 0; i < 200 && hold.is_null(); ++i) {
+    ws.next(0.1);
+    for (const json& e : ws.events) {
+      if (e["kind"] == "state" && e["state"] == "holding") hold = e;
+    }
+  }
+  ASSERT_FALSE(hold.is_null()) << json(ws.events).dump(1);
+  const double hold_t_s = hold["job_t_s"].get<double>();
+  EXPECT_GT(hold_t_s, 0.5) << hold.dump();               // 5 mm at 5 mm/s and the plunge before
+  EXPECT_GE(hold_t_s, t_before_s - 0.1) << hold.dump();  // a poll's drain behind the cycle
+  EXPECT_LE(hold_t_s, t_after_s) << hold.dump();
+  EXPECT_GE(hold["time_unix_s"].get<double>(), hold_unix_s - 1e-3) << hold.dump();
+  EXPECT_LE(hold["time_unix_s"].get<double>(), after_unix_s + 1e-3) << hold.dump();
+  char want[64];
+  std::snprintf(want, sizeof want, "%s · %.3f s · state · holding by the operator",
+                clock_text(hold["time_unix_s"].get<double>()).c_str(), hold_t_s);
+  EXPECT_TRUE(wait_for("events", [&](const std::string& t) { return t.find(want) == 0; }))
+      << "want " << want << " first in: " << page.text("events");
+  // The submit: the clock only (no motion yet), within the test's clock.
+  const json first = page.script(
+      "return Array.from(document.querySelectorAll('#events li')).map((li) => li.textContent);");
+  ASSERT_TRUE(first.is_array() && !first.empty());
+  const std::string submitted = first.back().get<std::string>();
+  EXPECT_NE(submitted.find(" · state · ready · submitted"), std::string::npos) << submitted;
+  EXPECT_EQ(submitted.find(" s · "), std::string::npos) << submitted;  // no motion time
+  const std::string hhmmss = submitted.substr(0, 8);
+  EXPECT_TRUE(hhmmss >= clock_text(submit_unix_s) && hhmmss <= clock_text(after_unix_s))
+      << submitted;
+  page.click("#stop");
+  ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
 }
 
 }  // namespace
