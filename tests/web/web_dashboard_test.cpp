@@ -801,8 +801,14 @@ class BrowserPage : public WebDashboard {
   }
   // Starts the service (wall clock, 20 status snapshots a second) and opens its page.
   WebDriver& open(const std::string& extra = "") {
+    start_service(extra);
+    return open_page();
+  }
+  void start_service(const std::string& extra = "") {
     port_ = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n", extra, "wall");
     if (port_ == 0) throw std::runtime_error("the dashboard did not start");
+  }
+  WebDriver& open_page() {
     const std::uint16_t driver_port = free_port();
     chromedriver_.emplace(
         std::vector<std::string>{driver_, "--port=" + std::to_string(driver_port)},
@@ -905,6 +911,81 @@ TEST_F(BrowserPage, EventsShowTheirWallClockAndMotionTimes) {
       << submitted;
   page.click("#stop");
   ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
+}
+
+// The enabled controls of the page, as "id=0|1 …" in a fixed order.
+std::string enabled_controls(WebDriver& page) {
+  return page
+      .script(
+          "return ['cycle-start','start','hold','resume','stop','override-set','submit-file',"
+          "'submit-chamfer'].map((id) => id + '=' + (document.getElementById(id).disabled ? 0 : "
+          "1)).join(' ');")
+      .get<std::string>();
+}
+
+// Issue 33: "Every button is enabled in every state" and "the page shows override 150 % while
+// its slider shows 100". In each state the page enables only what the service takes, and the
+// slider follows the service's override: on load (a preset set over the socket before the page
+// opened), and while the job runs (set over the socket, not from the page).
+TEST_F(BrowserPage, ControlsFollowTheStateAndTheSliderTheServicesOverride) {
+  start_service();
+  // The preset goes in over the socket before the page exists.
+  SocketClient sock(socket_);
+  ASSERT_TRUE(sock.request({{"cmd", "override"}, {"percent", 150}}).value("ok", false));
+  WebDriver& page = open_page();
+  const auto slider = [&] {
+    return page.script("return document.getElementById('override-input').value;")
+        .get<std::string>();
+  };
+  const auto wait_enabled = [&](const std::string& want) {
+    for (int i = 0; i < 600 && enabled_controls(page) != want; ++i) {
+      std::this_thread::sleep_for(50ms);
+    }
+    return enabled_controls(page);
+  };
+  ASSERT_TRUE(page.wait_text("state", "idle"));
+  EXPECT_TRUE(page.wait_text("override", "150"));
+  EXPECT_TRUE(page.wait_text("override-value", "150"));
+  EXPECT_EQ(slider(), "150");
+  EXPECT_EQ(wait_enabled("cycle-start=0 start=0 hold=0 resume=0 stop=0 override-set=1 "
+                         "submit-file=1 submit-chamfer=1"),
+            "cycle-start=0 start=0 hold=0 resume=0 stop=0 override-set=1 submit-file=1 "
+            "submit-chamfer=1");
+  page.type("#program-file", write("slow.ngc", kProgram));
+  page.click("#submit-file");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  const std::string ready =
+      "cycle-start=1 start=1 hold=0 resume=0 stop=0 override-set=1 submit-file=1 "
+      "submit-chamfer=1";
+  EXPECT_EQ(wait_enabled(ready), ready);
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message");
+  const std::string running =
+      "cycle-start=0 start=0 hold=1 resume=0 stop=1 override-set=1 submit-file=0 "
+      "submit-chamfer=0";
+  EXPECT_EQ(wait_enabled(running), running);
+  // The preset was the job's: the socket and the page say 150.
+  EXPECT_EQ(sock.request({{"cmd", "status"}})["override_percent"], 150.0);
+  EXPECT_EQ(slider(), "150");
+  // An override set elsewhere (the socket) moves the page's slider.
+  ASSERT_TRUE(sock.request({{"cmd", "override"}, {"percent", 70}}).value("ok", false));
+  EXPECT_TRUE(page.wait_text("override-value", "70")) << page.text("override-value");
+  EXPECT_EQ(slider(), "70");
+  page.click("#hold");
+  ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
+  const std::string holding =
+      "cycle-start=1 start=0 hold=0 resume=1 stop=1 override-set=1 submit-file=0 "
+      "submit-chamfer=0";
+  EXPECT_EQ(wait_enabled(holding), holding);
+  page.click("#stop");
+  ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
+  const std::string stopped =
+      "cycle-start=0 start=0 hold=0 resume=0 stop=0 override-set=1 submit-file=1 "
+      "submit-chamfer=1";
+  EXPECT_EQ(wait_enabled(stopped), stopped);
+  // After the job the slider shows the next start's override: 100 (the preset was used).
+  EXPECT_TRUE(page.wait_text("override-value", "100")) << page.text("override-value");
+  EXPECT_EQ(slider(), "100");
 }
 
 }  // namespace
