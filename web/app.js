@@ -362,8 +362,11 @@ $('submit-file').onclick = async () => {
 $('chamfer').onsubmit = (event) => {
   event.preventDefault();
   const job = {};
-  for (const input of event.target.querySelectorAll('input')) {
-    if (input.value !== '') job[input.name] = Number(input.value);
+  // The chamfer job's request keys (docs/cmd-chamfer.md; api/intake.cpp chamfer_job): numbers,
+  // and edge and side as words.
+  for (const input of event.target.querySelectorAll('input, select')) {
+    if (input.value === '') continue;
+    job[input.name] = input.tagName === 'SELECT' ? input.value : Number(input.value);
   }
   request({ cmd: 'submit', job });
 };

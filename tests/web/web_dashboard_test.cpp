@@ -988,4 +988,58 @@ TEST_F(BrowserPage, ControlsFollowTheStateAndTheSliderTheServicesOverride) {
   EXPECT_EQ(slider(), "100");
 }
 
+// Issue 33: "The chamfer form lacks edge, side, tilt and eccentricity". The form sends them
+// under the chamfer job's request keys (api/intake.cpp, `ncd chamfer`'s names), with the
+// defaults of `ncd chamfer` when untouched; the service takes them (a tilt out of its range is
+// refused by the service naming the key's value, so the key reached it).
+TEST_F(BrowserPage, ChamferFormSendsEdgeSideTiltAndEccentricity) {
+  WebDriver& page = open();
+  ASSERT_TRUE(page.wait_text("state", "idle"));
+  page.script(
+      "window.sentRequests = []; const send = ws.send.bind(ws);"
+      "ws.send = (t) => { window.sentRequests.push(JSON.parse(t)); send(t); };");
+  const auto last_job = [&] {
+    const json sent = page.script("return window.sentRequests;");
+    return sent.empty() ? json() : sent.back().value("job", json());
+  };
+  page.script("document.querySelector('details').open = true;");
+  page.click("#submit-chamfer");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  json job = last_job();
+  EXPECT_EQ(job["edge"], "inner") << job.dump();
+  EXPECT_EQ(job["side"], "upper") << job.dump();
+  EXPECT_EQ(job["drill_tilt_deg"], 0.0) << job.dump();
+  EXPECT_EQ(job["drill_azimuth_deg"], 0.0) << job.dump();
+  EXPECT_EQ(job["eccentricity"], 0.0) << job.dump();
+  // Another edge, side, tilt and eccentricity from the form's own fields.
+  page.script(
+      "const f = document.getElementById('chamfer');"
+      "f.elements.edge.value = 'outer'; f.elements.side.value = 'lower';"
+      "f.elements.drill_tilt_deg.value = '10'; f.elements.drill_azimuth_deg.value = '90';"
+      "f.elements.eccentricity.value = '1.5';");
+  page.click("#submit-chamfer");
+  EXPECT_TRUE(wait_for("message", [](const std::string& t) { return t.rfind("submit:", 0) == 0; }));
+  job = last_job();
+  EXPECT_EQ(job["edge"], "outer") << job.dump();
+  EXPECT_EQ(job["side"], "lower") << job.dump();
+  EXPECT_EQ(job["drill_tilt_deg"], 10.0) << job.dump();
+  EXPECT_EQ(job["drill_azimuth_deg"], 90.0) << job.dump();
+  EXPECT_EQ(job["eccentricity"], 1.5) << job.dump();
+  SocketClient sock(socket_);
+  const json by_socket = sock.request({{"cmd", "submit"}, {"job", job}});
+  std::cout << "[ measured ] the form's job " << job.dump()
+            << " over the socket: " << by_socket.dump() << "; on the page: " << page.text("message")
+            << "\n";
+  EXPECT_EQ(page.text("message").rfind("submit: ok", 0) == 0, by_socket.value("ok", false))
+      << page.text("message") << " against " << by_socket.dump();
+  // A tilt outside [0, 90): the service's refusal, naming it, shown on the page.
+  page.script("document.getElementById('chamfer').elements.drill_tilt_deg.value = '95';");
+  page.script("document.getElementById('message').textContent = '';");
+  page.click("#submit-chamfer");
+  EXPECT_TRUE(wait_for("message", [](const std::string& t) { return !t.empty(); }));
+  EXPECT_EQ(page.text("message").rfind("submit: ", 0), 0u) << page.text("message");
+  EXPECT_NE(page.text("message").find("95"), std::string::npos) << page.text("message");
+  EXPECT_EQ(page.text("message").find("submit: ok"), std::string::npos) << page.text("message");
+}
+
 }  // namespace
