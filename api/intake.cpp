@@ -627,10 +627,15 @@ json to_json(const service::Event& e) {
          {"state", service::to_string(e.state)},
          {"holder", service::to_string(e.holder)},
          {"job_t_s", e.job_t_s},
+         {"time_unix_s", e.time_unix_s},
          {"text", std::string(e.message())}};
   if (e.kind == service::EventKind::Overrun) {
     j["overruns"] = e.count;
     j["late_wakeups"] = static_cast<std::int64_t>(e.value);
+  }
+  if (e.kind == service::EventKind::Override) {
+    j["percent"] = e.value;
+    j["previous_percent"] = e.limit;
   }
   if (e.kind == service::EventKind::Violation) {
     j["value"] = e.value;

@@ -30,6 +30,7 @@ enum class EventKind : std::uint8_t {
   Overrun,    // the cycle overran: count = overruns so far, value = late wake-ups so far
   Link,       // a sender event (port opened, lost, XOFF, …): text
   Violation,  // a live limit was exceeded: text names it, value = measured, limit = allowed
+  Override,   // the operator set the feed override: value = the new percent, limit = the old
 };
 const char* to_string(EventKind kind);
 
@@ -40,6 +41,7 @@ struct Event {
   State state = State::Idle;  // the state after the event
   HoldHolder holder = HoldHolder::None;
   double job_t_s = 0.0;          // the job's motion time at the event, s (0 before it starts)
+  double time_unix_s = 0.0;      // the wall clock at the event (system clock), s since 1970
   std::int64_t count = 0;        // Overrun: overruns so far
   double value = 0.0;            // Overrun: late wake-ups so far; Violation: the measured value
   double limit = 0.0;            // Violation: what the rule allows

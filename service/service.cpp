@@ -122,7 +122,7 @@ const std::string& Service::start() {
   held_time_left_s_.reset();
   setpoints_ = 0;
   accel_max_ = jerk_max_ = feed_max_ = 0.0;
-  override_percent_ = 100.0;
+  override_percent_ = preset_override_percent_;  // 100 % unless preset
   overruns_seen_ = 0;
   ending_ = {};
   append_pending_ = false;
@@ -137,8 +137,11 @@ const std::string& Service::start() {
   o.ring_capacity = options_.ring_capacity;
   o.own_thread = options_.cycle_thread;
   cycle_ = std::make_unique<motion::Cycle>(std::move(job), o);
+  cycle_->set_override(override_percent_ / 100.0);  // a preset: from the first period on
+  limits_->set_override(override_percent_ / 100.0);
   realtime_ = cycle_->start().message;
   log("job " + job_.name + " started; " + realtime_);
+  preset_override_percent_ = 100.0;  // used: the next job starts at 100 % unless preset again
   set_state(State::Running, HoldHolder::None, "started");
   emit(EventKind::Job,
        job_.restart ? "started " + job_.name + " from line " + std::to_string(job_.restart->line)
@@ -190,13 +193,26 @@ void Service::stop(const std::string& why) {
 }
 
 void Service::set_override(double percent) {
-  require_active("override");
   if (!(percent >= 0.0 && percent <= 200.0)) {
     throw InputError("override: \"percent\" = " + text::sig(percent) + " is outside 0..200 %");
   }
+  if (state_ == State::Streaming) {
+    throw InputError(
+        "override: the motion has ended and the controller is taking the last blocks; set it "
+        "again for the next job once this one has ended");
+  }
+  if (state_ != State::Running && state_ != State::Holding) {
+    const double previous = preset_override_percent_;
+    preset_override_percent_ = percent;
+    emit(EventKind::Override, "override " + text::sig(percent) + " % for the next start", percent,
+         previous);
+    return;
+  }
   cycle_->set_override(percent / 100.0);
   if (limits_) limits_->set_override(percent / 100.0);
+  const double previous = override_percent_;
   override_percent_ = percent;
+  emit(EventKind::Override, "override " + text::sig(percent) + " %", percent, previous);
 }
 
 void Service::shutdown(const std::string& why) {
@@ -515,7 +531,7 @@ Status Service::status() const {
     s.late_wakeups = c.late_wakeups;
     s.lateness_bins_ns = cycle_->lateness_bins();
   }
-  s.override_percent = override_percent_;
+  s.override_percent = busy() ? override_percent_ : preset_override_percent_;
   s.setpoints = setpoints_;
   s.accel_max_mm_per_s2 = accel_max_;
   s.jerk_max_mm_per_s3 = jerk_max_;

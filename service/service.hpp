@@ -190,7 +190,10 @@ class Service {
   // running, holding → a jerk-limited stop, then the ending (service.cpp), then stopped;
   // streaming on an ack link with status → the controller held and the ending sent now.
   void stop(const std::string& why);
-  void set_override(double percent);  // running, holding; 0..200
+  // 0..200 %. Running or holding: at once. Idle, ready, done, stopped, error: a preset that the
+  // next start() applies before the first period (without one a job starts at 100 %); the
+  // status shows it. Streaming (the motion is over): refused.
+  void set_override(double percent);
   // Stops any motion (a jerk-limited stop) and ends a streamed job safely, as stop() does; a
   // transfer already ending goes on to its end. poll() until !busy().
   void shutdown(const std::string& why);
@@ -274,6 +277,7 @@ class Service {
   motion::Setpoint last_{};
   double accel_max_ = 0.0, jerk_max_ = 0.0, feed_max_ = 0.0;
   double override_percent_ = 100.0;
+  double preset_override_percent_ = 100.0;  // for the next start (set_override while not moving)
   std::int64_t overruns_seen_ = 0;
   EndingStatus ending_;
   bool append_pending_ = false;  // the ending goes into the blocks after the planned stop

@@ -3,6 +3,7 @@
 // each subscriber's bounded ring (service/events.hpp). The service is explained at the top of
 // service.cpp.
 #include <algorithm>
+#include <chrono>
 #include <memory>
 #include <string>
 
@@ -58,6 +59,8 @@ const char* to_string(EventKind k) {
       return "link";
     case EventKind::Violation:
       return "violation";
+    case EventKind::Override:
+      return "override";
   }
   return "state";
 }
@@ -135,6 +138,8 @@ void Service::emit(EventKind kind, const std::string& text, double value, double
   e.state = state_;
   e.holder = holder_;
   e.job_t_s = last_.t_s;
+  e.time_unix_s =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   e.value = value;
   e.limit = limit;
   e.count = count;

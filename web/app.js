@@ -31,6 +31,7 @@ function connect() {
   };
   ws.onclose = () => {
     setConn('disconnected', false);
+    enableControls(null);
     while (pending.length) pending.shift()({ ok: false, error: 'the connection closed' });
     setTimeout(connect, 1000);
   };
@@ -57,10 +58,19 @@ function showEvent(e) {
   const li = document.createElement('li');
   li.className = 'event ' + (e.kind || '');
   const holder = e.holder && e.holder !== 'none' ? ' by the ' + e.holder : '';
-  li.textContent = `${fixed(e.job_t_s, 3)} s · ${e.kind} · ${e.state}${holder} · ${e.text || ''}`;
+  li.textContent = `${eventTime(e)} · ${e.kind} · ${e.state}${holder} · ${e.text || ''}`;
   const list = $('events');
   list.insertBefore(li, list.firstChild);
   while (list.children.length > kEventsShown) list.removeChild(list.lastChild);
+}
+
+// "12:03:41 · 4.216 s": the wall clock of the event (the browser's time zone) and the job's
+// motion time; the motion time only once a job has started (none for idle, ready).
+function eventTime(e) {
+  const wall = typeof e.time_unix_s === 'number'
+    ? new Date(e.time_unix_s * 1000).toLocaleTimeString('en-GB', { hour12: false }) : '-';
+  if (e.state === 'idle' || e.state === 'ready') return wall;
+  return `${wall} · ${fixed(e.job_t_s, 3)} s`;
 }
 
 function setConn(text, ok) {
@@ -110,6 +120,8 @@ function showStatus(s) {
       (s.binding_limit ? ' · binding: ' + s.binding_limit : '') + ')'
     : '';
   $('override').textContent = fixed(s.override_percent, 0);
+  showOverrideSlider(s.override_percent);
+  enableControls(s);
   $('progress').textContent = typeof s.progress === 'number' ? (100 * s.progress).toFixed(1) + ' %' : '-';
   $('progress-bar').value = s.progress || 0;
   $('time-left').textContent = typeof s.time_left_s === 'number' ? formatDuration(s.time_left_s) : '-';
@@ -134,6 +146,36 @@ function showStatus(s) {
   feedHistory.push({ t: now, feed: s.feed_mm_per_min || 0, limit });
   while (feedHistory.length && feedHistory[0].t < now - kFeedWindowS) feedHistory.shift();
   draw();
+}
+
+// The slider shows the service's override (every status, so also on load), except while the
+// operator moves it: until Set, or 10 s after the last move without Set (it then shows the
+// service's again).
+const kOverrideEditS = 10;
+let overrideEditing = false;
+let overrideEditTimer = null;
+function showOverrideSlider(percent) {
+  if (overrideEditing || typeof percent !== 'number') return;
+  $('override-input').value = String(percent);
+  $('override-value').textContent = fixed(percent, 0);
+}
+
+// Each control enabled only where the service takes it (docs/web-dashboard.md, "The controls").
+function enableControls(s) {
+  const state = s ? s.state : null;
+  const held = state === 'holding' && s.holder === 'operator';
+  const busy = state === 'running' || state === 'holding' || state === 'streaming';
+  const on = {
+    'start': state === 'ready',
+    'cycle-start': state === 'ready' || held,
+    'hold': state === 'running',
+    'resume': held,
+    'stop': state === 'running' || state === 'holding',
+    'submit-file': state !== null && !busy,
+    'submit-chamfer': state !== null && !busy,
+    'override-set': state !== null && state !== 'streaming',
+  };
+  for (const [id, enabled] of Object.entries(on)) $(id).disabled = !enabled;
 }
 
 // The feed's ceiling at the tool: the feed laws' limit there (the status's
@@ -298,8 +340,17 @@ $('cycle-start').onclick = () => {
   if (state === 'holding') request({ cmd: 'resume' });
   else request({ cmd: 'start' });
 };
-$('override-input').oninput = () => { $('override-value').textContent = $('override-input').value; };
-$('override-set').onclick = () => request({ cmd: 'override', percent: Number($('override-input').value) });
+$('override-input').oninput = () => {
+  overrideEditing = true;
+  clearTimeout(overrideEditTimer);
+  overrideEditTimer = setTimeout(() => { overrideEditing = false; }, kOverrideEditS * 1000);
+  $('override-value').textContent = $('override-input').value;
+};
+$('override-set').onclick = async () => {
+  await request({ cmd: 'override', percent: Number($('override-input').value) });
+  clearTimeout(overrideEditTimer);
+  overrideEditing = false;  // the next status shows what the service took
+};
 $('submit-file').onclick = async () => {
   const file = $('program-file').files[0];
   if (!file) {
@@ -311,10 +362,14 @@ $('submit-file').onclick = async () => {
 $('chamfer').onsubmit = (event) => {
   event.preventDefault();
   const job = {};
-  for (const input of event.target.querySelectorAll('input')) {
-    if (input.value !== '') job[input.name] = Number(input.value);
+  // The chamfer job's request keys (docs/cmd-chamfer.md; api/intake.cpp chamfer_job): numbers,
+  // and edge and side as words.
+  for (const input of event.target.querySelectorAll('input, select')) {
+    if (input.value === '') continue;
+    job[input.name] = input.tagName === 'SELECT' ? input.value : Number(input.value);
   }
   request({ cmd: 'submit', job });
 };
 
+enableControls(null);  // nothing is enabled before the first status
 connect();

@@ -168,7 +168,7 @@ TEST(ServiceStates, CommandsInTheWrongStateAreRefusedNamingIt) {
   refused([&] { s.hold(HoldHolder::Operator); }, "state idle");
   refused([&] { s.resume(HoldHolder::Operator); }, "state idle");
   refused([&] { s.stop("x"); }, "state idle");
-  refused([&] { s.set_override(50); }, "state idle");
+  refused([&] { s.set_override(250); }, "outside 0..200");  // a preset is checked too
   std::vector<motion::Setpoint> got;
   bool committed = false;
   s.submit(job_of(cubic(), got, committed));
@@ -470,4 +470,54 @@ TEST(ServiceStatus, OnTheSimulatedClockEveryWakeUpIsOnTime) {
   const service::Status st = s.status();
   EXPECT_EQ(st.lateness_bins_ns[0], static_cast<std::int64_t>(out.size()));
   EXPECT_EQ(total(st.lateness_bins_ns), st.lateness_bins_ns[0]);
+}
+
+// Issue 33: an override set before cycle start (idle, or with a job ready) is shown at once and
+// applies from the job's first period: the setpoints equal a motion::Job stepped here with the
+// same override set before its first step (and differ from the job at 100 %). It is used once:
+// the next job starts at 100 %.
+TEST(ServiceStates, AnOverridePresetBeforeStartAppliesFromTheFirstPeriod) {
+  service::Service s(simulated());
+  auto feed = s.subscribe(64);
+  s.set_override(40);  // idle, no job
+  EXPECT_EQ(s.state(), State::Idle);
+  EXPECT_EQ(s.status().override_percent, 40.0);
+  std::vector<motion::Setpoint> got;
+  bool committed = false;
+  s.submit(job_of(cubic(), got, committed));
+  s.set_override(50);  // ready: replaces the preset
+  EXPECT_EQ(s.status().override_percent, 50.0);
+  const std::vector<service::Event> events = drain(*feed);
+  std::vector<double> presets;
+  for (const service::Event& e : events) {
+    if (e.kind == EventKind::Override) presets.push_back(e.value);
+  }
+  EXPECT_EQ(presets, (std::vector<double>{40.0, 50.0}));
+  s.start();
+  EXPECT_EQ(s.status().override_percent, 50.0);
+  run_out(s);
+  ASSERT_EQ(s.state(), State::Done);
+  EXPECT_EQ(s.status().override_percent, 100.0);  // the next start's: the preset was used
+  motion::Job half(*cubic(), motion::JobConfig{});
+  ASSERT_TRUE(half.set_override(0.5));
+  std::vector<motion::Setpoint> want;
+  for (;;) {
+    half.prepare();
+    want.push_back(half.step());
+    if (want.back().done || want.size() > 1000000) break;
+  }
+  const std::vector<motion::Setpoint> full = reference(*cubic(), motion::JobConfig{});
+  ASSERT_EQ(got.size(), want.size());
+  EXPECT_GT(want.size(), full.size() + full.size() / 2);  // half the feed: far longer
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    ASSERT_EQ(got[k].p, want[k].p) << k;
+    ASSERT_EQ(got[k].v_mm_per_s, want[k].v_mm_per_s) << k;
+  }
+  // The next job, with no preset, runs at 100 %: the reference's setpoints.
+  std::vector<motion::Setpoint> again;
+  s.submit(job_of(cubic(), again, committed));
+  s.start();
+  run_out(s);
+  ASSERT_EQ(again.size(), full.size());
+  for (std::size_t k = 0; k < again.size(); ++k) ASSERT_EQ(again[k].p, full[k].p) << k;
 }

@@ -23,7 +23,10 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
+#include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <regex>
 #include <thread>
 #include <vector>
@@ -781,6 +784,262 @@ TEST_F(WebDashboard, BrowserLinkPanelShowsTheSocketsLiveCounters) {
   std::cout << "[ measured ] link under the hold: " << k.dump() << "\n";
   page.click("#stop");
   ASSERT_TRUE(page.wait_text("state", "stopped", 60.0)) << page.text("message") << slurp(err_);
+}
+
+// A page of a wall-clock `ncd serve` in headless Chromium (dashboard tests of issue 33): the
+// service, chromedriver and the page, or a skip when no browser is installed.
+class BrowserPage : public WebDashboard {
+ protected:
+  void SetUp() override {
+    WebDashboard::SetUp();
+    chromium_ = find_program({"chromium", "chromium-browser", "google-chrome"});
+    driver_ = find_program({"chromedriver"});
+    if (chromium_.empty() || driver_.empty()) {
+      GTEST_SKIP() << "headless browser test skipped: chromium and chromedriver are not on PATH "
+                      "(apt-get install chromium chromium-driver)";
+    }
+  }
+  // Starts the service (wall clock, 20 status snapshots a second) and opens its page.
+  WebDriver& open(const std::string& extra = "") {
+    start_service(extra);
+    return open_page();
+  }
+  void start_service(const std::string& extra = "") {
+    port_ = launch("listen = \"tcp:127.0.0.1:0\"\nstatus_hz = 20\n", extra, "wall");
+    if (port_ == 0) throw std::runtime_error("the dashboard did not start");
+  }
+  WebDriver& open_page() {
+    const std::uint16_t driver_port = free_port();
+    chromedriver_.emplace(
+        std::vector<std::string>{driver_, "--port=" + std::to_string(driver_port)},
+        (dir_ / "driver.out").string(), (dir_ / "driver.err").string());
+    page_.emplace(driver_port, chromium_, (dir_ / "profile").string());
+    page_->go("http://127.0.0.1:" + std::to_string(port_) + "/");
+    EXPECT_TRUE(page_->wait_text("conn", "connected")) << page_->text("conn");
+    return *page_;
+  }
+  void TearDown() override {
+    page_.reset();  // its session's DELETE quits the browser, then chromedriver is killed
+    chromedriver_.reset();
+    WebDashboard::TearDown();
+  }
+  // Waits up to timeout_s for `pred` on the page's element `id` (its text).
+  bool wait_for(const std::string& id, const std::function<bool(const std::string&)>& pred,
+                double timeout_s = 30.0) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      if (pred(page_->text(id))) return true;
+      std::this_thread::sleep_for(50ms);
+    }
+    return false;
+  }
+  std::string chromium_, driver_;
+  std::uint16_t port_ = 0;
+  std::optional<ncd::test::Process> chromedriver_;
+  std::optional<WebDriver> page_;
+};
+
+double unix_now_s() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// HH:MM:SS of a Unix time in the local time zone (the browser's: the same TZ as this process).
+std::string clock_text(double unix_s) {
+  const std::time_t t = static_cast<std::time_t>(std::floor(unix_s));
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char out[16];
+  std::strftime(out, sizeof out, "%H:%M:%S", &tm);
+  return out;
+}
+
+// Issue 33, "Event times all read 0.000 s": events during a job carry the motion time of the
+// last setpoint (the hold's lies between the socket's t_s read just before and just after it),
+// every event the wall clock (between the test's clock before and after), and the page lists
+// both as "HH:MM:SS · t s"; the events before the first period (submitted) show the clock only.
+TEST_F(BrowserPage, EventsShowTheirWallClockAndMotionTimes) {
+  WebDriver& page = open();
+  WsClient ws(port_);  // an independent reader of the same events
+  const std::string program = write("slow.ngc", kProgram);
+  const double submit_unix_s = unix_now_s();
+  page.type("#program-file", program);
+  page.click("#submit-file");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message");
+  SocketClient sock(socket_);
+  json s;
+  for (int i = 0; i < 400; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["position"][0].get<double>() > 5.0) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  const double t_before_s = sock.request({{"cmd", "status"}})["t_s"].get<double>();
+  const double hold_unix_s = unix_now_s();
+  page.click("#hold");
+  ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
+  const double t_after_s = sock.request({{"cmd", "status"}})["t_s"].get<double>();
+  const double after_unix_s = unix_now_s();
+  json hold;
+  for (int i = 0; i < 200 && hold.is_null(); ++i) {
+    ws.next(0.1);
+    for (const json& e : ws.events) {
+      if (e["kind"] == "state" && e["state"] == "holding") hold = e;
+    }
+  }
+  ASSERT_FALSE(hold.is_null()) << json(ws.events).dump(1);
+  const double hold_t_s = hold["job_t_s"].get<double>();
+  EXPECT_GT(hold_t_s, 0.5) << hold.dump();               // 5 mm at 5 mm/s and the plunge before
+  EXPECT_GE(hold_t_s, t_before_s - 0.1) << hold.dump();  // a poll's drain behind the cycle
+  EXPECT_LE(hold_t_s, t_after_s) << hold.dump();
+  EXPECT_GE(hold["time_unix_s"].get<double>(), hold_unix_s - 1e-3) << hold.dump();
+  EXPECT_LE(hold["time_unix_s"].get<double>(), after_unix_s + 1e-3) << hold.dump();
+  char want[64];
+  std::snprintf(want, sizeof want, "%s · %.3f s · state · holding by the operator",
+                clock_text(hold["time_unix_s"].get<double>()).c_str(), hold_t_s);
+  EXPECT_TRUE(wait_for("events", [&](const std::string& t) { return t.find(want) == 0; }))
+      << "want " << want << " first in: " << page.text("events");
+  // The submit: the clock only (no motion yet), within the test's clock.
+  const json first = page.script(
+      "return Array.from(document.querySelectorAll('#events li')).map((li) => li.textContent);");
+  ASSERT_TRUE(first.is_array() && !first.empty());
+  const std::string submitted = first.back().get<std::string>();
+  EXPECT_NE(submitted.find(" · state · ready · submitted"), std::string::npos) << submitted;
+  EXPECT_EQ(submitted.find(" s · "), std::string::npos) << submitted;  // no motion time
+  const std::string hhmmss = submitted.substr(0, 8);
+  EXPECT_TRUE(hhmmss >= clock_text(submit_unix_s) && hhmmss <= clock_text(after_unix_s))
+      << submitted;
+  page.click("#stop");
+  ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
+}
+
+// The enabled controls of the page, as "id=0|1 …" in a fixed order.
+std::string enabled_controls(WebDriver& page) {
+  return page
+      .script(
+          "return ['cycle-start','start','hold','resume','stop','override-set','submit-file',"
+          "'submit-chamfer'].map((id) => id + '=' + (document.getElementById(id).disabled ? 0 : "
+          "1)).join(' ');")
+      .get<std::string>();
+}
+
+// Issue 33: "Every button is enabled in every state" and "the page shows override 150 % while
+// its slider shows 100". In each state the page enables only what the service takes, and the
+// slider follows the service's override: on load (a preset set over the socket before the page
+// opened), and while the job runs (set over the socket, not from the page).
+TEST_F(BrowserPage, ControlsFollowTheStateAndTheSliderTheServicesOverride) {
+  start_service();
+  // The preset goes in over the socket before the page exists.
+  SocketClient sock(socket_);
+  ASSERT_TRUE(sock.request({{"cmd", "override"}, {"percent", 150}}).value("ok", false));
+  WebDriver& page = open_page();
+  const auto slider = [&] {
+    return page.script("return document.getElementById('override-input').value;")
+        .get<std::string>();
+  };
+  const auto wait_enabled = [&](const std::string& want) {
+    for (int i = 0; i < 600 && enabled_controls(page) != want; ++i) {
+      std::this_thread::sleep_for(50ms);
+    }
+    return enabled_controls(page);
+  };
+  ASSERT_TRUE(page.wait_text("state", "idle"));
+  EXPECT_TRUE(page.wait_text("override", "150"));
+  EXPECT_TRUE(page.wait_text("override-value", "150"));
+  EXPECT_EQ(slider(), "150");
+  EXPECT_EQ(wait_enabled("cycle-start=0 start=0 hold=0 resume=0 stop=0 override-set=1 "
+                         "submit-file=1 submit-chamfer=1"),
+            "cycle-start=0 start=0 hold=0 resume=0 stop=0 override-set=1 submit-file=1 "
+            "submit-chamfer=1");
+  page.type("#program-file", write("slow.ngc", kProgram));
+  page.click("#submit-file");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  const std::string ready =
+      "cycle-start=1 start=1 hold=0 resume=0 stop=0 override-set=1 submit-file=1 "
+      "submit-chamfer=1";
+  EXPECT_EQ(wait_enabled(ready), ready);
+  page.click("#cycle-start");
+  ASSERT_TRUE(page.wait_text("state", "running")) << page.text("message");
+  const std::string running =
+      "cycle-start=0 start=0 hold=1 resume=0 stop=1 override-set=1 submit-file=0 "
+      "submit-chamfer=0";
+  EXPECT_EQ(wait_enabled(running), running);
+  // The preset was the job's: the socket and the page say 150.
+  EXPECT_EQ(sock.request({{"cmd", "status"}})["override_percent"], 150.0);
+  EXPECT_EQ(slider(), "150");
+  // An override set elsewhere (the socket) moves the page's slider.
+  ASSERT_TRUE(sock.request({{"cmd", "override"}, {"percent", 70}}).value("ok", false));
+  EXPECT_TRUE(page.wait_text("override-value", "70")) << page.text("override-value");
+  EXPECT_EQ(slider(), "70");
+  page.click("#hold");
+  ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
+  const std::string holding =
+      "cycle-start=1 start=0 hold=0 resume=1 stop=1 override-set=1 submit-file=0 "
+      "submit-chamfer=0";
+  EXPECT_EQ(wait_enabled(holding), holding);
+  page.click("#stop");
+  ASSERT_TRUE(page.wait_text("state", "stopped")) << page.text("message");
+  const std::string stopped =
+      "cycle-start=0 start=0 hold=0 resume=0 stop=0 override-set=1 submit-file=1 "
+      "submit-chamfer=1";
+  EXPECT_EQ(wait_enabled(stopped), stopped);
+  // After the job the slider shows the next start's override: 100 (the preset was used).
+  EXPECT_TRUE(page.wait_text("override-value", "100")) << page.text("override-value");
+  EXPECT_EQ(slider(), "100");
+}
+
+// Issue 33: "The chamfer form lacks edge, side, tilt and eccentricity". The form sends them
+// under the chamfer job's request keys (api/intake.cpp, `ncd chamfer`'s names), with the
+// defaults of `ncd chamfer` when untouched; the service takes them (a tilt out of its range is
+// refused by the service naming the key's value, so the key reached it).
+TEST_F(BrowserPage, ChamferFormSendsEdgeSideTiltAndEccentricity) {
+  WebDriver& page = open();
+  ASSERT_TRUE(page.wait_text("state", "idle"));
+  page.script(
+      "window.sentRequests = []; const send = ws.send.bind(ws);"
+      "ws.send = (t) => { window.sentRequests.push(JSON.parse(t)); send(t); };");
+  const auto last_job = [&] {
+    const json sent = page.script("return window.sentRequests;");
+    return sent.empty() ? json() : sent.back().value("job", json());
+  };
+  page.script("document.querySelector('details').open = true;");
+  page.click("#submit-chamfer");
+  ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
+  json job = last_job();
+  EXPECT_EQ(job["edge"], "inner") << job.dump();
+  EXPECT_EQ(job["side"], "upper") << job.dump();
+  EXPECT_EQ(job["drill_tilt_deg"], 0.0) << job.dump();
+  EXPECT_EQ(job["drill_azimuth_deg"], 0.0) << job.dump();
+  EXPECT_EQ(job["eccentricity"], 0.0) << job.dump();
+  // Another edge, side, tilt and eccentricity from the form's own fields.
+  page.script(
+      "const f = document.getElementById('chamfer');"
+      "f.elements.edge.value = 'outer'; f.elements.side.value = 'lower';"
+      "f.elements.drill_tilt_deg.value = '10'; f.elements.drill_azimuth_deg.value = '90';"
+      "f.elements.eccentricity.value = '1.5';");
+  page.click("#submit-chamfer");
+  EXPECT_TRUE(wait_for("message", [](const std::string& t) { return t.rfind("submit:", 0) == 0; }));
+  job = last_job();
+  EXPECT_EQ(job["edge"], "outer") << job.dump();
+  EXPECT_EQ(job["side"], "lower") << job.dump();
+  EXPECT_EQ(job["drill_tilt_deg"], 10.0) << job.dump();
+  EXPECT_EQ(job["drill_azimuth_deg"], 90.0) << job.dump();
+  EXPECT_EQ(job["eccentricity"], 1.5) << job.dump();
+  SocketClient sock(socket_);
+  const json by_socket = sock.request({{"cmd", "submit"}, {"job", job}});
+  std::cout << "[ measured ] the form's job " << job.dump()
+            << " over the socket: " << by_socket.dump() << "; on the page: " << page.text("message")
+            << "\n";
+  EXPECT_EQ(page.text("message").rfind("submit: ok", 0) == 0, by_socket.value("ok", false))
+      << page.text("message") << " against " << by_socket.dump();
+  // A tilt outside [0, 90): the service's refusal, naming it, shown on the page.
+  page.script("document.getElementById('chamfer').elements.drill_tilt_deg.value = '95';");
+  page.script("document.getElementById('message').textContent = '';");
+  page.click("#submit-chamfer");
+  EXPECT_TRUE(wait_for("message", [](const std::string& t) { return !t.empty(); }));
+  EXPECT_EQ(page.text("message").rfind("submit: ", 0), 0u) << page.text("message");
+  EXPECT_NE(page.text("message").find("95"), std::string::npos) << page.text("message");
+  EXPECT_EQ(page.text("message").find("submit: ok"), std::string::npos) << page.text("message");
 }
 
 }  // namespace
