@@ -1,6 +1,7 @@
 // ncd: a PC-NC service for deburring and chamfering drilled holes. One subcommand per use.
 // Exit status: 0 success, 2 invalid input (the message says what and how to fix it), 3 a run
-// refused for a limit violation (nothing streamed), 1 an I/O error or an internal failure.
+// refused for a limit violation (nothing streamed), 1 an I/O error or an internal failure, 4 a
+// drip stream sent whole to a controller that never answered (docs/cmd-stream.md).
 #include <exception>
 #include <iostream>
 #include <string>
