@@ -19,36 +19,14 @@
 #include "link/pty.hpp"
 #include "link/transfer_journal.hpp"
 #include "tests/app/cli_fixture.hpp"
+#include "tests/app/sim_controller_fixture.hpp"
 #include "tests/common/process.hpp"
 
 namespace ncd::test {
 namespace {
 
-class StreamEdges : public Cli {
+class StreamEdges : public SimControllerCli {
  protected:
-  std::unique_ptr<Process> controller(const std::string& flags) {
-    link_ = (dir_ / "cnc").string();
-    log_ = (dir_ / "cnc.json").string();
-    std::vector<std::string> argv{NCD_EXE, "sim-controller", "--link", link_, "--log",
-                                  log_,    "--exit-at-end"};
-    std::istringstream in(flags);
-    for (std::string f; in >> f;) argv.push_back(f);
-    auto p =
-        std::make_unique<Process>(argv, (dir_ / "cnc.out").string(), (dir_ / "cnc.err").string());
-    EXPECT_TRUE(wait_for_path(link_, 5.0)) << slurp(dir_ / "cnc.err");
-    return p;
-  }
-
-  nlohmann::json controller_log(Process& p) {
-    const int status = p.wait(120.0);
-    EXPECT_EQ(status, 0) << slurp(dir_ / "cnc.err");
-    if (status == -2) {
-      p.signal(SIGTERM);
-      p.wait(5.0);
-    }
-    return nlohmann::json::parse(slurp(log_));
-  }
-
   // Polls (up to 30 s) until the journal's first block not sent is past `blocks`.
   void wait_journal(const std::string& journal, long blocks) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
@@ -85,8 +63,6 @@ class StreamEdges : public Cli {
     r.err = slurp(err);
     return r;
   }
-
-  std::string link_, log_;
 };
 
 // Slow numbered moves (0.1 s each at F600), framed by a start and an end without N.
@@ -141,7 +117,7 @@ TEST_F(StreamEdges, DripCtrlCAdvisesOneCommandThatCompletesTheJob) {
   }
   const auto done = shell(run_line(resume.err) + " -q");
   EXPECT_EQ(done.status, 0) << done.out << done.err;
-  const auto log = controller_log(*cnc);
+  const auto log = controller_log(*cnc, 120.0);
   std::vector<std::string> want;
   std::istringstream in(slurp(prog));
   for (std::string l; std::getline(in, l);) {
@@ -189,7 +165,7 @@ TEST_F(StreamEdges, NothingAnsweredWarnsAndExitsFour) {
   const auto ok = ncd("stream " + prog + " --port " + link_ + " --baud 115200 -q --no-journal");
   EXPECT_EQ(ok.status, 0) << ok.out << ok.err;
   EXPECT_EQ(ok.out.find("WARNING"), std::string::npos) << ok.out;
-  controller_log(*cnc);
+  controller_log(*cnc, 120.0);
 }
 
 // The link use against the definition, computed here from the report: bytes carried (written,
@@ -219,7 +195,7 @@ TEST_F(StreamEdges, LinkUseIsAFractionOfTheLine) {
       cnc->signal(SIGTERM);
       cnc->wait(10.0);
     } else {
-      controller_log(*cnc);
+      controller_log(*cnc, 120.0);
     }
     const auto r = nlohmann::json::parse(slurp(rep));
     const double carried = r["bytes_written"].get<double>() - r["bytes_in_flight"].get<double>();
@@ -254,7 +230,7 @@ TEST_F(StreamEdges, ToolChangeHoldsAreExplainedAndARealStallWarns) {
     EXPECT_EQ(rep["xoff_timeouts"], 0);
     EXPECT_EQ(rep["holds_explained"], 2);  // each tool change held the line over 5 s
     EXPECT_GT(rep["xoff_longest_s"].get<double>(), 5.0);
-    const auto log = controller_log(*cnc);
+    const auto log = controller_log(*cnc, 120.0);
     EXPECT_TRUE(log["program_end_executed"].get<bool>());
   }
   std::string plain;
@@ -268,7 +244,7 @@ TEST_F(StreamEdges, ToolChangeHoldsAreExplainedAndARealStallWarns) {
   EXPECT_NE(r.err.find("has held the link for more than 5.0 s"), std::string::npos) << r.err;
   const auto rep = nlohmann::json::parse(slurp(dir_ / "r2.json"));
   EXPECT_EQ(rep["xoff_timeouts"], 1);
-  controller_log(*cnc);
+  controller_log(*cnc, 120.0);
 }
 
 }  // namespace

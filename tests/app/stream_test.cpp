@@ -13,13 +13,14 @@
 #include "link/sha256.hpp"
 #include "link/transfer_journal.hpp"
 #include "tests/app/cli_fixture.hpp"
+#include "tests/app/sim_controller_fixture.hpp"
 #include "tests/common/process.hpp"
 #include "tests/common/seed.hpp"
 
 namespace ncd::test {
 namespace {
 
-class Stream : public Cli {
+class Stream : public SimControllerCli {
  protected:
   // A numbered program of `blocks` short G1 moves at a feed the controller runs quickly.
   std::string program(int blocks, double feed_mm_per_min, std::string* sha) {
@@ -38,30 +39,6 @@ class Stream : public Cli {
     text += body;
     *sha = comms::sha256_hex("(ncd stream test program)\n" + body);
     return write("prog.ngc", text);
-  }
-
-  // Starts the simulated controller with extra flags; waits for its link to appear.
-  std::unique_ptr<Process> controller(const std::string& flags) {
-    link_ = (dir_ / "cnc").string();
-    log_ = (dir_ / "cnc.json").string();
-    std::vector<std::string> argv{NCD_EXE, "sim-controller", "--link", link_, "--log",
-                                  log_,    "--exit-at-end"};
-    std::istringstream in(flags);
-    for (std::string f; in >> f;) argv.push_back(f);
-    auto p =
-        std::make_unique<Process>(argv, (dir_ / "cnc.out").string(), (dir_ / "cnc.err").string());
-    EXPECT_TRUE(wait_for_path(link_, 5.0)) << slurp(dir_ / "cnc.err");
-    return p;
-  }
-
-  nlohmann::json controller_log(Process& p, double timeout_s = 30.0) {
-    const int status = p.wait(timeout_s);
-    EXPECT_EQ(status, 0) << slurp(dir_ / "cnc.err");
-    if (status == -2) {
-      p.signal(SIGTERM);
-      p.wait(5.0);
-    }
-    return nlohmann::json::parse(slurp(log_));
   }
 
   // Waits (up to 10 s) until the controller has printed `text` among its events: the bytes ncd
@@ -152,8 +129,6 @@ class Stream : public Cli {
     }
     return e;
   }
-
-  std::string link_, log_;
 };
 
 // A program of slow moves (about 0.1 s each at 600 mm/min), so that grbl's 15-block planner
