@@ -3,12 +3,17 @@
 // once it has exited.
 #pragma once
 
+#include <chrono>
 #include <csignal>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
+
+#include "link/transfer_journal.hpp"
 
 #include "tests/app/cli_fixture.hpp"
 #include "tests/common/process.hpp"
@@ -40,6 +45,22 @@ class SimControllerCli : public Cli {
       p.wait(5.0);
     }
     return nlohmann::json::parse(slurp(log_));
+  }
+
+  // Waits (up to 30 s) until the journal says `blocks` blocks are known executed: the sender is
+  // well into the program. Polled, as a fixed sleep would race a loaded machine.
+  void wait_journal(const std::string& journal, long blocks) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    for (;;) {
+      std::optional<comms::JournalState> j;
+      try {
+        j = comms::TransferJournal::read(journal);
+      } catch (const std::exception&) {  // being written
+      }
+      if (j && j->confirmed >= blocks) return;
+      ASSERT_LT(std::chrono::steady_clock::now(), end) << "the journal never reached " << blocks;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
   }
 
   std::string link_, log_;  // the controller's link and log, in the test's folder

@@ -27,21 +27,6 @@ namespace {
 
 class StreamEdges : public SimControllerCli {
  protected:
-  // Polls (up to 30 s) until the journal's first block not sent is past `blocks`.
-  void wait_journal(const std::string& journal, long blocks) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    for (;;) {
-      std::optional<comms::JournalState> j;
-      try {
-        j = comms::TransferJournal::read(journal);
-      } catch (const std::exception&) {  // being written
-      }
-      if (j && j->confirmed >= blocks) return;
-      ASSERT_LT(std::chrono::steady_clock::now(), end) << "the journal never reached " << blocks;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  }
-
   // The command after "run: " at the start of a line of the advice, or "".
   static std::string run_line(const std::string& text) {
     std::istringstream in(text);

@@ -94,22 +94,6 @@ class Stream : public SimControllerCli {
     return text.substr(at + 6, end == std::string::npos ? std::string::npos : end - at - 6);
   }
 
-  // Waits (up to 30 s) until the journal says `blocks` blocks are known executed: the sender is
-  // well into the program. Polled, as a fixed sleep would race a loaded machine.
-  void wait_journal(const std::string& journal, long blocks) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    for (;;) {
-      std::optional<comms::JournalState> j;
-      try {
-        j = comms::TransferJournal::read(journal);
-      } catch (const std::exception&) {  // being written
-      }
-      if (j && j->confirmed >= blocks) return;
-      ASSERT_LT(std::chrono::steady_clock::now(), end) << "the journal never reached " << blocks;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  }
-
   // The controller's log after a restart: the first run's blocks (a prefix of the program), the
   // restart lines (no N word), then blocks K… to the end. Checks that shape and returns the
   // length of the first run's prefix.
