@@ -321,13 +321,12 @@ struct MqttBridge::Core : std::enable_shared_from_this<MqttBridge::Core> {
               << "...\n";
     try {
       client->subscribe(t_cmd, 1);
-      client->publish(t_online,
-                      json{{"online", true},
-                           {"client_id", cfg.client_id},
-                           {"status_hz", cfg.status_hz},
-                           {"time_unix_s", unix_time_s()}}
-                          .dump(),
-                      1, true);
+      json online{{"online", true},
+                  {"client_id", cfg.client_id},
+                  {"status_hz", cfg.status_hz},
+                  {"time_unix_s", unix_time_s()}};
+      if (!cfg.page_url.empty()) online["page_url"] = cfg.page_url;
+      client->publish(t_online, online.dump(), 1, true);
     } catch (const std::exception& e) {
       std::cerr << "ncd serve: MQTT: " << e.what() << '\n';
     }

@@ -23,7 +23,7 @@ namespace {
 
 const char* kKeys =
     "broker, client_id, username, password, ca_file, cert_file, key_file, topic_root, "
-    "status_hz, queue_bound, reconnect_min_s, reconnect_max_s";
+    "status_hz, queue_bound, reconnect_min_s, reconnect_max_s, page_url";
 
 std::string need_string(const toml::value& v, const std::string& where) {
   if (!v.is_string()) {
@@ -91,16 +91,48 @@ void check_topic_root(const std::string& root, const std::string& where) {
   }
 }
 
+// This host's name as `hostname` prints it; "" if it cannot be read.
+std::string host_name() {
+  std::array<char, 256> name{};
+  return ::gethostname(name.data(), name.size() - 1) == 0 ? std::string(name.data()) : "";
+}
+
+// A link a browser may follow: http:// or https://, printable, no spaces or quotes, bounded.
+std::string need_page_url(const toml::value& v, const std::string& at) {
+  const std::string url = need_string(v, at);
+  const bool scheme = url.rfind("http://", 0) == 0 || url.rfind("https://", 0) == 0;
+  const bool printable = std::all_of(url.begin(), url.end(), [](char ch) {
+    return ch > ' ' && ch < 0x7f && ch != '"' && ch != '\\' && ch != '<' && ch != '>';
+  });
+  if (!scheme || !printable || url.size() > kMaxPageUrlChars) {
+    throw InputError(at + " = " + toml::format(v) + " is not a page address: http:// or https://" +
+                     ", at most " + std::to_string(kMaxPageUrlChars) +
+                     " characters, no spaces, quotes or <>; give the machine page's URL, such as "
+                     "\"http://cell1-m1:8080/\", or remove the key for the [http] address");
+  }
+  return url;
+}
+
 }  // namespace
 
 std::string default_topic_root() {
-  std::array<char, 256> name{};
-  std::string host = ::gethostname(name.data(), name.size() - 1) == 0 ? name.data() : "";
+  std::string host = host_name();
   // A host name is one topic level: no '/', and no wildcard a publisher cannot use.
   for (char& ch : host) {
     if (ch == '/' || ch == '+' || ch == '#') ch = '-';
   }
   return "ncd/" + (host.empty() ? std::string("localhost") : host) + "/";
+}
+
+std::string reachable_page_url(const std::string& url) {
+  for (const std::string wildcard : {"//0.0.0.0:", "//[::]:"}) {
+    const std::size_t at = url.find(wildcard);
+    if (at == std::string::npos) continue;
+    std::string name = host_name();
+    if (name.empty()) name = "localhost";
+    return url.substr(0, at) + "//" + name + ":" + url.substr(at + wildcard.size());
+  }
+  return url;
 }
 
 MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where) {
@@ -142,6 +174,8 @@ MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where)
     } else if (key == "reconnect_max_s") {
       c.reconnect_max_s = need_number(v, at, kMinReconnectS, kMaxReconnectS, "s");
       have_max = true;
+    } else if (key == "page_url") {
+      c.page_url = need_page_url(v, at);
     } else {
       throw InputError("unknown key " + at + "; [mqtt] takes " + kKeys);
     }

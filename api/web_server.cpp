@@ -4,6 +4,7 @@
 //
 //   page                                        server (I/O thread)
 //   GET / , /app.js , /style.css       ──►      the embedded assets (or [http] assets dir)
+//   GET /cell.html, /cell.js, …        ──►      the cell page (docs/web-dashboard.md), the same way
 //   GET /ws  (Upgrade: websocket)      ──►      Origin must be this host; the session starts
 //   {"cmd":"status","token":…}         ──►      comms::check_request, ControlHandler::handle
 //                                      ◄──      {"reply": {...}}
@@ -74,7 +75,8 @@ using beast::error_code;
 constexpr std::size_t kMaxQueuedBytes = std::size_t{1} << 20;  // per page, see the top
 constexpr std::size_t kMaxHeaderBytes = 8192;
 constexpr auto kHttpTimeout = std::chrono::seconds(30);
-constexpr const char* kAssetNames[] = {"index.html", "app.js", "style.css"};
+constexpr const char* kAssetNames[] = {"index.html", "app.js",   "style.css", "cell.html",
+                                       "cell.js",    "cell.css", "mqtt-ws.js"};
 
 using comms::error_reply;
 

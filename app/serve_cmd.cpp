@@ -44,17 +44,20 @@ int run_serve(const ServeArgs& a) {
             << " (machine: " << cfg.machine.source
             << ", clock: " << (cfg.clock == motion::ClockKind::Wall ? "wall" : "simulated") << ")"
             << std::endl;
-  std::unique_ptr<fleet::MqttBridge> bridge;
-  if (cfg.mqtt) {
-    bridge = std::make_unique<fleet::MqttBridge>(
-        io, *cfg.mqtt, [&service] { return service.status(); },
-        [&service](const nlohmann::json& request) { return service.handle(request); }, cfg.token);
-    bridge->start();
-  }
   std::unique_ptr<WebServer> web;
   if (cfg.http.listen) {
     web = std::make_unique<WebServer>(io, cfg.http, service, cfg.token, cfg.machine.program);
     std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
+  }
+  std::unique_ptr<fleet::MqttBridge> bridge;
+  if (cfg.mqtt) {
+    // The machine's page, for the cell page's link (docs/fleet-mqtt.md, "Topics").
+    if (cfg.mqtt->page_url.empty() && web)
+      cfg.mqtt->page_url = fleet::reachable_page_url(web->url());
+    bridge = std::make_unique<fleet::MqttBridge>(
+        io, *cfg.mqtt, [&service] { return service.status(); },
+        [&service](const nlohmann::json& request) { return service.handle(request); }, cfg.token);
+    bridge->start();
   }
   // The service's events to the observers, drained on this io_context (api/event_feed.hpp).
   std::unique_ptr<EventFeed> feed;

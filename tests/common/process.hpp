@@ -46,6 +46,7 @@ class Process {
   Process& operator=(const Process&) = delete;
 
   void signal(int sig) const { ::kill(pid_, sig); }
+  pid_t pid() const { return pid_; }
   // Waits up to timeout_s for the exit; returns the exit status, -1 on a signal, -2 on timeout.
   int wait(double timeout_s) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);

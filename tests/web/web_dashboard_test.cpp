@@ -34,6 +34,7 @@
 #include "tests/app/cli_fixture.hpp"
 #include "tests/app/serve_fixture.hpp"
 #include "tests/common/process.hpp"
+#include "tests/web/webdriver.hpp"
 
 namespace {
 
@@ -42,34 +43,15 @@ namespace beast = boost::beast;
 namespace http = beast::http;
 namespace websocket = beast::websocket;
 using tcp = asio::ip::tcp;
+using ncd::test::find_program;
+using ncd::test::free_port;
+using ncd::test::http_request;
 using ncd::test::ServeFixture;
 using ncd::test::slurp;
+using ncd::test::WebDriver;
 using nlohmann::json;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
-
-// A request and reply over HTTP/1.1 on 127.0.0.1:port; the status code and the body.
-std::pair<int, std::string> http_request(std::uint16_t port, http::verb verb,
-                                         const std::string& target, const std::string& body = "",
-                                         const std::string& origin = "") {
-  asio::io_context io;
-  beast::tcp_stream stream(io);
-  stream.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
-  http::request<http::string_body> req{verb, target, 11};
-  req.set(http::field::host, "127.0.0.1:" + std::to_string(port));
-  if (!origin.empty()) req.set(http::field::origin, origin);
-  if (!body.empty()) {
-    req.set(http::field::content_type, "application/json");
-    req.body() = body;
-  }
-  req.prepare_payload();
-  http::write(stream, req);
-  beast::flat_buffer buffer;
-  http::response_parser<http::string_body> parser;
-  parser.body_limit(64 << 20);
-  http::read(stream, buffer, parser);
-  return {static_cast<int>(parser.get().result_int()), parser.get().body()};
-}
 
 // A WebSocket client of the dashboard with read time limits.
 class WsClient {
@@ -200,28 +182,6 @@ class SocketClient {
 const char* kProgram =
     "G21 G90 G17\nG0 X0 Y0 Z5\nG1 Z0 F200\nG1 X30 Y0 F300\nG2 X30 Y20 I0 J10\nG1 X0 Y20\n"
     "G1 X0 Y0 Z-1\nM2\n";
-
-// A free TCP port on loopback (the kernel's choice, released at once).
-std::uint16_t free_port() {
-  asio::io_context io;
-  tcp::acceptor a(io, tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0));
-  return a.local_endpoint().port();
-}
-
-// The first executable of `names` found on PATH; empty if none.
-std::string find_program(std::initializer_list<const char*> names) {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path ? path : "/usr/bin");
-  std::vector<std::string> list;
-  for (std::string d; std::getline(dirs, d, ':');) list.push_back(d);
-  for (const char* name : names) {
-    for (const auto& d : list) {
-      const fs::path p = fs::path(d) / name;
-      if (::access(p.c_str(), X_OK) == 0) return p.string();
-    }
-  }
-  return "";
-}
 
 class WebDashboard : public ServeFixture {
  protected:
@@ -525,91 +485,6 @@ TEST_F(WebDashboard, TlsWhenCertificateAndKeyAreGiven) {
       (curl + " -s -m 5 -o /dev/null http://127.0.0.1:" + std::to_string(port) + "/").c_str());
   EXPECT_NE(plain, 0);
 }
-
-// chromedriver's W3C WebDriver protocol over HTTP.
-class WebDriver {
- public:
-  WebDriver(std::uint16_t port, const std::string& chromium, const std::string& profile)
-      : port_(port) {
-    for (int i = 0; i < 300; ++i) {  // chromedriver may still be starting
-      try {
-        if (get("/status")["value"]["ready"] == true) break;
-      } catch (const std::exception&) {
-      }
-      std::this_thread::sleep_for(100ms);
-    }
-    const json caps = {
-        {"capabilities",
-         {{"alwaysMatch",
-           {{"browserName", "chrome"},
-            {"goog:chromeOptions",
-             {{"binary", chromium},
-              {"args",
-               {"--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                "--window-size=1400,1300", "--user-data-dir=" + profile}}}}}}}}};
-    const json r = post("/session", caps);
-    session_ = r["value"].value("sessionId", std::string());
-    if (session_.empty()) throw std::runtime_error("no WebDriver session: " + r.dump());
-  }
-  ~WebDriver() {
-    try {
-      call(http::verb::delete_, "/session/" + session_, "");
-    } catch (const std::exception&) {
-    }
-  }
-  void go(const std::string& url) { post(path("/url"), {{"url", url}}); }
-  std::string element(const std::string& css) {
-    const json r = post(path("/element"), {{"using", "css selector"}, {"value", css}});
-    const std::string id = r["value"].value("element-6066-11e4-a52e-4f735466cecf", std::string());
-    if (id.empty()) throw std::runtime_error("no element " + css + ": " + r.dump());
-    return id;
-  }
-  void click(const std::string& css) {
-    post(path("/element/" + element(css) + "/click"), json::object());
-  }
-  void type(const std::string& css, const std::string& text) {
-    post(path("/element/" + element(css) + "/value"), {{"text", text}});
-  }
-  json script(const std::string& body, const json& args = json::array()) {
-    return post(path("/execute/sync"), {{"script", body}, {"args", args}})["value"];
-  }
-  // The text of the element with this id (its DOM text, before CSS transforms).
-  std::string text(const std::string& id) {
-    const json v = script("return document.getElementById(arguments[0]).textContent;", {id});
-    return v.is_string() ? v.get<std::string>() : "";
-  }
-  // Waits up to timeout_s for the element's text to be `want`.
-  bool wait_text(const std::string& id, const std::string& want, double timeout_s = 30.0) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (std::chrono::steady_clock::now() < end) {
-      if (text(id) == want) return true;
-      std::this_thread::sleep_for(50ms);
-    }
-    return false;
-  }
-  std::string screenshot_png() {
-    const std::string b64 = get(path("/screenshot"))["value"].get<std::string>();
-    std::string out(beast::detail::base64::decoded_size(b64.size()), '\0');
-    const auto n = beast::detail::base64::decode(out.data(), b64.data(), b64.size());
-    out.resize(n.first);
-    return out;
-  }
-
- private:
-  std::string path(const std::string& tail) const { return "/session/" + session_ + tail; }
-  json call(http::verb verb, const std::string& target, const std::string& body) {
-    const auto [code, text] = http_request(port_, verb, target, body);
-    json r = json::parse(text);
-    if (code != 200) throw std::runtime_error(target + ": " + text.substr(0, 400));
-    return r;
-  }
-  json get(const std::string& target) { return call(http::verb::get, target, ""); }
-  json post(const std::string& target, const json& body) {
-    return call(http::verb::post, target, body.dump());
-  }
-  std::uint16_t port_;
-  std::string session_;
-};
 
 TEST_F(WebDashboard, BrowserSubmitsStartsAndHoldsAJob) {
   const std::string chromium = find_program({"chromium", "chromium-browser", "google-chrome"});
