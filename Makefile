@@ -64,6 +64,13 @@ bench: release
 soak: release
 	NCD_PROPERTY_PROGRAMS=$${NCD_PROPERTY_PROGRAMS:-5000} build/release/tests/test_motion --gtest_filter='Property.*'
 
+# The cell page with 20 `ncd serve` on one mosquitto, a headless Chromium showing them: latency,
+# CPU, messages per second and a broker restart (docs/web-dashboard.md, "The cell page").
+soak-cell: release
+	NCD_CELL_MACHINES=$${NCD_CELL_MACHINES:-20} NCD_CELL_SECONDS=$${NCD_CELL_SECONDS:-60} \
+	    build/release/tests/test_web --gtest_also_run_disabled_tests \
+	    --gtest_filter='CellPage.DISABLED_SoakTwentyMachines'
+
 format:
 	@git ls-files '*.cpp' '*.hpp' | xargs clang-format -i
 

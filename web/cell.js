@@ -38,6 +38,7 @@ const $ = (id) => document.getElementById(id);
 const machines = new Map(); // topic root → machine
 let client = null;
 let connectedAtMs = Date.now();
+let summaryDue = false;
 
 window.cell = { log: { displays: [], received: 0, invalid: 0 }, machines };
 
@@ -103,8 +104,20 @@ function showState(m, state, timeS, source) {
   if (log.length > kMaxLog) log.splice(0, log.length - kMaxLog);
 }
 
+// The job's file name; its whole path on hover.
+function showJob(m, job) {
+  const path = typeof job === "string" && job ? job : "-";
+  text(m.cells.job, path.slice(path.lastIndexOf("/") + 1));
+  if (m.cells.job.title !== path) m.cells.job.title = path;
+}
+
+// Each alarm once (the status's job_error is also the alarm event's text); the whole text on
+// hover, the first kAlarmChars shown.
+const kAlarmChars = 160;
 function showAlarms(m) {
-  text(m.cells.alarms, [...m.statusAlarms, ...m.eventAlarms].join(" · "));
+  const all = [...new Set([...m.statusAlarms, ...m.eventAlarms])].join(" · ");
+  text(m.cells.alarms, all.length > kAlarmChars ? all.slice(0, kAlarmChars) + "…" : all);
+  if (m.cells.alarms.title !== all) m.cells.alarms.title = all;
 }
 
 function onOnline(m, p) {
@@ -124,7 +137,7 @@ function onStatus(m, p) {
   m.lastStatusMs = Date.now();
   if (m.online === false) m.online = true; // a status is proof of life
   showState(m, p.state, p.time_unix_s, "status");
-  text(m.cells.job, typeof p.job === "string" ? p.job : "-");
+  showJob(m, p.job);
   const progress = typeof p.progress === "number" ? p.progress : 0;
   if (m.bar.value !== progress) m.bar.value = progress;
   text(m.pct, fixed(progress * 100, 0) + " %");
@@ -177,7 +190,7 @@ function onMessage(topic, payload) {
   if (kind === "online") onOnline(m, p);
   else if (kind === "state") {
     showState(m, p.state, p.time_unix_s, "state");
-    if (typeof p.job === "string") text(m.cells.job, p.job);
+    if (typeof p.job === "string") showJob(m, p.job);
   } else if (kind === "status") onStatus(m, p);
   else if (kind === "events") onEvent(m, p);
 }
@@ -196,15 +209,19 @@ function refreshFreshness(m, now) {
   } else {
     label = ageS < 1.5 ? "now" : ageS.toFixed(0) + " s ago";
   }
-  if (m.tr.className !== cls) m.tr.className = cls;
+  if (m.tr.className !== cls) {
+    m.tr.className = cls;
+    summaryDue = true;
+  }
   text(m.cells.fresh, label);
 }
 
 function summarize() {
   const now = Date.now();
+  for (const m of machines.values()) refreshFreshness(m, now);
+  summaryDue = false;
   const counts = {};
   for (const m of machines.values()) {
-    refreshFreshness(m, now);
     const key = m.tr.className || m.state || "?";
     counts[key] = (counts[key] || 0) + 1;
   }
@@ -265,6 +282,7 @@ function init() {
     connect();
   });
   setInterval(summarize, 500);
+  setInterval(() => summaryDue && summarize(), 100);
   if (saved.password !== undefined) connect(); // this tab connected before: again after a reload
 }
 

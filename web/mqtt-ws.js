@@ -15,7 +15,8 @@
 //   16-bit big-endian length and UTF-8 bytes.
 // - Session: CONNECT (protocol "MQTT", level 4, clean session, user name and password flags,
 //   the keep-alive in seconds), then CONNACK: 0 accepted, else refused with its code named (4:
-//   bad user name or password, 5: not authorised). On acceptance every subscription is sent
+//   bad user name or password, 5: not authorised, which is what mosquitto answers a wrong
+//   password with). On acceptance every subscription is sent
 //   again (clean session: the broker forgot them), and the broker sends the retained messages
 //   of each filter, so a reconnected page gets every machine's online and state back at once.
 // - Keep-alive: a PINGREQ once half the keep-alive has passed without one; no PINGRESP within
@@ -174,7 +175,7 @@ class MqttWsClient {
         2: "the client id was refused",
         3: "the broker is unavailable",
         4: "bad user name or password",
-        5: "not authorised",
+        5: "not authorised: a wrong user name or password, or a user the broker refuses",
       };
       return this.drop(ws, "the broker refused the connection (code " + code + ": " +
                                (names[code] || "unknown") + ")");

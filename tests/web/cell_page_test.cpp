@@ -283,7 +283,8 @@ double sys_counter(const CellBroker& broker, const std::string& topic) {
 double percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size() - 1) + 0.5));
+  const std::size_t k =
+      std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size() - 1) + 0.5));
   return v[k];
 }
 
@@ -391,36 +392,44 @@ class CellPage : public ncd::test::Cli {
     }
   }
   // Each published state change paired with the first time the page showed that state for
-  // that machine at or after it (the page's log): the latencies in ms, and how many had none.
-  std::pair<std::vector<double>, int> latencies() {
+  // that machine at or after it (the page's log): the latencies in ms. A change the page never
+  // showed is "superseded" when the page showed a newer state of that machine instead (a status
+  // taken after a short state, such as ready just before running, can arrive before the event
+  // of that state: the page shows the newest), else "missed".
+  struct Latencies {
+    std::vector<double> ms;
+    int superseded = 0, missed = 0;
+  };
+  Latencies latencies() {
     tick();
     const json shown = page_->script("return cell.log.displays;");
     std::vector<bool> used(shown.size(), false);
-    std::vector<double> out;
-    int unmatched = 0;
+    Latencies out;
     for (const StateChange& c : changes_) {
       const double t_ms = c.time_s * 1000.0;
-      bool found = false;
-      for (std::size_t k = 0; k < shown.size(); ++k) {
+      bool found = false, newer = false;
+      for (std::size_t k = 0; k < shown.size() && !found; ++k) {
         const json& d = shown[k];
-        if (used[k] || d["machine"] != c.root || d["state"] != c.state) continue;
+        if (d["machine"] != c.root) continue;
         const double at = d["shown_ms"].get<double>();
-        if (at + 1.0 < t_ms) continue;  // an earlier change to the same state
+        const double msg_t = d["msg_time_s"].is_number() ? d["msg_time_s"].get<double>() : 0.0;
+        newer = newer || msg_t > c.time_s;
+        if (used[k] || d["state"] != c.state || at + 1.0 < t_ms) continue;
         used[k] = true;
-        out.push_back(at - t_ms);
+        out.ms.push_back(at - t_ms);
         found = true;
-        break;
       }
-      if (!found) ++unmatched;
+      if (!found) ++(newer ? out.superseded : out.missed);
     }
-    return {out, unmatched};
+    return out;
   }
-  void print_latencies(const std::string& what) {
-    const auto [ms, unmatched] = latencies();
+  void print_latencies(const Latencies& l, const std::string& what) {
+    const std::vector<double>& ms = l.ms;
     std::cout << "[ measured ] " << what << ": state change → page DOM, " << ms.size()
-              << " changes (" << unmatched << " not shown): median " << percentile(ms, 0.5)
-              << " ms, p99 " << percentile(ms, 0.99) << " ms, max "
-              << (ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end())) << " ms\n";
+              << " changes shown (" << l.superseded << " superseded, " << l.missed
+              << " missed): median " << percentile(ms, 0.5) << " ms, p99 " << percentile(ms, 0.99)
+              << " ms, max " << (ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end()))
+              << " ms\n";
   }
   bool all_rows(const json& rs, std::size_t n, const std::function<bool(const json&)>& pred) {
     if (rs.size() != n) return false;
@@ -507,11 +516,11 @@ TEST_F(CellPage, ListsEveryMachineFollowsTheirJobsAndMarksStaleAndOffline) {
   start_cell(3, 10.0);
   WebDriver& page = open_page({kWeb.name, "wrong"});
   EXPECT_TRUE(page.wait_text("broker-state", "broker lost", 30.0)) << page.text("broker-state");
-  for (int k = 0; k < 200 && page.text("broker-detail").find("bad user name") == std::string::npos;
+  for (int k = 0; k < 200 && page.text("broker-detail").find("not authorised") == std::string::npos;
        ++k) {
     std::this_thread::sleep_for(50ms);
   }
-  EXPECT_NE(page.text("broker-detail").find("code 4: bad user name or password"), std::string::npos)
+  EXPECT_NE(page.text("broker-detail").find("code 5: not authorised"), std::string::npos)
       << page.text("broker-detail");
   login(kWeb.password);
   ASSERT_TRUE(page.wait_text("broker-state", "connected", 30.0)) << page.text("broker-detail");
@@ -532,8 +541,7 @@ TEST_F(CellPage, ListsEveryMachineFollowsTheirJobsAndMarksStaleAndOffline) {
   ASSERT_TRUE(wait_rows(
       [](const json& rs) {
         return std::all_of(rs.begin(), rs.end(), [](const json& r) {
-          return r["state"] == "running" && r["job"].get<std::string>().ends_with("job.ngc") &&
-                 r["feed"] != "0.0";
+          return r["state"] == "running" && r["job"] == "job.ngc" && r["feed"] != "0.0";
         });
       },
       60.0))
@@ -549,10 +557,10 @@ TEST_F(CellPage, ListsEveryMachineFollowsTheirJobsAndMarksStaleAndOffline) {
   }
   ASSERT_TRUE(all_twice());
   run_for(1.0);
-  const auto [ms, unmatched] = latencies();
-  EXPECT_GE(ms.size(), 3u * 4u);  // ready, running, (streaming,) done, per job and machine
-  EXPECT_EQ(unmatched, 0);
-  print_latencies("3 machines at 10 Hz");
+  const Latencies l = latencies();
+  print_latencies(l, "3 machines at 10 Hz");
+  EXPECT_GE(l.ms.size(), 3u * 2u);  // at least running and done of each machine's first job
+  EXPECT_EQ(l.missed, 0);
   // m3 stops publishing (SIGSTOP): stale; going on again: fresh.
   CellMachine& m3 = *machines_[2];
   stopped_.insert(3);
@@ -577,6 +585,19 @@ TEST_F(CellPage, ListsEveryMachineFollowsTheirJobsAndMarksStaleAndOffline) {
       },
       30.0))
       << rows().dump();
+  // m1's controller dies mid-job: the link fails, the job ends in error, and the page shows the
+  // state and the alarm (the status's job_error, the alarm event).
+  stopped_.insert(1);
+  for (int k = 0; k < 200 && machines_[0]->drive() != "running"; ++k)
+    std::this_thread::sleep_for(25ms);
+  machines_[0]->controller->signal(SIGKILL);
+  EXPECT_TRUE(wait_rows(
+      [&](const json& rs) {
+        return rs.size() == 3 && rs[0]["state"] == "error" &&
+               rs[0]["alarms"].get<std::string>().find("link") != std::string::npos;
+      },
+      90.0))
+      << rows().dump() << slurp(machines_[0]->dir / "serve.err");
   screenshot("cell-page.png");
 }
 
@@ -667,7 +688,9 @@ TEST_F(CellPage, DISABLED_SoakTwentyMachines) {
   for (const auto& m : machines_) jobs += m->jobs_started;
   std::cout << "[ measured ] " << n << " machines, " << span_s << " s, " << jobs
             << " jobs started in all\n";
-  print_latencies(std::to_string(n) + " machines at 10 Hz");
+  const Latencies l = latencies();
+  print_latencies(l, std::to_string(n) + " machines at 10 Hz");
+  EXPECT_EQ(l.missed, 0);
   std::cout << "[ measured ] broker: " << received / span_s << " PUBLISH/s received, "
             << sent / span_s << " sent (its $SYS counters, updated each second); CPU "
             << 100.0 * broker_cpu / span_s << " % of a core\n";
