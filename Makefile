@@ -2,7 +2,7 @@
 JOBS ?= $(shell nproc)
 NCD := build/release/app/ncd
 
-.PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build format \
+.PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build soak-cell format \
 	format-check bench soak clean install uninstall
 
 # `make install [PREFIX=/usr/local] [DESTDIR=]`: the binary, the systemd unit (its paths set to

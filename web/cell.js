@@ -19,12 +19,13 @@
 //   the statuses within one period.
 // - Alarms: the status's job_error and live-limit violations, and the alarm and violation events
 //   of the current job (cleared when a job starts).
-// - For measurements the page keeps window.cell.log: each change of a machine's shown state with
-//   the message's time and the wall clock (Date.now()) just after the DOM was written, and the
-//   count of messages received (bounded: the last 20000 changes).
+// - For measurements the page keeps window.cell.log: each state a machine's row shows as of a
+//   message (a change, or the same state confirmed by a newer message) with the message's time
+//   and the wall clock (Date.now()) just after the DOM was written, and the count of messages
+//   received (bounded: the last 50000 entries).
 "use strict";
 
-const kMaxLog = 20000;
+const kMaxLog = 50000;
 const kMinStaleMs = 3000;
 const kStalePeriods = 5;
 
@@ -95,10 +96,12 @@ function showState(m, state, timeS, source) {
   const t = typeof timeS === "number" ? timeS : -Infinity;
   if (t < m.stateT) return;
   m.stateT = t;
-  if (state === m.state) return;
-  m.state = state;
-  text(m.badge, state);
-  m.badge.className = "badge state " + state;
+  if (state !== m.state) {
+    m.state = state;
+    text(m.badge, state);
+    m.badge.className = "badge state " + state;
+  }
+  // Every state the DOM shows as of a message time (changed or confirmed), for the latency.
   const log = window.cell.log.displays;
   log.push({ machine: m.root, state, source, msg_time_s: timeS, shown_ms: Date.now() });
   if (log.length > kMaxLog) log.splice(0, log.length - kMaxLog);

@@ -188,4 +188,26 @@ TEST(MqttConfig, ServeRefusesABadTableWithExitTwo) {
   EXPECT_NE(text.find("[0.1, 100]"), std::string::npos) << text;
 }
 
+// page_url (the machine's page, in the online message for the cell page): http(s) only, no
+// spaces, quotes or <>, bounded; without it `ncd serve` publishes its [http] address, a wildcard
+// host replaced by the host name (a browser elsewhere cannot open 0.0.0.0).
+TEST(MqttConfig, ThePageUrlIsALinkOrRefusedAndAWildcardHostBecomesTheHostName) {
+  EXPECT_EQ(parse(kMinimal).page_url, "");
+  EXPECT_EQ(parse(kMinimal + "page_url = \"https://cell1-m1:8443/\"\n").page_url,
+            "https://cell1-m1:8443/");
+  for (const std::string bad :
+       {"javascript:alert(1)", "http://a b/", "ftp://m1/", "http://m1/\\\"><script>",
+        std::string("http://") + std::string(2100, 'a')}) {
+    const std::string why = refusal(kMinimal + "page_url = \"" + bad + "\"\n");
+    EXPECT_NE(why.find("serve.toml: mqtt.page_url = "), std::string::npos) << bad << ": " << why;
+    EXPECT_NE(why.find("http:// or https://, at most 2048 characters"), std::string::npos) << why;
+  }
+  std::array<char, 256> host{};
+  ASSERT_EQ(::gethostname(host.data(), host.size() - 1), 0);
+  const std::string name = host.data();
+  EXPECT_EQ(ncd::fleet::reachable_page_url("http://0.0.0.0:8080/"), "http://" + name + ":8080/");
+  EXPECT_EQ(ncd::fleet::reachable_page_url("https://[::]:8443/"), "https://" + name + ":8443/");
+  EXPECT_EQ(ncd::fleet::reachable_page_url("http://127.0.0.1:8080/"), "http://127.0.0.1:8080/");
+}
+
 }  // namespace

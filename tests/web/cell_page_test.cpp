@@ -391,11 +391,12 @@ class CellPage : public ncd::test::Cli {
       std::this_thread::sleep_for(100ms);
     }
   }
-  // Each published state change paired with the first time the page showed that state for
-  // that machine at or after it (the page's log): the latencies in ms. A change the page never
-  // showed is "superseded" when the page showed a newer state of that machine instead (a status
-  // taken after a short state, such as ready just before running, can arrive before the event
-  // of that state: the page shows the newest), else "missed".
+  // Each published state change (its event's time t) against the page's log: the first entry
+  // for that machine as of a message no older than t is when the DOM first showed what the
+  // machine was at t or later. If it shows that state, the latency is its time minus t; if it
+  // shows a later state, the change was "superseded" (a status taken after a short state, such as
+  // ready just before running, can arrive before that state's event: the page shows the newest);
+  // no entry at all is "missed".
   struct Latencies {
     std::vector<double> ms;
     int superseded = 0, missed = 0;
@@ -403,23 +404,23 @@ class CellPage : public ncd::test::Cli {
   Latencies latencies() {
     tick();
     const json shown = page_->script("return cell.log.displays;");
-    std::vector<bool> used(shown.size(), false);
     Latencies out;
     for (const StateChange& c : changes_) {
-      const double t_ms = c.time_s * 1000.0;
-      bool found = false, newer = false;
+      bool found = false;
       for (std::size_t k = 0; k < shown.size() && !found; ++k) {
         const json& d = shown[k];
-        if (d["machine"] != c.root) continue;
-        const double at = d["shown_ms"].get<double>();
-        const double msg_t = d["msg_time_s"].is_number() ? d["msg_time_s"].get<double>() : 0.0;
-        newer = newer || msg_t > c.time_s;
-        if (used[k] || d["state"] != c.state || at + 1.0 < t_ms) continue;
-        used[k] = true;
-        out.ms.push_back(at - t_ms);
+        if (d["machine"] != c.root || !d["msg_time_s"].is_number() ||
+            d["msg_time_s"].get<double>() < c.time_s) {
+          continue;
+        }
         found = true;
+        if (d["state"] == c.state) {
+          out.ms.push_back(d["shown_ms"].get<double>() - c.time_s * 1000.0);
+        } else {
+          ++out.superseded;
+        }
       }
-      if (!found) ++(newer ? out.superseded : out.missed);
+      if (!found) ++out.missed;
     }
     return out;
   }
