@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "api/mqtt_config.hpp"
 #include "core/error.hpp"
@@ -195,9 +196,9 @@ TEST(MqttConfig, ThePageUrlIsALinkOrRefusedAndAWildcardHostBecomesTheHostName) {
   EXPECT_EQ(parse(kMinimal).page_url, "");
   EXPECT_EQ(parse(kMinimal + "page_url = \"https://cell1-m1:8443/\"\n").page_url,
             "https://cell1-m1:8443/");
-  for (const std::string bad :
-       {"javascript:alert(1)", "http://a b/", "ftp://m1/", "http://m1/\\\"><script>",
-        std::string("http://") + std::string(2100, 'a')}) {
+  for (const std::string& bad : std::vector<std::string>{
+           "javascript:alert(1)", "http://a b/", "ftp://m1/", "http://m1/\\\"><script>",
+           std::string("http://") + std::string(2100, 'a')}) {
     const std::string why = refusal(kMinimal + "page_url = \"" + bad + "\"\n");
     EXPECT_NE(why.find("serve.toml: mqtt.page_url = "), std::string::npos) << bad << ": " << why;
     EXPECT_NE(why.find("http:// or https://, at most 2048 characters"), std::string::npos) << why;
