@@ -218,7 +218,9 @@ struct CellMachine {
   std::string drive() {
     const json s = client->request({{"cmd", "status"}});
     const std::string state = s.value("state", std::string());
-    if (state == "idle" || state == "done" || state == "stopped") {
+    // A job in error is followed by the next one too: on a loaded machine the simulated
+    // controller's drip feed can overflow (NAK), which ends that job in error.
+    if (state == "idle" || state == "done" || state == "stopped" || state == "error") {
       const json r =
           client->request({{"cmd", "submit"}, {"job", {{"path", (dir / "job.ngc").string()}}}});
       if (r.value("ok", false) && client->request({{"cmd", "start"}}).value("ok", false)) {
@@ -556,7 +558,7 @@ TEST_F(CellPage, ListsEveryMachineFollowsTheirJobsAndMarksStaleAndOffline) {
     tick();
     std::this_thread::sleep_for(100ms);
   }
-  ASSERT_TRUE(all_twice());
+  ASSERT_TRUE(all_twice()) << rows().dump();
   run_for(1.0);
   const Latencies l = latencies();
   print_latencies(l, "3 machines at 10 Hz");
