@@ -37,9 +37,9 @@ std::string base64(const std::string& in) {
   out.reserve((in.size() + 2) / 3 * 4);
   std::size_t i = 0;
   for (; i + 2 < in.size(); i += 3) {
-    const std::uint32_t v = (static_cast<std::uint8_t>(in[i]) << 16) |
-                            (static_cast<std::uint8_t>(in[i + 1]) << 8) |
-                            static_cast<std::uint8_t>(in[i + 2]);
+    const std::uint32_t v = (std::uint32_t{static_cast<std::uint8_t>(in[i])} << 16) |
+                            (std::uint32_t{static_cast<std::uint8_t>(in[i + 1])} << 8) |
+                            std::uint32_t{static_cast<std::uint8_t>(in[i + 2])};
     for (int s = 18; s >= 0; s -= 6) out.push_back(k[(v >> s) & 63u]);
   }
   if (i < in.size()) {

@@ -50,18 +50,20 @@ Jet reciprocal(Jet a) {
 // N_{i,p}(u) by the Cox–de Boor recursion, 0/0 = 0. The degree-0 functions use the half-open
 // span [u_i, u_{i+1}), except that u = u_end belongs to the last non-empty span.
 Jet basis(const std::vector<double>& U, std::size_t i, int p, Real u) {
+  const auto knot = [&U](std::size_t k) { return Real(U[k]); };  // every sum in long double
   if (p == 0) {
-    const Real last = U.back();
-    bool in = U[i] <= u && u < U[i + 1];
-    if (u == last && U[i] < U[i + 1] && U[i + 1] == last) in = true;
+    const Real last = knot(U.size() - 1);
+    bool in = knot(i) <= u && u < knot(i + 1);
+    if (u == last && knot(i) < knot(i + 1) && knot(i + 1) == last) in = true;
     return {in ? Real(1) : Real(0), 0, 0};
   }
   const auto pi = static_cast<std::size_t>(p);
   Jet sum;
-  const Real d1 = Real(U[i + pi]) - U[i];
-  if (d1 != 0) sum = sum + (1 / d1) * (Jet{u - U[i], 1, 0} * basis(U, i, p - 1, u));
-  const Real d2 = Real(U[i + pi + 1]) - U[i + 1];
-  if (d2 != 0) sum = sum + (1 / d2) * (Jet{U[i + pi + 1] - u, -1, 0} * basis(U, i + 1, p - 1, u));
+  const Real d1 = knot(i + pi) - knot(i);
+  if (d1 != 0) sum = sum + (1 / d1) * (Jet{u - knot(i), 1, 0} * basis(U, i, p - 1, u));
+  const Real d2 = knot(i + pi + 1) - knot(i + 1);
+  if (d2 != 0)
+    sum = sum + (1 / d2) * (Jet{knot(i + pi + 1) - u, -1, 0} * basis(U, i + 1, p - 1, u));
   return sum;
 }
 
@@ -80,7 +82,7 @@ Reference reference(const NurbsCurve& c, double u) {
   Jet w;
   std::vector<Jet> N(P.size());
   for (std::size_t i = 0; i < P.size(); ++i) {
-    N[i] = basis(c.knots(), i, c.degree(), u);
+    N[i] = basis(c.knots(), i, c.degree(), Real(u));
     const Jet Nw = Real(W[i]) * N[i];
     for (std::size_t k = 0; k < 3; ++k) {
       A[k] = A[k] + Real(P[i][static_cast<Eigen::Index>(k)]) * Nw;
@@ -375,14 +377,14 @@ TEST(NurbsCurve, RejectsInvalidInputNamingTheValue) {
         NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 1.5}, four);
       },
       "end knot 1.5");  // unclamped
-  expect_error([&] { NurbsCurve(3, {0, 0, 0, 0, NAN, 1, 1, 1}, four); }, "nan");
+  expect_error([&] { NurbsCurve(3, {0, 0, 0, 0, std::nan(""), 1, 1, 1}, four); }, "nan");
   expect_error([&] { NurbsCurve(3, k3, four, {1, 0, 1, 1}); }, "weight[1] = 0");
   expect_error([&] { NurbsCurve(3, k3, four, {1, 1, -2.5, 1}); }, "weight[2] = -2.5");
-  expect_error([&] { NurbsCurve(3, k3, four, {1, 1, 1, NAN}); }, "weight[3] = nan");
+  expect_error([&] { NurbsCurve(3, k3, four, {1, 1, 1, std::nan("")}); }, "weight[3] = nan");
   expect_error([&] { NurbsCurve(3, k3, four, {1, 1, 1}); }, "3 weights");
   expect_error(
       [&] {
-        NurbsCurve(3, k3, {Vec3(), Vec3(INFINITY, 0, 0), Vec3(), Vec3()});
+        NurbsCurve(3, k3, {Vec3(), Vec3(HUGE_VAL, 0, 0), Vec3(), Vec3()});
       },
       "point[1] = (inf");
   // Multiplicity equal to the degree is allowed (C0 corner).

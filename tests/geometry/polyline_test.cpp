@@ -49,7 +49,7 @@ TEST(Polyline, RejectsConsecutiveDuplicatesNamingTheIndex) {
 }
 
 TEST(Polyline, RejectsNonFinitePoints) {
-  const std::string e = error_of(Polyline{{Vec3(0, 0, 0), Vec3(0, NAN, 0)}, {}});
+  const std::string e = error_of(Polyline{{Vec3(0, 0, 0), Vec3(0, std::nan(""), 0)}, {}});
   EXPECT_NE(e.find("point[1] = (0, nan, 0)"), std::string::npos) << e;
 }
 
@@ -63,7 +63,7 @@ TEST(Polyline, RejectsWrongNormalCountAndNonUnitNormals) {
   EXPECT_NE(error_of(b).find("normal[1] = (0, 0, 2) has length 2"), std::string::npos)
       << error_of(b);
   Polyline c = pts;
-  c.normals = {Vec3(0, 0, 1), Vec3(0, 0, 1), Vec3(0, INFINITY, 1)};
+  c.normals = {Vec3(0, 0, 1), Vec3(0, 0, 1), Vec3(0, HUGE_VAL, 1)};
   EXPECT_NE(error_of(c).find("normal[2]"), std::string::npos) << error_of(c);
 }
 

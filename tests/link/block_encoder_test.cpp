@@ -22,6 +22,7 @@
 #include "gcode/gcode_reader.hpp"
 #include "gcode/path_io.hpp"
 #include "motion/job.hpp"
+#include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 
 namespace ncd::comms {
@@ -621,7 +622,7 @@ TEST(BlockEncoder, RandomSweep) {
   std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const int bauds[] = {2400, 9600, 19200, 115200};
-  for (int round = 0; round < 8; ++round) {
+  for (int round = 0; round < ncd::test::sweep_cases(8); ++round) {  // one under ASan
     std::ostringstream j;
     j.precision(17);
     const int n = 6 + static_cast<int>(u(rng) * 5);

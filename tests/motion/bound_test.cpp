@@ -33,6 +33,7 @@
 #include "gcode/path_io.hpp"
 #include "motion/job.hpp"
 #include "tests/common/dense_cam.hpp"
+#include "tests/common/sanitized.hpp"
 #include "tests/common/seed.hpp"
 #include "tests/common/test_paths.hpp"
 #include "tests/motion/chamfer_exp3.hpp"
@@ -413,7 +414,7 @@ TEST(Bound, RandomSmoothCurvesNearTheJerkCountingBound) {
   std::mt19937_64 rng(test::seed());
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   double total_s = 0.0, sum_ratio = 0.0, worst = 0.0;
-  constexpr int kCurves = 16;
+  constexpr int kCurves = test::sweep_cases(16);  // a tenth under ASan
   for (int k = 0; k < kCurves; ++k) {
     const int n = 6 + k % 5;
     std::vector<Vec3> points;
@@ -480,7 +481,7 @@ TEST(Bound, JerkPivotBoundNeverExceedsTheKnownOptimum) {
     return t;
   };
   double worst = 1.0;
-  for (int k = 0; k < 60; ++k) {
+  for (int k = 0; k < test::sweep_cases(60); ++k) {  // a tenth under ASan
     const double v = log_uniform(5.0, 200.0), a = log_uniform(200.0, 5000.0);
     const double j = log_uniform(2000.0, 200000.0);
     std::vector<double> legs{log_uniform(0.05, 60.0)};

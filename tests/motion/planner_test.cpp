@@ -207,7 +207,7 @@ TEST(PlannerLimits, RejectsDegenerateLimitsNamingTheValue) {
   EXPECT_NE(msg(limits(-5.0, 2e4, 0.004)).find("a_max_mm_per_s2"), std::string::npos);
   EXPECT_NE(msg(limits(1e3, 0.0, 0.004)).find("j_max_mm_per_s3"), std::string::npos);
   EXPECT_NE(msg(limits(1e3, 2e4, 0.0)).find("period_s"), std::string::npos);
-  EXPECT_NE(msg(limits(1e3, NAN, 0.004)).find("j_max_mm_per_s3"), std::string::npos);
+  EXPECT_NE(msg(limits(1e3, std::nan(""), 0.004)).find("j_max_mm_per_s3"), std::string::npos);
   EXPECT_THROW(Planner(limits(1e3, 2e4, 0.004), -1.0), InputError);
   EXPECT_EQ(msg(limits(1e3, 2e4, 0.004)), "");
 }
@@ -220,12 +220,12 @@ TEST(Planner, RejectsBadSamplesWithResultCodes) {
   EXPECT_EQ(p.push({1.0, 10.0, 1}), PushResult::FirstNotAtZero);
   EXPECT_EQ(p.push({0.0, 10.0, 1}), PushResult::Ok);
   EXPECT_EQ(p.push({0.0, 10.0, 1}), PushResult::NotIncreasing);
-  EXPECT_EQ(p.push({NAN, 10.0, 1}), PushResult::NotIncreasing);
+  EXPECT_EQ(p.push({std::nan(""), 10.0, 1}), PushResult::NotIncreasing);
   EXPECT_EQ(p.push({1.0, -1.0, 1}), PushResult::SpeedInvalid);
-  EXPECT_EQ(p.push({1.0, NAN, 1}), PushResult::SpeedInvalid);
+  EXPECT_EQ(p.push({1.0, std::nan(""), 1}), PushResult::SpeedInvalid);
   EXPECT_EQ(p.push({1.0, 10.0, kLimitIdJerk}), PushResult::IdReserved);
   EXPECT_EQ(p.push({1.0, 10.0, 1, {}, 5.0, 1}), PushResult::AfterInvalid);
-  EXPECT_EQ(p.push({1.0, 10.0, 1, {}, NAN, 1}), PushResult::AfterInvalid);
+  EXPECT_EQ(p.push({1.0, 10.0, 1, {}, std::nan(""), 1}), PushResult::AfterInvalid);
   EXPECT_EQ(p.push({1.0, 10.0, 1, {}, 20.0, kLimitIdJerk}), PushResult::IdReserved);
   EXPECT_EQ(p.push({1.0, 10.0, 1, {-1.0, 0.0, 1.0}}), PushResult::SpanInvalid);
   EXPECT_EQ(p.push({1.0, 10.0, 1, {0.0, 0.0, 0.0}}), PushResult::SpanInvalid);
@@ -241,7 +241,7 @@ TEST(Planner, RejectsBadSamplesWithResultCodes) {
   Planner q(limits(1e3, 2e4, 0.004), 10.0);
   EXPECT_FALSE(q.set_override(2.5));
   EXPECT_FALSE(q.set_override(-0.1));
-  EXPECT_FALSE(q.set_override(NAN));
+  EXPECT_FALSE(q.set_override(std::nan("")));
   EXPECT_EQ(q.override_fraction(), 1.0);
   EXPECT_TRUE(q.set_override(1.5));
   EXPECT_FALSE(q.restart(5.0));  // not at rest at its end yet
