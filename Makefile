@@ -46,9 +46,11 @@ test-debug: debug
 	ctest --preset debug -j $(JOBS)
 
 # libFuzzer harnesses of tests/fuzz (docs/input-ranges.md): `make fuzz` runs each FUZZ_SECONDS.
+# They build in the sanitizer tree (build/debug, clang-14) with the test suite: after `make
+# test-debug`, fuzz-build has nothing left to do (docs/testing.md).
 FUZZ_SECONDS ?= 60
 fuzz-build: deps
-	@cmake --preset fuzz >/dev/null
+	@cmake --preset debug >/dev/null
 	@cmake --build --preset fuzz -j $(JOBS)
 
 fuzz: fuzz-build
