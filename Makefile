@@ -2,7 +2,7 @@
 JOBS ?= $(shell nproc)
 NCD := build/release/app/ncd
 
-.PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build format \
+.PHONY: all deps deps-build release debug demo test test-release test-debug test-fuzz fuzz fuzz-build format \
 	format-check bench soak clean install uninstall
 
 # `make install [PREFIX=/usr/local] [DESTDIR=]`: the binary, the systemd unit (its paths set to
@@ -23,6 +23,10 @@ all: release
 deps:
 	@scripts/install-deps.sh
 
+# Only what building `ncd` needs: the demo does not wait for the test tools (chromium, clang-14).
+deps-build:
+	@scripts/install-deps.sh --build
+
 release: deps
 	@cmake --preset release >/dev/null
 	@cmake --build --preset release -j $(JOBS)
@@ -32,7 +36,7 @@ debug: deps
 	@cmake --build --preset debug -j $(JOBS)
 
 # The demo builds only the `ncd` executable; the tests and benchmarks build under `make test`.
-demo: deps
+demo: deps-build
 	@cmake --preset release >/dev/null
 	@cmake --build --preset release -j $(JOBS) --target ncd
 	@scripts/demo.sh $(NCD)
