@@ -2,7 +2,7 @@
 JOBS ?= $(shell nproc)
 NCD := build/release/app/ncd
 
-.PHONY: all deps release debug demo test test-release test-debug test-fuzz fuzz fuzz-build soak-cell format \
+.PHONY: all deps deps-build release debug demo test test-release test-debug test-fuzz fuzz fuzz-build soak-cell format \
 	format-check bench soak clean install uninstall
 
 # `make install [PREFIX=/usr/local] [DESTDIR=]`: the binary, the systemd unit (its paths set to
@@ -23,6 +23,10 @@ all: release
 deps:
 	@scripts/install-deps.sh
 
+# Only what building `ncd` needs: the demo does not wait for the test tools (chromium, clang-14).
+deps-build:
+	@scripts/install-deps.sh --build
+
 release: deps
 	@cmake --preset release >/dev/null
 	@cmake --build --preset release -j $(JOBS)
@@ -32,7 +36,7 @@ debug: deps
 	@cmake --build --preset debug -j $(JOBS)
 
 # The demo builds only the `ncd` executable; the tests and benchmarks build under `make test`.
-demo: deps
+demo: deps-build
 	@cmake --preset release >/dev/null
 	@cmake --build --preset release -j $(JOBS) --target ncd
 	@scripts/demo.sh $(NCD)
@@ -46,9 +50,11 @@ test-debug: debug
 	ctest --preset debug -j $(JOBS)
 
 # libFuzzer harnesses of tests/fuzz (docs/input-ranges.md): `make fuzz` runs each FUZZ_SECONDS.
+# They build in the sanitizer tree (build/debug, clang-14) with the test suite: after `make
+# test-debug`, fuzz-build has nothing left to do (docs/testing.md).
 FUZZ_SECONDS ?= 60
 fuzz-build: deps
-	@cmake --preset fuzz >/dev/null
+	@cmake --preset debug >/dev/null
 	@cmake --build --preset fuzz -j $(JOBS)
 
 fuzz: fuzz-build

@@ -56,7 +56,7 @@
 namespace ncd::comms {
 
 namespace asio = boost::asio;
-using Protocol = asio::generic::stream_protocol;  // one socket type for TCP and Unix
+using SocketProtocol = asio::generic::stream_protocol;  // one socket type for TCP and Unix
 using boost::system::error_code;
 using Clock = std::chrono::steady_clock;
 using Json = nlohmann::json;
@@ -133,7 +133,7 @@ struct ControlServer::State {
       : io(io_context), acceptor(io_context), accept_retry(io_context), handler(h), options(o) {}
 
   asio::io_context& io;
-  asio::basic_socket_acceptor<Protocol> acceptor;
+  asio::basic_socket_acceptor<SocketProtocol> acceptor;
   asio::steady_timer accept_retry;
   ControlHandler& handler;
   const ServerOptions options;
@@ -153,7 +153,7 @@ using State = ControlServer::State;
 // One client: a read loop splitting lines, a write queue, and an optional status stream.
 class Connection : public std::enable_shared_from_this<Connection> {
  public:
-  Connection(std::shared_ptr<State> server, Protocol::socket socket)
+  Connection(std::shared_ptr<State> server, SocketProtocol::socket socket)
       : server_(std::move(server)), socket_(std::move(socket)), timer_(server_->io) {}
 
   // Starts the read loop.
@@ -175,7 +175,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void on_written(const error_code& ec);
 
   std::shared_ptr<State> server_;
-  Protocol::socket socket_;
+  SocketProtocol::socket socket_;
   asio::steady_timer timer_;
   std::array<char, kReadChunkBytes> buffer_{};
   std::string line_;         // the request line read so far
@@ -341,14 +341,14 @@ void Connection::close() {
   streaming_ = false;
   error_code ignored;
   timer_.cancel();
-  socket_.shutdown(Protocol::socket::shutdown_both, ignored);
+  socket_.shutdown(SocketProtocol::socket::shutdown_both, ignored);
   socket_.close(ignored);
   if (server_->live.erase(shared_from_this()) > 0) --server_->count;
 }
 
 // Accepts connections until the acceptor closes; retries after a pause on errors like EMFILE.
 void accept_next(const std::shared_ptr<State>& state) {
-  state->acceptor.async_accept([state](const error_code& ec, Protocol::socket socket) {
+  state->acceptor.async_accept([state](const error_code& ec, SocketProtocol::socket socket) {
     if (state->closed || ec == asio::error::operation_aborted) return;
     if (ec) {
       state->accept_retry.expires_after(kAcceptRetry);
@@ -369,7 +369,7 @@ void accept_next(const std::shared_ptr<State>& state) {
 
 // Opens, binds and (after prepare, which may set file permissions) listens, or throws.
 template <typename Prepare>
-void listen_at(State& state, const Protocol::endpoint& endpoint, const std::string& name,
+void listen_at(State& state, const SocketProtocol::endpoint& endpoint, const std::string& name,
                bool reuse_address, Prepare prepare) {
   error_code ec;
   state.acceptor.open(endpoint.protocol(), ec);
@@ -554,9 +554,9 @@ ControlServer::ControlServer(boost::asio::io_context& io, const ListenAddress& a
                         ? asio::ip::address(asio::ip::address_v4::loopback())
                         : asio::ip::make_address(address.host, ec);
     if (ec) throw InputError("listen address " + name + " has no valid IP address");
-    listen_at(*state_, Protocol::endpoint(asio::ip::tcp::endpoint(ip, address.port)), name, true,
-              [] {});
-    const Protocol::endpoint bound = state_->acceptor.local_endpoint(ec);
+    listen_at(*state_, SocketProtocol::endpoint(asio::ip::tcp::endpoint(ip, address.port)), name,
+              true, [] {});
+    const SocketProtocol::endpoint bound = state_->acceptor.local_endpoint(ec);
     asio::ip::tcp::endpoint tcp_bound;
     if (!ec && bound.size() <= tcp_bound.capacity()) {
       std::memcpy(tcp_bound.data(), bound.data(), bound.size());
@@ -584,7 +584,7 @@ ControlServer::ControlServer(boost::asio::io_context& io, const ListenAddress& a
         throw InputError("cannot remove the stale socket " + path + ": " + std::strerror(errno));
       }
     }
-    const Protocol::endpoint endpoint{asio::local::stream_protocol::endpoint(path)};
+    const SocketProtocol::endpoint endpoint{asio::local::stream_protocol::endpoint(path)};
     listen_at(*state_, endpoint, name, false, [&] {
       // Before listen(), so no client connects while the file still has the umask's mode.
       if (::chmod(path.c_str(), 0660) != 0 || ::lstat(path.c_str(), &st) != 0) {

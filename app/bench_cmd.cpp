@@ -193,11 +193,6 @@ NcdRun run_ncd(const toolpath::Path& path, const motion::JobConfig& cfg, int sec
   return run;
 }
 
-// {p50, p99, p999, max} in µs, the shape of every lateness in the JSON.
-nlohmann::ordered_json percentiles_json(const LatencyPercentiles& p) {
-  return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}};
-}
-
 // --with-service-io: the service without and with its observers (app/bench_service_io.hpp).
 int run_with_service_io(const BenchLatencyArgs& a) {
   if (a.stress) {

@@ -396,10 +396,6 @@ struct KindSum {
   int phases = 0;
 };
 
-Json percentiles_json(const LatencyPercentiles& p) {
-  return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}};
-}
-
 Json received_json(const ReceivedCount& r, double job_s) {
   return {{"status", r.status},
           {"events", r.events},
@@ -640,7 +636,7 @@ PhaseResult run_phase(ServiceOnIo& s, const MqttCounter& watcher, const PhaseSet
 }
 
 // The phases of each kind summed, and p99(with) / p99(without) against the limit.
-struct Summary {
+struct IoSummary {
   KindSum without, with;
   LatencyPercentiles p0, p1;
   std::optional<double> ratio;
@@ -648,8 +644,8 @@ struct Summary {
   std::int64_t lost = 0;
 };
 
-Summary summarise(const std::vector<PhaseResult>& phases) {
-  Summary s;
+IoSummary summarise(const std::vector<PhaseResult>& phases) {
+  IoSummary s;
   for (const PhaseResult& r : phases) {
     KindSum& k = r.with ? s.with : s.without;
     add_stats(k.stats, r.stats);
@@ -669,7 +665,7 @@ struct RunNotes {
   std::string realtime, load_before, load_after;
 };
 
-void print_summary(const Summary& s, const RunNotes& n) {
+void print_summary(const IoSummary& s, const RunNotes& n) {
   std::printf("realtime: %s\n", n.realtime.c_str());
   std::printf("\n%s", format_latency_table({{"without", s.p0}, {"with page+MQTT", s.p1}}).c_str());
   if (s.ratio) {
@@ -707,7 +703,7 @@ Json phase_json(const PhaseResult& r) {
 }
 
 Json run_json(const ServiceIoBenchArgs& a, const PhaseSetup& p, const RunNotes& n,
-              const std::vector<PhaseResult>& phases, const Summary& s) {
+              const std::vector<PhaseResult>& phases, const IoSummary& s) {
   Json j;
   j["mode"] = "with_service_io";
   j["seconds_per_phase"] = a.seconds;
@@ -760,7 +756,7 @@ int run_bench_service_io(const ServiceIoBenchArgs& a) {
   }
   notes.load_after = load_average();
 
-  const Summary summary = summarise(phases);
+  const IoSummary summary = summarise(phases);
   print_summary(summary, notes);
   if (!a.json.empty())
     write_output(a.json, run_json(a, setup, notes, phases, summary).dump(1) + "\n");

@@ -17,6 +17,10 @@ std::string format_us(double us) {
   return text::fixed(us, decimals);
 }
 
+nlohmann::ordered_json percentiles_json(const LatencyPercentiles& p) {
+  return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}};
+}
+
 LatencyPercentiles percentiles_us_from_ns(const LogHistogram& histogram_ns) {
   return {histogram_ns.quantile(0.5) * 1e-3, histogram_ns.quantile(0.99) * 1e-3,
           histogram_ns.quantile(0.999) * 1e-3, histogram_ns.max() * 1e-3};

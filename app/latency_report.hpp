@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,6 +24,9 @@ namespace ncd::app {
 struct LatencyPercentiles {
   double p50_us = 0.0, p99_us = 0.0, p999_us = 0.0, max_us = 0.0;
 };
+
+// {p50, p99, p999, max} in µs, the shape of every lateness in the benchmarks' JSON.
+nlohmann::ordered_json percentiles_json(const LatencyPercentiles& p);
 
 // Percentiles of a histogram of nanoseconds, in µs (LogHistogram::quantile: within 3.7 %).
 LatencyPercentiles percentiles_us_from_ns(const LogHistogram& histogram_ns);

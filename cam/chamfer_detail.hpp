@@ -14,8 +14,6 @@
 
 namespace ncd::toolpath::chamfer_detail {
 
-inline constexpr double kInf = std::numeric_limits<double>::infinity();
-
 inline std::string fmt_deg(double rad) {
   return text::sig(rad_to_deg(rad)) + "°";
 }

@@ -77,8 +77,6 @@ namespace {
 
 using Vec2 = Eigen::Vector2d;
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 // Shortest decimal that reads back as v, in fixed notation ("47.45", "300", "-0.1").
 std::string shortest(double v) {
   std::array<char, 400> buf{};

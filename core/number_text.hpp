@@ -78,4 +78,10 @@ inline std::string shortest(double v) {
   return detail::unsigned_zero(fmt::format("{}", v));
 }
 
+// A point as "(x, y, z)", each coordinate shortest: the points error messages name.
+template <typename Point>
+std::string point(const Point& p) {
+  return "(" + shortest(p.x()) + ", " + shortest(p.y()) + ", " + shortest(p.z()) + ")";
+}
+
 }  // namespace ncd::text

@@ -66,16 +66,9 @@ using toolpath::PathControl;
 using toolpath::PathSegment;
 using toolpath::Polyline;
 
-constexpr double kMinTurnRad = 1e-9;    // below it a vertex is straight (as the sampler)
 constexpr double kMinHalfCos = 0.05;    // cos(φ/2) below it (φ > 174°): a reversal, not blended
 constexpr double kMinSpanMm = 1e-9;     // shorter line spans are dropped (their knots would merge)
 constexpr double kMinTangentMm = 1e-6;  // an arc shorter than this is not worth a span
-
-double cap_mm_per_s(const PathSegment& s, const MachineLimits& l) {
-  double c = l.max_feed_mm_per_min / 60.0;
-  if (!s.rapid && s.feed_mm_per_min) c = std::min(c, *s.feed_mm_per_min / 60.0);
-  return c;
-}
 
 // G64 P gives the tolerance; a plain G64 (no P) takes the machine file's blend_tolerance_mm
 // (the "without G64 P the machine file's blend_tolerance_mm applies"; LinuxCNC's plain
@@ -91,7 +84,7 @@ bool blendable_body(const PathSegment& s, const MachineLimits& l) {
   const auto* line = std::get_if<Polyline>(&s.geometry);
   if (!line || !line->normals.empty() || line->points.size() < 2) return false;
   if (s.path_control != PathControl::blend || !(tolerance_mm(s, l) > 0.0)) return false;
-  const double shortest = cap_mm_per_s(s, l) * l.period_s;
+  const double shortest = segment_cap_mm_per_s(s, l) * l.period_s;
   for (std::size_t i = 0; i + 1 < line->points.size(); ++i) {
     if (!((line->points[i + 1] - line->points[i]).norm() >= shortest)) return false;
   }
@@ -204,7 +197,7 @@ std::vector<Corner> plan_joints(const toolpath::Path& path, const MachineLimits&
       continue;
     }
     if (!((next->points[1] - next->points[0]).norm() >=
-          cap_mm_per_s(t, limits) * limits.period_s)) {
+          segment_cap_mm_per_s(t, limits) * limits.period_s)) {
       continue;
     }
     const auto& pts = std::get<Polyline>(s.geometry).points;
@@ -212,7 +205,7 @@ std::vector<Corner> plan_joints(const toolpath::Path& path, const MachineLimits&
     // trimmed by other arcs, each by at most half of the piece).
     joint[k] =
         plan_corner(pts[pts.size() - 2], pts.back(), next->points[1], tolerance_mm(s, limits),
-                    cap_mm_per_s(s, limits), cap_mm_per_s(t, limits), limits);
+                    segment_cap_mm_per_s(s, limits), segment_cap_mm_per_s(t, limits), limits);
   }
   return joint;
 }
@@ -237,9 +230,10 @@ bool plan_inner_corners(const toolpath::Path& path, const MachineLimits& limits,
   bool any = joint_blended;
   if (body) {
     for (std::size_t v = 1; v + 1 < pts.size(); ++v) {
-      inner.push_back(plan_corner(
-          pts[v - 1], pts[v], pts[v + 1], tolerance_mm(path.segments[k], limits),
-          cap_mm_per_s(path.segments[k], limits), cap_mm_per_s(path.segments[k], limits), limits));
+      inner.push_back(plan_corner(pts[v - 1], pts[v], pts[v + 1],
+                                  tolerance_mm(path.segments[k], limits),
+                                  segment_cap_mm_per_s(path.segments[k], limits),
+                                  segment_cap_mm_per_s(path.segments[k], limits), limits));
       any = any || inner.back().blended;
     }
   }

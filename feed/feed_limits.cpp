@@ -40,8 +40,6 @@
 namespace ncd::interpolator {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 FeedLimitResult with_curvature(const MachineLimits& limits, double roughness_mm_per_s,
                                double curvature_per_mm) {
   FeedLimitResult best{roughness_mm_per_s, FeedLimit::Roughness};

@@ -4,6 +4,7 @@
 // Pure functions, no allocation: the planner samples them along the path.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <limits>
 #include <string>
@@ -11,6 +12,7 @@
 #include "core/geometry.hpp"
 #include "feed/roughness.hpp"
 #include "geometry/curve.hpp"
+#include "geometry/path.hpp"
 
 namespace ncd::interpolator {
 
@@ -173,5 +175,16 @@ FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& 
 FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& cutting,
                               const toolpath::CurvePoint& point, const Vec3& contact_normal,
                               const Vec3& tool_axis = Vec3::UnitZ());
+
+// Below this turn a joint of two pieces is straight, not a corner (the sampler and the blends).
+inline constexpr double kMinTurnRad = 1e-9;
+
+// The speed a segment may not exceed, mm/s: the machine's maximum feed, and the programmed feed
+// of a move that is not a rapid.
+inline double segment_cap_mm_per_s(const toolpath::PathSegment& s, const MachineLimits& l) {
+  double c = l.max_feed_mm_per_min / 60.0;
+  if (!s.rapid && s.feed_mm_per_min) c = std::min(c, *s.feed_mm_per_min / 60.0);
+  return c;
+}
 
 }  // namespace ncd::interpolator

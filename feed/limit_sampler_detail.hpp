@@ -16,9 +16,6 @@
 
 namespace ncd::interpolator::sampler_detail {
 
-inline constexpr double kInf = std::numeric_limits<double>::infinity();
-inline constexpr double kMinTurnRad = 1e-9;  // below this a joint is straight
-
 // The mode that decides whether a corner is a rest. G64 P0 (or a plain G64 with
 // blend_tolerance_mm 0) holds its end points exactly, as G61.1 does: its corners are rests
 // (docs/planner.md §3a; passed at the corner speed they would be missed by up to ε_c).

@@ -401,12 +401,6 @@ Attempt fit_run(const std::vector<Vec3>& points, double tol) {
   return out;
 }
 
-double cap_mm_per_s(const PathSegment& s, const MachineLimits& l) {
-  double c = l.max_feed_mm_per_min / 60.0;
-  if (!s.rapid && s.feed_mm_per_min) c = std::min(c, *s.feed_mm_per_min / 60.0);
-  return c;
-}
-
 double smoothing_mm(const PathSegment& s) {
   const double q = s.smoothing_tolerance_mm.value_or(0.0);
   return std::isfinite(q) && q > 0.0 ? q : 0.0;
@@ -418,7 +412,7 @@ bool eligible(const PathSegment& s) {
          s.path_control == PathControl::blend && smoothing_mm(s) > 0.0;
 }
 
-double turn_rad(const Vec3& a, const Vec3& b) {
+double angle_between_rad(const Vec3& a, const Vec3& b) {
   const double na = a.norm(), nb = b.norm();
   if (!(na > 0.0 && nb > 0.0)) return 0.0;
   return std::acos(std::clamp(a.dot(b) / (na * nb), -1.0, 1.0));
@@ -486,13 +480,15 @@ std::vector<char> find_corners(const Distinct& d, double lambda) {
   std::vector<char> corner(m + 1, 0);
   std::size_t back = 0, ahead = 1;
   for (std::size_t v = 1; v < m; ++v) {
-    const double fine = turn_rad(p[v] - p[v - 1], p[v + 1] - p[v]);
+    const double fine = angle_between_rad(p[v] - p[v - 1], p[v + 1] - p[v]);
     if (fine <= kCornerTurnRad) continue;
     while (back + 1 < v && t[v] - t[back + 1] >= lambda) ++back;
     ahead = std::max(ahead, v + 1);
     while (ahead < m && t[ahead] - t[v] < lambda) ++ahead;
     corner[v] =
-        fine > kReversalRad || turn_rad(p[v] - p[back], p[ahead] - p[v]) > kCornerTurnRad ? 1 : 0;
+        fine > kReversalRad || angle_between_rad(p[v] - p[back], p[ahead] - p[v]) > kCornerTurnRad
+            ? 1
+            : 0;
   }
   return corner;
 }
@@ -589,8 +585,8 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
       keep();
       continue;
     }
-    const double short_mm =
-        std::max(std::sqrt(8.0 * kRefRadiusMm * q), cap_mm_per_s(seg, limits) * limits.period_s);
+    const double short_mm = std::max(std::sqrt(8.0 * kRefRadiusMm * q),
+                                     segment_cap_mm_per_s(seg, limits) * limits.period_s);
     const std::vector<char> corner = find_corners(d, kCoarseChordPerQ * q);
     std::vector<Block> blocks = fit_blocks(d, corner, short_mm, q, rep);
     if (std::none_of(blocks.begin(), blocks.end(),

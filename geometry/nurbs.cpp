@@ -36,11 +36,6 @@
 namespace ncd::toolpath {
 namespace {
 
-std::string point_text(const Vec3& p) {
-  return "(" + text::shortest(p.x()) + ", " + text::shortest(p.y()) + ", " + text::shortest(p.z()) +
-         ")";
-}
-
 // The knot vector: finite, non-decreasing, clamped (p + 1 equal knots at each end), and no
 // interior knot repeated more than p times.
 void validate_knots(const std::vector<double>& knots, std::size_t p) {
@@ -151,7 +146,8 @@ void validate(int degree, const std::vector<double>& knots, const std::vector<Ve
   }
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) {
-      throw InputError("NURBS control point[" + std::to_string(i) + "] = " + point_text(points[i]) +
+      throw InputError("NURBS control point[" + std::to_string(i) +
+                       "] = " + text::point(points[i]) +
                        " is not finite; every coordinate must be a number");
     }
   }

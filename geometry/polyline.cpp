@@ -10,14 +10,6 @@
 #include "core/number_text.hpp"
 
 namespace ncd::toolpath {
-namespace {
-
-std::string point_text(const Vec3& p) {
-  return "(" + text::shortest(p.x()) + ", " + text::shortest(p.y()) + ", " + text::shortest(p.z()) +
-         ")";
-}
-
-}  // namespace
 
 void validate(const Polyline& pl, const std::string& what) {
   if (pl.points.size() < 2) {
@@ -31,11 +23,11 @@ void validate(const Polyline& pl, const std::string& what) {
   }
   for (std::size_t i = 0; i < pl.points.size(); ++i) {
     if (!pl.points[i].allFinite()) {
-      throw InputError(what + " point[" + std::to_string(i) + "] = " + point_text(pl.points[i]) +
+      throw InputError(what + " point[" + std::to_string(i) + "] = " + text::point(pl.points[i]) +
                        " is not finite; every coordinate must be a number");
     }
     if (i > 0 && pl.points[i] == pl.points[i - 1]) {
-      throw InputError(what + " point[" + std::to_string(i) + "] = " + point_text(pl.points[i]) +
+      throw InputError(what + " point[" + std::to_string(i) + "] = " + text::point(pl.points[i]) +
                        " repeats point[" + std::to_string(i - 1) +
                        "]: a zero-length move has no direction; remove the duplicate");
     }
@@ -43,7 +35,7 @@ void validate(const Polyline& pl, const std::string& what) {
   for (std::size_t i = 0; i < pl.normals.size(); ++i) {
     const double norm = pl.normals[i].norm();
     if (!std::isfinite(norm) || std::abs(norm - 1.0) > PolylineLimits::kUnitNormalTolerance) {
-      throw InputError(what + " normal[" + std::to_string(i) + "] = " + point_text(pl.normals[i]) +
+      throw InputError(what + " normal[" + std::to_string(i) + "] = " + text::point(pl.normals[i]) +
                        " has length " + text::shortest(norm) + ", not 1 within " +
                        text::shortest(PolylineLimits::kUnitNormalTolerance) + "; normalise it");
     }

@@ -176,10 +176,10 @@ std::size_t Session::queued_moves() const {
       std::count_if(queued_.begin(), queued_.end(), [](const Item& it) { return it.geo.motion; }));
 }
 
-Vec3 Session::work_position(const GrblStatus& st) {
+Xyz Session::work_position(const GrblStatus& st) {
   if (st.wco) status_.wco = *st.wco;
   if (st.wpos) return *st.wpos;
-  const Vec3 m = st.mpos.value_or(Vec3{});
+  const Xyz m = st.mpos.value_or(Xyz{});
   return {m[0] - status_.wco[0], m[1] - status_.wco[1], m[2] - status_.wco[2]};
 }
 
@@ -195,7 +195,7 @@ void Session::on_status(const GrblStatus& st) {
   track(st, status_.position);
 }
 
-void Session::track(const GrblStatus& st, const Vec3& pos) {
+void Session::track(const GrblStatus& st, const Xyz& pos) {
   const std::size_t moves = queued_moves();
   if (st.state == "Idle") {  // everything queued has run, whatever the fields say
     pop_done(moves);
@@ -316,10 +316,10 @@ void Session::write_ack() {
 namespace ncd::comms {
 namespace {
 
-using dnc_detail::Vec3;
+using dnc_detail::Xyz;
 
-std::optional<Vec3> axes(std::string_view v) {
-  Vec3 out{};
+std::optional<Xyz> axes(std::string_view v) {
+  Xyz out{};
   for (std::size_t k = 0; k < 3; ++k) {
     const auto comma = v.find(',');
     const std::string_view part = v.substr(0, comma);
@@ -330,7 +330,7 @@ std::optional<Vec3> axes(std::string_view v) {
     if (r.ec != std::errc()) return std::nullopt;
     out[k] = x;
     if (comma == std::string_view::npos)
-      return k == 2 || k == 1 ? std::optional<Vec3>(out) : std::nullopt;
+      return k == 2 || k == 1 ? std::optional<Xyz>(out) : std::nullopt;
     v.remove_prefix(comma + 1);
   }
   return out;

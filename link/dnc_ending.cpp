@@ -103,7 +103,7 @@ void Session::ending_line(const std::string& line) {
 }
 
 // The held position against the moves the controller may have (link/held_position.hpp).
-std::string Session::held_position_doubt(const Vec3& pos) const {
+std::string Session::held_position_doubt(const Xyz& pos) const {
   std::vector<HeldCandidate> moves;
   for (const Item* it : resume_candidates().items) moves.push_back({it->geo, it->bytes});
   return comms::held_position_doubt(pos, last_end_, moves, kPositionTolMm);

@@ -31,7 +31,7 @@ void Session::recovering() {
 // readable; a stopped spindle tells a restart; a full planner may hide a line; the position
 // then names the last block the controller received; what it lacks of the queued ones, or a
 // block without motion right after it, stops the job; else the job resumes after it.
-void Session::decide_resume(const GrblStatus& st, const Vec3& pos) {
+void Session::decide_resume(const GrblStatus& st, const Xyz& pos) {
   const std::string where = " (position " + fixed(pos[0], 3) + ", " + fixed(pos[1], 3) + ", " +
                             fixed(pos[2], 3) + ", " + st.state + ")";
   if (!buffers_countable(st, where)) return;
@@ -105,7 +105,7 @@ bool Session::restarted_unseen(const ResumeCandidates& c, const GrblStatus& st,
 // The last candidate the controller received: index into c.items, or -1 for "none"; nullopt
 // when the position does not prove it (given up).
 std::optional<long> Session::last_received(const ResumeCandidates& c, std::size_t held,
-                                           const Vec3& pos, const std::string& where) {
+                                           const Xyz& pos, const std::string& where) {
   if (c.items.empty()) {
     if (last_end_ && dist(*last_end_, pos) > kPositionTolMm) {
       give_up(
@@ -121,7 +121,7 @@ std::optional<long> Session::last_received(const ResumeCandidates& c, std::size_
 }
 
 // The planner is empty: the position is the end point of exactly one candidate move.
-std::optional<long> Session::last_received_at_rest(const ResumeCandidates& c, const Vec3& pos,
+std::optional<long> Session::last_received_at_rest(const ResumeCandidates& c, const Xyz& pos,
                                                    const std::string& where) {
   const std::vector<const Item*>& cands = c.items;
   long last = -1;
@@ -161,7 +161,7 @@ std::optional<long> Session::last_received_at_rest(const ResumeCandidates& c, co
 // segment, and the planner holds that move and the ones after it (or, at its end, the ones
 // after it).
 std::optional<long> Session::last_received_in_motion(const ResumeCandidates& c, std::size_t held,
-                                                     const Vec3& pos, const std::string& where) {
+                                                     const Xyz& pos, const std::string& where) {
   const std::vector<const Item*>& cands = c.items;
   int hits = 0;
   long e = -1;
@@ -347,11 +347,11 @@ using dnc_detail::Clock;
 using dnc_detail::dist;
 using dnc_detail::kPositionTolMm;
 using dnc_detail::to_segment;
-using dnc_detail::Vec3;
+using dnc_detail::Xyz;
 using text::fixed;
 
 PositionMatch match_position(const std::string& program_path, std::int64_t first, std::int64_t end,
-                             const Vec3& position) {
+                             const Xyz& position) {
   ProgramFile src(program_path);
   ProgramModal modal;
   std::string text;
@@ -400,7 +400,7 @@ GrblProbe probe_grbl(const SenderSettings& s, double settle_s) {
   const auto since = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
   std::string line;
   std::optional<GrblStatus> last;
-  std::optional<Vec3> wco;
+  std::optional<Xyz> wco;
   int reports = 0;
   double next_ask = s.banner_wait_s;
   const auto on_line = [&](const std::string& text) {
@@ -453,8 +453,8 @@ GrblProbe probe_grbl(const SenderSettings& s, double settle_s) {
   if (last->wpos) {
     p.position = last->wpos;
   } else if (last->mpos && wco) {
-    p.position = Vec3{(*last->mpos)[0] - (*wco)[0], (*last->mpos)[1] - (*wco)[1],
-                      (*last->mpos)[2] - (*wco)[2]};
+    p.position = Xyz{(*last->mpos)[0] - (*wco)[0], (*last->mpos)[1] - (*wco)[1],
+                     (*last->mpos)[2] - (*wco)[2]};
   }
   return p;
 }

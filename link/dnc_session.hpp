@@ -31,7 +31,7 @@ namespace ncd::comms::dnc_detail {
 
 using Clock = std::chrono::steady_clock;
 using text::fixed;
-using Vec3 = std::array<double, 3>;
+using Xyz = std::array<double, 3>;  // a position as grbl reports it (MPos, WPos), mm
 
 constexpr std::int64_t kFraming = -1;        // % and NUL leader
 constexpr std::int64_t kPreamble = -2;       // restart lines
@@ -66,18 +66,18 @@ struct Item {
   double wait_s = 0.0;            // the controller waits this long for it (wait_of_block)
 };
 
-inline double dist(const Vec3& a, const Vec3& b) {
+inline double dist(const Xyz& a, const Xyz& b) {
   return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
 }
 
 // Distance from p to the segment a–b, and where along it (0 at a, 1 at b).
-inline double to_segment(const Vec3& p, const Vec3& a, const Vec3& b, double& u) {
-  Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+inline double to_segment(const Xyz& p, const Xyz& a, const Xyz& b, double& u) {
+  Xyz d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
   const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
   u = len2 > 0.0 ? ((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1] + (p[2] - a[2]) * d[2]) / len2
                  : 0.0;
   u = std::clamp(u, 0.0, 1.0);
-  const Vec3 q{a[0] + u * d[0], a[1] + u * d[1], a[2] + u * d[2]};
+  const Xyz q{a[0] + u * d[0], a[1] + u * d[1], a[2] + u * d[2]};
   return dist(p, q);
 }
 
@@ -153,9 +153,9 @@ class Session {
   void executed(const Item& it);
   void pop_done(std::size_t moves);
   std::size_t queued_moves() const;
-  Vec3 work_position(const GrblStatus& st);
+  Xyz work_position(const GrblStatus& st);
   void on_status(const GrblStatus& st);
-  void track(const GrblStatus& st, const Vec3& pos);
+  void track(const GrblStatus& st, const Xyz& pos);
   void basis(const char* how);
   void poll_status();
   void write_raw(std::string_view bytes);
@@ -169,16 +169,16 @@ class Session {
 
   // dnc_resume.cpp: a lost link, resuming, the journal
   void recovering();
-  void decide_resume(const GrblStatus& st, const Vec3& pos);
+  void decide_resume(const GrblStatus& st, const Xyz& pos);
   bool buffers_countable(const GrblStatus& st, const std::string& where);
   ResumeCandidates resume_candidates() const;
   bool restarted_unseen(const ResumeCandidates& c, const GrblStatus& st, const std::string& where);
-  std::optional<long> last_received(const ResumeCandidates& c, std::size_t held, const Vec3& pos,
+  std::optional<long> last_received(const ResumeCandidates& c, std::size_t held, const Xyz& pos,
                                     const std::string& where);
-  std::optional<long> last_received_at_rest(const ResumeCandidates& c, const Vec3& pos,
+  std::optional<long> last_received_at_rest(const ResumeCandidates& c, const Xyz& pos,
                                             const std::string& where);
   std::optional<long> last_received_in_motion(const ResumeCandidates& c, std::size_t held,
-                                              const Vec3& pos, const std::string& where);
+                                              const Xyz& pos, const std::string& where);
   bool holds_what_was_queued(const ResumeCandidates& c, long last, const std::string& where);
   void resume_after(const ResumeCandidates& c, long last, std::size_t held, const GrblStatus& st,
                     const std::string& where);
@@ -193,7 +193,7 @@ class Session {
   void reset_for_ending();
   void ending_line(const std::string& line);
   void send_ending();
-  std::string held_position_doubt(const Vec3& pos) const;
+  std::string held_position_doubt(const Xyz& pos) const;
   void fail_ending(const std::string& why);
   void controller_reset(const std::string& why);
   void stop_controller(const std::string& why);
@@ -279,7 +279,7 @@ class Session {
   bool wrote_line_ = false;
   std::string rejected_reply_;    // the error:N of the rejected block
   bool last_spindle_on_ = false;  // after the last block known executed
-  std::optional<Vec3> last_end_;  // where the last move known executed ended
+  std::optional<Xyz> last_end_;   // where the last move known executed ended
   bool stopping_ = false, reset_seen_ = false, track_ok_ = true;
   // ack: grbl's status reports (dnc_ack.cpp): it answers `?`; a report came since asked; polls
   // sent; the next poll; the last report, its work position and the last work offset (WCO:).
@@ -288,7 +288,7 @@ class Session {
     long polls = 0;
     double next_poll_s = 0.0;
     std::optional<GrblStatus> last;
-    Vec3 position{}, wco{};
+    Xyz position{}, wco{};
   } status_;
   std::int64_t journaled_ = -1;
   double journal_at_s_ = -1.0;

@@ -115,8 +115,6 @@ StepBounds step_bounds(const JobConfig& c) {
   return b;
 }
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 // Planner steps per prepare() while the line of setpoints fills: it grows by two a period.
 constexpr int kLineStepsPerPrepare = 3;
 

@@ -1,22 +1,25 @@
 #!/usr/bin/env bash
-# Runs the libFuzzer harnesses of build/fuzz (the "fuzz" preset; docs/input-ranges.md).
+# Runs the libFuzzer harnesses of build/debug (the debug preset, clang-14, which builds them beside
+# the sanitizer test suite; `make fuzz-build` builds only them; docs/input-ranges.md).
 #   scripts/fuzz.sh corpus [RUNS]      every seed of tests/fuzz/corpus/<name>/, then mutations up
 #                                      to RUNS inputs each (default 2000) from a fixed seed, so
 #                                      that the same code gives the same result; what `make test`
 #                                      runs
 #   scripts/fuzz.sh run [SECONDS]      SECONDS of fuzzing each (default 60, FUZZ_SECONDS in make),
-#                                      new inputs kept in build/fuzz/corpus/<name>/
+#                                      new inputs kept in build/debug/fuzz/corpus/<name>/
 #   FUZZ_HARNESS=pipeline scripts/fuzz.sh …   only that harness (default: every one)
 # Exits non-zero on the first finding (a crash, a sanitizer report, an escaped exception, a
 # timeout of 10 s on one input, more than 2 GB of memory); the input is saved as
-# build/fuzz/artifacts/<name>-crash-… and can be replayed with build/fuzz/tests/fuzz/ncd_fuzz_<name> FILE.
+# build/debug/fuzz/artifacts/<name>-crash-… and can be replayed with
+# build/debug/tests/fuzz/ncd_fuzz_<name> FILE.
 # The pipeline harness walks a whole job per input (seconds under the sanitizers, flowsnake.ngc
 # about 20 s): its timeout is 120 s, and `corpus` gives it its seeds and 100 mutated inputs
 # (PIPELINE_RUNS sets the mutations) instead of 2000.
 set -euo pipefail
 mode=${1:-corpus}
 root=$(cd "$(dirname "$0")/.." && pwd)
-bin=$root/build/fuzz/tests/fuzz
+bin=$root/build/debug/tests/fuzz
+out=$root/build/debug/fuzz
 case $mode in
   corpus) limit=(-seed=1 -runs="${2:-2000}") ;;
   run) limit=(-max_total_time="${2:-60}") ;;
@@ -25,7 +28,7 @@ esac
 shopt -s nullglob
 harnesses=("$root"/tests/fuzz/*_fuzz.cpp)
 if [ ${#harnesses[@]} -eq 0 ]; then echo "no harness in tests/fuzz" >&2; exit 1; fi
-mkdir -p "$root/build/fuzz/artifacts"
+mkdir -p "$out/artifacts"
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
@@ -36,10 +39,10 @@ for src in "${harnesses[@]}"; do
   if [ -n "${FUZZ_HARNESS:-}" ] && [ "$name" != "$FUZZ_HARNESS" ]; then continue; fi
   exe=$bin/ncd_fuzz_$name
   seeds=$root/tests/fuzz/corpus/$name
-  if [ ! -x "$exe" ]; then echo "$exe is missing: build the fuzz preset first (make fuzz-build)" >&2; exit 1; fi
+  if [ ! -x "$exe" ]; then echo "$exe is missing: build the debug preset first (make fuzz-build)" >&2; exit 1; fi
   if [ ! -d "$seeds" ]; then echo "$seeds is missing: every harness needs a seed corpus" >&2; exit 1; fi
   if [ "$mode" = run ]; then
-    work=$root/build/fuzz/corpus/$name
+    work=$out/corpus/$name
   else
     work=$scratch/$name
   fi
@@ -55,9 +58,9 @@ for src in "${harnesses[@]}"; do
   # The harness runs in the scratch directory: files the fuzzer names (a service config's
   # "machine") are looked up there, not in the source tree.
   (cd "$scratch" && "$exe" "${args[@]}" -timeout=$timeout -rss_limit_mb=2048 \
-      -print_final_stats=0 -artifact_prefix="$root/build/fuzz/artifacts/$name-" \
+      -print_final_stats=0 -artifact_prefix="$out/artifacts/$name-" \
       "$work" "$seeds" 2>"$scratch/$name.log") || {
-    echo "fuzz $name FAILED; the log follows, the input is in build/fuzz/artifacts/" >&2
+    echo "fuzz $name FAILED; the log follows, the input is in build/debug/fuzz/artifacts/" >&2
     tail -n 60 "$scratch/$name.log" >&2
     exit 1
   }
