@@ -259,7 +259,7 @@ void LimitSampler::piece_interval(const toolpath::Polyline& line, Interval& iv) 
   iv.jump_share = 0.0;
   iv.axis_jump_share = Vec3::Zero();
   iv.k_axis = iv.kappa_per_mm * Vec3::Ones();
-  iv.g_axis = Vec3::Zero();
+  iv.g_axis = iv.kappa_per_mm * iv.kappa_per_mm * Vec3::Ones();  // as a circle's −κ² T
   iv.axis_accel_factor = 1.0;
   iv.rest_speed = false;
   iv.tangent_max = (line.points[piece_ + 1] - line.points[piece_]).normalized().cwiseAbs();

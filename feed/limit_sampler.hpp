@@ -97,8 +97,8 @@ class LimitSampler {
     // Per-axis jerk limits: the share of each axis's jerk a corner or curvature jump within two
     // periods' travel takes (axis_jump_shares(); the interval keeps the rest).
     Vec3 axis_jump_share = Vec3::Zero();
-    // Per-axis jerk limits: the largest |k_i| of the curvature vector and |g_i| of its turn
-    // (curve_turn(); on a dense piece κ on every axis and no turn).
+    // Per-axis jerk limits: the largest |k_i| of the curvature vector and |(dk/ds)_i| of its
+    // derivative (curve_turn(); on a dense piece κ on every axis and κ² on every axis).
     Vec3 k_axis = Vec3::Zero(), g_axis = Vec3::Zero();
     // The fraction of its axis acceleration scale the interval asks of the planner (≥
     // kMinAxisAccelFactor; bound_axis_curve_jerk()).

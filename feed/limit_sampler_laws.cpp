@@ -433,7 +433,7 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
   toolpath::CurvePoint prev = c.eval(lo);
   Vec3 k_prev = curvature_vector_per_mm(prev);
   kappa = k_prev.norm();
-  Vec3 k_axis = k_prev.cwiseAbs(), g_axis = Vec3::Zero();
+  Vec3 k_axis = k_prev.cwiseAbs(), g_axis = Vec3::Zero();  // g_axis: |dk/ds| per axis
   double u_prev = lo;
   for (int i = 1; i < kPoints; ++i) {
     const double u = i + 1 == kPoints ? hi : lo + (hi - lo) * i / (kPoints - 1);
@@ -445,9 +445,8 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
     const Vec3 t = unit_or_zero(unit_or_zero(prev.d1) + unit_or_zero(p.d1));
     const Vec3 dk = k - k_prev;
     if (ds > 0.0) {
-      const Vec3 g = (dk - dk.dot(t) * t) / ds;
-      turn = std::max(turn, g.norm());
-      g_axis = g_axis.cwiseMax(g.cwiseAbs());
+      turn = std::max(turn, (dk - dk.dot(t) * t).norm() / ds);
+      g_axis = g_axis.cwiseMax(dk.cwiseAbs() / ds);
     }
     prev = p;
     k_prev = k;
@@ -474,10 +473,11 @@ void LimitSampler::bound_jerk_vector(Interval& iv) const {
 }
 
 // Per-axis jerk limits on a curve (docs/planner.md §3f). Axis i's jerk is
-// (j − v³κ²) t_i + 3 v a k_i + v³ g_i (g = κ' N + κ τ B, the turn of the curvature vector): the
-// planner holds |j t_i| to kAxisTangentialShare of the axis's budget (axis_scales()), and the
-// curve's terms are held to the rest, with the interval's largest |t_i|, |k_i|, |g_i| and κ:
-//     v³ (κ² |t_i| + |g_i|) + 3 v λ A |k_i| ≤ R_i = (1 − kAxisTangentialShare)(1 − q_i) j_i,
+// j t_i + 3 v a k_i + v³ (dk/ds)_i (dk/ds = −κ² T + κ' N + κ τ B, the curvature vector's
+// derivative; on a helix its Z part is 0, the −κ² T_z and κ τ B_z cancelling): the planner holds
+// |j t_i| to kAxisTangentialShare of the axis's budget (axis_scales()), and the curve's terms
+// are held to the rest, with the interval's largest |k_i| and |(dk/ds)_i| (curve_turn()):
+//     v³ |(dk/ds)_i| + 3 v λ A |k_i| ≤ R_i = (1 − kAxisTangentialShare)(1 − q_i) j_i,
 // A the largest |a| the axes allow on the interval (axis_scales()), q_i the share a jump within
 // two periods' travel takes (0 elsewhere). As the jerk-vector bound does with σ (§3c), the
 // acceleration gives way first: at the interval's speed limit v the largest λ ≤ 1 that holds
@@ -486,13 +486,12 @@ void LimitSampler::bound_jerk_vector(Interval& iv) const {
 // side (it grows with v: one real root). An interval raised to the rest speed keeps it.
 void LimitSampler::bound_axis_curve_jerk(Interval& iv) const {
   if (iv.rest_speed || !limits_.has_axis_jerk() || !(iv.kappa_per_mm > 0.0)) return;
-  const double k2 = iv.kappa_per_mm * iv.kappa_per_mm;
   const double A = axis_scales(limits_, iv.tangent_max, {iv.bends, iv.bends, iv.bends}).accel *
                    limits_.max_accel_mm_per_s2;
   for (std::size_t i = 0; i < 3; ++i) {
     const auto I = static_cast<int>(i);
     if (!std::isfinite(limits_.axes[i].max_jerk_mm_per_s3)) continue;
-    const double cubic = k2 * iv.tangent_max[I] + iv.g_axis[I];
+    const double cubic = iv.g_axis[I];
     const double rhs = (1.0 - kAxisTangentialShare) * (1.0 - iv.axis_jump_share[I]) *
                        axis_jerk_for_planner(limits_, i);
     const double v = iv.v_mm_per_s, linear = 3.0 * A * iv.k_axis[I];
