@@ -152,11 +152,23 @@ Corner plan_corner(const Vec3& a, const Vec3& v, const Vec3& b, double p_mm, dou
   // jumps, reached with a_max, was tried: it chose the arcs of the 30° zig-zag at P0.5, which
   // then took 3.60 s against 3.12 s with stops, since the ramps between the jumps are
   // jerk-limited and at the scaled tangential limits of docs/planner.md §3c.)
-  const double v_end = l.jerk_bound == JerkBound::vector
-                           ? std::min(v_arc, jump_feed_mm_per_s(l, 0.0, kappa))
-                           : v_arc;
-  const double t_arc = (c.radius_mm * c.phi_rad + 2.0 * v_end * T) / v_end;
+  // Under per-axis jerk limits the same ends take each axis's jump law (the curvature vector
+  // jumps by κ along the arc's normal there: d_out's part normal to d_in at the start, −d_in's
+  // normal to d_out at the end), and the sharp corner its velocity jump's.
+  double v_end = l.jerk_bound == JerkBound::vector
+                     ? std::min(v_arc, jump_feed_mm_per_s(l, 0.0, kappa))
+                     : v_arc;
   double v_sharp = std::min(cap, polyline_corner_speed_mm_per_s(l, c.phi_rad));
+  if (l.has_axis_jerk()) {
+    const Vec3 dd = c.d_out - c.d_in;
+    const double cos_phi = c.d_in.dot(c.d_out);
+    const Vec3 n_start = (c.d_out - cos_phi * c.d_in).normalized();
+    const Vec3 n_end = (cos_phi * c.d_out - c.d_in).normalized();
+    const Vec3 dk = kappa * n_start.cwiseAbs().cwiseMax(n_end.cwiseAbs());
+    v_end = std::min(v_end, axis_jump_feed_mm_per_s(l, Vec3::Zero(), dk));
+    v_sharp = std::min(v_sharp, axis_jump_feed_mm_per_s(l, dd, Vec3::Zero()));
+  }
+  const double t_arc = (c.radius_mm * c.phi_rad + 2.0 * v_end * T) / v_end;
   if (v_sharp < l.max_accel_mm_per_s2 * l.period_s) v_sharp = 0.0;  // the sampler stops there
   // The time each way costs near the corner, from cruising at the caps on both sides (see the
   // top of the file): blend if the arc is faster than the sharp corner or the stop.

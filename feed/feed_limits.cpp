@@ -67,6 +67,11 @@ bool MachineLimits::has_axis_limits() const {
   return axes[0].any() || axes[1].any() || axes[2].any();
 }
 
+bool MachineLimits::has_axis_jerk() const {
+  return std::isfinite(axes[0].max_jerk_mm_per_s3) || std::isfinite(axes[1].max_jerk_mm_per_s3) ||
+         std::isfinite(axes[2].max_jerk_mm_per_s3);
+}
+
 FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, const Vec3& k) {
   FeedLimitResult r{kInf, FeedLimit::MaxFeed};
   const double kappa = k.norm(), keep = 1.0 - kAxisTangentialShare;
@@ -107,14 +112,15 @@ double axis_jerk_for_planner(const MachineLimits& limits, std::size_t axis) {
 }
 
 AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
-                       const std::array<bool, 3>& bends) {
+                       const std::array<bool, 3>& bends, const Vec3& jerk_budget) {
   double a = limits.max_accel_mm_per_s2, j = limits.max_jerk_mm_per_s3;
   for (std::size_t i = 0; i < 3; ++i) {
-    const double ti = std::min(std::abs(tangent_max[static_cast<int>(i)]), 1.0);
+    const auto I = static_cast<int>(i);
+    const double ti = std::min(std::abs(tangent_max[I]), 1.0);
     if (!(ti > 0.0)) continue;
     const double share = bends[i] ? kAxisTangentialShare : 1.0;
     a = std::min(a, share * axis_accel_for_planner(limits, i) / ti);
-    j = std::min(j, share * axis_jerk_for_planner(limits, i) / ti);
+    j = std::min(j, share * jerk_budget[I] * axis_jerk_for_planner(limits, i) / ti);
   }
   return {a / limits.max_accel_mm_per_s2, j / limits.max_jerk_mm_per_s3};
 }
@@ -282,6 +288,36 @@ double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi, double dkapp
   const double T = limits.period_s;
   return 2.0 * v * std::sin(0.5 * std::max(phi, 0.0)) / (T * T) +
          0.75 * v * v * std::max(dkappa, 0.0) / T;
+}
+
+// Per axis: |Δd_i| v / T² + 0.75 |Δk_i| v² / T = kJumpJerkShare j_i, the positive root in v.
+double axis_jump_feed_mm_per_s(const MachineLimits& limits, const Vec3& dd, const Vec3& dk) {
+  const double T = limits.period_s;
+  double v = kInf;
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!std::isfinite(limits.axes[i].max_jerk_mm_per_s3)) continue;
+    const auto I = static_cast<int>(i);
+    const double lin = std::abs(dd[I]) / (T * T), quad = 0.75 * std::abs(dk[I]) / T;
+    const double rhs = kJumpJerkShare * axis_jerk_for_planner(limits, i);
+    if (!(lin > 0.0) && !(quad > 0.0)) continue;
+    const double vi =
+        quad > 0.0 ? 2.0 * rhs / (lin + std::sqrt(lin * lin + 4.0 * quad * rhs)) : rhs / lin;
+    v = std::min(v, vi);
+  }
+  return v;
+}
+
+Vec3 axis_jump_shares(const MachineLimits& limits, const Vec3& dd, const Vec3& dk, double v) {
+  const double T = limits.period_s;
+  Vec3 share = Vec3::Zero();
+  if (!(v > 0.0) || !std::isfinite(v)) return share;
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!std::isfinite(limits.axes[i].max_jerk_mm_per_s3)) continue;
+    const auto I = static_cast<int>(i);
+    const double j = std::abs(dd[I]) * v / (T * T) + 0.75 * std::abs(dk[I]) * v * v / T;
+    share[I] = std::min(kJumpJerkShare, j / axis_jerk_for_planner(limits, i));
+  }
+  return share;
 }
 
 Vec3 curvature_vector_per_mm(const toolpath::CurvePoint& point) {

@@ -54,6 +54,10 @@ struct AxisLimits {
 // motion where a curve moves that axis normally (docs/planner.md §3f): the centripetal part is
 // held to (1 − share) of the axis's limit, so the planner keeps at least share of it.
 inline constexpr double kAxisTangentialShare = 0.5;
+// Per-axis jerk limits on a curve (docs/planner.md §3f): the lowest fraction of its acceleration
+// scale an interval may ask of the planner so that the cross term 3 v a k_i of an axis's jerk
+// stays within its budget, before its speed is lowered instead.
+inline constexpr double kMinAxisAccelFactor = 0.3;
 
 // Machine and interpolation limits. Defaults are literature values (docs/feedrate.md §3): a_max in
 // 500–3000 mm/s², j_max in 2e4–6e4 mm/s³, a 1 µm chord tolerance, a 4 ms period.
@@ -69,6 +73,7 @@ struct MachineLimits {
   JerkBound jerk_bound = JerkBound::tangential;
   std::array<AxisLimits, 3> axes{};  // X, Y, Z; the path limits above stay a further cap
   bool has_axis_limits() const;
+  bool has_axis_jerk() const;  // some [axis.*] max_jerk_mm_per_s3 is given
 };
 
 // Under JerkBound::vector (docs/planner.md §3c): the share of j_max a curvature jump or a
@@ -109,8 +114,10 @@ FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& unit_ta
 struct AxisScales {
   double accel = 1.0, jerk = 1.0;
 };
+// jerk_budget[i] (≤ 1): the fraction of axis i's jerk left to the motion near a jump that takes
+// the rest (axis_jump_shares()).
 AxisScales axis_scales(const MachineLimits& limits, const Vec3& tangent_max,
-                       const std::array<bool, 3>& bends);
+                       const std::array<bool, 3>& bends, const Vec3& jerk_budget = Vec3::Ones());
 // An axis's acceleration and jerk as the planner is given them: the machine file's, lowered by
 // what the walker's arc-length tolerance may add to the setpoints' differences (+inf: none).
 double axis_accel_for_planner(const MachineLimits& limits, std::size_t axis);
@@ -159,6 +166,19 @@ double jump_feed_mm_per_s(const MachineLimits& limits, double phi_rad,
 // That third difference at speed v: 2 v sin(φ/2) / T² + 0.75 v² Δκ / T, mm/s³.
 double jump_jerk_mm_per_s3(const MachineLimits& limits, double phi_rad,
                            double curvature_jump_per_mm, double v_mm_per_s);
+
+// Per-axis jerk at jumps (docs/planner.md §3f), where an axis has a jerk limit: a corner passed
+// at speed v without a stop changes the unit direction by Δd (velocity jump v Δd) and the
+// curvature vector by Δk (acceleration jump v² Δk). Axis i's third difference of the setpoints
+// sees at most v |Δd_i| / T² + 0.75 v² |Δk_i| / T (the vector law of jump_jerk_mm_per_s3 per
+// component). The largest v that keeps it ≤ kJumpJerkShare of every axis's jerk (as the planner
+// is given it, axis_jerk_for_planner); +inf where no axis with a jerk limit jumps.
+double axis_jump_feed_mm_per_s(const MachineLimits& limits, const Vec3& direction_jump,
+                               const Vec3& curvature_jump_per_mm);
+// The share of each axis's jerk those jumps take at speed v (≤ kJumpJerkShare; 0 on an axis
+// without a jerk limit): the motion within two periods' travel keeps the rest.
+Vec3 axis_jump_shares(const MachineLimits& limits, const Vec3& direction_jump,
+                      const Vec3& curvature_jump_per_mm, double v_mm_per_s);
 
 // Curvature |P' × P''| / |P'|³ of a curve point, 1/mm; +inf where P' = 0 (a cusp: stop).
 double curvature_per_mm(const toolpath::CurvePoint& point);

@@ -122,13 +122,15 @@ double LimitSampler::next_zone_edge_mm(double c0_mm, double v0, double c1_mm, do
 }
 
 void LimitSampler::apply_zones(Interval& iv) const {
-  const auto zone = [&](double center_mm, FeedLimitResult corner, double share) {
+  const auto zone = [&](double center_mm, FeedLimitResult corner, double share,
+                        const Vec3& axis_share) {
     if (!std::isfinite(corner.feed_mm_per_s)) return;
     const double half = corner.feed_mm_per_s * limits_.period_s;
     // The third difference of the setpoints spans three periods: the jump's share of the
-    // jerk budget holds within two periods' travel of it.
-    if (share > 0.0 && iv.a_mm < center_mm + 2.0 * half && iv.b_mm > center_mm - 2.0 * half) {
-      iv.jump_share = std::max(iv.jump_share, share);
+    // jerk budget holds within two periods' travel of it (of each axis's, per-axis jerk).
+    if (iv.a_mm < center_mm + 2.0 * half && iv.b_mm > center_mm - 2.0 * half) {
+      if (share > 0.0) iv.jump_share = std::max(iv.jump_share, share);
+      iv.axis_jump_share = iv.axis_jump_share.cwiseMax(axis_share);
     }
     // Per-axis limits: the periods whose second difference sees the corner's jump keep the
     // tangential share (docs/planner.md §3f).
@@ -152,26 +154,35 @@ void LimitSampler::apply_zones(Interval& iv) const {
     for (std::size_t v = lo; v <= hi; ++v) {
       const FeedLimitResult corner = corner_limit(segment_, v);
       double share = 0.0;
+      Vec3 axis_share = Vec3::Zero();
       if (v == 0 || v + 1 == line->points.size()) {
         share = joint_share_[v == 0 ? segment_ : segment_ + 1];
+        axis_share = joint_axis_share_[v == 0 ? segment_ : segment_ + 1];
       } else if (std::isfinite(corner.feed_mm_per_s)) {
         const Vec3 d_in = unit_or_zero(line->points[v] - line->points[v - 1]);
         const Vec3 d_out = unit_or_zero(line->points[v + 1] - line->points[v]);
-        share = jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)),
-                           vertex_curvature_jump_per_mm(segment_, v), corner.feed_mm_per_s);
+        const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+        share = jump_share(phi, vertex_curvature_jump_per_mm(segment_, v), corner.feed_mm_per_s);
+        if (limits_.has_axis_jerk()) {
+          axis_share =
+              axis_jump_shares(limits_, phi < kMinTurnRad ? Vec3::Zero() : Vec3(d_out - d_in),
+                               vertex_axis_curvature_jump(segment_, v), corner.feed_mm_per_s);
+        }
       }
-      zone(s, corner, share);
+      zone(s, corner, share, axis_share);
       if (v + 1 < line->points.size()) s += (line->points[v + 1] - line->points[v]).norm();
     }
   } else {
-    zone(starts_mm_[segment_], joint_corner_[segment_], joint_share_[segment_]);
-    zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1], joint_share_[segment_ + 1]);
+    zone(starts_mm_[segment_], joint_corner_[segment_], joint_share_[segment_],
+         joint_axis_share_[segment_]);
+    zone(starts_mm_[segment_ + 1], joint_corner_[segment_ + 1], joint_share_[segment_ + 1],
+         joint_axis_share_[segment_ + 1]);
     const auto& inner = inner_corners_[segment_];
     const double reach = 2.0 * limits_.max_feed_mm_per_min / 60.0 * limits_.period_s;
     auto it = std::lower_bound(inner.begin(), inner.end(), iv.a_mm - reach,
                                [](const InnerCorner& c, double s) { return c.s_mm < s; });
     for (; it != inner.end() && it->s_mm <= iv.b_mm + reach; ++it) {
-      zone(it->s_mm, it->corner, it->share);
+      zone(it->s_mm, it->corner, it->share, it->axis_share);
     }
   }
 }
@@ -241,15 +252,21 @@ void LimitSampler::piece_interval(const toolpath::Polyline& line, Interval& iv) 
   iv.b_mm = b;
   iv.v_mm_per_s = v.feed_mm_per_s;
   iv.limit = v.limit;
-  iv.kappa_per_mm =
-      limits_.jerk_bound == JerkBound::vector ? piece_curvature_per_mm(segment_, piece_) : 0.0;
+  iv.kappa_per_mm = limits_.jerk_bound == JerkBound::vector || limits_.has_axis_jerk()
+                        ? piece_curvature_per_mm(segment_, piece_)
+                        : 0.0;
   iv.turn_per_mm2 = 0.0;
   iv.jump_share = 0.0;
+  iv.axis_jump_share = Vec3::Zero();
+  iv.k_axis = iv.kappa_per_mm * Vec3::Ones();
+  iv.g_axis = iv.kappa_per_mm * iv.kappa_per_mm * Vec3::Ones();  // as a circle's −κ² T
+  iv.axis_accel_factor = 1.0;
   iv.rest_speed = false;
   iv.tangent_max = (line.points[piece_ + 1] - line.points[piece_]).normalized().cwiseAbs();
   iv.bends = piece_curvature_per_mm(segment_, piece_) > 0.0;
   apply_zones(iv);
   bound_jerk_vector(iv);
+  bound_axis_curve_jerk(iv);
   s_ = b;
   if (b >= end) {
     ++piece_, sub_ = 0;
@@ -281,11 +298,16 @@ void LimitSampler::curve_interval(const toolpath::NurbsCurve& c, Interval& iv) {
   iv.limit = v.limit;
   iv.kappa_per_mm = iv.turn_per_mm2 = 0.0;
   iv.jump_share = 0.0;
+  iv.axis_jump_share = iv.k_axis = iv.g_axis = Vec3::Zero();
+  iv.axis_accel_factor = 1.0;
   iv.rest_speed = raised;
   if (limits_.has_axis_limits()) curve_tangent_max(c, u_, u1, iv);
-  if (limits_.jerk_bound == JerkBound::vector) curve_turn(segment_, u_, u1, iv);
+  if (limits_.jerk_bound == JerkBound::vector || limits_.has_axis_jerk()) {
+    curve_turn(segment_, u_, u1, iv);
+  }
   apply_zones(iv);
   bound_jerk_vector(iv);
+  bound_axis_curve_jerk(iv);
   s_ = iv.b_mm;
   u_ = u1;
 }
@@ -584,7 +606,9 @@ bool LimitSampler::next(LimitNode& out) {
     pending_.right_limit = iv.limit;
     pending_.jerk_span = jerk_span_of(iv);
     if (limits_.has_axis_limits()) {
-      pending_.axis_scale = axis_scales(limits_, iv.tangent_max, {iv.bends, iv.bends, iv.bends});
+      pending_.axis_scale = axis_scales(limits_, iv.tangent_max, {iv.bends, iv.bends, iv.bends},
+                                        Vec3::Ones() - iv.axis_jump_share);
+      pending_.axis_scale.accel *= iv.axis_accel_factor;
     }
     out = pending_;
     pending_ = {iv.b_mm, iv.v_mm_per_s, iv.limit, iv.v_mm_per_s, kInf, {}};

@@ -94,16 +94,28 @@ class LimitSampler {
     // centripetal part, kAxisTangentialShare).
     Vec3 tangent_max = Vec3::Ones();
     bool bends = true;
+    // Per-axis jerk limits: the share of each axis's jerk a corner or curvature jump within two
+    // periods' travel takes (axis_jump_shares(); the interval keeps the rest).
+    Vec3 axis_jump_share = Vec3::Zero();
+    // Per-axis jerk limits: the largest |k_i| of the curvature vector and |(dk/ds)_i| of its
+    // derivative (curve_turn(); on a dense piece κ on every axis and κ² on every axis).
+    Vec3 k_axis = Vec3::Zero(), g_axis = Vec3::Zero();
+    // The fraction of its axis acceleration scale the interval asks of the planner (≥
+    // kMinAxisAccelFactor; bound_axis_curve_jerk()).
+    double axis_accel_factor = 1.0;
   };
   void axis_bound(Interval& iv) const;
   void curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1, Interval& iv) const;
   void bound_jerk_vector(Interval& iv) const;
+  void bound_axis_curve_jerk(Interval& iv) const;
   JerkVectorSpan jerk_span_of(const Interval& iv) const;
   void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;
   double piece_curvature_per_mm(std::size_t segment, std::size_t piece) const;
   // JerkBound::vector, dense runs: a vertex's discrete curvature vector, and its jump there.
   Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
   double vertex_curvature_jump_per_mm(std::size_t segment, std::size_t vertex) const;
+  // Per-axis jerk limits: per axis, the larger jump of the component to a neighbour.
+  Vec3 vertex_axis_curvature_jump(std::size_t segment, std::size_t vertex) const;
   bool next_interval(Interval& out);
   // next_interval's steps (limit_sampler.cpp).
   struct RestEnds {  // rest refinement: the interval is the innermost at a rest
@@ -128,8 +140,11 @@ class LimitSampler {
                                         bool open_end) const;
   bool interval_is_flat(std::size_t segment, double u0, double u1, double speed_u0) const;
   FeedLimitResult segment_cap(std::size_t segment) const;  // max feed, program feed
+  // axis_curvature_jump: per axis, the jump of the curvature vector's component there (per-axis
+  // jerk limits, axis_jump_feed_mm_per_s).
   FeedLimitResult corner_speed(const Vec3& d_in, const Vec3& d_out, double curvature_per_mm = 0.0,
-                               double curvature_jump_per_mm = 0.0) const;
+                               double curvature_jump_per_mm = 0.0,
+                               const Vec3& axis_curvature_jump = Vec3::Zero()) const;
   bool must_stop(const Vec3& d_in, const Vec3& d_out, toolpath::PathControl mode,
                  const FeedLimitResult& corner) const;
   bool vertex_is_stop(std::size_t segment, std::size_t vertex) const;
@@ -164,9 +179,11 @@ class LimitSampler {
   struct InnerCorner {
     double u, s_mm, speed_in, speed_out;
     FeedLimitResult corner;
-    double share = 0.0;  // JerkBound::vector: jump_share() of the corner
+    double share = 0.0;              // JerkBound::vector: jump_share() of the corner
+    Vec3 axis_share = Vec3::Zero();  // per-axis jerk limits: axis_jump_shares() of the corner
   };
-  std::vector<double> joint_share_;  // jump_share() of the corner at each joint
+  std::vector<double> joint_share_;     // jump_share() of the corner at each joint
+  std::vector<Vec3> joint_axis_share_;  // axis_jump_shares() of the corner at each joint
   // The share of j_max the turn φ and curvature jump Δκ of a corner passed at v_corner take of
   // the setpoints' third difference (at most kJumpJerkShare); 0 under JerkBound::tangential.
   double jump_share(double phi_rad, double curvature_jump_per_mm, double v_corner) const;

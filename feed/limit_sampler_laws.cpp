@@ -68,8 +68,8 @@ bool LimitSampler::vertex_is_stop(std::size_t segment, std::size_t vertex) const
 // Under JerkBound::vector, also jump_feed_mm_per_s for the turn and the curvature jump Δκ
 // (docs/planner.md §3c); on a tangent joint or a smooth knot that law alone.
 FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
-                                           double curvature_per_mm,
-                                           double curvature_jump_per_mm) const {
+                                           double curvature_per_mm, double curvature_jump_per_mm,
+                                           const Vec3& axis_curvature_jump) const {
   if (d_in.isZero() || d_out.isZero()) return {0.0, FeedLimit::Corner};
   const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
   FeedLimitResult r{polyline_corner_speed_mm_per_s(limits_, phi, curvature_per_mm),
@@ -78,6 +78,11 @@ FeedLimitResult LimitSampler::corner_speed(const Vec3& d_in, const Vec3& d_out,
     const double v =
         jump_feed_mm_per_s(limits_, phi < kMinTurnRad ? 0.0 : phi, curvature_jump_per_mm);
     if (v < r.feed_mm_per_s) r = {v, FeedLimit::JerkVector};
+  }
+  if (limits_.has_axis_jerk()) {  // each axis's jump law (docs/planner.md §3f)
+    const Vec3 dd = phi < kMinTurnRad ? Vec3::Zero() : Vec3(d_out - d_in);
+    const double v = axis_jump_feed_mm_per_s(limits_, dd, axis_curvature_jump);
+    if (v < r.feed_mm_per_s) r = {v, FeedLimit::Corner};
   }
   if (limits_.has_axis_limits() && phi >= kMinTurnRad) {
     // Per-axis limits (docs/planner.md §3f). The junction law with the acceleration the axes
@@ -243,6 +248,16 @@ double LimitSampler::vertex_curvature_jump_per_mm(std::size_t segment, std::size
   return std::max((here - before).norm(), (after - here).norm());
 }
 
+Vec3 LimitSampler::vertex_axis_curvature_jump(std::size_t segment, std::size_t vertex) const {
+  if (!limits_.has_axis_jerk()) return Vec3::Zero();
+  const auto& pts = std::get<toolpath::Polyline>(path_.segments[segment].geometry).points;
+  const Vec3 here = vertex_curvature_vector(segment, vertex);
+  const Vec3 before = vertex > 0 ? vertex_curvature_vector(segment, vertex - 1) : Vec3::Zero();
+  const Vec3 after =
+      vertex + 1 < pts.size() ? vertex_curvature_vector(segment, vertex + 1) : Vec3::Zero();
+  return (here - before).cwiseAbs().cwiseMax((after - here).cwiseAbs());
+}
+
 FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vertex) const {
   const auto& line = std::get<toolpath::Polyline>(path_.segments[segment].geometry);
   if (vertex == 0) return joint_corner_[segment];
@@ -250,7 +265,8 @@ FeedLimitResult LimitSampler::corner_limit(std::size_t segment, std::size_t vert
   if (vertex_is_stop(segment, vertex)) return {kInf, FeedLimit::Corner};  // at rest there
   return corner_speed(unit_or_zero(line.points[vertex] - line.points[vertex - 1]),
                       unit_or_zero(line.points[vertex + 1] - line.points[vertex]), 0.0,
-                      vertex_curvature_jump_per_mm(segment, vertex));
+                      vertex_curvature_jump_per_mm(segment, vertex),
+                      vertex_axis_curvature_jump(segment, vertex));
 }
 
 bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
@@ -417,22 +433,29 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
   toolpath::CurvePoint prev = c.eval(lo);
   Vec3 k_prev = curvature_vector_per_mm(prev);
   kappa = k_prev.norm();
+  Vec3 k_axis = k_prev.cwiseAbs(), g_axis = Vec3::Zero();  // g_axis: |dk/ds| per axis
   double u_prev = lo;
   for (int i = 1; i < kPoints; ++i) {
     const double u = i + 1 == kPoints ? hi : lo + (hi - lo) * i / (kPoints - 1);
     const toolpath::CurvePoint p = c.eval(u);
     const Vec3 k = curvature_vector_per_mm(p);
     kappa = std::max(kappa, k.norm());
+    k_axis = k_axis.cwiseMax(k.cwiseAbs());
     const double ds = 0.5 * (prev.d1.norm() + p.d1.norm()) * (u - u_prev);
     const Vec3 t = unit_or_zero(unit_or_zero(prev.d1) + unit_or_zero(p.d1));
     const Vec3 dk = k - k_prev;
-    if (ds > 0.0) turn = std::max(turn, (dk - dk.dot(t) * t).norm() / ds);
+    if (ds > 0.0) {
+      turn = std::max(turn, (dk - dk.dot(t) * t).norm() / ds);
+      g_axis = g_axis.cwiseMax(dk.cwiseAbs() / ds);
+    }
     prev = p;
     k_prev = k;
     u_prev = u;
   }
   iv.kappa_per_mm = 1.05 * kappa;
   iv.turn_per_mm2 = 1.05 * turn;
+  iv.k_axis = 1.05 * k_axis;
+  iv.g_axis = 1.05 * g_axis;
 }
 
 // JerkBound::vector: the interval's speed so that the tangential scale it asks for is at least
@@ -446,6 +469,55 @@ void LimitSampler::bound_jerk_vector(Interval& iv) const {
   if (v < iv.v_mm_per_s) {
     iv.v_mm_per_s = v;
     iv.limit = FeedLimit::JerkVector;
+  }
+}
+
+// Per-axis jerk limits on a curve (docs/planner.md §3f). Axis i's jerk is
+// j t_i + 3 v a k_i + v³ (dk/ds)_i (dk/ds = −κ² T + κ' N + κ τ B, the curvature vector's
+// derivative; on a helix its Z part is 0, the −κ² T_z and κ τ B_z cancelling): the planner holds
+// |j t_i| to kAxisTangentialShare of the axis's budget (axis_scales()), and the curve's terms
+// are held to the rest, with the interval's largest |k_i| and |(dk/ds)_i| (curve_turn()):
+//     v³ |(dk/ds)_i| + 3 v λ A |k_i| ≤ R_i = (1 − kAxisTangentialShare)(1 − q_i) j_i,
+// A the largest |a| the axes allow on the interval (axis_scales()), q_i the share a jump within
+// two periods' travel takes (0 elsewhere). As the jerk-vector bound does with σ (§3c), the
+// acceleration gives way first: at the interval's speed limit v the largest λ ≤ 1 that holds
+// is the fraction of its acceleration scale the interval asks of the planner; where it would
+// fall below kMinAxisAccelFactor, λ is that and the speed is lowered to the root of the left
+// side (it grows with v: one real root). An interval raised to the rest speed keeps it.
+void LimitSampler::bound_axis_curve_jerk(Interval& iv) const {
+  if (iv.rest_speed || !limits_.has_axis_jerk() || !(iv.kappa_per_mm > 0.0)) return;
+  const double A = axis_scales(limits_, iv.tangent_max, {iv.bends, iv.bends, iv.bends}).accel *
+                   limits_.max_accel_mm_per_s2;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto I = static_cast<int>(i);
+    if (!std::isfinite(limits_.axes[i].max_jerk_mm_per_s3)) continue;
+    const double cubic = iv.g_axis[I];
+    const double rhs = (1.0 - kAxisTangentialShare) * (1.0 - iv.axis_jump_share[I]) *
+                       axis_jerk_for_planner(limits_, i);
+    const double v = iv.v_mm_per_s, linear = 3.0 * A * iv.k_axis[I];
+    const double room = rhs - cubic * v * v * v;  // what the cross term may take at v
+    if (linear * v <= room) continue;
+    if (linear > 0.0 && room >= kMinAxisAccelFactor * linear * v) {
+      iv.axis_accel_factor = std::min(iv.axis_accel_factor, room / (linear * v));
+      continue;
+    }
+    // v³ + p v = q (p = λ_min linear / cubic, q = rhs / cubic), in the hyperbolic form, free of
+    // Cardano's cancellation where p³ dwarfs q².
+    const double lin = kMinAxisAccelFactor * linear;
+    double root = kInf;
+    if (cubic > 0.0) {
+      const double p = lin / cubic, q = rhs / cubic;
+      root = p > 0.0 ? 2.0 * std::sqrt(p / 3.0) *
+                           std::sinh(std::asinh(1.5 * q / p * std::sqrt(3.0 / p)) / 3.0)
+                     : std::cbrt(q);
+    } else if (lin > 0.0) {
+      root = rhs / lin;
+    }
+    iv.axis_accel_factor = std::min(iv.axis_accel_factor, kMinAxisAccelFactor);
+    if (root < iv.v_mm_per_s) {
+      iv.v_mm_per_s = root;
+      iv.limit = FeedLimit::CentripetalJerk;
+    }
   }
 }
 

@@ -75,11 +75,14 @@ double end_curvature_per_mm(const toolpath::Path& path, std::size_t k, bool at_e
   return 2.0 * std::sqrt(0.5 * (1.0 - cos_phi)) / l;
 }
 
-// The curvature vector next to a joint (JerkBound::vector): a curve's; zero on a polyline.
+// The curvature vector next to a joint (JerkBound::vector, per-axis jerk limits): a curve's;
+// zero on a polyline.
 Vec3 end_curvature_vector(const toolpath::Path& path, std::size_t k, bool at_end,
                           const MachineLimits& limits) {
   const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry);
-  if (c == nullptr || limits.jerk_bound != JerkBound::vector) return Vec3::Zero();
+  if (c == nullptr || (limits.jerk_bound != JerkBound::vector && !limits.has_axis_jerk())) {
+    return Vec3::Zero();
+  }
   return curvature_vector_per_mm(c->eval(at_end ? c->u_end() : c->u_begin()));
 }
 
@@ -97,6 +100,7 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   set_tool_laws();  // before any limit is taken (the knot edges below take them)
   joint_corner_.assign(n + 1, FeedLimitResult{kInf, FeedLimit::Corner});
   joint_share_.assign(n + 1, 0.0);
+  joint_axis_share_.assign(n + 1, Vec3::Zero());
   inner_corners_.resize(n);
   // Joints (the corner where segment k begins belongs to the move ending there, k − 1) and
   // the interior vertices of polylines, in increasing s; the interior vertices' s is summed
@@ -136,12 +140,12 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
 // the jerk budget its jump takes.
 void LimitSampler::add_joint(std::size_t k) {
   const Vec3 d_in = end_direction(path_, k - 1, true), d_out = end_direction(path_, k, false);
-  const double dk = (end_curvature_vector(path_, k, false, limits_) -
-                     end_curvature_vector(path_, k - 1, true, limits_))
-                        .norm();
+  const Vec3 dk_vec = end_curvature_vector(path_, k, false, limits_) -
+                      end_curvature_vector(path_, k - 1, true, limits_);
+  const double dk = dk_vec.norm();
   const double kappa =
       std::max(end_curvature_per_mm(path_, k - 1, true), end_curvature_per_mm(path_, k, false));
-  FeedLimitResult corner = corner_speed(d_in, d_out, kappa, dk);
+  FeedLimitResult corner = corner_speed(d_in, d_out, kappa, dk, dk_vec.cwiseAbs());
   const double phi_alone = turn_rad(d_in, d_out);
   const double phi_sum = summed_turn_rad(k, corner.feed_mm_per_s);
   if (phi_sum > phi_alone) {
@@ -158,8 +162,12 @@ void LimitSampler::add_joint(std::size_t k) {
   }
   joint_corner_[k] = corner;
   if (!d_in.isZero() && !d_out.isZero()) {
-    joint_share_[k] =
-        jump_share(std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0)), dk, corner.feed_mm_per_s);
+    const double phi = std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
+    joint_share_[k] = jump_share(phi, dk, corner.feed_mm_per_s);
+    if (limits_.has_axis_jerk()) {
+      const Vec3 dd = phi < kMinTurnRad ? Vec3::Zero() : Vec3(d_out - d_in);
+      joint_axis_share_[k] = axis_jump_shares(limits_, dd, dk_vec, corner.feed_mm_per_s);
+    }
   }
 }
 
@@ -198,25 +206,33 @@ void LimitSampler::add_inner_knots(std::size_t k, const toolpath::NurbsCurve& c)
     const toolpath::CurvePoint cl = c.eval(std::nextafter(bp[i], -kInf)), cr = c.eval(bp[i]);
     const Vec3 left = cl.d1, right = cr.d1;
     const Vec3 d_in = unit_or_zero(left), d_out = unit_or_zero(right);
-    const double dk = limits_.jerk_bound == JerkBound::vector
-                          ? (curvature_vector_per_mm(cr) - curvature_vector_per_mm(cl)).norm()
-                          : 0.0;
+    const bool axis_jerk = limits_.has_axis_jerk();
+    const Vec3 dk_vec = limits_.jerk_bound == JerkBound::vector || axis_jerk
+                            ? Vec3(curvature_vector_per_mm(cr) - curvature_vector_per_mm(cl))
+                            : Vec3::Zero();
+    const double dk = limits_.jerk_bound == JerkBound::vector ? dk_vec.norm() : 0.0;
     const double k_scale = std::max(curvature_per_mm(cl), curvature_per_mm(cr));
     const double phi =
         d_in.isZero() || d_out.isZero() ? M_PI : std::acos(std::clamp(d_in.dot(d_out), -1.0, 1.0));
     const bool smooth = phi < kMinTurnRad;
-    const FeedLimitResult corner = corner_speed(d_in, d_out, k_scale, dk);
+    const FeedLimitResult corner = corner_speed(d_in, d_out, k_scale, dk, dk_vec.cwiseAbs());
     const double share = jump_share(smooth ? 0.0 : phi, dk, corner.feed_mm_per_s);
+    const Vec3 axis_share =
+        axis_jerk && !d_in.isZero() && !d_out.isZero()
+            ? axis_jump_shares(limits_, smooth ? Vec3::Zero() : Vec3(d_out - d_in), dk_vec,
+                               corner.feed_mm_per_s)
+            : Vec3::Zero();
     if (smooth) {  // a curvature jump: a corner only where it takes a share that counts
-      if (share > 1e-6) {
-        inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner, share});
+      if (share > 1e-6 || axis_share.maxCoeff() > 1e-6) {
+        inner_corners_[k].push_back(
+            {bp[i], s, left.norm(), right.norm(), corner, share, axis_share});
       }
       continue;
     }
     if (must_stop(d_in, d_out, corner_mode(path_.segments[k], limits_), corner)) {
       if (stops_mm_.empty() || s > stops_mm_.back()) stops_mm_.push_back(s);
     } else {
-      inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner, share});
+      inner_corners_[k].push_back({bp[i], s, left.norm(), right.norm(), corner, share, axis_share});
     }
   }
 }

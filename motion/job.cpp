@@ -37,6 +37,11 @@ PlannerLimits planner_limits(const JobConfig& c) {
   if (c.limits.has_axis_limits()) {
     const interpolator::AxisScales floor = interpolator::axis_scale_floor(c.limits);
     p.min_tangential_scale = std::min({p.min_tangential_scale, floor.accel, floor.jerk});
+    // Under axis jerk limits a curve may lower the acceleration scale further (§3f).
+    if (c.limits.has_axis_jerk()) {
+      p.min_tangential_scale =
+          std::min(p.min_tangential_scale, floor.accel * interpolator::kMinAxisAccelFactor);
+    }
   }
   return p;
 }

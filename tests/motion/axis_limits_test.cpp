@@ -224,6 +224,28 @@ TEST(AxisLimits, HelixIsTimedByZ) {
   expect_within_axis_limits(w, cfg);
 }
 
+// A G1 into a G3 of R 10 mm at F3000 under [axis.x|y] max_jerk_mm_per_s3 = 5000, the default
+// (tangential) jerk bound: the centripetal acceleration v²/R appears where the line meets the
+// arc, a jump of the curvature vector along X. The per-axis jump law slows the joint so that
+// X's third difference stays within 5000 (before it: 46 382 mm/s³), and so do the arc's end
+// and the line after it.
+TEST(AxisLimits, LineIntoArcKeepsEveryAxissJerk) {
+  JobConfig cfg = test::planner_machine();
+  cfg.limits.axes[0].max_jerk_mm_per_s3 = 5000.0;
+  cfg.limits.axes[1].max_jerk_mm_per_s3 = 5000.0;
+  ASSERT_EQ(cfg.limits.jerk_bound, interpolator::JerkBound::tangential);
+  const Walk w = walk(ngc_path("G21 G90 G17 G0 X0 Y0 Z0\nG1 X20 Y0 F3000\n"
+                               "G3 X30 Y10 I0 J10\nG1 Y30\nM2\n"),
+                      cfg);
+  ASSERT_TRUE(w.fault.empty()) << w.fault;
+  const AxisRatios r = axis_ratios(w.p, cfg);
+  std::printf("G1 into G3 R10 at F3000: %.4f s; X jerk %.1f, Y jerk %.1f mm/s3 (limit 5000)\n",
+              w.duration_s, r.jerk_peak[0], r.jerk_peak[1]);
+  EXPECT_LE(r.jerk[0], 1.0 + 1e-9);
+  EXPECT_LE(r.jerk[1], 1.0 + 1e-9);
+  expect_within_axis_limits(w, cfg);
+}
+
 // Without [axis.*] the job is the one it was: the same setpoints, bit for bit, as a machine whose
 // axis limits are all +inf (the default) — and an axis limit above every path limit changes
 // nothing either on a line along that axis.
@@ -236,21 +258,26 @@ TEST(AxisLimits, AxisLimitsAboveThePathsLeaveALineAsItWas) {
   for (std::size_t k = 0; k < a.p.size(); ++k) ASSERT_EQ(a.p[k], b.p[k]) << k;
 }
 
-// Where an axis's acceleration (second difference) first exceeds its limit, for the message.
-std::string first_accel_excess(const Walk& w, const JobConfig& cfg) {
+// Where an axis's acceleration (order 2: second difference) or jerk (3: third difference)
+// first exceeds its limit, for the message.
+std::string first_excess(const Walk& w, const JobConfig& cfg, int order) {
   const double T = cfg.limits.period_s;
-  for (std::size_t k = 2; k < w.p.size(); ++k) {
+  for (std::size_t k = static_cast<std::size_t>(order); k < w.p.size(); ++k) {
     for (int i = 0; i < 3; ++i) {
-      const double lim = cfg.limits.axes[static_cast<std::size_t>(i)].max_accel_mm_per_s2;
-      const double acc = std::abs(w.p[k][i] - 2.0 * w.p[k - 1][i] + w.p[k - 2][i]) / (T * T);
-      if (acc > lim * (1.0 + 1e-9)) {
+      const auto& ax = cfg.limits.axes[static_cast<std::size_t>(i)];
+      const double lim = order == 2 ? ax.max_accel_mm_per_s2 : ax.max_jerk_mm_per_s3;
+      const double d = order == 2
+                           ? w.p[k][i] - 2.0 * w.p[k - 1][i] + w.p[k - 2][i]
+                           : w.p[k][i] - 3.0 * w.p[k - 1][i] + 3.0 * w.p[k - 2][i] - w.p[k - 3][i];
+      const double value = std::abs(d) / std::pow(T, order);
+      if (value > lim * (1.0 + 1e-9)) {
         const motion::Setpoint& q = w.sp[k - 1];
-        char text[240];
+        char text[280];
         std::snprintf(text, sizeof text,
-                      "axis %c %.6f mm/s2 (limit %.6g) at setpoint %zu, s = %.6f mm, walked "
+                      "axis %c %.6f mm/s%d (limit %.6g) at setpoint %zu, s = %.6f mm, walked "
                       "segment %zu, v %.4f mm/s, a %.3f mm/s2, limit %s%s",
-                      static_cast<char>('X' + i), acc, lim, k, q.s_mm, q.segment, q.v_mm_per_s,
-                      q.a_mm_per_s2, motion::limit_name(q.limit_id),
+                      static_cast<char>('X' + i), value, order, lim, k, q.s_mm, q.segment,
+                      q.v_mm_per_s, q.a_mm_per_s2, motion::limit_name(q.limit_id),
                       q.overlapped ? ", overlapped" : "");
         return text;
       }
@@ -335,7 +362,9 @@ TEST(AxisLimits, RandomProgramsKeepEveryAxisWithinItsLimits) {
     worst_jerk = std::max(worst_jerk, r.worst(3));
     EXPECT_LE(r.worst(1), 1.0 + 1e-9) << "program " << n << " of seed " << seed;
     EXPECT_LE(r.worst(2), 1.0 + 1e-9)
-        << "program " << n << " of seed " << seed << ": " << first_accel_excess(w, cfg);
+        << "program " << n << " of seed " << seed << ": " << first_excess(w, cfg, 2);
+    EXPECT_LE(r.worst(3), 1.0 + 1e-9)
+        << "program " << n << " of seed " << seed << ": " << first_excess(w, cfg, 3);
     const double bound = duration_bound_s(Job(path, cfg).path(), cfg);
     const double ratio = w.duration_s / bound;
     EXPECT_GE(ratio, 1.0 - 1e-6) << "program " << n << " of seed " << seed;
@@ -344,7 +373,7 @@ TEST(AxisLimits, RandomProgramsKeepEveryAxisWithinItsLimits) {
     ratio_max = std::max(ratio_max, ratio);
   }
   std::printf(
-      "%d programs: worst axis ratio feed %.12f, accel %.12f, jerk %.4f; duration / "
+      "%d programs: worst axis ratio feed %.12f, accel %.12f, jerk %.12f; duration / "
       "bound mean %.3f, min %.3f, max %.3f\n",
       programs, worst_feed, worst_accel, worst_jerk, ratio_sum / programs, ratio_min, ratio_max);
 }
