@@ -1,25 +1,28 @@
-// The program's modal state per path segment and the trace of queued blocks
-// (commanded_state.hpp). The modal state is a walk over the program's steps in order, keeping
-// the last spindle, coolant, tool change and tool length offset seen, and recording it, with
-// the motion's own units and offset, at the first step that lands in each segment
-// (toolpath::to_path's segment_of_step). A motion's offset is its work offset, G92 and tool
-// length together, in its units; the tool length, from the last G43/G43.1/G49 in its own
-// units, is taken out of it, so that the work offset is shown apart from the length.
+// The program's modal state move by move and the trace of queued blocks (commanded_state.hpp).
+// The modal state is a walk over the program's steps in order, keeping the last spindle,
+// coolant, tool change and tool length offset seen, and recording it, with the motion's own
+// units, offset and line, where each motion starts: its segment (toolpath::to_path's
+// segment_of_step) and the summed lengths of the moves before it in that segment. A motion's offset
+// is its work offset, G92 and tool length together, in its units; the tool length, from the last
+// G43/G43.1/G49 in its own units, is taken out of it, so that the work offset is shown apart from
+// the length.
 #include "service/commanded_state.hpp"
 
 #include <algorithm>
+#include <iterator>
+#include <utility>
 #include <variant>
 
 namespace ncd::service {
 
-std::vector<CommandedModal> commanded_by_segment(const toolpath::Program& program) {
+CommandedTable::CommandedTable(const toolpath::Program& program) {
   std::vector<std::size_t> segment_of_step;
   toolpath::ToPathOptions options;
   options.segment_of_step = &segment_of_step;
-  const toolpath::Path path = toolpath::to_path(program, options);
-  std::vector<CommandedModal> out(path.segments.size());
-  std::vector<bool> set(path.segments.size(), false);
+  segments_ = toolpath::to_path(program, options).segments.size();
   CommandedModal now;
+  std::size_t segment = toolpath::kNoSegment;
+  double within_mm = 0.0;
   for (std::size_t i = 0; i < program.steps.size(); ++i) {
     const toolpath::Step& step = program.steps[i];
     if (const auto* event = std::get_if<toolpath::Event>(&step.item)) {
@@ -38,26 +41,32 @@ std::vector<CommandedModal> commanded_by_segment(const toolpath::Program& progra
       continue;
     }
     const auto& m = std::get<toolpath::Motion>(step.item);
+    const double mm = toolpath::mm_per_unit(m.units);
     now.units = m.units;
     now.spindle = m.spindle;
     now.spindle_rpm = m.spindle_rpm;
     now.tool = m.tool;
-    now.work_offset_mm = m.offset * toolpath::mm_per_unit(m.units) - now.tool_length_mm;
+    now.work_offset_mm = m.offset * mm - now.tool_length_mm;
+    now.line = step.src.file == 0 ? step.src.line : 0;
     const std::size_t seg = i < segment_of_step.size() ? segment_of_step[i] : toolpath::kNoSegment;
-    if (seg == toolpath::kNoSegment || seg >= out.size() || set[seg]) continue;
-    out[seg] = now;
-    out[seg].line = path.segments[seg].source_line;
-    set[seg] = true;
-  }
-  // A segment no motion step landed in (none expected) takes its predecessor's state.
-  for (std::size_t k = 1; k < out.size(); ++k) {
-    if (!set[k]) {
-      const int line = path.segments[k].source_line;
-      out[k] = out[k - 1];
-      out[k].line = line;
+    if (seg == toolpath::kNoSegment || seg >= segments_) continue;
+    if (seg != segment) {
+      segment = seg;
+      within_mm = 0.0;
     }
+    entries_.push_back({seg, within_mm, now});
+    within_mm += toolpath::motion_length(m) * mm;
   }
-  return out;
+}
+
+const CommandedModal& CommandedTable::at(std::size_t segment, double within_mm) const {
+  // The first entry after (segment, within_mm), then one back.
+  const auto after = std::upper_bound(
+      entries_.begin(), entries_.end(), std::pair(segment, within_mm),
+      [](const std::pair<std::size_t, double>& key, const Entry& e) {
+        return key.first < e.segment || (key.first == e.segment && key.second < e.from_mm);
+      });
+  return after == entries_.begin() ? entries_.front().modal : std::prev(after)->modal;
 }
 
 void BlockTrace::add(long number, double start_s_mm, double end_s_mm, double start_t_s,

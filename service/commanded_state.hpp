@@ -29,12 +29,32 @@ struct CommandedModal {
   toolpath::SpindleDir spindle = toolpath::SpindleDir::off;
   double spindle_rpm = 0.0;  // the programmed S
   bool mist = false, flood = false;
-  int line = 0;  // the source line that opened the segment
+  int line = 0;  // the source line of the move (main program only; 0: none known)
 };
 
-// One entry per segment of toolpath::to_path(program) (the same segments as the path the job
-// walks, unless the planner split them); empty when the program has no motion.
-std::vector<CommandedModal> commanded_by_segment(const toolpath::Program& program);
+// The program's state move by move: where each motion starts on the path (its segment of
+// toolpath::to_path(program), and the arc length into that segment, by the program's own move
+// lengths) and the state over it, its source line included (0 for a move of another file than
+// the main program's: a subroutine's). Moves in a row at one feed make one path segment; this
+// keeps their lines apart.
+class CommandedTable {
+ public:
+  CommandedTable() = default;
+  explicit CommandedTable(const toolpath::Program& program);
+  std::size_t segments() const { return segments_; }
+  bool empty() const { return entries_.empty(); }
+  // The state at `within_mm` into segment `segment`: the last move starting at or before it.
+  const CommandedModal& at(std::size_t segment, double within_mm) const;
+
+ private:
+  struct Entry {
+    std::size_t segment = 0;
+    double from_mm = 0.0;
+    CommandedModal modal;
+  };
+  std::vector<Entry> entries_;
+  std::size_t segments_ = 0;
+};
 
 // A block queued for the controller while a job streams.
 struct QueuedBlock {

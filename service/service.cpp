@@ -59,6 +59,9 @@
 
 namespace ncd::service {
 
+// How far into a queued block its move is looked up, mm (Service::controller_view).
+constexpr double kBlockStartProbeMm = 1e-4;
+
 Service::Service(const ServiceOptions& options) : options_(options) {
   if (!options_.cycle_thread && options_.clock != motion::ClockKind::Simulated) {
     throw InputError("service: only the simulated clock runs without a cycle thread");
@@ -99,8 +102,8 @@ void Service::submit(JobSpec job) {
   // Build the job now, so that a path the machine cannot run is refused at submit; start() runs
   // this one (a long path is not built twice).
   auto built = std::make_unique<motion::Job>(*job.path, job.motion);
-  std::vector<CommandedModal> modal;
-  if (job.program) modal = commanded_by_segment(*job.program);
+  CommandedTable modal;
+  if (job.program) modal = CommandedTable(*job.program);
   cycle_.reset();
   live_.reset();
   job_ = std::move(job);
@@ -496,10 +499,11 @@ std::size_t Service::segment_at(double s_mm) const {
 // The program's modal state at arc length s_mm; none when the job has no program, or when the
 // planner split the program's segments (G64 Q fitting), so that they no longer match.
 std::optional<CommandedModal> Service::modal_at(double s_mm) const {
-  if (!cycle_ || modal_.empty() || cycle_->job().path().segments.size() != modal_.size()) {
+  if (!cycle_ || modal_.empty() || cycle_->job().path().segments.size() != modal_.segments()) {
     return std::nullopt;
   }
-  return modal_[segment_at(s_mm)];
+  const std::size_t segment = segment_at(s_mm);
+  return modal_.at(segment, s_mm - cycle_->job().walker().segment_start_mm(segment));
 }
 
 // The controller's own state in a streamed job: its last status report (ack), and which block
@@ -533,8 +537,12 @@ void Service::controller_view(Status& s) const {
   const QueuedBlock& b = trace[*at];
   p.block = *at;
   p.number = b.number;
-  p.line = line_at(b.start_s_mm);
-  p.modal = modal_at(b.start_s_mm);
+  // The move the block begins in: a hair past its start (a block that starts at a corner
+  // belongs to the move after it).
+  const double into_mm =
+      b.start_s_mm + std::min(kBlockStartProbeMm, 0.5 * (b.end_s_mm - b.start_s_mm));
+  p.modal = modal_at(into_mm);
+  p.line = p.modal && p.modal->line > 0 ? p.modal->line : line_at(into_mm);
   p.blocks_behind = static_cast<std::int64_t>(trace.size() - 1 - *at);
   const double reached_t_s = p.source == "last sent" ? b.end_t_s : b.start_t_s;
   p.seconds_behind = std::max(0.0, s.t_s - reached_t_s);

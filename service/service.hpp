@@ -154,7 +154,7 @@ struct ControllerProgress {
   std::string source;
   std::size_t block = 0;           // the block (0-based, in the order queued)
   long number = 0;                 // its N word (0: none)
-  int line = 0;                    // the source line of the segment it starts in (0: none)
+  int line = 0;                    // the source line of the move it begins in (else its segment's)
   std::int64_t blocks_behind = 0;  // blocks ncd has queued after it
   // The commanded motion time less the block's planned start (ack) or end (drip: the controller
   // cannot be further than the end of what it received): how far it runs behind, s, ≥ 0.
@@ -298,7 +298,7 @@ class Service {
   HoldHolder holder_ = HoldHolder::None;
   JobSpec job_;
   std::unique_ptr<motion::Job> built_;  // submit()'s, for start()
-  std::vector<CommandedModal> modal_;   // per segment of the job's program (commanded_state.hpp)
+  CommandedTable modal_;                // the job's program, move by move (commanded_state.hpp)
   std::string error_, stop_why_, realtime_;
   Vec3 start_mm_ = Vec3::Zero();
   double moving_s_ = 0.0;
