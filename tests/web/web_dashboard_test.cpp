@@ -787,6 +787,25 @@ TEST_F(WebDashboard, BrowserLinkPanelShowsTheSocketsLiveCounters) {
   EXPECT_NE(page.text("link-buffer").find("wire model"), std::string::npos)
       << page.text("link-buffer");
   std::cout << "[ measured ] link under the hold: " << k.dump() << "\n";
+  // Drip feed reports nothing of the controller: the DRO is ncd's commanded position, so
+  // labelled, and the controller's place is the last block the line carried; at rest, with
+  // the buffer empty, every block written has been carried.
+  EXPECT_TRUE(s["controller"].is_null()) << s.dump();
+  const json q = s["controller_progress"];
+  ASSERT_TRUE(q.is_object()) << s.dump();
+  EXPECT_EQ(q["source"], "last sent") << q.dump();
+  if (k["controller_buffer_bytes"] == 0) {
+    EXPECT_EQ(q["blocks_behind"].get<std::int64_t>(),
+              k["blocks_encoded"].get<std::int64_t>() - k["blocks_written"].get<std::int64_t>())
+        << q.dump() << k.dump();
+  }
+  EXPECT_TRUE(page.wait_text("dro-source", "commanded by ncd (ahead of the controller)"))
+      << page.text("dro-source");
+  EXPECT_NE(
+      page.text("behind").find(std::to_string(q["blocks_behind"].get<std::int64_t>()) + " blocks"),
+      std::string::npos)
+      << page.text("behind");
+  EXPECT_EQ(page.text("ctl-state"), "not reported (drip feed)");
   page.click("#stop");
   ASSERT_TRUE(page.wait_text("state", "stopped", 60.0)) << page.text("message") << slurp(err_);
 }
@@ -1071,10 +1090,10 @@ json rest_under_hold(SocketClient& sock) {
 
 // A G20 job with a tool length offset (G43 H1, 50 mm in the tool table), held past X58.143 mm
 // on its way along Y0.5 Z-0.125 in to X4 (issue 33's point: 58.143, 12.700, 46.825 mm machine,
-// the tool length inside, about X2.289 Y0.5 Z-0.125 in work coordinates): the DRO shows inches with its axis names, work and machine
-// coordinates, the tool length apart; the machine state panel the program's spindle, coolant
-// and tool. The numbers the test expects come from the program and the tool table it wrote
-// (work = machine − tool length, in inches), not from the service's own DRO.
+// the tool length inside, about X2.289 Y0.5 Z-0.125 in work coordinates): the DRO shows inches with
+// its axis names, work and machine coordinates, the tool length apart; the machine state panel the
+// program's spindle, coolant and tool. The numbers the test expects come from the program and the
+// tool table it wrote (work = machine − tool length, in inches), not from the service's own DRO.
 TEST_F(BrowserPage, DroShowsAG20JobInInchesWithAxisNamesAndTheToolLengthApart) {
   write("tool.tbl", "T1 P1 Z50 D6 ;ball\n");
   const std::string machine =
@@ -1123,8 +1142,7 @@ TEST_F(BrowserPage, DroShowsAG20JobInInchesWithAxisNamesAndTheToolLengthApart) {
   // The listing marks line 9, ncd's commanded line (no link here).
   EXPECT_TRUE(page.wait_text("listing-line", "line 9 · commanded by ncd"))
       << page.text("listing-line");
-  EXPECT_EQ(page.script("return document.querySelector('#listing li.exec').textContent;"),
-            "G1 X4");
+  EXPECT_EQ(page.script("return document.querySelector('#listing li.exec').textContent;"), "G1 X4");
   std::cout << "[ measured ] G20 DRO: work " << page.text("dro-wx") << " " << page.text("dro-wy")
             << " " << page.text("dro-wz") << " in, machine " << page.text("dro-mx") << " "
             << page.text("dro-my") << " " << page.text("dro-mz") << " in; socket " << s["position"]
@@ -1177,6 +1195,7 @@ TEST_F(BrowserPage, ListingMarksTheLineTheControllerReportsExecuting) {
         "const li = document.querySelector('#listing li.exec');"
         "return {state: s.state, n: q ? q.number : null, source: q ? q.source : null,"
         " ln: s.controller ? s.controller.line_number : null,"
+        " work: s.controller ? s.controller.work_mm : null, dro: s.dro,"
         " marked: li ? Array.prototype.indexOf.call(li.parentNode.children, li) + 1 : null,"
         " label: document.getElementById('listing-line').textContent};");
     if (q["source"] == "controller (Ln:)") samples.push_back(q);
@@ -1214,6 +1233,13 @@ TEST_F(BrowserPage, ListingMarksTheLineTheControllerReportsExecuting) {
   int checked = 0;
   std::set<int> lines;
   for (const json& q : samples) {
+    // The DRO is the controller's: its work position, in mm (no offsets in this program).
+    ASSERT_TRUE(q["dro"].is_object()) << q.dump();
+    EXPECT_EQ(q["dro"]["source"], "controller") << q.dump();
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(q["dro"]["machine"][a].get<double>(), q["work"][a].get<double>(), 1e-9)
+          << q.dump();
+    }
     ASSERT_TRUE(q["n"].is_number() && q["ln"].is_number()) << q.dump();
     EXPECT_EQ(q["n"], q["ln"]) << q.dump();  // the block is the one grbl named
     const auto move = moves.find(q["n"].get<long>());
