@@ -429,7 +429,11 @@ json Intake::submit(const json& req) {
   SubmittedJob job = submitted_job(req, config_);
   if (!job.warning.empty()) std::cerr << "ncd serve: " << job.warning << "\n";
   const std::string name = job.spec.name;
+  const auto file = req["job"].find("path");
+  auto view = std::make_shared<const json>(app::program_view(
+      name, *job.spec.path, file != req["job"].end() ? file->get<std::string>() : std::string()));
   core_.submit(std::move(job.spec));
+  program_view_ = std::move(view);
   port_ = job.port;
   controller_start_mm_.reset();
   if (job.start.from == "controller") controller_start_mm_ = job.start.at_mm;
@@ -549,6 +553,97 @@ json stream_json(const service::LinkStatus& l, bool held_by_link) {
   return k;
 }
 
+json vec3(const std::array<double, 3>& v) {
+  return {v[0], v[1], v[2]};
+}
+
+const char* spindle_name(toolpath::SpindleDir d) {
+  switch (d) {
+    case toolpath::SpindleDir::cw:
+      return "cw";
+    case toolpath::SpindleDir::ccw:
+      return "ccw";
+    case toolpath::SpindleDir::off:
+      break;
+  }
+  return "off";
+}
+
+// The program's modal state (service/commanded_state.hpp), offsets in mm.
+json modal_json(const service::CommandedModal& m) {
+  return {{"units", m.units == toolpath::Units::inch ? "inch" : "mm"},
+          {"work_offset_mm", vec(m.work_offset_mm)},
+          {"tool_length_mm", vec(m.tool_length_mm)},
+          {"tool_length_h", m.tool_length_h >= 0 ? json(m.tool_length_h) : json()},
+          {"tool", m.tool},
+          {"spindle", spindle_name(m.spindle)},
+          {"spindle_rpm", m.spindle_rpm},
+          {"coolant", {{"mist", m.mist}, {"flood", m.flood}}},
+          {"line", m.line > 0 ? json(m.line) : json()}};
+}
+
+// The controller's last status report (ack), as it said it, with its age.
+json controller_json(const comms::ControllerReport& r, double age_s) {
+  const comms::GrblStatus& g = r.status;
+  const auto opt = [](const auto& v) { return v ? json(*v) : json(); };
+  return {{"state", g.state},
+          {"mpos_mm", g.mpos ? vec3(*g.mpos) : json()},
+          {"wpos_mm", g.wpos ? vec3(*g.wpos) : json()},
+          {"wco_mm", g.wco ? vec3(*g.wco) : json()},
+          {"work_mm", vec3(r.work_mm)},
+          {"work_basis", g.wpos ? "WPos" : (r.wco_known ? "MPos less WCO" : "MPos (no WCO yet)")},
+          {"free_blocks", opt(g.free_blocks)},
+          {"free_bytes", opt(g.free_bytes)},
+          {"line_number", opt(g.line_number)},
+          {"feed_mm_per_min", opt(g.feed)},
+          {"spindle_rpm", opt(g.spindle_rpm)},
+          {"reports", r.reports},
+          {"age_s", age_s}};
+}
+
+// The DRO (docs/web-dashboard.md, "The DRO"): the position in the program's units, as work
+// coordinates (less the work offset and the tool length) and machine coordinates (the path's
+// frame), with the tool length and the work offset apart; from the controller's report where
+// the link gives one, else ncd's commanded position. Null before a job has run.
+json dro_json(const service::Status& st) {
+  std::optional<Vec3> at;
+  std::optional<service::CommandedModal> modal;
+  std::string source;
+  if (st.controller_position_mm) {
+    at = st.controller_position_mm;
+    modal = st.progress_at_controller ? st.progress_at_controller->modal : std::nullopt;
+    source = "controller";
+  } else if (st.has_job_run) {
+    at = st.position_mm;
+    modal = st.commanded;
+    source = "commanded";
+  }
+  if (!at) return json();
+  const service::CommandedModal m = modal.value_or(service::CommandedModal{});
+  const double k = 1.0 / toolpath::mm_per_unit(m.units);
+  json d{{"units", m.units == toolpath::Units::inch ? "inch" : "mm"},
+         {"source", source},
+         {"work", vec((*at - m.work_offset_mm - m.tool_length_mm) * k)},
+         {"machine", vec(*at * k)},
+         {"tool_length", vec(m.tool_length_mm * k)},
+         {"work_offset", vec(m.work_offset_mm * k)},
+         {"modal_known", modal.has_value()}};
+  if (source == "controller") d["age_s"] = st.controller_age_s;
+  if (source == "commanded" && st.link) {
+    d["note"] = "ncd's commanded position: it runs ahead of the controller";
+  }
+  return d;
+}
+
+json progress_json(const service::ControllerProgress& p) {
+  return {{"source", p.source},
+          {"block", p.block},
+          {"number", p.number > 0 ? json(p.number) : json()},
+          {"line", p.line > 0 ? json(p.line) : json()},
+          {"blocks_behind", p.blocks_behind},
+          {"seconds_behind", p.seconds_behind}};
+}
+
 }  // namespace
 
 json to_json(const service::Status& st) {
@@ -611,6 +706,11 @@ json to_json(const service::Status& st) {
   if (st.restart_line > 0) s["restart_from_line"] = st.restart_line;
   s["events_dropped"] = st.events_dropped;
   s["stream"] = st.link ? stream_json(*st.link, st.holder == service::HoldHolder::Link) : json();
+  s["commanded_state"] = st.commanded ? modal_json(*st.commanded) : json();
+  s["controller"] = st.controller ? controller_json(*st.controller, st.controller_age_s) : json();
+  s["controller_progress"] =
+      st.progress_at_controller ? progress_json(*st.progress_at_controller) : json();
+  s["dro"] = dro_json(st);
   return s;
 }
 

@@ -16,6 +16,7 @@
 #include "api/control_server.hpp"
 #include "api/service_config.hpp"
 #include "core/geometry.hpp"
+#include "geometry/path.hpp"
 #include "link/dnc_sender.hpp"
 #include "service/service.hpp"
 
@@ -62,6 +63,17 @@ struct SubmittedJob {
 };
 SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& config);
 
+// What the dashboard draws and lists of a job as soon as it is accepted (docs/web-dashboard.md,
+// "The preview" and "The listing"), from whatever submitted it (the socket, MQTT, the page, a
+// chamfer made from parameters): the path the job walks as polylines for the page
+// (path_preview), and the program's text when the job is an NC program (G-code), one string a
+// line, at most kMaxListingLines lines and kMaxListingBytes bytes (else "listing_truncated").
+inline constexpr std::size_t kMaxListingLines = 50000;
+inline constexpr std::size_t kMaxListingBytes = std::size_t{4} << 20;
+nlohmann::json path_preview(const toolpath::Path& path);
+nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
+                            const std::string& file);
+
 // The one request handler of `ncd serve`: the control socket, the web dashboard and MQTT all
 // hand their requests to handle() and read status() (it was app::Service, beside the library's
 // service::Service).
@@ -72,6 +84,7 @@ class Intake : public comms::ControlHandler {
 
   nlohmann::json handle(const nlohmann::json& request) override;
   nlohmann::json status() override;
+  std::shared_ptr<const nlohmann::json> program_view() override { return program_view_; }
   // SIGTERM/SIGINT: bring any motion to a jerk-limited stop, end the job safely (the ending
   // reaches the controller first), then call done (on the io_context).
   void shutdown(std::function<void()> done);
@@ -96,7 +109,8 @@ class Intake : public comms::ControlHandler {
   std::string port_;  // the submitted job's DNC port; empty: no streaming
   // The controller's position the submitted job starts from; checked again at start.
   std::optional<Vec3> controller_start_mm_;
-  std::function<void()> on_idle_;  // shutdown's continuation
+  std::function<void()> on_idle_;                       // shutdown's continuation
+  std::shared_ptr<const nlohmann::json> program_view_;  // the submitted job's (program_view)
 };
 
 // The status snapshot as the socket's JSON (field names with units; docs/cmd-serve.md).

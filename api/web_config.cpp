@@ -1,6 +1,11 @@
-// The programmed path the dashboard's page draws (docs/web-dashboard.md).
+// The programmed path and the listing the dashboard's page draws (docs/web-dashboard.md, "The
+// preview" and "The listing"): the job's path as polylines (NURBS sampled at 65 points each, at
+// most HttpLimits::kMaxPreviewPoints points, every k-th kept and each segment's last), and the
+// text of an NC program, line by line, bounded.
+#include <fstream>
 #include <variant>
 
+#include "api/intake.hpp"
 #include "api/web_server.hpp"
 #include "core/error.hpp"
 #include "gcode/path_io.hpp"
@@ -8,7 +13,10 @@
 namespace ncd::app {
 
 nlohmann::json path_preview(const std::string& file, const toolpath::InterpretOptions& ngc) {
-  const toolpath::Path path = toolpath::read_path_file(file, ngc);
+  return path_preview(toolpath::read_path_file(file, ngc));
+}
+
+nlohmann::json path_preview(const toolpath::Path& path) {
   constexpr int kSamplesPerCurve = 64;
   std::size_t total = 0;
   for (const auto& seg : path.segments) {
@@ -52,6 +60,39 @@ nlohmann::json path_preview(const std::string& file, const toolpath::InterpretOp
           {"rapid", rapid},
           {"segments", path.segments.size()},
           {"programmed_feed_max_mm_per_min", feed_max}};
+}
+
+nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
+                            const std::string& file) {
+  nlohmann::json view = path_preview(path);
+  view["job"] = job;
+  view["listing"] = nullptr;
+  if (file.empty()) return view;
+  std::ifstream in(file, std::ios::binary);
+  nlohmann::json lines = nlohmann::json::array();
+  std::size_t bytes = 0;
+  bool truncated = false;
+  for (std::string line; std::getline(in, line);) {
+    if (lines.empty() && line.find_first_not_of(" \t\r") != std::string::npos &&
+        line[line.find_first_not_of(" \t\r")] == '{') {
+      return view;  // a JSON path: no program text to list
+    }
+    if (lines.size() >= kMaxListingLines || bytes + line.size() > kMaxListingBytes) {
+      truncated = true;
+      break;
+    }
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    bytes += line.size();
+    // Bytes that are not UTF-8 would make the JSON unwritable: shown as '?'.
+    for (char& c : line) {
+      if (static_cast<unsigned char>(c) >= 0x80) c = '?';
+    }
+    lines.push_back(std::move(line));
+  }
+  view["listing"] = std::move(lines);
+  view["listing_file"] = file;
+  if (truncated) view["listing_truncated"] = true;
+  return view;
 }
 
 }  // namespace ncd::app

@@ -126,8 +126,6 @@ struct WebServer::State {
   std::filesystem::path upload_dir;  // private (0700), removed on close
   int uploads = 0;
   std::filesystem::path last_upload;  // the file of the last upload submitted
-  Json program;                       // the last programmed path known, with its "job"
-  std::uint64_t program_version = 0;
   // The service's last events (WebServer::push_event), the oldest first, and how many were
   // pushed in all: a page gets those it has not had at its next tick.
   std::deque<Json> events;
@@ -154,20 +152,6 @@ struct WebServer::State {
   // The handler's reply, well formed as the control socket makes it (comms::handler_reply).
   Json handle(const Json& request) {
     return comms::handler_reply([this](const Json& r) { return handler.handle(r); }, request);
-  }
-
-  // The preview of a path job just submitted (a file); a chamfer job has none here.
-  void note_program(const Json& job, const std::string& job_name) {
-    program = Json{{"job", job_name}, {"points", Json::array()}};
-    if (job.is_object() && job.contains("path") && job["path"].is_string()) {
-      try {
-        program = path_preview(job["path"].get<std::string>(), ngc);
-        program["job"] = job_name;
-      } catch (const std::exception& e) {
-        program["error"] = e.what();
-      }
-    }
-    ++program_version;
   }
 
   // "upload": the program's text to a file of the upload folder, then the socket's "submit".
@@ -213,7 +197,6 @@ struct WebServer::State {
     // The service has read the file at submit: keep only the current job's upload.
     std::error_code ignored;
     if (reply.value("ok", false)) {
-      note_program(job, reply.value("job", std::string()));
       if (!last_upload.empty()) std::filesystem::remove(last_upload, ignored);
       last_upload = file;
     } else {
@@ -236,11 +219,7 @@ struct WebServer::State {
     authorised = true;
     const Json& request = check.request;
     if (request["cmd"] == "upload") return upload(request);
-    Json reply = handle(request);
-    if (request["cmd"] == "submit" && reply.value("ok", false) && request.contains("job")) {
-      note_program(request["job"], reply.value("job", std::string()));
-    }
-    return reply;
+    return handle(request);
   }
 };
 
@@ -304,9 +283,10 @@ class WsSession : public std::enable_shared_from_this<WsSession<Stream>> {
       return;
     }
     if (authorised_) {
-      if (program_version_ != state_->program_version) {
-        program_version_ = state_->program_version;
-        send(to_text(Json{{"program", state_->program}}), false);
+      // The submitted job's path and listing, whoever submitted it (the service's).
+      if (auto program = state_->handler.program_view(); program && program != program_) {
+        program_ = program;
+        send(to_text(Json{{"program", *program}}), false);
       }
       // The events since the last tick (a new page: the last kRecentEvents), in order.
       const std::uint64_t first = state_->events_pushed - state_->events.size();
@@ -366,8 +346,8 @@ class WsSession : public std::enable_shared_from_this<WsSession<Stream>> {
   bool stopped_ = false;
   bool authorised_ = false;
   double hz_ = 10.0;
-  std::uint64_t program_version_ = 0;
-  std::uint64_t events_sent_ = 0;  // of State::events_pushed
+  std::shared_ptr<const Json> program_;  // the last program sent
+  std::uint64_t events_sent_ = 0;        // of State::events_pushed
   std::uint64_t generation_ = 0;
 };
 

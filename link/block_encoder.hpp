@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,7 +52,10 @@ struct EncoderSettings {
   int rx_buffer_bytes = 256;              // the controller's receive buffer, for the queue model
   std::size_t max_lowered_ranges = 1000;  // ranges kept in the stats (all are counted)
   // Framing knobs (docs/block-encoder.md, "Whole programs"); a controller dialect maps onto them.
-  bool numbers = true;             // N words on the blocks
+  bool numbers = true;  // N words on the blocks
+  // The machine file's [encoder] numbers: wins over the dialect's default in apply_dialect
+  // (grbl built with USE_LINE_NUMBERS reports the executing block's N as Ln:).
+  std::optional<bool> numbers_wanted;
   bool comments = true;            // comment lines "(...)"; false: comments are left out
   bool percent = false;            // "%" lines open and close the program (begin() and end())
   std::size_t max_line_chars = 0;  // longest line without end of block; 0: no limit

@@ -15,7 +15,7 @@ using namespace encoder_detail;
 
 void apply_dialect(EncoderSettings& settings, Dialect dialect) {
   const DialectRules& r = rules(dialect);
-  settings.numbers = r.n_numbers;
+  settings.numbers = settings.numbers_wanted.value_or(r.n_numbers);
   settings.comments = r.paren_comments;
   settings.path_blending = r.path_blending;
   settings.length_offsets = r.length_offsets;

@@ -189,6 +189,14 @@ void Session::on_status(const GrblStatus& st) {
   status_.last = st;
   status_.position = work_position(st);
   status_.have = true;
+  if (st.wco || st.wpos) status_.wco_known = true;
+  ControllerReport published;
+  published.status = st;
+  published.work_mm = status_.position;
+  published.wco_known = status_.wco_known;
+  published.received = Clock::now();
+  published.reports = report_.status_reports;
+  reports_.publish(published);
   if (phase_ == Phase::Startup) start_.spoke = true;
   if (phase_ != Phase::Ready && !stopping_) return;  // startup and recovery read it themselves
   if (!track_ok_ || st.state == "Alarm") return;

@@ -110,7 +110,7 @@ namespace ncd::comms::dnc_detail {
 
 Session::Session(const SenderSettings& s, BlockSource& source, const DncSender::EventFn& on_event,
                  const DncSender::HoldFn& on_hold, TransferJournal* journal,
-                 std::int64_t first_block, SenderCounters& counters,
+                 std::int64_t first_block, SenderCounters& counters, ControllerReportBox& reports,
                  const std::atomic<bool>& halt_request, const std::atomic<bool>& end_requested,
                  const DncSender::EndingFn& ending, const std::atomic<bool>& source_held)
     : s_(s),
@@ -119,6 +119,7 @@ Session::Session(const SenderSettings& s, BlockSource& source, const DncSender::
       on_hold_(on_hold),
       journal_(journal),
       counters_(counters),
+      reports_(reports),
       halt_request_(halt_request),
       end_requested_(end_requested),
       ending_fn_(ending),
@@ -552,6 +553,16 @@ void DncSender::resume_from(std::int64_t first_block) {
   first_block_ = first_block;
 }
 
+void ControllerReportBox::publish(const ControllerReport& r) {
+  std::lock_guard lock(mutex_);
+  last_ = r;
+}
+
+std::optional<ControllerReport> ControllerReportBox::last() const {
+  std::lock_guard lock(mutex_);
+  return last_;
+}
+
 SenderCounts SenderCounters::load() const {
   constexpr auto r = std::memory_order_relaxed;
   SenderCounts c;
@@ -594,7 +605,7 @@ void DncSender::end_with(EndingFn ending) {
 
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_,
-                  halt_request_, end_requested_, ending_, source_held_);
+                  reports_, halt_request_, end_requested_, ending_, source_held_);
   session.on_executed(on_executed_);
   return session.run(stop);
 }

@@ -7,9 +7,11 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -271,6 +273,29 @@ class SenderCounters {
   std::atomic<bool> xoff_held_{false};
 };
 
+// The controller's last status report as the sender received it (ack with status polling;
+// docs/dnc-link.md, "The controller's own state"): the report as parsed, the work position the
+// sender derives from it (WPos, or MPos less the last WCO: seen, or less nothing when none came:
+// wco_known false), and when it arrived (steady clock). The sender's thread publishes each
+// report; any other thread takes a copy under a short mutex (neither side is the 4 ms cycle).
+struct ControllerReport {
+  GrblStatus status;
+  std::array<double, 3> work_mm{};
+  bool wco_known = false;  // a WCO: (or WPos) was reported: work_mm is the controller's own
+  std::chrono::steady_clock::time_point received;
+  long reports = 0;  // status reports received in this run so far
+};
+
+class ControllerReportBox {
+ public:
+  void publish(const ControllerReport& r);
+  std::optional<ControllerReport> last() const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::optional<ControllerReport> last_;
+};
+
 class DncSender {
  public:
   using EventFn = std::function<void(const SenderEvent&)>;
@@ -314,6 +339,9 @@ class DncSender {
   void request_halt() noexcept { halt_request_.store(true); }
   // The live counters of the run under way (or the last one); readable from any thread.
   const SenderCounters& counters() const { return counters_; }
+  // The controller's last status report (ack with status polling); none before the first, and
+  // in drip feed, which has none.
+  std::optional<ControllerReport> controller_report() const { return reports_.last(); }
 
  private:
   SenderSettings settings_;
@@ -324,6 +352,7 @@ class DncSender {
   TransferJournal* journal_ = nullptr;
   std::int64_t first_block_ = 0;
   SenderCounters counters_;
+  ControllerReportBox reports_;
   std::atomic<bool> halt_request_{false};
   std::atomic<bool> ending_claimed_{false};  // end_with() was called
   EndingFn ending_;                          // then written, before end_requested_ is set

@@ -87,9 +87,9 @@ class Session {
  public:
   Session(const SenderSettings& s, BlockSource& source, const DncSender::EventFn& on_event,
           const DncSender::HoldFn& on_hold, TransferJournal* journal, std::int64_t first_block,
-          SenderCounters& counters, const std::atomic<bool>& halt_request,
-          const std::atomic<bool>& end_requested, const DncSender::EndingFn& ending,
-          const std::atomic<bool>& source_held);
+          SenderCounters& counters, ControllerReportBox& reports,
+          const std::atomic<bool>& halt_request, const std::atomic<bool>& end_requested,
+          const DncSender::EndingFn& ending, const std::atomic<bool>& source_held);
 
   void on_executed(DncSender::ExecutedFn fn) { on_executed_ = std::move(fn); }
   SenderReport run(const std::atomic<bool>& stop);
@@ -212,6 +212,7 @@ class Session {
   DncSender::ExecutedFn on_executed_;
   TransferJournal* journal_;
   SenderCounters& counters_;
+  ControllerReportBox& reports_;
   const std::atomic<bool>& halt_request_;
   const std::atomic<bool>& end_requested_;
   const DncSender::EndingFn& ending_fn_;
@@ -284,7 +285,7 @@ class Session {
   // ack: grbl's status reports (dnc_ack.cpp): it answers `?`; a report came since asked; polls
   // sent; the next poll; the last report, its work position and the last work offset (WCO:).
   struct StatusReports {
-    bool supported = true, have = false;
+    bool supported = true, have = false, wco_known = false;
     long polls = 0;
     double next_poll_s = 0.0;
     std::optional<GrblStatus> last;

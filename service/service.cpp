@@ -43,6 +43,7 @@
 #include "service/service.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <mutex>
@@ -57,6 +58,9 @@
 #include "service/service_live.hpp"
 
 namespace ncd::service {
+
+// How far into a queued block its move is looked up, mm (Service::controller_view).
+constexpr double kBlockStartProbeMm = 1e-4;
 
 Service::Service(const ServiceOptions& options) : options_(options) {
   if (!options_.cycle_thread && options_.clock != motion::ClockKind::Simulated) {
@@ -98,10 +102,13 @@ void Service::submit(JobSpec job) {
   // Build the job now, so that a path the machine cannot run is refused at submit; start() runs
   // this one (a long path is not built twice).
   auto built = std::make_unique<motion::Job>(*job.path, job.motion);
+  CommandedTable modal;
+  if (job.program) modal = CommandedTable(*job.program);
   cycle_.reset();
   live_.reset();
   job_ = std::move(job);
   built_ = std::move(built);
+  modal_ = std::move(modal);
   error_.clear();
   set_state(State::Ready, HoldHolder::None, "submitted");
   emit(EventKind::Job, "submitted " + job_.name);
@@ -470,9 +477,14 @@ void Service::fail_job(const std::string& why) {
 // program's) at arc length s_mm. The walker's segment starts are fixed when the job is built, so
 // this reads nothing the cycle thread writes.
 int Service::line_at(double s_mm) const {
+  const std::vector<toolpath::PathSegment>& segs = cycle_->job().path().segments;
+  return segs.empty() ? 0 : segs[segment_at(s_mm)].source_line;
+}
+
+// The segment of the job's path at arc length s_mm: the last one starting at or before it.
+std::size_t Service::segment_at(double s_mm) const {
   const motion::Job& job = cycle_->job();
-  const std::vector<toolpath::PathSegment>& segs = job.path().segments;
-  std::size_t lo = 0, hi = segs.size();  // the last segment starting at or before s_mm
+  std::size_t lo = 0, hi = job.path().segments.size();
   while (hi - lo > 1) {
     const std::size_t mid = (lo + hi) / 2;
     if (job.walker().segment_start_mm(mid) <= s_mm) {
@@ -481,7 +493,66 @@ int Service::line_at(double s_mm) const {
       hi = mid;
     }
   }
-  return segs.empty() ? 0 : segs[lo].source_line;
+  return lo;
+}
+
+// The program's modal state at arc length s_mm; none when the job has no program, or when the
+// planner split the program's segments (G64 Q fitting), so that they no longer match.
+std::optional<CommandedModal> Service::modal_at(double s_mm) const {
+  if (!cycle_ || modal_.empty() || cycle_->job().path().segments.size() != modal_.segments()) {
+    return std::nullopt;
+  }
+  const std::size_t segment = segment_at(s_mm);
+  return modal_.at(segment, s_mm - cycle_->job().walker().segment_start_mm(segment));
+}
+
+// The controller's own state in a streamed job: its last status report (ack), and which block
+// it executes, or was last sent (drip), against ncd's commanded motion (service.hpp,
+// ControllerProgress).
+void Service::controller_view(Status& s) const {
+  const comms::SenderCounts& c = s.link->counts;
+  s.controller = live_->sender->controller_report();
+  if (s.controller) {
+    s.controller_age_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - s.controller->received)
+            .count();
+  }
+  const BlockTrace& trace = live_->trace;
+  std::optional<std::size_t> at;
+  ControllerProgress p;
+  if (s.controller && s.controller->status.line_number) {
+    at = trace.with_number(*s.controller->status.line_number);
+    p.source = "controller (Ln:)";
+  }
+  if (!at && c.blocks_executed >= 0 && trace.size() > 0) {
+    at = std::min<std::size_t>(static_cast<std::size_t>(c.blocks_executed), trace.size() - 1);
+    p.source = "controller (executed blocks)";
+  }
+  if (!at && c.blocks_acked < 0) {
+    const std::size_t carried = trace.carried(c.blocks_written, c.buffer_bytes);
+    if (carried > 0) at = carried - 1;
+    p.source = "last sent";
+  }
+  if (!at || !cycle_) return;
+  const QueuedBlock& b = trace[*at];
+  p.block = *at;
+  p.number = b.number;
+  // The move the block begins in: a hair past its start (a block that starts at a corner
+  // belongs to the move after it).
+  const double into_mm =
+      b.start_s_mm + std::min(kBlockStartProbeMm, 0.5 * (b.end_s_mm - b.start_s_mm));
+  p.modal = modal_at(into_mm);
+  p.line = p.modal && p.modal->line > 0 ? p.modal->line : line_at(into_mm);
+  p.blocks_behind = static_cast<std::int64_t>(trace.size() - 1 - *at);
+  const double reached_t_s = p.source == "last sent" ? b.end_t_s : b.start_t_s;
+  p.seconds_behind = std::max(0.0, s.t_s - reached_t_s);
+  if (s.controller) {
+    const auto& w = s.controller->work_mm;
+    Vec3 at_mm(w[0], w[1], w[2]);
+    if (live_->length_offsets && p.modal) at_mm += p.modal->tool_length_mm;
+    s.controller_position_mm = at_mm;
+  }
+  s.progress_at_controller = std::move(p);
 }
 
 void Service::end_job() {
@@ -522,6 +593,7 @@ Status Service::status() const {
       s.time_left_s = time_left_s();
     }
     s.t_s = c.t_s;
+    s.commanded = modal_at(last_.s_mm);
     if (setpoints_ > 0) {
       s.line = line_at(last_.s_mm);
       s.binding_limit = motion::limit_name(last_.limit_id);
@@ -569,6 +641,7 @@ Status Service::status() const {
     l.counts = live_->sender->counters().load();
     if (l.done) l.report = live_->report;
     s.link = std::move(l);
+    controller_view(s);
   }
   for (const auto& sub : subscribers_) s.events_dropped += sub->dropped();
   return s;

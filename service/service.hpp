@@ -22,6 +22,7 @@
 #include "link/dnc_sender.hpp"
 #include "link/line_settings.hpp"
 #include "motion/cycle.hpp"
+#include "service/commanded_state.hpp"
 #include "service/events.hpp"
 #include "service/live_limits.hpp"
 
@@ -143,6 +144,24 @@ struct LinkStatus {
   comms::SenderCounts counts;
 };
 
+// Where the controller stands in a streamed job (docs/web-dashboard.md, "The machine state"):
+// the block it executes as its status report says (grbl's Ln:, or the blocks known executed),
+// or, where nothing says so (drip feed), the last block the line has carried in full; that
+// block's source line, and how far ncd's commanded motion runs ahead of it.
+struct ControllerProgress {
+  // "controller (Ln:)", "controller (executed blocks)" or "last sent" (drip: the line carried
+  // it; the controller's own progress is not reported).
+  std::string source;
+  std::size_t block = 0;           // the block (0-based, in the order queued)
+  long number = 0;                 // its N word (0: none)
+  int line = 0;                    // the source line of the move it begins in (else its segment's)
+  std::int64_t blocks_behind = 0;  // blocks ncd has queued after it
+  // The commanded motion time less the block's planned start (ack) or end (drip: the controller
+  // cannot be further than the end of what it received): how far it runs behind, s, ≥ 0.
+  double seconds_behind = 0.0;
+  std::optional<CommandedModal> modal;  // the program's state at that block
+};
+
 // The status snapshot (owner's thread; allocates, never touches the cycle's thread).
 struct Status {
   State state = State::Idle;
@@ -173,6 +192,17 @@ struct Status {
   EndingStatus ending;
   int restart_line = 0;
   std::uint64_t events_dropped = 0;  // summed over the subscribers
+  // The program's modal state where ncd's commanded motion stands (none without a program, or
+  // before the first setpoint when the path is empty).
+  std::optional<CommandedModal> commanded;
+  // ack with status polling: the controller's last status report and its age (s); none in
+  // drip feed and before the first report.
+  std::optional<comms::ControllerReport> controller;
+  double controller_age_s = 0.0;
+  // The controller's work position in the path's frame (mm, the blocks' coordinates plus the
+  // tool length when the blocks leave it to the controller's G43 H); none without a report.
+  std::optional<Vec3> controller_position_mm;
+  std::optional<ControllerProgress> progress_at_controller;
 };
 
 class Service {
@@ -258,6 +288,9 @@ class Service {
   void log(const std::string& line) const;
   std::optional<double> time_left_s() const;
   int line_at(double s_mm) const;
+  std::size_t segment_at(double s_mm) const;
+  std::optional<CommandedModal> modal_at(double s_mm) const;
+  void controller_view(Status& s) const;
   void require_active(const char* cmd) const;
 
   ServiceOptions options_;
@@ -265,6 +298,7 @@ class Service {
   HoldHolder holder_ = HoldHolder::None;
   JobSpec job_;
   std::unique_ptr<motion::Job> built_;  // submit()'s, for start()
+  CommandedTable modal_;                // the job's program, move by move (commanded_state.hpp)
   std::string error_, stop_why_, realtime_;
   Vec3 start_mm_ = Vec3::Zero();
   double moving_s_ = 0.0;

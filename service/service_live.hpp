@@ -16,6 +16,7 @@
 #include "link/live_blocks.hpp"
 #include "link/program_blocks.hpp"
 #include "link/transfer_journal.hpp"
+#include "service/commanded_state.hpp"
 #include "service/service.hpp"
 
 namespace ncd::service {
@@ -34,6 +35,8 @@ struct Service::Live {
   std::atomic<int> hold_request{-1};    // the sender's last hold (1) or release (0); -1: none new
   std::atomic<bool> link_holds{false};  // the sender's last hold state
   std::int64_t blocks_encoded = 0, chars_encoded = 0;  // owner's thread
+  BlockTrace trace;             // owner's thread: every block queued, in order
+  bool length_offsets = false;  // the blocks leave the tool length out (the controller's G43 H)
   // The owner's check of each block against the controller's dialect before it is queued
   // (the sender's own check, on the same blocks in the same order, gives the same verdict).
   std::optional<comms::Dialect> dialect;

@@ -45,6 +45,7 @@ void Service::start_stream(const motion::Job& job) {
   enc.line = ls->line;
   if (enc.max_block_s <= 0.0) enc.max_block_s = options_.live_max_block_s;
   ls->dialect = link.sender.dialect;
+  ls->length_offsets = enc.length_offsets;
   ls->hold_and_reset = ls->line.protocol == comms::Protocol::Ack && link.sender.status_hz > 0.0;
   ls->encoder = std::make_unique<comms::BlockEncoder>(enc, [raw](const comms::EncodedBlock& b) {
     if (raw->gate_closed && !raw->writing_ending) return;
@@ -63,6 +64,7 @@ void Service::start_stream(const motion::Job& job) {
     }
     ++raw->blocks_encoded;
     raw->chars_encoded += b.chars;
+    raw->trace.add(b.number, b.start_s_mm, b.end_s_mm, b.start_t_s, b.end_t_s, b.chars);
     if (b.closed_by != comms::BlockClose::Words && b.closed_by != comms::BlockClose::Comment) {
       raw->queued_at = b.end;
     }

@@ -45,6 +45,7 @@ function connect() {
       showStatus(m.status);
     } else if (m.program) {
       program = m.program;
+      showListing(program);
       draw();
     } else if (m.event) {
       showEvent(m.event);
@@ -52,9 +53,27 @@ function connect() {
   };
 }
 
-// One of the service's events, at the top of the list of the last kEventsShown.
+// One of the service's events, at the top of the list of the last kEventsShown; an alarm
+// (the job's alarm, a live limit's violation, a link event that names an alarm, an error or a
+// loss) also in the alarms panel, which a new submit clears as the service clears the job's
+// error.
 const kEventsShown = 12;
+let alarms = [];
+function noteAlarm(e) {
+  if (e.kind === 'job' && (e.text || '').startsWith('submitted')) alarms = [];
+  const linkAlarm = e.kind === 'link' && /alarm|error|lost|gave up|given up/i.test(e.text || '');
+  if (e.kind === 'alarm' || e.kind === 'violation' || linkAlarm) alarms.push(e);
+  const list = $('alarms');
+  list.replaceChildren(...alarms.slice(-kEventsShown).reverse().map((a) => {
+    const li = document.createElement('li');
+    li.textContent = `${eventTime(a)} · ${a.kind} · ${a.text || ''}`;
+    return li;
+  }));
+  $('alarms-none').textContent = alarms.length ? '' : 'none';
+}
+
 function showEvent(e) {
+  noteAlarm(e);
   const li = document.createElement('li');
   li.className = 'event ' + (e.kind || '');
   const holder = e.holder && e.holder !== 'none' ? ' by the ' + e.holder : '';
@@ -107,8 +126,13 @@ function showStatus(s) {
   $('state').textContent = state;
   $('state').className = 'badge state ' + state;
   $('job').textContent = s.job ?? '-';
-  $('line').textContent = s.line ?? (s.stopped && s.stopped.line) ?? '-';
+  // The header's line: the listing's (the controller's where it reports it, else ncd's).
+  const at = executingLine(s);
+  $('line').textContent = at ? at.line : '-';
   const p = s.position;
+  showDro(s);
+  showMachineState(s);
+  markListing(s);
   $('pos-x').textContent = p ? fixed(p[0], 3) : '-';
   $('pos-y').textContent = p ? fixed(p[1], 3) : '-';
   $('pos-z').textContent = p ? fixed(p[2], 3) : '-';
@@ -146,6 +170,107 @@ function showStatus(s) {
   feedHistory.push({ t: now, feed: s.feed_mm_per_min || 0, limit });
   while (feedHistory.length && feedHistory[0].t < now - kFeedWindowS) feedHistory.shift();
   draw();
+}
+
+// The DRO (docs/web-dashboard.md, "The DRO"): the status's dro, in the program's units, work
+// and machine coordinates, the tool length offset and the work offset apart, and its source:
+// the controller's status report, or ncd's commanded position (which runs ahead of it).
+function showDro(s) {
+  const d = s.dro;
+  const places = d && d.units === 'inch' ? 4 : 3;
+  const axes = ['x', 'y', 'z'];
+  axes.forEach((a, k) => {
+    $('dro-w' + a).textContent = d ? fixed(d.work[k], places) : '-';
+    $('dro-m' + a).textContent = d ? fixed(d.machine[k], places) : '-';
+  });
+  $('dro-units').textContent = d ? d.units : '-';
+  $('dro-source').textContent = !d ? '-' : d.source === 'controller'
+    ? `from the controller's report, ${fixed(d.age_s, 2)} s old`
+    : 'commanded by ncd' + (s.stream ? ' (ahead of the controller)' : '');
+  const xyz = (v) => v ? `X${fixed(v[0], places)} Y${fixed(v[1], places)} Z${fixed(v[2], places)}` : '-';
+  const c = s.commanded_state;
+  $('dro-tlo').textContent = d
+    ? `${xyz(d.tool_length)} ${d.units}` + (c && c.tool_length_h !== null ? ` (G43 H${c.tool_length_h})` : '') : '-';
+  $('dro-offset').textContent = d ? `${xyz(d.work_offset)} ${d.units}` : '-';
+  $('dro-note').textContent = d && !d.modal_known
+    ? 'the program\'s offsets are not known here: work = machine' : (d && d.note) || '';
+  const q = s.controller_progress;
+  $('behind').textContent = q
+    ? `${q.blocks_behind} blocks, ${fixed(q.seconds_behind, 2)} s` +
+      (q.source === 'last sent' ? ' at least (drip: from the blocks the line has carried)' : ` (${q.source})`)
+    : '-';
+}
+
+// Spindle, coolant, tool: the program's state where the controller is (ack, from its line) or
+// where ncd commands (drip, a job without a link); the controller's own state and report.
+function showMachineState(s) {
+  const c = s.commanded_state;
+  const r = s.controller;
+  $('state-source').textContent = c ? `the program's, at line ${c.line ?? '-'} (commanded)` : '-';
+  const dir = { cw: 'clockwise (M3)', ccw: 'counter-clockwise (M4)', off: 'off (M5)' };
+  $('spindle').textContent = c
+    ? `${dir[c.spindle] || c.spindle}, S${fixed(c.spindle_rpm, 0)} rpm` +
+      (r && typeof r.spindle_rpm === 'number' ? ` · controller ${fixed(r.spindle_rpm, 0)} rpm` : '')
+    : '-';
+  $('coolant').textContent = c
+    ? [c.coolant.mist ? 'mist (M7)' : '', c.coolant.flood ? 'flood (M8)' : ''].filter((x) => x).join(', ') || 'off (M9)'
+    : '-';
+  $('tool').textContent = c
+    ? `T${c.tool} · length offset ${fixed(c.tool_length_mm[2], 3)} mm` +
+      (c.tool_length_h !== null ? ` (H${c.tool_length_h})` : '') +
+      ` · work offset ${c.work_offset_mm.map((v) => fixed(v, 3)).join(' ')} mm`
+    : '-';
+  $('ctl-state').textContent = r ? r.state : (s.stream ? 'not reported (drip feed)' : '-');
+  $('ctl-state').className = r && /^Alarm/.test(r.state) ? 'error' : '';
+  $('ctl-report').textContent = r
+    ? [r.mpos_mm ? `MPos ${r.mpos_mm.map((v) => fixed(v, 3)).join(',')}` : '',
+       r.wpos_mm ? `WPos ${r.wpos_mm.map((v) => fixed(v, 3)).join(',')}` : '',
+       r.free_blocks !== null ? `Bf ${r.free_blocks},${r.free_bytes}` : '',
+       r.line_number !== null ? `Ln ${r.line_number}` : '',
+       r.feed_mm_per_min !== null ? `F ${fixed(r.feed_mm_per_min, 0)}` : '',
+       `${fixed(r.age_s, 2)} s old`].filter((x) => x).join(' · ')
+    : '-';
+}
+
+// The listing (docs/web-dashboard.md, "The listing"): the program's lines, the executing one
+// marked and scrolled to: the controller's line where its report gives it (Ln:, or the blocks
+// it executed), else the last sent (drip), else ncd's commanded line; labelled with its source.
+let listingMarked = null;
+function showListing(prog) {
+  const list = $('listing');
+  listingMarked = null;
+  const lines = prog && prog.listing ? prog.listing : [];
+  list.replaceChildren(...lines.map((text) => {
+    const li = document.createElement('li');
+    li.textContent = text;
+    return li;
+  }));
+  $('listing-line').textContent = prog && !prog.listing ? 'no program text (a generated or JSON path)' : '-';
+}
+
+function executingLine(s) {
+  const q = s.controller_progress;
+  if (q && q.line) {
+    return { line: q.line, source: q.source === 'last sent' ? 'last sent (drip: the controller does not report its line)' : 'executing, ' + q.source };
+  }
+  // The move's own line (commanded_state), else the path segment's.
+  const c = s.commanded_state;
+  const line = (c && c.line) || s.line || (s.stopped && s.stopped.line);
+  return typeof line === 'number' ? { line, source: 'commanded by ncd' } : null;
+}
+
+function markListing(s) {
+  const list = $('listing');
+  const at = program && program.job === s.job ? executingLine(s) : null;
+  if (!program || !program.listing) return;
+  $('listing-line').textContent = at ? `line ${at.line} · ${at.source}` : '-';
+  const li = at ? list.children[at.line - 1] : null;
+  if (li === listingMarked) return;
+  if (listingMarked) listingMarked.classList.remove('exec');
+  listingMarked = li || null;
+  if (!li) return;
+  li.classList.add('exec');
+  list.scrollTop = li.offsetTop - list.clientHeight / 2;
 }
 
 // The slider shows the service's override (every status, so also on load), except while the
@@ -246,14 +371,15 @@ function drawPath(canvas, i, j) {
   const g = canvas.getContext('2d');
   g.clearRect(0, 0, canvas.width, canvas.height);
   const prog = program && lastStatus && program.job === lastStatus.job ? program.points : [];
-  let lo = [Infinity, Infinity], hi = [-Infinity, -Infinity];
+  // The origin is always in view, with its axes (machine coordinates, the path's frame).
+  let lo = [0, 0], hi = [0, 0];
   for (const set of [prog, trace]) {
     for (const p of set) {
       lo = [Math.min(lo[0], p[i]), Math.min(lo[1], p[j])];
       hi = [Math.max(hi[0], p[i]), Math.max(hi[1], p[j])];
     }
   }
-  if (!isFinite(lo[0])) return;
+  if (!prog.length && !trace.length) return;
   const margin = 16;
   const span = Math.max(hi[0] - lo[0], hi[1] - lo[1], 1e-3);
   const k = Math.min((canvas.width - 2 * margin) / Math.max(hi[0] - lo[0], span * 1e-3),
@@ -270,6 +396,21 @@ function drawPath(canvas, i, j) {
     for (const p of pts) g.lineTo(X(p), Y(p));
     g.stroke();
   };
+  // The axes through the origin, each with its name at the positive end.
+  const names = ['X', 'Y', 'Z'];
+  const o = [0, 0, 0];
+  g.strokeStyle = '#cbd5e1';
+  g.lineWidth = 1;
+  g.beginPath();
+  g.moveTo(0, Y(o)); g.lineTo(canvas.width, Y(o));
+  g.moveTo(X(o), 0); g.lineTo(X(o), canvas.height);
+  g.stroke();
+  g.fillStyle = '#64748b';
+  g.fillText(names[i], canvas.width - 12, Y(o) - 4);
+  g.fillText(names[j], X(o) + 4, 24);
+  g.beginPath();
+  g.arc(X(o), Y(o), 3, 0, 2 * Math.PI);
+  g.fill();
   line(prog, '#9ca3af', 3);
   line(trace, '#2563eb', 1.5);
   const at = trace[trace.length - 1];

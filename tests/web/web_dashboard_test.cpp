@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/ssl.hpp>
 #include <boost/beast/core.hpp>
@@ -25,12 +26,16 @@
 #include <cstdlib>
 #include <ctime>
 #include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <regex>
+#include <set>
 #include <thread>
 #include <vector>
 
+#include "tests/api/broker.hpp"
+#include "tests/api/watcher.hpp"
 #include "tests/app/cli_fixture.hpp"
 #include "tests/app/serve_fixture.hpp"
 #include "tests/common/process.hpp"
@@ -657,6 +662,25 @@ TEST_F(WebDashboard, BrowserLinkPanelShowsTheSocketsLiveCounters) {
   EXPECT_NE(page.text("link-buffer").find("wire model"), std::string::npos)
       << page.text("link-buffer");
   std::cout << "[ measured ] link under the hold: " << k.dump() << "\n";
+  // Drip feed reports nothing of the controller: the DRO is ncd's commanded position, so
+  // labelled, and the controller's place is the last block the line carried; at rest, with
+  // the buffer empty, every block written has been carried.
+  EXPECT_TRUE(s["controller"].is_null()) << s.dump();
+  const json q = s["controller_progress"];
+  ASSERT_TRUE(q.is_object()) << s.dump();
+  EXPECT_EQ(q["source"], "last sent") << q.dump();
+  if (k["controller_buffer_bytes"] == 0) {
+    EXPECT_EQ(q["blocks_behind"].get<std::int64_t>(),
+              k["blocks_encoded"].get<std::int64_t>() - k["blocks_written"].get<std::int64_t>())
+        << q.dump() << k.dump();
+  }
+  EXPECT_TRUE(page.wait_text("dro-source", "commanded by ncd (ahead of the controller)"))
+      << page.text("dro-source");
+  EXPECT_NE(
+      page.text("behind").find(std::to_string(q["blocks_behind"].get<std::int64_t>()) + " blocks"),
+      std::string::npos)
+      << page.text("behind");
+  EXPECT_EQ(page.text("ctl-state"), "not reported (drip feed)");
   page.click("#stop");
   ASSERT_TRUE(page.wait_text("state", "stopped", 60.0)) << page.text("message") << slurp(err_);
 }
@@ -918,3 +942,287 @@ TEST_F(BrowserPage, ChamferFormSendsEdgeSideTiltAndEccentricity) {
 }
 
 }  // namespace
+
+namespace truth {  // issue 33: the operator's screen tells the machine's truth
+
+// printf("%.*f"): the page's toFixed for the values compared here.
+std::string fixed(double v, int places) {
+  char out[64];
+  std::snprintf(out, sizeof out, "%.*f", places, v);
+  return out;
+}
+
+// Waits until the status says the motion is at rest under a hold; returns that status.
+json rest_under_hold(SocketClient& sock) {
+  json s;
+  for (int i = 0; i < 400; ++i) {
+    s = sock.request({{"cmd", "status"}});
+    if (s["state"] == "holding" && s["feed_mm_per_min"].get<double>() == 0.0) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  return s;
+}
+
+// A G20 job with a tool length offset (G43 H1, 50 mm in the tool table), held past X58.143 mm
+// on its way along Y0.5 Z-0.125 in to X4 (issue 33's point: 58.143, 12.700, 46.825 mm machine,
+// the tool length inside, about X2.289 Y0.5 Z-0.125 in work coordinates): the DRO shows inches with
+// its axis names, work and machine coordinates, the tool length apart; the machine state panel the
+// program's spindle, coolant and tool. The numbers the test expects come from the program and the
+// tool table it wrote (work = machine − tool length, in inches), not from the service's own DRO.
+TEST_F(BrowserPage, DroShowsAG20JobInInchesWithAxisNamesAndTheToolLengthApart) {
+  write("tool.tbl", "T1 P1 Z50 D6 ;ball\n");
+  const std::string machine =
+      write("machine.toml", "[program]\ntool_table = \"" + (dir_ / "tool.tbl").string() +
+                                "\"\nstart_mm = [0.0, 0.0, 100.0]\n");
+  WebDriver& page = open("machine = \"" + machine + "\"\n");
+  const std::string program = write("g20.ngc",
+                                    "G20 G90 G17\nT1 M6\nG43 H1\nM3 S1000\nM8\nG0 X0 Y0 Z0.5\n"
+                                    "G1 Z-0.125 F10\nG1 Y0.5 F20\nG1 X4\nG1 X5\nM5 M9\nM2\n");
+  SocketClient sock(socket_);
+  ASSERT_TRUE(sock.request({{"cmd", "submit"}, {"job", {{"path", program}}}}).value("ok", false));
+  ASSERT_TRUE(sock.request({{"cmd", "start"}}).value("ok", false));
+  json s;
+  for (int i = 0; i < 3000; ++i) {  // about 12 s of motion to X58.143 mm
+    s = sock.request({{"cmd", "status"}});
+    if (s["position"].is_array() && s["position"][0].get<double>() > 58.143) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  ASSERT_TRUE(sock.request({{"cmd", "hold"}}).value("ok", false));
+  s = rest_under_hold(sock);
+  ASSERT_EQ(s["state"], "holding") << s.dump();
+  const double x_mm = s["position"][0].get<double>(), y_mm = s["position"][1].get<double>(),
+               z_mm = s["position"][2].get<double>();
+  // On line 9 (G1 X4): the machine point holds the tool length.
+  EXPECT_NEAR(z_mm, -0.125 * 25.4 + 50.0, 1e-9) << s.dump();
+  EXPECT_NEAR(y_mm, 0.5 * 25.4, 1e-9) << s.dump();
+  EXPECT_GT(x_mm, 58.143);
+  EXPECT_LT(x_mm, 4 * 25.4);  // still on line 9
+  ASSERT_TRUE(page.wait_text("dro-units", "inch")) << page.text("dro-units");
+  EXPECT_TRUE(page.wait_text("dro-wx", fixed(x_mm / 25.4, 4))) << page.text("dro-wx");
+  EXPECT_EQ(page.text("dro-wy"), "0.5000");
+  EXPECT_EQ(page.text("dro-wz"), "-0.1250");              // the program's Z, not the machine's
+  EXPECT_EQ(page.text("dro-mz"), fixed(z_mm / 25.4, 4));  // 1.8435: the tool length inside
+  EXPECT_EQ(page.text("dro-mx"), fixed(x_mm / 25.4, 4));
+  const json axes = page.script(
+      "return Array.from(document.querySelectorAll('.dro-table th.axis')).map((th) => "
+      "th.textContent);");
+  EXPECT_EQ(axes, json({"X", "Y", "Z"}));
+  EXPECT_EQ(page.text("dro-tlo"), "X0.0000 Y0.0000 Z1.9685 inch (G43 H1)");
+  EXPECT_EQ(page.text("dro-offset"), "X0.0000 Y0.0000 Z0.0000 inch");
+  EXPECT_EQ(page.text("dro-source"), "commanded by ncd");
+  EXPECT_EQ(page.text("spindle"), "clockwise (M3), S1000 rpm");
+  EXPECT_EQ(page.text("coolant"), "flood (M8)");
+  EXPECT_EQ(page.text("tool").rfind("T1 · length offset 50.000 mm (H1)", 0), 0u)
+      << page.text("tool");
+  // The listing marks line 9, ncd's commanded line (no link here).
+  EXPECT_TRUE(page.wait_text("listing-line", "line 9 · commanded by ncd"))
+      << page.text("listing-line");
+  EXPECT_EQ(page.script("return document.querySelector('#listing li.exec').textContent;"), "G1 X4");
+  std::cout << "[ measured ] G20 DRO: work " << page.text("dro-wx") << " " << page.text("dro-wy")
+            << " " << page.text("dro-wz") << " in, machine " << page.text("dro-mx") << " "
+            << page.text("dro-my") << " " << page.text("dro-mz") << " in; socket " << s["position"]
+            << " mm\n";
+  // The screenshot of the DRO (docs/img/dashboard-dro.png only with NCD_UPDATE_SCREENSHOT=1,
+  // as the dashboard's own).
+  const std::string png = page.screenshot_png();
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  const char* update = std::getenv("NCD_UPDATE_SCREENSHOT");
+  const fs::path shot = update != nullptr && std::string(update) == "1"
+                            ? fs::path(NCD_SOURCE_DIR) / "docs" / "img" / "dashboard-dro.png"
+                            : fs::current_path() / "dashboard-dro.png";
+  std::ofstream(shot, std::ios::binary) << png;
+  ASSERT_TRUE(sock.request({{"cmd", "stop"}}).value("ok", false));
+}
+
+// A square of 20 mm at F600 with exact stops (G61: each corner a stop, each side its own line),
+// streamed over grbl `ack` to `ncd sim-controller --report-line-numbers` with N words on the
+// blocks ([encoder] numbers = true). While it runs, the page is read at once (one script): the
+// status's Ln:, the block number the service matched it to and the listing's marked line. After
+// the job, the simulated controller's log gives the move it executed with that N: the side of
+// the square its start lies on is the source line, found by the test from the program's
+// geometry. The marked line must be that line, labelled as the controller's.
+TEST_F(BrowserPage, ListingMarksTheLineTheControllerReportsExecuting) {
+  const std::string port_path = (dir_ / "cnc").string();
+  const std::string machine =
+      write("machine.toml",
+            "period_s = 0.004\nmax_feed_mm_per_min = 6000.0\n\n[link]\ndevice = \"" + port_path +
+                "\"\nbaud = 115200\nframe = \"8N1\"\nflow = \"none\"\nprotocol = "
+                "\"ack\"\neob = \"lf\"\npercent = false\ndialect = \"grbl\"\n"
+                "rx_buffer_bytes = 128\n\n[encoder]\nmax_block_s = 0.5\nnumbers = true\n");
+  const fs::path sim_log = dir_ / "sim.json";
+  ncd::test::Process controller(
+      {NCD_EXE, "sim-controller", "--machine", machine, "--report-line-numbers", "--log",
+       sim_log.string(), "--no-machine-safety"},
+      (dir_ / "controller.out").string(), (dir_ / "controller.err").string());
+  ASSERT_TRUE(ncd::test::wait_for_path(port_path, 10.0)) << slurp(dir_ / "controller.err");
+  WebDriver& page = open("machine = \"" + machine + "\"\n");
+  const std::string program = write("square.ngc",
+                                    "G21 G90 G17 G61\nG0 X0 Y0 Z5\nG1 Z0 F600\nG1 X20 Y0\n"
+                                    "G1 X20 Y20\nG1 X0 Y20\nG1 X0 Y0\nG0 Z5\nM2\n");
+  SocketClient sock(socket_);
+  const json submitted = sock.request({{"cmd", "submit"}, {"job", {{"path", program}}}});
+  ASSERT_TRUE(submitted.value("ok", false)) << submitted.dump() << slurp(err_);
+  ASSERT_TRUE(sock.request({{"cmd", "start"}}).value("ok", false)) << slurp(err_);
+  std::vector<json> samples;
+  for (int i = 0; i < 1200; ++i) {
+    const json q = page.script(
+        "const s = lastStatus || {}; const q = s.controller_progress;"
+        "const li = document.querySelector('#listing li.exec');"
+        "return {state: s.state, n: q ? q.number : null, source: q ? q.source : null,"
+        " ln: s.controller ? s.controller.line_number : null,"
+        " work: s.controller ? s.controller.work_mm : null, dro: s.dro,"
+        " marked: li ? Array.prototype.indexOf.call(li.parentNode.children, li) + 1 : null,"
+        " label: document.getElementById('listing-line').textContent};");
+    if (q["source"] == "controller (Ln:)") samples.push_back(q);
+    if (q["state"] == "done" || q["state"] == "error" || q["state"] == "stopped") break;
+    std::this_thread::sleep_for(100ms);
+  }
+  const json end = sock.request({{"cmd", "status"}});
+  ASSERT_EQ(end["state"], "done") << end.dump() << slurp(err_);
+  controller.signal(SIGTERM);
+  ASSERT_EQ(controller.wait(30.0), 0) << slurp(dir_ / "controller.err");
+  const json log = json::parse(slurp(sim_log));
+  // The move with each N: where it starts (the previous move's end) and where it ends.
+  std::map<long, std::pair<std::array<double, 3>, std::array<double, 3>>> moves;
+  std::array<double, 3> at{0, 0, 0};
+  for (const json& m : log["moves"]) {
+    const std::array<double, 3> p{m["p"][0].get<double>(), m["p"][1].get<double>(),
+                                  m["p"][2].get<double>()};
+    if (m["n"].is_number()) moves[m["n"].get<long>()] = {at, p};
+    at = p;
+  }
+  // The side of the square a point a hair past the move's start lies on: lines 4 to 7.
+  const auto side = [](const std::array<double, 3>& a, const std::array<double, 3>& b) {
+    const double len = std::hypot(b[0] - a[0], b[1] - a[1], b[2] - a[2]);
+    if (len < 1e-9) return 0;
+    const double x = a[0] + 1e-4 * (b[0] - a[0]) / len, y = a[1] + 1e-4 * (b[1] - a[1]) / len;
+    const double z = a[2] + 1e-4 * (b[2] - a[2]) / len;
+    const double tol = 2e-3;  // grbl's 3 decimals
+    if (std::abs(z) > tol) return 0;
+    if (std::abs(y) < tol && x > 0 && x < 20) return 4;
+    if (std::abs(x - 20) < tol && y > 0 && y < 20) return 5;
+    if (std::abs(y - 20) < tol && x > 0 && x < 20) return 6;
+    if (std::abs(x) < tol && y > 0 && y < 20) return 7;
+    return 0;
+  };
+  int checked = 0;
+  std::set<int> lines;
+  for (const json& q : samples) {
+    // The DRO is the controller's: its work position, in mm (no offsets in this program).
+    ASSERT_TRUE(q["dro"].is_object()) << q.dump();
+    EXPECT_EQ(q["dro"]["source"], "controller") << q.dump();
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(q["dro"]["machine"][a].get<double>(), q["work"][a].get<double>(), 1e-9)
+          << q.dump();
+    }
+    ASSERT_TRUE(q["n"].is_number() && q["ln"].is_number()) << q.dump();
+    EXPECT_EQ(q["n"], q["ln"]) << q.dump();  // the block is the one grbl named
+    const auto move = moves.find(q["n"].get<long>());
+    ASSERT_NE(move, moves.end()) << "N" << q["n"] << " is not in the controller's log";
+    const int line = side(move->second.first, move->second.second);
+    if (line == 0) continue;  // the plunge, the rapids: not on a side
+    EXPECT_EQ(q["marked"], line) << q.dump();
+    EXPECT_EQ(q["label"], "line " + std::to_string(line) + " · executing, controller (Ln:)")
+        << q.dump();
+    lines.insert(line);
+    ++checked;
+  }
+  std::cout << "[ measured ] " << samples.size() << " page readings with Ln:, " << checked
+            << " on a side of the square; lines seen:";
+  for (int l : lines) std::cout << " " << l;
+  std::cout << "\n";
+  EXPECT_GE(checked, 5);
+  EXPECT_GE(lines.size(), 3u);
+}
+
+// The page's XY canvas: how many pixels are the programmed path's grey (#9ca3af).
+int grey_pixels(WebDriver& page) {
+  return page
+      .script(
+          "const c = document.getElementById('xy'); const d = c.getContext('2d')"
+          ".getImageData(0, 0, c.width, c.height).data; let n = 0;"
+          "for (let k = 0; k < d.length; k += 4) if (d[k] === 0x9c && d[k + 1] === 0xa3 && "
+          "d[k + 2] === 0xaf) ++n; return n;")
+      .get<int>();
+}
+
+// Waits for the page to hold the programmed path of `job` and to have drawn it, in state
+// ready (before any start).
+void expect_preview_before_start(WebDriver& page, const std::string& job) {
+  bool drawn = false;
+  json state;
+  for (int i = 0; i < 600 && !drawn; ++i) {
+    state = page.script(
+        "return {job: program && program.job, points: program ? program.points.length : 0,"
+        " state: lastStatus && lastStatus.state, status_job: lastStatus && lastStatus.job};");
+    drawn = state["job"] == job && state["status_job"] == job && state["points"].get<int>() > 10 &&
+            grey_pixels(page) > 200;
+    if (!drawn) std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_TRUE(drawn) << state.dump() << " grey pixels " << grey_pixels(page);
+  EXPECT_EQ(state["state"], "ready") << state.dump();
+}
+
+// A job submitted over the control socket (not from the page): its path is drawn before start.
+TEST_F(BrowserPage, PreviewDrawnBeforeStartForASocketSubmit) {
+  WebDriver& page = open();
+  ASSERT_TRUE(page.wait_text("state", "idle"));
+  EXPECT_EQ(grey_pixels(page), 0);
+  const std::string program = write("slow.ngc", kProgram);
+  SocketClient sock(socket_);
+  ASSERT_TRUE(sock.request({{"cmd", "submit"}, {"job", {{"path", program}}}}).value("ok", false));
+  expect_preview_before_start(page, program);
+  EXPECT_EQ(page.script("return program.listing.length;"), 8);
+}
+
+// A chamfer made from parameters (the service generates its path): drawn before start; it has
+// no program text, and the listing says so.
+TEST_F(BrowserPage, PreviewDrawnBeforeStartForAChamfer) {
+  WebDriver& page = open();
+  ASSERT_TRUE(page.wait_text("state", "idle"));
+  SocketClient sock(socket_);
+  const json r = sock.request({{"cmd", "submit"},
+                               {"job",
+                                {{"pipe_radius", 18},
+                                 {"drill_radius", 13},
+                                 {"ball_radius", 3},
+                                 {"width", 0.7},
+                                 {"feed", 300}}}});
+  ASSERT_TRUE(r.value("ok", false)) << r.dump();
+  expect_preview_before_start(page, r["job"].get<std::string>());
+  EXPECT_TRUE(page.wait_text("listing-line", "no program text (a generated or JSON path)"));
+}
+
+// A job submitted over MQTT (a real mosquitto; the operator's command topic): drawn before
+// start on the machine's own page.
+TEST_F(BrowserPage, PreviewDrawnBeforeStartForAnMqttSubmit) {
+  if (const std::string why = ncd::test::Broker::missing(); !why.empty()) GTEST_SKIP() << why;
+  ncd::test::Broker broker(dir_ / "broker");
+  ASSERT_TRUE(broker.start()) << broker.log();
+  const std::string root = "ncd/cell1/m1/";
+  open("token = \"t0k\"\n[mqtt]\nbroker = \"" + broker.url() + "\"\nusername = \"" +
+       ncd::test::kMachine.name + "\"\npassword = \"" + ncd::test::kMachine.password +
+       "\"\ntopic_root = \"" + root + "\"\nstatus_hz = 10\n");
+  WebDriver& page = *page_;
+  page.script("localStorage.setItem('ncd-token', 't0k'); location.reload();");
+  ASSERT_TRUE(page.wait_text("conn", "connected"));
+  ASSERT_TRUE(page.wait_text("state", "idle")) << page.text("state");
+  ncd::test::Watcher ops(broker.url(), "ops-web", ncd::test::kOperator,
+                         {root + "reply", root + "online"});
+  const std::string program = write("slow.ngc", kProgram);
+  json reply;
+  for (int attempt = 0; attempt < 50 && reply.is_null(); ++attempt) {  // until the bridge is up
+    ops.publish(root + "cmd", {{"cmd", "submit"},
+                               {"job", {{"path", program}}},
+                               {"token", "t0k"},
+                               {"id", "s" + std::to_string(attempt)}});
+    for (int i = 0; i < 10 && reply.is_null(); ++i) {
+      auto m = ops.next(0.2);
+      if (m && m->get_topic() == root + "reply") reply = json::parse(m->to_string());
+    }
+  }
+  ASSERT_TRUE(reply.value("ok", false)) << reply.dump() << slurp(err_);
+  expect_preview_before_start(page, program);
+}
+
+}  // namespace truth
