@@ -58,6 +58,8 @@
 // blending (corner_blend.cpp), which then rounds the corners left between the polyline parts.
 #include "feed/polyline_fit.hpp"
 
+#include "feed/limit_sampler_detail.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -407,15 +409,22 @@ double cap_mm_per_s(const PathSegment& s, const MachineLimits& l) {
   return c;
 }
 
-double smoothing_mm(const PathSegment& s) {
-  const double q = s.smoothing_tolerance_mm.value_or(0.0);
+// The fit's tolerance for segment s (step 0 at the top of the file); 0: nothing is fitted.
+double smoothing_mm(const PathSegment& s, const MachineLimits& l) {
+  if (sampler_detail::corner_mode(s, l) != PathControl::blend) return 0.0;  // G61, G61.1, P0
+  if (s.smoothing_tolerance_mm) {  // G64 Q: the program's own tolerance (Q0: no fit)
+    const double q = *s.smoothing_tolerance_mm;
+    return std::isfinite(q) && q > 0.0 ? q : 0.0;
+  }
+  if (!l.fit_dense_runs) return 0.0;
+  const double q = s.blend_tolerance_mm.value_or(l.blend_tolerance_mm) - l.chord_tolerance_mm;
   return std::isfinite(q) && q > 0.0 ? q : 0.0;
 }
 
-bool eligible(const PathSegment& s) {
+bool eligible(const PathSegment& s, const MachineLimits& l) {
   const auto* line = std::get_if<Polyline>(&s.geometry);
   return line && line->normals.empty() && line->points.size() >= kMinRunPieces + 1 && !s.rapid &&
-         s.path_control == PathControl::blend && smoothing_mm(s) > 0.0;
+         smoothing_mm(s, l) > 0.0;
 }
 
 double turn_rad(const Vec3& a, const Vec3& b) {
@@ -578,11 +587,11 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
       out.segments.push_back(seg);
       rep.source_segment.push_back(k);
     };
-    if (!eligible(seg)) {
+    if (!eligible(seg, limits)) {
       keep();
       continue;
     }
-    const double q = smoothing_mm(seg);
+    const double q = smoothing_mm(seg, limits);
     const Distinct d = distinct_points(std::get<Polyline>(seg.geometry).points);
     const std::size_t m = d.p.size() - 1;  // pieces
     if (m < kMinRunPieces) {
