@@ -1,4 +1,4 @@
-// Smoothing of dense polylines under G64 P Q (docs/planner.md §3d).
+// Smoothing of dense polylines under G64 P and G64 P Q (docs/planner.md §3d).
 //
 // CAM systems write curves as runs of short G1 moves (chords within their own tolerance,
 // often with coordinates rounded to 1 µm). Walked as a polyline, each vertex is a small corner
@@ -7,6 +7,11 @@
 // 0.05 mm. Under G64 Q > 0 (LinuxCNC's naive-CAM tolerance; here the smoothing tolerance) such
 // runs are replaced by one C² cubic B-spline that lies within Q of the programmed polyline.
 //
+// 0. Tolerance q: G64 Q > 0 gives q = Q. Without Q (G64 P, or a plain G64 taking the machine's
+//    blend_tolerance_mm as P) q = P − ε_c, unless the machine file says fit_dense_runs =
+//    false: setpoints lie on the curve (within q of the polyline), a chord between two of them
+//    within ε_c of the curve, so every programmed point is passed within P by a chord. P ≤ ε_c,
+//    G61, G61.1, G64 P0 and an explicit Q0 fit nothing. Q stands for q below.
 // 1. Runs (inside one segment: a segment is one feed, spindle and mode; the readers merge
 //    consecutive G1 moves of the same feed into one polyline segment). A piece is short when
 //    l ≤ max(√(8 R_ref Q), v_cap T), R_ref = 50 mm: a chord of a circle of radius R within a
@@ -53,10 +58,13 @@
 //    source line (stop_before only on the first), so that the source line the service reports
 //    is the program's. FitReport::source_segment maps the new segments to the program's.
 //
-// Where: feed moves (G1, not G0) under G64 (PathControl::blend) with Q > 0, plain polylines (no
-// contact normals: the chamfer's roughness law needs them at the vertices). It runs before corner
-// blending (corner_blend.cpp), which then rounds the corners left between the polyline parts.
+// Where: feed moves (G1, not G0) under G64 (PathControl::blend, P > 0) with q > 0, plain polylines
+// (no contact normals: the chamfer's roughness law needs them at the vertices). It runs before
+// corner blending (corner_blend.cpp), which then rounds the corners left between the polyline
+// parts.
 #include "feed/polyline_fit.hpp"
+
+#include "feed/limit_sampler_detail.hpp"
 
 #include <algorithm>
 #include <array>
@@ -401,15 +409,22 @@ Attempt fit_run(const std::vector<Vec3>& points, double tol) {
   return out;
 }
 
-double smoothing_mm(const PathSegment& s) {
-  const double q = s.smoothing_tolerance_mm.value_or(0.0);
+// The fit's tolerance for segment s (step 0 at the top of the file); 0: nothing is fitted.
+double smoothing_mm(const PathSegment& s, const MachineLimits& l) {
+  if (sampler_detail::corner_mode(s, l) != PathControl::blend) return 0.0;  // G61, G61.1, P0
+  if (s.smoothing_tolerance_mm) {  // G64 Q: the program's own tolerance (Q0: no fit)
+    const double q = *s.smoothing_tolerance_mm;
+    return std::isfinite(q) && q > 0.0 ? q : 0.0;
+  }
+  if (!l.fit_dense_runs) return 0.0;
+  const double q = s.blend_tolerance_mm.value_or(l.blend_tolerance_mm) - l.chord_tolerance_mm;
   return std::isfinite(q) && q > 0.0 ? q : 0.0;
 }
 
-bool eligible(const PathSegment& s) {
+bool eligible(const PathSegment& s, const MachineLimits& l) {
   const auto* line = std::get_if<Polyline>(&s.geometry);
   return line && line->normals.empty() && line->points.size() >= kMinRunPieces + 1 && !s.rapid &&
-         s.path_control == PathControl::blend && smoothing_mm(s) > 0.0;
+         smoothing_mm(s, l) > 0.0;
 }
 
 double angle_between_rad(const Vec3& a, const Vec3& b) {
@@ -574,11 +589,11 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
       out.segments.push_back(seg);
       rep.source_segment.push_back(k);
     };
-    if (!eligible(seg)) {
+    if (!eligible(seg, limits)) {
       keep();
       continue;
     }
-    const double q = smoothing_mm(seg);
+    const double q = smoothing_mm(seg, limits);
     const Distinct d = distinct_points(std::get<Polyline>(seg.geometry).points);
     const std::size_t m = d.p.size() - 1;  // pieces
     if (m < kMinRunPieces) {

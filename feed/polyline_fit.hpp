@@ -1,6 +1,6 @@
-// Smoothing of dense polylines under G64 P Q: runs of short, gently turning G1 moves are
-// replaced by a cubic B-spline proven to lie within Q of them. The algorithm, the run rules and
-// the proof are explained in polyline_fit.cpp and docs/planner.md §3d.
+// Smoothing of dense polylines under G64 P (within P − ε_c) and G64 P Q (within Q): runs of short,
+// gently turning G1 moves are replaced by a cubic B-spline proven to lie within Q of them. The
+// algorithm, the run rules and the proof are explained in polyline_fit.cpp and docs/planner.md §3d.
 #pragma once
 
 #include <cstddef>
@@ -36,7 +36,8 @@ struct FittedRun {
 // are skipped; fewer than two distinct points give none.
 std::optional<FittedRun> fit_polyline_run(const std::vector<Vec3>& points, double tolerance_mm);
 
-// The path with every eligible run (polyline segments under G64 with Q > 0, no contact
+// The path with every eligible run (polyline segments under G64 P > 0 with Q > 0, or no Q and
+// P > ε_c unless limits.fit_dense_runs is false; no contact
 // normals; see polyline_fit.cpp for the run rules) replaced by a fitted curve. Segments
 // without runs are copied unchanged.
 toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& limits,

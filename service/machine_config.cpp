@@ -529,6 +529,8 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
     if (parse_top_limit(key, value, where, c.limits)) continue;
     if (key == "jerk_bound") {
       jerk_by_axes = parse_jerk_bound(value, where, c.limits);
+    } else if (key == "fit_dense_runs") {
+      c.limits.fit_dense_runs = as_bool(value, where);
     } else if (key == "cutting") {
       if (!value.is_table()) throw InputError(where + " must be a table: [cutting]");
       parse_cutting(value, name, c.cutting);
@@ -537,7 +539,8 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
           "unknown key " + where +
           "; the machine file takes period_s, max_feed_mm_per_min, "
           "max_accel_mm_per_s2, max_jerk_mm_per_s3, chord_tolerance_mm, "
-          "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound and the tables "
+          "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound, fit_dense_runs and "
+          "the tables "
           "[cutting], [link], [encoder], [envelope], [program], [tool], [tools.N], [axis.x], "
           "[axis.y], [axis.z]");
     }
@@ -602,6 +605,7 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
   j["stall_timeout_s"] = c.limits.stall_timeout_s;
   j["jerk_bound"] = c.jerk_by_axes ? "axes" : interpolator::to_string(c.limits.jerk_bound);
+  j["fit_dense_runs"] = c.limits.fit_dense_runs;
   if (c.limits.has_axis_limits()) {  // only when given: without them the JSON is as before
     static constexpr const char* kNames[3] = {"x", "y", "z"};
     nlohmann::ordered_json axes = nlohmann::ordered_json::object();
