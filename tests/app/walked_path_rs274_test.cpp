@@ -23,9 +23,9 @@
 // runs it. WalkedPathRs274.Summary walks the samples again and prints the counts and the reasons
 // (in the Release suite; under ASan the walks of the tests above are enough).
 //
-// The start: rs274 starts at machine 0,0,0; `ncd replay --start X,Y,Z` is not in this tree yet,
-// so ncd is given the start by a zero-length `G53 G0 X0 Y0 Z0` line in a temporary copy of the
-// program (after a leading %). kStartFlag switches to `--start 0,0,0` on the program itself.
+// The start: rs274 starts at machine 0,0,0; ncd is given `--start 0,0,0` (kStartFlag; false
+// gives it a zero-length `G53 G0 X0 Y0 Z0` line in a temporary copy of the program instead,
+// after a leading %).
 // Without /usr/bin/rs274 (linuxcnc-uspace) the suite is skipped.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
