@@ -388,13 +388,14 @@ Path to_path(const Program& program, const ToPathOptions& options) {
                        "program with a G0 to X, Y and Z");
     }
     const double k = mm_per_unit(m.units);
-    const double len_mm = motion_length(m) * k;
     const Vec3 start_mm = motion_start_mm(program, m, k, st);
-    // Zero length where the machine goes, not where the program's words go: after a tool
+    // The length where the machine goes, not where the program's words go: after a tool
     // change with its offset on the same line a line to the same program point moves the
-    // machine by the offset, and a line of some length may go nowhere.
+    // machine by the offset (and an inverse-time feed times that move).
     const auto* line = std::get_if<LineMove>(&m.geometry);
-    if ((line ? ((line->end + m.offset) * k - start_mm).norm() : len_mm) < kMinMoveMm) continue;
+    const double len_mm =
+        line ? ((line->end + m.offset) * k - start_mm).norm() : motion_length(m) * k;
+    if (len_mm < kMinMoveMm) continue;
     std::optional<double> feed;
     if (!m.rapid) {
       feed = m.feed_mode == FeedMode::per_minute ? m.feed * k : m.feed * len_mm;
