@@ -264,7 +264,8 @@ struct PathState {
   bool open = false;  // path.segments.back() is a Polyline the next line may extend
   PathControl control = PathControl::blend;
   std::optional<double> blend_mm, smooth_mm;
-  // Where the machine stands (mm, machine coordinates): the end of the last planned motion.
+  // Where the machine stands (mm, machine coordinates): the end of the last motion, or the
+  // program's start while none has been made (zero-length ones included).
   std::optional<Vec3> machine_at;
   bool tool_changed = false;  // a tool change since that motion
 };
@@ -365,6 +366,7 @@ CutterTool cutter_tool(const Program& program, int number) {
 
 Path to_path(const Program& program, const ToPathOptions& options) {
   PathState st;
+  st.machine_at = program.start_machine_mm;
   st.path.source = program.files.empty() ? std::string() : program.files.front();
   std::vector<std::size_t>* place = options.segment_of_step;
   if (place) place->assign(program.steps.size(), kNoSegment);
@@ -386,7 +388,13 @@ Path to_path(const Program& program, const ToPathOptions& options) {
                        "program with a G0 to X, Y and Z");
     }
     const double k = mm_per_unit(m.units);
-    const double len_mm = motion_length(m) * k;
+    const Vec3 start_mm = motion_start_mm(program, m, k, st);
+    // The length where the machine goes, not where the program's words go: after a tool
+    // change with its offset on the same line a line to the same program point moves the
+    // machine by the offset (and an inverse-time feed times that move).
+    const auto* line = std::get_if<LineMove>(&m.geometry);
+    const double len_mm =
+        line ? ((line->end + m.offset) * k - start_mm).norm() : motion_length(m) * k;
     if (len_mm < kMinMoveMm) continue;
     std::optional<double> feed;
     if (!m.rapid) {
@@ -397,8 +405,7 @@ Path to_path(const Program& program, const ToPathOptions& options) {
     }
     const std::optional<double> spindle =
         m.spindle == SpindleDir::off ? std::nullopt : std::optional<double>(m.spindle_rpm);
-    const Vec3 start_mm = motion_start_mm(program, m, k, st);
-    if (const auto* line = std::get_if<LineMove>(&m.geometry)) {
+    if (line) {
       if (extend_polyline(m, (line->end + m.offset) * k, feed, spindle, st)) {
         if (place) (*place)[i] = st.path.segments.size() - 1;
         continue;

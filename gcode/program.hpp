@@ -135,6 +135,9 @@ struct Program {
   std::vector<std::string> files;  // files[0] is the main program
   std::vector<Step> steps;
   Units units = Units::mm;  // units at the start
+  // Where the machine stands when the program starts (InterpretOptions::start_machine_mm, mm,
+  // machine coordinates), if given: the path's first move starts there (to_path).
+  std::optional<Vec3> start_machine_mm;
   // The parameter file (InterpretOptions::parameter_file) as it must read after the program:
   // LinuxCNC's persistent parameters (5161-5169, 5181-5189, 5210-5390 as its required list)
   // and every parameter the file already held, with their values at the end, in ascending

@@ -167,9 +167,6 @@ std::string g_refusal(int c) {
     case 384:
     case 385:
       return g_name(c) + " (probing) is not supported; probe on the controller, not in the program";
-    case 70:
-    case 80:
-      return g_name(c) + " (lathe diameter/radius mode) is not supported; ncd is for mills";
     case 740:
     case 840:
     case 860:

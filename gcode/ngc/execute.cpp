@@ -127,6 +127,7 @@ std::string Interpreter::missing_tool_way_out(int tool) const {
 // that order's, and each step is a function below.
 void Interpreter::execute_block(Block& b) {
   check_block(b);
+  set_lathe_diameter_mode(b);  // before anything reads X (LinuxCNC halves it as it reads it)
   const int motion_word = group_code(b, 1);
   const int nonmodal = group_code(b, 0);
   if (nurbs_open_) {
@@ -149,6 +150,30 @@ void Interpreter::execute_block(Block& b) {
   const bool axes_used = execute_non_modal(b, nonmodal);  // 19. non-modal
   execute_motion(b, motion_word, axes_used);              // 20. motion
   execute_stops(b);                                       // 21. stops
+  if (b.has_m(6) || b.has_m(61)) reread_position();
+}
+
+// After a tool change (M6, M61) LinuxCNC re-reads where the machine stands before the next line
+// (toolchange_flag → read_inputs → refresh_actual_position): the current point becomes the end
+// of the last move sent. That differs from the programmed point only after G40, where the tool
+// stands at its compensated position: the next move then starts there and its words count from
+// there, as from any other point (rs274 shows it so: useful-subroutines.ngc, the first G0 Z of
+// o200 after o100's G40 and a T0 M6).
+void Interpreter::reread_position() {
+  if (!start_override_mm_) return;
+  pos_ = *start_override_mm_;
+  start_override_mm_.reset();
+}
+
+// G7 (lathe diameter mode) and G8 (radius mode, the default): in diameter mode every X word is
+// a diameter, the point's X its half (LinuxCNC's read_x and convert_lathe_diameter_mode: the
+// word is halved as it is read while G7 is on, and a G7 or G8 on the line applies to the line's
+// own X). Only X: I, K, R and the other axes stay as written. M2 keeps the mode (as LinuxCNC);
+// M70-M73 save and restore it.
+void Interpreter::set_lathe_diameter_mode(Block& b) {
+  if (b.has_g(70)) diameter_mode_ = true;
+  if (b.has_g(80)) diameter_mode_ = false;
+  if (diameter_mode_ && b.has('x')) b.val[static_cast<std::size_t>('x' - 'a')] /= 2.0;
 }
 
 // 2. feed mode, 3. F

@@ -186,6 +186,7 @@ class Interpreter {
     double feed = 0.0, speed = 0.0;
     SpindleDir spindle = SpindleDir::off;
     bool mist = false, flood = false;
+    bool diameter_mode = false;  // G7
   };
   SavedModes current_modes() const;
   void restore_modes(const SavedModes& m, const char* code);
@@ -257,6 +258,8 @@ class Interpreter {
   bool execute_non_modal(const Block& b, int nonmodal);
   void execute_motion(Block& b, int motion_word, bool axes_used);
   void execute_stops(const Block& b);
+  void reread_position();                  // after M6, M61 (execute.cpp)
+  void set_lathe_diameter_mode(Block& b);  // G7, G8
   void cutter_comp(const Block& b, int code);
   Vec3 from() const;
   Vec3 target(const Block& b, bool g53);
@@ -358,6 +361,7 @@ class Interpreter {
   bool nurbs_open_ = false;
   NurbsBlock nurbs_;
   CutterComp comp_{program_.steps};
+  bool diameter_mode_ = false;             // G7: X words are diameters (G8, radius: default)
   bool arc_not_allowed_ = false;           // right after G40 ended a compensated path
   std::optional<Vec3> start_override_mm_;  // where the tool stands after G40
 };

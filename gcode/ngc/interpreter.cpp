@@ -77,6 +77,7 @@ Program interpret_ngc(const std::string& text, const std::string& name,
     Program p = in.run(text, name);
     in.finish();
     p.parameter_file_text = in.parameter_file_text();
+    p.start_machine_mm = options.start_machine_mm;
     p.tools = tool_catalogue(options);  // each tool's kind, teeth and radius (tool_table.hpp)
     return p;
   } catch (const Fail& f) {

@@ -1,12 +1,12 @@
 // The RS-274/NGC interpreter: M70-M73, LinuxCNC's saved modal state (its manual, "M70 Save
 // Modal State"). M70 saves the modes at the current call level, M71 forgets that save (and
 // M73's), M72 restores it (and keeps it for another M72), M73 saves them in a subroutine and
-// restores them when it returns. Saved: units, plane, cutter compensation, distance and arc
-// distance modes, feed mode, coordinate system, tool length offset, retract mode, path control, F,
-// S, spindle direction, mist and flood. The motion mode is not (nor in LinuxCNC). A restore emits
-// what the codes it stands for would: the units, offset, path control, spindle and coolant events.
-// ncd does not switch cutter compensation on or off by a restore: a restore that would is
-// refused, naming the way out.
+// restores them when it returns. Saved: units, plane, lathe diameter mode (G7/G8), cutter
+// compensation, distance and arc distance modes, feed mode, coordinate system, tool length offset,
+// retract mode, path control, F, S, spindle direction, mist and flood. The motion mode is not (nor
+// in LinuxCNC). A restore emits what the codes it stands for would: the units, offset, path
+// control, spindle and coolant events. ncd does not switch cutter compensation on or off by a
+// restore: a restore that would is refused, naming the way out.
 #include "gcode/ngc/interp.hpp"
 
 namespace ncd::toolpath::ngc {
@@ -30,6 +30,7 @@ Interpreter::SavedModes Interpreter::current_modes() const {
   m.spindle = spindle_;
   m.mist = mist_;
   m.flood = flood_;
+  m.diameter_mode = diameter_mode_;
   return m;
 }
 
@@ -44,6 +45,7 @@ void Interpreter::restore_modes(const SavedModes& m, const char* code) {
     emit(UnitsEvent{units_});
   }
   plane_ = m.plane;
+  diameter_mode_ = m.diameter_mode;
   incremental_ = m.incremental;
   ijk_absolute_ = m.ijk_absolute;
   retract_r_ = m.retract_r;

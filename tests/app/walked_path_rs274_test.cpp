@@ -2,7 +2,8 @@
 // docs/testing.md): every program we have (tests/ngc and LinuxCNC's samples in
 // /usr/share/linuxcnc/ncfiles) is replayed by the real executable from machine 0,0,0 with a tool
 // table and a parameter file, and its setpoints are held to the path of rs274's canonical moves
-// (`rs274 -t TABLE -v VARS -g`, which starts at 0,0,0 too):
+// (`rs274 -i INI -t TABLE -v VARS -g`, which starts at 0,0,0 too; the INI gives rs274 the
+// subroutine path ncd's machine file gives ncd, the program's folder):
 //   - every setpoint lies within P of rs274's path: P is the G64 P in force (rs274's
 //     SET_MOTION_CONTROL_MODE), the machine's blend_tolerance_mm under a plain G64, 0 under G61
 //     and G61.1, and Q where a G64 Q fits dense runs; program arcs are compared as arcs (the
@@ -18,12 +19,13 @@
 // Each program is one test; it says which of these it is, and only the first may fail:
 //   walks and matches | refused by ncd (exit 2, the message names the program) | rs274 refuses it
 //   (error or warning) | not comparable (rs274 probes, or writes a NURBS/spline ncd walks its way).
-// WalkedPathRs274.Summary walks the samples again and prints the counts and the reasons (in the
-// Release suite; under ASan the walks of the tests above are enough).
+// A sample that is a subroutine file is run through a caller (kSubroutineCalls), as LinuxCNC
+// runs it. WalkedPathRs274.Summary walks the samples again and prints the counts and the reasons
+// (in the Release suite; under ASan the walks of the tests above are enough).
 //
-// The start: rs274 starts at machine 0,0,0; `ncd replay --start X,Y,Z` is not in this tree yet,
-// so ncd is given the start by a zero-length `G53 G0 X0 Y0 Z0` line in a temporary copy of the
-// program (after a leading %). kStartFlag switches to `--start 0,0,0` on the program itself.
+// The start: rs274 starts at machine 0,0,0; ncd is given `--start 0,0,0` (kStartFlag; false
+// gives it a zero-length `G53 G0 X0 Y0 Z0` line in a temporary copy of the program instead,
+// after a leading %).
 // Without /usr/bin/rs274 (linuxcnc-uspace) the suite is skipped.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -57,11 +59,20 @@ constexpr bool kStartFlag = true;
 
 const fs::path kSamples = "/usr/share/linuxcnc/ncfiles";
 constexpr double kBlendToleranceMm = 0.01;  // the machine file's default blend_tolerance_mm
-// Inches: rs274's machine units (the table's lengths and diameters, the parameter file). T1 is
-// the 1/16" end mill useful-subroutines.ngc asks for; the others are LinuxCNC's sim table's.
+// Inches: rs274's machine units (the table's lengths and diameters, the parameter file). Every
+// tool a sample names is here, with a diameter its cutter compensation can work with (rs274
+// refuses an entry move or an arc shorter than the radius, so a tool that is too big makes the
+// suite, not the program, fail):
+//   T1 the 1/16" end mill useful-subroutines.ngc asks for;
+//   T2, T7, T9 lathecomp.ngc's (T7 with H9), D0.1 as in LinuxCNC's sim lathe.tbl;
+//   T4 mmount.ngc's 1/4" end mill (its header lists its tools; also comp311.ngc, comp-g1.ngc),
+//   T6 its 1/4-20 tap, T15 its oversize 1/2" end mill (D0.55), lengths from that list;
+//   T3, T5, T10, T20 LinuxCNC's sim table's and tests/ngc's.
+// The lengths are sensible, not the samples' own (few state one): rs274 and ncd get the same.
 constexpr const char* kToolTable =
-    "T1 P1 Z0.5 D0.0625\nT2 P2 Z-0.25 D0.5\nT3 P3 Z1.125 D0.125\nT4 P4 Z0.75 D0.375\n"
-    "T5 P5 Z0 D0.1\nT7 P7 Z0.2 D0.2\nT10 P10 Z0.3 D0.3\nT20 P20 Z2 D1\n";
+    "T1 P1 Z0.5 D0.0625\nT2 P2 Z-0.25 D0.1\nT3 P3 Z1.125 D0.125\nT4 P4 Z0.75 D0.25\n"
+    "T5 P5 Z0 D0.1\nT6 P6 Z-0.1833 D0.25\nT7 P7 Z0.2 D0.1\nT9 P9 Z0.1 D0.1\nT10 P10 Z0.3 D0.3\n"
+    "T15 P15 Z-1.5042 D0.55\nT20 P20 Z2 D1\n";
 constexpr const char* kVarFile =
     "5161 1.0\n5162 2.0\n5163 3.0\n5181 -1.0\n5182 -2.0\n5183 0.5\n5220 1.0\n";
 
@@ -385,18 +396,35 @@ struct Outcome {
   std::size_t first_breach = 0, last_breach = 0;  // rs274's moves where it differs
 };
 
+// LinuxCNC's samples that are subroutine files, not programs: O<name> sub … endsub with no M2
+// or %, which rs274 refuses to run alone ("File ended with no percent sign or program end").
+// LinuxCNC runs them only through a call, so the suite does too: a caller of a few lines (the
+// arguments as the file reads them) in the workspace, with the samples' folder as the
+// subroutine path of both (rs274 -i with [RS274NGC] SUBROUTINE_PATH, ncd's subroutine_path).
+const std::map<std::string, std::string> kSubroutineCalls = {
+    {"increment.ngc", "G21\nO<increment> call [1.5] [2]\nO<increment> call [-4] [0.5]\nM2\n"},
+    {"probe-hole.ngc", "G20\nO<probe-hole> call [0.5]\nM2\n"},
+};
+
 class Workspace {
  public:
-  explicit Workspace(const fs::path& program) : program_(program) {
+  // `caller`: the text of a program that calls `program` (a subroutine file), run instead.
+  explicit Workspace(const fs::path& program, const std::string& caller = {})
+      : program_(program), subs_(program.parent_path()) {
     dir_ = fs::temp_directory_path() /
            ("ncd_walked_" + std::to_string(getpid()) + "_" + program.stem().string());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
+    if (!caller.empty()) {
+      program_ = dir_ / ("call_" + program.filename().string());
+      std::ofstream(program_) << caller;
+    }
     std::ofstream(dir_ / "tool.tbl") << kToolTable;
+    std::ofstream(dir_ / "rs274.ini") << "[RS274NGC]\nSUBROUTINE_PATH = " << subs_.string() << "\n";
     std::ofstream(dir_ / "machine.toml")
         << "[program]\nmachine_units = \"inch\"\ntool_table = \"" << (dir_ / "tool.tbl").string()
         << "\"\nparameter_file = \"" << (dir_ / "ncd.var").string() << "\"\nsubroutine_path = [\""
-        << program.parent_path().string() << "\"]\n";
+        << subs_.string() << "\"]\n";
   }
   ~Workspace() {
     std::error_code ec;
@@ -411,7 +439,8 @@ class Workspace {
     const fs::path out = dir_ / "canon.txt", log = dir_ / "rs274.log";
     const std::string cmd =
         "cd '" + program_.parent_path().string() + "' && " +
-        ncd::test::rs274_command(dir_, "-t '" + (dir_ / "tool.tbl").string() + "' -v '" +
+        ncd::test::rs274_command(dir_, "-i '" + (dir_ / "rs274.ini").string() + "' -t '" +
+                                           (dir_ / "tool.tbl").string() + "' -v '" +
                                            (dir_ / "rs.var").string() + "' -g '" +
                                            program_.string() + "' '" + out.string() + "'") +
         " >'" + log.string() + "' 2>&1";
@@ -469,7 +498,7 @@ class Workspace {
   fs::path dir() const { return dir_; }
 
  private:
-  fs::path program_, dir_;
+  fs::path program_, subs_, dir_;
 };
 
 std::string first_line(const std::string& s) {
@@ -490,7 +519,10 @@ std::vector<V3> read_setpoints(const fs::path& csv) {
 }
 
 Outcome walk_and_compare(const fs::path& program) {
-  Workspace run(program);
+  const auto call = program.parent_path() == kSamples
+                        ? kSubroutineCalls.find(program.filename().string())
+                        : kSubroutineCalls.end();
+  Workspace run(program, call != kSubroutineCalls.end() ? call->second : std::string());
   std::string why;
   const std::optional<std::string> canon = run.rs274(why);
   if (!canon) return {Kind::rs274_refuses, why};
@@ -515,6 +547,7 @@ Outcome walk_and_compare(const fs::path& program) {
   check_setpoints(path.pieces, sp, v);
   check_end_points(path.pieces, sp, v);
   std::ostringstream s;
+  if (call != kSubroutineCalls.end()) s << "a subroutine file, run through a caller: ";
   s << path.pieces.size() << " moves, " << sp.size() << " setpoints, farthest " << v.worst_mm
     << " mm (" << v.worst_of_p << " of P)";
   for (const std::string& b : v.breaches) s << "\n  " << b;
@@ -541,19 +574,10 @@ struct Known {
   std::string reason;
   std::size_t first_move, last_move;
 };
-const std::map<std::string, Known> kInterpreterDifferences = {
-    {"skeleton.ngc",
-     {"T1 M06 G43 H1 on one line after moves of zero length only: ncd's path starts at the "
-      "offset position (Z +12.7 mm) instead of where the machine stands (gcode/program.cpp "
-      "skips zero-length moves before it records the machine's position, motion_start_mm); "
-      "the end points after it are then looked for 12.7 mm of travel too early",
-      2, 5}},
-    {"useful-subroutines.ngc",
-     {"after G40 the next move (G0 Z only) keeps the programmed X Y under compensation, where "
-      "LinuxCNC keeps the tool's compensated position (0.0313 in, 0.79 mm, apart; the 0.236 mm "
-      "reported in issue 32 is this)",
-      18, 19}},
-};
+// None today: skeleton.ngc (a tool change with G43 on its line after zero-length moves) and
+// useful-subroutines.ngc (the position LinuxCNC re-reads after G40 and a tool change) were
+// fixed, with tests/ngc/tool_change_offset_same_line.ngc and comp_off_tool_change.ngc.
+const std::map<std::string, Known> kInterpreterDifferences = {};
 
 TEST_P(WalkedPath, IsRs274sPathWithinP) {
   const std::string file = GetParam().filename().string();

@@ -359,6 +359,35 @@ TEST(GcodeReader, LongAndZeroPaddedOWordNumbers) {
   EXPECT_EQ(polyline(p, 1).points, (std::vector<Vec3>{{1, 0, 0}, {2, 0, 0}}));
 }
 
+// The same change where the machine stands is known only from the start given (no move before
+// it, or moves of zero length only: skeleton.ngc's G53 G0 Z0 and X0 Y0 from machine 0,0,0). The
+// path's first move starts at the start, not at the program point plus the new length; and a
+// line to the program point the change left (G0 Z0 after T3 M6 G43 H3 at Z0) is no move of zero
+// length: the machine goes up by the length, as rs274's STRAIGHT_TRAVERSE with the new offset
+// says.
+TEST(GcodeReader, ToolLengthSetOnTheChangesLineFromTheGivenStartAfterZeroLengthMoves) {
+  const std::filesystem::path table =
+      std::filesystem::temp_directory_path() / ("ncd_tl0_" + std::to_string(getpid()) + ".tbl");
+  std::ofstream(table) << "T3 P3 Z28.575 D3.175\nT4 P4 Z10 D3\n";
+  InterpretOptions o;
+  o.tool_table = table.string();
+  o.start_machine_mm = Vec3(0.0, 0.0, 0.0);
+  for (const char* before : {"", "G53 G0 Z0\nX0 Y0\n"}) {
+    std::istringstream in(std::string("G21 G90\n") + before + "T3 M6 G43 H3\nG0 X4 Y2\nM2\n");
+    const Path p = read_gcode(in, "tl0.ngc", o);
+    ASSERT_EQ(p.segments.size(), 1u) << before;
+    EXPECT_EQ(polyline(p, 0).points.front(), Vec3(0.0, 0.0, 0.0)) << before;
+    EXPECT_EQ(polyline(p, 0).points.back(), Vec3(4.0, 2.0, 28.575)) << before;
+  }
+  std::istringstream same("G21 G90\nG0 X0 Y0 Z0\nT4 M6 G43 H4\nG0 Z0\nG0 X1\nM2\n");
+  const Path p = read_gcode(same, "tl0.ngc", o);
+  ASSERT_EQ(p.segments.size(), 2u);
+  EXPECT_EQ(polyline(p, 0).points.front(), Vec3(0.0, 0.0, 0.0));
+  EXPECT_EQ(polyline(p, 0).points.back(), Vec3(0.0, 0.0, 10.0));
+  EXPECT_EQ(polyline(p, 1).points.back(), Vec3(1.0, 0.0, 10.0));
+  std::filesystem::remove(table);
+}
+
 // Events in the path: those that need the machine at rest mark the next segment; coolant does
 // not. Path control and its tolerances go to the segments in mm; inch moves become mm; an
 // inverse-time feed becomes mm/min (F × length).
