@@ -82,6 +82,7 @@
 #include "cam/chamfer_detail.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "core/periodic_series.hpp"
 #include "core/quadrature.hpp"
 
 namespace ncd::toolpath {
@@ -92,14 +93,19 @@ namespace {
 
 constexpr int kMaxNewton = 100;
 constexpr int kMaxAlphaIterations = 200;
-constexpr double kAlphaTolerance = 1e-13;  // relative width of the final α bracket
-constexpr double kRodToleranceMm = 1e-12;  // ε_α of Algorithm 1, on |CL_xy| − R_R
-constexpr double kAlphaMargin = 1e-9;      // keep α strictly inside the admissible range
-constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c = 0)
-constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π], doubled until
-constexpr int kMaxArcDoublings = 10;       // the total changes by less than kArcTolerance
-constexpr double kArcTolerance = 1e-14;    // (relative)
-constexpr double kMinSplitTheta = 1e-9;    // a split below this cannot reach ε
+constexpr double kAlphaTolerance = 1e-13;      // relative width of the final α bracket
+constexpr double kDeltaNewtonStepMm = 1e-9;    // last Newton step of G(δ) = 0 (quadratic)
+constexpr double kRodToleranceMm = 1e-12;      // ε_α of Algorithm 1, on |CL_xy| − R_R
+constexpr double kAlphaMargin = 1e-9;          // keep α strictly inside the admissible range
+constexpr double kMaxAlphaSearch = 1e6;        // where both bounds are infinite (c = 0)
+constexpr int kArcLengthPanels = 64;           // composite GL10 over [0, 2π], doubled until
+constexpr int kMaxArcDoublings = 10;           // the total changes by less than kArcTolerance
+constexpr double kArcTolerance = 1e-14;        // (relative)
+constexpr double kMinSplitTheta = 1e-9;        // a split below this cannot reach ε
+constexpr double kSeriesTolerance = 1e-14;     // Fourier series of |C'|: coefficients left out,
+constexpr int kSeriesMinSamples = 64;          // relative to the mean speed; samples from 64 to
+constexpr int kSeriesMaxSamples = 4096;        // 4096, beyond which quadrature takes over
+constexpr double kSeriesNewtonStepRad = 1e-9;  // last Newton step on the series (quadratic)
 
 // Positive root of ζ² + 2 q a ζ + δ² − 2 δ R_B = 0 (eqs. 23, 25), q = R_B − δ.
 double plus_root(double q, double a, double delta, double ball) {
@@ -224,8 +230,12 @@ std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha
     if (g == 0.0) return delta;
     (g < 0.0 ? lo : hi) = delta;
     double next = delta - g / slope;
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // Newton left the bracket
-    if (std::abs(next - delta) <= 4.0 * std::numeric_limits<double>::epsilon() * next) {
+    const bool newton = next > lo && next < hi;
+    if (!newton) next = 0.5 * (lo + hi);  // Newton left the bracket
+    const double step = std::abs(next - delta);
+    // A Newton step below kDeltaNewtonStepMm leaves an error of about its square: done.
+    if (step <= 4.0 * std::numeric_limits<double>::epsilon() * next ||
+        (newton && step <= kDeltaNewtonStepMm)) {
       return next;
     }
     delta = next;
@@ -285,49 +295,72 @@ double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double d
   return pose(f, alpha, delta).cl_radius_mm - *rod_limit_radius_mm();
 }
 
+RodInterference ChamferModel::rod_interference_and_slope(const EdgeFrame& f, double alpha,
+                                                         double delta) const {
+  const double rb = spec_.ball_radius_mm, c = f.c, q = rb - delta;
+  const Vec3 u = f.t1 + alpha * f.t2;
+  const double u_norm = u.norm();
+  const Vec3 e = u.normalized();  // as pose() computes it, so the radius is the one checked
+  const double a = e.dot(f.t1), b = e.dot(f.t2);
+  const double zeta = plus_root(q, a, delta, rb), eta = plus_root(q, b, delta, rb);
+  // G_δ as in solve_delta; G_α at fixed δ from ζ_a = −qζ/(ζ + qa), a' = (c − ab)/|u| and
+  // η_b = −qη/(η + qb), b' = (1 − b²)/|u| (e' = (t2 − b e)/|u|); then δ' = −G_α / G_δ.
+  const double zeta_delta = (a * zeta + q) / (zeta + q * a);
+  const double eta_delta = (b * eta + q) / (eta + q * b);
+  const double g_delta =
+      2.0 * (zeta * zeta_delta + eta * eta_delta - c * (zeta_delta * eta + zeta * eta_delta));
+  const double zeta_alpha = -q * zeta / (zeta + q * a) * (c - a * b) / u_norm;
+  const double eta_alpha = -q * eta / (eta + q * b) * (1.0 - b * b) / u_norm;
+  const double g_alpha = 2.0 * ((zeta - c * eta) * zeta_alpha + (eta - c * zeta) * eta_alpha);
+  const double delta_alpha = -g_alpha / g_delta;
+  // CL = x_p − q e, so CL' = δ' e − q e'.
+  const Vec3 cl = f.xp - q * e;
+  const Vec3 cl_alpha = delta_alpha * e - q * (f.t2 - b * e) / u_norm;
+  const double radius = std::hypot(cl.x(), cl.y());
+  return {radius - *rod_limit_radius_mm(),
+          (cl.x() * cl_alpha.x() + cl.y() * cl_alpha.y()) / radius};
+}
+
 RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
   std::optional<double> last_delta;  // warm start: δ moves little between neighbouring α
-  const auto delta_at = [&](double alpha) {
+  const auto big_f = [&](double alpha) {
     last_delta = solve_delta(f, alpha, last_delta);
     if (!last_delta) (void)pose_at(f.theta_rad, alpha);  // throws the width error, with numbers
-    return *last_delta;
+    return rod_interference_and_slope(f, alpha, *last_delta);
   };
-  const auto big_f = [&](double alpha) { return rod_interference(f, alpha, delta_at(alpha)); };
-  double f_lo = big_f(1.0);
-  if (f_lo <= 0.0) return {1.0, *last_delta, false, true};
+  RodInterference at = big_f(1.0);
+  if (at.value_mm <= 0.0) return {1.0, *last_delta, false, true};
   // Bracket [1, hi] with F(hi) ≤ 0; hi is inside the admissible and global bounds.
   const AlphaRange range = alpha_range(f);
-  double lo = 1.0, hi = 0.0, f_hi = 0.0;
+  double lo = 1.0, hi = 0.0, f_hi = 0.0, x = 1.0;
   if (std::isfinite(range.hi)) {
     hi = range.hi * (1.0 - kAlphaMargin);
-    if (hi <= lo || (f_hi = big_f(hi)) > 0.0) return {1.0, 0.0, false, false};
+    if (hi <= lo || (f_hi = big_f(hi).value_mm) > 0.0) return {1.0, 0.0, false, false};
   } else {
     for (hi = 2.0; hi <= kMaxAlphaSearch; hi *= 2.0) {
-      if ((f_hi = big_f(hi)) <= 0.0) break;
-      lo = hi;
-      f_lo = f_hi;
+      const RodInterference at_hi = big_f(hi);
+      if ((f_hi = at_hi.value_mm) <= 0.0) break;
+      lo = x = hi;
+      at = at_hi;
     }
     if (f_hi > 0.0) return {1.0, 0.0, false, false};
   }
-  // Illinois regula falsi: the bracket always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
+  // Newton on F(α) + ε_α/2 = 0 from the last point with F > 0, so that it lands inside
+  // [−ε_α, 0], on the safe side; bisection where a step would leave the bracket. The bracket
+  // always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
   double delta_hi = *last_delta;
-  int side = 0;
   for (int i = 0;
        i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi && f_hi < -kRodToleranceMm; ++i) {
-    double mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-    if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
-    const double f_mid = big_f(mid);
-    if (f_mid > 0.0) {
-      lo = mid;
-      f_lo = f_mid;
-      if (side == -1) f_hi *= 0.5;
-      side = -1;
+    double next = x - (at.value_mm + 0.5 * kRodToleranceMm) / at.slope_mm;
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    x = next;
+    at = big_f(x);
+    if (at.value_mm > 0.0) {
+      lo = x;
     } else {
-      hi = mid;
-      f_hi = f_mid;
+      hi = x;
+      f_hi = at.value_mm;
       delta_hi = *last_delta;
-      if (side == 1) f_lo *= 0.5;
-      side = 1;
     }
   }
   return {hi, delta_hi, true, true};
@@ -387,7 +420,41 @@ double ChamferModel::chord_deviation(double theta0, double theta1) const {
   return best;
 }
 
-std::vector<double> ChamferModel::segment() const {
+std::optional<PeriodicSeries> ChamferModel::speed_series() const {
+  return PeriodicSeries::fit([this](double th) { return speed(th); }, kSeriesTolerance,
+                             kSeriesMinSamples, kSeriesMaxSamples);
+}
+
+std::vector<double> ChamferModel::equal_arc_starts() const {
+  const auto series = speed_series();
+  if (!series) return equal_arc_starts_by_quadrature();
+  // θ_k solves F(θ) = k L / N, F the series' antiderivative of |C'| (its derivative is the
+  // series' value, so Newton converges quadratically), from θ_{k−1} + Δs / v(θ_{k−1}). A step
+  // below 1e-9 rad leaves an error of about |v'/2v| step² < 1e-17 rad: stop there, since F(θ)
+  // carries a rounding of ε L that may keep the steps from shrinking much further.
+  const int n = spec_.initial_segments;
+  const double ds = series->period_integral() / n;
+  std::vector<double> start(static_cast<std::size_t>(n) + 1);
+  start[0] = 0.0;
+  double th = 0.0, v = series->mean(), len = 0.0;
+  series->value_and_integral(0.0, v, len);
+  for (int k = 1; k < n; ++k) {
+    const double target = k * ds;
+    th += (target - len) / v;
+    for (int i = 0; i < kMaxNewton; ++i) {
+      series->value_and_integral(th, v, len);
+      const double step = (len - target) / v;
+      th -= step;
+      if (std::abs(step) <= kSeriesNewtonStepRad) break;
+    }
+    series->value_and_integral(th, v, len);
+    start[static_cast<std::size_t>(k)] = th;
+  }
+  start[static_cast<std::size_t>(n)] = 2.0 * kPi;
+  return start;
+}
+
+std::vector<double> ChamferModel::equal_arc_starts_by_quadrature() const {
   const int n = spec_.initial_segments;
   const double total = arc_length(0.0, 2.0 * kPi);
   const double ds = total / n;
@@ -408,6 +475,12 @@ std::vector<double> ChamferModel::segment() const {
     prev = th;
   }
   start[static_cast<std::size_t>(n)] = 2.0 * kPi;
+  return start;
+}
+
+std::vector<double> ChamferModel::segment() const {
+  const int n = spec_.initial_segments;
+  const std::vector<double> start = equal_arc_starts();
 
   // Midpoint splits (eq. 34), depth first so the output stays in θ order.
   std::vector<double> out;
