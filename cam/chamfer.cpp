@@ -105,7 +105,8 @@ constexpr double kMinSplitTheta = 1e-9;        // a split below this cannot reac
 constexpr double kSeriesTolerance = 1e-14;     // Fourier series of |C'|: coefficients left out,
 constexpr int kSeriesMinSamples = 64;          // relative to the mean speed; samples from 64 to
 constexpr int kSeriesMaxSamples = 4096;        // 4096, beyond which quadrature takes over
-constexpr double kSeriesNewtonStepRad = 1e-9;  // last Newton step on the series (quadratic)
+constexpr double kSeriesNewtonStepRad = 1e-9;  // last Halley step on the series (cubic)
+constexpr double kChordNewtonStepRad = 1e-9;   // last Newton step of the chordal deviation
 
 // Positive root of ζ² + 2 q a ζ + δ² − 2 δ R_B = 0 (eqs. 23, 25), q = R_B − δ.
 double plus_root(double q, double a, double delta, double ball) {
@@ -383,18 +384,20 @@ double ChamferModel::arc_length(double theta0, double theta1) const {
 }
 
 double ChamferModel::chord_deviation(double theta0, double theta1) const {
-  const Vec3 p0 = point(theta0), p1 = point(theta1);
+  return chord_deviation(theta0, point(theta0), theta1, point(theta1));
+}
+
+double ChamferModel::chord_deviation(double theta0, const Vec3& p0, double theta1,
+                                     const Vec3& p1) const {
   const Vec3 chord = p1 - p0;
   const double len = chord.norm();
-  const auto distance = [&](double th) {
-    const Vec3 w = point(th) - p0;
-    return len > 0.0 ? w.cross(chord).norm() / len : w.norm();
-  };
   const double mid = 0.5 * (theta0 + theta1);
-  if (len == 0.0) return distance(mid);
+  if (len == 0.0) return (point(mid) - p0).norm();
   // The maximum is where C' ⟂ w⊥ (w⊥ = part of C − p0 normal to the chord): Newton on
   // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint (eq. 34's sample), kept inside the
-  // piece; every iterate's distance counts.
+  // piece; every iterate's distance counts. Near the maximum the distance d is flat: an iterate
+  // whose next step is below kChordNewtonStepRad is within ½|d''| step² (< 1e-16 mm) of it, so
+  // the iteration stops there.
   const Vec3 u = chord / len;
   double best = 0.0, th = mid;
   for (int i = 0; i < 9; ++i) {
@@ -402,20 +405,13 @@ double ChamferModel::chord_deviation(double theta0, double theta1) const {
     const Vec3 w = j.c - p0;
     const Vec3 w_perp = w - w.dot(u) * u;
     best = std::max(best, w_perp.norm());
-    if (i == 8) break;
     const Vec3 d1_perp = j.d1 - j.d1.dot(u) * u;
     const double phi = j.d1.dot(w_perp);
     const double slope = j.d2.dot(w_perp) + d1_perp.squaredNorm();
     if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
     const double next = th - phi / slope;
-    if (!(next > theta0 && next < theta1)) break;
-    const bool converged = std::abs(next - th) <= 1e-13 * (theta1 - theta0);
+    if (!(next > theta0 && next < theta1) || std::abs(next - th) <= kChordNewtonStepRad) break;
     th = next;
-    if (converged) {
-      const Vec3 wc = point(th) - p0;
-      best = std::max(best, (wc - wc.dot(u) * u).norm());
-      break;
-    }
   }
   return best;
 }
@@ -428,26 +424,27 @@ std::optional<PeriodicSeries> ChamferModel::speed_series() const {
 std::vector<double> ChamferModel::equal_arc_starts() const {
   const auto series = speed_series();
   if (!series) return equal_arc_starts_by_quadrature();
-  // θ_k solves F(θ) = k L / N, F the series' antiderivative of |C'| (its derivative is the
-  // series' value, so Newton converges quadratically), from θ_{k−1} + Δs / v(θ_{k−1}). A step
-  // below 1e-9 rad leaves an error of about |v'/2v| step² < 1e-17 rad: stop there, since F(θ)
-  // carries a rounding of ε L that may keep the steps from shrinking much further.
+  // θ_k solves F(θ) = k L / N, F the series' antiderivative of v = |C'|, whose derivatives v and
+  // v' are the series' value and slope: Halley's iteration (cubic), from the second-order step
+  // Δ = r/v − v' r² / (2 v³) off θ_{k−1}, r = Δs. Once a step is below 1e-9 rad the error left is
+  // of the order of its cube, far below the rounding of F (ε L): stop there.
   const int n = spec_.initial_segments;
   const double ds = series->period_integral() / n;
   std::vector<double> start(static_cast<std::size_t>(n) + 1);
   start[0] = 0.0;
-  double th = 0.0, v = series->mean(), len = 0.0;
-  series->value_and_integral(0.0, v, len);
+  double th = 0.0;
+  PeriodicSeries::Sample at = series->at(0.0);
   for (int k = 1; k < n; ++k) {
-    const double target = k * ds;
-    th += (target - len) / v;
+    const double target = k * ds, rest = target - at.integral;
+    th += rest / at.value - 0.5 * at.slope * rest * rest / (at.value * at.value * at.value);
     for (int i = 0; i < kMaxNewton; ++i) {
-      series->value_and_integral(th, v, len);
-      const double step = (len - target) / v;
+      at = series->at(th);
+      const double f = at.integral - target;
+      const double step = 2.0 * f * at.value / (2.0 * at.value * at.value - f * at.slope);
       th -= step;
+      at.integral = target;  // F at the new θ, to within the cube of the step (the next start)
       if (std::abs(step) <= kSeriesNewtonStepRad) break;
     }
-    series->value_and_integral(th, v, len);
     start[static_cast<std::size_t>(k)] = th;
   }
   start[static_cast<std::size_t>(n)] = 2.0 * kPi;
@@ -482,23 +479,34 @@ std::vector<double> ChamferModel::segment() const {
   const int n = spec_.initial_segments;
   const std::vector<double> start = equal_arc_starts();
 
-  // Midpoint splits (eq. 34), depth first so the output stays in θ order.
+  // Midpoint splits (eq. 34), depth first so the output stays in θ order. Each piece carries
+  // its end points, so every point of the curve is evaluated once.
+  struct Piece {
+    double a, b;
+    Vec3 pa, pb;
+  };
   std::vector<double> out;
-  std::vector<std::pair<double, double>> stack;
+  std::vector<Piece> stack;
+  Vec3 p_start = point(0.0);
   for (int k = 0; k < n; ++k) {
-    stack.emplace_back(start[static_cast<std::size_t>(k)], start[static_cast<std::size_t>(k) + 1]);
+    const double b_k = start[static_cast<std::size_t>(k) + 1];
+    const Vec3 p_end = point(b_k);
+    stack.push_back({start[static_cast<std::size_t>(k)], b_k, p_start, p_end});
+    p_start = p_end;
     while (!stack.empty()) {
-      const auto [a, b] = stack.back();
+      const Piece piece = stack.back();
+      const double a = piece.a, b = piece.b;
       stack.pop_back();
-      if (chord_deviation(a, b) > spec_.tolerance_mm) {
+      if (chord_deviation(a, piece.pa, b, piece.pb) > spec_.tolerance_mm) {
         if (b - a < kMinSplitTheta || out.size() + stack.size() > ChamferLimits::kMaxPoints) {
           throw InputError("tolerance ε = " + text::sig(spec_.tolerance_mm) +
                            " mm needs more than " + std::to_string(ChamferLimits::kMaxPoints) +
                            " points; use a larger --tolerance");
         }
         const double m = 0.5 * (a + b);
-        stack.emplace_back(m, b);
-        stack.emplace_back(a, m);
+        const Vec3 pm = point(m);
+        stack.push_back({m, b, pm, piece.pb});
+        stack.push_back({a, m, piece.pa, pm});
       } else {
         out.push_back(a);
       }

@@ -187,6 +187,8 @@ class ChamferModel {
   std::vector<double> segment() const;
   // Largest distance between C on [theta0, theta1] and the chord joining its ends.
   double chord_deviation(double theta0, double theta1) const;
+  // The same with the end points C(theta0), C(theta1) given.
+  double chord_deviation(double theta0, const Vec3& p0, double theta1, const Vec3& p1) const;
   const PipeSurface& surface() const { return surface_; }
   const DrillPlacement& placement() const { return placement_; }
 

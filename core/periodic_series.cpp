@@ -85,6 +85,9 @@ std::optional<PeriodicSeries> PeriodicSeries::fit(const std::function<double(dou
       s.b_.push_back(-2.0 * c[k].imag() * scale);
       s.a_over_k_.push_back(s.a_.back() / static_cast<double>(k));
       s.b_over_k_.push_back(s.b_.back() / static_cast<double>(k));
+      s.a_times_k_.push_back(s.a_.back() * static_cast<double>(k));
+      s.b_times_k_.push_back(s.b_.back() * static_cast<double>(k));
+      s.b_over_k_sum_ += s.b_over_k_.back();
     }
     return s;
   }
@@ -95,30 +98,39 @@ double PeriodicSeries::period_integral() const {
   return 2.0 * std::numbers::pi * a0_;
 }
 
-void PeriodicSeries::value_and_integral(double theta, double& value, double& integral) const {
+PeriodicSeries::Sample PeriodicSeries::at(double theta) const {
   const double c1 = std::cos(theta), s1 = std::sin(theta);
-  double ck = c1, sk = s1;  // cos kθ, sin kθ, rotated one step per harmonic
-  value = a0_;
-  integral = a0_ * theta;
-  for (std::size_t i = 0; i < a_.size(); ++i) {
-    value += a_[i] * ck + b_[i] * sk;
-    integral += a_over_k_[i] * sk + b_over_k_[i] * (1.0 - ck);
-    const double next_c = ck * c1 - sk * s1;
-    sk = sk * c1 + ck * s1;
-    ck = next_c;
+  const double c2 = c1 * c1 - s1 * s1, s2 = 2.0 * s1 * c1;  // the step of both chains, 2θ
+  double c_odd = c1, s_odd = s1, c_even = c2, s_even = s2;  // cos kθ, sin kθ, k odd and even
+  double value[2] = {a0_, 0.0}, integral[2] = {a0_ * theta + b_over_k_sum_, 0.0};
+  double slope[2] = {0.0, 0.0};
+  const auto add = [&](std::size_t i, int chain, double c, double s) {
+    value[chain] += a_[i] * c + b_[i] * s;
+    integral[chain] += a_over_k_[i] * s - b_over_k_[i] * c;
+    slope[chain] += b_times_k_[i] * c - a_times_k_[i] * s;
+  };
+  const std::size_t n = a_.size();
+  std::size_t i = 0;
+  for (; i + 1 < n; i += 2) {  // harmonics i + 1 (odd) and i + 2 (even)
+    add(i, 0, c_odd, s_odd);
+    add(i + 1, 1, c_even, s_even);
+    const double c_odd_next = c_odd * c2 - s_odd * s2;
+    s_odd = s_odd * c2 + c_odd * s2;
+    c_odd = c_odd_next;
+    const double c_even_next = c_even * c2 - s_even * s2;
+    s_even = s_even * c2 + c_even * s2;
+    c_even = c_even_next;
   }
+  if (i < n) add(i, 0, c_odd, s_odd);
+  return {value[0] + value[1], integral[0] + integral[1], slope[0] + slope[1]};
 }
 
 double PeriodicSeries::value(double theta) const {
-  double v = 0.0, s = 0.0;
-  value_and_integral(theta, v, s);
-  return v;
+  return at(theta).value;
 }
 
 double PeriodicSeries::integral(double theta) const {
-  double v = 0.0, s = 0.0;
-  value_and_integral(theta, v, s);
-  return s;
+  return at(theta).integral;
 }
 
 }  // namespace ncd

@@ -22,8 +22,9 @@
 // 10⁻¹⁶ |a₀|, so a tolerance much below 10⁻¹⁴ would only measure that noise; harmonics past the
 // last one above 10⁻² · tolerance · |a₀| are left out of the evaluation.
 //
-// Evaluation rotates (cos kθ, sin kθ) from (cos θ, sin θ): rounding grows like k·ε, which for
-// the K < 2048 harmonics allowed here stays below 1e-12 relative and in practice near 1e-15.
+// Evaluation rotates (cos kθ, sin kθ) by 2θ along two independent chains, odd and even k (the
+// two halve the latency of one chain): rounding grows like k·ε, which for the K < 2048 harmonics
+// allowed here stays below 1e-12 relative and in practice near 1e-15.
 #pragma once
 
 #include <functional>
@@ -39,18 +40,26 @@ class PeriodicSeries {
   static std::optional<PeriodicSeries> fit(const std::function<double(double)>& f, double tolerance,
                                            int min_samples, int max_samples);
 
-  double mean() const { return a0_; }   // a₀, the average of f
-  double period_integral() const;       // ∫₀^{2π} f = 2π a₀
-  double value(double theta) const;     // f(θ)
-  double integral(double theta) const;  // F(θ) = ∫₀^θ f
-  void value_and_integral(double theta, double& value, double& integral) const;
+  struct Sample {
+    double value = 0.0;     // f(θ)
+    double integral = 0.0;  // F(θ) = ∫₀^θ f
+    double slope = 0.0;     // f'(θ)
+  };
+
+  double mean() const { return a0_; }                            // a₀, the average of f
+  double period_integral() const;                                // ∫₀^{2π} f = 2π a₀
+  double value(double theta) const;                              // f(θ)
+  double integral(double theta) const;                           // F(θ) = ∫₀^θ f
+  Sample at(double theta) const;                                 // all three at once
   int samples() const { return samples_; }                       // M
   int harmonics() const { return static_cast<int>(a_.size()); }  // K, after trimming
 
  private:
   double a0_ = 0.0;
-  std::vector<double> a_, b_;                // a_k, b_k for k = 1..K
-  std::vector<double> a_over_k_, b_over_k_;  // a_k / k, b_k / k
+  std::vector<double> a_, b_;                  // a_k, b_k for k = 1..K
+  std::vector<double> a_over_k_, b_over_k_;    // a_k / k, b_k / k
+  std::vector<double> a_times_k_, b_times_k_;  // k a_k, k b_k
+  double b_over_k_sum_ = 0.0;                  // Σ b_k / k = F's constant
   int samples_ = 0;
 };
 
