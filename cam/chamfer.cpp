@@ -61,13 +61,15 @@
 // F̃(α) = |CL_xy| − R_R, which we use instead: it is exact (no line–ellipse Newton, no degenerate
 // planes c = 0 at θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is
 // checked on. δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved
-// with Illinois regula falsi instead of plain bisection (same bracket, fewer δ solves); the safe
-// end of the final bracket is returned. A θ where no admissible α clears the rod is
-// reported, never hidden.
+// by Newton on F̃ + ε_α/2 (dF̃/dα by implicit differentiation of eq. 27, bisection where a step
+// leaves the bracket), which stops with F̃ ∈ [−ε_α, 0]: the α returned is on the safe side. A θ
+// where no admissible α clears the rod is reported, never hidden.
 //
-// Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length (composite
-// Gauss–Legendre, panels doubled until the total converges, so the step follows the curvature;
-// Newton on eq. 31 to machine precision), each split at its parametric midpoint
+// Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length: the speed |C'| is smooth
+// and periodic, so its Fourier series (core/periodic_series.hpp, 128 samples for the paper's
+// hole) gives the length and, by Halley's iteration on its antiderivative, each θ_k; composite
+// Gauss–Legendre with Newton on eq. 31 where the series does not converge (a nearly grazing
+// drill) and as the tests' reference. Each piece is split at its parametric midpoint
 // while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
 // we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
 // midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
