@@ -61,13 +61,15 @@
 // F̃(α) = |CL_xy| − R_R, which we use instead: it is exact (no line–ellipse Newton, no degenerate
 // planes c = 0 at θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is
 // checked on. δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved
-// with Illinois regula falsi instead of plain bisection (same bracket, fewer δ solves); the safe
-// end of the final bracket is returned. A θ where no admissible α clears the rod is
-// reported, never hidden.
+// by Newton on F̃ + ε_α/2 (dF̃/dα by implicit differentiation of eq. 27, bisection where a step
+// leaves the bracket), which stops with F̃ ∈ [−ε_α, 0]: the α returned is on the safe side. A θ
+// where no admissible α clears the rod is reported, never hidden.
 //
-// Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length (composite
-// Gauss–Legendre, panels doubled until the total converges, so the step follows the curvature;
-// Newton on eq. 31 to machine precision), each split at its parametric midpoint
+// Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length: the speed |C'| is smooth
+// and periodic, so its Fourier series (core/periodic_series.hpp, 128 samples for the paper's
+// hole) gives the length and, by Halley's iteration on its antiderivative, each θ_k; composite
+// Gauss–Legendre with Newton on eq. 31 where the series does not converge (a nearly grazing
+// drill) and as the tests' reference. Each piece is split at its parametric midpoint
 // while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
 // we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
 // midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
@@ -82,6 +84,7 @@
 #include "cam/chamfer_detail.hpp"
 #include "core/error.hpp"
 #include "core/number_text.hpp"
+#include "core/periodic_series.hpp"
 #include "core/quadrature.hpp"
 
 namespace ncd::toolpath {
@@ -92,14 +95,20 @@ namespace {
 
 constexpr int kMaxNewton = 100;
 constexpr int kMaxAlphaIterations = 200;
-constexpr double kAlphaTolerance = 1e-13;  // relative width of the final α bracket
-constexpr double kRodToleranceMm = 1e-12;  // ε_α of Algorithm 1, on |CL_xy| − R_R
-constexpr double kAlphaMargin = 1e-9;      // keep α strictly inside the admissible range
-constexpr double kMaxAlphaSearch = 1e6;    // where both bounds are infinite (c = 0)
-constexpr int kArcLengthPanels = 64;       // composite GL10 over [0, 2π], doubled until
-constexpr int kMaxArcDoublings = 10;       // the total changes by less than kArcTolerance
-constexpr double kArcTolerance = 1e-14;    // (relative)
-constexpr double kMinSplitTheta = 1e-9;    // a split below this cannot reach ε
+constexpr double kAlphaTolerance = 1e-13;      // relative width of the final α bracket
+constexpr double kDeltaNewtonStepMm = 1e-9;    // last Newton step of G(δ) = 0 (quadratic)
+constexpr double kRodToleranceMm = 1e-12;      // ε_α of Algorithm 1, on |CL_xy| − R_R
+constexpr double kAlphaMargin = 1e-9;          // keep α strictly inside the admissible range
+constexpr double kMaxAlphaSearch = 1e6;        // where both bounds are infinite (c = 0)
+constexpr int kArcLengthPanels = 64;           // composite GL10 over [0, 2π], doubled until
+constexpr int kMaxArcDoublings = 10;           // the total changes by less than kArcTolerance
+constexpr double kArcTolerance = 1e-14;        // (relative)
+constexpr double kMinSplitTheta = 1e-9;        // a split below this cannot reach ε
+constexpr double kSeriesTolerance = 1e-14;     // Fourier series of |C'|: coefficients left out,
+constexpr int kSeriesMinSamples = 64;          // relative to the mean speed; samples from 64 to
+constexpr int kSeriesMaxSamples = 4096;        // 4096, beyond which quadrature takes over
+constexpr double kSeriesNewtonStepRad = 1e-9;  // last Halley step on the series (cubic)
+constexpr double kChordNewtonStepRad = 1e-9;   // last Newton step of the chordal deviation
 
 // Positive root of ζ² + 2 q a ζ + δ² − 2 δ R_B = 0 (eqs. 23, 25), q = R_B − δ.
 double plus_root(double q, double a, double delta, double ball) {
@@ -224,8 +233,12 @@ std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha
     if (g == 0.0) return delta;
     (g < 0.0 ? lo : hi) = delta;
     double next = delta - g / slope;
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // Newton left the bracket
-    if (std::abs(next - delta) <= 4.0 * std::numeric_limits<double>::epsilon() * next) {
+    const bool newton = next > lo && next < hi;
+    if (!newton) next = 0.5 * (lo + hi);  // Newton left the bracket
+    const double step = std::abs(next - delta);
+    // A Newton step below kDeltaNewtonStepMm leaves an error of about its square: done.
+    if (step <= 4.0 * std::numeric_limits<double>::epsilon() * next ||
+        (newton && step <= kDeltaNewtonStepMm)) {
       return next;
     }
     delta = next;
@@ -285,49 +298,72 @@ double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double d
   return pose(f, alpha, delta).cl_radius_mm - *rod_limit_radius_mm();
 }
 
+RodInterference ChamferModel::rod_interference_and_slope(const EdgeFrame& f, double alpha,
+                                                         double delta) const {
+  const double rb = spec_.ball_radius_mm, c = f.c, q = rb - delta;
+  const Vec3 u = f.t1 + alpha * f.t2;
+  const double u_norm = u.norm();
+  const Vec3 e = u.normalized();  // as pose() computes it, so the radius is the one checked
+  const double a = e.dot(f.t1), b = e.dot(f.t2);
+  const double zeta = plus_root(q, a, delta, rb), eta = plus_root(q, b, delta, rb);
+  // G_δ as in solve_delta; G_α at fixed δ from ζ_a = −qζ/(ζ + qa), a' = (c − ab)/|u| and
+  // η_b = −qη/(η + qb), b' = (1 − b²)/|u| (e' = (t2 − b e)/|u|); then δ' = −G_α / G_δ.
+  const double zeta_delta = (a * zeta + q) / (zeta + q * a);
+  const double eta_delta = (b * eta + q) / (eta + q * b);
+  const double g_delta =
+      2.0 * (zeta * zeta_delta + eta * eta_delta - c * (zeta_delta * eta + zeta * eta_delta));
+  const double zeta_alpha = -q * zeta / (zeta + q * a) * (c - a * b) / u_norm;
+  const double eta_alpha = -q * eta / (eta + q * b) * (1.0 - b * b) / u_norm;
+  const double g_alpha = 2.0 * ((zeta - c * eta) * zeta_alpha + (eta - c * zeta) * eta_alpha);
+  const double delta_alpha = -g_alpha / g_delta;
+  // CL = x_p − q e, so CL' = δ' e − q e'.
+  const Vec3 cl = f.xp - q * e;
+  const Vec3 cl_alpha = delta_alpha * e - q * (f.t2 - b * e) / u_norm;
+  const double radius = std::hypot(cl.x(), cl.y());
+  return {radius - *rod_limit_radius_mm(),
+          (cl.x() * cl_alpha.x() + cl.y() * cl_alpha.y()) / radius};
+}
+
 RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
   std::optional<double> last_delta;  // warm start: δ moves little between neighbouring α
-  const auto delta_at = [&](double alpha) {
+  const auto big_f = [&](double alpha) {
     last_delta = solve_delta(f, alpha, last_delta);
     if (!last_delta) (void)pose_at(f.theta_rad, alpha);  // throws the width error, with numbers
-    return *last_delta;
+    return rod_interference_and_slope(f, alpha, *last_delta);
   };
-  const auto big_f = [&](double alpha) { return rod_interference(f, alpha, delta_at(alpha)); };
-  double f_lo = big_f(1.0);
-  if (f_lo <= 0.0) return {1.0, *last_delta, false, true};
+  RodInterference at = big_f(1.0);
+  if (at.value_mm <= 0.0) return {1.0, *last_delta, false, true};
   // Bracket [1, hi] with F(hi) ≤ 0; hi is inside the admissible and global bounds.
   const AlphaRange range = alpha_range(f);
-  double lo = 1.0, hi = 0.0, f_hi = 0.0;
+  double lo = 1.0, hi = 0.0, f_hi = 0.0, x = 1.0;
   if (std::isfinite(range.hi)) {
     hi = range.hi * (1.0 - kAlphaMargin);
-    if (hi <= lo || (f_hi = big_f(hi)) > 0.0) return {1.0, 0.0, false, false};
+    if (hi <= lo || (f_hi = big_f(hi).value_mm) > 0.0) return {1.0, 0.0, false, false};
   } else {
     for (hi = 2.0; hi <= kMaxAlphaSearch; hi *= 2.0) {
-      if ((f_hi = big_f(hi)) <= 0.0) break;
-      lo = hi;
-      f_lo = f_hi;
+      const RodInterference at_hi = big_f(hi);
+      if ((f_hi = at_hi.value_mm) <= 0.0) break;
+      lo = x = hi;
+      at = at_hi;
     }
     if (f_hi > 0.0) return {1.0, 0.0, false, false};
   }
-  // Illinois regula falsi: the bracket always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
+  // Newton on F(α) + ε_α/2 = 0 from the last point with F > 0, so that it lands inside
+  // [−ε_α, 0], on the safe side; bisection where a step would leave the bracket. The bracket
+  // always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
   double delta_hi = *last_delta;
-  int side = 0;
   for (int i = 0;
        i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi && f_hi < -kRodToleranceMm; ++i) {
-    double mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-    if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
-    const double f_mid = big_f(mid);
-    if (f_mid > 0.0) {
-      lo = mid;
-      f_lo = f_mid;
-      if (side == -1) f_hi *= 0.5;
-      side = -1;
+    double next = x - (at.value_mm + 0.5 * kRodToleranceMm) / at.slope_mm;
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    x = next;
+    at = big_f(x);
+    if (at.value_mm > 0.0) {
+      lo = x;
     } else {
-      hi = mid;
-      f_hi = f_mid;
+      hi = x;
+      f_hi = at.value_mm;
       delta_hi = *last_delta;
-      if (side == 1) f_lo *= 0.5;
-      side = 1;
     }
   }
   return {hi, delta_hi, true, true};
@@ -350,18 +386,20 @@ double ChamferModel::arc_length(double theta0, double theta1) const {
 }
 
 double ChamferModel::chord_deviation(double theta0, double theta1) const {
-  const Vec3 p0 = point(theta0), p1 = point(theta1);
+  return chord_deviation(theta0, point(theta0), theta1, point(theta1));
+}
+
+double ChamferModel::chord_deviation(double theta0, const Vec3& p0, double theta1,
+                                     const Vec3& p1) const {
   const Vec3 chord = p1 - p0;
   const double len = chord.norm();
-  const auto distance = [&](double th) {
-    const Vec3 w = point(th) - p0;
-    return len > 0.0 ? w.cross(chord).norm() / len : w.norm();
-  };
   const double mid = 0.5 * (theta0 + theta1);
-  if (len == 0.0) return distance(mid);
+  if (len == 0.0) return (point(mid) - p0).norm();
   // The maximum is where C' ⟂ w⊥ (w⊥ = part of C − p0 normal to the chord): Newton on
   // φ(θ) = C'·w⊥, φ' = C''·w⊥ + |C'⊥|², from the midpoint (eq. 34's sample), kept inside the
-  // piece; every iterate's distance counts.
+  // piece; every iterate's distance counts. Near the maximum the distance d is flat: an iterate
+  // whose next step is below kChordNewtonStepRad is within ½|d''| step² (< 1e-16 mm) of it, so
+  // the iteration stops there.
   const Vec3 u = chord / len;
   double best = 0.0, th = mid;
   for (int i = 0; i < 9; ++i) {
@@ -369,25 +407,53 @@ double ChamferModel::chord_deviation(double theta0, double theta1) const {
     const Vec3 w = j.c - p0;
     const Vec3 w_perp = w - w.dot(u) * u;
     best = std::max(best, w_perp.norm());
-    if (i == 8) break;
     const Vec3 d1_perp = j.d1 - j.d1.dot(u) * u;
     const double phi = j.d1.dot(w_perp);
     const double slope = j.d2.dot(w_perp) + d1_perp.squaredNorm();
     if (slope >= 0.0) break;  // not near a maximum: keep the samples we have
     const double next = th - phi / slope;
-    if (!(next > theta0 && next < theta1)) break;
-    const bool converged = std::abs(next - th) <= 1e-13 * (theta1 - theta0);
+    if (!(next > theta0 && next < theta1) || std::abs(next - th) <= kChordNewtonStepRad) break;
     th = next;
-    if (converged) {
-      const Vec3 wc = point(th) - p0;
-      best = std::max(best, (wc - wc.dot(u) * u).norm());
-      break;
-    }
   }
   return best;
 }
 
-std::vector<double> ChamferModel::segment() const {
+std::optional<PeriodicSeries> ChamferModel::speed_series() const {
+  return PeriodicSeries::fit([this](double th) { return speed(th); }, kSeriesTolerance,
+                             kSeriesMinSamples, kSeriesMaxSamples);
+}
+
+std::vector<double> ChamferModel::equal_arc_starts() const {
+  const auto series = speed_series();
+  if (!series) return equal_arc_starts_by_quadrature();
+  // θ_k solves F(θ) = k L / N, F the series' antiderivative of v = |C'|, whose derivatives v and
+  // v' are the series' value and slope: Halley's iteration (cubic), from the second-order step
+  // Δ = r/v − v' r² / (2 v³) off θ_{k−1}, r = Δs. Once a step is below 1e-9 rad the error left is
+  // of the order of its cube, far below the rounding of F (ε L): stop there.
+  const int n = spec_.initial_segments;
+  const double ds = series->period_integral() / n;
+  std::vector<double> start(static_cast<std::size_t>(n) + 1);
+  start[0] = 0.0;
+  double th = 0.0;
+  PeriodicSeries::Sample at = series->at(0.0);
+  for (int k = 1; k < n; ++k) {
+    const double target = k * ds, rest = target - at.integral;
+    th += rest / at.value - 0.5 * at.slope * rest * rest / (at.value * at.value * at.value);
+    for (int i = 0; i < kMaxNewton; ++i) {
+      at = series->at(th);
+      const double f = at.integral - target;
+      const double step = 2.0 * f * at.value / (2.0 * at.value * at.value - f * at.slope);
+      th -= step;
+      at.integral = target;  // F at the new θ, to within the cube of the step (the next start)
+      if (std::abs(step) <= kSeriesNewtonStepRad) break;
+    }
+    start[static_cast<std::size_t>(k)] = th;
+  }
+  start[static_cast<std::size_t>(n)] = 2.0 * kPi;
+  return start;
+}
+
+std::vector<double> ChamferModel::equal_arc_starts_by_quadrature() const {
   const int n = spec_.initial_segments;
   const double total = arc_length(0.0, 2.0 * kPi);
   const double ds = total / n;
@@ -408,24 +474,41 @@ std::vector<double> ChamferModel::segment() const {
     prev = th;
   }
   start[static_cast<std::size_t>(n)] = 2.0 * kPi;
+  return start;
+}
 
-  // Midpoint splits (eq. 34), depth first so the output stays in θ order.
+std::vector<double> ChamferModel::segment() const {
+  const int n = spec_.initial_segments;
+  const std::vector<double> start = equal_arc_starts();
+
+  // Midpoint splits (eq. 34), depth first so the output stays in θ order. Each piece carries
+  // its end points, so every point of the curve is evaluated once.
+  struct Piece {
+    double a, b;
+    Vec3 pa, pb;
+  };
   std::vector<double> out;
-  std::vector<std::pair<double, double>> stack;
+  std::vector<Piece> stack;
+  Vec3 p_start = point(0.0);
   for (int k = 0; k < n; ++k) {
-    stack.emplace_back(start[static_cast<std::size_t>(k)], start[static_cast<std::size_t>(k) + 1]);
+    const double b_k = start[static_cast<std::size_t>(k) + 1];
+    const Vec3 p_end = point(b_k);
+    stack.push_back({start[static_cast<std::size_t>(k)], b_k, p_start, p_end});
+    p_start = p_end;
     while (!stack.empty()) {
-      const auto [a, b] = stack.back();
+      const Piece piece = stack.back();
+      const double a = piece.a, b = piece.b;
       stack.pop_back();
-      if (chord_deviation(a, b) > spec_.tolerance_mm) {
+      if (chord_deviation(a, piece.pa, b, piece.pb) > spec_.tolerance_mm) {
         if (b - a < kMinSplitTheta || out.size() + stack.size() > ChamferLimits::kMaxPoints) {
           throw InputError("tolerance ε = " + text::sig(spec_.tolerance_mm) +
                            " mm needs more than " + std::to_string(ChamferLimits::kMaxPoints) +
                            " points; use a larger --tolerance");
         }
         const double m = 0.5 * (a + b);
-        stack.emplace_back(m, b);
-        stack.emplace_back(a, m);
+        const Vec3 pm = point(m);
+        stack.push_back({m, b, pm, piece.pb});
+        stack.push_back({a, m, piece.pa, pm});
       } else {
         out.push_back(a);
       }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/geometry.hpp"
+#include "core/periodic_series.hpp"
 
 namespace ncd::toolpath {
 
@@ -127,6 +128,12 @@ struct AlphaRange {
   double hi = 0.0;
 };
 
+// F(α) = |CL_xy| − R_R at one α (with its δ) and dF/dα along δ(α), where G(δ, α) = 0.
+struct RodInterference {
+  double value_mm = 0.0;
+  double slope_mm = 0.0;  // dF/dα
+};
+
 // Outcome of Algorithm 1 at one θ.
 struct RodAvoidance {
   double alpha = 1.0;
@@ -160,15 +167,28 @@ class ChamferModel {
   std::optional<double> rod_limit_radius_mm() const;
   // |CL_xy| − R_R, of the sign of F(α) in eq. (46): > 0 means the rod (or cap) interferes.
   double rod_interference(const EdgeFrame& f, double alpha, double delta) const;
+  // The same F with its derivative in α, δ following α (implicit differentiation of eq. 27).
+  RodInterference rod_interference_and_slope(const EdgeFrame& f, double alpha, double delta) const;
   // Algorithm 1: the smallest α ≥ 1 that keeps the CL within R_R.
   RodAvoidance avoid_rod(const EdgeFrame& f) const;
   // Arc length of C over [theta0, theta1] by Gauss–Legendre (eq. 28).
   double arc_length(double theta0, double theta1) const;
+  // The Fourier series of the speed |C'(θ)| (core/periodic_series.hpp); nullopt where its
+  // coefficients do not fall to 1e-14 of the mean within 4096 samples (a nearly grazing drill).
+  std::optional<PeriodicSeries> speed_series() const;
+  // θ_0 = 0 < θ_1 < … < θ_N = 2π cutting C into N = initial_segments arcs of equal length
+  // (eqs. 29–33): Newton on the series' antiderivative, or by quadrature where there is none.
+  std::vector<double> equal_arc_starts() const;
+  // The same by composite Gauss–Legendre and Newton on each piece's integral (the fallback, and
+  // the reference the series is tested against).
+  std::vector<double> equal_arc_starts_by_quadrature() const;
   // Reference parameters: N equal arcs refined by midpoint splits until every chordal
   // deviation is ≤ ε (eqs. 29–34). Starts at 0, excludes 2π (the loop closes on θ = 0).
   std::vector<double> segment() const;
   // Largest distance between C on [theta0, theta1] and the chord joining its ends.
   double chord_deviation(double theta0, double theta1) const;
+  // The same with the end points C(theta0), C(theta1) given.
+  double chord_deviation(double theta0, const Vec3& p0, double theta1, const Vec3& p1) const;
   const PipeSurface& surface() const { return surface_; }
   const DrillPlacement& placement() const { return placement_; }
 

@@ -39,21 +39,23 @@ void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::
                      fmt_deg(std::abs(spec.pipe_half_angle_rad)) + " of " + pipe +
                      " for a hole through the wall; reduce --drill-tilt-deg");
   }
-  const auto half_gap = [&](double th) {
-    const Quadratic q = generator_quadratic(surf, r, th);
+  const auto half_gap = [](const Quadratic& q) {
     const double d = q.discriminant();
     return d > 0.0 ? std::sqrt(d) / (2.0 * q.qa) : -std::sqrt(-d) / (2.0 * q.qa);
   };
+  const auto half_gap_at = [&](double th) { return half_gap(generator_quadratic(surf, r, th)); };
   int worst = 0;
   double worst_gap = kInf;
   for (int i = 0; i < kPierceScan; ++i) {
     const double th = 2.0 * kPi * i / kPierceScan;
-    const double g = half_gap(th);
+    const double cos_t = std::cos(th), sin_t = std::sin(th);
+    const Quadratic q = generator_quadratic(surf, r, cos_t, sin_t);
+    const double g = half_gap(q);
     if (g < worst_gap) worst_gap = g, worst = i;
     for (const bool upper : {true, false}) {
       if (surf.slope == 0.0) break;  // a cylinder has no far nappe
-      const auto z = quadratic_root(generator_quadratic(surf, r, th), upper);
-      if (z && !(surf.axial_radius(Vec3(r * std::cos(th), r * std::sin(th), *z)) > 0.0)) {
+      const auto z = quadratic_root(q, upper);
+      if (z && !(surf.axial_radius(Vec3(r * cos_t, r * sin_t, *z)) > 0.0)) {
         throw InputError(drill + " meets " + pipe +
                          " beyond the cone's apex at θ = " + fmt_deg(th) +
                          "; move the hole away from the apex (a larger --pipe-radius"
@@ -64,16 +66,21 @@ void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::
   // Golden-section refinement of the smallest gap between the neighbouring samples.
   double lo = 2.0 * kPi * (worst - 1) / kPierceScan, hi = 2.0 * kPi * (worst + 1) / kPierceScan;
   const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
-  for (int i = 0; i < 50; ++i) {
-    const double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
-    if (half_gap(x1) < half_gap(x2)) {
+  double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
+  double g1 = half_gap_at(x1), g2 = half_gap_at(x2);
+  for (int i = 0; i < 50; ++i) {  // one new evaluation per step: the other point is kept
+    if (g1 < g2) {
       hi = x2;
+      x2 = x1, g2 = g1;
+      x1 = hi - gr * (hi - lo), g1 = half_gap_at(x1);
     } else {
       lo = x1;
+      x1 = x2, g1 = g2;
+      x2 = lo + gr * (hi - lo), g2 = half_gap_at(x2);
     }
   }
   const double th = 0.5 * (lo + hi);
-  worst_gap = std::min(worst_gap, half_gap(th));
+  worst_gap = std::min(worst_gap, half_gap_at(th));
   if (!(worst_gap > kMinHalfGapMm)) {
     // θ to 0.01°, in [0°, 360°).
     const double deg = std::round(rad_to_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) * 100.0) / 100.0;
