@@ -10,8 +10,9 @@
 // 0. Tolerance q: G64 Q > 0 gives q = Q. Without Q (G64 P, or a plain G64 taking the machine's
 //    blend_tolerance_mm as P) q = P − ε_c, unless the machine file says fit_dense_runs =
 //    false: setpoints lie on the curve (within q of the polyline), a chord between two of them
-//    within ε_c of the curve, so every programmed point is passed within P by a chord. P ≤ ε_c,
-//    G61, G61.1, G64 P0 and an explicit Q0 fit nothing. Q stands for q below.
+//    within ε_c of the curve, so every programmed point is passed within P by a chord. G61,
+//    G61.1 and an explicit Q0 fit nothing; nor does the default under P ≤ ε_c or G64 P0 (a G64
+//    P0 Q > 0 fits to Q, as before the default existed). Q stands for q below.
 // 1. Runs (inside one segment: a segment is one feed, spindle and mode; the readers merge
 //    consecutive G1 moves of the same feed into one polyline segment). A piece is short when
 //    l ≤ max(√(8 R_ref Q), v_cap T), R_ref = 50 mm: a chord of a circle of radius R within a
@@ -411,12 +412,13 @@ Attempt fit_run(const std::vector<Vec3>& points, double tol) {
 
 // The fit's tolerance for segment s (step 0 at the top of the file); 0: nothing is fitted.
 double smoothing_mm(const PathSegment& s, const MachineLimits& l) {
-  if (sampler_detail::corner_mode(s, l) != PathControl::blend) return 0.0;  // G61, G61.1, P0
-  if (s.smoothing_tolerance_mm) {  // G64 Q: the program's own tolerance (Q0: no fit)
+  if (s.path_control != PathControl::blend) return 0.0;  // G61, G61.1
+  if (s.smoothing_tolerance_mm) {  // G64 Q: the program's own tolerance (Q0: no fit), any P
     const double q = *s.smoothing_tolerance_mm;
     return std::isfinite(q) && q > 0.0 ? q : 0.0;
   }
-  if (!l.fit_dense_runs) return 0.0;
+  // The machine's default fit, within P less the chord tolerance; none under G64 P0.
+  if (!l.fit_dense_runs || sampler_detail::corner_mode(s, l) != PathControl::blend) return 0.0;
   const double q = s.blend_tolerance_mm.value_or(l.blend_tolerance_mm) - l.chord_tolerance_mm;
   return std::isfinite(q) && q > 0.0 ? q : 0.0;
 }

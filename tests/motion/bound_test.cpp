@@ -72,8 +72,12 @@ struct Walk {
   interpolator::FitReport fit;
 };
 
-Walk walk(const Path& path) {
-  Job job(path, test::planner_machine());
+// fit_dense_runs: the machine's default fit of dense runs under G64 P (docs/planner.md §3d);
+// false walks the programmed polyline itself ("raw") unless the program's G64 Q asks for a fit.
+Walk walk(const Path& path, bool fit_dense_runs = true) {
+  motion::JobConfig machine = test::planner_machine();
+  machine.limits.fit_dense_runs = fit_dense_runs;
+  Job job(path, machine);
   const test::GeometryTable program = test::tabulate(path);
   Walk w;
   w.fit = job.fit_report();
@@ -263,12 +267,12 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     row("chamfer (exp. 3, F300)", t, b, "S-curve at F (jerk-limited)");
     EXPECT_GE(t, b - 0.004);
   }
-  // The dense CAM program (issue 13): walked raw, and fitted under G64 P0.01 Q0.01, at the
-  // same chord tolerance. Its limit is F3000 everywhere (R50: chord 158 mm/s, centripetal
+  // The dense CAM program (issue 13): walked raw (the machine's default fit off), and fitted
+  // under G64 P0.01 Q0.01, at the same chord tolerance. Its limit is F3000 everywhere (R50: chord 158 mm/s, centripetal
   // 224 and 368 mm/s), so the S-curve at 50 mm/s is the jerk-limited optimum.
   const double b = test::scurve_time_s(200.0, 50.0, kA, kJ);
   const auto dense_row = [&](const char* name, const Path& p) {
-    const Walk w = walk(p);
+    const Walk w = walk(p, /*fit_dense_runs=*/false);
     row(name, w.t_s, b, "S-curve (jerk-limited)");
     return w;
   };
