@@ -268,8 +268,8 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     EXPECT_GE(t, b - 0.004);
   }
   // The dense CAM program (issue 13): walked raw (the machine's default fit off), and fitted
-  // under G64 P0.01 Q0.01, at the same chord tolerance. Its limit is F3000 everywhere (R50: chord 158 mm/s, centripetal
-  // 224 and 368 mm/s), so the S-curve at 50 mm/s is the jerk-limited optimum.
+  // under G64 P0.01 Q0.01, at the same chord tolerance. Its limit is F3000 everywhere (R50: chord
+  // 158 mm/s, centripetal 224 and 368 mm/s), so the S-curve at 50 mm/s is the jerk-limited optimum.
   const double b = test::scurve_time_s(200.0, 50.0, kA, kJ);
   const auto dense_row = [&](const char* name, const Path& p) {
     const Walk w = walk(p, /*fit_dense_runs=*/false);
