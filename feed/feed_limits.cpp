@@ -73,11 +73,16 @@ bool MachineLimits::has_axis_jerk() const {
 }
 
 FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, const Vec3& k) {
+  return axis_feed_floor(limits, t.cwiseAbs(), k.cwiseAbs(), k.norm());
+}
+
+FeedLimitResult axis_feed_floor(const MachineLimits& limits, const Vec3& t_abs, const Vec3& k_abs,
+                                double kappa_per_mm) {
   FeedLimitResult r{kInf, FeedLimit::MaxFeed};
-  const double kappa = k.norm(), keep = 1.0 - kAxisTangentialShare;
+  const double keep = 1.0 - kAxisTangentialShare;
   for (int i = 0; i < 3; ++i) {
     const AxisLimits& ax = limits.axes[static_cast<std::size_t>(i)];
-    const double ti = std::abs(t[i]), ki = std::abs(k[i]);
+    const double ti = t_abs[i], ki = k_abs[i];
     if (ti > 0.0 && ax.max_feed_mm_per_min / 60.0 / ti < r.feed_mm_per_s) {
       r = {ax.max_feed_mm_per_min / 60.0 / ti, FeedLimit::MaxFeed};
     }
@@ -85,8 +90,8 @@ FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, cons
       const double v = std::sqrt(keep * ax.max_accel_mm_per_s2 / ki);
       if (v < r.feed_mm_per_s) r = {v, FeedLimit::CentripetalAccel};
     }
-    if (ti > 0.0 && kappa > 0.0) {
-      const double v = std::cbrt(keep * ax.max_jerk_mm_per_s3 / (kappa * kappa * ti));
+    if (ti > 0.0 && kappa_per_mm > 0.0) {
+      const double v = std::cbrt(keep * ax.max_jerk_mm_per_s3 / (kappa_per_mm * kappa_per_mm * ti));
       if (v < r.feed_mm_per_s) r = {v, FeedLimit::CentripetalJerk};
     }
   }

@@ -202,6 +202,7 @@ class LimitSampler {
   // |P_i| of its control points (the scale of the rounding error of eval()).
   struct SpanBound {
     double d2_max, p_max;
+    Vec3 d1_abs, d2_abs;  // per axis, the largest |C'_i| and |C''_i| (hodographs' hulls)
   };
   std::vector<std::vector<SpanBound>> span_bounds_;
   // Per segment: the law's parameters, whether it caps the segment (1) and its value at α = 0,

@@ -281,8 +281,8 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
   }
   if (!c1) return;
   // First and second hodographs (Piegl and Tiller eq. 3.8): Q_i = p (P_i+1 − P_i) /
-  // (u_i+p+1 − u_i+1), R_i = (p − 1)(Q_i+1 − Q_i) / (u_i+p+1 − u_i+2); on span s, C'' is a
-  // convex combination of R_s−p … R_s−2.
+  // (u_i+p+1 − u_i+1), R_i = (p − 1)(Q_i+1 − Q_i) / (u_i+p+1 − u_i+2); on span s, C' is a
+  // convex combination of Q_s−p … Q_s−1 and C'' of R_s−p … R_s−2 (so per axis too).
   const std::size_t np = P.size();
   std::vector<Vec3> q(np - 1), r(np - 2);
   for (std::size_t i = 0; i + 1 < np; ++i) {
@@ -294,12 +294,17 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
     finite = finite && r[i].allFinite();
   }
   if (!finite) return;
-  bounds.assign(U.size(), SpanBound{kInf, kInf});
+  bounds.assign(U.size(), SpanBound{kInf, kInf, Vec3::Constant(kInf), Vec3::Constant(kInf)});
   for (std::size_t sp = p; sp < np; ++sp) {
     double d2 = 0.0, pm = 0.0;
-    for (std::size_t i = sp - p; i + 2 <= sp; ++i) d2 = std::max(d2, r[i].norm());
+    Vec3 d1_abs = Vec3::Zero(), d2_abs = Vec3::Zero();
+    for (std::size_t i = sp - p; i + 1 <= sp; ++i) d1_abs = d1_abs.cwiseMax(q[i].cwiseAbs());
+    for (std::size_t i = sp - p; i + 2 <= sp; ++i) {
+      d2 = std::max(d2, r[i].norm());
+      d2_abs = d2_abs.cwiseMax(r[i].cwiseAbs());
+    }
     for (std::size_t i = sp - p; i <= sp; ++i) pm = std::max(pm, P[i].norm());
-    bounds[sp] = {d2, pm};
+    bounds[sp] = {d2, pm, d1_abs, d2_abs};
   }
 }
 
