@@ -302,11 +302,17 @@ void LimitSampler::curve_interval(const toolpath::NurbsCurve& c, Interval& iv) {
   iv.axis_accel_factor = 1.0;
   iv.rest_speed = raised;
   if (limits_.has_axis_limits()) curve_tangent_max(c, u_, u1, iv);
-  if (limits_.jerk_bound == JerkBound::vector || limits_.has_axis_jerk()) {
-    curve_turn(segment_, u_, u1, iv);
-  }
+  const bool vector = limits_.jerk_bound == JerkBound::vector;
+  if (vector) curve_turn(segment_, u_, u1, speed, iv);
   apply_zones(iv);
   bound_jerk_vector(iv);
+  // Per-axis jerk alone reads curve_turn's figures only in bound_axis_curve_jerk, which leaves
+  // an interval raised to the rest speed, or one the span's bounds prove within every axis's
+  // budget, as it is (axis_curve_jerk_holds): those skip its nine evaluations.
+  if (!vector && limits_.has_axis_jerk() && !iv.rest_speed &&
+      !axis_curve_jerk_holds(segment_, u_, u1, speed, iv)) {
+    curve_turn(segment_, u_, u1, speed, iv);
+  }
   bound_axis_curve_jerk(iv);
   s_ = iv.b_mm;
   u_ = u1;

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "core/jerk_vector.hpp"
@@ -109,7 +110,15 @@ class LimitSampler {
   void bound_jerk_vector(Interval& iv) const;
   void bound_axis_curve_jerk(Interval& iv) const;
   JerkVectorSpan jerk_span_of(const Interval& iv) const;
-  void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;
+  void curve_turn(std::size_t segment, double u0, double u1, double speed_u0, Interval& iv) const;
+  // The parameter range curve_turn samples for the interval [u0, u1] (within one knot span;
+  // speed_u0 = |C'(u0)|).
+  std::pair<double, double> turn_range(std::size_t segment, double u0, double u1,
+                                       double speed_u0) const;
+  // Whether bounds from the span's hodographs prove that bound_axis_curve_jerk, given what
+  // curve_turn would sample, changes nothing on the interval (then curve_turn is skipped).
+  bool axis_curve_jerk_holds(std::size_t segment, double u0, double u1, double speed_u0,
+                             const Interval& iv) const;
   double piece_curvature_per_mm(std::size_t segment, std::size_t piece) const;
   // JerkBound::vector, dense runs: a vertex's discrete curvature vector, and its jump there.
   Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
@@ -203,6 +212,8 @@ class LimitSampler {
   struct SpanBound {
     double d2_max, p_max;
     Vec3 d1_abs, d2_abs;  // per axis, the largest |C'_i| and |C''_i| (hodographs' hulls)
+    double d3_max;        // the largest |C'''| (0 for degree 2)
+    Vec3 d3_abs;          // per axis, the largest |C'''_i|
   };
   std::vector<std::vector<SpanBound>> span_bounds_;
   // Per segment: the law's parameters, whether it caps the segment (1) and its value at α = 0,

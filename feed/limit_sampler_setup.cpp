@@ -294,17 +294,30 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
     finite = finite && r[i].allFinite();
   }
   if (!finite) return;
-  bounds.assign(U.size(), SpanBound{kInf, kInf, Vec3::Constant(kInf), Vec3::Constant(kInf)});
+  // The third hodograph (degree ≥ 3): T_i = (p − 2)(R_i+1 − R_i) / (u_i+p+1 − u_i+3); on span
+  // s, C''' is a convex combination of T_s−p … T_s−3.
+  std::vector<Vec3> t3(p >= 3 ? np - 3 : 0);
+  for (std::size_t i = 0; i < t3.size(); ++i) {
+    t3[i] = static_cast<double>(p - 2) * (r[i + 1] - r[i]) / (U[i + p + 1] - U[i + 3]);
+  }
+  const Vec3 inf3 = Vec3::Constant(kInf);
+  bounds.assign(U.size(), SpanBound{kInf, kInf, inf3, inf3, kInf, inf3});
   for (std::size_t sp = p; sp < np; ++sp) {
-    double d2 = 0.0, pm = 0.0;
-    Vec3 d1_abs = Vec3::Zero(), d2_abs = Vec3::Zero();
+    double d2 = 0.0, pm = 0.0, d3 = 0.0;
+    Vec3 d1_abs = Vec3::Zero(), d2_abs = Vec3::Zero(), d3_abs = Vec3::Zero();
     for (std::size_t i = sp - p; i + 1 <= sp; ++i) d1_abs = d1_abs.cwiseMax(q[i].cwiseAbs());
     for (std::size_t i = sp - p; i + 2 <= sp; ++i) {
       d2 = std::max(d2, r[i].norm());
       d2_abs = d2_abs.cwiseMax(r[i].cwiseAbs());
     }
+    for (std::size_t i = sp - p; i + 3 <= sp && p >= 3; ++i) {
+      d3 = std::max(d3, t3[i].norm());
+      d3_abs = d3_abs.cwiseMax(t3[i].cwiseAbs());
+    }
     for (std::size_t i = sp - p; i <= sp; ++i) pm = std::max(pm, P[i].norm());
-    bounds[sp] = {d2, pm, d1_abs, d2_abs};
+    // (A third hodograph that overflows leaves the span without a jerk bound: +inf.)
+    if (!std::isfinite(d3) || !d3_abs.allFinite()) d3 = kInf, d3_abs = inf3;
+    bounds[sp] = {d2, pm, d1_abs, d2_abs, d3, d3_abs};
   }
 }
 
