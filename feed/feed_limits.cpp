@@ -73,16 +73,11 @@ bool MachineLimits::has_axis_jerk() const {
 }
 
 FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, const Vec3& k) {
-  return axis_feed_floor(limits, t.cwiseAbs(), k.cwiseAbs(), k.norm());
-}
-
-FeedLimitResult axis_feed_floor(const MachineLimits& limits, const Vec3& t_abs, const Vec3& k_abs,
-                                double kappa_per_mm) {
   FeedLimitResult r{kInf, FeedLimit::MaxFeed};
-  const double keep = 1.0 - kAxisTangentialShare;
+  const double kappa = k.norm(), keep = 1.0 - kAxisTangentialShare;
   for (int i = 0; i < 3; ++i) {
     const AxisLimits& ax = limits.axes[static_cast<std::size_t>(i)];
-    const double ti = t_abs[i], ki = k_abs[i];
+    const double ti = std::abs(t[i]), ki = std::abs(k[i]);
     if (ti > 0.0 && ax.max_feed_mm_per_min / 60.0 / ti < r.feed_mm_per_s) {
       r = {ax.max_feed_mm_per_min / 60.0 / ti, FeedLimit::MaxFeed};
     }
@@ -90,12 +85,28 @@ FeedLimitResult axis_feed_floor(const MachineLimits& limits, const Vec3& t_abs, 
       const double v = std::sqrt(keep * ax.max_accel_mm_per_s2 / ki);
       if (v < r.feed_mm_per_s) r = {v, FeedLimit::CentripetalAccel};
     }
-    if (ti > 0.0 && kappa_per_mm > 0.0) {
-      const double v = std::cbrt(keep * ax.max_jerk_mm_per_s3 / (kappa_per_mm * kappa_per_mm * ti));
+    if (ti > 0.0 && kappa > 0.0) {
+      const double v = std::cbrt(keep * ax.max_jerk_mm_per_s3 / (kappa * kappa * ti));
       if (v < r.feed_mm_per_s) r = {v, FeedLimit::CentripetalJerk};
     }
   }
   return r;
+}
+
+bool axis_laws_above(const MachineLimits& limits, const Vec3& t_abs, const Vec3& k_abs,
+                     double kappa_per_mm, double v) {
+  const double keep = 1.0 - kAxisTangentialShare;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const AxisLimits& ax = limits.axes[i];
+    const double ti = t_abs[static_cast<int>(i)], ki = k_abs[static_cast<int>(i)];
+    if (ti > 0.0 && !(ax.max_feed_mm_per_min / 60.0 > v * ti)) return false;
+    if (ki > 0.0 && !(keep * ax.max_accel_mm_per_s2 > v * v * ki)) return false;
+    if (ti > 0.0 && kappa_per_mm > 0.0 &&
+        !(keep * ax.max_jerk_mm_per_s3 > v * v * v * kappa_per_mm * kappa_per_mm * ti)) {
+      return false;
+    }
+  }
+  return true;
 }
 
 // The walker puts each setpoint on the planned arc length to feed_tolerance_rel of the

@@ -38,7 +38,9 @@ struct SamplerConfig {
   double spacing_mm = 0.2;  // longest interval between nodes on a curve or a line
   // Skip the search for an interval's minimum where a bound on the curvature proves that the
   // limit is the segment's cap all along (the nodes are the same bit for bit, see
-  // limit_sampler.cpp, "Flat intervals"); false searches every interval (the reference).
+  // limit_sampler.cpp, "Flat intervals"), and, under per-axis jerk limits, the nine-point
+  // sampling of an interval's curvature vector where a bound proves the axes' curve-jerk law
+  // changes nothing; false searches and samples every interval (the reference).
   bool skip_flat_intervals = true;
 };
 
@@ -67,6 +69,8 @@ class LimitSampler {
   // Curve intervals streamed so far, and how many of them were flat (no search needed).
   std::size_t curve_intervals() const { return curve_intervals_; }
   std::size_t flat_intervals() const { return flat_intervals_; }
+  // Curve intervals whose curve-jerk sampling (per-axis jerk) a bound showed idle.
+  std::size_t axis_turn_skips() const { return axis_turn_skips_; }
 
   // The feed limit at a point of segment `segment` (curve parameter u, or polyline piece and
   // fraction), without corners: what a setpoint there is checked against.
@@ -106,7 +110,9 @@ class LimitSampler {
     double axis_accel_factor = 1.0;
   };
   void axis_bound(Interval& iv) const;
-  void curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1, Interval& iv) const;
+  // d1_u0: C'(u0), as NurbsCurve::derivative gives it.
+  void curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1, const Vec3& d1_u0,
+                         Interval& iv) const;
   void bound_jerk_vector(Interval& iv) const;
   void bound_axis_curve_jerk(Interval& iv) const;
   JerkVectorSpan jerk_span_of(const Interval& iv) const;
@@ -247,7 +253,7 @@ class LimitSampler {
   std::vector<std::vector<double>> dips_;
   double s_ = 0.0;  // arc length reached
   bool started_ = false, finished_ = false;
-  std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
+  std::size_t curve_intervals_ = 0, flat_intervals_ = 0, axis_turn_skips_ = 0;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
   bool fine_ = false;             // the limit is below the cap and changing: half the spacing
   // The last curve interval's limit (+inf: none yet in this segment).

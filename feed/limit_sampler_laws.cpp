@@ -306,6 +306,7 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
                 centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
                 centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3)});
   if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_[segment]);
+  const double threshold = segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
   if (limits_.has_axis_limits()) {
     // The axis laws at bounds of |t_i| and |k_i|: t = C' / |C'|, and k = (C'' − (t·C'') t) / |C'|²
     // (the curvature vector), so |t_i| ≤ max|C'_i| / min|C'| and |k_i| ≤ (max|C''_i| + |t_i|
@@ -316,10 +317,9 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
     const Vec3 k_abs =
         ((d2_abs + Vec3::Constant(e2) + (d2 + e2) * t_abs) * (grow / (d1_min * d1_min)))
             .cwiseMin(kappa);
-    const FeedLimitResult ax = axis_feed_floor(limits_, t_abs, k_abs, kappa);
-    floor_mm_per_s = std::min(floor_mm_per_s, ax.feed_mm_per_s);
+    if (!axis_laws_above(limits_, t_abs, k_abs, kappa, threshold)) return false;
   }
-  return floor_mm_per_s > segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
+  return floor_mm_per_s > threshold;
 }
 
 FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0, double u1,
@@ -602,9 +602,9 @@ bool LimitSampler::axis_curve_jerk_holds(std::size_t segment, double u0, double 
 // larger of its end values by at most θ²/8: four times that, measured, not proven); 1 on an
 // axis where a sample has no tangent (|C'| = 0: a repeated control point).
 void LimitSampler::curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1,
-                                     Interval& iv) const {
+                                     const Vec3& d1_u0, Interval& iv) const {
   const double u_end = u1 < c.u_end() ? std::max(u0, std::nextafter(u1, -kInf)) : u1;
-  const Vec3 t[3] = {unit_or_zero(c.derivative(u0)), unit_or_zero(c.derivative(0.5 * (u0 + u_end))),
+  const Vec3 t[3] = {unit_or_zero(d1_u0), unit_or_zero(c.derivative(0.5 * (u0 + u_end))),
                      unit_or_zero(c.derivative(u_end))};
   iv.bends = c.degree() >= 2;
   if (t[0].isZero() || t[1].isZero() || t[2].isZero()) {
