@@ -56,8 +56,12 @@
 //
 // with margins for the rounding of eval(); the curve laws are decreasing in κ, and the
 // roughness law is smallest at α = 0 (docs/feedrate.md §1), so the limit is at least
-// min(roughness(0), chord(κ_max), accel(κ_max), jerk(κ_max)). The interval is flat if that
-// exceeds the cap by 1e-6 (relative). Rational curves and corners at knots always search.
+// min(roughness(0), chord(κ_max), accel(κ_max), jerk(κ_max)), and with per-axis limits the axis
+// laws at |t_i| ≤ max|C'_i| / min|C'| and |k_i| ≤ (max|C''_i| + |t_i| M2) / min|C'|² (the
+// hodographs' hulls per axis). The interval is flat if that exceeds the cap by 1e-6
+// (relative). Rational curves and corners at knots always search. Under per-axis jerk the
+// same tables spare an interval curve_turn's nine points where they prove the axes' curve-jerk
+// law idle (axis_curve_jerk_holds, limit_sampler_laws.cpp).
 //
 // Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
 // stretches between stops separately, and takes each node's left and right interval values
