@@ -217,11 +217,15 @@ class LimitSampler {
   // |P_i| of its control points (the scale of the rounding error of eval()).
   struct SpanBound {
     double d2_max, p_max;
-    Vec3 d1_abs, d2_abs;  // per axis, the largest |C'_i| and |C''_i| (hodographs' hulls)
-    double d3_max;        // the largest |C'''| (0 for degree 2)
-    Vec3 d3_abs;          // per axis, the largest |C'''_i|
   };
   std::vector<std::vector<SpanBound>> span_bounds_;
+  // With per-axis limits only (80 B a knot): per axis, the largest |C'_i|, |C''_i| and
+  // |C'''_i| on each span, and the largest |C'''| (0 for degree 2), from the hodographs' hulls.
+  struct SpanAxisBound {
+    Vec3 d1_abs, d2_abs, d3_abs;
+    double d3_max;
+  };
+  std::vector<std::vector<SpanAxisBound>> span_axis_bounds_;
   // Per segment: the law's parameters, whether it caps the segment (1) and its value at α = 0,
   // its minimum over α (+inf where it does not cap).
   std::vector<CuttingParams> seg_cutting_;
@@ -234,7 +238,8 @@ class LimitSampler {
   void add_inner_knots(std::size_t k, const toolpath::NurbsCurve& c);
   void add_vertex_stops(std::size_t k, const toolpath::Polyline& line);
   void add_knot_edges(std::size_t k, const toolpath::NurbsCurve& c);
-  static void bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds);
+  static void bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds,
+                          std::vector<SpanAxisBound>* axis_bounds);
   void add_joint_edges();
   // The cutting laws at curvature κ and inclination α on segment `segment` (not a rapid).
   FeedLimitResult cutting_limit(std::size_t segment, double curvature_per_mm,

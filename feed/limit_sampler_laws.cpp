@@ -292,8 +292,10 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
     e1 = std::max(e1, 1e-12 * terms * 2.0 * pp / h * bounds[s].p_max);
     e2 = std::max(e2, 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * bounds[s].p_max);
     d2 = std::max(d2, bounds[s].d2_max);
-    d1_abs = d1_abs.cwiseMax(bounds[s].d1_abs);
-    d2_abs = d2_abs.cwiseMax(bounds[s].d2_abs);
+    if (!span_axis_bounds_.empty()) {
+      d1_abs = d1_abs.cwiseMax(span_axis_bounds_[segment][s].d1_abs);
+      d2_abs = d2_abs.cwiseMax(span_axis_bounds_[segment][s].d2_abs);
+    }
   }
   // |C'(u)| ≥ |C'(u0)| − max|C''| |u − u0| (C' is continuous), and κ = |C' × C''| / |C'|³ ≤
   // |C''| / |C'|².
@@ -554,7 +556,7 @@ void LimitSampler::bound_axis_curve_jerk(Interval& iv) const {
 bool LimitSampler::axis_curve_jerk_holds(std::size_t segment, double u0, double u1, double speed_u0,
                                          const Interval& iv) const {
   const auto& bounds = span_bounds_[segment];
-  if (bounds.empty() || !(speed_u0 > 0.0)) return false;
+  if (bounds.empty() || span_axis_bounds_.empty() || !(speed_u0 > 0.0)) return false;
   const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
   const auto [lo, hi] = turn_range(segment, u0, u1, speed_u0);
   if (!(hi > lo)) return false;
@@ -563,11 +565,12 @@ bool LimitSampler::axis_curve_jerk_holds(std::size_t segment, double u0, double 
   const auto& U = c.knots();
   const double h = U[sp + 1] - U[sp];
   if (!(h > 0.0)) return false;
-  const SpanBound& b = bounds[sp];
+  const SpanBound& b0 = bounds[sp];
+  const SpanAxisBound& b = span_axis_bounds_[segment][sp];
   const double pp = static_cast<double>(c.degree()), terms = pp + 1.0;
-  const double e1 = 1e-12 * terms * 2.0 * pp / h * b.p_max;
-  const double e2 = 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * b.p_max;
-  const double m2 = b.d2_max + e2;
+  const double e1 = 1e-12 * terms * 2.0 * pp / h * b0.p_max;
+  const double e2 = 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * b0.p_max;
+  const double m2 = b0.d2_max + e2;
   const double S = speed_u0 - m2 * std::max(u0 - lo, hi - u0) - 2.0 * e1;
   if (!(S > 0.0)) return false;
   const double grow = 1.0 + 1e-9;

@@ -128,9 +128,10 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   // Flat intervals: the bounds of every span of the curves that qualify (see the top of
   // limit_sampler.cpp).
   span_bounds_.resize(n);
+  if (limits_.has_axis_limits()) span_axis_bounds_.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
     if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
-      bound_spans(*c, span_bounds_[k]);
+      bound_spans(*c, span_bounds_[k], limits_.has_axis_limits() ? &span_axis_bounds_[k] : nullptr);
     }
   }
   add_joint_edges();
@@ -267,7 +268,8 @@ void LimitSampler::add_knot_edges(std::size_t k, const toolpath::NurbsCurve& c) 
 // "Flat intervals" (top of limit_sampler.cpp): for a non-rational C¹ curve of degree ≥ 2, per
 // knot span the largest |C''| (its second hodograph's control points) and the largest |P_i|;
 // bounds stays empty for any other curve.
-void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds) {
+void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds,
+                               std::vector<SpanAxisBound>* axis_bounds) {
   if (c.rational() || c.degree() < 2) return;
   const auto p = static_cast<std::size_t>(c.degree());
   const auto& U = c.knots();
@@ -301,7 +303,8 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
     t3[i] = static_cast<double>(p - 2) * (r[i + 1] - r[i]) / (U[i + p + 1] - U[i + 3]);
   }
   const Vec3 inf3 = Vec3::Constant(kInf);
-  bounds.assign(U.size(), SpanBound{kInf, kInf, inf3, inf3, kInf, inf3});
+  bounds.assign(U.size(), SpanBound{kInf, kInf});
+  if (axis_bounds) axis_bounds->assign(U.size(), SpanAxisBound{inf3, inf3, inf3, kInf});
   for (std::size_t sp = p; sp < np; ++sp) {
     double d2 = 0.0, pm = 0.0, d3 = 0.0;
     Vec3 d1_abs = Vec3::Zero(), d2_abs = Vec3::Zero(), d3_abs = Vec3::Zero();
@@ -315,9 +318,10 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
       d3_abs = d3_abs.cwiseMax(t3[i].cwiseAbs());
     }
     for (std::size_t i = sp - p; i <= sp; ++i) pm = std::max(pm, P[i].norm());
+    bounds[sp] = {d2, pm};
     // (A third hodograph that overflows leaves the span without a jerk bound: +inf.)
     if (!std::isfinite(d3) || !d3_abs.allFinite()) d3 = kInf, d3_abs = inf3;
-    bounds[sp] = {d2, pm, d1_abs, d2_abs, d3, d3_abs};
+    if (axis_bounds) (*axis_bounds)[sp] = {d1_abs, d2_abs, d3_abs, d3};
   }
 }
 
