@@ -255,7 +255,7 @@ class Planner {
   };
   AxisScale window_axis_scale() const;
   // The window's smallest accel_scale and jerk_scale, kept as samples come and go (a scan of
-  // the window every period cost a third of the replay: docs/planner.md §6).
+  // the window every period was 12 % of the slow-Z spiral replay: docs/planner.md §4).
   SlidingMin accel_scale_min_, jerk_scale_min_;
   AxisScale axis_scale_at(double s_mm) const;
   // A landing's limits: a_max and j_max times the window's axis scales (the landing runs to L
