@@ -54,6 +54,42 @@ BENCHMARK(BM_ReplaySpiral)
     ->Args({20, 1})
     ->Unit(benchmark::kMillisecond);
 
+// The same replay with per-axis limits (docs/planner.md §3f, §6): Arg 0, none (the baseline,
+// in the same run); 1, examples/machine-slow-z.toml's Z (1500 mm/min, 250 mm/s², 4000 mm/s³);
+// 2, that Z and X and Y at 10 000 mm/s³. The work per period the 300 000 periods per
+// CPU second asks of a machine with axis limits.
+void BM_ReplaySpiralAxes(benchmark::State& state) {
+  const toolpath::Path path = toolpath::spiral_path(20);
+  JobConfig cfg;
+  if (state.range(0) >= 1) {
+    cfg.limits.axes[2].max_feed_mm_per_min = 1500.0;
+    cfg.limits.axes[2].max_accel_mm_per_s2 = 250.0;
+    cfg.limits.axes[2].max_jerk_mm_per_s3 = 4000.0;
+  }
+  if (state.range(0) >= 2) {
+    cfg.limits.axes[0].max_jerk_mm_per_s3 = 10000.0;
+    cfg.limits.axes[1].max_jerk_mm_per_s3 = 10000.0;
+  }
+  std::int64_t periods = 0;
+  for (auto _ : state) {
+    Job job(path, cfg);
+    for (;;) {
+      job.prepare();
+      const Setpoint sp = job.step();
+      ++periods;
+      if (sp.done) break;
+    }
+  }
+  state.counters["periods_per_s"] =
+      benchmark::Counter(static_cast<double>(periods), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_ReplaySpiralAxes)
+    ->ArgName("axes")
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond);
+
 // `ncd replay`'s loop with its per-setpoint statistics (the feed limit and the roughness at the
 // new position, motion::record), two ways on the 20-turn spiral: Arg 0, the job stepped
 // directly as replay did before it ran on the service library (the baseline); Arg 1, the same

@@ -93,6 +93,22 @@ FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& t, cons
   return r;
 }
 
+bool axis_laws_above(const MachineLimits& limits, const Vec3& t_abs, const Vec3& k_abs,
+                     double kappa_per_mm, double v) {
+  const double keep = 1.0 - kAxisTangentialShare;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const AxisLimits& ax = limits.axes[i];
+    const double ti = t_abs[static_cast<int>(i)], ki = k_abs[static_cast<int>(i)];
+    if (ti > 0.0 && !(ax.max_feed_mm_per_min / 60.0 > v * ti)) return false;
+    if (ki > 0.0 && !(keep * ax.max_accel_mm_per_s2 > v * v * ki)) return false;
+    if (ti > 0.0 && kappa_per_mm > 0.0 &&
+        !(keep * ax.max_jerk_mm_per_s3 > v * v * v * kappa_per_mm * kappa_per_mm * ti)) {
+      return false;
+    }
+  }
+  return true;
+}
+
 // The walker puts each setpoint on the planned arc length to feed_tolerance_rel of the
 // period's step (docs/feedrate.md), so a second difference of the setpoints may differ from
 // the planned motion's by 2 tol v T / T², a third by 4 tol v T / T³ (v up to the maximum

@@ -111,6 +111,11 @@ struct FeedLimitResult {
 // jerk v³ κ |k_i| ... see feed_limits.cpp; +inf (MaxFeed) without axis limits.
 FeedLimitResult axis_feed_limit(const MachineLimits& limits, const Vec3& unit_tangent,
                                 const Vec3& curvature_vector_per_mm);
+// Whether every law of axis_feed_limit is above v with |t_i|, |k_i| and κ given separately
+// (each law falls as they grow: at bounds of them over a stretch, whether axis_feed_limit is
+// above v all over it; the flat-interval test). Compared as v, v² and v³: no root is taken.
+bool axis_laws_above(const MachineLimits& limits, const Vec3& tangent_abs,
+                     const Vec3& curvature_abs_per_mm, double curvature_per_mm, double v);
 // The tangential acceleration and jerk the axes allow on a stretch whose unit tangent has
 // components at most tangent_max[i] and which bends an axis where bends[i] (then that axis keeps
 // kAxisTangentialShare of its limit for the tangential motion): as fractions of the path's

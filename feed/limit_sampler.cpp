@@ -56,8 +56,12 @@
 //
 // with margins for the rounding of eval(); the curve laws are decreasing in κ, and the
 // roughness law is smallest at α = 0 (docs/feedrate.md §1), so the limit is at least
-// min(roughness(0), chord(κ_max), accel(κ_max), jerk(κ_max)). The interval is flat if that
-// exceeds the cap by 1e-6 (relative). Rational curves and corners at knots always search.
+// min(roughness(0), chord(κ_max), accel(κ_max), jerk(κ_max)), and with per-axis limits the axis
+// laws at |t_i| ≤ max|C'_i| / min|C'| and |k_i| ≤ (max|C''_i| + |t_i| M2) / min|C'|² (the
+// hodographs' hulls per axis). The interval is flat if that exceeds the cap by 1e-6
+// (relative). Rational curves and corners at knots always search. Under per-axis jerk the
+// same tables spare an interval curve_turn's nine points where they prove the axes' curve-jerk
+// law idle (axis_curve_jerk_holds, limit_sampler_laws.cpp).
 //
 // Stops (stops_mm()): where the motion must rest, no zone is applied; the job plans the
 // stretches between stops separately, and takes each node's left and right interval values
@@ -279,7 +283,8 @@ void LimitSampler::piece_interval(const toolpath::Polyline& line, Interval& iv) 
 // where it is the innermost one at a rest, then its curvature, tangents, corner zones and
 // jerk-vector bound.
 void LimitSampler::curve_interval(const toolpath::NurbsCurve& c, Interval& iv) {
-  const double speed = c.derivative(u_).norm();
+  const Vec3 d1_u0 = c.derivative(u_);
+  const double speed = d1_u0.norm();
   double u1 = curve_step_end_u(c, speed);
   RestEnds rest{};
   refine_towards_rest_start(c, u1, rest);
@@ -301,12 +306,21 @@ void LimitSampler::curve_interval(const toolpath::NurbsCurve& c, Interval& iv) {
   iv.axis_jump_share = iv.k_axis = iv.g_axis = Vec3::Zero();
   iv.axis_accel_factor = 1.0;
   iv.rest_speed = raised;
-  if (limits_.has_axis_limits()) curve_tangent_max(c, u_, u1, iv);
-  if (limits_.jerk_bound == JerkBound::vector || limits_.has_axis_jerk()) {
-    curve_turn(segment_, u_, u1, iv);
-  }
+  if (limits_.has_axis_limits()) curve_tangent_max(c, u_, u1, d1_u0, iv);
+  const bool vector = limits_.jerk_bound == JerkBound::vector;
+  if (vector) curve_turn(segment_, u_, u1, speed, iv);
   apply_zones(iv);
   bound_jerk_vector(iv);
+  // Per-axis jerk alone reads curve_turn's figures only in bound_axis_curve_jerk, which leaves
+  // an interval raised to the rest speed, or one the span's bounds prove within every axis's
+  // budget, as it is (axis_curve_jerk_holds): those skip its nine evaluations.
+  if (!vector && limits_.has_axis_jerk() && !iv.rest_speed) {
+    if (config_.skip_flat_intervals && axis_curve_jerk_holds(segment_, u_, u1, speed, iv)) {
+      ++axis_turn_skips_;
+    } else {
+      curve_turn(segment_, u_, u1, speed, iv);
+    }
+  }
   bound_axis_curve_jerk(iv);
   s_ = iv.b_mm;
   u_ = u1;

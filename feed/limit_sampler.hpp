@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "core/jerk_vector.hpp"
@@ -37,7 +38,9 @@ struct SamplerConfig {
   double spacing_mm = 0.2;  // longest interval between nodes on a curve or a line
   // Skip the search for an interval's minimum where a bound on the curvature proves that the
   // limit is the segment's cap all along (the nodes are the same bit for bit, see
-  // limit_sampler.cpp, "Flat intervals"); false searches every interval (the reference).
+  // limit_sampler.cpp, "Flat intervals"), and, under per-axis jerk limits, the nine-point
+  // sampling of an interval's curvature vector where a bound proves the axes' curve-jerk law
+  // changes nothing; false searches and samples every interval (the reference).
   bool skip_flat_intervals = true;
 };
 
@@ -66,6 +69,8 @@ class LimitSampler {
   // Curve intervals streamed so far, and how many of them were flat (no search needed).
   std::size_t curve_intervals() const { return curve_intervals_; }
   std::size_t flat_intervals() const { return flat_intervals_; }
+  // Curve intervals whose curve-jerk sampling (per-axis jerk) a bound showed idle.
+  std::size_t axis_turn_skips() const { return axis_turn_skips_; }
 
   // The feed limit at a point of segment `segment` (curve parameter u, or polyline piece and
   // fraction), without corners: what a setpoint there is checked against.
@@ -105,11 +110,21 @@ class LimitSampler {
     double axis_accel_factor = 1.0;
   };
   void axis_bound(Interval& iv) const;
-  void curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1, Interval& iv) const;
+  // d1_u0: C'(u0), as NurbsCurve::derivative gives it.
+  void curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1, const Vec3& d1_u0,
+                         Interval& iv) const;
   void bound_jerk_vector(Interval& iv) const;
   void bound_axis_curve_jerk(Interval& iv) const;
   JerkVectorSpan jerk_span_of(const Interval& iv) const;
-  void curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const;
+  void curve_turn(std::size_t segment, double u0, double u1, double speed_u0, Interval& iv) const;
+  // The parameter range curve_turn samples for the interval [u0, u1] (within one knot span;
+  // speed_u0 = |C'(u0)|).
+  std::pair<double, double> turn_range(std::size_t segment, double u0, double u1,
+                                       double speed_u0) const;
+  // Whether bounds from the span's hodographs prove that bound_axis_curve_jerk, given what
+  // curve_turn would sample, changes nothing on the interval (then curve_turn is skipped).
+  bool axis_curve_jerk_holds(std::size_t segment, double u0, double u1, double speed_u0,
+                             const Interval& iv) const;
   double piece_curvature_per_mm(std::size_t segment, std::size_t piece) const;
   // JerkBound::vector, dense runs: a vertex's discrete curvature vector, and its jump there.
   Vec3 vertex_curvature_vector(std::size_t segment, std::size_t vertex) const;
@@ -204,6 +219,13 @@ class LimitSampler {
     double d2_max, p_max;
   };
   std::vector<std::vector<SpanBound>> span_bounds_;
+  // With per-axis limits only (80 B a knot): per axis, the largest |C'_i|, |C''_i| and
+  // |C'''_i| on each span, and the largest |C'''| (0 for degree 2), from the hodographs' hulls.
+  struct SpanAxisBound {
+    Vec3 d1_abs, d2_abs, d3_abs;
+    double d3_max;
+  };
+  std::vector<std::vector<SpanAxisBound>> span_axis_bounds_;
   // Per segment: the law's parameters, whether it caps the segment (1) and its value at α = 0,
   // its minimum over α (+inf where it does not cap).
   std::vector<CuttingParams> seg_cutting_;
@@ -216,7 +238,8 @@ class LimitSampler {
   void add_inner_knots(std::size_t k, const toolpath::NurbsCurve& c);
   void add_vertex_stops(std::size_t k, const toolpath::Polyline& line);
   void add_knot_edges(std::size_t k, const toolpath::NurbsCurve& c);
-  static void bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds);
+  static void bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds,
+                          std::vector<SpanAxisBound>* axis_bounds);
   void add_joint_edges();
   // The cutting laws at curvature κ and inclination α on segment `segment` (not a rapid).
   FeedLimitResult cutting_limit(std::size_t segment, double curvature_per_mm,
@@ -235,7 +258,7 @@ class LimitSampler {
   std::vector<std::vector<double>> dips_;
   double s_ = 0.0;  // arc length reached
   bool started_ = false, finished_ = false;
-  std::size_t curve_intervals_ = 0, flat_intervals_ = 0;
+  std::size_t curve_intervals_ = 0, flat_intervals_ = 0, axis_turn_skips_ = 0;
   double rest_origin_mm_ = -1.0;  // the rest point a geometric run of intervals leaves (< 0: none)
   bool fine_ = false;             // the limit is below the cap and changing: half the spacing
   // The last curve interval's limit (+inf: none yet in this segment).

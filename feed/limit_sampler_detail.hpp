@@ -26,6 +26,18 @@ inline toolpath::PathControl corner_mode(const toolpath::PathSegment& s, const M
                                            : toolpath::PathControl::exact_path;
 }
 
+// The points curve_turn samples an interval at (docs/planner.md §3c).
+inline constexpr int kTurnPoints = 9;
+
+// The knot span index of u, as NurbsCurve::find_span.
+inline std::size_t knot_span_of(const toolpath::NurbsCurve& c, double u) {
+  const auto& U = c.knots();
+  const auto p = static_cast<std::size_t>(c.degree());
+  const auto it = std::upper_bound(U.begin() + static_cast<std::ptrdiff_t>(p),
+                                   U.end() - static_cast<std::ptrdiff_t>(p) - 1, u);
+  return std::max(p, static_cast<std::size_t>(it - U.begin()) - 1);
+}
+
 // The argument of the minimum of a unimodal f on [a, b], by golden section, to width tol.
 template <typename F>
 double golden_section_min(F&& f, double a, double b, double tol) {

@@ -280,12 +280,9 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
   // 1e-9 (u1 − u0) past its bracket; the samples round by a few ulp).
   const double delta = 1e-6 * (u1 - u0) + 1e-12 * std::max(1.0, std::abs(u1));
   const double lo = std::max(u0 - delta, c.u_begin()), hi = std::min(u1 + delta, c.u_end());
-  const auto span = [&](double u) {  // as NurbsCurve::find_span
-    const auto it = std::upper_bound(U.begin() + static_cast<std::ptrdiff_t>(p),
-                                     U.end() - static_cast<std::ptrdiff_t>(p) - 1, u);
-    return std::max(p, static_cast<std::size_t>(it - U.begin()) - 1);
-  };
+  const auto span = [&c](double u) { return knot_span_of(c, u); };
   double d2 = 0.0, e1 = 0.0, e2 = 0.0;
+  Vec3 d1_abs = Vec3::Zero(), d2_abs = Vec3::Zero();
   for (std::size_t s = span(lo), last = span(hi); s <= last; ++s) {
     const double h = U[s + 1] - U[s];
     if (!(h > 0.0)) continue;
@@ -295,6 +292,10 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
     e1 = std::max(e1, 1e-12 * terms * 2.0 * pp / h * bounds[s].p_max);
     e2 = std::max(e2, 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * bounds[s].p_max);
     d2 = std::max(d2, bounds[s].d2_max);
+    if (!span_axis_bounds_.empty()) {
+      d1_abs = d1_abs.cwiseMax(span_axis_bounds_[segment][s].d1_abs);
+      d2_abs = d2_abs.cwiseMax(span_axis_bounds_[segment][s].d2_abs);
+    }
   }
   // |C'(u)| ≥ |C'(u0)| − max|C''| |u − u0| (C' is continuous), and κ = |C' × C''| / |C'|³ ≤
   // |C''| / |C'|².
@@ -307,11 +308,20 @@ bool LimitSampler::interval_is_flat(std::size_t segment, double u0, double u1,
                 centripetal_accel_feed_mm_per_s(kappa, limits_.max_accel_mm_per_s2),
                 centripetal_jerk_feed_mm_per_s(kappa, limits_.max_jerk_mm_per_s3)});
   if (!seg.rapid) floor_mm_per_s = std::min(floor_mm_per_s, roughness_floor_mm_per_s_[segment]);
-  if (limits_.has_axis_limits()) {  // the axis laws at |t_i| ≤ 1 and |k_i| ≤ κ
-    const FeedLimitResult ax = axis_feed_limit(limits_, Vec3::Ones(), kappa * Vec3::Ones());
-    floor_mm_per_s = std::min(floor_mm_per_s, ax.feed_mm_per_s);
+  const double threshold = segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
+  if (limits_.has_axis_limits()) {
+    // The axis laws at bounds of |t_i| and |k_i|: t = C' / |C'|, and k = (C'' − (t·C'') t) / |C'|²
+    // (the curvature vector), so |t_i| ≤ max|C'_i| / min|C'| and |k_i| ≤ (max|C''_i| + |t_i|
+    // max|C''|) / min|C'|², each at most 1 and κ. (|t_i| ≤ 1 alone kept a slow axis from ever
+    // finding an interval flat: Z at 1500 mm/min under an F6000 cap.)
+    const double grow = 1.0 + 1e-9;
+    const Vec3 t_abs = ((d1_abs + Vec3::Constant(e1)) * (grow / d1_min)).cwiseMin(1.0);
+    const Vec3 k_abs =
+        ((d2_abs + Vec3::Constant(e2) + (d2 + e2) * t_abs) * (grow / (d1_min * d1_min)))
+            .cwiseMin(kappa);
+    if (!axis_laws_above(limits_, t_abs, k_abs, kappa, threshold)) return false;
   }
-  return floor_mm_per_s > segment_cap(segment).feed_mm_per_s * (1.0 + 1e-6);
+  return floor_mm_per_s > threshold;
 }
 
 FeedLimitResult LimitSampler::interval_min_on_curve(std::size_t segment, double u0, double u1,
@@ -403,13 +413,11 @@ double LimitSampler::jump_share(double phi, double dk, double v_corner) const {
   return std::min(kJumpJerkShare, j / limits_.max_jerk_mm_per_s3);
 }
 
-// JerkBound::vector (docs/planner.md §3c): the largest curvature κ and curvature turn
-// g = |κ' N + κ τ B| on [u0, u1], from nine points: κ from the curvature vector k = κ N, g
-// from the part of Δk / Δs normal to the mid tangent between neighbours (on a circle Δk
-// points along the tangent, so g is 0 to second order). 5 % margin for what lies between.
-void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interval& iv) const {
+// The parameter range curve_turn samples: the interval, or a sliver's surroundings within its
+// knot span (never onto a span end where the curve rests).
+std::pair<double, double> LimitSampler::turn_range(std::size_t segment, double u0, double u1,
+                                                   double speed) const {
   const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
-  constexpr int kPoints = 9;
   constexpr double kMinArcMm = 0.02;  // a sliver is sampled over this much of its knot span
   // The knot span that holds the interval (intervals end at breakpoints).
   const std::vector<double>& bp = breakpoints_[segment];
@@ -420,7 +428,6 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
     return u < c.u_end() ? std::max(span_lo, std::nextafter(u, -kInf)) : u;
   };
   double lo = u0, hi = below(std::min(u1, span_hi));
-  const double speed = c.derivative(u0).norm();
   if (speed > 0.0 && (hi - lo) * speed < kMinArcMm) {
     // Never onto a span end where the curve rests (a repeated control point: |C'| = 0, and κ
     // grows without bound towards it): the intervals that halve towards it keep their own.
@@ -429,6 +436,18 @@ void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, Interva
     lo = std::max(rests(span_lo) ? u0 : span_lo, mid - half);
     hi = below(std::min(rests(span_hi) ? std::min(u1, span_hi) : span_hi, mid + half));
   }
+  return {lo, hi};
+}
+
+// JerkBound::vector (docs/planner.md §3c): the largest curvature κ and curvature turn
+// g = |κ' N + κ τ B| on [u0, u1], from nine points: κ from the curvature vector k = κ N, g
+// from the part of Δk / Δs normal to the mid tangent between neighbours (on a circle Δk
+// points along the tangent, so g is 0 to second order). 5 % margin for what lies between.
+void LimitSampler::curve_turn(std::size_t segment, double u0, double u1, double speed_u0,
+                              Interval& iv) const {
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  constexpr int kPoints = kTurnPoints;
+  const auto [lo, hi] = turn_range(segment, u0, u1, speed_u0);
   double kappa = 0.0, turn = 0.0;
   toolpath::CurvePoint prev = c.eval(lo);
   Vec3 k_prev = curvature_vector_per_mm(prev);
@@ -521,15 +540,74 @@ void LimitSampler::bound_axis_curve_jerk(Interval& iv) const {
   }
 }
 
+// Whether bound_axis_curve_jerk would leave the interval as it is whatever curve_turn samples
+// (docs/planner.md §3f, "Replay speed with per-axis limits"): then curve_turn's nine
+// evaluations are not needed. On the knot span that holds curve_turn's points (one polynomial
+// piece; no rational curves: span_bounds_), with S ≤ |C'| there (from |C'(u0)| and max|C''|,
+// less eval()'s rounding e1, e2 as in interval_is_flat) and the hodographs' hulls A1..A3
+// (per axis), M2, M3 (norms):
+//     |t_i| ≤ A1_i / S,   |k_i| ≤ (A2_i + |t_i| M2) / S² (and ≤ κ ≤ M2 / S²),
+//     |dk_i/du| ≤ (A3_i + |t_i| M3) / S² + (3 A2_i M2 + 5 |t_i| M2²) / S³
+// (k = C''/|C'|² − C'(C'·C'')/|C'|⁴ differentiated term by term), so curve_turn's difference
+// quotient |Δk_i| / Δs is at most |dk_i/du| / S plus twice k's rounding over the shortest
+// step. If, with these in place of k_axis and g_axis (and their 5 %), every axis's
+// 3 A |k_i| v + |(dk/ds)_i| v³ stays below its budget by 1e-9, the law changes nothing; else
+// curve_turn runs as before.
+bool LimitSampler::axis_curve_jerk_holds(std::size_t segment, double u0, double u1, double speed_u0,
+                                         const Interval& iv) const {
+  const auto& bounds = span_bounds_[segment];
+  if (bounds.empty() || span_axis_bounds_.empty() || !(speed_u0 > 0.0)) return false;
+  const auto& c = std::get<toolpath::NurbsCurve>(path_.segments[segment].geometry);
+  const auto [lo, hi] = turn_range(segment, u0, u1, speed_u0);
+  if (!(hi > lo)) return false;
+  const std::size_t sp = knot_span_of(c, lo);
+  if (knot_span_of(c, hi) != sp) return false;
+  const auto& U = c.knots();
+  const double h = U[sp + 1] - U[sp];
+  if (!(h > 0.0)) return false;
+  const SpanBound& b0 = bounds[sp];
+  const SpanAxisBound& b = span_axis_bounds_[segment][sp];
+  const double pp = static_cast<double>(c.degree()), terms = pp + 1.0;
+  const double e1 = 1e-12 * terms * 2.0 * pp / h * b0.p_max;
+  const double e2 = 1e-12 * terms * 4.0 * pp * (pp - 1.0) / (h * h) * b0.p_max;
+  const double m2 = b0.d2_max + e2;
+  const double S = speed_u0 - m2 * std::max(u0 - lo, hi - u0) - 2.0 * e1;
+  if (!(S > 0.0)) return false;
+  const double grow = 1.0 + 1e-9;
+  const Vec3 t_abs = ((b.d1_abs + Vec3::Constant(e1)) * (grow / S)).cwiseMin(1.0);
+  const double kappa = m2 / (S * S) * grow;
+  const double err_k = (e2 + 4.0 * m2 * e1 / S) / (S * S) + 1e-12 * kappa;  // rounding of k
+  const Vec3 k_abs =
+      ((b.d2_abs + Vec3::Constant(e2) + m2 * t_abs) * (grow / (S * S))).cwiseMin(kappa) +
+      Vec3::Constant(err_k);
+  const Vec3 dk_du = ((b.d3_abs + b.d3_max * t_abs) / (S * S) +
+                      (3.0 * m2 * b.d2_abs + 5.0 * m2 * m2 * t_abs) / (S * S * S)) *
+                     grow;
+  const double du_min = 0.999 * (hi - lo) / (kTurnPoints - 1);
+  const Vec3 g_abs = (dk_du / S + Vec3::Constant(2.0 * err_k / (S * du_min))) * grow;
+  const double A = axis_scales(limits_, iv.tangent_max, {iv.bends, iv.bends, iv.bends}).accel *
+                   limits_.max_accel_mm_per_s2;
+  const double v = iv.v_mm_per_s;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto I = static_cast<int>(i);
+    if (!std::isfinite(limits_.axes[i].max_jerk_mm_per_s3)) continue;
+    const double rhs = (1.0 - kAxisTangentialShare) * (1.0 - iv.axis_jump_share[I]) *
+                       axis_jerk_for_planner(limits_, i);
+    const double need = 3.0 * A * 1.05 * k_abs[I] * v + 1.05 * g_abs[I] * v * v * v;
+    if (!(need <= rhs * (1.0 - 1e-9))) return false;
+  }
+  return true;
+}
+
 // Per-axis limits (docs/planner.md §3f): the largest |t_i| of a curve interval from its tangent
 // at both ends and the middle, plus θ²/2 for the angle θ the tangent turns between neighbouring
 // samples (a component of a unit vector turning smoothly by θ along a great circle exceeds the
 // larger of its end values by at most θ²/8: four times that, measured, not proven); 1 on an
 // axis where a sample has no tangent (|C'| = 0: a repeated control point).
 void LimitSampler::curve_tangent_max(const toolpath::NurbsCurve& c, double u0, double u1,
-                                     Interval& iv) const {
+                                     const Vec3& d1_u0, Interval& iv) const {
   const double u_end = u1 < c.u_end() ? std::max(u0, std::nextafter(u1, -kInf)) : u1;
-  const Vec3 t[3] = {unit_or_zero(c.derivative(u0)), unit_or_zero(c.derivative(0.5 * (u0 + u_end))),
+  const Vec3 t[3] = {unit_or_zero(d1_u0), unit_or_zero(c.derivative(0.5 * (u0 + u_end))),
                      unit_or_zero(c.derivative(u_end))};
   iv.bends = c.degree() >= 2;
   if (t[0].isZero() || t[1].isZero() || t[2].isZero()) {

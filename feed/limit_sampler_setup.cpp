@@ -128,9 +128,10 @@ LimitSampler::LimitSampler(const toolpath::Path& path, std::vector<double> segme
   // Flat intervals: the bounds of every span of the curves that qualify (see the top of
   // limit_sampler.cpp).
   span_bounds_.resize(n);
+  if (limits_.has_axis_limits()) span_axis_bounds_.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
     if (const auto* c = std::get_if<toolpath::NurbsCurve>(&path.segments[k].geometry)) {
-      bound_spans(*c, span_bounds_[k]);
+      bound_spans(*c, span_bounds_[k], limits_.has_axis_limits() ? &span_axis_bounds_[k] : nullptr);
     }
   }
   add_joint_edges();
@@ -267,7 +268,8 @@ void LimitSampler::add_knot_edges(std::size_t k, const toolpath::NurbsCurve& c) 
 // "Flat intervals" (top of limit_sampler.cpp): for a non-rational C¹ curve of degree ≥ 2, per
 // knot span the largest |C''| (its second hodograph's control points) and the largest |P_i|;
 // bounds stays empty for any other curve.
-void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds) {
+void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBound>& bounds,
+                               std::vector<SpanAxisBound>* axis_bounds) {
   if (c.rational() || c.degree() < 2) return;
   const auto p = static_cast<std::size_t>(c.degree());
   const auto& U = c.knots();
@@ -281,8 +283,8 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
   }
   if (!c1) return;
   // First and second hodographs (Piegl and Tiller eq. 3.8): Q_i = p (P_i+1 − P_i) /
-  // (u_i+p+1 − u_i+1), R_i = (p − 1)(Q_i+1 − Q_i) / (u_i+p+1 − u_i+2); on span s, C'' is a
-  // convex combination of R_s−p … R_s−2.
+  // (u_i+p+1 − u_i+1), R_i = (p − 1)(Q_i+1 − Q_i) / (u_i+p+1 − u_i+2); on span s, C' is a
+  // convex combination of Q_s−p … Q_s−1 and C'' of R_s−p … R_s−2 (so per axis too).
   const std::size_t np = P.size();
   std::vector<Vec3> q(np - 1), r(np - 2);
   for (std::size_t i = 0; i + 1 < np; ++i) {
@@ -294,12 +296,32 @@ void LimitSampler::bound_spans(const toolpath::NurbsCurve& c, std::vector<SpanBo
     finite = finite && r[i].allFinite();
   }
   if (!finite) return;
+  // The third hodograph (degree ≥ 3): T_i = (p − 2)(R_i+1 − R_i) / (u_i+p+1 − u_i+3); on span
+  // s, C''' is a convex combination of T_s−p … T_s−3.
+  std::vector<Vec3> t3(p >= 3 ? np - 3 : 0);
+  for (std::size_t i = 0; i < t3.size(); ++i) {
+    t3[i] = static_cast<double>(p - 2) * (r[i + 1] - r[i]) / (U[i + p + 1] - U[i + 3]);
+  }
+  const Vec3 inf3 = Vec3::Constant(kInf);
   bounds.assign(U.size(), SpanBound{kInf, kInf});
+  if (axis_bounds) axis_bounds->assign(U.size(), SpanAxisBound{inf3, inf3, inf3, kInf});
   for (std::size_t sp = p; sp < np; ++sp) {
-    double d2 = 0.0, pm = 0.0;
-    for (std::size_t i = sp - p; i + 2 <= sp; ++i) d2 = std::max(d2, r[i].norm());
+    double d2 = 0.0, pm = 0.0, d3 = 0.0;
+    Vec3 d1_abs = Vec3::Zero(), d2_abs = Vec3::Zero(), d3_abs = Vec3::Zero();
+    for (std::size_t i = sp - p; i + 1 <= sp; ++i) d1_abs = d1_abs.cwiseMax(q[i].cwiseAbs());
+    for (std::size_t i = sp - p; i + 2 <= sp; ++i) {
+      d2 = std::max(d2, r[i].norm());
+      d2_abs = d2_abs.cwiseMax(r[i].cwiseAbs());
+    }
+    for (std::size_t i = sp - p; i + 3 <= sp && p >= 3; ++i) {
+      d3 = std::max(d3, t3[i].norm());
+      d3_abs = d3_abs.cwiseMax(t3[i].cwiseAbs());
+    }
     for (std::size_t i = sp - p; i <= sp; ++i) pm = std::max(pm, P[i].norm());
     bounds[sp] = {d2, pm};
+    // (A third hodograph that overflows leaves the span without a jerk bound: +inf.)
+    if (!std::isfinite(d3) || !d3_abs.allFinite()) d3 = kInf, d3_abs = inf3;
+    if (axis_bounds) (*axis_bounds)[sp] = {d1_abs, d2_abs, d3_abs, d3};
   }
 }
 

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/jerk_vector.hpp"
+#include "motion/sliding_min.hpp"
 
 namespace ncd::motion {
 
@@ -253,6 +254,9 @@ class Planner {
     double accel, jerk;
   };
   AxisScale window_axis_scale() const;
+  // The window's smallest accel_scale and jerk_scale, kept as samples come and go (a scan of
+  // the window every period was 12 % of the slow-Z spiral replay: docs/planner.md §4).
+  SlidingMin accel_scale_min_, jerk_scale_min_;
   AxisScale axis_scale_at(double s_mm) const;
   // A landing's limits: a_max and j_max times the window's axis scales (the landing runs to L
   // inside the window).
@@ -264,6 +268,11 @@ class Planner {
   // ring of samples
   std::vector<LimitSample> ring_;
   std::vector<IntervalLimit> interval_ring_;  // [k]: from ring_[k] to the sample after it
+  // [k]: the sequence number of the first interval of the run of equal limits (v_mm_per_s)
+  // that holds interval k; build_blocks merges a run in one step (run_last).
+  std::vector<std::uint64_t> run_ring_;
+  std::uint64_t front_seq_ = 0;  // the sequence number of sample(0) (one per sample pushed)
+  std::size_t run_last(std::size_t i, double stop_mm) const;
   std::size_t head_ = 0, count_ = 0, count_high_water_ = 0;
   double ahead_high_water_mm_ = 0.0;
   double v_top_pushed_ = 0.0;

@@ -122,14 +122,10 @@ void Planner::set_policy_limits() {
   }
 }
 
-// The smallest axis scales of the window's intervals.
+// The smallest axis scales of the window's intervals (1 for an empty window; push() refuses
+// scales above 1), kept as samples are pushed and dropped.
 Planner::AxisScale Planner::window_axis_scale() const {
-  AxisScale w{1.0, 1.0};
-  for (std::size_t i = 0; i < count_; ++i) {
-    w.accel = std::min(w.accel, sample(i).accel_scale);
-    w.jerk = std::min(w.jerk, sample(i).jerk_scale);
-  }
-  return w;
+  return {accel_scale_min_.min_or(1.0), jerk_scale_min_.min_or(1.0)};
 }
 
 // The axis scales of the interval that holds s.
@@ -254,6 +250,20 @@ void Planner::build_blocks(double scale, double stop_mm) {
       } else {
         blocks_[block_count_++] = Block{b0, b1, v, lim.limit_id, 0.0};
       }
+      // The intervals after this one in its run of equal limits would each merge into the
+      // block (its level is theirs) and only move its end: move it to the run's last one before
+      // the stop at once.
+      const std::size_t j =
+          q_s < stop_mm && blocks_[block_count_ - 1].v_max_mm_per_s == v ? run_last(i, stop_mm) : i;
+      if (j > i) {
+        i = j;
+        k = ring_index(j);
+        const double q_j = sample(j + 1).s_mm;
+        blocks_[block_count_ - 1].end_mm = std::min(q_j, stop_mm);
+        if (q_j >= stop_mm) break;
+        k = k + 1 < ring_.size() ? k + 1 : 0;
+        continue;
+      }
     }
     if (q_s >= stop_mm) break;
     k = k_next;
@@ -263,6 +273,20 @@ void Planner::build_blocks(double scale, double stop_mm) {
     lowest = std::min(lowest, blocks_[b].v_max_mm_per_s);
     blocks_[b].min_on_mm_per_s = lowest;
   }
+}
+
+// The last interval m ≥ i of interval i's run of equal limits that build_blocks reaches before
+// the stop (sample m at or after stop_mm ends its loop): both conditions hold from i up to
+// some m and fail after it (run_ring_ grows along the window, s increases), so a bisection.
+std::size_t Planner::run_last(std::size_t i, double stop_mm) const {
+  const std::uint64_t run = run_ring_[ring_index(i)];
+  std::size_t lo = i, hi = count_ - 1;  // lo holds; hi (no interval from the last sample) fails
+  while (hi - lo > 1) {
+    const std::size_t mid = lo + (hi - lo) / 2;
+    const std::size_t k = ring_index(mid);
+    (run_ring_[k] == run && ring_[k].s_mm < stop_mm ? lo : hi) = mid;
+  }
+  return lo;
 }
 
 // The lowest level of the blocks built this step (−inf without blocks).

@@ -122,6 +122,9 @@ Planner::Planner(const PlannerLimits& limits, double length_mm)
   a_eps_ = 1e-9 * j_max_ * period_s_;
   ring_.resize(limits.window_capacity);
   interval_ring_.resize(limits.window_capacity);
+  run_ring_.resize(limits.window_capacity);
+  accel_scale_min_.reserve(limits.window_capacity);
+  jerk_scale_min_.reserve(limits.window_capacity);
   blocks_.resize(limits.window_capacity);
   last_.done = false;
 }
@@ -130,6 +133,8 @@ bool Planner::restart(double length_mm) {
   if (!std::isfinite(length_mm) || length_mm < 0.0 || !done_) return false;
   length_mm_ = length_mm;
   head_ = count_ = 0;
+  accel_scale_min_.clear();
+  jerk_scale_min_.clear();
   saw_end_ = false;
   block_count_ = 0;
   x_ = Kin{0.0, 0.0, 0.0};
@@ -171,7 +176,16 @@ PushResult Planner::push(const LimitSample& in) {
   const PushResult r = classify(in);
   if (r != PushResult::Ok) return r;
   ring_[ring_index(count_)] = in;
-  if (count_ > 0) interval_ring_[ring_index(count_ - 1)] = interval_between(sample(count_ - 1), in);
+  if (count_ > 0) {
+    const std::size_t k = ring_index(count_ - 1);
+    interval_ring_[k] = interval_between(sample(count_ - 1), in);
+    const std::size_t k_prev = count_ >= 2 ? ring_index(count_ - 2) : k;
+    run_ring_[k] = count_ >= 2 && interval_ring_[k_prev].v_mm_per_s == interval_ring_[k].v_mm_per_s
+                       ? run_ring_[k_prev]
+                       : front_seq_ + count_ - 1;
+  }
+  accel_scale_min_.push(front_seq_ + count_, in.accel_scale);
+  jerk_scale_min_.push(front_seq_ + count_, in.jerk_scale);
   const JerkVectorSpan span = in.jerk_span;
   if (span.curvature_per_mm != 0.0 || span.turn_per_mm2 != 0.0 || span.budget != 1.0) {
     any_scaled_ = true;
@@ -253,6 +267,9 @@ void Planner::reserve_for_speed(double v_mm_per_s) {
 
 void Planner::drop_passed_samples() {
   while (count_ >= 3 && sample(1).s_mm <= x_.s_mm) {
+    accel_scale_min_.drop(front_seq_);
+    jerk_scale_min_.drop(front_seq_);
+    ++front_seq_;
     head_ = (head_ + 1) % ring_.size();
     --count_;
   }

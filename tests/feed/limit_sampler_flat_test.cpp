@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -24,7 +25,7 @@ namespace {
 
 struct Stream {
   std::vector<LimitNode> nodes;
-  std::size_t intervals = 0, flat = 0;
+  std::size_t intervals = 0, flat = 0, turn_skips = 0;
 };
 
 Stream sample(const toolpath::Path& path, const MachineLimits& limits, bool skip) {
@@ -44,6 +45,7 @@ Stream sample(const toolpath::Path& path, const MachineLimits& limits, bool skip
   while (sampler.next(node)) out.nodes.push_back(node);
   out.intervals = sampler.curve_intervals();
   out.flat = sampler.flat_intervals();
+  out.turn_skips = sampler.axis_turn_skips();
   return out;
 }
 
@@ -53,6 +55,7 @@ double expect_same_nodes(const toolpath::Path& path, const MachineLimits& limits
   const Stream fast = sample(path, limits, true);
   const Stream slow = sample(path, limits, false);
   EXPECT_EQ(slow.flat, 0u) << what;
+  EXPECT_EQ(slow.turn_skips, 0u) << what;
   EXPECT_EQ(fast.intervals, slow.intervals) << what;
   EXPECT_EQ(fast.nodes.size(), slow.nodes.size()) << what;
   const std::size_t n = std::min(fast.nodes.size(), slow.nodes.size());
@@ -62,7 +65,9 @@ double expect_same_nodes(const toolpath::Path& path, const MachineLimits& limits
     const LimitNode& b = slow.nodes[i];
     const bool same = a.s_mm == b.s_mm && a.feed_mm_per_s == b.feed_mm_per_s &&
                       a.limit == b.limit && a.left_mm_per_s == b.left_mm_per_s &&
-                      a.right_mm_per_s == b.right_mm_per_s && a.right_limit == b.right_limit;
+                      a.right_mm_per_s == b.right_mm_per_s && a.right_limit == b.right_limit &&
+                      a.axis_scale.accel == b.axis_scale.accel &&
+                      a.axis_scale.jerk == b.axis_scale.jerk;
     if (!same) {
       ++reported;
       ADD_FAILURE() << what << ": node " << i << " differs: s " << a.s_mm << " / " << b.s_mm
@@ -139,14 +144,13 @@ TEST(LimitSamplerFlat, StraightAndGentleCurvesWithDoubleKnots) {
   EXPECT_GT(expect_same_nodes(from_json(quintic), MachineLimits{}, "quintic"), 0.3);
 }
 
-TEST(LimitSamplerFlat, RandomBSplinesGiveTheReferenceNodes) {
-  const std::uint64_t seed = test::seed();
-  std::mt19937_64 rng(seed);
+// A random B-spline of degree 2–5 (p), tight on even trials and gentle on odd ones, now and
+// then with repeated knots; f (0–3) picks the cap: the machine's, F2400, a rapid, F12000.
+toolpath::Path random_bspline(std::mt19937_64& rng, int trial, int& p, int& f) {
   std::uniform_real_distribution<double> coord(-100.0, 100.0), gap(0.2, 2.0);
   std::uniform_int_distribution<int> degree_of(2, 5), extra_of(0, 6), feed_of(0, 3);
-  std::size_t flat = 0, total = 0;
-  for (int trial = 0; trial < 24; ++trial) {
-    const int p = degree_of(rng);
+  {
+    p = degree_of(rng);
     const int n = p + 1 + extra_of(rng);  // control points
     std::vector<double> k2(static_cast<std::size_t>(p + 1), 0.0);
     double u = 0.0;
@@ -172,10 +176,21 @@ TEST(LimitSamplerFlat, RandomBSplinesGiveTheReferenceNodes) {
     toolpath::Path path;
     toolpath::PathSegment seg;
     seg.geometry = toolpath::NurbsCurve(p, k2, pts);
-    const int f = feed_of(rng);
+    f = feed_of(rng);
     if (f == 1) seg.feed_mm_per_min = 2400.0;
     if (f == 2) seg.rapid = true;
     path.segments.push_back(std::move(seg));
+    return path;
+  }
+}
+
+TEST(LimitSamplerFlat, RandomBSplinesGiveTheReferenceNodes) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  std::size_t flat = 0, total = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    int p = 0, f = 0;
+    const toolpath::Path path = random_bspline(rng, trial, p, f);
     MachineLimits limits;
     if (f == 3) limits.max_feed_mm_per_min = 12000.0;
     const Stream fast = sample(path, limits, true);
@@ -188,6 +203,73 @@ TEST(LimitSamplerFlat, RandomBSplinesGiveTheReferenceNodes) {
   std::cout << "[ flat     ] " << flat << " of " << total << " curve intervals\n";
   EXPECT_GT(flat, total / 4) << "seed " << seed;  // the skip is exercised
   EXPECT_LT(flat, total) << "seed " << seed;      // and so is the search
+}
+
+// Per-axis limits (docs/planner.md §3f): the flat test bounds each axis's tangent and curvature
+// components, and under per-axis jerk the nine-point curve sampling is left out where the
+// span's bounds prove the axes' curve-jerk law idle. Both must leave every node as the
+// reference's: on the spiral under examples/machine-slow-z.toml's Z and with X and Y at
+// 10 000 mm/s³ besides, and on random B-splines under random axis limits (seed printed).
+MachineLimits slow_z_limits() {
+  MachineLimits limits;
+  limits.axes[2].max_feed_mm_per_min = 1500.0;
+  limits.axes[2].max_accel_mm_per_s2 = 250.0;
+  limits.axes[2].max_jerk_mm_per_s3 = 4000.0;
+  return limits;
+}
+
+TEST(LimitSamplerFlat, PerAxisLimitsOnTheSpiral) {
+  const toolpath::Path path = toolpath::spiral_path(3);
+  MachineLimits limits = slow_z_limits();
+  // Z's share of the spiral's tangent is about 0.001: its 25 mm/s allow 25 000 mm/s there.
+  EXPECT_GT(expect_same_nodes(path, limits, "spiral, slow Z"), 0.95);
+  limits.axes[0].max_jerk_mm_per_s3 = limits.axes[1].max_jerk_mm_per_s3 = 10000.0;
+  EXPECT_GT(expect_same_nodes(path, limits, "spiral, slow Z, X/Y jerk 10000"), 0.95);
+  const Stream s = sample(path, limits, true);
+  // (85 % on 3 turns: the clamped end spans' hulls are loose; the 100-turn spiral's ends are
+  // a smaller share.)
+  EXPECT_GT(s.turn_skips, s.intervals * 80 / 100) << s.turn_skips << " of " << s.intervals;
+  // Where the axes' jerk binds on the curve (X and Y at 3000 mm/s³: 3 v a k_x alone is about
+  // 3300 at the cap), nothing is left out.
+  limits.axes[0].max_jerk_mm_per_s3 = limits.axes[1].max_jerk_mm_per_s3 = 3000.0;
+  expect_same_nodes(path, limits, "spiral, X/Y jerk 3000");
+  EXPECT_EQ(sample(path, limits, true).turn_skips, 0u);
+}
+
+TEST(LimitSamplerFlat, RandomBSplinesUnderAxisLimitsGiveTheReferenceNodes) {
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed ^ 0x5a5a5a5aULL);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::size_t flat = 0, skips = 0, total = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    int p = 0, f = 0;
+    const toolpath::Path path = random_bspline(rng, trial, p, f);
+    MachineLimits limits = slow_z_limits();
+    if (f == 3) limits.max_feed_mm_per_min = 12000.0;
+    if (trial % 3 >= 1) {
+      limits.axes[0].max_jerk_mm_per_s3 = limits.axes[1].max_jerk_mm_per_s3 = 10000.0;
+    }
+    if (trial % 3 == 2) {  // every axis random, some limits left out
+      for (AxisLimits& ax : limits.axes) {
+        const double inf = std::numeric_limits<double>::infinity();
+        ax.max_feed_mm_per_min = unit(rng) < 0.3 ? inf : 600.0 + 5400.0 * unit(rng);
+        ax.max_accel_mm_per_s2 = unit(rng) < 0.3 ? inf : 100.0 + 900.0 * unit(rng);
+        ax.max_jerk_mm_per_s3 = unit(rng) < 0.2 ? inf : 1000.0 + 19000.0 * unit(rng);
+      }
+    }
+    const Stream fast = sample(path, limits, true);
+    flat += fast.flat;
+    skips += fast.turn_skips;
+    total += fast.intervals;
+    expect_same_nodes(path, limits,
+                      "random curve " + std::to_string(trial) + " (degree " + std::to_string(p) +
+                          ", seed " + std::to_string(seed) + ")");
+  }
+  std::cout << "[ axes     ] seed " << seed << ": " << flat << " flat and " << skips
+            << " curve-jerk samplings left out of " << total << " curve intervals\n";
+  EXPECT_GT(flat, 0u) << "seed " << seed;  // both skips are exercised
+  EXPECT_GT(skips, 0u) << "seed " << seed;
+  EXPECT_LT(skips, total) << "seed " << seed;  // and so is the sampling
 }
 
 }  // namespace

@@ -173,9 +173,11 @@ TEST(Job, SameInputsGiveTheSameSetpoints) {
 // single setpoint: the job with the skip against the job that searches every interval, on the
 // spiral of the replay benchmark and on the cubic (where the curvature laws bind in places).
 TEST(Job, FlatIntervalSkipGivesTheSameSetpoints) {
-  const auto compare = [](const toolpath::Path& path, const std::string& what) {
+  const auto compare = [](const toolpath::Path& path, const std::string& what,
+                          const interpolator::MachineLimits& limits = {}) {
     JobConfig fast_cfg;
-    JobConfig slow_cfg;
+    fast_cfg.limits = limits;
+    JobConfig slow_cfg = fast_cfg;
     slow_cfg.sampler.skip_flat_intervals = false;
     Job fast(path, fast_cfg), slow(path, slow_cfg);
     int periods = 0, differing = 0;
@@ -202,6 +204,19 @@ TEST(Job, FlatIntervalSkipGivesTheSameSetpoints) {
   };
   EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, 2 turns"), 2000);
   EXPECT_GT(compare(toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"), "cubic"), 100);
+  // Per-axis limits (docs/planner.md §3f): examples/machine-slow-z.toml's Z, then X and Y at
+  // 10 000 mm/s³ besides; the skip then also leaves out the curve-jerk sampling it proves idle.
+  interpolator::MachineLimits slow_z;
+  slow_z.axes[2].max_feed_mm_per_min = 1500.0;
+  slow_z.axes[2].max_accel_mm_per_s2 = 250.0;
+  slow_z.axes[2].max_jerk_mm_per_s3 = 4000.0;
+  EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, slow Z", slow_z), 2000);
+  interpolator::MachineLimits axis_jerk = slow_z;
+  axis_jerk.axes[0].max_jerk_mm_per_s3 = axis_jerk.axes[1].max_jerk_mm_per_s3 = 10000.0;
+  EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, X/Y jerk", axis_jerk), 2000);
+  EXPECT_GT(compare(toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"),
+                    "cubic, X/Y jerk", axis_jerk),
+            100);
 }
 
 TEST(Job, TaylorAloneIsWorseThanTheCorrectedWalk) {
