@@ -41,7 +41,9 @@ demo: deps-build
 	@cmake --build --preset release -j $(JOBS) --target ncd
 	@scripts/demo.sh $(NCD)
 
-test: format-check test-release test-debug test-fuzz
+# The fuzz corpus (scripts/fuzz.sh corpus 2000, what `make test-fuzz` runs alone) is a part of the
+# sanitizer suite: the tests Fuzz.<name>Corpus of the debug tree (tests/fuzz/CMakeLists.txt).
+test: format-check test-release test-debug
 
 # `make test CTEST_OVERLAP=1` runs the tests that wait (streaming at a baud rate, servers) beside
 # the ones that compute: ctest -j 3×JOBS, with at most JOBS computing tests at once (the resource
