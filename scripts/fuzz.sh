@@ -8,6 +8,9 @@
 #   scripts/fuzz.sh run [SECONDS]      SECONDS of fuzzing each (default 60, FUZZ_SECONDS in make),
 #                                      new inputs kept in build/debug/fuzz/corpus/<name>/
 #   FUZZ_HARNESS=pipeline scripts/fuzz.sh …   only that harness (default: every one)
+#   FUZZ_TREE=DIR scripts/fuzz.sh …            the harnesses of the build tree DIR (default
+#                                              build/debug; the ctest entries Fuzz.<name>Corpus
+#                                              of the debug tree pass their own)
 # Exits non-zero on the first finding (a crash, a sanitizer report, an escaped exception, a
 # timeout of 10 s on one input, more than 2 GB of memory); the input is saved as
 # build/debug/fuzz/artifacts/<name>-crash-… and can be replayed with
@@ -18,8 +21,9 @@
 set -euo pipefail
 mode=${1:-corpus}
 root=$(cd "$(dirname "$0")/.." && pwd)
-bin=$root/build/debug/tests/fuzz
-out=$root/build/debug/fuzz
+tree=${FUZZ_TREE:-$root/build/debug}
+bin=$tree/tests/fuzz
+out=$tree/fuzz
 case $mode in
   corpus) limit=(-seed=1 -runs="${2:-2000}") ;;
   run) limit=(-max_total_time="${2:-60}") ;;
