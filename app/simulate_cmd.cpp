@@ -289,9 +289,9 @@ CaseModel case_model(const Setup& s, const CaseRaster& c) {
   const double alpha = deg_to_rad(c.alpha_deg);
   const double r_mm = s.tool.radius_mm, fp = s.pick_feed_mm;
   CaseModel m;
-  m.model_um = interpolator::roughness_mm(r_mm, fp, c.ft_mm, alpha) * 1e3;
-  m.out_um = interpolator::roughness_outside_mm(r_mm, fp, c.ft_mm) * 1e3;
-  m.alpha_c = interpolator::critical_angle_rad(r_mm, fp, c.ft_mm);
+  m.model_um = feed::roughness_mm(r_mm, fp, c.ft_mm, alpha) * 1e3;
+  m.out_um = feed::roughness_outside_mm(r_mm, fp, c.ft_mm) * 1e3;
+  m.alpha_c = feed::critical_angle_rad(r_mm, fp, c.ft_mm);
   return m;
 }
 
@@ -442,7 +442,7 @@ Fig6Point fig6_point(const SimulateArgs& a, const Setup& s, double alpha_deg, do
                      " deg: raise --stock-mm");
   }
   p.simulated_um = r.rmax_um;
-  p.model_um = interpolator::roughness_mm(s.tool.radius_mm, fp, ft, deg_to_rad(alpha_deg)) * 1e3;
+  p.model_um = feed::roughness_mm(s.tool.radius_mm, fp, ft, deg_to_rad(alpha_deg)) * 1e3;
   p.cell_um = map.cell_mm() * 1e3;
   return p;
 }
@@ -616,10 +616,10 @@ MoveModels move_models(const SimulateArgs& a, const Setup& s,
       ft_len.emplace_back(ft, d.norm());
       total_len += d.norm();
     }
-    out.model_um[k] = interpolator::roughness_mm(
-                          s.tool.radius_mm, s.pick_feed_mm, ft,
-                          d.norm() > 0.0 ? interpolator::inclination_from_tangent_rad(d) : 0.0) *
-                      1e3;
+    out.model_um[k] =
+        feed::roughness_mm(s.tool.radius_mm, s.pick_feed_mm, ft,
+                           d.norm() > 0.0 ? feed::inclination_from_tangent_rad(d) : 0.0) *
+        1e3;
   }
   if (ft_len.empty()) throw InputError(a.setpoints + ": the tool never moves");
   std::sort(ft_len.begin(), ft_len.end());

@@ -149,10 +149,10 @@ BENCHMARK(BM_JobZigZagCorners)
 void BM_PolylineFit(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
   const toolpath::Path path = test::dense_cam(n - 1, 3, 0.01);
-  const interpolator::MachineLimits limits;
-  interpolator::FitReport rep;
+  const feed::MachineLimits limits;
+  feed::FitReport rep;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(interpolator::fit_polylines(path, limits, &rep));
+    benchmark::DoNotOptimize(feed::fit_polylines(path, limits, &rep));
   }
   state.counters["spans"] = static_cast<double>(rep.spans);
   state.counters["deviation_um"] = 1000.0 * rep.max_deviation_mm;

@@ -13,7 +13,7 @@
 #include "feed/feed_limits.hpp"
 #include "geometry/nurbs.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 toolpath::NurbsCurve fig11_path() {
@@ -91,4 +91,4 @@ void BM_FeedLimitAtPoint(benchmark::State& state) {
 BENCHMARK(BM_FeedLimitAtPoint);
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -58,7 +58,7 @@
 #include <limits>
 #include <vector>
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 using toolpath::NurbsCurve;
@@ -354,4 +354,4 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
   return out;
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -9,7 +9,7 @@
 #include "feed/feed_limits.hpp"
 #include "geometry/path.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 // A corner that could have been rounded but was kept sharp because the arc is slower than
 // passing it sharp or stopping there (motion/corner_overlap.hpp may pass it without its stop).
@@ -40,4 +40,4 @@ toolpath::Path blend_corners(const toolpath::Path& path, const MachineLimits& li
 double polyline_corner_speed_mm_per_s(const MachineLimits& limits, double phi_rad,
                                       double curvature_per_mm = 0.0);
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

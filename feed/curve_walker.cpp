@@ -54,7 +54,7 @@
 #include "core/number_text.hpp"
 #include "core/quadrature.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -235,4 +235,4 @@ StepResult CurveWalker::correct(double delta_s_mm, double u_predicted, double sp
   return r;
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

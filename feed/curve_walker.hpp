@@ -9,7 +9,7 @@
 
 #include "geometry/curve.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 enum class StepMode {
   Corrected,   // Taylor predictor, then Newton on the true arc length to tolerance_rel
@@ -84,4 +84,4 @@ class CurveWalker {
   double u_;
 };
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

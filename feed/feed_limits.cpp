@@ -37,7 +37,7 @@
 #include "core/jerk_vector.hpp"
 #include "core/number_text.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 FeedLimitResult with_curvature(const MachineLimits& limits, double roughness_mm_per_s,
@@ -361,4 +361,4 @@ FeedLimitResult feed_limit_at(const MachineLimits& limits, const CuttingParams& 
                     inclination_from_normal_rad(contact_normal, point.d1, tool_axis));
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -14,7 +14,7 @@
 #include "geometry/curve.hpp"
 #include "geometry/path.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 // Which limit binds; on a tie the first in this order is reported. Program (the F word of the
 // program) and Corner (a polyline vertex or a joint between segments) are applied by the
@@ -215,4 +215,4 @@ inline double segment_cap_mm_per_s(const toolpath::PathSegment& s, const Machine
   return c;
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -86,7 +86,7 @@
 
 #include "feed/limit_sampler_detail.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 using namespace sampler_detail;
 
@@ -637,4 +637,4 @@ bool LimitSampler::next(LimitNode& out) {
   return true;
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

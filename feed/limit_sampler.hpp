@@ -12,7 +12,7 @@
 #include "feed/roughness.hpp"
 #include "geometry/path.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 struct LimitNode {
   double s_mm = 0.0;           // arc length from the path start
@@ -266,4 +266,4 @@ class LimitSampler {
   LimitNode pending_;  // the node whose right-hand interval is not known yet
 };
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

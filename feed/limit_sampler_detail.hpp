@@ -14,7 +14,7 @@
 #include "geometry/nurbs.hpp"
 #include "geometry/path.hpp"
 
-namespace ncd::interpolator::sampler_detail {
+namespace ncd::feed::sampler_detail {
 
 // The mode that decides whether a corner is a rest. G64 P0 (or a plain G64 with
 // blend_tolerance_mm 0) holds its end points exactly, as G61.1 does: its corners are rests
@@ -79,4 +79,4 @@ inline bool speed_vanishes(const toolpath::NurbsCurve& c, const Vec3& d1) {
   return !(d1.norm() > 1e-9 * std::max(1.0, top) / std::max(c.u_end() - c.u_begin(), 1e-300));
 }
 
-}  // namespace ncd::interpolator::sampler_detail
+}  // namespace ncd::feed::sampler_detail

@@ -12,7 +12,7 @@
 #include "feed/limit_sampler.hpp"
 #include "feed/limit_sampler_detail.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 using namespace sampler_detail;
 
@@ -642,4 +642,4 @@ JerkVectorSpan LimitSampler::jerk_span_of(const Interval& iv) const {
   return {iv.kappa_per_mm, iv.turn_per_mm2, 1.0 - iv.jump_share};
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

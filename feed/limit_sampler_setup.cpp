@@ -16,7 +16,7 @@
 #include "feed/limit_sampler_detail.hpp"
 #include "feed/path_walker.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 using namespace sampler_detail;
 
@@ -414,4 +414,4 @@ void LimitSampler::refuse_cusp(const toolpath::Path& path, std::size_t k,
       "there into two segments (a corner the motion stops at)");
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

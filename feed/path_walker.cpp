@@ -27,7 +27,7 @@
 #include "core/error.hpp"
 #include "core/quadrature.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 double distance_to_chord(const Vec3& q, const Vec3& a, const Vec3& b) {
@@ -205,4 +205,4 @@ WalkStep PathWalker::advance(double delta_s_mm) {
   return out;
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

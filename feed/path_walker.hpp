@@ -9,7 +9,7 @@
 #include "feed/curve_walker.hpp"
 #include "geometry/path.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 struct WalkStep {
   Vec3 p;                       // the setpoint, mm
@@ -60,4 +60,4 @@ double curve_length_mm(const toolpath::ParametricCurve& curve);
 // span nearly reverses, |C'| has a narrow valley that four fixed panels miss by 7e-4 mm.
 double arc_length_mm(const toolpath::ParametricCurve& curve, double u0, double u1);
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -73,7 +73,7 @@
 #include <limits>
 #include <utility>
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 using toolpath::NurbsCurve;
@@ -617,4 +617,4 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
   return out;
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

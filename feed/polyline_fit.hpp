@@ -12,7 +12,7 @@
 #include "geometry/nurbs.hpp"
 #include "geometry/path.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 struct FitReport {
   std::size_t runs = 0;           // runs replaced by a curve
@@ -43,4 +43,4 @@ std::optional<FittedRun> fit_polyline_run(const std::vector<Vec3>& points, doubl
 toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& limits,
                              FitReport* report = nullptr);
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -43,7 +43,7 @@
 #include "core/error.hpp"
 #include "core/number_text.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 double p_of(double pick_feed_mm) {
@@ -161,4 +161,4 @@ double inclination_from_normal_rad(const Vec3& contact_normal, const Vec3& feed_
   return std::atan2(-contact_normal.dot(across) / across_norm, contact_normal.dot(a));
 }
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

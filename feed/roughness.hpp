@@ -8,7 +8,7 @@
 
 #include "core/geometry.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 
 // The cutting process of one finishing job. Lengths in mm, roughness in µm (an edge unit).
 struct CuttingParams {
@@ -64,4 +64,4 @@ double inclination_from_tangent_rad(const Vec3& tangent);
 double inclination_from_normal_rad(const Vec3& contact_normal, const Vec3& feed_direction,
                                    const Vec3& tool_axis = Vec3::UnitZ());
 
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -44,7 +44,7 @@
 namespace ncd::motion {
 namespace {
 
-using interpolator::SharpCorner;
+using feed::SharpCorner;
 
 double segment_distance_mm(const Vec3& p, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;

@@ -49,7 +49,7 @@ struct OverlapLimits {
 // point of the continuous motion within the corner's tolerance of its two pieces, and the
 // continuous motion within the chord tolerance of each chord. 0 if none does. The samples
 // used must be raw, on the corner's straight pieces, and inside w.
-int longest_overlap(const interpolator::SharpCorner& corner, const OverlapLimits& limits,
+int longest_overlap(const feed::SharpCorner& corner, const OverlapLimits& limits,
                     std::span<const OverlapSample> w, std::size_t rest, int m_max);
 
 // The m setpoints that replace w[rest − m + 1 … rest + m] under longest_overlap's rule:
@@ -57,12 +57,12 @@ int longest_overlap(const interpolator::SharpCorner& corner, const OverlapLimits
 // period's chord error (out has m room). Their s is the sum of the two motions' progress (it
 // grows as both do), v the speed of the superposed motion, and a and j the larger in
 // magnitude of the two moves' own: each move keeps its tangential limits.
-void overlap_setpoints(const interpolator::SharpCorner& corner, double period_s,
+void overlap_setpoints(const feed::SharpCorner& corner, double period_s,
                        std::span<const OverlapSample> w, std::size_t rest, int m,
                        std::span<OverlapSample> out);
 
 // The distance of p from the corner's two pieces (each as long as SharpCorner says), mm.
-double corner_distance_mm(const interpolator::SharpCorner& corner, const Vec3& p_mm);
+double corner_distance_mm(const feed::SharpCorner& corner, const Vec3& p_mm);
 
 inline constexpr int kMaxOverlapPeriods = 16;  // the longest overlap tried, periods
 

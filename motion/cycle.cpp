@@ -308,14 +308,14 @@ std::string Cycle::error() const {
   if (stall_.seen) {
     const Setpoint& sp = stall_.at;
     const auto& limits = job_->config().limits;
-    const interpolator::FeedLimitResult here = job_->limit_here();
+    const feed::FeedLimitResult here = job_->limit_here();
     return "no progress for " + std::to_string(limits.stall_timeout_s) +
            " s (stall_timeout_s) at s = " + std::to_string(sp.s_mm) + " of " +
            std::to_string(job_->length_mm()) + " mm, X" + std::to_string(sp.p.x()) + " Y" +
            std::to_string(sp.p.y()) + " Z" + std::to_string(sp.p.z()) +
            ", v = " + std::to_string(sp.v_mm_per_s) +
            " mm/s; limit in force: " + limit_name(sp.limit_id) + " (" +
-           interpolator::to_string(here.limit) + " " + std::to_string(here.feed_mm_per_s) +
+           feed::to_string(here.limit) + " " + std::to_string(here.feed_mm_per_s) +
            " mm/s here): the motion was stopped (an internal error; please report it with the "
            "program)";
   }

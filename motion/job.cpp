@@ -30,37 +30,36 @@ PlannerLimits planner_limits(const JobConfig& c) {
   p.period_s = c.limits.period_s;
   p.window_capacity = c.window_capacity;
   // Under the jerk-vector bound the sampler asks for tangential scales down to this.
-  p.min_tangential_scale = c.limits.jerk_bound == interpolator::JerkBound::vector
-                               ? interpolator::kTangentialScaleFloor
-                               : 1.0;
+  p.min_tangential_scale =
+      c.limits.jerk_bound == feed::JerkBound::vector ? feed::kTangentialScaleFloor : 1.0;
   // With per-axis limits, down to the axes' lowest share of a_max and j_max (§3f).
   if (c.limits.has_axis_limits()) {
-    const interpolator::AxisScales floor = interpolator::axis_scale_floor(c.limits);
+    const feed::AxisScales floor = feed::axis_scale_floor(c.limits);
     p.min_tangential_scale = std::min({p.min_tangential_scale, floor.accel, floor.jerk});
     // Under axis jerk limits a curve may lower the acceleration scale further (§3f).
     if (c.limits.has_axis_jerk()) {
       p.min_tangential_scale =
-          std::min(p.min_tangential_scale, floor.accel * interpolator::kMinAxisAccelFactor);
+          std::min(p.min_tangential_scale, floor.accel * feed::kMinAxisAccelFactor);
     }
   }
   return p;
 }
 
-interpolator::WalkerConfig walker_config(const JobConfig& c) {
-  interpolator::WalkerConfig w;
+feed::WalkerConfig walker_config(const JobConfig& c) {
+  feed::WalkerConfig w;
   w.tolerance_rel = c.limits.feed_tolerance_rel;
   return w;
 }
 
 // 0, every stop, L: the stretches the planner plans from rest to rest.
-std::vector<double> stretch_bounds(const interpolator::LimitSampler& sampler, double length_mm) {
+std::vector<double> stretch_bounds(const feed::LimitSampler& sampler, double length_mm) {
   std::vector<double> b{0.0};
   for (const double s : sampler.stops_mm()) b.push_back(s);
   b.push_back(length_mm);
   return b;
 }
 
-std::vector<double> segment_starts(const interpolator::PathWalker& w, std::size_t segments) {
+std::vector<double> segment_starts(const feed::PathWalker& w, std::size_t segments) {
   std::vector<double> s;
   for (std::size_t k = 0; k <= segments; ++k) s.push_back(w.segment_start_mm(k));
   return s;
@@ -104,12 +103,11 @@ void validate_path(const toolpath::Path& path) {
 
 // The limits are checked first: blending computes with them. Dense runs under G64 Q are fitted
 // first (docs/planner.md §3d); the corners left between polyline parts are then blended.
-toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c,
-                            interpolator::FitReport* fit, interpolator::BlendReport* report) {
-  interpolator::validate(c.limits);
+toolpath::Path blended_path(const toolpath::Path& path, const JobConfig& c, feed::FitReport* fit,
+                            feed::BlendReport* report) {
+  feed::validate(c.limits);
   validate_path(path);
-  return interpolator::blend_corners(interpolator::fit_polylines(path, c.limits, fit), c.limits,
-                                     report);
+  return feed::blend_corners(feed::fit_polylines(path, c.limits, fit), c.limits, report);
 }
 
 StepBounds step_bounds(const JobConfig& c) {
@@ -140,7 +138,7 @@ int line_deep_steps(int overlap_max) {
 std::vector<double> line_deep_within_mm(const toolpath::Path& path,
                                         const std::vector<double>& segment_start_mm,
                                         const std::vector<double>& bounds_mm,
-                                        const interpolator::MachineLimits& l, int steps) {
+                                        const feed::MachineLimits& l, int steps) {
   const double v_max = l.max_feed_mm_per_min / 60.0;
   std::vector<double> within(bounds_mm.size() - 1, 0.0);
   std::size_t first = 0;  // the first segment that ends at or after the stretch's start
@@ -193,8 +191,8 @@ const char* limit_name(std::uint8_t id) {
     default:
       break;
   }
-  if (id < interpolator::kFeedLimitCount) {
-    return interpolator::to_string(static_cast<interpolator::FeedLimit>(id));
+  if (id < feed::kFeedLimitCount) {
+    return feed::to_string(static_cast<feed::FeedLimit>(id));
   }
   return "unknown";
 }
@@ -208,8 +206,8 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
       bounds_(stretch_bounds(sampler_, walker_.length_mm())),
       planner_(planner_limits(config), bounds_[1] - bounds_[0]),
       guard_(step_bounds(config), walker_.position()) {
-  interpolator::validate(config.limits);
-  interpolator::validate(config.cutting);
+  feed::validate(config.limits);
+  feed::validate(config.cutting);
   // Every limit is capped by the machine's maximum feed: size the planner for it now, so
   // that nothing allocates once the cycle runs.
   planner_.reserve_for_speed(config.limits.max_feed_mm_per_min / 60.0);
@@ -225,7 +223,7 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
     overlap_limits_.period_s = l.period_s;
     overlap_limits_.max_feed_mm_per_s = l.max_feed_mm_per_min / 60.0;
     overlap_limits_.max_accel_mm_per_s2 = l.max_accel_mm_per_s2;
-    overlap_limits_.max_jerk_vector_mm_per_s3 = l.jerk_bound == interpolator::JerkBound::vector
+    overlap_limits_.max_jerk_vector_mm_per_s3 = l.jerk_bound == feed::JerkBound::vector
                                                     ? l.max_jerk_mm_per_s3
                                                     : std::sqrt(2.0) * l.max_jerk_mm_per_s3;
     overlap_limits_.chord_tolerance_mm = l.chord_tolerance_mm;
@@ -270,16 +268,16 @@ bool Job::feed_planner() {
   const double start = bounds_[run_], end = bounds_[run_ + 1];
   const bool last = run_ + 2 == bounds_.size();
   const double tol = 1e-9 * std::max(1.0, end);
-  const auto id = [](interpolator::FeedLimit limit) { return static_cast<std::uint8_t>(limit); };
+  const auto id = [](feed::FeedLimit limit) { return static_cast<std::uint8_t>(limit); };
   // A sample to the planner; false (and the fault recorded) if it is refused.
   const auto take = [&](const LimitSample& q) {
     const PushResult r = planner_.push(q);
     return r == PushResult::Ok || plan_failed(q, r, q.limit_id);
   };
   // A node and the interval after it (the sampler's minimum there; +inf at a stretch's end).
-  const auto push = [&](double s_mm, double v_mm_per_s, interpolator::FeedLimit limit,
-                        const JerkVectorSpan& span, double v_after_mm_per_s,
-                        interpolator::FeedLimit after, const interpolator::AxisScales& axis) {
+  const auto push = [&](double s_mm, double v_mm_per_s, feed::FeedLimit limit,
+                        const JerkVectorSpan& span, double v_after_mm_per_s, feed::FeedLimit after,
+                        const feed::AxisScales& axis) {
     return take(
         {s_mm, v_mm_per_s, id(limit), span, v_after_mm_per_s, id(after), axis.accel, axis.jerk});
   };
@@ -291,7 +289,7 @@ bool Job::feed_planner() {
       continue;
     }
     if (sampler_done_) break;
-    interpolator::LimitNode node;
+    feed::LimitNode node;
     if (!sampler_.next(node)) {
       sampler_done_ = true;
       break;
@@ -311,7 +309,7 @@ bool Job::feed_planner() {
       const JerkVectorSpan span = node.jerk_span, first = past ? last_span_ : span;
       if (!push(length, left, node.limit, JerkVectorSpan{}, kInf, node.limit, {})) return false;
       const double right = past ? left : node.right_mm_per_s;
-      const interpolator::AxisScales axis = past ? last_axis_ : node.axis_scale;
+      const feed::AxisScales axis = past ? last_axis_ : node.axis_scale;
       carry_[0] = {
           0.0,        right,    id(node.limit), first, past ? kInf : right, id(node.right_limit),
           axis.accel, axis.jerk};
@@ -377,7 +375,7 @@ Setpoint Job::raw_step() {
   sp.feed_limit_mm_per_s = m.v_limit_mm_per_s;
   sp.planned_ds_mm = s_mm - last_s_mm_;
   last_s_mm_ = s_mm;
-  const interpolator::WalkStep w = walker_.advance(sp.planned_ds_mm);
+  const feed::WalkStep w = walker_.advance(sp.planned_ds_mm);
   sp.p = w.p;
   sp.travelled_mm = w.travelled_mm;
   sp.chord_error_mm = w.chord_error_mm;
@@ -451,7 +449,7 @@ void Job::line_push(const Setpoint& sp, bool rest) {
 
 // The sharp corner the motion rests on at line entry `rest`, if any: the next ones of
 // blend_.sharp in the moves around it, at its position, entered along its piece.
-const interpolator::SharpCorner* Job::corner_at(std::size_t rest) {
+const feed::SharpCorner* Job::corner_at(std::size_t rest) {
   if (rest == 0) return nullptr;
   const Setpoint& at = line_at(rest).sp;
   const Vec3 in = at.p - line_at(rest - 1).sp.p;
@@ -461,7 +459,7 @@ const interpolator::SharpCorner* Job::corner_at(std::size_t rest) {
   }
   for (std::size_t i = corner_next_; i < blend_.sharp.size() && blend_.sharp[i].segment <= seg;
        ++i) {
-    const interpolator::SharpCorner& c = blend_.sharp[i];
+    const feed::SharpCorner& c = blend_.sharp[i];
     const double scale = 1e-9 * std::max(1.0, c.vertex_mm.norm());
     if ((c.vertex_mm - at.p).norm() <= 1e-7 + scale && in.norm() > 0.0 &&
         in.normalized().dot(c.d_in) > 1.0 - 1e-6) {
@@ -475,7 +473,7 @@ const interpolator::SharpCorner* Job::corner_at(std::size_t rest) {
 // Overlaps the rest at line entry `rest` with the motion after it as far as the limits allow
 // (corner_overlap.hpp), in place: the 2m entries after rest − m become m.
 void Job::try_overlap(std::size_t rest) {
-  const interpolator::SharpCorner* c = corner_at(rest);
+  const feed::SharpCorner* c = corner_at(rest);
   if (!c) return;
   // The feed limits at 100 %, raised by an override above it (the planner's limit curve then).
   const double over = std::max(1.0, planner_.override_fraction());
@@ -598,7 +596,7 @@ Job::Place Job::place() const {
   return {here_.sp.segment, here_.piece, here_.curve_u};
 }
 
-interpolator::FeedLimitResult Job::limit_here() const {
+feed::FeedLimitResult Job::limit_here() const {
   const Place at = place();
   if (std::holds_alternative<toolpath::NurbsCurve>(path_.segments[at.segment].geometry)) {
     return sampler_.limit_on_curve(at.segment, at.curve_u);
@@ -609,23 +607,23 @@ interpolator::FeedLimitResult Job::limit_here() const {
 double Job::roughness_here_um(double v_mm_per_s) const {
   const Place at = place();
   // A G0 does not cut; a tool the law does not model (not a ball end) has no prediction.
-  const interpolator::CuttingParams* cutting = sampler_.cutting_of(at.segment);
+  const feed::CuttingParams* cutting = sampler_.cutting_of(at.segment);
   if (cutting == nullptr) return 0.0;
   const auto& k = *cutting;
   const double ft_mm = v_mm_per_s * 60.0 / (k.teeth * k.spindle_rpm);
   const auto r_um = [&](double alpha) {
-    return 1000.0 * interpolator::roughness_mm(k.ball_radius_mm, k.pick_feed_mm, ft_mm, alpha);
+    return 1000.0 * feed::roughness_mm(k.ball_radius_mm, k.pick_feed_mm, ft_mm, alpha);
   };
   const auto& g = path_.segments[at.segment].geometry;
   if (const auto* c = std::get_if<toolpath::NurbsCurve>(&g)) {
-    return r_um(interpolator::inclination_from_tangent_rad(c->eval(at.curve_u).d1.normalized()));
+    return r_um(feed::inclination_from_tangent_rad(c->eval(at.curve_u).d1.normalized()));
   }
   const auto& line = std::get<toolpath::Polyline>(g);
   const std::size_t i = at.piece;
   const Vec3 dir = (line.points[i + 1] - line.points[i]).normalized();
-  if (line.normals.empty()) return r_um(interpolator::inclination_from_tangent_rad(dir));
-  return std::max(r_um(interpolator::inclination_from_normal_rad(line.normals[i], dir)),
-                  r_um(interpolator::inclination_from_normal_rad(line.normals[i + 1], dir)));
+  if (line.normals.empty()) return r_um(feed::inclination_from_tangent_rad(dir));
+  return std::max(r_um(feed::inclination_from_normal_rad(line.normals[i], dir)),
+                  r_um(feed::inclination_from_normal_rad(line.normals[i + 1], dir)));
 }
 
 }  // namespace ncd::motion

@@ -21,9 +21,9 @@
 namespace ncd::motion {
 
 struct JobConfig {
-  interpolator::MachineLimits limits;
-  interpolator::CuttingParams cutting;
-  interpolator::SamplerConfig sampler;
+  feed::MachineLimits limits;
+  feed::CuttingParams cutting;
+  feed::SamplerConfig sampler;
   std::size_t window_capacity = 4096;  // planner look-ahead samples
 };
 
@@ -35,7 +35,7 @@ struct Setpoint {
   double v_mm_per_s = 0.0;      // planned feed at the end of the period
   double a_mm_per_s2 = 0.0;     // tangential acceleration at the end of the period
   double j_mm_per_s3 = 0.0;     // jerk during the period
-  std::uint8_t limit_id = 0;    // interpolator::FeedLimit, or the planner's kLimitId*
+  std::uint8_t limit_id = 0;    // feed::FeedLimit, or the planner's kLimitId*
   double planned_ds_mm = 0.0;   // s(t+T) − s(t)
   double travelled_mm = 0.0;    // true arc length walked
   double chord_error_mm = 0.0;  // path against the chord of this period
@@ -98,11 +98,11 @@ class Job {
   const JobConfig& config() const { return config_; }
   Planner& planner() { return planner_; }
   const Planner& planner() const { return planner_; }
-  const interpolator::PathWalker& walker() const { return walker_; }
-  const interpolator::LimitSampler& sampler() const { return sampler_; }
+  const feed::PathWalker& walker() const { return walker_; }
+  const feed::LimitSampler& sampler() const { return sampler_; }
   // The path walked (the program's, with its blended corners) and what the blending did.
   const toolpath::Path& path() const { return path_; }
-  const interpolator::BlendReport& blend_report() const { return blend_; }
+  const feed::BlendReport& blend_report() const { return blend_; }
   // The sharp corners passed without their stops so far.
   const OverlapReport& overlap_report() const { return overlap_; }
   // The most setpoints the job computes ahead of the one it emits: 0 unless a sharp corner may
@@ -122,9 +122,9 @@ class Job {
   std::vector<double> segment_starts_mm() const;
   // What the smoothing of dense polylines under G64 Q did (feed/polyline_fit.hpp); a
   // segment with fitted runs is split, fit_report().source_segment maps path() to the program's.
-  const interpolator::FitReport& fit_report() const { return fit_; }
+  const feed::FitReport& fit_report() const { return fit_; }
   // The feed limit of the continuous laws at the current position (no corners), mm/s.
-  interpolator::FeedLimitResult limit_here() const;
+  feed::FeedLimitResult limit_here() const;
   // The roughness model's R_max at the current position for feed v (Choi, eqs. 2–3), µm;
   // on a polyline piece the worse of its two ends.
   // 0 on a rapid (G0 does not cut) and for a tool the law does not model (geometry/tool.hpp).
@@ -154,7 +154,7 @@ class Job {
   Pending& line_at(std::size_t i) { return line_[(line_head_ + i) % line_.size()]; }
   void line_push(const Setpoint& sp, bool rest);
   void try_overlap(std::size_t rest);
-  const interpolator::SharpCorner* corner_at(std::size_t rest);
+  const feed::SharpCorner* corner_at(std::size_t rest);
   // Where the last emitted setpoint stands on path(): the walker's place, or the line's.
   struct Place {
     std::size_t segment, piece;
@@ -162,19 +162,19 @@ class Job {
   };
   Place place() const;
 
-  interpolator::BlendReport blend_;
-  interpolator::FitReport fit_;
+  feed::BlendReport blend_;
+  feed::FitReport fit_;
   toolpath::Path path_;  // the program's, dense runs fitted (G64 Q), corners blended
   JobConfig config_;
-  interpolator::PathWalker walker_;
-  interpolator::LimitSampler sampler_;
+  feed::PathWalker walker_;
+  feed::LimitSampler sampler_;
   std::vector<double> bounds_;  // 0, the stops, L: the planner plans one stretch at a time
   Planner planner_;
   std::size_t run_ = 0;            // the stretch [bounds_[run_], bounds_[run_ + 1]] being planned
   LimitSample carry_[2]{};         // samples of the next stretch read before it began
   bool stop_taken_early_ = false;  // the last stretch ended on a node short of its stop
   JerkVectorSpan last_span_;       // the curve span of the last node pushed (its interval)
-  interpolator::AxisScales last_axis_{};  // the axis scales of the last node pushed
+  feed::AxisScales last_axis_{};   // the axis scales of the last node pushed
   std::size_t carry_n_ = 0;
   StepGuard guard_;
   // The look-ahead's fault (fault() == Plan): where, and the sample refused and why (a zero

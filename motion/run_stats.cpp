@@ -43,10 +43,10 @@ void record_axes(RunStats& st, double T, const Vec3& p) {
 
 }  // namespace
 
-std::array<AxisPeak, 3> axis_peaks(const RunStats& st, const interpolator::MachineLimits& l) {
+std::array<AxisPeak, 3> axis_peaks(const RunStats& st, const feed::MachineLimits& l) {
   std::array<AxisPeak, 3> out{};
   for (std::size_t i = 0; i < 3; ++i) {
-    const interpolator::AxisLimits& ax = l.axes[i];
+    const feed::AxisLimits& ax = l.axes[i];
     out[i] = {static_cast<char>('X' + i),     st.axis_feed_max_mm_per_s[i] * 60.0,
               st.axis_accel_max_mm_per_s2[i], st.axis_jerk_max_mm_per_s3[i],
               ax.max_feed_mm_per_min,         ax.max_accel_mm_per_s2,
@@ -55,7 +55,7 @@ std::array<AxisPeak, 3> axis_peaks(const RunStats& st, const interpolator::Machi
   return out;
 }
 
-nlohmann::ordered_json axis_peaks_json(const RunStats& st, const interpolator::MachineLimits& l) {
+nlohmann::ordered_json axis_peaks_json(const RunStats& st, const feed::MachineLimits& l) {
   const auto lim = [](double x) {
     return std::isfinite(x) ? nlohmann::ordered_json(x) : nlohmann::ordered_json(nullptr);
   };
@@ -72,7 +72,7 @@ nlohmann::ordered_json axis_peaks_json(const RunStats& st, const interpolator::M
   return j;
 }
 
-std::string axis_peaks_text(const RunStats& st, const interpolator::MachineLimits& l) {
+std::string axis_peaks_text(const RunStats& st, const feed::MachineLimits& l) {
   if (!l.has_axis_limits()) return {};
   std::string text;
   for (const AxisPeak& a : axis_peaks(st, l)) {

@@ -23,8 +23,8 @@ inline constexpr double kFeedErrorMinStepMm = 1e-3;
 inline constexpr double kDriftToleranceMm = 1e-3;
 
 // Which jerk bound the planner enforces (docs/planner.md §3c), for the reports.
-inline const char* jerk_bound_in_force(interpolator::JerkBound bound) {
-  return bound == interpolator::JerkBound::vector
+inline const char* jerk_bound_in_force(feed::JerkBound bound) {
+  return bound == feed::JerkBound::vector
              ? "vector: the jerk vector |d3p/dt3| <= j_max on curves and at curvature jumps "
                "(tangential limits scaled where a curve needs it), across runs of polyline "
                "pieces shorter than one period's travel (their discrete curvature and its "
@@ -77,13 +77,11 @@ struct AxisPeak {
   double accel_ratio() const { return accel_mm_per_s2 / accel_limit_mm_per_s2; }
   double jerk_ratio() const { return jerk_mm_per_s3 / jerk_limit_mm_per_s3; }
 };
-std::array<AxisPeak, 3> axis_peaks(const RunStats& stats,
-                                   const interpolator::MachineLimits& limits);
+std::array<AxisPeak, 3> axis_peaks(const RunStats& stats, const feed::MachineLimits& limits);
 // The replay report's "axis_peaks": per axis, each peak and its limit (null: none).
-nlohmann::ordered_json axis_peaks_json(const RunStats& stats,
-                                       const interpolator::MachineLimits& limits);
+nlohmann::ordered_json axis_peaks_json(const RunStats& stats, const feed::MachineLimits& limits);
 // The replay's text lines for them ("" without per-axis limits in the machine file).
-std::string axis_peaks_text(const RunStats& stats, const interpolator::MachineLimits& limits);
+std::string axis_peaks_text(const RunStats& stats, const feed::MachineLimits& limits);
 
 // Why a finished run must not reach a machine: any limit violation (feed, acceleration, jerk,
 // chord) or an arc-length drift beyond kDriftToleranceMm; empty when it may. The one

@@ -16,7 +16,7 @@
 namespace ncd::motion {
 namespace {
 
-const auto kRoughnessId = static_cast<std::uint8_t>(interpolator::FeedLimit::Roughness);
+const auto kRoughnessId = static_cast<std::uint8_t>(feed::FeedLimit::Roughness);
 
 }  // namespace
 
@@ -78,7 +78,7 @@ nlohmann::ordered_json ToolUse::to_json(const Job& job) const {
     toolpath::CutterTool tool;
     std::size_t moves = 0, capped = 0;
     double length_mm = 0.0, walked_max = 0.0;
-    const interpolator::CuttingParams* law = nullptr;
+    const feed::CuttingParams* law = nullptr;
   };
   std::map<std::pair<int, int>, Sum> tools;
   nlohmann::ordered_json runs = nlohmann::ordered_json::array();
@@ -93,7 +93,7 @@ nlohmann::ordered_json ToolUse::to_json(const Job& job) const {
     ++s.moves;
     s.length_mm += job.walker().segment_start_mm(last + 1) - job.walker().segment_start_mm(k);
     s.walked_max = std::max(s.walked_max, m.walked_max_mm_per_s);
-    const interpolator::CuttingParams* law = job.sampler().cutting_of(k);
+    const feed::CuttingParams* law = job.sampler().cutting_of(k);
     if (law) s.law = law;
     const std::string kind = toolpath::to_string(seg.tool.kind);
     if (runs.empty() || runs.back()["tool"] != seg.tool.number || runs.back()["kind"] != kind) {

@@ -43,7 +43,7 @@ struct LiveLimitRules {
              chord = RuleAction::Error;
 
   // The machine's own limits, every rule ending the job.
-  static LiveLimitRules from(const interpolator::MachineLimits& limits) {
+  static LiveLimitRules from(const feed::MachineLimits& limits) {
     LiveLimitRules r;
     r.max_feed_mm_per_s = limits.max_feed_mm_per_min / 60.0;
     r.max_accel_mm_per_s2 = limits.max_accel_mm_per_s2;

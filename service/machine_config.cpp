@@ -349,7 +349,7 @@ void parse_tools(const toml::value& table, const std::string& name,
 // [axis.x], [axis.y], [axis.z] (docs/planner.md §3f): each axis's own limits, in the ranges of
 // the path's; a key left out leaves the axis bounded by the path limit only.
 void parse_axes(const toml::value& table, const std::string& name,
-                std::array<interpolator::AxisLimits, 3>& axes) {
+                std::array<feed::AxisLimits, 3>& axes) {
   static constexpr const char* kNames[3] = {"x", "y", "z"};
   for (const auto& [axis, value] : table.as_table()) {
     std::size_t i = 0;
@@ -362,7 +362,7 @@ void parse_axes(const toml::value& table, const std::string& name,
     if (!value.is_table()) {
       throw InputError(name + ": " + table_name + " must be a table: [" + table_name + "]");
     }
-    interpolator::AxisLimits& ax = axes[i];
+    feed::AxisLimits& ax = axes[i];
     for (const auto& entry : value.as_table()) {
       // (named copies, not a structured binding: clang 14, the fuzz build's, cannot capture one)
       const std::string& key = entry.first;
@@ -393,7 +393,7 @@ void parse_axes(const toml::value& table, const std::string& name,
 // A top-level limit of the machine file (period_s, max_feed_mm_per_min, …) into l; false if key
 // is not one.
 bool parse_top_limit(const std::string& key, const toml::value& value, const std::string& where,
-                     interpolator::MachineLimits& l) {
+                     feed::MachineLimits& l) {
   double* slot = key == "period_s"              ? &l.period_s
                  : key == "max_feed_mm_per_min" ? &l.max_feed_mm_per_min
                  : key == "max_accel_mm_per_s2" ? &l.max_accel_mm_per_s2
@@ -410,8 +410,7 @@ bool parse_top_limit(const std::string& key, const toml::value& value, const std
 
 // jerk_bound = "tangential", "vector" or "axes" into l; whether it is "axes" (the vector bound
 // at the smallest axis jerk, set once the [axis.*] tables are read).
-bool parse_jerk_bound(const toml::value& value, const std::string& where,
-                      interpolator::MachineLimits& l) {
+bool parse_jerk_bound(const toml::value& value, const std::string& where, feed::MachineLimits& l) {
   const std::string b = as_text(value, where);
   if (b != "tangential" && b != "vector" && b != "axes") {
     throw InputError(where + " = \"" + b +
@@ -421,14 +420,12 @@ bool parse_jerk_bound(const toml::value& value, const std::string& where,
                      "the smallest [axis.*] max_jerk_mm_per_s3: every axis within its jerk; "
                      "section 3f)");
   }
-  l.jerk_bound =
-      b == "tangential" ? interpolator::JerkBound::tangential : interpolator::JerkBound::vector;
+  l.jerk_bound = b == "tangential" ? feed::JerkBound::tangential : feed::JerkBound::vector;
   return b == "axes";
 }
 
 // [cutting]: the roughness law's parameters.
-void parse_cutting(const toml::value& value, const std::string& name,
-                   interpolator::CuttingParams& k) {
+void parse_cutting(const toml::value& value, const std::string& name, feed::CuttingParams& k) {
   for (const auto& [ck, cv] : value.as_table()) {
     const std::string cwhere = name + ": cutting." + ck;
     if (ck == "ball_radius_mm")
@@ -493,7 +490,7 @@ void apply_jerk_by_axes(MachineConfig& c, const std::string& name) {
                      ": jerk_bound = \"axes\" needs max_jerk_mm_per_s3 in an [axis.x], "
                      "[axis.y] or [axis.z] table; give the axes' jerk, or use \"vector\"");
   }
-  c.limits = interpolator::with_axis_jerk(c.limits);
+  c.limits = feed::with_axis_jerk(c.limits);
   c.jerk_by_axes = true;
 }
 
@@ -505,8 +502,8 @@ void finish_config(MachineConfig& c, const std::string& name) {
   c.program.machine_tools = {c.tool.number};  // the tool the programs ncd writes change to
   check_ranges(c, name);
   try {
-    interpolator::validate(c.limits);
-    interpolator::validate(c.cutting);
+    feed::validate(c.limits);
+    feed::validate(c.cutting);
     comms::validate(c.encoder);
   } catch (const InputError& e) {
     throw InputError(name + ": " + e.what());
@@ -604,13 +601,13 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   j["feed_tolerance_rel"] = c.limits.feed_tolerance_rel;
   j["blend_tolerance_mm"] = c.limits.blend_tolerance_mm;
   j["stall_timeout_s"] = c.limits.stall_timeout_s;
-  j["jerk_bound"] = c.jerk_by_axes ? "axes" : interpolator::to_string(c.limits.jerk_bound);
+  j["jerk_bound"] = c.jerk_by_axes ? "axes" : feed::to_string(c.limits.jerk_bound);
   j["fit_dense_runs"] = c.limits.fit_dense_runs;
   if (c.limits.has_axis_limits()) {  // only when given: without them the JSON is as before
     static constexpr const char* kNames[3] = {"x", "y", "z"};
     nlohmann::ordered_json axes = nlohmann::ordered_json::object();
     for (std::size_t i = 0; i < 3; ++i) {
-      const interpolator::AxisLimits& ax = c.limits.axes[i];
+      const feed::AxisLimits& ax = c.limits.axes[i];
       const auto limit = [](double x) {
         return std::isfinite(x) ? nlohmann::ordered_json(x) : nlohmann::ordered_json(nullptr);
       };

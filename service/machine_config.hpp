@@ -54,10 +54,10 @@ struct ToolConfig {
 };
 
 struct MachineConfig {
-  interpolator::MachineLimits limits;
+  feed::MachineLimits limits;
   // jerk_bound = "axes": limits hold with_axis_jerk's vector bound (echoed as "axes").
   bool jerk_by_axes = false;
-  interpolator::CuttingParams cutting;
+  feed::CuttingParams cutting;
   LinkConfig link;
   Envelope envelope;
   ToolConfig tool;

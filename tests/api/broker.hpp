@@ -12,13 +12,16 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "tests/common/process.hpp"
 
@@ -69,6 +72,61 @@ struct BrokerUser {
 inline const BrokerUser kMachine{"m1", "m1-secret"}, kOtherMachine{"m2", "m2-secret"},
     kOperator{"ops", "ops-secret"};
 
+// mosquitto_passwd -b for each user into a new password file; throws when the tool fails.
+inline void write_broker_passwords(const std::filesystem::path& file,
+                                   const std::vector<BrokerUser>& users) {
+  const std::string tool = find_program("mosquitto_passwd");
+  for (std::size_t k = 0; k < users.size(); ++k) {
+    const std::string cmd = tool + (k == 0 ? " -c" : "") + " -b " + file.string() + " " +
+                            users[k].name + " " + users[k].password + " >/dev/null 2>&1";
+    if (std::system(cmd.c_str()) != 0) throw std::runtime_error("mosquitto_passwd failed");
+  }
+}
+
+// One mosquitto process on the config `dir/mosquitto.conf`, restartable: each run logs to its own
+// `mosquitto.N.err`. start() waits (10 s at most) until every given port accepts connections.
+class MosquittoProcess {
+ public:
+  explicit MosquittoProcess(std::filesystem::path dir) : dir_(std::move(dir)) {}
+  ~MosquittoProcess() { kill(); }
+  bool start(const std::vector<int>& ports) {
+    ++runs_;
+    process_ =
+        std::make_unique<Process>(std::vector<std::string>{find_program("mosquitto"), "-c",
+                                                           (dir_ / "mosquitto.conf").string()},
+                                  (dir_ / "mosquitto.out").string(), log_path().string());
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (std::chrono::steady_clock::now() < end) {
+      bool all = true;
+      for (const int port : ports) all = all && port_accepts(port);
+      if (all) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+  }
+  // SIGKILL: no clean shutdown, no last save of the database.
+  void kill() {
+    if (!process_) return;
+    process_->signal(SIGKILL);
+    process_->wait(10);
+    process_.reset();
+  }
+  pid_t pid() const { return process_ ? process_->pid() : -1; }
+  // The standard error of the latest run.
+  std::string log() const {
+    std::ifstream in(log_path());
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+
+ private:
+  std::filesystem::path log_path() const {
+    return dir_ / ("mosquitto." + std::to_string(runs_) + ".err");
+  }
+  std::filesystem::path dir_;
+  int runs_ = 0;
+  std::unique_ptr<Process> process_;
+};
+
 class Broker {
  public:
   // Why the tests cannot run here ("" when they can).
@@ -80,17 +138,11 @@ class Broker {
     return "";
   }
 
-  explicit Broker(const std::filesystem::path& dir) : dir_(dir), port_(free_loopback_port()) {
+  explicit Broker(const std::filesystem::path& dir)
+      : dir_(dir), port_(free_loopback_port()), mosquitto_(dir) {
     std::filesystem::create_directories(dir_ / "db");
     const std::string passwd = (dir_ / "passwd").string();
-    const std::string tool = find_program("mosquitto_passwd");
-    bool first = true;
-    for (const BrokerUser& u : {kMachine, kOtherMachine, kOperator}) {
-      const std::string cmd = tool + (first ? " -c" : "") + " -b " + passwd + " " + u.name + " " +
-                              u.password + " >/dev/null 2>&1";
-      if (std::system(cmd.c_str()) != 0) throw std::runtime_error("mosquitto_passwd failed");
-      first = false;
-    }
+    write_broker_passwords(passwd, {kMachine, kOtherMachine, kOperator});
     std::ofstream(dir_ / "acl") << "# each machine: its own root; the operator: all, and commands\n"
                                    "pattern readwrite ncd/cell1/%u/#\n"
                                    "user ops\n"
@@ -108,42 +160,19 @@ class Broker {
          << "log_dest stderr\n";
     if (::geteuid() == 0) conf << "user root\n";  // keep access to the files of the test folder
   }
-  ~Broker() { kill(); }
 
   // Starts mosquitto and waits (10 s at most) until it accepts connections.
-  bool start() {
-    ++runs_;
-    process_ = std::make_unique<Process>(
-        std::vector<std::string>{find_program("mosquitto"), "-c",
-                                 (dir_ / "mosquitto.conf").string()},
-        (dir_ / "mosquitto.out").string(),
-        (dir_ / ("mosquitto." + std::to_string(runs_) + ".err")).string());
-    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    while (std::chrono::steady_clock::now() < end) {
-      if (port_accepts(port_)) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return false;
-  }
+  bool start() { return mosquitto_.start({port_}); }
   // SIGKILL: no clean shutdown, no last save of the database.
-  void kill() {
-    if (!process_) return;
-    process_->signal(SIGKILL);
-    process_->wait(10);
-    process_.reset();
-  }
+  void kill() { mosquitto_.kill(); }
   int port() const { return port_; }
   std::string url() const { return "tcp://127.0.0.1:" + std::to_string(port_); }
-  std::string log() const {
-    std::ifstream in(dir_ / ("mosquitto." + std::to_string(runs_) + ".err"));
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  }
+  std::string log() const { return mosquitto_.log(); }
 
  private:
   std::filesystem::path dir_;
   int port_;
-  int runs_ = 0;
-  std::unique_ptr<Process> process_;
+  MosquittoProcess mosquitto_;
 };
 
 }  // namespace ncd::test

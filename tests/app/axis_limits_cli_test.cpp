@@ -54,7 +54,7 @@ TEST(AxisLimitsConfig, TablesAreReadAndKeysLeftOutAreNoLimit) {
   EXPECT_FALSE(to_json(none).contains("axis"));
 }
 
-// jerk_bound = "axes": the jerk vector bounded by the smallest axis jerk (interpolator::
+// jerk_bound = "axes": the jerk vector bounded by the smallest axis jerk (feed::
 // with_axis_jerk; its law is held by AxisLimits.TheVectorBoundAtTheSmallestAxisJerk... in
 // test_motion), and without an axis jerk it is an error naming the way out.
 TEST(AxisLimitsConfig, JerkBoundAxesBoundsTheVectorByTheSmallestAxisJerk) {
@@ -63,7 +63,7 @@ TEST(AxisLimitsConfig, JerkBoundAxesBoundsTheVectorByTheSmallestAxisJerk) {
       "4000\n[axis.x]\nmax_jerk_mm_per_s3 = 9000\n",
       "m.toml");
   EXPECT_EQ(c.limits.max_jerk_mm_per_s3, 4000.0);
-  EXPECT_EQ(c.limits.jerk_bound, interpolator::JerkBound::vector);
+  EXPECT_EQ(c.limits.jerk_bound, feed::JerkBound::vector);
   EXPECT_EQ(c.limits.axes[0].max_jerk_mm_per_s3, 9000.0);
   EXPECT_EQ(to_json(c)["jerk_bound"], "axes");  // the echo says what the file asked for
   expect_all(error_of("jerk_bound = \"axes\"\n"),

@@ -31,7 +31,7 @@ struct DenseWalk {
   double t_s = 0.0;
   double setpoint_off_mm = 0.0;  // largest distance of a setpoint from the programmed path
   double vertex_off_mm = 0.0;    // largest distance of a programmed vertex from the chords
-  interpolator::FitReport fit;
+  feed::FitReport fit;
 };
 
 // Walks the path with cfg; measures the two distances against the programmed path.
@@ -78,7 +78,7 @@ inline DenseWalk walk_dense(const toolpath::Path& path, const motion::JobConfig&
 // The programmed geometry's limit (3dtest): polyline pieces at their cap, arcs (NURBS) sampled
 // every ~2 µm with the curve laws at their curvature, each joint at the corner limit within P
 // (0 under G61/G61.1/P0 and at a stop).
-inline ShapeLimit program_limit(const toolpath::Path& path, const interpolator::MachineLimits& l) {
+inline ShapeLimit program_limit(const toolpath::Path& path, const feed::MachineLimits& l) {
   ShapeLimit lim;
   Vec3 prev_dir = Vec3::Zero();
   for (const auto& seg : path.segments) {
@@ -86,8 +86,7 @@ inline ShapeLimit program_limit(const toolpath::Path& path, const interpolator::
         std::min(l.max_feed_mm_per_min,
                  seg.rapid || !seg.feed_mm_per_min ? l.max_feed_mm_per_min : *seg.feed_mm_per_min) /
         60.0;
-    const bool blend =
-        interpolator::sampler_detail::corner_mode(seg, l) == toolpath::PathControl::blend;
+    const bool blend = feed::sampler_detail::corner_mode(seg, l) == toolpath::PathControl::blend;
     const double p_mm = blend ? seg.blend_tolerance_mm.value_or(l.blend_tolerance_mm) : 0.0;
     const auto joint = [&](const Vec3& dir) {  // the corner into a piece of direction dir
       if (lim.s_mm.empty()) return;

@@ -38,12 +38,11 @@ struct ShapeLimit {
 
 // The curve laws at curvature κ under the cap (mm/s).
 inline double curve_limit_mm_per_s(double kappa_per_mm, double cap_mm_per_s,
-                                   const interpolator::MachineLimits& l) {
-  return std::min(
-      {cap_mm_per_s,
-       interpolator::chord_feed_mm_per_s(kappa_per_mm, l.chord_tolerance_mm, l.period_s),
-       interpolator::centripetal_accel_feed_mm_per_s(kappa_per_mm, l.max_accel_mm_per_s2),
-       interpolator::centripetal_jerk_feed_mm_per_s(kappa_per_mm, l.max_jerk_mm_per_s3)});
+                                   const feed::MachineLimits& l) {
+  return std::min({cap_mm_per_s,
+                   feed::chord_feed_mm_per_s(kappa_per_mm, l.chord_tolerance_mm, l.period_s),
+                   feed::centripetal_accel_feed_mm_per_s(kappa_per_mm, l.max_accel_mm_per_s2),
+                   feed::centripetal_jerk_feed_mm_per_s(kappa_per_mm, l.max_jerk_mm_per_s3)});
 }
 
 // The highest speed at a corner turning by φ passed within P of its vertex: the circular arc
@@ -51,8 +50,7 @@ inline double curve_limit_mm_per_s(double kappa_per_mm, double cap_mm_per_s,
 // the curve of least curvature through the corner, §3a) under the centripetal acceleration law
 // alone (its jerk and chord laws are left out: a generous corner, so the bound stays a lower
 // one). 0 when P is 0 (the corner is a rest), +inf when the pieces do not turn.
-inline double corner_limit_mm_per_s(double turn_rad, double p_mm,
-                                    const interpolator::MachineLimits& l) {
+inline double corner_limit_mm_per_s(double turn_rad, double p_mm, const feed::MachineLimits& l) {
   if (!(turn_rad > 1e-9)) return std::numeric_limits<double>::infinity();
   if (!(p_mm > 0.0)) return 0.0;
   // A reversal can loop within P: R is taken at least P (generous again).
@@ -121,7 +119,7 @@ inline toolpath::Path sine_program(std::size_t moves, int decimals, double p_mm)
 
 // The shape's limit: y = 5 sin(x/3), x ∈ [0, 0.01 moves], κ = |y''| / (1 + y'²)^(3/2), sampled
 // every 2 µm of x (arc length by the midpoint rule on √(1 + y'²)).
-inline ShapeLimit sine_limit(std::size_t moves, const interpolator::MachineLimits& l) {
+inline ShapeLimit sine_limit(std::size_t moves, const feed::MachineLimits& l) {
   const double x_end = 0.01 * static_cast<double>(moves), dx = 0.002;
   const auto n = static_cast<std::size_t>(std::llround(x_end / dx));
   const auto speed = [](double x) {
@@ -180,8 +178,7 @@ inline toolpath::Path surface_program(std::size_t passes, int decimals, double p
 // The raster's limit: each pass the curve (x, y_k, f(x, y_k)), κ = |f_xx| / (1 + f_x²)^(3/2),
 // sampled every 2 µm of x; each step-over a line at the feed; at each of the two corners
 // between a pass and a step-over the corner limit within P (corner_limit_mm_per_s).
-inline ShapeLimit surface_limit(std::size_t passes, double p_mm,
-                                const interpolator::MachineLimits& l) {
+inline ShapeLimit surface_limit(std::size_t passes, double p_mm, const feed::MachineLimits& l) {
   const double cap = Surface::kFeed / 60.0, dx = 0.002;
   const auto n = static_cast<std::size_t>(std::llround(Surface::kLengthMm / dx));
   ShapeLimit lim;
@@ -219,7 +216,7 @@ inline ShapeLimit surface_limit(std::size_t passes, double p_mm,
 // plunge at the feed from rest (the spindle start) onto the surface at the origin, the passes,
 // then a 5 mm rapid up in Z at the machine's maximum feed to rest; the plunge and the rapid
 // joined to the passes by the corner limit within P.
-inline double surface_finish_bound_s(const interpolator::MachineLimits& l) {
+inline double surface_finish_bound_s(const feed::MachineLimits& l) {
   constexpr std::size_t kPasses = 7;
   const double p_mm = 0.01, y_last = Surface::kStepOverMm * static_cast<double>(kPasses - 1);
   const double cap = Surface::kFeed / 60.0;

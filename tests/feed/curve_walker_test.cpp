@@ -21,7 +21,7 @@
 #include "tests/common/count_allocations.hpp"
 #include "tests/common/seed.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 using toolpath::CurvePoint;
@@ -353,4 +353,4 @@ TEST(CurveWalker, RejectsBadConfigAndBreakpoints) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

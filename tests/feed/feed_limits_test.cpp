@@ -13,7 +13,7 @@
 #include "core/error.hpp"
 #include "tests/common/seed.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -222,4 +222,4 @@ TEST(JerkVectorLaws, MatchTheirDefinitions) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

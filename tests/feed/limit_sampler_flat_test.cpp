@@ -20,7 +20,7 @@
 #include "geometry/spiral.hpp"
 #include "tests/common/seed.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 struct Stream {
@@ -273,4 +273,4 @@ TEST(LimitSamplerFlat, RandomBSplinesUnderAxisLimitsGiveTheReferenceNodes) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

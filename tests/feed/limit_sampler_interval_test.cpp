@@ -21,7 +21,7 @@
 #include "tests/common/seed.hpp"
 #include "tests/common/test_paths.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 struct Scan {
@@ -124,4 +124,4 @@ TEST(LimitSamplerInterval, RandomBSplines) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

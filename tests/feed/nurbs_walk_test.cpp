@@ -11,7 +11,7 @@
 #include "feed/curve_walker.hpp"
 #include "geometry/nurbs.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 toolpath::NurbsCurve fig11_path() {
@@ -84,4 +84,4 @@ TEST(CurveWalkerOnNurbs, CorrectionHoldsTheFeedOnTheFig11Path) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -13,7 +13,7 @@
 #include "tests/common/seed.hpp"
 #include "tests/motion/reference.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 using toolpath::NurbsCurve;
@@ -311,4 +311,4 @@ TEST(PolylineFit, IneligibleSegmentsAreCopied) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -13,7 +13,7 @@
 #include "core/error.hpp"
 #include "tests/common/seed.hpp"
 
-namespace ncd::interpolator {
+namespace ncd::feed {
 namespace {
 
 constexpr double kR = 5.0;   // ball radius, mm
@@ -257,4 +257,4 @@ TEST(Inclination, PlungeUsesTheWholeAngleToTheToolAxis) {
 }
 
 }  // namespace
-}  // namespace ncd::interpolator
+}  // namespace ncd::feed

@@ -119,8 +119,7 @@ inline motion::JobConfig job_config(const Machine& m) {
   c.limits.period_s = m.period_ms / 1000.0;
   c.limits.chord_tolerance_mm = m.chord_mm;
   c.limits.blend_tolerance_mm = m.blend_mm;
-  c.limits.jerk_bound =
-      m.vector ? interpolator::JerkBound::vector : interpolator::JerkBound::tangential;
+  c.limits.jerk_bound = m.vector ? feed::JerkBound::vector : feed::JerkBound::tangential;
   if (!m.roughness) {
     c.cutting.pick_feed_mm = 0.0;
     c.cutting.roughness_target_um = 1000.0;
@@ -663,12 +662,12 @@ inline double rest_to_rest_s(double d, double v, double a, double j) {
 inline double bound_periods(const toolpath::Path& path, const motion::JobConfig& c) {
   const auto& l = c.limits;
   const double scale_floor =
-      l.jerk_bound == interpolator::JerkBound::vector ? interpolator::kTangentialScaleFloor : 1.0;
+      l.jerk_bound == feed::JerkBound::vector ? feed::kTangentialScaleFloor : 1.0;
   const double a = l.max_accel_mm_per_s2 * scale_floor, j = l.max_jerk_mm_per_s3 * scale_floor;
   const double v_machine = l.max_feed_mm_per_min / 60.0;
   double v_rough = std::numeric_limits<double>::infinity();
   for (int k = 0; k <= 64; ++k) {
-    v_rough = std::min(v_rough, interpolator::roughness_feed_mm_per_s(c.cutting, k * kPi / 128.0));
+    v_rough = std::min(v_rough, feed::roughness_feed_mm_per_s(c.cutting, k * kPi / 128.0));
   }
   v_rough *= 0.5;
   double t = 0.0;
@@ -688,17 +687,16 @@ inline double bound_periods(const toolpath::Path& path, const motion::JobConfig&
       Vec3 prev = curve.eval(bp[i]).p;
       for (int k = 0; k <= 64; ++k) {
         const toolpath::CurvePoint q = curve.eval(bp[i] + (bp[i + 1] - bp[i]) * k / 64.0);
-        const double kq = interpolator::curvature_per_mm(q);
+        const double kq = feed::curvature_per_mm(q);
         kappa = std::max(kappa, std::isfinite(kq) ? kq : 1e12);
         sampled += (q.p - prev).norm();
         prev = q.p;
       }
       double vc = v;
       if (kappa > 0.0) {
-        vc = std::min(
-            {vc, 0.5 * interpolator::chord_feed_mm_per_s(kappa, l.chord_tolerance_mm, l.period_s),
-             0.5 * interpolator::centripetal_accel_feed_mm_per_s(kappa, a),
-             0.5 * interpolator::centripetal_jerk_feed_mm_per_s(kappa, j)});
+        vc = std::min({vc, 0.5 * feed::chord_feed_mm_per_s(kappa, l.chord_tolerance_mm, l.period_s),
+                       0.5 * feed::centripetal_accel_feed_mm_per_s(kappa, a),
+                       0.5 * feed::centripetal_jerk_feed_mm_per_s(kappa, j)});
       }
       t += rest_to_rest_s(1.05 * sampled, vc, a, j);
     }

@@ -233,7 +233,7 @@ TEST(AxisLimits, LineIntoArcKeepsEveryAxissJerk) {
   JobConfig cfg = test::planner_machine();
   cfg.limits.axes[0].max_jerk_mm_per_s3 = 5000.0;
   cfg.limits.axes[1].max_jerk_mm_per_s3 = 5000.0;
-  ASSERT_EQ(cfg.limits.jerk_bound, interpolator::JerkBound::tangential);
+  ASSERT_EQ(cfg.limits.jerk_bound, feed::JerkBound::tangential);
   const Walk w = walk(ngc_path("G21 G90 G17 G0 X0 Y0 Z0\nG1 X20 Y0 F3000\n"
                                "G3 X30 Y10 I0 J10\nG1 Y30\nM2\n"),
                       cfg);
@@ -379,7 +379,7 @@ TEST(AxisLimits, RandomProgramsKeepEveryAxisWithinItsLimits) {
 }
 
 // The recipe for drives that trip on axis jerk (docs/planner.md §3f): the jerk vector bounded
-// by the smallest axis jerk (interpolator::with_axis_jerk: jerk_bound = "vector",
+// by the smallest axis jerk (feed::with_axis_jerk: jerk_bound = "vector",
 // max_jerk_mm_per_s3 = min_i j_i). Each axis's jerk is a component of the vector: random
 // programs under random per-axis limits keep every axis's feed, acceleration and jerk, from the
 // setpoints' differences, within 1 + 1e-9 of its limit.
@@ -391,7 +391,7 @@ TEST(AxisLimits, TheVectorBoundAtTheSmallestAxisJerkHoldsEveryAxissJerk) {
   double worst_feed = 0.0, worst_accel = 0.0, worst_jerk = 0.0;
   for (int n = 0; n < programs; ++n) {
     JobConfig cfg = random_axis_machine(rng);
-    cfg.limits = interpolator::with_axis_jerk(cfg.limits);
+    cfg.limits = feed::with_axis_jerk(cfg.limits);
     const Path path = program_from_origin(g);
     const Walk w = walk(path, cfg);
     ASSERT_TRUE(w.fault.empty()) << "program " << n << " of seed " << seed << ": " << w.fault;

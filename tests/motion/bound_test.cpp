@@ -70,7 +70,7 @@ double ncd_duration_s(const Path& path, std::size_t* overlap_saved_periods = nul
 struct Walk {
   double t_s = 0.0;
   double max_off_mm = 0.0;
-  interpolator::FitReport fit;
+  feed::FitReport fit;
 };
 
 // fit_dense_runs: the machine's default fit of dense runs under G64 P (docs/planner.md §3d);
@@ -111,8 +111,7 @@ PhasePlane phase_plane(const NurbsCurve& c, double feed_mm_per_s, int n = 200000
       const auto q = c.eval(c.u_begin() + du * (i - 0.5));
       s[i] = s[i - 1] + du * q.d1.norm();  // midpoint rule
     }
-    v[i] = std::min(feed_mm_per_s,
-                    interpolator::feed_limit_at(cfg.limits, cfg.cutting, p).feed_mm_per_s);
+    v[i] = std::min(feed_mm_per_s, feed::feed_limit_at(cfg.limits, cfg.cutting, p).feed_mm_per_s);
   }
   v[0] = v[n] = 0.0;
   // Jerk near the rest ends: from rest (v = a = 0) with |jerk| ≤ J no motion is faster at
@@ -333,7 +332,7 @@ double distance_to_polyline(const std::vector<Vec3>& pts, const Vec3& q) {
 }
 
 Measured measure(const Path& path, const std::vector<Vec3>& program,
-                 interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
+                 feed::JerkBound bound = feed::JerkBound::tangential) {
   JobConfig cfg = test::planner_machine();
   cfg.limits.jerk_bound = bound;
   Job job(path, cfg);
@@ -393,8 +392,8 @@ TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {
     std::vector<Vec3> pts;
     double leg_mm;
   } cases[] = {{"square 10 mm", square_pts(), 10.0}, {"zig-zag 150 deg", zigzag_pts(), 5.0}};
-  for (const auto bound : {interpolator::JerkBound::tangential, interpolator::JerkBound::vector}) {
-    const bool vector = bound == interpolator::JerkBound::vector;
+  for (const auto bound : {feed::JerkBound::tangential, feed::JerkBound::vector}) {
+    const bool vector = bound == feed::JerkBound::vector;
     for (const auto& c : cases) {
       double b = 0.0;
       for (std::size_t i = 0; i + 1 < c.pts.size(); ++i)

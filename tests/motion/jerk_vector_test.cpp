@@ -74,7 +74,7 @@ struct Walk {
   RunStats stats;                // computed by RunStats (the replay report)
 };
 
-Walk run(const Path& path, interpolator::JerkBound bound = interpolator::JerkBound::tangential) {
+Walk run(const Path& path, feed::JerkBound bound = feed::JerkBound::tangential) {
   JobConfig cfg = test::planner_machine();
   cfg.limits.jerk_bound = bound;
   const double t3 = std::pow(cfg.limits.period_s, 3);
@@ -203,7 +203,7 @@ Path small_circle() {
 // and where the curvature jumps (the blend arcs' ends at 4.35 j_max); the durations against
 // the tangential bound are the price.
 TEST(JerkVector, VectorBoundHoldsOnEveryPathAndCostsLittle) {
-  using interpolator::JerkBound;
+  using feed::JerkBound;
   const double j_max = test::planner_machine().limits.max_jerk_mm_per_s3;
   std::printf(
       "| path | tangential: s | jerk vector / j_max | vector: s | jerk vector / j_max |\n"

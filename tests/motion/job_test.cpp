@@ -136,8 +136,7 @@ TEST(Job, ChamferPathOfExperiment3) {
   const Outcome o = run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
   EXPECT_LE(o.stats.roughness_max_um, 0.05 * (1.0 + 1e-6));
-  EXPECT_GT(o.stats.cycles_by_limit[static_cast<std::size_t>(interpolator::FeedLimit::Roughness)],
-            0);
+  EXPECT_GT(o.stats.cycles_by_limit[static_cast<std::size_t>(feed::FeedLimit::Roughness)], 0);
   // The loop closes: the last setpoint is the first cutter location.
   const auto& line = std::get<toolpath::Polyline>(path.segments[0].geometry);
   EXPECT_NEAR((o.last.p - line.points.front()).norm(), 0.0, 1e-9);
@@ -174,7 +173,7 @@ TEST(Job, SameInputsGiveTheSameSetpoints) {
 // spiral of the replay benchmark and on the cubic (where the curvature laws bind in places).
 TEST(Job, FlatIntervalSkipGivesTheSameSetpoints) {
   const auto compare = [](const toolpath::Path& path, const std::string& what,
-                          const interpolator::MachineLimits& limits = {}) {
+                          const feed::MachineLimits& limits = {}) {
     JobConfig fast_cfg;
     fast_cfg.limits = limits;
     JobConfig slow_cfg = fast_cfg;
@@ -206,12 +205,12 @@ TEST(Job, FlatIntervalSkipGivesTheSameSetpoints) {
   EXPECT_GT(compare(toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"), "cubic"), 100);
   // Per-axis limits (docs/planner.md §3f): examples/machine-slow-z.toml's Z, then X and Y at
   // 10 000 mm/s³ besides; the skip then also leaves out the curve-jerk sampling it proves idle.
-  interpolator::MachineLimits slow_z;
+  feed::MachineLimits slow_z;
   slow_z.axes[2].max_feed_mm_per_min = 1500.0;
   slow_z.axes[2].max_accel_mm_per_s2 = 250.0;
   slow_z.axes[2].max_jerk_mm_per_s3 = 4000.0;
   EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, slow Z", slow_z), 2000);
-  interpolator::MachineLimits axis_jerk = slow_z;
+  feed::MachineLimits axis_jerk = slow_z;
   axis_jerk.axes[0].max_jerk_mm_per_s3 = axis_jerk.axes[1].max_jerk_mm_per_s3 = 10000.0;
   EXPECT_GT(compare(toolpath::spiral_path(2), "spiral, X/Y jerk", axis_jerk), 2000);
   EXPECT_GT(compare(toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"),
@@ -224,14 +223,14 @@ TEST(Job, TaylorAloneIsWorseThanTheCorrectedWalk) {
   // drifts from the commanded arc by far more than 1e-9.
   const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   const auto& c = std::get<toolpath::NurbsCurve>(path.segments[0].geometry);
-  interpolator::WalkerConfig w;
-  w.mode = interpolator::StepMode::TaylorOnly;
-  interpolator::CurveWalker walker(c, w);
+  feed::WalkerConfig w;
+  w.mode = feed::StepMode::TaylorOnly;
+  feed::CurveWalker walker(c, w);
   double worst = 0.0;
   while (!walker.at_end()) {
     const double u0 = walker.u();
-    const interpolator::StepResult r = walker.step(0.4);
-    if (r.status != interpolator::StepStatus::Ok) break;
+    const feed::StepResult r = walker.step(0.4);
+    if (r.status != feed::StepStatus::Ok) break;
     worst = std::max(worst, std::abs(simpson_arc(c, u0, r.u) - 0.4) / 0.4);
   }
   EXPECT_GT(worst, 1e-5);

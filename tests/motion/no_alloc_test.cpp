@@ -39,7 +39,7 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
       "mixed.ngc");
   ASSERT_GE(path.segments.size(), 3u);
   // Under both jerk bounds (the vector bound's curve spans and scales, docs/planner.md §3c).
-  for (const auto bound : {interpolator::JerkBound::tangential, interpolator::JerkBound::vector}) {
+  for (const auto bound : {feed::JerkBound::tangential, feed::JerkBound::vector}) {
     JobConfig cfg;
     cfg.cutting.teeth = 4;
     cfg.cutting.spindle_rpm = 12000.0;
@@ -59,12 +59,11 @@ TEST(NoAllocation, PeriodsOfAMixedPathAllocateNothing) {
     // The corner at (20, 0) is passed without its stop under "tangential" (docs/planner.md
     // §3b): the line of setpoints and its overlaps allocate nothing either.
     EXPECT_GT(job.delay_periods(), 0U);
-    if (bound == interpolator::JerkBound::tangential) {
+    if (bound == feed::JerkBound::tangential) {
       EXPECT_GE(job.overlap_report().corners, 1U);
     }
     EXPECT_EQ(ncd::test::g_allocations.load() - before, 0)
-        << "allocations during " << periods << " periods, jerk bound "
-        << interpolator::to_string(bound);
+        << "allocations during " << periods << " periods, jerk bound " << feed::to_string(bound);
   }
 }
 

@@ -21,7 +21,7 @@
 namespace ncd::motion {
 namespace {
 
-using interpolator::JerkBound;
+using feed::JerkBound;
 using toolpath::Path;
 using toolpath::PathControl;
 using toolpath::PathSegment;

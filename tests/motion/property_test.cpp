@@ -111,7 +111,7 @@ std::string fit_summary() {
 // vertex, the chord within ε_c of the curve), Q + ε_c under G64 Q.
 std::string check_fitted_vertices(const Path& path, const Job& job, const std::vector<Vec3>& p,
                                   const std::vector<std::size_t>& seg_of,
-                                  const interpolator::MachineLimits& l) {
+                                  const feed::MachineLimits& l) {
   std::vector<std::size_t> cursor(path.segments.size(), 0);
   for (std::size_t w = 0; w < job.path().segments.size(); ++w) {
     const std::size_t k = job.fit_report().source_segment[w];
@@ -151,7 +151,7 @@ std::string check_fitted_vertices(const Path& path, const Job& job, const std::v
 // Checks one program; returns an empty string or the first failure.
 // Under jerk_bound = "vector" also the jerk vector, the third difference of the setpoints.
 std::string check(const Path& path, double max_program_feed_mm_per_min,
-                  interpolator::JerkBound bound = interpolator::JerkBound::tangential,
+                  feed::JerkBound bound = feed::JerkBound::tangential,
                   const JobConfig& machine = test::planner_machine()) {
   JobConfig cfg = machine;
   cfg.limits.jerk_bound = bound;
@@ -176,7 +176,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
   double still_s = 0.0;
   int since_overlap = 1000;  // setpoints since the last superposed one
   double prev_tol = 0.0;     // the tolerance of the setpoint before
-  const double j_vector = bound == interpolator::JerkBound::vector ? j_max : std::sqrt(2.0) * j_max;
+  const double j_vector = bound == feed::JerkBound::vector ? j_max : std::sqrt(2.0) * j_max;
   const std::size_t cap = 5'000'000;
   while (!job.done()) {
     if (p.size() > cap) return "not done after " + std::to_string(cap) + " periods";
@@ -272,7 +272,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
                " (segment " + std::to_string(sp.segment) + ", " + std::to_string(since_overlap) +
                " setpoints after an overlapped one)";
       const double jv = (p[k] - 3.0 * p[k - 1] + 3.0 * p[k - 2] - p[k - 3]).norm() / (T * T * T);
-      const bool vector_bound = bound == interpolator::JerkBound::vector || since_overlap <= 3;
+      const bool vector_bound = bound == feed::JerkBound::vector || since_overlap <= 3;
       if (vector_bound && jv > j_vector * (1.0 + 1e-6) + 1e-3) {
         return "jerk vector " + std::to_string(jv) + " mm/s^3 at s = " + std::to_string(sp.s_mm) +
                " (walked segment " + std::to_string(sp.segment) + ", v " +
@@ -396,19 +396,17 @@ TEST(Property, RandomSharpCornersArePassedWithinEveryLimit) {
     seg.feed_mm_per_min = uni(600.0, 6000.0);
     seg.blend_tolerance_mm = std::exp(uni(std::log(1e-3), std::log(0.1)));
     path.segments.push_back(seg);
-    for (const auto bound :
-         {interpolator::JerkBound::tangential, interpolator::JerkBound::vector}) {
+    for (const auto bound : {feed::JerkBound::tangential, feed::JerkBound::vector}) {
       std::string failure;
       try {
         failure = check(path, *seg.feed_mm_per_min, bound);
       } catch (const std::exception& e) {
         failure = std::string("exception: ") + e.what();
       }
-      ASSERT_TRUE(failure.empty())
-          << "program " << i << " of seed " << seed << " ("
-          << (bound == interpolator::JerkBound::vector ? "vector" : "tangential")
-          << "): " << failure << "\n"
-          << describe(path);
+      ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << " ("
+                                   << (bound == feed::JerkBound::vector ? "vector" : "tangential")
+                                   << "): " << failure << "\n"
+                                   << describe(path);
     }
   }
   std::printf("%d programs under both bounds, %zu corners passed without their stops; %s\n",
@@ -435,7 +433,7 @@ TEST(Property, RandomProgramsKeepTheJerkVectorBound) {
     if (i < from) continue;
     std::string failure;
     try {
-      failure = check(path, g.max_feed_mm_per_min, interpolator::JerkBound::vector);
+      failure = check(path, g.max_feed_mm_per_min, feed::JerkBound::vector);
     } catch (const std::exception& e) {
       failure = std::string("exception: ") + e.what();
     }
@@ -659,8 +657,8 @@ TEST(Property, RepeatedEndPointUnderTheJerkVectorBound) {
   line.feed_mm_per_min = 3309.7053898868589;
   line.blend_tolerance_mm = 0.26105293861097612;
   path.segments.push_back(line);
-  EXPECT_EQ(check(path, 3309.7053898868589, interpolator::JerkBound::vector), "");
-  EXPECT_EQ(check(path, 3309.7053898868589, interpolator::JerkBound::tangential), "");
+  EXPECT_EQ(check(path, 3309.7053898868589, feed::JerkBound::vector), "");
+  EXPECT_EQ(check(path, 3309.7053898868589, feed::JerkBound::tangential), "");
 }
 
 }  // namespace
@@ -692,7 +690,7 @@ TEST(Property, FacetedCornersKeepTheJerkVectorBound) {
         s.geometry = toolpath::Polyline{pts, {}};
         s.feed_mm_per_min = 3000.0;
         path.segments.push_back(s);
-        EXPECT_EQ(check(path, 3000.0, interpolator::JerkBound::vector), "")
+        EXPECT_EQ(check(path, 3000.0, feed::JerkBound::vector), "")
             << facets << " facets of " << piece_mm << " mm turning " << deg << " deg each";
         ++cases;
       }
@@ -747,7 +745,7 @@ TEST(Property, SlowMovesKeepTheirFeedIntoAndOutOfRests) {
       path.segments.push_back(line);
       at = std::get<Polyline>(line.geometry).points.back();
     }
-    const std::string failure = check(path, 60.0, interpolator::JerkBound::tangential, machine);
+    const std::string failure = check(path, 60.0, feed::JerkBound::tangential, machine);
     ASSERT_TRUE(failure.empty()) << "program " << i << " of seed " << seed << ": " << failure
                                  << "\n"
                                  << describe(path);

@@ -275,7 +275,7 @@ TEST(Stops, CornerAfterANearlyReversingSpanStopsAtTheKnot) {
   const int n = 200000;
   double span_mm = 0.0;
   for (int k = 0; k < n; ++k) span_mm += speed((k + 0.5) / n) / n;
-  for (const auto bound : {interpolator::JerkBound::tangential, interpolator::JerkBound::vector}) {
+  for (const auto bound : {feed::JerkBound::tangential, feed::JerkBound::vector}) {
     Path path;
     PathSegment seg;
     seg.geometry = toolpath::NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 4, 5, 5, 5, 5}, pts, {});

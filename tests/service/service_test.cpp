@@ -316,7 +316,7 @@ TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
 // a semicircle of radius 2 mm, a line back. On the lines the limit is the F word (the machine's
 // 6000 mm/min and the roughness law at α = 0 are above it); on the arc the smallest of the F
 // word, the chord law 2 √(2ρε − ε²) / T (Yeh and Hsu), √(a ρ), (j ρ²)^(1/3) and the roughness
-// law at α = 0 (interpolator::feed_limit). Tolerance: at every setpoint the reported limit is
+// law at α = 0 (feed::feed_limit). Tolerance: at every setpoint the reported limit is
 // at most that value (1e-9 relative: the sampler's nodes are interval minima) and the feed at
 // most the reported limit (1e-9); more than 1 mm of path from a joint it equals the value to
 // 1e-6 (the planner's curve is the smaller of two nodes, each the minimum over the two 0.2 mm
@@ -330,15 +330,15 @@ TEST(ServiceStatus, TheFeedLimitIsTheLawsValueAtThePositionAndTheFeedNeverExceed
   s.submit(job_of(path, got, committed));
   EXPECT_EQ(s.status().feed_limit_mm_per_min, 0.0);  // no setpoint yet
   const motion::JobConfig c;                         // the job's limits (job_of's defaults)
-  const interpolator::MachineLimits& m = c.limits;
+  const feed::MachineLimits& m = c.limits;
   const double f_mm_per_s = 3000.0 / 60.0, rho_mm = 2.0, eps = m.chord_tolerance_mm;
-  const double laws_line = interpolator::feed_limit(m, c.cutting, 0.0, 0.0).feed_mm_per_s;
+  const double laws_line = feed::feed_limit(m, c.cutting, 0.0, 0.0).feed_mm_per_s;
   ASSERT_GT(laws_line, f_mm_per_s);  // the F word binds on the lines
   const double line_mm_per_s = f_mm_per_s;
   const double arc_mm_per_s = std::min(
       {f_mm_per_s, 2.0 * std::sqrt(2.0 * rho_mm * eps - eps * eps) / m.period_s,
        std::sqrt(m.max_accel_mm_per_s2 * rho_mm), std::cbrt(m.max_jerk_mm_per_s3 * rho_mm * rho_mm),
-       interpolator::feed_limit(m, c.cutting, 1.0 / rho_mm, 0.0).feed_mm_per_s});
+       feed::feed_limit(m, c.cutting, 1.0 / rho_mm, 0.0).feed_mm_per_s});
   ASSERT_LT(arc_mm_per_s, 0.9 * line_mm_per_s);  // the arc's laws bind there
   s.start();
   int middle_line = 0, middle_arc = 0;

@@ -349,8 +349,7 @@ TEST_P(PaperFigure, SimulatedRmaxIsWithinTheIssueToleranceOfThePaper) {
   const Roughness r = measure(map, run.nominal, {0, map.nx(), 0, map.ny()});
   EXPECT_EQ(r.uncut_cells, 0);
   const double model_um =
-      interpolator::roughness_mm(kR, s.pick_feed_mm, s.feed_per_tooth_mm, deg_to_rad(c.alpha_deg)) *
-      1e3;
+      feed::roughness_mm(kR, s.pick_feed_mm, s.feed_per_tooth_mm, deg_to_rad(c.alpha_deg)) * 1e3;
   std::cout << c.name << ": simulated " << r.rmax_um << " um, paper " << c.paper_um << " um, model "
             << model_um << " um\n";
   EXPECT_NEAR(r.rmax_um, c.paper_um, c.tolerance_um);

@@ -66,23 +66,18 @@ class CellBroker {
   CellBroker(const fs::path& dir, int machines, bool log_all)
       : dir_(dir),
         tcp_port_(ncd::test::free_loopback_port()),
-        ws_port_(ncd::test::free_loopback_port()) {
+        ws_port_(ncd::test::free_loopback_port()),
+        mosquitto_(dir) {
     fs::create_directories(dir_ / "db");
     std::vector<BrokerUser> users{kWeb, kOps, kBench};
     for (int i = 1; i <= machines; ++i) users.push_back(machine_user(i));
-    const std::string tool = ncd::test::find_program("mosquitto_passwd");
-    for (std::size_t k = 0; k < users.size(); ++k) {
-      const std::string cmd = tool + (k == 0 ? " -c" : "") + " -b " + (dir_ / "passwd").string() +
-                              " " + users[k].name + " " + users[k].password + " >/dev/null 2>&1";
-      if (std::system(cmd.c_str()) != 0) throw std::runtime_error("mosquitto_passwd failed");
-    }
+    ncd::test::write_broker_passwords(dir_ / "passwd", users);
     const fs::path deploy = fs::path(NCD_SOURCE_DIR) / "deploy" / "mosquitto";
     std::ofstream(dir_ / "acl") << slurp(deploy / "ncd-cell.acl")
                                 << "\n# test only: the broker's counters\nuser bench\n"
                                    "topic read $SYS/#\n";
     std::ofstream(dir_ / "mosquitto.conf") << config(slurp(deploy / "ncd-cell.conf"), log_all);
   }
-  ~CellBroker() { kill(); }
 
   // The deploy config with this test's ports and files; throws if it lacks what the page needs.
   std::string config(const std::string& deploy, bool log_all) const {
@@ -119,36 +114,17 @@ class CellBroker {
     return out.str();
   }
 
-  bool start() {
-    ++runs_;
-    process_ = std::make_unique<Process>(
-        std::vector<std::string>{ncd::test::find_program("mosquitto"), "-c",
-                                 (dir_ / "mosquitto.conf").string()},
-        (dir_ / "mosquitto.out").string(),
-        (dir_ / ("mosquitto." + std::to_string(runs_) + ".err")).string());
-    const auto end = Clock::now() + 10s;
-    while (Clock::now() < end) {
-      if (ncd::test::port_accepts(tcp_port_) && ncd::test::port_accepts(ws_port_)) return true;
-      std::this_thread::sleep_for(20ms);
-    }
-    return false;
-  }
-  void kill() {
-    if (!process_) return;
-    process_->signal(SIGKILL);
-    process_->wait(10);
-    process_.reset();
-  }
-  pid_t pid() const { return process_ ? process_->pid() : -1; }
+  bool start() { return mosquitto_.start({tcp_port_, ws_port_}); }
+  void kill() { mosquitto_.kill(); }
+  pid_t pid() const { return mosquitto_.pid(); }
   std::string url() const { return "tcp://127.0.0.1:" + std::to_string(tcp_port_); }
   std::string ws_url() const { return "ws://127.0.0.1:" + std::to_string(ws_port_) + "/"; }
-  std::string log() const { return slurp(dir_ / ("mosquitto." + std::to_string(runs_) + ".err")); }
+  std::string log() const { return mosquitto_.log(); }
 
  private:
   fs::path dir_;
   int tcp_port_, ws_port_;
-  int runs_ = 0;
-  std::unique_ptr<Process> process_;
+  ncd::test::MosquittoProcess mosquitto_;
 };
 
 // A short program: about 4.5 s of motion at the wall clock, streamed in drip feed.
