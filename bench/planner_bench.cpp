@@ -169,8 +169,10 @@ BENCHMARK(BM_PolylineFit)
 void BM_JobBuildRawDense(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
   const toolpath::Path path = test::dense_cam(n - 1, 3, std::nullopt);
+  JobConfig raw;
+  raw.limits.fit_dense_runs = false;  // the polyline itself, not the default fit under G64 P
   for (auto _ : state) {
-    Job job(path, JobConfig{});
+    Job job(path, raw);
     benchmark::DoNotOptimize(job.walker().length_mm());
   }
   state.SetItemsProcessed(state.iterations() * state.range(0));

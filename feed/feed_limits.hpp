@@ -71,9 +71,8 @@ struct MachineLimits {
   double blend_tolerance_mm = 0.01;     // corner deviation allowed without G64 P
   double stall_timeout_s = 2.0;         // the cycle's no-progress watchdog (motion/cycle.cpp)
   // Dense runs of short G1 moves under G64 P (no Q) fitted by a curve within P − ε_c
-  // (feed/polyline_fit.cpp, docs/planner.md §3d); false (the default until the suites that
-  // assume the programmed polyline under plain G64 are reviewed): only a program's G64 Q fits.
-  bool fit_dense_runs = false;
+  // (feed/polyline_fit.cpp, docs/planner.md §3d); false: only a program's G64 Q fits.
+  bool fit_dense_runs = true;
   JerkBound jerk_bound = JerkBound::tangential;
   std::array<AxisLimits, 3> axes{};  // X, Y, Z; the path limits above stay a further cap
   bool has_axis_limits() const;

@@ -1,10 +1,14 @@
 // Per-move tool use and roughness caps (tool_use.hpp). Tools are told apart by number and kind;
-// a tool's length sums its moves' arc lengths (the job's segment starts).
+// a tool's length sums its moves' walked arc lengths (the walker's segment starts). A move is a
+// segment of the program: the fit of dense runs (docs/planner.md §3d) splits one into several
+// walked segments (polyline parts and curves, each a copy of the program segment's data), whose
+// periods are merged back into the one move.
 #include "motion/tool_use.hpp"
 
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <utility>
 
 #include "core/number_text.hpp"
 #include "feed/feed_limits.hpp"
@@ -34,9 +38,42 @@ std::size_t ToolUse::capped_moves() const {
       std::count_if(moves_.begin(), moves_.end(), [](const Move& m) { return m.law_periods > 0; }));
 }
 
+namespace {
+
+// The walked segments [first, last] of each program segment, in order (the fit's map: a split
+// segment's parts are consecutive).
+std::vector<std::pair<std::size_t, std::size_t>> program_moves(const Job& job, std::size_t walked) {
+  const std::vector<std::size_t>& source = job.fit_report().source_segment;
+  std::vector<std::pair<std::size_t, std::size_t>> out;
+  for (std::size_t k = 0; k < walked; ++k) {
+    const bool same = !out.empty() && k < source.size() && source[k] == source[out.back().first];
+    if (same) {
+      out.back().second = k;
+    } else {
+      out.emplace_back(k, k);
+    }
+  }
+  return out;
+}
+
+ToolUse::Move merged(const std::vector<ToolUse::Move>& moves, std::size_t first, std::size_t last) {
+  ToolUse::Move m;
+  for (std::size_t k = first; k <= last; ++k) {
+    const ToolUse::Move& p = moves[k];
+    m.periods += p.periods;
+    m.walked_max_mm_per_s = std::max(m.walked_max_mm_per_s, p.walked_max_mm_per_s);
+    if (p.law_periods == 0) continue;
+    m.law_min_mm_per_s =
+        m.law_periods == 0 ? p.law_min_mm_per_s : std::min(m.law_min_mm_per_s, p.law_min_mm_per_s);
+    m.law_periods += p.law_periods;
+  }
+  return m;
+}
+
+}  // namespace
+
 nlohmann::ordered_json ToolUse::to_json(const Job& job) const {
   const auto& segs = job.path().segments;
-  const std::vector<double> starts = job.segment_starts_mm();
   struct Sum {
     toolpath::CutterTool tool;
     std::size_t moves = 0, capped = 0;
@@ -47,14 +84,14 @@ nlohmann::ordered_json ToolUse::to_json(const Job& job) const {
   nlohmann::ordered_json runs = nlohmann::ordered_json::array();
   nlohmann::ordered_json capped = nlohmann::ordered_json::array();
   std::size_t capped_total = 0;
-  for (std::size_t k = 0; k < segs.size() && k < moves_.size(); ++k) {
+  for (const auto& [k, last] : program_moves(job, std::min(segs.size(), moves_.size()))) {
     const toolpath::PathSegment& seg = segs[k];
     if (seg.rapid) continue;  // a G0 cuts nothing
-    const Move& m = moves_[k];
+    const Move m = merged(moves_, k, last);
     Sum& s = tools[{seg.tool.number, static_cast<int>(seg.tool.kind)}];
     s.tool = seg.tool;
     ++s.moves;
-    s.length_mm += starts[k + 1] - starts[k];
+    s.length_mm += job.walker().segment_start_mm(last + 1) - job.walker().segment_start_mm(k);
     s.walked_max = std::max(s.walked_max, m.walked_max_mm_per_s);
     const feed::CuttingParams* law = job.sampler().cutting_of(k);
     if (law) s.law = law;

@@ -2,7 +2,7 @@
 // rs274 suite writes them as blocks): lines with reversals, zero-length and 1 µm moves, dense runs
 // of 0.01 mm moves along arcs, NURBS of degree 1–5 (rational, repeated interior knots up to C¹),
 // rapids, G61, G61.1, G64 (with and without P, P0 included; with Q on some moves and on half of
-// the dense runs under G64, whose points are then rounded to 1 µm) and stops before events. One
+// the dense runs under G64, whose points are all rounded to 1 µm) and stops before events. One
 // generator for every suite that needs them; seed it from tests/common/seed.hpp.
 #pragma once
 
@@ -87,11 +87,12 @@ struct RandomProgram {
     toolpath::PathSegment s;
     common(s);
     if (s.feed_mm_per_min) s.feed_mm_per_min = std::min(*s.feed_mm_per_min, 3000.0);
-    // Half of the dense runs under G64 get a Q (the fit of docs/planner.md §3d), and then their
-    // points rounded to 1 µm as a CAM post writes them (the first stays where the last move
-    // ended): noise for the fit to smooth.
-    if (s.path_control == toolpath::PathControl::blend && pick(2) == 0) {
-      s.smoothing_tolerance_mm = uni(0.002, 0.05);
+    // Half of the dense runs under G64 get a Q (the fit of docs/planner.md §3d; the others are
+    // fitted within P − ε_c by the machine's default fit), and all of them have their points
+    // rounded to 1 µm as a CAM post writes them (the first stays where the last move ended):
+    // noise for the fit to smooth.
+    if (s.path_control == toolpath::PathControl::blend) {
+      if (pick(2) == 0) s.smoothing_tolerance_mm = uni(0.002, 0.05);
       for (std::size_t i = 1; i < pts.size(); ++i) {
         for (int k = 0; k < 3; ++k) pts[i][k] = std::round(pts[i][k] * 1000.0) / 1000.0;
       }

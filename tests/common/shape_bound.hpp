@@ -1,5 +1,5 @@
 // Dense CAM programs and the time-optimal bound of the shape they sample (issue 34), shared by
-// tests/motion/dense_bound_test.cpp and bench/planner_bench.cpp.
+// tests/motion/dense_bound_test.cpp and bench/dense_bound_bench.cpp.
 //
 // The bound is a phase-plane profile computed from the shape itself, never from what ncd walks:
 // samples (s, v_max(s)) of the shape's own speed limit (the program feed, and where it bends the
@@ -209,6 +209,35 @@ inline ShapeLimit surface_limit(std::size_t passes, double p_mm, const feed::Mac
     lim.add_line(over.norm(), cap);  // the step-over (the next pass's corner lowers its end)
   }
   return lim;
+}
+
+// examples/surface-finish.ngc (scripts/surface_finish.py): the same surface finished by 7 passes
+// (0.025 mm steps, 3 decimals: the bound does not depend on the step) under G64 P0.01: a 5 mm
+// plunge at the feed from rest (the spindle start) onto the surface at the origin, the passes,
+// then a 5 mm rapid up in Z at the machine's maximum feed to rest; the plunge and the rapid
+// joined to the passes by the corner limit within P.
+inline double surface_finish_bound_s(const feed::MachineLimits& l) {
+  constexpr std::size_t kPasses = 7;
+  const double p_mm = 0.01, y_last = Surface::kStepOverMm * static_cast<double>(kPasses - 1);
+  const double cap = Surface::kFeed / 60.0;
+  const auto turn_from_z = [](const Vec3& t) {  // the angle between t and +z
+    return std::acos(std::clamp(t.normalized().z(), -1.0, 1.0));
+  };
+  ShapeLimit lim;
+  lim.add(0.0, 0.0);
+  lim.add_line(5.0, cap);  // the plunge, along −z
+  const double into = kPi - turn_from_z(Vec3(1.0, 0.0, Surface::fx(0.0, 0.0)));
+  lim.v_mm_per_s.back() = std::min(lim.v_mm_per_s.back(), corner_limit_mm_per_s(into, p_mm, l));
+  const ShapeLimit passes = surface_limit(kPasses, p_mm, l);
+  for (std::size_t i = 0; i < passes.s_mm.size(); ++i) {
+    const double ds = i == 0 ? 0.0 : passes.s_mm[i] - passes.s_mm[i - 1];
+    lim.add(ds,
+            i == 0 ? std::min(lim.v_mm_per_s.back(), passes.v_mm_per_s[i]) : passes.v_mm_per_s[i]);
+  }
+  const double out = turn_from_z(Vec3(1.0, 0.0, Surface::fx(Surface::kLengthMm, y_last)));
+  lim.v_mm_per_s.back() = std::min(lim.v_mm_per_s.back(), corner_limit_mm_per_s(out, p_mm, l));
+  lim.add_line(5.0, l.max_feed_mm_per_min / 60.0);  // the retract
+  return phase_plane_time_s(lim, l.max_accel_mm_per_s2, l.max_jerk_mm_per_s3);
 }
 
 }  // namespace ncd::test

@@ -228,50 +228,86 @@ TEST(PolylineFit, RealCornerSplitsTheRun) {
   }
 }
 
-// Where the fit does not apply the path is copied: no Q, Q = 0, G61, a rapid, contact normals,
-// long moves (every piece above the short-piece length).
+// Where the fit does not apply the path is copied: Q0, G61, a rapid, contact normals, long
+// moves (every piece above the short-piece length), and without Q: G64 P0, P ≤ ε_c (no budget
+// left after the chord tolerance) and a machine whose file says fit_dense_runs = false.
 TEST(PolylineFit, IneligibleSegmentsAreCopied) {
   std::vector<Vec3> dense;
   for (int i = 0; i <= 200; ++i) dense.emplace_back(0.01 * i, 0.0001 * i * i, 0);
   std::vector<Vec3> longs;
   for (int i = 0; i <= 10; ++i) longs.emplace_back(5.0 * i, 0.01 * i * i, 0);
   MachineLimits limits;
-  const auto copied = [&](PathSegment s, const char* what) {
+  const auto copied = [&](PathSegment s, const char* what, const MachineLimits& l) {
     Path p;
     p.segments.push_back(s);
     FitReport rep;
-    const Path out = fit_polylines(p, limits, &rep);
+    const Path out = fit_polylines(p, l, &rep);
     ASSERT_EQ(out.segments.size(), 1u) << what;
     EXPECT_EQ(rep.runs, 0u) << what;
+    ASSERT_TRUE(std::holds_alternative<Polyline>(out.segments[0].geometry)) << what;
     EXPECT_EQ(std::get<Polyline>(out.segments[0].geometry).points,
               std::get<Polyline>(s.geometry).points)
         << what;
   };
   PathSegment s = dense_segment(dense, 0.01);
-  s.smoothing_tolerance_mm.reset();
-  copied(s, "no Q");
   s.smoothing_tolerance_mm = 0.0;
-  copied(s, "Q0");
+  copied(s, "Q0", limits);
+  s.smoothing_tolerance_mm.reset();
+  MachineLimits off = limits;
+  off.fit_dense_runs = false;
+  copied(s, "no Q, fit_dense_runs = false", off);
+  s.blend_tolerance_mm = 0.0;
+  copied(s, "no Q, G64 P0", limits);
+  s.blend_tolerance_mm = limits.chord_tolerance_mm;
+  copied(s, "no Q, G64 P = the chord tolerance (no budget)", limits);
+  s.blend_tolerance_mm.reset();
+  MachineLimits exact_corners = limits;
+  exact_corners.blend_tolerance_mm = 0.0;
+  copied(s, "plain G64 on a machine with blend_tolerance_mm = 0", exact_corners);
   s = dense_segment(dense, 0.01);
   s.path_control = toolpath::PathControl::exact_path;
-  copied(s, "G61");
+  copied(s, "G61", limits);
+  s.path_control = toolpath::PathControl::exact_stop;
+  copied(s, "G61.1", limits);
   s = dense_segment(dense, 0.01);
   s.rapid = true;
   s.feed_mm_per_min.reset();
-  copied(s, "G0");
+  copied(s, "G0", limits);
   s = dense_segment(dense, 0.01);
   std::get<Polyline>(s.geometry).normals.assign(dense.size(), Vec3(0, 0, 1));
-  copied(s, "normals");
-  copied(dense_segment(longs, 0.01), "long moves");
-  // The same dense segment with Q: one curve.
-  Path p;
-  p.segments.push_back(dense_segment(dense, 0.01));
-  FitReport rep;
-  const Path out = fit_polylines(p, limits, &rep);
-  ASSERT_EQ(out.segments.size(), 1u);
-  EXPECT_TRUE(std::holds_alternative<NurbsCurve>(out.segments[0].geometry));
-  EXPECT_EQ(rep.runs, 1u);
-  EXPECT_EQ(rep.points, dense.size());
+  copied(s, "normals", limits);
+  copied(dense_segment(longs, 0.01), "long moves", limits);
+  // The same dense segment with Q, and without Q under G64 P0.01 or a plain G64 (the machine's
+  // default fit): one curve, within Q, or within P − ε_c (docs/planner.md §3d), by the
+  // brute-force distance of expect_fit.
+  PathSegment plain = dense_segment(dense, 0.01);
+  plain.smoothing_tolerance_mm.reset();
+  plain.blend_tolerance_mm.reset();
+  struct Case {
+    PathSegment seg;
+    double q_mm;
+    const char* what;
+  };
+  PathSegment p_only = plain;
+  p_only.blend_tolerance_mm = 0.004;
+  for (const Case& c : {Case{dense_segment(dense, 0.01), 0.01, "Q0.01"},
+                        Case{p_only, 0.004 - limits.chord_tolerance_mm, "G64 P0.004, no Q"},
+                        Case{plain, limits.blend_tolerance_mm - limits.chord_tolerance_mm,
+                             "plain G64 (the machine's P0.01)"}}) {
+    Path p;
+    p.segments.push_back(c.seg);
+    FitReport rep;
+    const Path out = fit_polylines(p, limits, &rep);
+    ASSERT_EQ(out.segments.size(), 1u) << c.what;
+    ASSERT_TRUE(std::holds_alternative<NurbsCurve>(out.segments[0].geometry)) << c.what;
+    EXPECT_EQ(rep.runs, 1u) << c.what;
+    EXPECT_EQ(rep.points, dense.size()) << c.what;
+    EXPECT_LE(rep.max_deviation_mm, c.q_mm) << c.what;
+    const double du = c.q_mm / 10.0;
+    EXPECT_LE(brute_deviation_mm(std::get<NurbsCurve>(out.segments[0].geometry), dense, du),
+              c.q_mm + du)
+        << c.what;
+  }
 }
 
 }  // namespace

@@ -17,7 +17,8 @@
 // F3000 raw and fitted under G64 P0.01 Q0.01 (feed/polyline_fit.cpp, docs/planner.md
 // §3d), with the coordinates exact and rounded as a CAM post writes them (4 and 3 decimals);
 // the fitted walk must be at least 2× faster than the raw one, every setpoint within Q of the
-// programmed polyline.
+// programmed polyline; and without Q under the machine's default fit (within P − ε_c). The raw
+// rows walk with fit_dense_runs = false: under the default they would be fitted too.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -280,6 +281,24 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
   const Walk raw3 = dense_row("dense CAM 3 dp, raw", test::dense_cam(20000, 3, std::nullopt));
   const Walk fit4 = dense_row("dense CAM 4 dp, P Q0.01", test::dense_cam(20000, 4, 0.01));
   const Walk fit3 = dense_row("dense CAM 3 dp, P Q0.01", test::dense_cam(20000, 3, 0.01));
+  // The same programs without Q under the machine's default fit (within P − ε_c = 9 µm).
+  const auto default_row = [&](const char* name, const Path& p) {
+    const Walk w = walk(p, /*fit_dense_runs=*/true);
+    row(name, w.t_s, b, "S-curve (jerk-limited)");
+    return w;
+  };
+  const Walk def4 = default_row("dense CAM 4 dp, P0.01", test::dense_cam(20000, 4, std::nullopt));
+  const Walk def3 = default_row("dense CAM 3 dp, P0.01", test::dense_cam(20000, 3, std::nullopt));
+  for (const Walk* w : {&def4, &def3}) {
+    std::printf(
+        "  default fit: %zu run(s), %zu spans, proven deviation %.5f mm, setpoints within "
+        "%.5f mm of the programmed polyline\n",
+        w->fit.runs, w->fit.spans, w->fit.max_deviation_mm, w->max_off_mm);
+    EXPECT_GE(w->fit.runs, 1u);
+    EXPECT_LE(w->fit.max_deviation_mm, 0.01 - test::planner_machine().limits.chord_tolerance_mm);
+    EXPECT_LE(w->max_off_mm, 0.01);
+    EXPECT_LE(w->t_s, 1.02 * b);
+  }
   for (const Walk* w : {&fit4, &fit3}) {
     std::printf(
         "  fitted: %zu run(s), %zu spans, proven deviation %.5f mm, setpoints within "

@@ -2,12 +2,15 @@
 // NCD_PROPERTY_PROGRAMS sets how many: 200 here, thousands under `make soak`). Each program
 // (tests/common/random_program.hpp) mixes lines with reversals, zero-length and 1 µm moves,
 // dense runs of 0.01 mm moves, NURBS of degree 1–5 (rational, repeated interior knots up to
-// C¹), rapids, G61, G61.1, G64 (with and without P, P0 included; with Q, whose dense runs are
-// rounded to 1 µm and fitted with a curve) and stops before events. For every program, checked from
-// the setpoints alone against the programmed geometry (tests/motion/reference.hpp):
+// C¹), rapids, G61, G61.1, G64 (with and without P, P0 included; with and without Q: dense
+// runs under G64 are rounded to 1 µm and fitted with a curve, within Q or within P − ε_c by
+// the machine's default fit, docs/planner.md §3d) and stops before events. For every program,
+// checked from the setpoints alone against the programmed geometry (tests/motion/reference.hpp):
 //   - it ends at rest exactly at its end point;
 //   - every setpoint lies on the walked geometry (nearest-point distance ≤ 1e-5 mm), and within
-//     the active tolerance of the programmed geometry (G64 P; G64 Q on a fitted dense run);
+//     the active tolerance of the programmed geometry (G64 P; on a fitted dense run Q under
+//     G64 Q, P − ε_c under G64 P or a plain G64), and every programmed vertex of a fitted run
+//     within Q + ε_c, or P, of a chord between two setpoints;
 //   - every period's chord stays within the chord tolerance of the geometry it spans;
 //   - the speed |Δp|/T stays within the machine's maximum feed, and the planned speed within
 //     the F word of the move holding the setpoint;
@@ -23,6 +26,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -79,6 +83,71 @@ std::string describe(const Path& path) {
 // Corners passed without their stops over the programs checked (printed by the random tests).
 std::size_t g_overlapped_corners = 0;
 
+// The fitted runs over the programs checked (docs/planner.md §3d), under G64 P Q and under the
+// machine's default fit (G64 P or a plain G64), and the largest distances, over the tolerance,
+// of a setpoint of a fitted run from the programmed polyline and of a programmed vertex of a
+// fitted run from the chords between setpoints (printed by the random tests).
+struct FitStats {
+  std::size_t runs_q = 0, runs_p = 0;
+  double setpoint_ratio = 0.0, vertex_ratio = 0.0;
+};
+FitStats g_fit;
+
+std::string fit_summary() {
+  const FitStats f = std::exchange(g_fit, FitStats{});
+  char line[200];
+  std::snprintf(line, sizeof line,
+                "%zu runs fitted under G64 Q, %zu under G64 P (default fit); setpoints within "
+                "%.3f, vertices within %.3f of their tolerance",
+                f.runs_q, f.runs_p, f.setpoint_ratio, f.vertex_ratio);
+  return line;
+}
+
+// Every programmed vertex of each fitted run (the run's first and last vertices are the
+// curve's end points) within `tol` of a chord between two setpoints of the walked curve (the
+// chords that start, end or pass over it: a run of a few 2 µm facets lies inside one
+// period): the fit's second guarantee (docs/planner.md §3d), the polyline → walk direction of
+// the two-sided distance. tol: P under the default fit (the curve within P − ε_c of each
+// vertex, the chord within ε_c of the curve), Q + ε_c under G64 Q.
+std::string check_fitted_vertices(const Path& path, const Job& job, const std::vector<Vec3>& p,
+                                  const std::vector<std::size_t>& seg_of,
+                                  const feed::MachineLimits& l) {
+  std::vector<std::size_t> cursor(path.segments.size(), 0);
+  for (std::size_t w = 0; w < job.path().segments.size(); ++w) {
+    const std::size_t k = job.fit_report().source_segment[w];
+    const auto* curve = std::get_if<NurbsCurve>(&job.path().segments[w].geometry);
+    const auto* line = std::get_if<Polyline>(&path.segments[k].geometry);
+    if (!curve || !line || curve->degree() != 3) continue;
+    const PathSegment& held = path.segments[k];
+    const double tol = held.smoothing_tolerance_mm
+                           ? *held.smoothing_tolerance_mm + l.chord_tolerance_mm
+                           : held.blend_tolerance_mm.value_or(l.blend_tolerance_mm);
+    // The run's vertices: from the curve's first control point to its last, in order.
+    const auto& pts = line->points;
+    std::size_t a = cursor[k];
+    while (a < pts.size() && pts[a] != curve->points().front()) ++a;
+    std::size_t b = a + 1;
+    while (b < pts.size() && pts[b] != curve->points().back()) ++b;
+    if (b >= pts.size()) return "fitted run " + std::to_string(w) + " not found in its segment";
+    cursor[k] = b;
+    (held.smoothing_tolerance_mm ? g_fit.runs_q : g_fit.runs_p) += 1;
+    for (std::size_t i = a; i <= b; ++i) {
+      double best = std::numeric_limits<double>::infinity();
+      for (std::size_t j = 1; j < p.size(); ++j) {
+        if (seg_of[j - 1] <= w && w <= seg_of[j])
+          best = std::min(best, test::distance_to_segment(pts[i], p[j - 1], p[j]));
+      }
+      g_fit.vertex_ratio = std::max(g_fit.vertex_ratio, best / tol);
+      if (!(best <= tol * (1.0 + 1e-9) + 1e-9)) {
+        return "programmed vertex " + std::to_string(i) + " of segment " + std::to_string(k) +
+               " is " + std::to_string(best) +
+               " mm from the walk's chords (fitted run, tolerance " + std::to_string(tol) + " mm)";
+      }
+    }
+  }
+  return {};
+}
+
 // Checks one program; returns an empty string or the first failure.
 // Under jerk_bound = "vector" also the jerk vector, the third difference of the setpoints.
 std::string check(const Path& path, double max_program_feed_mm_per_min,
@@ -102,6 +171,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
   const double window = 0.5 + std::abs(program.s_mm.back() - geo.s_mm.back());
   std::vector<Vec3> p{geo.p.front()};
   std::vector<double> s{0.0};
+  std::vector<std::size_t> seg_of{0};  // the walked segment of each setpoint
   std::int64_t still = 0;
   double still_s = 0.0;
   int since_overlap = 1000;  // setpoints since the last superposed one
@@ -120,18 +190,22 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
     }
     // The tolerance of the move holding the setpoint (a blend arc belongs to the move that
     // ends at its corner): its G64 P under G64, the machine's blend_tolerance_mm under a plain
-    // G64; none under G61 or G61.1. A dense run fitted under G64 Q (docs/planner.md §3d) is a
-    // cubic in the walked path, in a polyline of the program: its tolerance is Q.
+    // G64; none under G61 or G61.1. A dense run fitted (docs/planner.md §3d) is a cubic in the
+    // walked path, in a polyline of the program: its tolerance is Q under G64 P Q, and P − ε_c
+    // under G64 P or a plain G64 (the machine's default fit, whose chords add ε_c to reach P).
     const std::size_t walked = sp.segment;
     const PathSegment& held = path.segments[job.fit_report().source_segment[walked]];
     const auto* walked_curve = std::get_if<NurbsCurve>(&job.path().segments[walked].geometry);
     const bool fitted = walked_curve && walked_curve->degree() == 3 &&
                         std::holds_alternative<Polyline>(held.geometry);
-    const double tol =
-        held.path_control != PathControl::blend ? 0.0
-        : fitted                                ? held.smoothing_tolerance_mm.value_or(0.0)
-                 : std::max(held.blend_tolerance_mm.value_or(cfg.limits.blend_tolerance_mm), 0.0);
+    const double p_mm =
+        std::max(held.blend_tolerance_mm.value_or(cfg.limits.blend_tolerance_mm), 0.0);
+    const double tol = held.path_control != PathControl::blend ? 0.0
+                       : !fitted                               ? p_mm
+                       : held.smoothing_tolerance_mm           ? *held.smoothing_tolerance_mm
+                                                               : p_mm - eps;
     const double dp = test::distance_to_path(program, sp.p, sp.s_mm, window);
+    if (fitted && tol > 0.0) g_fit.setpoint_ratio = std::max(g_fit.setpoint_ratio, dp / tol);
     if (!(dp <= tol * (1.0 + 1e-9) + 1e-5)) {
       return "setpoint " + std::to_string(p.size()) + " at s = " + std::to_string(sp.s_mm) +
              " is " + std::to_string(dp) + " mm off the programmed path (tolerance " +
@@ -178,6 +252,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
     }
     p.push_back(sp.p);
     s.push_back(sp.s_mm);
+    seg_of.push_back(sp.segment);
     const std::size_t k = p.size() - 1;
     if (k >= 2) {
       const double acc = (p[k] - 2.0 * p[k - 1] + p[k - 2]).norm() / (T * T);
@@ -220,7 +295,7 @@ std::string check(const Path& path, double max_program_feed_mm_per_min,
       if (miss > 1e-9) return "ends " + std::to_string(miss) + " mm from the end point";
     }
   }
-  return {};
+  return check_fitted_vertices(path, job, p, seg_of, cfg.limits);
 }
 
 // A dense CAM run rounded to 1 µm with a 90° corner in the middle, under G64 P0.01 Q0.01 (random
@@ -261,6 +336,7 @@ TEST(Property, FittedDenseRunWithACornerIsWalkedWithinQ) {
     EXPECT_EQ(check(path, 3000.0), "") << what;
     if (HasFailure()) break;
   }
+  std::printf("%s\n", fit_summary().c_str());
 }
 
 TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
@@ -287,8 +363,8 @@ TEST(Property, RandomProgramsEndAtRestOnThePathWithinEveryLimit) {
                                  << "\n"
                                  << describe(path);
   }
-  std::printf("%d programs, %zu corners passed without their stops\n", programs,
-              std::exchange(g_overlapped_corners, 0));
+  std::printf("%d programs, %zu corners passed without their stops; %s\n", programs,
+              std::exchange(g_overlapped_corners, 0), fit_summary().c_str());
 }
 
 // Random polylines of sharp corners under G64 P (turns of 20–170°, legs of 0.2–20 mm, P of
@@ -333,8 +409,8 @@ TEST(Property, RandomSharpCornersArePassedWithinEveryLimit) {
                                    << describe(path);
     }
   }
-  std::printf("%d programs under both bounds, %zu corners passed without their stops\n", programs,
-              std::exchange(g_overlapped_corners, 0));
+  std::printf("%d programs under both bounds, %zu corners passed without their stops; %s\n",
+              programs, std::exchange(g_overlapped_corners, 0), fit_summary().c_str());
 }
 
 // The same checks and the jerk vector within j_max under jerk_bound = "vector", on random
@@ -365,8 +441,8 @@ TEST(Property, RandomProgramsKeepTheJerkVectorBound) {
                                  << "\n"
                                  << describe(path);
   }
-  std::printf("%d programs, %zu corners passed without their stops\n", programs,
-              std::exchange(g_overlapped_corners, 0));
+  std::printf("%d programs, %zu corners passed without their stops; %s\n", programs,
+              std::exchange(g_overlapped_corners, 0), fit_summary().c_str());
 }
 
 }  // namespace
@@ -620,7 +696,7 @@ TEST(Property, FacetedCornersKeepTheJerkVectorBound) {
       }
     }
   }
-  std::printf("%d faceted corners checked\n", cases);
+  std::printf("%d faceted corners checked; %s\n", cases, fit_summary().c_str());
 }
 
 // Moves programmed slower than a jerk-limited motion gets within its first periods from rest
