@@ -678,6 +678,108 @@ TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
   expect_error(s, "closed-form edge curve (eq. 4) holds only");
 }
 
+// The drill along one generator, written here in the pipe frame: P(z) = P0 + z d meets the
+// surface x² + z² = (R + k y)² where A z² + B z + C = 0. Its half-gap (z₊ − z₋)/2, negative
+// where it misses (−sqrt(−disc)/(2A)), and the smallest ρ = R + k y at its roots.
+struct GeneratorMeets {
+  double half_gap_mm;
+  double least_rho_mm;  // +inf where it misses
+};
+
+GeneratorMeets generator_meets(const Part& p, double radius, double theta) {
+  const Vec3 p0 = generator_point(p, theta, 0.0), &d = p.drill_dir;
+  const double k = p.slope, rho0 = radius + k * p0.y();
+  const double a = d.x() * d.x() + d.z() * d.z() - k * k * d.y() * d.y();
+  const double b = 2.0 * (p0.x() * d.x() + p0.z() * d.z() - k * d.y() * rho0);
+  const double c = p0.x() * p0.x() + p0.z() * p0.z() - rho0 * rho0;
+  const double disc = b * b - 4.0 * a * c;
+  if (disc < 0.0) return {-std::sqrt(-disc) / (2.0 * a), kInf};
+  double least = kInf;
+  for (const double sign : {-1.0, 1.0}) {
+    least = std::min(least, rho0 + k * d.y() * (-b + sign * std::sqrt(disc)) / (2.0 * a));
+  }
+  return {std::sqrt(disc) / (2.0 * a), least};
+}
+
+// "… θ = 12.5° …" → 12.5.
+double theta_named_deg(const std::string& what) {
+  const auto at = what.find("θ = ");
+  return at == std::string::npos ? std::nan("")
+                                 : std::stod(what.substr(at + std::string("θ = ").size()));
+}
+
+TEST(ChamferHoles, PiercingRefusalsAgreeWithADenseScanOfTheWall) {
+  // validate() finds the smallest half-gap and ρ at the roots as minima of trigonometric
+  // polynomials in θ. Against 7200 generators per surface, each intersected here: an accepted
+  // hole has every sampled generator through each wall surface (half-gap > 1 µm, ρ > 0 at both
+  // roots); a refused one names a θ where, within ±0.05°, a generator grazes, misses, or meets
+  // the far nappe.
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int accepted = 0, pierce = 0, apex = 0, cases = 0;
+  while (cases < ncd::test::sweep_cases(300)) {
+    ChamferSpec s;
+    const bool wild = u(rng) < 0.3;  // wide drills far off the axis in steep cones: the apex
+    s.pipe_radius_mm = 5.0 + 45.0 * u(rng);
+    s.drill_radius_mm = s.pipe_radius_mm * (0.1 + (wild ? 1.9 : 0.9) * u(rng));
+    s.drill_tilt_rad = deg_to_rad(u(rng) < 0.2 ? 0.0 : (wild ? 85.0 : 75.0) * u(rng));
+    s.drill_azimuth_rad = deg_to_rad(360.0 * u(rng));
+    s.eccentricity_mm = (2.0 * u(rng) - 1.0) * s.pipe_radius_mm * (wild ? 4.0 : 0.6);
+    s.pipe_half_angle_rad =
+        deg_to_rad(u(rng) < 0.2 ? 0.0 : (wild ? 55.0 : 40.0) * (2.0 * u(rng) - 1.0));
+    s.edge = u(rng) < 0.5 ? Edge::Inner : Edge::Outer;
+    if (u(rng) < 0.5) s.pipe_thickness_mm = s.pipe_radius_mm * 0.2 * u(rng);
+    s.ball_radius_mm = 0.05 * s.drill_radius_mm;
+    const Part part = part_of(s);
+    const Vec3& d = part.drill_dir;
+    if (!(d.x() * d.x() + d.z() * d.z() - part.slope * part.slope * d.y() * d.y() > 1e-6)) continue;
+    if (s.pipe_half_angle_rad == 0.0 && s.drill_radius_mm >= s.pipe_radius_mm) continue;
+    if (s.pipe_thickness_mm && !(part.other_radius_mm > 0.0)) continue;
+    ++cases;
+    std::vector<double> radii{part.edge_radius_mm};
+    if (s.pipe_thickness_mm) radii.push_back(part.other_radius_mm);
+    try {
+      validate(s);
+      ++accepted;
+      for (const double radius : radii) {
+        for (int i = 0; i < 7200; ++i) {
+          const GeneratorMeets g = generator_meets(part, radius, 2.0 * kPi * i / 7200);
+          ASSERT_GT(g.half_gap_mm, 1e-6) << describe(s) << " radius " << radius << " i " << i;
+          ASSERT_GT(g.least_rho_mm, 0.0) << describe(s) << " radius " << radius << " i " << i;
+        }
+      }
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      const double th = deg_to_rad(theta_named_deg(what));
+      ASSERT_TRUE(std::isfinite(th)) << what;
+      const bool inner_named = what.find("the inner pipe surface") != std::string::npos;
+      const double radius =
+          inner_named == (s.edge == Edge::Inner) ? part.edge_radius_mm : part.other_radius_mm;
+      double least_gap = kInf, least_rho = kInf;
+      for (int i = -50; i <= 50; ++i) {
+        const GeneratorMeets g = generator_meets(part, radius, th + deg_to_rad(0.001 * i));
+        least_gap = std::min(least_gap, g.half_gap_mm);
+        least_rho = std::min(least_rho, g.least_rho_mm);
+      }
+      if (what.find("does not pierce") != std::string::npos) {
+        ++pierce;
+        EXPECT_LE(least_gap, 1e-6 + 1e-9) << what;
+        EXPECT_EQ(what.find("only grazes") != std::string::npos, least_gap > -1e-6) << what;
+      } else if (what.find("beyond the cone's apex") != std::string::npos) {
+        ++apex;
+        EXPECT_LE(least_rho, 1e-9 * radius) << what;
+      } else {
+        ADD_FAILURE() << "unexpected refusal: " << what;
+      }
+    }
+  }
+  std::cout << "[ measured ] " << accepted << " accepted, " << pierce << " not pierced, " << apex
+            << " beyond the apex, of " << cases << "\n";
+  EXPECT_GE(accepted, cases / 10);
+  EXPECT_GE(pierce, cases / 10);
+  EXPECT_GE(apex, cases / 100);
+}
+
 TEST(ChamferHoles, PipeFrameIsRefusedForATiltedDrillAndIsAShiftOtherwise) {
   ChamferSpec s = experiment(3, Edge::Inner, Side::Upper);
   s.eccentricity_mm = 2.0;
