@@ -23,9 +23,10 @@
 // loop closes exactly (C(2π) = C(0)). With γ = e = ψ = 0 this is eq. (4)/(5) itself
 // (C(θ) = (r cos θ, r sin θ, σ sqrt(R_s² − r² cos² θ)), σ = +1 upper, −1 lower), which is kept
 // (EdgeCurve::ClosedForm) as the reference. The pipe normal N_p is ∇f/|∇f| (eq. 16), which
-// points away from the pipe axis. Validation checks the discriminant of g over θ (a dense scan
-// refined by golden section): a generator that misses or grazes a wall surface means the drill
-// does not pierce it completely, and is refused with its θ.
+// points away from the pipe axis. Validation checks the discriminant of g over θ (a trigonometric
+// polynomial of degree 2, its minima found by a scan and Newton, chamfer_spec.cpp): a generator
+// that misses or grazes a wall surface means the drill does not pierce it completely, and is
+// refused with its θ.
 //
 // Downstream, as in the paper. In the normal plane T at x_p = C(θ) two unit tangents span the
 // wedge to be chamfered (N_H = (cos θ, sin θ, 0), eq. 12):
@@ -44,7 +45,8 @@
 //
 // with e = (t1 + α t2)/|t1 + α t2| (eq. 18); α = 1 bisects the wedge. A and B are where the
 // sphere |x − CL| = R_B meets the lines x_p + ζ t1 and x_p + η t2 (eqs. 22–25, the + roots).
-// δ solves G(δ) = |ζ t1 − η t2|² − W² = 0 (eq. 27) by Newton from δ = W/4, safeguarded by the
+// δ solves G(δ) = |ζ t1 − η t2|² − W² = 0 (eq. 27) (in closed form at α = 1,
+// delta_at_bisector) by Newton from δ = W/4, safeguarded by the
 // bracket δ ∈ (0, 2 R_B) on which G(0) = −W² < 0; no root means W is wider than the wedge and
 // the ball allow. The width exists only for e·t1 > 0 and e·t2 > 0, i.e. α ∈ (−c, −1/c) with
 // c = t1·t2.
@@ -60,9 +62,10 @@
 // where the line x_p + u e meets that cylinder; since CL lies on the same line, F has the sign of
 // F̃(α) = |CL_xy| − R_R, which we use instead: it is exact (no line–ellipse Newton, no degenerate
 // planes c = 0 at θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is
-// checked on. δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved
-// by Newton on F̃ + ε_α/2 (dF̃/dα by implicit differentiation of eq. 27, bisection where a step
-// leaves the bracket), which stops with F̃ ∈ [−ε_α, 0]: the α returned is on the safe side. A θ
+// checked on. δ is re-solved for every α (from δ at the current α along dδ/dα; the path starts
+// at α extrapolated from its two previous points). F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and
+// solved by Newton on F̃ + ε_α/2 (dF̃/dα by implicit differentiation of eq. 27, bisection where a
+// step leaves the bracket), which stops with F̃ ∈ [−ε_α, 0]: the α returned is on the safe side. A θ
 // where no admissible α clears the rod is reported, never hidden.
 //
 // Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length: the speed |C'| is smooth
@@ -72,7 +75,8 @@
 // drill) and as the tests' reference. Each piece is split at its parametric midpoint
 // while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
 // we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
-// midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
+// midpoint), so every piece is within ε, not only its midpoint; the split decision stops that
+// Newton once it is certain (exceeds_tolerance), with the same points. The cutter locations are
 // evaluated at those θ.
 #include "cam/chamfer.hpp"
 
