@@ -1,7 +1,8 @@
 // The whole experiment-3 path of paper 000 (segmentation, δ, Algorithm 1), against which the
-// paper reports 46–62 ms on an i7-4770; and its parts, to see where the time goes. Then a hole
-// beyond the paper (docs/chamfer.md): a 45° lateral with 2 mm eccentricity in a 5° cone, whose
-// edge curve is intersected numerically, measured in the same run as the paper's case (also
+// paper reports 46–62 ms on an i7-4770; and its parts, to see where the time goes. Then the
+// README's holes beyond the paper (docs/chamfer.md, scripts/snapshot.py HOLES): a 45° lateral
+// with 2 mm eccentricity in a 5° cone, an eccentric and a cone hole with the rod check, whose
+// edge curves are intersected numerically, measured in the same run as the paper's case (also
 // with the paper's closed-form edge, the baseline of the numerical intersection).
 #include <benchmark/benchmark.h>
 
@@ -69,6 +70,38 @@ void BM_Lateral45Eccentric2Cone5WholePath(benchmark::State& state) {
   state.counters["adjusted"] = adjusted;
 }
 BENCHMARK(BM_Lateral45Eccentric2Cone5WholePath)->Unit(benchmark::kMicrosecond);
+
+void whole_path(benchmark::State& state, const ChamferSpec& spec) {
+  std::size_t points = 0;
+  int adjusted = 0;
+  for (auto _ : state) {
+    const ChamferPath path = generate_chamfer(spec);
+    points = path.points.size();
+    adjusted = path.checks.adjusted_points;
+    benchmark::DoNotOptimize(path.points.data());
+  }
+  state.counters["points"] = static_cast<double>(points);
+  state.counters["adjusted"] = adjusted;
+}
+
+// The README's eccentric hole (scripts/snapshot.py HOLES): experiment 3's inner upper edge
+// with the rod check, the drill 3 mm off the pipe axis, a 3 mm wall (both surfaces checked).
+void BM_Eccentric3WholePath(benchmark::State& state) {
+  ChamferSpec s = experiment3();
+  s.eccentricity_mm = 3.0;
+  s.pipe_thickness_mm = 3.0;
+  whole_path(state, s);
+}
+BENCHMARK(BM_Eccentric3WholePath)->Unit(benchmark::kMicrosecond);
+
+// The README's cone hole: the same in a 5° cone.
+void BM_Cone5WholePath(benchmark::State& state) {
+  ChamferSpec s = experiment3();
+  s.pipe_half_angle_rad = deg_to_rad(5.0);
+  s.pipe_thickness_mm = 3.0;
+  whole_path(state, s);
+}
+BENCHMARK(BM_Cone5WholePath)->Unit(benchmark::kMicrosecond);
 
 void BM_Experiment3Segmentation(benchmark::State& state) {
   const ChamferModel model(experiment3());

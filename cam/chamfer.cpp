@@ -23,9 +23,10 @@
 // loop closes exactly (C(2π) = C(0)). With γ = e = ψ = 0 this is eq. (4)/(5) itself
 // (C(θ) = (r cos θ, r sin θ, σ sqrt(R_s² − r² cos² θ)), σ = +1 upper, −1 lower), which is kept
 // (EdgeCurve::ClosedForm) as the reference. The pipe normal N_p is ∇f/|∇f| (eq. 16), which
-// points away from the pipe axis. Validation checks the discriminant of g over θ (a dense scan
-// refined by golden section): a generator that misses or grazes a wall surface means the drill
-// does not pierce it completely, and is refused with its θ.
+// points away from the pipe axis. Validation checks the discriminant of g over θ (a trigonometric
+// polynomial of degree 2, its minima found by a scan and Newton, chamfer_spec.cpp): a generator
+// that misses or grazes a wall surface means the drill does not pierce it completely, and is
+// refused with its θ.
 //
 // Downstream, as in the paper. In the normal plane T at x_p = C(θ) two unit tangents span the
 // wedge to be chamfered (N_H = (cos θ, sin θ, 0), eq. 12):
@@ -44,7 +45,8 @@
 //
 // with e = (t1 + α t2)/|t1 + α t2| (eq. 18); α = 1 bisects the wedge. A and B are where the
 // sphere |x − CL| = R_B meets the lines x_p + ζ t1 and x_p + η t2 (eqs. 22–25, the + roots).
-// δ solves G(δ) = |ζ t1 − η t2|² − W² = 0 (eq. 27) by Newton from δ = W/4, safeguarded by the
+// δ solves G(δ) = |ζ t1 − η t2|² − W² = 0 (eq. 27) (in closed form at α = 1,
+// delta_at_bisector) by Newton from δ = W/4, safeguarded by the
 // bracket δ ∈ (0, 2 R_B) on which G(0) = −W² < 0; no root means W is wider than the wedge and
 // the ball allow. The width exists only for e·t1 > 0 and e·t2 > 0, i.e. α ∈ (−c, −1/c) with
 // c = t1·t2.
@@ -60,9 +62,10 @@
 // where the line x_p + u e meets that cylinder; since CL lies on the same line, F has the sign of
 // F̃(α) = |CL_xy| − R_R, which we use instead: it is exact (no line–ellipse Newton, no degenerate
 // planes c = 0 at θ = 0, π/2, π, 3π/2 to special-case) and it is the very quantity the output is
-// checked on. δ is re-solved for every α. F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and solved
-// by Newton on F̃ + ε_α/2 (dF̃/dα by implicit differentiation of eq. 27, bisection where a step
-// leaves the bracket), which stops with F̃ ∈ [−ε_α, 0]: the α returned is on the safe side. A θ
+// checked on. δ is re-solved for every α (from δ at the current α along dδ/dα; the path starts
+// at α extrapolated from its two previous points). F̃ is bracketed on α ∈ [1, min(eq. 41, −1/c)] and
+// solved by Newton on F̃ + ε_α/2 (dF̃/dα by implicit differentiation of eq. 27, bisection where a
+// step leaves the bracket), which stops with F̃ ∈ [−ε_α, 0]: the α returned is on the safe side. A θ
 // where no admissible α clears the rod is reported, never hidden.
 //
 // Segmentation (eqs. 28–34). From θ = 0, N pieces of equal arc length: the speed |C'| is smooth
@@ -72,7 +75,8 @@
 // drill) and as the tests' reference. Each piece is split at its parametric midpoint
 // while its chordal deviation exceeds ε. Eq. (34) samples the deviation only at the midpoint;
 // we measure the true maximum (Newton on d/dθ of the distance to the chord, started at the
-// midpoint), so every piece is within ε, not only its midpoint. The cutter locations are
+// midpoint), so every piece is within ε, not only its midpoint; the split decision stops that
+// Newton once it is certain (exceeds_tolerance), with the same points. The cutter locations are
 // evaluated at those θ.
 #include "cam/chamfer.hpp"
 
@@ -128,6 +132,7 @@ ChamferModel::ChamferModel(const ChamferSpec& spec)
   sign_z_ = upper ? 1.0 : -1.0;
   sign_t1_ = (inner == upper) ? 1.0 : -1.0;
   sign_t2_ = upper ? 1.0 : -1.0;
+  rod_limit_mm_ = rod_limit();
 }
 
 ChamferModel::Jet ChamferModel::jet(double theta) const {
@@ -171,12 +176,22 @@ Vec3 ChamferModel::second_derivative(double theta) const {
 }
 
 double ChamferModel::speed(double theta) const {
-  return derivative(theta).norm();
+  if (spec_.edge_curve == EdgeCurve::ClosedForm) return derivative(theta).norm();
+  // jet()'s first derivative alone (the same operations, so the same value), without C''.
+  const double r = spec_.drill_radius_mm;
+  const double c = std::cos(theta), s = std::sin(theta);
+  const double z = *generator_root(surface_, r, c, s, spec_.side == Side::Upper);
+  const Vec3 x_theta(-r * s, r * c, 0.0);
+  const Vec3 grad = surface_.gradient(Vec3(r * c, r * s, z));
+  const double z1 = -grad.dot(x_theta) / grad.z();
+  return Vec3(x_theta.x(), x_theta.y(), z1).norm();
 }
 
 EdgeFrame ChamferModel::frame(double theta) const {
-  const double c = std::cos(theta), s = std::sin(theta);
-  const Jet j = jet(theta);
+  return frame(theta, jet(theta));
+}
+
+EdgeFrame ChamferModel::frame(double theta, const Jet& j) const {
   const Vec3 &d1 = j.d1, &d2 = j.d2;
   EdgeFrame f;
   f.theta_rad = theta;
@@ -184,7 +199,8 @@ EdgeFrame ChamferModel::frame(double theta) const {
   const double v = d1.norm();
   f.t = d1 / v;
   f.k = d1.cross(d2).cross(d1) / (v * v * v * v);  // κ n = (C' × C'') × C' / |C'|⁴
-  const Vec3 n_hole(c, s, 0.0);                    // eq. (12)
+  const Vec3 n_hole(j.c.x() / spec_.drill_radius_mm, j.c.y() / spec_.drill_radius_mm,
+                    0.0);  // (cos θ, sin θ, 0), eq. (12)
   const Vec3 n_pipe = spec_.edge_curve == EdgeCurve::ClosedForm
                           ? Vec3(f.xp.x(), 0.0, f.xp.z()) / spec_.pipe_radius_mm  // eq. (17)
                           : surface_.gradient(f.xp).normalized();  // eq. (16), away from the axis
@@ -215,7 +231,9 @@ std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha
   const double rb = spec_.ball_radius_mm, w = spec_.width_mm;
   const Vec3 e = (f.t1 + alpha * f.t2).normalized();
   const double a = e.dot(f.t1), b = e.dot(f.t2), c = f.c;
-  if (!(a > 0.0 && b > 0.0) || max_width(f, alpha) <= w) return std::nullopt;
+  // max_width(f, α), from the same a and b.
+  const double widest = 2.0 * rb * std::sqrt(std::max(0.0, a * a + b * b - 2.0 * a * b * c));
+  if (!(a > 0.0 && b > 0.0) || widest <= w) return std::nullopt;
   // G(δ) and G'(δ) from eqs. (23), (25), (27); ζ' = (aζ + q)/(ζ + q a), q = R_B − δ.
   auto g_and_slope = [&](double delta, double& slope) {
     const double q = rb - delta;
@@ -232,18 +250,30 @@ std::optional<double> ChamferModel::solve_delta(const EdgeFrame& f, double alpha
     const double g = g_and_slope(delta, slope);
     if (g == 0.0) return delta;
     (g < 0.0 ? lo : hi) = delta;
-    double next = delta - g / slope;
-    const bool newton = next > lo && next < hi;
-    if (!newton) next = 0.5 * (lo + hi);  // Newton left the bracket
-    const double step = std::abs(next - delta);
-    // A Newton step below kDeltaNewtonStepMm leaves an error of about its square: done.
-    if (step <= 4.0 * std::numeric_limits<double>::epsilon() * next ||
-        (newton && step <= kDeltaNewtonStepMm)) {
+    const double newton = delta - g / slope;
+    // A Newton step below kDeltaNewtonStepMm leaves an error of about its square: done. (Taken
+    // even where it rounds onto the bracket's end δ has just become: bisecting from there
+    // would throw away a root known to rounding, then walk back to it in ~30 halvings.)
+    if (std::abs(newton - delta) <= kDeltaNewtonStepMm) return newton;
+    const double next = newton > lo && newton < hi ? newton : 0.5 * (lo + hi);  // else bisect
+    if (std::abs(next - delta) <= 4.0 * std::numeric_limits<double>::epsilon() * next) {
       return next;
     }
     delta = next;
   }
   return delta;  // the bracket has shrunk to rounding level by now
+}
+
+std::optional<double> ChamferModel::delta_at_bisector(const EdgeFrame& f) const {
+  const double rb = spec_.ball_radius_mm, w = spec_.width_mm, c = f.c;
+  const Vec3 e = (f.t1 + f.t2).normalized();
+  if (!(e.dot(f.t1) > 0.0 && e.dot(f.t2) > 0.0) || max_width(f, 1.0) <= w) return std::nullopt;
+  // a = b = sqrt((1 + c)/2) and ζ = η = W / sqrt(2 − 2c), so ζ²(1 − a²) = W²/4 and eq. (23)
+  // gives q = R_B − δ = −aζ + sqrt(R_B² − W²/4), the one root with δ ∈ (0, 2 R_B) (G rises
+  // through zero once there); written without the cancellation of R_B − sqrt(…).
+  const double half_w = 0.5 * w;
+  return half_w * half_w / (rb + std::sqrt(rb * rb - half_w * half_w)) +
+         half_w * std::sqrt((1.0 + c) / (1.0 - c));
 }
 
 CutterPose ChamferModel::pose(const EdgeFrame& f, double alpha, double delta) const {
@@ -268,8 +298,12 @@ CutterPose ChamferModel::pose(const EdgeFrame& f, double alpha, double delta) co
 }
 
 CutterPose ChamferModel::pose_at(double theta, double alpha) const {
-  const EdgeFrame f = frame(theta);
-  const auto delta = solve_delta(f, alpha);
+  return pose_at(frame(theta), alpha);
+}
+
+CutterPose ChamferModel::pose_at(const EdgeFrame& f, double alpha) const {
+  const double theta = f.theta_rad;
+  const auto delta = alpha == 1.0 ? delta_at_bisector(f) : solve_delta(f, alpha);
   if (!delta) {
     const AlphaRange range = alpha_range(f);
     throw InputError(
@@ -283,6 +317,10 @@ CutterPose ChamferModel::pose_at(double theta, double alpha) const {
 }
 
 std::optional<double> ChamferModel::rod_limit_radius_mm() const {
+  return rod_limit_mm_;
+}
+
+std::optional<double> ChamferModel::rod_limit() const {
   if (spec_.edge != Edge::Inner) return std::nullopt;
   std::optional<double> limit;
   const double r = spec_.drill_radius_mm;
@@ -300,6 +338,11 @@ double ChamferModel::rod_interference(const EdgeFrame& f, double alpha, double d
 
 RodInterference ChamferModel::rod_interference_and_slope(const EdgeFrame& f, double alpha,
                                                          double delta) const {
+  return rod_terms(f, alpha, delta).f;
+}
+
+ChamferModel::RodTerms ChamferModel::rod_terms(const EdgeFrame& f, double alpha,
+                                               double delta) const {
   const double rb = spec_.ball_radius_mm, c = f.c, q = rb - delta;
   const Vec3 u = f.t1 + alpha * f.t2;
   const double u_norm = u.norm();
@@ -320,50 +363,80 @@ RodInterference ChamferModel::rod_interference_and_slope(const EdgeFrame& f, dou
   const Vec3 cl = f.xp - q * e;
   const Vec3 cl_alpha = delta_alpha * e - q * (f.t2 - b * e) / u_norm;
   const double radius = std::hypot(cl.x(), cl.y());
-  return {radius - *rod_limit_radius_mm(),
-          (cl.x() * cl_alpha.x() + cl.y() * cl_alpha.y()) / radius};
+  return {
+      {radius - *rod_limit_radius_mm(), (cl.x() * cl_alpha.x() + cl.y() * cl_alpha.y()) / radius},
+      delta_alpha};
 }
 
 RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f) const {
-  std::optional<double> last_delta;  // warm start: δ moves little between neighbouring α
+  return avoid_rod(f, 1.0);
+}
+
+RodAvoidance ChamferModel::avoid_rod(const EdgeFrame& f, double alpha_hint) const {
+  // δ at α = 1 in closed form; elsewhere Newton from δ at the iteration's current point x
+  // carried along its slope dδ/dα (off by about δ'' Δα²/2, so that near the end one step of G
+  // suffices).
+  double last_delta = 0.0, x_delta = 0.0, x_delta_slope = 0.0;
+  double lo = 1.0, hi = 0.0, f_hi = 0.0, x = 1.0, delta_hi = 0.0;
   const auto big_f = [&](double alpha) {
-    last_delta = solve_delta(f, alpha, last_delta);
-    if (!last_delta) (void)pose_at(f.theta_rad, alpha);  // throws the width error, with numbers
-    return rod_interference_and_slope(f, alpha, *last_delta);
+    const std::optional<double> delta =
+        alpha == 1.0 ? delta_at_bisector(f)
+                     : solve_delta(f, alpha, x_delta + x_delta_slope * (alpha - x));
+    if (!delta) (void)pose_at(f, alpha);  // throws the width error, with numbers
+    const RodTerms t = rod_terms(f, alpha, *delta);
+    last_delta = *delta;
+    return t;
   };
-  RodInterference at = big_f(1.0);
-  if (at.value_mm <= 0.0) return {1.0, *last_delta, false, true};
-  // Bracket [1, hi] with F(hi) ≤ 0; hi is inside the admissible and global bounds.
+  // Evaluates F at the new current point x.
+  const auto move_to = [&](double alpha) {
+    const RodTerms t = big_f(alpha);
+    x = alpha, x_delta = last_delta, x_delta_slope = t.delta_slope_mm;
+    return t.f;
+  };
+  RodInterference at = move_to(1.0);
+  if (at.value_mm <= 0.0) return {1.0, last_delta, false, true};
+  // Bracket [lo, hi] with F(lo) > 0 ≥ F(hi); hi is inside the admissible and global bounds.
   const AlphaRange range = alpha_range(f);
-  double lo = 1.0, hi = 0.0, f_hi = 0.0, x = 1.0;
-  if (std::isfinite(range.hi)) {
-    hi = range.hi * (1.0 - kAlphaMargin);
-    if (hi <= lo || (f_hi = big_f(hi).value_mm) > 0.0) return {1.0, 0.0, false, false};
-  } else {
-    for (hi = 2.0; hi <= kMaxAlphaSearch; hi *= 2.0) {
-      const RodInterference at_hi = big_f(hi);
-      if ((f_hi = at_hi.value_mm) <= 0.0) break;
+  const double top = range.hi * (1.0 - kAlphaMargin);  // +inf where both bounds are
+  // The hint (the neighbouring point's α) is one end of the bracket, and Newton starts there.
+  if (alpha_hint > 1.0 && alpha_hint < std::min(top, kMaxAlphaSearch)) {
+    at = move_to(alpha_hint);
+    if (at.value_mm > 0.0) {
+      lo = x;
+    } else {
+      hi = x, f_hi = at.value_mm, delta_hi = last_delta;
+    }
+  }
+  if (hi == 0.0 && std::isfinite(top)) {
+    hi = top;
+    if (hi <= lo || (f_hi = big_f(hi).f.value_mm) > 0.0) return {1.0, 0.0, false, false};
+    delta_hi = last_delta;
+  } else if (hi == 0.0) {
+    for (hi = 2.0 * lo; hi <= kMaxAlphaSearch; hi *= 2.0) {
+      const RodTerms at_hi = big_f(hi);
+      if ((f_hi = at_hi.f.value_mm) <= 0.0) break;
       lo = x = hi;
-      at = at_hi;
+      at = at_hi.f;
+      x_delta = last_delta, x_delta_slope = at_hi.delta_slope_mm;
     }
     if (f_hi > 0.0) return {1.0, 0.0, false, false};
+    delta_hi = last_delta;
   }
-  // Newton on F(α) + ε_α/2 = 0 from the last point with F > 0, so that it lands inside
+  // Newton on F(α) + ε_α/2 = 0 from the current point x (F at the far end does not move it),
+  // so that it lands inside
   // [−ε_α, 0], on the safe side; bisection where a step would leave the bracket. The bracket
   // always holds F(lo) > 0 ≥ F(hi); hi is the safe end.
-  double delta_hi = *last_delta;
   for (int i = 0;
        i < kMaxAlphaIterations && hi - lo > kAlphaTolerance * hi && f_hi < -kRodToleranceMm; ++i) {
     double next = x - (at.value_mm + 0.5 * kRodToleranceMm) / at.slope_mm;
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    x = next;
-    at = big_f(x);
+    at = move_to(next);
     if (at.value_mm > 0.0) {
       lo = x;
     } else {
       hi = x;
       f_hi = at.value_mm;
-      delta_hi = *last_delta;
+      delta_hi = last_delta;
     }
   }
   return {hi, delta_hi, true, true};
@@ -477,43 +550,101 @@ std::vector<double> ChamferModel::equal_arc_starts_by_quadrature() const {
   return start;
 }
 
-std::vector<double> ChamferModel::segment() const {
+bool ChamferModel::exceeds_tolerance(double theta0, const Jet& j0, double theta1, const Jet& j1,
+                                     Jet& mid) const {
+  // chord_deviation's iteration, with its decision: true once an iterate lies beyond ε (the
+  // maximum is at least that), false where chord_deviation would stop below ε. And false as soon
+  // as the quadratic model of ψ = |w⊥|²/2 about the iterate, whose maximum exceeds ψ by
+  // φ²/(2|φ'|) at a step φ/|φ'| from it, leaves ε with four times that rise and the step within
+  // an eighth of the piece: the iterates still to come converge to that maximum, so they would
+  // not pass ε either. The decisions, and so the points, are chord_deviation's; most pieces are
+  // decided by their midpoint alone.
+  const double eps = spec_.tolerance_mm;
+  const double mid_theta = 0.5 * (theta0 + theta1);
+  mid = jet(mid_theta);
+  const Vec3 chord = j1.c - j0.c;
+  const double len = chord.norm();
+  if (len == 0.0) return (mid.c - j0.c).norm() > eps;
+  const Vec3 u = chord / len;
+  double th = mid_theta;
+  Jet j = mid;
+  for (int i = 0; i < 9; ++i) {
+    if (i > 0) j = jet(th);
+    const Vec3 w = j.c - j0.c;
+    const Vec3 w_perp = w - w.dot(u) * u;
+    if (w_perp.norm() > eps) return true;
+    const Vec3 d1_perp = j.d1 - j.d1.dot(u) * u;
+    const double phi = j.d1.dot(w_perp);
+    const double slope = j.d2.dot(w_perp) + d1_perp.squaredNorm();
+    if (slope >= 0.0) return false;  // not near a maximum: chord_deviation keeps these samples
+    const double step = -phi / slope;
+    if (std::abs(step) <= 0.125 * (theta1 - theta0) &&
+        w_perp.squaredNorm() + 4.0 * phi * step < eps * eps) {
+      return false;
+    }
+    const double next = th + step;
+    if (!(next > theta0 && next < theta1) || std::abs(next - th) <= kChordNewtonStepRad) {
+      return false;
+    }
+    th = next;
+  }
+  return false;
+}
+
+std::vector<ChamferModel::Knot> ChamferModel::knots() const {
   const int n = spec_.initial_segments;
   const std::vector<double> start = equal_arc_starts();
 
   // Midpoint splits (eq. 34), depth first so the output stays in θ order. Each piece carries
-  // its end points, so every point of the curve is evaluated once.
+  // the jets at its ends, so every point of the curve is evaluated once, and the frames are
+  // built from them.
   struct Piece {
     double a, b;
-    Vec3 pa, pb;
+    Jet ja, jb;
   };
-  std::vector<double> out;
+  std::vector<Knot> out;
   std::vector<Piece> stack;
-  Vec3 p_start = point(0.0);
+  out.reserve(2 * static_cast<std::size_t>(n));  // experiment 3: 120 points from N = 60
+  stack.reserve(32);
+  Jet j_start = jet(0.0);
   for (int k = 0; k < n; ++k) {
     const double b_k = start[static_cast<std::size_t>(k) + 1];
-    const Vec3 p_end = point(b_k);
-    stack.push_back({start[static_cast<std::size_t>(k)], b_k, p_start, p_end});
-    p_start = p_end;
+    const Jet j_end = jet(b_k);
+    stack.push_back({start[static_cast<std::size_t>(k)], b_k, j_start, j_end});
+    j_start = j_end;
     while (!stack.empty()) {
       const Piece piece = stack.back();
       const double a = piece.a, b = piece.b;
       stack.pop_back();
-      if (chord_deviation(a, piece.pa, b, piece.pb) > spec_.tolerance_mm) {
+      Jet mid;
+      if (exceeds_tolerance(a, piece.ja, b, piece.jb, mid)) {
         if (b - a < kMinSplitTheta || out.size() + stack.size() > ChamferLimits::kMaxPoints) {
           throw InputError("tolerance ε = " + text::sig(spec_.tolerance_mm) +
                            " mm needs more than " + std::to_string(ChamferLimits::kMaxPoints) +
                            " points; use a larger --tolerance");
         }
         const double m = 0.5 * (a + b);
-        const Vec3 pm = point(m);
-        stack.push_back({m, b, pm, piece.pb});
-        stack.push_back({a, m, piece.pa, pm});
+        stack.push_back({m, b, mid, piece.jb});
+        stack.push_back({a, m, piece.ja, mid});
       } else {
-        out.push_back(a);
+        out.push_back({a, piece.ja});
       }
     }
   }
+  return out;
+}
+
+std::vector<double> ChamferModel::segment() const {
+  const std::vector<Knot> k = knots();
+  std::vector<double> out(k.size());
+  for (std::size_t i = 0; i < k.size(); ++i) out[i] = k[i].theta;
+  return out;
+}
+
+std::vector<EdgeFrame> ChamferModel::segment_frames() const {
+  const std::vector<Knot> k = knots();
+  std::vector<EdgeFrame> out(k.size());
+  for (std::size_t i = 0; i < k.size(); ++i) out[i] = frame(k[i].theta, k[i].jet);
   return out;
 }
 
@@ -580,24 +711,32 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
   const ChamferModel model(spec);
   ChamferPath path;
   path.spec = spec;
-  const std::vector<double> thetas = model.segment();
-  path.points.reserve(thetas.size());
+  const std::vector<EdgeFrame> frames = model.segment_frames();
+  path.points.reserve(frames.size());
   ChamferChecks& ck = path.checks;
   ck.limit_radius_mm = model.rod_limit_radius_mm();
   ck.rod_applies = spec.edge == Edge::Inner;
   ck.min_inv_ke_mm = kInf;
   ck.max_minus_ez = -kInf;
   ck.min_minus_ez = kInf;
-  for (const double theta : thetas) {
-    const EdgeFrame f = model.frame(theta);
+  // Algorithm 1 starts at α extrapolated from the last two points (where both were adjusted).
+  double theta_1 = 0.0, alpha_1 = 1.0, theta_2 = 0.0, alpha_2 = 1.0;
+  for (const EdgeFrame& f : frames) {
+    const double theta = f.theta_rad;
     std::optional<CutterPose> pose;
     if (ck.limit_radius_mm && spec.avoid) {
-      const RodAvoidance rod = model.avoid_rod(f);
+      const double hint =
+          alpha_1 > 1.0 && alpha_2 > 1.0
+              ? alpha_1 + (alpha_1 - alpha_2) * (theta - theta_1) / (theta_1 - theta_2)
+              : alpha_1;
+      const RodAvoidance rod = model.avoid_rod(f, hint);
+      theta_2 = theta_1, alpha_2 = alpha_1;
+      theta_1 = theta, alpha_1 = rod.cleared ? rod.alpha : 1.0;
       if (!rod.cleared) ck.uncleared_theta_rad.push_back(theta);
       if (rod.adjusted) ++ck.adjusted_points;
       if (rod.cleared) pose = model.pose(f, rod.alpha, rod.delta_mm);
     }
-    const CutterPose p = pose ? *pose : model.pose_at(theta, 1.0);
+    const CutterPose p = pose ? *pose : model.pose_at(f, 1.0);
     ck.min_inv_ke_mm = std::min(ck.min_inv_ke_mm, p.inv_ke_mm);
     ck.max_minus_ez = std::max(ck.max_minus_ez, p.minus_ez);
     ck.min_minus_ez = std::min(ck.min_minus_ez, p.minus_ez);

@@ -158,11 +158,17 @@ class ChamferModel {
   // nullopt when W does not fit at this α.
   std::optional<double> solve_delta(const EdgeFrame& f, double alpha,
                                     std::optional<double> guess_mm = std::nullopt) const;
+  // The same root at α = 1 in closed form (docs/chamfer.md): ζ = η = W / sqrt(2 − 2c), so
+  // δ = (W²/4) / (R_B + sqrt(R_B² − W²/4)) + (W/2) sqrt((1 + c)/(1 − c)); nullopt exactly where
+  // solve_delta(f, 1) is.
+  std::optional<double> delta_at_bisector(const EdgeFrame& f) const;
   // Largest width the wedge can take at this α (δ → 2 R_B).
   double max_width(const EdgeFrame& f, double alpha) const;
   CutterPose pose(const EdgeFrame& f, double alpha, double delta) const;
-  // pose() with δ solved; throws InputError naming θ when no chamfer of width W exists.
+  // pose() with δ solved (in closed form at α = 1); throws InputError naming θ when no chamfer
+  // of width W exists.
   CutterPose pose_at(double theta, double alpha) const;
+  CutterPose pose_at(const EdgeFrame& f, double alpha) const;
   // R_R = min(r − R_B sin β, r − R_od) over the limits given; nullopt if none applies.
   std::optional<double> rod_limit_radius_mm() const;
   // |CL_xy| − R_R, of the sign of F(α) in eq. (46): > 0 means the rod (or cap) interferes.
@@ -171,6 +177,10 @@ class ChamferModel {
   RodInterference rod_interference_and_slope(const EdgeFrame& f, double alpha, double delta) const;
   // Algorithm 1: the smallest α ≥ 1 that keeps the CL within R_R.
   RodAvoidance avoid_rod(const EdgeFrame& f) const;
+  // The same, Newton started at alpha_hint (the neighbouring point's α) where it lies inside
+  // (1, the admissible bound): one end of the bracket; F at the bound is then only evaluated
+  // where the hint leaves the root's side unbounded (F(hint) > 0).
+  RodAvoidance avoid_rod(const EdgeFrame& f, double alpha_hint) const;
   // Arc length of C over [theta0, theta1] by Gauss–Legendre (eq. 28).
   double arc_length(double theta0, double theta1) const;
   // The Fourier series of the speed |C'(θ)| (core/periodic_series.hpp); nullopt where its
@@ -185,6 +195,8 @@ class ChamferModel {
   // Reference parameters: N equal arcs refined by midpoint splits until every chordal
   // deviation is ≤ ε (eqs. 29–34). Starts at 0, excludes 2π (the loop closes on θ = 0).
   std::vector<double> segment() const;
+  // frame(θ) at each θ of segment(), from the curve derivatives the segmentation evaluated.
+  std::vector<EdgeFrame> segment_frames() const;
   // Largest distance between C on [theta0, theta1] and the chord joining its ends.
   double chord_deviation(double theta0, double theta1) const;
   // The same with the end points C(theta0), C(theta1) given.
@@ -196,13 +208,31 @@ class ChamferModel {
   struct Jet {
     Vec3 c, d1, d2;  // C, dC/dθ, d²C/dθ²
   };
+  struct Knot {
+    double theta = 0.0;
+    Jet jet;
+  };
   Jet jet(double theta) const;
+  EdgeFrame frame(double theta, const Jet& j) const;
+  std::vector<Knot> knots() const;  // segment() with the jets at its θ
+  // Whether the piece's chordal deviation exceeds ε: chord_deviation's Newton, stopped as soon
+  // as the answer is certain; `mid` receives the jet at the piece's midpoint.
+  bool exceeds_tolerance(double theta0, const Jet& j0, double theta1, const Jet& j1,
+                         Jet& mid) const;
+  // F(α) and dF/dα as rod_interference_and_slope, with dδ/dα (the predictor of the next δ).
+  struct RodTerms {
+    RodInterference f;
+    double delta_slope_mm = 0.0;
+  };
+  RodTerms rod_terms(const EdgeFrame& f, double alpha, double delta) const;
   ChamferSpec spec_;
   DrillPlacement placement_;
   PipeSurface surface_;
-  double sign_z_;   // +1 upper, −1 lower
-  double sign_t1_;  // s1 of the spec
-  double sign_t2_;  // s2 of the spec
+  double sign_z_;                       // +1 upper, −1 lower
+  double sign_t1_;                      // s1 of the spec
+  double sign_t2_;                      // s2 of the spec
+  std::optional<double> rod_limit_mm_;  // rod_limit(), computed once
+  std::optional<double> rod_limit() const;
 };
 
 // A closed θ interval, from one path point to another, where a check fails.

@@ -3,9 +3,11 @@
 // surface, and validate(): every value's range, and a drill that pierces each wall surface it
 // must (the discriminant scan of "Edge curve by numerical intersection", top of chamfer.cpp).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "cam/chamfer.hpp"
 #include "cam/chamfer_detail.hpp"
@@ -21,70 +23,192 @@ namespace {
 constexpr int kPierceScan = 360;        // samples of θ in the piercing check
 constexpr double kMinHalfGapMm = 1e-6;  // upper and lower roots at least 2 µm apart
 constexpr double kMaxHalfAngleRad = kPi / 3.0;
+constexpr int kMaxMinimumSteps = 60;      // safeguarded Newton on a trig polynomial's slope,
+constexpr double kMinimumStepRad = 1e-9;  // until its step is below this
+
+// l0 + l1 cos θ + l2 sin θ.
+struct Trig1 {
+  double k0 = 0.0, c1 = 0.0, s1 = 0.0;
+};
+
+// k0 + c1 cos θ + s1 sin θ + c2 cos 2θ + s2 sin 2θ, with its first two derivatives.
+struct Trig2 {
+  double k0 = 0.0, c1 = 0.0, s1 = 0.0, c2 = 0.0, s2 = 0.0;
+  double at(double c, double s) const {  // at (cos θ, sin θ)
+    return k0 + c1 * c + s1 * s + c2 * (c * c - s * s) + s2 * (2.0 * s * c);
+  }
+  double slope(double c, double s) const {
+    return -c1 * s + s1 * c + 2.0 * (-c2 * (2.0 * s * c) + s2 * (c * c - s * s));
+  }
+  double curvature(double c, double s) const {
+    return -c1 * c - s1 * s - 4.0 * (c2 * (c * c - s * s) + s2 * (2.0 * s * c));
+  }
+};
+
+Trig1 operator*(double x, const Trig1& l) {
+  return {x * l.k0, x * l.c1, x * l.s1};
+}
+Trig1 operator+(const Trig1& l, const Trig1& m) {
+  return {l.k0 + m.k0, l.c1 + m.c1, l.s1 + m.s1};
+}
+// With cos² = (1 + cos 2θ)/2, sin² = (1 − cos 2θ)/2, cos sin = sin 2θ / 2.
+Trig2 operator*(const Trig1& l, const Trig1& m) {
+  const double cc = l.c1 * m.c1, ss = l.s1 * m.s1, cs = l.c1 * m.s1 + l.s1 * m.c1;
+  return {l.k0 * m.k0 + 0.5 * (cc + ss), l.k0 * m.c1 + l.c1 * m.k0, l.k0 * m.s1 + l.s1 * m.k0,
+          0.5 * (cc - ss), 0.5 * cs};
+}
+Trig2 operator+(const Trig2& p, const Trig2& q) {
+  return {p.k0 + q.k0, p.c1 + q.c1, p.s1 + q.s1, p.c2 + q.c2, p.s2 + q.s2};
+}
+Trig2 operator*(double x, const Trig2& p) {
+  return {x * p.k0, x * p.c1, x * p.s1, x * p.c2, x * p.s2};
+}
+
+// generator_quadratic's coefficients as functions of θ: qa constant, qb ∈ Trig1, qc ∈ Trig2;
+// and the discriminant qb² − 4 qa qc, a trigonometric polynomial of degree 2.
+struct GeneratorCoefficients {
+  double qa = 0.0;
+  Trig1 qb, rho_mid;  // ρ at the roots' midpoint z = −qb / (2 qa), where ρ is linear in z
+  Trig2 discriminant;
+};
+
+GeneratorCoefficients generator_coefficients(const PipeSurface& s, double r) {
+  const Vec3 &a = s.axis_direction, &p = s.axis_point;
+  const double k = s.slope, az = a.z();
+  const Trig1 aw{-a.dot(p), r * a.x(), r * a.y()};  // a·w0, w0 = (r cos θ, r sin θ, 0) − p0
+  const Trig1 rho0 = Trig1{s.radius_mm, 0.0, 0.0} + k * aw;
+  GeneratorCoefficients g;
+  g.qa = 1.0 - (1.0 + k * k) * az * az;
+  g.qb = 2.0 * (Trig1{-p.z(), 0.0, 0.0} + (-az) * aw + (-k * az) * rho0);
+  const Trig2 w0_squared{r * r + p.squaredNorm(), -2.0 * r * p.x(), -2.0 * r * p.y(), 0.0, 0.0};
+  const Trig2 qc = w0_squared + (-1.0) * (aw * aw) + (-1.0) * (rho0 * rho0);
+  g.discriminant = g.qb * g.qb + (-4.0 * g.qa) * qc;
+  g.rho_mid = rho0 + (-k * az / (2.0 * g.qa)) * g.qb;
+  return g;
+}
+
+// cos θ_i and sin θ_i at the kPierceScan angles θ_i = 2π i / kPierceScan, by four interleaved
+// rotations (one would be a chain of 360 dependent steps; no trigonometric call per angle).
+struct ScanCircle {
+  static constexpr double kStepRad = 2.0 * kPi / kPierceScan;
+  std::array<double, kPierceScan> c{}, s{};
+  ScanCircle() {
+    constexpr std::size_t kChains = 4;
+    static_assert(kPierceScan % kChains == 0);
+    const double ch = std::cos(kChains * kStepRad), sh = std::sin(kChains * kStepRad);
+    for (std::size_t j = 0; j < kChains; ++j) {
+      c[j] = std::cos(static_cast<double>(j) * kStepRad);
+      s[j] = std::sin(static_cast<double>(j) * kStepRad);
+    }
+    for (std::size_t i = kChains; i < kPierceScan; ++i) {
+      c[i] = c[i - kChains] * ch - s[i - kChains] * sh;
+      s[i] = s[i - kChains] * ch + c[i - kChains] * sh;
+    }
+  }
+};
+
+// The θ of every local minimum of p over [0, 2π): the local minima of its samples on the scan
+// circle, each refined by Newton on p' = 0 kept inside its two neighbouring samples, bisecting
+// by the sign of p' where a step would leave them. A degree-2 polynomial has at most two; a
+// constant one gives θ = 0.
+std::vector<double> local_minima(const Trig2& p, const ScanCircle& circle) {
+  std::array<double, kPierceScan> v{};
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = p.at(circle.c[i], circle.s[i]);
+  const double h = ScanCircle::kStepRad;
+  std::vector<double> out;
+  for (int i = 0; i < kPierceScan; ++i) {
+    const std::size_t k = static_cast<std::size_t>(i);
+    const double prev = v[i == 0 ? v.size() - 1 : k - 1];
+    const double next = v[k + 1 == v.size() ? 0 : k + 1];
+    if (!(v[k] <= prev && v[k] < next)) continue;
+    double lo = h * (i - 1), hi = h * (i + 1), th = h * i;
+    for (int it = 0; it < kMaxMinimumSteps && hi - lo > kMinimumStepRad; ++it) {
+      const double ct = std::cos(th), st = std::sin(th);
+      const double d1 = p.slope(ct, st), d2 = p.curvature(ct, st);
+      const double step = d1 / d2;
+      // Quadratic convergence: the error after a step this small is far below rounding.
+      if (d2 > 0.0 && std::abs(step) <= kMinimumStepRad) {
+        th -= step;
+        break;
+      }
+      (d1 < 0.0 ? lo : hi) = th;
+      const bool inside = d2 > 0.0 && th - step > lo && th - step < hi;
+      th = inside ? th - step : 0.5 * (lo + hi);
+    }
+    out.push_back(th);
+  }
+  if (out.empty()) {  // constant (no strict minimum among the samples): its first sample
+    out.push_back(0.0);
+  }
+  return out;
+}
 
 // Refuses a surface the drill does not pierce completely: a generator that misses or grazes it,
-// or meets the far nappe of a cone.
+// or meets the far nappe of a cone. g's discriminant and ρ at the roots' midpoint are
+// trigonometric polynomials in θ (generator_coefficients), so the scan costs a few
+// multiplications per angle; each decision is then taken on g itself (generator_quadratic,
+// quadratic_root) at the θ the polynomials point to.
+//
+// Far nappe (cones), checked first as a scan of the kPierceScan angles: along a generator ρ is
+// linear in z, so both roots have ρ > 0 iff ρ_mid > |k a_z| · half-gap, i.e. ρ_mid > 0 and
+// H = ρ_mid² − (k a_z / (2 qa))² disc > 0. (A generator that pierces a cone meets one nappe
+// only, and the drill axis never enters the far one, so every hole refused here also fails the
+// check below; this one names the cause.) Piercing: the smallest half-gap is at a local minimum
+// of the discriminant (qa is constant), found by local_minima.
 void check_pierces(const ChamferSpec& spec, const PipeSurface& surf, const std::string& which) {
   const double r = spec.drill_radius_mm;
-  const std::string drill = "the drill (r = " + text::sig(r) + " mm, tilt " +
-                            fmt_deg(spec.drill_tilt_rad) + ", eccentricity " +
-                            text::sig(spec.eccentricity_mm) + " mm)";
-  const std::string pipe = "the " + which + " pipe surface (radius " + text::sig(surf.radius_mm) +
-                           " mm at the reference point, half-angle " +
-                           fmt_deg(spec.pipe_half_angle_rad) + ")";
+  // The messages are only composed for a refusal (formatting numbers costs microseconds).
+  const auto drill = [&] {
+    return "the drill (r = " + text::sig(r) + " mm, tilt " + fmt_deg(spec.drill_tilt_rad) +
+           ", eccentricity " + text::sig(spec.eccentricity_mm) + " mm)";
+  };
+  const auto pipe = [&] {
+    return "the " + which + " pipe surface (radius " + text::sig(surf.radius_mm) +
+           " mm at the reference point, half-angle " + fmt_deg(spec.pipe_half_angle_rad) + ")";
+  };
   const double az = surf.axis_direction.z();
-  if (!(generator_quadratic(surf, r, 0.0).qa > 1e-9)) {
-    throw InputError(drill + " runs at " + fmt_deg(std::acos(std::min(1.0, std::abs(az)))) +
+  const GeneratorCoefficients g = generator_coefficients(surf, r);
+  if (!(g.qa > 1e-9)) {
+    throw InputError(drill() + " runs at " + fmt_deg(std::acos(std::min(1.0, std::abs(az)))) +
                      " to the pipe axis, which must exceed the half-angle " +
-                     fmt_deg(std::abs(spec.pipe_half_angle_rad)) + " of " + pipe +
+                     fmt_deg(std::abs(spec.pipe_half_angle_rad)) + " of " + pipe() +
                      " for a hole through the wall; reduce --drill-tilt-deg");
   }
-  const auto half_gap = [](const Quadratic& q) {
-    const double d = q.discriminant();
-    return d > 0.0 ? std::sqrt(d) / (2.0 * q.qa) : -std::sqrt(-d) / (2.0 * q.qa);
-  };
-  const auto half_gap_at = [&](double th) { return half_gap(generator_quadratic(surf, r, th)); };
-  int worst = 0;
-  double worst_gap = kInf;
-  for (int i = 0; i < kPierceScan; ++i) {
-    const double th = 2.0 * kPi * i / kPierceScan;
-    const double cos_t = std::cos(th), sin_t = std::sin(th);
-    const Quadratic q = generator_quadratic(surf, r, cos_t, sin_t);
-    const double g = half_gap(q);
-    if (g < worst_gap) worst_gap = g, worst = i;
-    for (const bool upper : {true, false}) {
-      if (surf.slope == 0.0) break;  // a cylinder has no far nappe
-      const auto z = quadratic_root(q, upper);
-      if (z && !(surf.axial_radius(Vec3(r * cos_t, r * sin_t, *z)) > 0.0)) {
-        throw InputError(drill + " meets " + pipe +
-                         " beyond the cone's apex at θ = " + fmt_deg(th) +
-                         "; move the hole away from the apex (a larger --pipe-radius"
-                         " or a smaller --pipe-half-angle-deg)");
+  const ScanCircle circle;
+  if (surf.slope != 0.0) {  // a cylinder has no far nappe
+    const double kz = surf.slope * az / (2.0 * g.qa);
+    for (std::size_t i = 0; i < circle.c.size(); ++i) {
+      const double cos_t = circle.c[i], sin_t = circle.s[i];
+      const double disc = g.discriminant.at(cos_t, sin_t);
+      const double m = g.rho_mid.k0 + g.rho_mid.c1 * cos_t + g.rho_mid.s1 * sin_t;
+      if (disc < 0.0 || (m > 0.0 && m * m - kz * kz * disc > 1e-9 * m * m)) continue;
+      const double th = ScanCircle::kStepRad * static_cast<double>(i);
+      const Quadratic q = generator_quadratic(surf, r, th);
+      for (const bool upper : {true, false}) {
+        const auto z = quadratic_root(q, upper);
+        if (z && !(surf.axial_radius(Vec3(r * std::cos(th), r * std::sin(th), *z)) > 0.0)) {
+          throw InputError(drill() + " meets " + pipe() +
+                           " beyond the cone's apex at θ = " + fmt_deg(th) +
+                           "; move the hole away from the apex (a larger --pipe-radius"
+                           " or a smaller --pipe-half-angle-deg)");
+        }
       }
     }
   }
-  // Golden-section refinement of the smallest gap between the neighbouring samples.
-  double lo = 2.0 * kPi * (worst - 1) / kPierceScan, hi = 2.0 * kPi * (worst + 1) / kPierceScan;
-  const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
-  double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
-  double g1 = half_gap_at(x1), g2 = half_gap_at(x2);
-  for (int i = 0; i < 50; ++i) {  // one new evaluation per step: the other point is kept
-    if (g1 < g2) {
-      hi = x2;
-      x2 = x1, g2 = g1;
-      x1 = hi - gr * (hi - lo), g1 = half_gap_at(x1);
-    } else {
-      lo = x1;
-      x1 = x2, g1 = g2;
-      x2 = lo + gr * (hi - lo), g2 = half_gap_at(x2);
-    }
+  const auto half_gap_at = [&](double th) {
+    const double d = generator_quadratic(surf, r, th).discriminant();
+    return d > 0.0 ? std::sqrt(d) / (2.0 * g.qa) : -std::sqrt(-d) / (2.0 * g.qa);
+  };
+  double worst_gap = kInf, th = 0.0;
+  for (const double m : local_minima(g.discriminant, circle)) {
+    const double gap = half_gap_at(m);
+    if (gap < worst_gap) worst_gap = gap, th = m;
   }
-  const double th = 0.5 * (lo + hi);
-  worst_gap = std::min(worst_gap, half_gap_at(th));
   if (!(worst_gap > kMinHalfGapMm)) {
     // θ to 0.01°, in [0°, 360°).
     const double deg = std::round(rad_to_deg(std::fmod(th + 2.0 * kPi, 2.0 * kPi)) * 100.0) / 100.0;
-    throw InputError(drill + " does not pierce " + pipe + " completely: the drill's generator at " +
+    throw InputError(drill() + " does not pierce " + pipe() +
+                     " completely: the drill's generator at " +
                      "θ = " + text::sig(deg >= 360.0 ? 0.0 : deg + 0.0) + "°" +
                      (worst_gap > -kMinHalfGapMm ? " only grazes it" : " misses it") +
                      ", so the edge is not a closed loop around the hole (for a cylinder pipe and "

@@ -13,8 +13,11 @@ namespace {
 
 using Complex = std::complex<double>;
 
-// In-place radix-2 FFT, x_k ← Σ_j x_j e^{−2πi jk/n}, n a power of two. The twiddles are taken
-// from one table of exact cosines and sines, not from a recurrence.
+// In-place radix-2 FFT, x_k ← Σ_j x_j e^{−2πi jk/n}, n a power of two. The twiddles are exact
+// cosines and sines of the first eighth of the circle, the rest by the circle's symmetries
+// (cos(π/2 − x) = sin x, cos(π − x) = −cos x); not from a recurrence. The butterflies are
+// written out in real arithmetic (std::complex's product checks for NaN and goes through
+// memory).
 void fft(std::vector<Complex>& x) {
   const std::size_t n = x.size();
   for (std::size_t i = 1, j = 0; i < n; ++i) {  // bit-reversal permutation
@@ -23,19 +26,33 @@ void fft(std::vector<Complex>& x) {
     j ^= bit;
     if (i < j) std::swap(x[i], x[j]);
   }
-  std::vector<Complex> twiddle(n / 2);
-  for (std::size_t k = 0; k < n / 2; ++k) {
-    const double angle = -2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(n);
-    twiddle[k] = {std::cos(angle), std::sin(angle)};
+  // cos and −sin of 2π k / n for k < n/2.
+  std::vector<double> tw_re(n / 2), tw_im(n / 2);
+  const std::size_t eighth = n / 8, quarter = n / 4;
+  for (std::size_t k = 0; k <= eighth && k < n / 2; ++k) {
+    const double angle = 2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(n);
+    tw_re[k] = std::cos(angle);
+    tw_im[k] = -std::sin(angle);
+  }
+  for (std::size_t k = eighth + 1; k <= quarter && k < n / 2; ++k) {
+    tw_re[k] = -tw_im[quarter - k];
+    tw_im[k] = -tw_re[quarter - k];
+  }
+  for (std::size_t k = quarter + 1; k < n / 2; ++k) {
+    tw_re[k] = -tw_re[n / 2 - k];
+    tw_im[k] = tw_im[n / 2 - k];
   }
   for (std::size_t len = 2; len <= n; len <<= 1) {
     const std::size_t stride = n / len;
     for (std::size_t start = 0; start < n; start += len) {
       for (std::size_t k = 0; k < len / 2; ++k) {
-        const Complex u = x[start + k];
-        const Complex v = x[start + k + len / 2] * twiddle[k * stride];
-        x[start + k] = u + v;
-        x[start + k + len / 2] = u - v;
+        const std::size_t i = start + k, j = i + len / 2;
+        const double wr = tw_re[k * stride], wi = tw_im[k * stride];
+        const double ur = x[i].real(), ui = x[i].imag();
+        const double vr = x[j].real() * wr - x[j].imag() * wi;
+        const double vi = x[j].real() * wi + x[j].imag() * wr;
+        x[i] = {ur + vr, ui + vi};
+        x[j] = {ur - vr, ui - vi};
       }
     }
   }

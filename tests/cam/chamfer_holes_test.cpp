@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <random>
 #include <sstream>
@@ -368,6 +369,154 @@ TEST(ChamferHoles, RodLimitHeldOverRandomHoles) {
   EXPECT_GT(adjusted, 0);
 }
 
+// ---------------------------------------------------------------- the fast paths, held to the slow
+// ones
+
+// The segmentation as eqs. (29)–(34) state it, written here: each piece split at its midpoint
+// while ChamferModel::chord_deviation (the true maximum) exceeds ε.
+std::vector<double> reference_segment(const ChamferModel& m) {
+  const std::vector<double> start = m.equal_arc_starts();
+  std::vector<double> out;
+  const std::function<void(double, double)> split = [&](double a, double b) {
+    if (m.chord_deviation(a, b) > m.spec().tolerance_mm) {
+      split(a, 0.5 * (a + b));
+      split(0.5 * (a + b), b);
+    } else {
+      out.push_back(a);
+    }
+  };
+  for (std::size_t k = 0; k + 1 < start.size(); ++k) split(start[k], start[k + 1]);
+  return out;
+}
+
+TEST(ChamferHoles, SegmentationDecidesAsTheTrueDeviation) {
+  // segment() stops chord_deviation's Newton once the answer is certain; the points must be
+  // exactly those of the full maximum, over random holes and tolerances from 1 µm to 0.3 mm.
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int cases = 0;
+  std::size_t points = 0;
+  while (cases < ncd::test::sweep_cases(60)) {
+    auto spec = random_hole(rng);
+    if (!spec) continue;
+    spec->tolerance_mm = std::pow(10.0, -3.0 + 2.5 * u(rng)) * spec->pipe_radius_mm / 20.0;
+    spec->tolerance_mm = std::clamp(spec->tolerance_mm, 1e-3, 0.3);
+    ++cases;
+    const ChamferModel m(*spec);
+    const std::vector<double> fast = m.segment(), slow = reference_segment(m);
+    EXPECT_EQ(fast, slow) << describe(*spec) << " ε " << spec->tolerance_mm;
+    points += fast.size();
+  }
+  std::cout << "[ measured ] " << points << " points over " << cases << " holes, all equal\n";
+}
+
+TEST(ChamferHoles, SegmentFramesAreTheFramesAtTheSegmentsThetas) {
+  std::mt19937_64 rng(ncd::test::seed());
+  int cases = 0;
+  while (cases < ncd::test::sweep_cases(30)) {
+    const auto spec = random_hole(rng);
+    if (!spec) continue;
+    ++cases;
+    const ChamferModel m(*spec);
+    const std::vector<double> th = m.segment();
+    const std::vector<EdgeFrame> frames = m.segment_frames();
+    ASSERT_EQ(frames.size(), th.size());
+    for (std::size_t i = 0; i < th.size(); ++i) {
+      const EdgeFrame f = m.frame(th[i]), &g = frames[i];
+      EXPECT_EQ(g.theta_rad, f.theta_rad);
+      EXPECT_EQ(g.xp, f.xp);  // bit for bit: the same jet at the same θ
+      EXPECT_EQ(g.t, f.t);
+      EXPECT_EQ(g.k, f.k);
+      EXPECT_EQ(g.t1, f.t1);
+      EXPECT_EQ(g.t2, f.t2);
+      EXPECT_EQ(g.c, f.c);
+    }
+  }
+}
+
+TEST(ChamferHoles, DeltaAtTheBisectorIsNewtonsRootAtAlphaOne) {
+  // The closed form of δ at α = 1 against solve_delta's Newton, including widths that do not
+  // fit (both refuse) and wedges from sharp to nearly flat.
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int cases = 0, refused = 0;
+  double worst = 0.0;
+  while (cases < ncd::test::sweep_cases(100)) {
+    auto spec = random_hole(rng);
+    if (!spec) continue;
+    ++cases;
+    const ChamferModel probe(*spec);
+    for (int k = 0; k < 32; ++k) {
+      const EdgeFrame f = probe.frame(2.0 * kPi * u(rng));
+      ChamferSpec s = *spec;
+      s.width_mm = probe.max_width(f, 1.0) * (k % 8 == 0 ? 1.0 + u(rng) : 0.999 * u(rng));
+      if (!(s.width_mm > 0.0)) continue;
+      const ChamferModel m(s);
+      const auto closed = m.delta_at_bisector(f), newton = m.solve_delta(f, 1.0);
+      ASSERT_EQ(closed.has_value(), newton.has_value()) << describe(s);
+      if (!closed) {
+        ++refused;
+        continue;
+      }
+      worst = std::max(worst, std::abs(*closed - *newton) / s.ball_radius_mm);
+      EXPECT_NEAR(*closed, *newton, 1e-12 * s.ball_radius_mm) << describe(s);
+      EXPECT_NEAR(m.pose(f, 1.0, *closed).width_mm, s.width_mm, 1e-9);
+    }
+  }
+  std::cout << "[ measured ] largest |δ closed − δ Newton| / R_B " << worst << ", " << refused
+            << " widths refused by both\n";
+  EXPECT_GT(refused, 0);
+}
+
+TEST(ChamferHoles, AlgorithmOneFromAnyHintFindsTheSameAlpha) {
+  // generate_chamfer starts Algorithm 1 at α extrapolated from the neighbouring points. From
+  // any hint (good, poor, past the admissible bound, below 1) it must find the α found without
+  // one: the same decision, α to 1e-9, CL within R_R and no further in than 1e-9 mm.
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int cases = 0, adjusted = 0, uncleared = 0;
+  while (cases < ncd::test::sweep_cases(40)) {
+    auto spec = random_hole(rng);
+    if (!spec || spec->edge != Edge::Inner) continue;
+    ChamferSpec s = *spec;
+    const ChamferModel probe(s);
+    double lo = 1e300, hi = -1e300;
+    for (int i = 0; i < 64; ++i) {
+      const double v = probe.pose_at(i * 2.0 * kPi / 64, 1.0).cl_radius_mm;
+      lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+    s.rod_radius_mm = s.drill_radius_mm - (lo + (hi - lo) * u(rng));
+    const ChamferModel m(s);
+    const double limit = *m.rod_limit_radius_mm();
+    ++cases;
+    for (int k = 0; k < 16; ++k) {
+      const EdgeFrame f = m.frame(2.0 * kPi * u(rng));
+      const RodAvoidance plain = m.avoid_rod(f);
+      if (!plain.cleared) ++uncleared;
+      if (plain.adjusted) ++adjusted;
+      const double top = m.alpha_range(f).hi;
+      for (const double hint :
+           {0.5, 1.0, plain.alpha * (1.0 + 1e-6), plain.alpha * (1.0 - 1e-6), plain.alpha + 0.3,
+            1.0 + 0.5 * (plain.alpha - 1.0), top * 0.9999, top * 2.0, 1e9}) {
+        const RodAvoidance r = m.avoid_rod(f, hint);
+        ASSERT_EQ(r.cleared, plain.cleared) << describe(s) << " hint " << hint;
+        ASSERT_EQ(r.adjusted, plain.adjusted) << describe(s) << " hint " << hint;
+        if (!r.cleared) continue;
+        EXPECT_NEAR(r.alpha, plain.alpha, 1e-9 * plain.alpha) << describe(s) << " hint " << hint;
+        EXPECT_NEAR(r.delta_mm, *m.solve_delta(f, r.alpha), 1e-12);
+        const double radius = m.pose(f, r.alpha, r.delta_mm).cl_radius_mm;
+        EXPECT_LE(radius, limit) << describe(s) << " hint " << hint;
+        if (r.adjusted) {
+          EXPECT_GE(radius, limit - 1e-9) << describe(s) << " hint " << hint;
+        }
+      }
+    }
+  }
+  std::cout << "[ measured ] " << adjusted << " adjusted, " << uncleared << " uncleared of "
+            << cases * 16 << " points\n";
+  EXPECT_GT(adjusted, 0);
+}
+
 // ---------------------------------------------------------------- slow reference
 
 // The edge by brute force: for each θ, bisection along the generator between the point most
@@ -672,10 +821,123 @@ TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
   s = experiment(1, Edge::Outer, Side::Upper);
   s.pipe_thickness_mm = 25.0;
   expect_error(s, "leaves no bore");
+  s = experiment(1, Edge::Outer, Side::Upper);  // a wide drill near a steep cone's apex
+  s.pipe_radius_mm = 16.0;
+  s.drill_radius_mm = 17.0;
+  s.ball_radius_mm = 1.0;
+  s.drill_tilt_rad = deg_to_rad(43.0);
+  s.drill_azimuth_rad = deg_to_rad(167.5);
+  s.eccentricity_mm = -6.4;
+  s.pipe_half_angle_rad = deg_to_rad(-42.0);
+  expect_error(s,
+               "meets the outer pipe surface (radius 16 mm at the reference point, half-angle "
+               "-42°) beyond the cone's apex at θ = 59°");
   s = experiment(1, Edge::Inner, Side::Upper);
   s.eccentricity_mm = 1.0;
   s.edge_curve = EdgeCurve::ClosedForm;
   expect_error(s, "closed-form edge curve (eq. 4) holds only");
+}
+
+// The drill along one generator, written here in the pipe frame: P(z) = P0 + z d meets the
+// surface x² + z² = (R + k y)² where A z² + B z + C = 0. Its half-gap (z₊ − z₋)/2, negative
+// where it misses (−sqrt(−disc)/(2A)), and the smallest ρ = R + k y at its roots.
+struct GeneratorMeets {
+  double half_gap_mm;
+  double least_rho_mm;  // +inf where it misses
+};
+
+GeneratorMeets generator_meets(const Part& p, double radius, double theta) {
+  const Vec3 p0 = generator_point(p, theta, 0.0), &d = p.drill_dir;
+  const double k = p.slope, rho0 = radius + k * p0.y();
+  const double a = d.x() * d.x() + d.z() * d.z() - k * k * d.y() * d.y();
+  const double b = 2.0 * (p0.x() * d.x() + p0.z() * d.z() - k * d.y() * rho0);
+  const double c = p0.x() * p0.x() + p0.z() * p0.z() - rho0 * rho0;
+  const double disc = b * b - 4.0 * a * c;
+  if (disc < 0.0) return {-std::sqrt(-disc) / (2.0 * a), kInf};
+  double least = kInf;
+  for (const double sign : {-1.0, 1.0}) {
+    least = std::min(least, rho0 + k * d.y() * (-b + sign * std::sqrt(disc)) / (2.0 * a));
+  }
+  return {std::sqrt(disc) / (2.0 * a), least};
+}
+
+// "… θ = 12.5° …" → 12.5.
+double theta_named_deg(const std::string& what) {
+  const auto at = what.find("θ = ");
+  return at == std::string::npos ? std::nan("")
+                                 : std::stod(what.substr(at + std::string("θ = ").size()));
+}
+
+TEST(ChamferHoles, PiercingRefusalsAgreeWithADenseScanOfTheWall) {
+  // validate() finds the smallest half-gap and ρ at the roots as minima of trigonometric
+  // polynomials in θ. Against 7200 generators per surface, each intersected here: an accepted
+  // hole has every sampled generator through each wall surface (half-gap > 1 µm, ρ > 0 at both
+  // roots); a refused one names a θ where, within ±0.05°, a generator grazes, misses, or meets
+  // the far nappe.
+  std::mt19937_64 rng(ncd::test::seed());
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int accepted = 0, pierce = 0, apex = 0, cases = 0;
+  while (cases < ncd::test::sweep_cases(300)) {
+    ChamferSpec s;
+    const bool wild = u(rng) < 0.5;  // wide drills far off the axis in steep cones: the apex
+    s.pipe_radius_mm = 5.0 + 45.0 * u(rng);
+    s.drill_radius_mm = s.pipe_radius_mm * (0.1 + (wild ? 1.9 : 0.9) * u(rng));
+    s.drill_tilt_rad = deg_to_rad(u(rng) < 0.2 ? 0.0 : (wild ? 85.0 : 75.0) * u(rng));
+    s.drill_azimuth_rad = deg_to_rad(360.0 * u(rng));
+    s.eccentricity_mm = (2.0 * u(rng) - 1.0) * s.pipe_radius_mm * (wild ? 4.0 : 0.6);
+    s.pipe_half_angle_rad =
+        deg_to_rad(u(rng) < 0.2 ? 0.0 : (wild ? 55.0 : 40.0) * (2.0 * u(rng) - 1.0));
+    s.edge = u(rng) < 0.5 ? Edge::Inner : Edge::Outer;
+    if (u(rng) < 0.5) s.pipe_thickness_mm = s.pipe_radius_mm * 0.2 * u(rng);
+    s.ball_radius_mm = 0.05 * s.drill_radius_mm;
+    const Part part = part_of(s);
+    const Vec3& d = part.drill_dir;
+    if (!(d.x() * d.x() + d.z() * d.z() - part.slope * part.slope * d.y() * d.y() > 1e-6)) continue;
+    if (s.pipe_half_angle_rad == 0.0 && s.drill_radius_mm >= s.pipe_radius_mm) continue;
+    if (s.pipe_thickness_mm && !(part.other_radius_mm > 0.0)) continue;
+    ++cases;
+    std::vector<double> radii{part.edge_radius_mm};
+    if (s.pipe_thickness_mm) radii.push_back(part.other_radius_mm);
+    try {
+      validate(s);
+      ++accepted;
+      for (const double radius : radii) {
+        for (int i = 0; i < 7200; ++i) {
+          const GeneratorMeets g = generator_meets(part, radius, 2.0 * kPi * i / 7200);
+          ASSERT_GT(g.half_gap_mm, 1e-6) << describe(s) << " radius " << radius << " i " << i;
+          ASSERT_GT(g.least_rho_mm, 0.0) << describe(s) << " radius " << radius << " i " << i;
+        }
+      }
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      const double th = deg_to_rad(theta_named_deg(what));
+      ASSERT_TRUE(std::isfinite(th)) << what;
+      const bool inner_named = what.find("the inner pipe surface") != std::string::npos;
+      const double radius =
+          inner_named == (s.edge == Edge::Inner) ? part.edge_radius_mm : part.other_radius_mm;
+      double least_gap = kInf, least_rho = kInf;
+      for (int i = -50; i <= 50; ++i) {
+        const GeneratorMeets g = generator_meets(part, radius, th + deg_to_rad(0.001 * i));
+        least_gap = std::min(least_gap, g.half_gap_mm);
+        least_rho = std::min(least_rho, g.least_rho_mm);
+      }
+      if (what.find("does not pierce") != std::string::npos) {
+        ++pierce;
+        EXPECT_LE(least_gap, 1e-6 + 1e-9) << what;
+        EXPECT_EQ(what.find("only grazes") != std::string::npos, least_gap > -1e-6) << what;
+      } else if (what.find("beyond the cone's apex") != std::string::npos) {
+        ++apex;
+        EXPECT_LE(least_rho, 1e-9 * radius) << what;
+      } else {
+        ADD_FAILURE() << "unexpected refusal: " << what;
+      }
+    }
+  }
+  std::cout << "[ measured ] " << accepted << " accepted, " << pierce << " not pierced, " << apex
+            << " beyond the apex, of " << cases << "\n";
+  EXPECT_GE(accepted, cases / 10);
+  EXPECT_GE(pierce, cases / 10);
+  EXPECT_GE(apex, cases / 300);
 }
 
 TEST(ChamferHoles, PipeFrameIsRefusedForATiltedDrillAndIsAShiftOtherwise) {
