@@ -209,10 +209,10 @@ void register_chamfer(CLI::App& app, Runner& run) {
   c->add_option("--initial-segments", a->spec.initial_segments,
                 "N equal-arc-length pieces before chordal refinement")
       ->capture_default_str();
-  a->format_option = c->add_option("--format", a->format,
-                                   "output format (with --part: ngc, the default, or json)")
-                         ->check(CLI::IsMember({"json", "csv", "ngc"}))
-                         ->capture_default_str();
+  a->format_option =
+      c->add_option("--format", a->format, "output format (with --part: ngc, the default, or json)")
+          ->check(CLI::IsMember({"json", "csv", "ngc"}))
+          ->capture_default_str();
   c->add_option("-o,--output", a->output, "output file (default: standard output)");
   c->add_option("--plot", a->plot, "also write the checks of Fig. 14 as an SVG plot");
   c->add_option("--feed", a->feed_mm_per_min, "feed for the NC program, mm/min")

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 
@@ -19,8 +20,9 @@ namespace ncd::app {
 
 toolpath::AirModel air_model(const std::string& machine_file, const toolpath::Part& part) {
   toolpath::AirModel m;
-  const MachineConfig c =
-      machine_file.empty() ? MachineConfig{} : load_machine_config(machine_file);
+  interpolator::MachineLimits limits;
+  if (!machine_file.empty()) limits = load_machine_config(machine_file).limits;
+  const struct { const interpolator::MachineLimits& limits; } c{limits};
   m.rapid_mm_per_s = c.limits.max_feed_mm_per_min / 60.0;
   m.rapid_accel_mm_per_s2 = c.limits.max_accel_mm_per_s2;
   for (std::size_t i = 0; i < 3; ++i) {
@@ -28,7 +30,7 @@ toolpath::AirModel air_model(const std::string& machine_file, const toolpath::Pa
     if (std::isfinite(ax.max_feed_mm_per_min)) m.axis_mm_per_s[i] = ax.max_feed_mm_per_min / 60.0;
     if (std::isfinite(ax.max_accel_mm_per_s2)) m.axis_accel_mm_per_s2[i] = ax.max_accel_mm_per_s2;
   }
-  m.index_deg_per_s = part.rotary.max_rate_deg_per_min / 60.0;
+  m.index_deg_per_s = part.rotary.max_feed_deg_per_min / 60.0;
   m.index_accel_deg_per_s2 = part.rotary.max_accel_deg_per_s2;
   return m;
 }
@@ -88,7 +90,8 @@ int run_chamfer_part(const PartArgs& a) {
   write_output(a.output, text);
   if (!a.quiet) {
     std::cerr << part_summary(program, elapsed_ms);
-    if (!a.output.empty() && a.output != "-") std::cerr << "  wrote             " << a.output << "\n";
+    if (!a.output.empty() && a.output != "-")
+      std::cerr << "  wrote             " << a.output << "\n";
     if (!a.plot.empty()) std::cerr << "  wrote             " << a.plot << "\n";
   }
   return 0;
@@ -116,11 +119,12 @@ nlohmann::ordered_json part_json(const toolpath::PartProgram& p, double elapsed_
     o["edge"] = toolpath::to_string(h.setup.spec.edge);
     o["side"] = toolpath::to_string(h.setup.spec.side);
     o["points"] = h.points.size();
-    o["checks"] = {{"local", h.path.checks.local_ok},
-                   {"global", h.path.checks.global_ok},
-                   {"rod", h.path.checks.limit_radius_mm ? nlohmann::ordered_json(h.path.checks.rod_ok)
-                                                         : nlohmann::ordered_json(nullptr)},
-                   {"alpha_adjusted_points", h.path.checks.adjusted_points}};
+    o["checks"] = {
+        {"local", h.path.checks.local_ok},
+        {"global", h.path.checks.global_ok},
+        {"rod", h.path.checks.limit_radius_mm ? nlohmann::ordered_json(h.path.checks.rod_ok)
+                                              : nlohmann::ordered_json(nullptr)},
+        {"alpha_adjusted_points", h.path.checks.adjusted_points}};
     o["entry_mm"] = {h.over.x(), h.over.y(), h.over.z()};
     holes.push_back(o);
   }
@@ -157,7 +161,8 @@ std::string part_svg(const toolpath::PartProgram& p) {
   g << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
     << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   g << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  g << "<text x=\"" << left << "\" y=\"20\" font-size=\"14\">" << p.part.source
+  g << "<text x=\"" << left << "\" y=\"20\" font-size=\"14\">"
+    << std::filesystem::path(p.part.source).filename().string()
     << ": the pipe unrolled, holes numbered in cutting order; air "
     << text::fixed(p.air_ordered_s, 2) << " s (file order " << text::fixed(p.air_file_order_s, 2)
     << " s)</text>\n";
@@ -165,8 +170,8 @@ std::string part_svg(const toolpath::PartProgram& p) {
     << num(sx(length) - sx(0)) << "\" height=\"" << num(sy(0) - sy(360))
     << "\" fill=\"#f4f4f4\" stroke=\"#888\"/>\n";
   for (int deg = 0; deg <= 360; deg += 60) {
-    g << "<text x=\"" << num(left - 8) << "\" y=\"" << num(sy(deg) + 4)
-      << "\" text-anchor=\"end\">" << deg << "°</text>\n";
+    g << "<text x=\"" << num(left - 8) << "\" y=\"" << num(sy(deg) + 4) << "\" text-anchor=\"end\">"
+      << deg << "°</text>\n";
   }
   for (int k = 0; k <= 4; ++k) {
     const double st = length * k / 4.0;
@@ -179,8 +184,7 @@ std::string part_svg(const toolpath::PartProgram& p) {
   std::vector<std::pair<double, double>> centres;
   for (const toolpath::HoleCut& c : p.cuts) {
     const toolpath::DrillPlacement place = toolpath::drill_placement(c.setup.spec);
-    const double centre_deg =
-        std::fmod(rad_to_deg(p.part.holes[c.hole].angle_rad) + 720.0, 360.0);
+    const double centre_deg = std::fmod(rad_to_deg(p.part.holes[c.hole].angle_rad) + 720.0, 360.0);
     std::string pts;
     double ms = 0.0, md = 0.0;
     for (const toolpath::CutterPose& pose : c.path.points) {
@@ -202,8 +206,9 @@ std::string part_svg(const toolpath::PartProgram& p) {
   g << "<polyline points=\"" << path
     << "\" fill=\"none\" stroke=\"#2ca02c\" stroke-dasharray=\"6,4\" stroke-width=\"1.5\"/>\n";
   for (std::size_t k = 0; k < centres.size(); ++k) {
-    g << "<text x=\"" << num(sx(centres[k].first) + 10) << "\" y=\"" << num(sy(centres[k].second) - 10)
-      << "\" font-weight=\"bold\">" << k + 1 << " (hole " << p.cuts[k].hole + 1 << ")</text>\n";
+    g << "<text x=\"" << num(sx(centres[k].first) + 10) << "\" y=\""
+      << num(sy(centres[k].second) - 10) << "\" font-weight=\"bold\">" << k + 1 << " (hole "
+      << p.cuts[k].hole + 1 << ")</text>\n";
   }
   g << "<text x=\"" << left << "\" y=\"" << num(top - 4)
     << "\" fill=\"#555\">red: outer edge, blue: inner edge, green dashes: the order</text>\n";

@@ -565,8 +565,8 @@ std::string interference_reasons(const ChamferPath& path) {
                           fmt_deg(std::acos(std::min(1.0, std::abs(s.tool_axis->z())))) +
                           " from the drill axis,"
                     : "down +Z along the drill axis";
-    out += "global: the cutter vector −e points into the hole surface, so the ball coming " +
-           down + " would cut the hole wall, at " + ranges_text(ck.global_fail) + "; ";
+    out += "global: the cutter vector −e points into the hole surface, so the ball coming " + down +
+           " would cut the hole wall, at " + ranges_text(ck.global_fail) + "; ";
   }
   if (!ck.rod_ok) {
     out += "rod: the cutter location leaves the cylinder of radius R_R = " +

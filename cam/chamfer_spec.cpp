@@ -239,10 +239,11 @@ void validate(const ChamferSpec& s) {
                        text::sig(a.z()) + ") must be a finite unit vector in the drill frame");
     }
     if (s.edge == Edge::Inner && std::hypot(a.x(), a.y()) > 1e-12) {
-      throw InputError("an inner edge needs the tool along the drill axis (the rod check and the "
-                       "approach through the hole assume it), but the tool axis is " +
-                       fmt_deg(std::acos(std::min(1.0, std::abs(a.z())))) +
-                       " from it; cut the hole with its drill axis vertical");
+      throw InputError(
+          "an inner edge needs the tool along the drill axis (the rod check and the "
+          "approach through the hole assume it), but the tool axis is " +
+          fmt_deg(std::acos(std::min(1.0, std::abs(a.z())))) +
+          " from it; cut the hole with its drill axis vertical");
     }
   }
   if (!paper_geometry) {

@@ -204,21 +204,22 @@ void parse_rotary(const toml::value& v, const Reader& r, PartRotary& t) {
     if (key == "axis") {
       const std::string a = as_text(value, w);
       if (a != "a" && a != "b" && a != "A" && a != "B") {
-        throw InputError(w + " = \"" + a +
-                         "\" is not a rotary axis; use \"a\" (the pipe along X) or \"b\" (along Y)");
+        throw InputError(
+            w + " = \"" + a +
+            "\" is not a rotary axis; use \"a\" (the pipe along X) or \"b\" (along Y)");
       }
       t.axis = (a == "a" || a == "A") ? RotaryAxis::A : RotaryAxis::B;
     } else if (key == "sense") {
       const int s = as_int(value, w, -1, 1);
       if (s == 0) throw InputError(w + " = 0 must be 1 or -1");
       t.sense = s;
-    } else if (key == "max_rate_deg_per_min") {
-      t.max_rate_deg_per_min = positive(value, w, "give the rotary axis's rapid rate");
+    } else if (key == "max_feed_deg_per_min") {
+      t.max_feed_deg_per_min = positive(value, w, "give the rotary axis's rapid rate");
     } else if (key == "max_accel_deg_per_s2") {
       t.max_accel_deg_per_s2 = positive(value, w, "give the rotary axis's acceleration");
     } else {
       throw InputError("unknown key " + w +
-                       "; [rotary] takes axis, sense, max_rate_deg_per_min, max_accel_deg_per_s2");
+                       "; [rotary] takes axis, sense, max_feed_deg_per_min, max_accel_deg_per_s2");
     }
   }
 }
@@ -301,7 +302,8 @@ void check_part(const Part& p) {
     if (!(inner > 0.0)) {
       throw InputError(f + ": pipe.wall_mm = " + text::sig(p.pipe.wall_mm) +
                        " leaves no bore at station " + text::sig(station) + " mm (outer radius " +
-                       text::sig(outer) + " mm); give a thinner wall, a larger radius or a "
+                       text::sig(outer) +
+                       " mm); give a thinner wall, a larger radius or a "
                        "smaller cone half-angle");
     }
   }
@@ -309,8 +311,8 @@ void check_part(const Part& p) {
   for (std::size_t i = 0; i < p.holes.size(); ++i) {
     const PartHole& h = p.holes[i];
     if (h.station_mm < 0.0 || h.station_mm > p.pipe.length_mm) {
-      throw InputError(f + ": " + label_of(i, h.name) + ": position_mm = " +
-                       text::sig(h.station_mm) + " is off the pipe [0, " +
+      throw InputError(f + ": " + label_of(i, h.name) +
+                       ": position_mm = " + text::sig(h.station_mm) + " is off the pipe [0, " +
                        text::sig(p.pipe.length_mm) + "] mm; give its station along the pipe");
     }
   }
@@ -361,7 +363,8 @@ Part parse_part(const std::string& text, const std::string& name) {
         throw InputError(name + ": " + std::to_string(holes.size()) + " holes, more than " +
                          std::to_string(PartLimits::kMaxHoles) + "; split the part");
       }
-      for (std::size_t i = 0; i < holes.size(); ++i) p.holes.push_back(parse_hole(holes[i], name, i));
+      for (std::size_t i = 0; i < holes.size(); ++i)
+        p.holes.push_back(parse_hole(holes[i], name, i));
     } else {
       throw InputError("unknown table or key " + name + ": " + key +
                        "; a part file takes [pipe], [tool], [cut], [rotary] and [[hole]]");
@@ -438,7 +441,8 @@ HoleSetup hole_setup(const Part& part, std::size_t index) {
     // The machine's vertical in part coordinates at this index, then in the drill frame.
     const Vec3 up(0.0, std::sin(s.index_rad), std::cos(s.index_rad));
     const Vec3 up_pipe(s.axes[0].dot(up), s.axes[1].dot(up), s.axes[2].dot(up));
-    c.tool_axis = Vec3(place.x.dot(up_pipe), place.y.dot(up_pipe), place.z.dot(up_pipe)).normalized();
+    c.tool_axis =
+        Vec3(place.x.dot(up_pipe), place.y.dot(up_pipe), place.z.dot(up_pipe)).normalized();
   }
   try {
     validate(c);
@@ -611,18 +615,19 @@ PartProgram plan_part(const Part& part, const AirModel& air, NgcOptions o) {
     check_hole_path(part, i, h.setup, h.path);
     h.points = machine_loop(part, h.setup, h.path, o.point);
     double top = -kInf;  // the top of the ball along the loop
-    for (const Vec3& p : h.points) top = std::max(top, p.z() + (o.point == ProgramPoint::Tip ? 2.0 : 1.0) * rb);
+    for (const Vec3& p : h.points)
+      top = std::max(top, p.z() + (o.point == ProgramPoint::Tip ? 2.0 : 1.0) * rb);
     if (!(prog.clearance_z_mm > top)) {
-      throw InputError(part.source + ": " + hole_label(part, i) +
-                       ": the clearance plane Z " + text::fixed(prog.clearance_z_mm, 3) +
+      throw InputError(part.source + ": " + hole_label(part, i) + ": the clearance plane Z " +
+                       text::fixed(prog.clearance_z_mm, 3) +
                        " mm is not above the top of the ball along its loop (" +
                        text::fixed(top, 3) + " mm); raise cut.clearance_margin_mm");
     }
     Vec3 entry = h.points.front();
     if (h.setup.spec.edge == Edge::Inner) {
       const DrillPlacement place = drill_placement(h.setup.spec);
-      entry = part_to_machine(part.rotary.axis, h.setup.pipe_to_part(place.origin),
-                              h.setup.index_rad);
+      entry =
+          part_to_machine(part.rotary.axis, h.setup.pipe_to_part(place.origin), h.setup.index_rad);
     }
     h.over = Vec3(entry.x(), entry.y(), prog.clearance_z_mm);
   }
@@ -684,8 +689,9 @@ void write_header(std::ostream& g, const PartProgram& prog) {
   g << "(tool: ball radius " << text::fixed(p.tool.ball_radius_mm, 4) << " mm, rod "
     << (p.tool.rod_radius_mm ? text::fixed(*p.tool.rod_radius_mm, 4) + " mm" : "not given")
     << ", non-knife angle "
-    << (p.tool.non_knife_angle_rad ? text::fixed(rad_to_deg(*p.tool.non_knife_angle_rad), 3) + " deg"
-                                   : "not given")
+    << (p.tool.non_knife_angle_rad
+            ? text::fixed(rad_to_deg(*p.tool.non_knife_angle_rad), 3) + " deg"
+            : "not given")
     << ")\n";
   g << "(" << programmed_point_text(o.point, p.tool.ball_radius_mm) << ")\n";
   if (!o.tool_change) {
@@ -711,8 +717,8 @@ void write_header(std::ostream& g, const PartProgram& prog) {
               ? ", drill axis vertical"
               : ", drill axis " + text::fixed(rad_to_deg(h.setup.tilt_left_rad), 3) +
                     " deg from the vertical")
-      << "; checks local ok, global ok, rod "
-      << (!ck.limit_radius_mm ? "not checked" : "ok") << "; " << h.points.size() << " points)\n";
+      << "; checks local ok, global ok, rod " << (!ck.limit_radius_mm ? "not checked" : "ok")
+      << "; " << h.points.size() << " points)\n";
   }
 }
 

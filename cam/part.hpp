@@ -54,13 +54,13 @@ struct PartRotary {
   // +1: a positive A (B) turns the part right-handed about +X (+Y); −1: the other way (a
   // machine whose positive A follows the ISO rule for the tool relative to the part).
   double sense = 1.0;
-  double max_rate_deg_per_min = 3600.0;  // the index's rate and acceleration, for the time model
-  double max_accel_deg_per_s2 = 720.0;
+  double max_feed_deg_per_min = 3600.0;  // the index's rate and acceleration, for the time model
+  double max_accel_deg_per_s2 = 1800.0;
 };
 
 // [[hole]]: one drilled hole and the edge to chamfer.
 struct PartHole {
-  std::string name;  // optional, for messages and the program's comments
+  std::string name;         // optional, for messages and the program's comments
   double station_mm = 0.0;  // position along the pipe where the drill axis passes nearest its axis
   double angle_rad = 0.0;   // around: the index that brings the hole's radial direction up
   double drill_radius_mm = 0.0;
@@ -120,7 +120,7 @@ struct AirModel {
   std::array<double, 3> axis_mm_per_s{1e300, 1e300, 1e300};  // each axis's own (inf: none)
   std::array<double, 3> axis_accel_mm_per_s2{1e300, 1e300, 1e300};
   double index_deg_per_s = 60.0;
-  double index_accel_deg_per_s2 = 720.0;
+  double index_accel_deg_per_s2 = 1800.0;
 };
 // Time of a rest-to-rest move of `distance` at most `rate` and `accel` (a trapezoid, or a
 // triangle when it cannot reach the rate).
@@ -145,19 +145,19 @@ std::vector<std::size_t> order_holes(const AirCosts& costs);
 struct HoleCut {
   std::size_t hole = 0;  // index in Part::holes
   HoleSetup setup;
-  ChamferPath path;            // the hole's chamfer computed alone
-  double a_deg = 0.0;          // the rotary word as written (continuous from the previous hole)
-  std::vector<Vec3> points;    // the loop in machine coordinates, programmed point, not closed
-  Vec3 over;                   // entry and exit at the clearance plane (the drill axis for an
-                               // inner edge, over the first point for an outer one)
+  ChamferPath path;          // the hole's chamfer computed alone
+  double a_deg = 0.0;        // the rotary word as written (continuous from the previous hole)
+  std::vector<Vec3> points;  // the loop in machine coordinates, programmed point, not closed
+  Vec3 over;                 // entry and exit at the clearance plane (the drill axis for an
+                             // inner edge, over the first point for an outer one)
 };
 
 struct PartProgram {
   Part part;
   NgcOptions options;  // point, feed, spindle, tool, dialect choices of the writer
   std::vector<HoleCut> cuts;
-  std::vector<std::size_t> order;  // hole indices, cutting order
-  double clearance_z_mm = 0.0;     // the programmed point's Z of the clearance plane
+  std::vector<std::size_t> order;   // hole indices, cutting order
+  double clearance_z_mm = 0.0;      // the programmed point's Z of the clearance plane
   double clearance_tip_z_mm = 0.0;  // the ball tip's: the pipe's top + the margin
   double air_ordered_s = 0.0;
   double air_file_order_s = 0.0;

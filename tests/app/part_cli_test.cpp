@@ -54,8 +54,8 @@ std::vector<Move> canonical_moves_xyza(const std::string& out, bool& program_end
     m.feed = feed;
     m.spindle_on = spindle;
     const std::size_t open = line.find('(');
-    if (std::sscanf(line.c_str() + open + 1, "%lf, %lf, %lf, %lf", &m.end[0], &m.end[1],
-                    &m.end[2], &m.end[3]) == 4) {
+    if (std::sscanf(line.c_str() + open + 1, "%lf, %lf, %lf, %lf", &m.end[0], &m.end[1], &m.end[2],
+                    &m.end[3]) == 4) {
       moves.push_back(m);
     }
   }
@@ -67,9 +67,9 @@ class PartCli : public Cli {
   std::string rs274(const std::string& program, bool& program_end, std::string& log_text) {
     const std::string table = write("tool.tbl", "T1 P1 Z0 D4 ;ball\n");
     const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
-    const std::string cmd = ncd::test::rs274_command(dir_, "-t " + table + " -g " + program +
-                                                               " " + out.string()) +
-                            " >" + log.string() + " 2>&1";
+    const std::string cmd =
+        ncd::test::rs274_command(dir_, "-t " + table + " -g " + program + " " + out.string()) +
+        " >" + log.string() + " 2>&1";
     EXPECT_EQ(std::system(cmd.c_str()), 0);
     log_text = slurp(log) + slurp(out);
     const std::string text = slurp(out);
@@ -167,8 +167,8 @@ TEST_F(PartCli, ManifoldIsReadByRs274AndIndexesOnlyAboveTheClearance) {
     for (const ncd::Vec3& tip : alone_tips(part, h, a)) {
       double best = 1e300;
       for (const Move* m : mine) {
-        best = std::min(best, std::hypot(m->end[0] - tip.x(), m->end[1] - tip.y(),
-                                         m->end[2] - tip.z()));
+        best = std::min(best,
+                        std::hypot(m->end[0] - tip.x(), m->end[1] - tip.y(), m->end[2] - tip.z()));
       }
       worst = std::max(worst, best);
     }
