@@ -45,6 +45,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <sstream>
 #include <toml.hpp>
@@ -232,7 +233,13 @@ PartHole parse_hole(const toml::value& v, const std::string& file, std::size_t i
   PartHole h;
   const std::string table = file + ": [[hole]] " + std::to_string(index + 1);
   const toml::table& t = table_of(v, table);
-  if (const auto it = t.find("name"); it != t.end()) h.name = as_text(it->second, table + ".name");
+  if (const auto it = t.find("name"); it != t.end()) {
+    h.name = as_text(it->second, table + ".name");
+    if (h.name.size() > 60) {
+      throw InputError(table + ".name is " + std::to_string(h.name.size()) +
+                       " characters long; give at most 60 (it goes into the program's comments)");
+    }
+  }
   const std::string label = file + ": " + label_of(index, h.name);
   bool station = false, angle = false, drill = false, width = false, edge = false;
   for (const auto& [key, value] : t) {
@@ -675,8 +682,8 @@ void write_header(std::ostream& g, const PartProgram& prog) {
   const NgcOptions& o = prog.options;
   const std::string ax = to_string(p.rotary.axis);
   const std::string along = p.rotary.axis == RotaryAxis::A ? "X" : "Y";
-  g << "(ncd chamfer --part " << p.source << ": " << p.holes.size()
-    << " holes of one pipe, each indexed under the spindle on " << ax << ")\n";
+  g << "(ncd chamfer --part " << std::filesystem::path(p.source).filename().string() << ": "
+    << p.holes.size() << " holes of one pipe, each indexed under the spindle on " << ax << ")\n";
   g << "(pipe: outer radius " << text::fixed(p.pipe.outer_radius_mm, 4) << " mm at station 0, wall "
     << text::fixed(p.pipe.wall_mm, 4) << " mm, half-angle "
     << text::fixed(rad_to_deg(p.pipe.half_angle_rad), 3) << " deg, length "
@@ -712,7 +719,7 @@ void write_header(std::ostream& g, const PartProgram& prog) {
       << " mm, angle " << text::fixed(rad_to_deg(p.holes[h.hole].angle_rad), 3) << " deg, "
       << to_string(h.setup.spec.edge) << " " << to_string(h.setup.spec.side) << " edge, drill r "
       << text::fixed(h.setup.spec.drill_radius_mm, 4) << ", width "
-      << text::fixed(h.setup.spec.width_mm, 4) << "; " << ax << text::fixed(h.a_deg, 4)
+      << text::fixed(h.setup.spec.width_mm, 4) << ")\n(  " << ax << text::fixed(h.a_deg, 4)
       << (h.setup.perpendicular
               ? ", drill axis vertical"
               : ", drill axis " + text::fixed(rad_to_deg(h.setup.tilt_left_rad), 3) +
@@ -720,6 +727,16 @@ void write_header(std::ostream& g, const PartProgram& prog) {
       << "; checks local ok, global ok, rod " << (!ck.limit_radius_mm ? "not checked" : "ok")
       << "; " << h.points.size() << " points)\n";
   }
+}
+
+// A comment's text as RS-274/NGC takes it: no parenthesis inside (LinuxCNC refuses a nested
+// comment), so a hole's name or a note in brackets instead.
+std::string comment(std::string text) {
+  for (char& ch : text) {
+    if (ch == '(') ch = '[';
+    if (ch == ')') ch = ']';
+  }
+  return "(" + text + ")\n";
 }
 
 }  // namespace
@@ -731,7 +748,12 @@ std::string part_program_text(const PartProgram& prog) {
   const std::string clear = "G0 Z" + text::fixed(prog.clearance_z_mm, d);
   std::ostringstream g;
   if (o.percent) g << "%\n";
-  write_header(g, prog);
+  std::ostringstream header;  // written as "(…)" lines, then made comment-safe
+  write_header(header, prog);
+  std::istringstream lines(header.str());
+  for (std::string line; std::getline(lines, line);) {
+    g << comment(line.substr(1, line.size() - 2));
+  }
   g << "G21 G90 G94 G17 G40 G49\n";
   if (o.path_blending) {
     g << "G64 P" << text::fixed(prog.part.cut.tolerance_mm, 4) << "\n";
@@ -748,8 +770,8 @@ std::string part_program_text(const PartProgram& prog) {
     const HoleCut& h = prog.cuts[k];
     const bool inner = h.setup.spec.edge == Edge::Inner;
     const Vec3& first = h.points.front();
-    g << "(" << k + 1 << " of " << prog.cuts.size() << ": " << hole_label(prog.part, h.hole)
-      << ")\n";
+    g << comment(std::to_string(k + 1) + " of " + std::to_string(prog.cuts.size()) + ": " +
+                 hole_label(prog.part, h.hole));
     g << "G0 " << ax << text::fixed(h.a_deg, d) << "\n";
     g << "G0 X" << text::fixed(h.over.x(), d) << " Y" << text::fixed(h.over.y(), d) << "\n";
     const double gap_z = first.z() + prog.part.cut.approach_gap_mm;
