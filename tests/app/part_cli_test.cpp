@@ -31,7 +31,7 @@ const std::string kManifold = std::string(NCD_SOURCE_DIR) + "/examples/manifold.
 const double kPrintMm = std::sqrt(3.0) * 5e-5 + 1e-6;  // 4 decimals on three axes
 
 struct Move {
-  std::array<double, 4> end{};  // X Y Z A
+  std::array<double, 5> end{};  // X Y Z A B
   bool feed = false;
   bool spindle_on = false;
 };
@@ -54,8 +54,8 @@ std::vector<Move> canonical_moves_xyza(const std::string& out, bool& program_end
     m.feed = feed;
     m.spindle_on = spindle;
     const std::size_t open = line.find('(');
-    if (std::sscanf(line.c_str() + open + 1, "%lf, %lf, %lf, %lf", &m.end[0], &m.end[1], &m.end[2],
-                    &m.end[3]) == 4) {
+    if (std::sscanf(line.c_str() + open + 1, "%lf, %lf, %lf, %lf, %lf", &m.end[0], &m.end[1],
+                    &m.end[2], &m.end[3], &m.end[4]) == 5) {
       moves.push_back(m);
     }
   }
@@ -179,6 +179,86 @@ TEST_F(PartCli, ManifoldIsReadByRs274AndIndexesOnlyAboveTheClearance) {
   const std::string svg = slurp(dir_ / "m.svg");
   EXPECT_NE(svg.find("<svg"), std::string::npos);
   EXPECT_NE(svg.find("(hole 8)"), std::string::npos);
+}
+
+// A cone on a B axis turning the other way, with a cross hole's lower edge (cut with the part
+// turned over) and an eccentric hole tilted across the pipe: rs274 takes the B words, every
+// turn of B is made above the cone's largest radius plus the margin, the spindle turns through
+// every feed. (Where the cutter locations fall is held by the cam suite's identity test, which
+// covers these cases.)
+TEST_F(PartCli, ConeOnABAxisIndexesOnlyAboveItsLargestRadius) {
+  if (!fs::exists(ncd::test::kRs274)) GTEST_SKIP() << "rs274 not installed";
+  const std::string part = write("cone.toml", R"(
+[pipe]
+outer_radius_mm = 25
+wall_mm = 4
+half_angle_deg = 2
+length_mm = 200
+[tool]
+ball_radius_mm = 1.5
+number = 3
+[cut]
+clearance_margin_mm = 8
+[rotary]
+axis = "b"
+sense = -1
+[[hole]]
+position_mm = 50
+angle_deg = 30
+drill_radius_mm = 5
+edge = "outer"
+width_mm = 0.4
+[[hole]]
+name = "cross, far wall"
+position_mm = 120
+angle_deg = 90
+drill_radius_mm = 5
+edge = "outer"
+side = "lower"
+width_mm = 0.4
+[[hole]]
+name = "eccentric"
+position_mm = 160
+angle_deg = -100
+drill_radius_mm = 4
+tilt_deg = 15
+azimuth_deg = 90
+eccentricity_mm = 3
+edge = "inner"
+width_mm = 0.3
+)");
+  const std::string program = (dir_ / "cone.ngc").string();
+  const auto r = ncd("chamfer --part " + part + " -o " + program);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string table = write("tool.tbl", "T3 P3 Z0 D3 ;ball\n");
+  const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
+  ASSERT_EQ(std::system((ncd::test::rs274_command(
+                             dir_, "-t " + table + " -g " + program + " " + out.string()) +
+                         " >" + log.string() + " 2>&1")
+                            .c_str()),
+            0);
+  EXPECT_EQ(ncd::test::rs274_complaint(slurp(log) + slurp(out)), "") << slurp(log);
+  bool program_end = false;
+  const std::vector<Move> moves = canonical_moves_xyza(slurp(out), program_end);
+  EXPECT_TRUE(program_end);
+  const double clearance = 25.0 + 200.0 * std::tan(2.0 * ncd::kPi / 180.0) + 8.0;
+  int indexes = 0;
+  for (std::size_t i = 1; i < moves.size(); ++i) {
+    const Move &from = moves[i - 1], &to = moves[i];
+    EXPECT_EQ(to.end[3], 0.0);  // no A on this machine
+    if (to.feed) {
+      EXPECT_TRUE(to.spindle_on);
+    }
+    if (to.end[4] != from.end[4]) {
+      ++indexes;
+      EXPECT_FALSE(to.feed);
+      EXPECT_GE(from.end[2], clearance - 5e-5);
+      EXPECT_GE(to.end[2], clearance - 5e-5);
+      EXPECT_EQ(to.end[0], from.end[0]);
+      EXPECT_EQ(to.end[1], from.end[1]);
+    }
+  }
+  EXPECT_GE(indexes, 2);
 }
 
 TEST_F(PartCli, JsonReportsTheOrderedAirTimeAgainstTheFilesOrder) {
