@@ -261,6 +261,44 @@ width_mm = 0.3
   EXPECT_GE(indexes, 2);
 }
 
+// The air time the report gives is the program's own air moves, as rs274 reads them: every
+// index (A, rest to rest at 60 deg/s and 1800 deg/s², the part file's [rotary]) and every rapid
+// across at the clearance plane (100 mm/s, 1000 mm/s²: no machine file) but the first (from
+// where the tool stands, which the order does not know), each a trapezoid computed here.
+TEST_F(PartCli, ReportedAirTimeIsTheProgramsOwnAirMoves) {
+  if (!fs::exists(ncd::test::kRs274)) GTEST_SKIP() << "rs274 not installed";
+  const std::string program = (dir_ / "manifold.ngc").string();
+  ASSERT_EQ(ncd("chamfer --part " + kManifold + " -q -o " + program).status, 0);
+  const auto json = ncd("chamfer --part " + kManifold + " -q --format json");
+  const std::size_t k = json.out.find("\"air_time_ordered_s\": ");
+  ASSERT_NE(k, std::string::npos) << json.out;
+  const double reported = std::stod(json.out.substr(k + 22));
+  bool program_end = false;
+  std::string log;
+  const std::vector<Move> moves =
+      canonical_moves_xyza(rs274(program, program_end, log), program_end);
+  const auto trapezoid = [](double d, double v, double a) {
+    d = std::abs(d);
+    return d >= v * v / a ? d / v + v / a : 2.0 * std::sqrt(d / a);
+  };
+  const double clearance = 40.0;
+  double air = 0.0;
+  bool first_across = true;
+  for (std::size_t i = 1; i < moves.size(); ++i) {
+    const Move &from = moves[i - 1], &to = moves[i];
+    if (to.feed) continue;
+    if (to.end[3] != from.end[3]) air += trapezoid(to.end[3] - from.end[3], 60.0, 1800.0);
+    const double across = std::hypot(to.end[0] - from.end[0], to.end[1] - from.end[1]);
+    if (across > 0.0 && std::abs(from.end[2] - clearance) < 1e-9 &&
+        std::abs(to.end[2] - clearance) < 1e-9) {
+      if (!first_across) air += trapezoid(across, 100.0, 1000.0);
+      first_across = false;
+    }
+  }
+  std::cout << "[ air      ] reported " << reported << " s, from rs274's moves " << air << " s\n";
+  EXPECT_NEAR(air, reported, 1e-4);
+}
+
 TEST_F(PartCli, JsonReportsTheOrderedAirTimeAgainstTheFilesOrder) {
   const auto r = ncd("chamfer --part " + kManifold + " --format json -q");
   ASSERT_EQ(r.status, 0) << r.err;
