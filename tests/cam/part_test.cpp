@@ -349,6 +349,58 @@ TEST(PartOrder, TwoOptAgainstBruteForceOverEveryOrder) {
   EXPECT_LE(worst_ratio, 1.2);
 }
 
+// A part of one radial hole at angle 0 on A is the single hole's program in the pipe frame
+// (cam/chamfer_ngc.hpp, --frame pipe: the pipe along Y), turned a quarter about Z and moved to
+// its station: machine (X, Y, Z) = (station + y, −x, z), exactly.
+TEST(Part, OneRadialHoleIsTheSingleHolesPipeFrameProgram) {
+  Part p;
+  p.pipe = {30.0, 5.0, 0.0, 200.0};
+  p.tool.ball_radius_mm = 2.0;
+  p.tool.non_knife_angle_rad = 93.0 * kPi / 180.0;
+  for (const Edge edge : {Edge::Outer, Edge::Inner}) {
+    PartHole h;
+    h.station_mm = 80.0;
+    h.drill_radius_mm = 8.0;
+    h.width_mm = 0.5;
+    h.edge = edge;
+    p.holes = {h};
+    const PartProgram prog = plan_part(p, AirModel{}, NgcOptions{});
+    ASSERT_EQ(prog.cuts.size(), 1u);
+    EXPECT_EQ(prog.cuts[0].a_deg, 0.0);
+    EXPECT_EQ(prog.air_ordered_s, 0.0);
+    const ChamferSpec spec = alone(p, h);
+    const ChamferPath path = generate_chamfer(spec);
+    ASSERT_EQ(path.points.size(), prog.cuts[0].points.size());
+    double worst = 0.0;
+    for (std::size_t k = 0; k < path.points.size(); ++k) {
+      const Vec3 q = program_point(spec, path.points[k], ProgramPoint::Tip, ProgramFrame::Pipe);
+      worst = std::max(worst, (prog.cuts[0].points[k] - Vec3(80.0 + q.y(), -q.x(), q.z())).norm());
+    }
+    EXPECT_LE(worst, 1e-12) << to_string(edge);
+  }
+}
+
+TEST(Part, AHoleAtTheEndOfThePipeIsRefused) {
+  Part p;
+  p.source = "p.toml";
+  p.pipe = {30.0, 5.0, 0.0, 200.0};
+  p.tool.ball_radius_mm = 2.0;
+  PartHole h;
+  h.name = "end";
+  h.station_mm = 0.0;  // half the hole off the pipe
+  h.drill_radius_mm = 8.0;
+  h.width_mm = 0.5;
+  p.holes = {h};
+  try {
+    (void)plan_part(p, AirModel{}, NgcOptions{});
+    FAIL() << "a hole half off the pipe was planned";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("hole 1 (\"end\"): its edge reaches station -"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // ---------------------------------------------------------------- the part file
 
 const std::string kPart = R"(
