@@ -205,6 +205,103 @@ TEST(Part, EveryCutterLocationLiesOnItsHolesChamferComputedAlone) {
   EXPECT_LE(worst_vertical, 1e-12);
 }
 
+// ---------------------------------------------------------------- the rapid descents
+
+// How deep a point (part coordinates) lies in the part's material: between the pipe's surfaces,
+// on the pipe, outside every drill; ≤ 0 outside the material.
+double material_depth(const Part& p, const std::vector<std::pair<Vec3, Vec3>>& drills,
+                      const Vec3& q) {
+  const double outer = p.pipe.outer_radius_mm + q.x() * std::tan(p.pipe.half_angle_rad);
+  const double inner = outer - p.pipe.wall_mm / std::cos(p.pipe.half_angle_rad);
+  const double r = std::hypot(q.y(), q.z());
+  double depth = std::min({r - inner, outer - r, q.x(), p.pipe.length_mm - q.x()});
+  for (std::size_t i = 0; i < drills.size(); ++i) {
+    const Vec3 w = q - drills[i].first;
+    const double off_axis = (w - w.dot(drills[i].second) * drills[i].second).norm();
+    depth = std::min(depth, off_axis - p.holes[i].drill_radius_mm);
+  }
+  return depth;
+}
+
+// The ball never enters the part on a rapid: the descent from the clearance plane to the
+// approach gap above each hole's first point (and the retract, the same line up), sampled
+// every 0.2 mm with 400 points of the ball's surface, turned back to the part at the hole's
+// rotary word, against the part described here (the wall between its surfaces, on the pipe,
+// outside every drilled hole). The feed from the gap to the cut and the cut itself are the
+// single hole's.
+TEST(Part, RapidDescentsNeverEnterThePart) {
+  std::mt19937_64 rng(test::seed());
+  std::vector<Vec3> sphere;
+  for (int i = 0; i < 400; ++i) {  // a Fibonacci sphere
+    const double z = 1.0 - (2.0 * i + 1.0) / 400.0, r = std::sqrt(1.0 - z * z);
+    const double phi = i * kPi * (3.0 - std::sqrt(5.0));
+    sphere.emplace_back(r * std::cos(phi), r * std::sin(phi), z);
+  }
+  int parts = 0, descents = 0;
+  double deepest = -1e300;
+  const auto check = [&](const Part& part, const PartProgram& prog) {
+    ++parts;
+    std::vector<std::pair<Vec3, Vec3>> drills;
+    for (const PartHole& h : part.holes) {
+      const DrillPlacement place = drill_placement(alone(part, h));
+      const Frame f = pipe_frame(h);
+      const Vec3 dir = place.direction_to_pipe(Vec3(0, 0, 1));
+      drills.emplace_back(pipe_to_part(f, place.origin),
+                          dir.x() * f.x + dir.y() * f.y + dir.z() * f.z);
+    }
+    const double rb = part.tool.ball_radius_mm;
+    for (const HoleCut& cut : prog.cuts) {
+      ++descents;
+      const double bottom = cut.points.front().z() + part.cut.approach_gap_mm + rb;
+      const double top = prog.clearance_z_mm + rb;
+      for (double z = bottom; z <= top; z += 0.2) {
+        for (const Vec3& u : sphere) {
+          const Vec3 m = Vec3(cut.over.x(), cut.over.y(), z) + rb * u;
+          deepest =
+              std::max(deepest, material_depth(part, drills, machine_to_part(part, cut.a_deg, m)));
+        }
+      }
+    }
+  };
+  const Part manifold = load_part(std::string(NCD_SOURCE_DIR) + "/examples/manifold.toml");
+  check(manifold, plan_part(manifold, AirModel{}, NgcOptions{}));
+  const double clear = deepest;
+  {  // the sampler sees the part: the manifold's first hole (an outer edge), 1 mm below its cut
+    const PartProgram prog = plan_part(manifold, AirModel{}, NgcOptions{});
+    const HoleCut& cut = prog.cuts.front();
+    ASSERT_EQ(cut.setup.spec.edge, Edge::Outer);
+    std::vector<std::pair<Vec3, Vec3>> drills;
+    for (const PartHole& h : manifold.holes) {
+      const DrillPlacement place = drill_placement(alone(manifold, h));
+      const Frame f = pipe_frame(h);
+      const Vec3 dir = place.direction_to_pipe(Vec3(0, 0, 1));
+      drills.emplace_back(pipe_to_part(f, place.origin),
+                          dir.x() * f.x + dir.y() * f.y + dir.z() * f.z);
+    }
+    double below = -1e300;
+    for (const Vec3& u : sphere) {
+      const Vec3 m = cut.points.front() + Vec3(0.0, 0.0, manifold.tool.ball_radius_mm - 1.0) +
+                     manifold.tool.ball_radius_mm * u;
+      below = std::max(below,
+                       material_depth(manifold, drills, machine_to_part(manifold, cut.a_deg, m)));
+    }
+    EXPECT_GT(below, 0.5);
+  }
+  deepest = clear;
+  while (parts < 16) {
+    const Part part = random_part(rng, 1 + static_cast<int>(rng() % 6));
+    try {
+      check(part, plan_part(part, AirModel{}, NgcOptions{}));
+    } catch (const InputError&) {
+      continue;
+    }
+  }
+  std::cout << "[ descents ] " << descents << " rapid descents of " << parts
+            << " parts (the manifold and random ones); the ball's deepest point in the part: "
+            << deepest << " mm\n";
+  EXPECT_LE(deepest, 0.0);
+}
+
 // ---------------------------------------------------------------- the tool axis
 
 ChamferSpec random_spec(std::mt19937_64& rng) {
