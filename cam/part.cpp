@@ -210,6 +210,7 @@ void parse_rotary(const toml::value& v, const Reader& r, PartRotary& t) {
             "\" is not a rotary axis; use \"a\" (the pipe along X) or \"b\" (along Y)");
       }
       t.axis = (a == "a" || a == "A") ? RotaryAxis::A : RotaryAxis::B;
+      t.axis_given = true;
     } else if (key == "sense") {
       const int s = as_int(value, w, -1, 1);
       if (s == 0) throw InputError(w + " = 0 must be 1 or -1");

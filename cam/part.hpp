@@ -51,6 +51,7 @@ struct PartCut {
 // [rotary]: the table the pipe lies on, where the machine file does not say.
 struct PartRotary {
   RotaryAxis axis = RotaryAxis::A;
+  bool axis_given = false;  // the file says which (a machine file's [axis.a]/[axis.b] must agree)
   // +1: a positive A (B) turns the part right-handed about +X (+Y); −1: the other way (a
   // machine whose positive A follows the ISO rule for the tool relative to the part).
   double sense = 1.0;
