@@ -30,8 +30,12 @@ toolpath::AirModel air_model(const std::string& machine_file, const toolpath::Pa
     if (std::isfinite(ax.max_feed_mm_per_min)) m.axis_mm_per_s[i] = ax.max_feed_mm_per_min / 60.0;
     if (std::isfinite(ax.max_accel_mm_per_s2)) m.axis_accel_mm_per_s2[i] = ax.max_accel_mm_per_s2;
   }
-  m.index_deg_per_s = part.rotary.max_feed_deg_per_min / 60.0;
-  m.index_accel_deg_per_s2 = part.rotary.max_accel_deg_per_s2;
+  // The index under the machine file's [axis.a] or [axis.b] where it has one, else [rotary].
+  m.index_deg_per_s = (c.limits.rotary.present() ? c.limits.rotary.max_feed_deg_per_min
+                                                 : part.rotary.max_feed_deg_per_min) /
+                      60.0;
+  m.index_accel_deg_per_s2 = c.limits.rotary.present() ? c.limits.rotary.max_accel_deg_per_s2
+                                                       : part.rotary.max_accel_deg_per_s2;
   return m;
 }
 
@@ -70,12 +74,30 @@ toolpath::NgcOptions writer_options(const PartArgs& a, const toolpath::Part& par
 
 }  // namespace
 
+// The rotary axis: the machine file's [axis.a] or [axis.b] where it has one (the part file's
+// [rotary] axis, if given, must agree), else the part file's.
+toolpath::Part with_machine_axis(toolpath::Part part, const std::string& machine_file) {
+  if (machine_file.empty()) return part;
+  const interpolator::RotaryLimits r = load_machine_config(machine_file).limits.rotary;
+  if (!r.present()) return part;
+  const toolpath::RotaryAxis axis =
+      r.axis == 'a' ? toolpath::RotaryAxis::A : toolpath::RotaryAxis::B;
+  if (part.rotary.axis_given && part.rotary.axis != axis) {
+    throw InputError("the part file " + part.source + " lies on the " +
+                     toolpath::to_string(part.rotary.axis) +
+                     " axis ([rotary] axis) but the machine file " + machine_file + " has [axis." +
+                     std::string(1, r.axis) + "]; make them agree or leave [rotary] axis out");
+  }
+  part.rotary.axis = axis;
+  return part;
+}
+
 int run_chamfer_part(const PartArgs& a) {
   if (a.format != "ngc" && a.format != "json") {
     throw InputError("--format " + a.format +
                      " is not one of a part's formats; use ngc (the program) or json (the report)");
   }
-  const toolpath::Part part = toolpath::load_part(a.part);
+  const toolpath::Part part = with_machine_axis(toolpath::load_part(a.part), a.machine);
   const toolpath::NgcOptions options = writer_options(a, part);
   const toolpath::AirModel air = air_model(a.machine, part);
   check_output(a.output, "-o");

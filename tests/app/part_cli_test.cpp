@@ -299,6 +299,21 @@ TEST_F(PartCli, ReportedAirTimeIsTheProgramsOwnAirMoves) {
   EXPECT_NEAR(air, reported, 1e-4);
 }
 
+// The manifold's program on a machine with an A axis (examples/machine-rotary.toml): `ncd replay`
+// walks it, its seven index moves at rest under the axis's limits, with no limit violated.
+TEST_F(PartCli, ReplayWalksTheManifoldWithItsIndexes) {
+  const std::string machine = std::string(NCD_SOURCE_DIR) + "/examples/machine-rotary.toml";
+  const std::string program = (dir_ / "manifold.ngc").string();
+  ASSERT_EQ(
+      ncd("chamfer --part " + kManifold + " --machine " + machine + " -q -o " + program).status, 0);
+  const auto r = ncd("replay " + program + " --machine " + machine + " --start 0,0,50");
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const std::string report = r.out + r.err;
+  EXPECT_NE(report.find("limit violations 0"), std::string::npos) << report;
+  EXPECT_NE(report.find("7 index moves"), std::string::npos) << report;
+  EXPECT_NE(report.find("; 0 violations"), std::string::npos) << report;
+}
+
 TEST_F(PartCli, JsonReportsTheOrderedAirTimeAgainstTheFilesOrder) {
   const auto r = ncd("chamfer --part " + kManifold + " --format json -q");
   ASSERT_EQ(r.status, 0) << r.err;
