@@ -138,8 +138,8 @@ struct AirCosts {
   std::vector<std::vector<double>> between;
   double tour_s(const std::vector<std::size_t>& order) const;
 };
-// Nearest neighbour from the start, then 2-opt; the file's order improved by 2-opt too, and the
-// shorter of the two (never longer than the file's order).
+// Nearest neighbour from each first hole in turn, each then improved by 2-opt; the file's order
+// improved by 2-opt too; the shortest of them (never longer than the file's order).
 std::vector<std::size_t> order_holes(const AirCosts& costs);
 
 // One hole of the program, in cutting order.
