@@ -4,6 +4,7 @@
 #include <memory>
 #include <optional>
 
+#include "app/chamfer_part.hpp"
 #include "app/chamfer_report.hpp"
 #include "app/commands.hpp"
 #include "core/error.hpp"
@@ -24,6 +25,9 @@ struct ChamferArgs {
   bool no_avoid = false, quiet = false;
   double feed_mm_per_min = 300.0, spindle_rpm = 3000.0;
   std::string output, plot;
+  std::string part;  // --part FILE: every hole of a part file (app/chamfer_part.hpp)
+  std::vector<CLI::Option*> hole_required;  // required for one hole, refused with --part
+  CLI::Option* format_option = nullptr;
 };
 
 // One programmed point (docs/whole-program.md): the machine file's [tool] programmed_point,
@@ -45,6 +49,23 @@ toolpath::ProgramPoint programmed_point(const ChamferArgs& a) {
 }
 
 int run_chamfer(const ChamferArgs& a) {
+  if (!a.part.empty()) {
+    PartArgs p;
+    p.part = a.part;
+    p.machine = a.machine;
+    p.point = a.point;
+    if (a.format_option->count() > 0) p.format = a.format;
+    p.output = a.output;
+    p.plot = a.plot;
+    p.quiet = a.quiet;
+    return run_chamfer_part(p);
+  }
+  for (const CLI::Option* o : a.hole_required) {
+    if (o->count() == 0) {
+      throw InputError(o->get_name() +
+                       " is required for one hole (or give --part FILE for every hole of a part)");
+    }
+  }
   toolpath::ChamferSpec spec = a.spec;
   spec.edge = a.edge == "inner" ? toolpath::Edge::Inner : toolpath::Edge::Outer;
   spec.side = a.side == "upper" ? toolpath::Side::Upper : toolpath::Side::Lower;
@@ -139,13 +160,16 @@ void register_chamfer(CLI::App& app, Runner& run) {
       "Tool path for a constant-width chamfer of a drilled hole in a pipe (paper 000). "
       "Drill frame: Z along the drill axis; with no tilt and no eccentricity the pipe axis is Y "
       "and the origin is where the axes cross; lengths in mm.");
-  c->add_option("--pipe-radius", a->spec.pipe_radius_mm,
-                "radius of the pipe surface carrying the edge (R outside, R_I inside), mm")
-      ->required();
-  c->add_option("--drill-radius", a->spec.drill_radius_mm, "drill (hole) radius r, mm")->required();
-  c->add_option("--ball-radius", a->spec.ball_radius_mm, "ball-end cutter radius R_B, mm")
-      ->required();
-  c->add_option("--width", a->spec.width_mm, "chamfer width W = |AB|, mm")->required();
+  a->hole_required = {
+      c->add_option("--pipe-radius", a->spec.pipe_radius_mm,
+                    "radius of the pipe surface carrying the edge (R outside, R_I inside), mm "
+                    "(required without --part)"),
+      c->add_option("--drill-radius", a->spec.drill_radius_mm,
+                    "drill (hole) radius r, mm (required without --part)"),
+      c->add_option("--ball-radius", a->spec.ball_radius_mm,
+                    "ball-end cutter radius R_B, mm (required without --part)"),
+      c->add_option("--width", a->spec.width_mm,
+                    "chamfer width W = |AB|, mm (required without --part)")};
   c->add_option("--tolerance", a->spec.tolerance_mm, "chordal tolerance ε, mm")
       ->capture_default_str();
   c->add_option("--edge", a->edge, "edge on the inner or outer pipe surface")
@@ -185,9 +209,10 @@ void register_chamfer(CLI::App& app, Runner& run) {
   c->add_option("--initial-segments", a->spec.initial_segments,
                 "N equal-arc-length pieces before chordal refinement")
       ->capture_default_str();
-  c->add_option("--format", a->format, "output format")
-      ->check(CLI::IsMember({"json", "csv", "ngc"}))
-      ->capture_default_str();
+  a->format_option =
+      c->add_option("--format", a->format, "output format (with --part: ngc, the default, or json)")
+          ->check(CLI::IsMember({"json", "csv", "ngc"}))
+          ->capture_default_str();
   c->add_option("-o,--output", a->output, "output file (default: standard output)");
   c->add_option("--plot", a->plot, "also write the checks of Fig. 14 as an SVG plot");
   c->add_option("--feed", a->feed_mm_per_min, "feed for the NC program, mm/min")
@@ -204,6 +229,19 @@ void register_chamfer(CLI::App& app, Runner& run) {
                 "clearance height of the NC program, mm (default: pipe radius + 4 R_B; for an "
                 "inner edge it must clear the outer surface too)");
   c->add_flag("-q,--quiet", a->quiet, "no summary on standard error");
+  CLI::Option* part =
+      c->add_option("--part", a->part,
+                    "part file (TOML, docs/part.md): every hole of a pipe on a rotary axis in one "
+                    "program; takes --machine, --program-point, --format, -o, --plot");
+  for (CLI::Option* o : c->get_options()) {
+    const std::string name = o->get_name();
+    if (o == part || name == "--machine" || name == "--program-point" || name == "--format" ||
+        name == "-o" || name == "--output" || name == "--plot" || name == "-q" ||
+        name == "--quiet" || name == "--help" || name == "-h" || o->get_lnames().empty()) {
+      continue;
+    }
+    part->excludes(o);
+  }
   c->callback([a, &run] { run = [a] { return run_chamfer(*a); }; });
 }
 

@@ -234,6 +234,7 @@ nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConf
   j["jerk_vector_max"] = st.jerk_vector_max_mm_per_s3;
   j["jerk_bound"] = motion::jerk_bound_in_force(m.limits.jerk_bound);
   if (m.limits.has_axis_limits()) j["axis_peaks"] = motion::axis_peaks_json(st, m.limits);
+  if (m.limits.rotary.present()) j["rotary_axis"] = motion::rotary_json(st, m.limits);  // §3g
   // Corners under G64 P (docs/planner.md §3a, §3b): rounded by an arc, or passed without their
   // stop by overlapping the two moves; the deviation is the farthest overlapped setpoint's. The
   // setpoints then wait up to setpoint_delay_periods, within setpoint_delay_within_mm of a stop.
@@ -489,6 +490,7 @@ void print_summary(const ReplayArgs& a, const MachineConfig& machine, const std:
                st.step_time_ns.quantile(0.5), st.step_time_ns.quantile(0.99), wall_s,
                static_cast<double>(st.cycles) / std::max(wall_s, 1e-9));
   std::fputs(motion::axis_peaks_text(st, machine.limits).c_str(), stderr);  // per-axis (§3f)
+  std::fputs(motion::rotary_text(st, machine.limits).c_str(), stderr);      // rotary (§3g)
   if (tools) std::fputs(tools->text(job).c_str(), stderr);  // each tool, the law's caps
   if (job.delay_periods() > 0) {  // the corner overlap's line of setpoints (planner.md §3b)
     std::fprintf(stderr,
@@ -514,7 +516,7 @@ int run_replay(const ReplayArgs& a) {
   rec.cfg.limits = in.machine.limits;
   rec.cfg.cutting = in.machine.cutting;
   rec.quiet = a.quiet;
-  SetpointSink sink(a.setpoints);
+  SetpointSink sink(a.setpoints, in.machine.limits.rotary.axis);
   rec.file = &sink;
   BlockOutput out;  // --blocks; checked before the walk starts
   service::Service svc(replay_service_options());
@@ -530,6 +532,9 @@ int run_replay(const ReplayArgs& a) {
   const motion::Job& job = *svc.job();
   rec.length_mm = job.length_mm();
   rec.st.path_length_mm = job.length_mm();
+  const double r0 = job.path().rotary_start_deg;  // the rotary axis at rest before the first period
+  rec.st.last_rotary_deg = {r0, r0, r0};
+  rec.st.rotary_started = true;
   if (out.blocks) {
     // The start of the path, where the machine stands at rest before the first period.
     motion::Setpoint start;

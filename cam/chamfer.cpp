@@ -51,7 +51,8 @@
 // the ball allow. The width exists only for e·t1 > 0 and e·t2 > 0, i.e. α ∈ (−c, −1/c) with
 // c = t1·t2.
 //
-// Interference (section 4), with the machine's tool axis +z along the drill axis. Local:
+// Interference (section 4), with the machine's tool axis +z along the drill axis (or the
+// spindle direction ChamferSpec::tool_axis gives, for the global check only). Local:
 // R_B ≤ 1/|k_e|, k_e = (k·e) e (eqs. 36, 37). Global: the cutter vector −e must not point into
 // the hole surface: −e_z ≤ 0 on inner/upper, ≥ 0 on outer/upper, opposite on lower edges
 // (eq. 40, with the typo r < R_I corrected), which bounds α as eq. (41) does. Where a check
@@ -690,10 +691,13 @@ std::string interference_reasons(const ChamferPath& path) {
            ranges_text(ck.local_fail) + "; ";
   }
   if (!ck.global_ok) {
-    out +=
-        "global: the cutter vector −e points into the hole surface, so the ball coming down "
-        "+Z along the drill axis would cut the hole wall, at " +
-        ranges_text(ck.global_fail) + "; ";
+    const std::string down =
+        s.tool_axis ? "down the machine's vertical, " +
+                          fmt_deg(std::acos(std::min(1.0, std::abs(s.tool_axis->z())))) +
+                          " from the drill axis,"
+                    : "down +Z along the drill axis";
+    out += "global: the cutter vector −e points into the hole surface, so the ball coming " + down +
+           " would cut the hole wall, at " + ranges_text(ck.global_fail) + "; ";
   }
   if (!ck.rod_ok) {
     out += "rod: the cutter location leaves the cylinder of radius R_R = " +
@@ -719,6 +723,12 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
   ck.min_inv_ke_mm = kInf;
   ck.max_minus_ez = -kInf;
   ck.min_minus_ez = kInf;
+  // −e along the tool axis, signed as −e_z (the axis turned with a lower edge): −e_z itself
+  // unless a tool axis is given (ChamferSpec::tool_axis).
+  const double side_sign = spec.side == Side::Upper ? 1.0 : -1.0;
+  const auto tool_minus_ez = [&](const CutterPose& p) {
+    return spec.tool_axis ? -p.e.dot(side_sign * *spec.tool_axis) : p.minus_ez;
+  };
   // Algorithm 1 starts at α extrapolated from the last two points (where both were adjusted).
   double theta_1 = 0.0, alpha_1 = 1.0, theta_2 = 0.0, alpha_2 = 1.0;
   for (const EdgeFrame& f : frames) {
@@ -738,8 +748,8 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
     }
     const CutterPose p = pose ? *pose : model.pose_at(f, 1.0);
     ck.min_inv_ke_mm = std::min(ck.min_inv_ke_mm, p.inv_ke_mm);
-    ck.max_minus_ez = std::max(ck.max_minus_ez, p.minus_ez);
-    ck.min_minus_ez = std::min(ck.min_minus_ez, p.minus_ez);
+    ck.max_minus_ez = std::max(ck.max_minus_ez, tool_minus_ez(p));
+    ck.min_minus_ez = std::min(ck.min_minus_ez, tool_minus_ez(p));
     ck.max_cl_radius_mm = std::max(ck.max_cl_radius_mm, p.cl_radius_mm);
     path.points.push_back(p);
   }
@@ -752,7 +762,7 @@ ChamferPath generate_chamfer(const ChamferSpec& spec) {
   ck.local_fail =
       fail_ranges(pts, [&](const CutterPose& p) { return p.inv_ke_mm < spec.ball_radius_mm; });
   ck.global_fail = fail_ranges(pts, [&](const CutterPose& p) {
-    return ez_nonpositive ? p.minus_ez > 0.0 : p.minus_ez < 0.0;
+    return ez_nonpositive ? tool_minus_ez(p) > 0.0 : tool_minus_ez(p) < 0.0;
   });
   if (ck.limit_radius_mm) {
     ck.rod_fail =

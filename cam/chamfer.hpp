@@ -48,6 +48,12 @@ struct ChamferSpec {
   std::optional<double> pipe_thickness_mm;  // wall thickness normal to the surface; when given,
                                             // the drill must pierce the other surface too
   EdgeCurve edge_curve = EdgeCurve::Numerical;
+  // The spindle's direction (from the ball up the rod) in the drill frame, for the global check
+  // only (the cutter locations do not depend on it): none is +z for an upper edge and −z for a
+  // lower one (the part turned over), the single hole's set-up. A part indexed on a rotary axis
+  // (cam/part.hpp) gives the machine's vertical where it is not the drill axis (a lateral). With
+  // it given, the checks' max/min_minus_ez are of −e along it (sign as for −e_z).
+  std::optional<Vec3> tool_axis;
 };
 
 // A pipe surface (cylinder or cone) in the drill frame: the points whose distance from the axis

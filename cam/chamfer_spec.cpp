@@ -356,6 +356,20 @@ void validate(const ChamferSpec& s) {
                        " mm reaches the drill radius r = " + text::sig(s.drill_radius_mm) + " mm");
     }
   }
+  if (s.tool_axis) {
+    const Vec3& a = *s.tool_axis;
+    if (!a.allFinite() || std::abs(a.norm() - 1.0) > 1e-9) {
+      throw InputError("the tool axis (" + text::sig(a.x()) + ", " + text::sig(a.y()) + ", " +
+                       text::sig(a.z()) + ") must be a finite unit vector in the drill frame");
+    }
+    if (s.edge == Edge::Inner && std::hypot(a.x(), a.y()) > 1e-12) {
+      throw InputError(
+          "an inner edge needs the tool along the drill axis (the rod check and the "
+          "approach through the hole assume it), but the tool axis is " +
+          fmt_deg(std::acos(std::min(1.0, std::abs(a.z())))) +
+          " from it; cut the hole with its drill axis vertical");
+    }
+  }
   if (!paper_geometry) {
     check_pierces(s, pipe_surface(s, s.pipe_radius_mm), to_string(s.edge));
   }

@@ -20,6 +20,10 @@ inline constexpr Range kMaxFeedMmPerMin{1.0, 120000.0, "mm/min"};   // 120 m/min
 inline constexpr Range kMaxAccelMmPerS2{10.0, 100000.0, "mm/s^2"};  // 0.001 g to 10 g
 inline constexpr Range kMaxJerkMmPerS3{100.0, 1e7, "mm/s^3"};       // 0.1 to 10 000 m/s^3
 inline constexpr Range kChordToleranceMm{1e-4, 1.0, "mm"};          // 0.1 um to 1 mm
+// [axis.a] / [axis.b]: the rotary index axis (degrees).
+inline constexpr Range kRotaryFeedDegPerMin{1.0, 360000.0, "deg/min"};  // up to 1000 rev/min
+inline constexpr Range kRotaryAccelDegPerS2{1.0, 1e6, "deg/s^2"};
+inline constexpr Range kRotaryJerkDegPerS3{10.0, 1e8, "deg/s^3"};
 // [cutting]
 inline constexpr Range kBallRadiusMm{0.01, 100.0, "mm"};
 inline constexpr Range kPickFeedMm{0.0, 100.0, "mm"};

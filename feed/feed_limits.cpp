@@ -219,6 +219,19 @@ void validate(const MachineLimits& limits) {
       }
     }
   }
+  if (limits.rotary.present()) {
+    const RotaryLimits& r = limits.rotary;
+    const std::string at = std::string("axis.") + r.axis + ".";
+    for (const auto& [key, value] : {std::pair{"max_feed_deg_per_min", r.max_feed_deg_per_min},
+                                     std::pair{"max_accel_deg_per_s2", r.max_accel_deg_per_s2},
+                                     std::pair{"max_jerk_deg_per_s3", r.max_jerk_deg_per_s3}}) {
+      if (!(value > 0.0) || !std::isfinite(value)) {
+        throw InputError(at + key + " = " + text::sig(value) +
+                         " must be a finite number greater than 0; leave the key out for its "
+                         "default (config/machine.example.toml)");
+      }
+    }
+  }
   if (limits.stall_timeout_s < 10.0 * limits.period_s) {
     throw InputError("stall_timeout_s = " + text::sig(limits.stall_timeout_s) +
                      " is shorter than 10 periods (" + text::sig(10.0 * limits.period_s) +

@@ -50,6 +50,18 @@ struct AxisLimits {
   bool any() const;
 };
 
+// The rotary index axis (the machine file's [axis.a] or [axis.b]; docs/planner.md §3g): which it
+// is ('a': about X, RS-274's A; 'b': about Y, B; 0: the machine has none) and its own limits in
+// degrees. It only indexes: the part is turned between cuts, rest to rest, while X, Y and Z stand
+// still (motion/rotary_index.hpp); the path limits above do not apply to it.
+struct RotaryLimits {
+  char axis = 0;
+  double max_feed_deg_per_min = 3600.0;  // 10 rev/min, a common rotary table's rapid
+  double max_accel_deg_per_s2 = 1800.0;
+  double max_jerk_deg_per_s3 = 36000.0;
+  bool present() const { return axis != 0; }
+};
+
 // The share of an axis's acceleration (and jerk) that the curve laws leave to the tangential
 // motion where a curve moves that axis normally (docs/planner.md §3f): the centripetal part is
 // held to (1 − share) of the axis's limit, so the planner keeps at least share of it.
@@ -75,6 +87,7 @@ struct MachineLimits {
   bool fit_dense_runs = true;
   JerkBound jerk_bound = JerkBound::tangential;
   std::array<AxisLimits, 3> axes{};  // X, Y, Z; the path limits above stay a further cap
+  RotaryLimits rotary;               // the rotary index axis, if the machine has one
   bool has_axis_limits() const;
   bool has_axis_jerk() const;  // some [axis.*] max_jerk_mm_per_s3 is given
 };

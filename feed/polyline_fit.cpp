@@ -536,7 +536,7 @@ std::vector<Block> fit_blocks(const Distinct& d, const std::vector<char>& corner
 }
 
 // Output of segment k's blocks: polyline parts (original points, duplicates kept) and one
-// NURBS per fitted run; the segment's stop_before stays with the first.
+// NURBS per fitted run; the segment's stop_before (and rotary indexes) stay with the first.
 void emit_blocks(const PathSegment& seg, std::size_t k, const Distinct& d,
                  std::vector<Block>& blocks, toolpath::Path& out, FitReport& rep) {
   const auto& pts = std::get<Polyline>(seg.geometry).points;
@@ -547,6 +547,7 @@ void emit_blocks(const PathSegment& seg, std::size_t k, const Distinct& d,
     PathSegment s = seg;
     s.geometry = std::move(g);
     s.stop_before = first && seg.stop_before;
+    if (!first) s.indexes_before.clear();  // the rotary indexes too (docs/planner.md §3g)
     first = false;
     out.segments.push_back(std::move(s));
     rep.source_segment.push_back(k);
@@ -584,6 +585,9 @@ toolpath::Path fit_polylines(const toolpath::Path& path, const MachineLimits& li
   toolpath::Path out;
   out.source = path.source;
   out.chamfer = path.chamfer;
+  out.rotary_axis = path.rotary_axis;
+  out.rotary_start_deg = path.rotary_start_deg;
+  out.indexes_at_end = path.indexes_at_end;
   FitReport rep;
   for (std::size_t k = 0; k < path.segments.size(); ++k) {
     const PathSegment& seg = path.segments[k];

@@ -11,6 +11,7 @@
 #include "gcode/program.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -267,7 +268,9 @@ struct PathState {
   // Where the machine stands (mm, machine coordinates): the end of the last motion, or the
   // program's start while none has been made (zero-length ones included).
   std::optional<Vec3> machine_at;
-  bool tool_changed = false;  // a tool change since that motion
+  bool tool_changed = false;         // a tool change since that motion
+  std::vector<RotaryIndex> indexes;  // made since the last segment, at rest before the next
+  int event_line = 0;                // the source line of the event being applied
 };
 
 // Every event ends the run: it happens at a segment boundary, which corner blending moves with
@@ -282,6 +285,11 @@ void apply_event(const Event& ev, PathState& st) {
           const double k = mm_per_unit(e.units);
           st.blend_mm = e.p ? std::optional<double>(*e.p * k) : std::nullopt;
           st.smooth_mm = e.q ? std::optional<double>(*e.q * k) : std::nullopt;
+        } else if constexpr (std::is_same_v<T, RotaryIndexMove>) {
+          st.stop_pending = true;  // X, Y, Z at rest while the part turns
+          RotaryIndex ix{e.axis, e.from_deg, e.to_deg, std::nullopt, st.event_line};
+          if (!e.rapid) ix.feed_deg_per_min = e.feed_deg_per_min;
+          st.indexes.push_back(ix);
         } else if constexpr (std::is_same_v<T, DwellEvent> || std::is_same_v<T, ToolChangeEvent> ||
                              std::is_same_v<T, StopEvent> || std::is_same_v<T, SpindleEvent>) {
           st.stop_pending = true;
@@ -368,12 +376,15 @@ Path to_path(const Program& program, const ToPathOptions& options) {
   PathState st;
   st.machine_at = program.start_machine_mm;
   st.path.source = program.files.empty() ? std::string() : program.files.front();
+  st.path.rotary_axis = program.rotary_axis;
+  st.path.rotary_start_deg = program.rotary_start_deg;
   std::vector<std::size_t>* place = options.segment_of_step;
   if (place) place->assign(program.steps.size(), kNoSegment);
   for (std::size_t i = 0; i < program.steps.size(); ++i) {
     const Step& step = program.steps[i];
     if (const auto* ev = std::get_if<Event>(&step.item)) {
       if (place) (*place)[i] = st.path.segments.size();
+      st.event_line = step.src.line;
       apply_event(*ev, st);
       continue;
     }
@@ -424,9 +435,12 @@ Path to_path(const Program& program, const ToPathOptions& options) {
     seg.smoothing_tolerance_mm = st.smooth_mm;
     seg.stop_before = st.stop_pending;
     seg.tool = cutter_tool(program, m.tool);
+    seg.indexes_before = std::move(st.indexes);
+    st.indexes.clear();
     st.stop_pending = false;
     st.path.segments.push_back(std::move(seg));
   }
+  st.path.indexes_at_end = std::move(st.indexes);
   return std::move(st.path);
 }
 
@@ -546,6 +560,11 @@ void write_canonical(std::ostream& out, const Program& program) {
                                                         : "PATH_CONTROL G64");
             if (e.p) out << " P" << text::trimmed(*e.p, 6, 1);
             if (e.q) out << " Q" << text::trimmed(*e.q, 6, 1);
+          } else if constexpr (std::is_same_v<T, RotaryIndexMove>) {
+            out << "INDEX " << static_cast<char>(std::toupper(e.axis)) << " from "
+                << text::trimmed(e.from_deg, 6, 1) << " to " << text::trimmed(e.to_deg, 6, 1)
+                << " deg";
+            if (!e.rapid) out << " F" << text::trimmed(e.feed_deg_per_min, 6, 1);
           } else {
             out << "UNITS " << units_name(e.units);
           }

@@ -122,9 +122,22 @@ struct PathControlEvent {
 struct UnitsEvent {
   Units units = Units::mm;
 };
+// An index of the rotary axis: a G0 or G1 that moves the machine's A (or B) and no X, Y, Z
+// (docs/ngc-interpreter.md, "Rotary index axis"). It is an event of the program model, not a
+// Motion: nothing of the tool's path moves; to_path makes it a stop with the index at it
+// (PathSegment::indexes_before), planned rest to rest with the axis's own limits. Machine
+// degrees (the work offset applied); G20/G21 do not scale them.
+struct RotaryIndexMove {
+  char axis = 'a';  // 'a' or 'b'
+  double from_deg = 0.0;
+  double to_deg = 0.0;
+  bool rapid = true;              // G0; G1 moves at feed_deg_per_min
+  double feed_deg_per_min = 0.0;  // G1's F (inverse time made per minute); 0 for G0
+};
 
-using Event = std::variant<SpindleEvent, CoolantEvent, DwellEvent, ToolChangeEvent, ToolOffsetEvent,
-                           StopEvent, EndEvent, MessageEvent, PathControlEvent, UnitsEvent>;
+using Event =
+    std::variant<SpindleEvent, CoolantEvent, DwellEvent, ToolChangeEvent, ToolOffsetEvent,
+                 StopEvent, EndEvent, MessageEvent, PathControlEvent, UnitsEvent, RotaryIndexMove>;
 
 struct Step {
   std::variant<Motion, Event> item;
@@ -148,6 +161,10 @@ struct Program {
   // tool table and machine file (tool_catalogue, gcode/ngc/tool_table.hpp), or the generator's
   // ball end. A tool not listed is of unknown kind: the roughness law does not cap it.
   std::map<int, ToolSpec> tools;
+  // The machine's rotary index axis (InterpretOptions::rotary_axis: 'a', 'b', 0 for none) and
+  // where it stands at the start, machine degrees (0, as LinuxCNC's rs274 and the simulator).
+  char rotary_axis = 0;
+  double rotary_start_deg = 0.0;
 };
 
 // Geometry of an arc: radius, signed sweep (rad, + counter-clockwise about the plane's normal

@@ -21,6 +21,16 @@ enum class PathControl {
   exact_stop,  // G61.1: the machine comes to rest at the end of every move
 };
 
+// An index of the rotary axis (docs/planner.md §3g): the part turned from from_deg to to_deg
+// (machine degrees) while X, Y and Z stand still, from rest to rest, with the axis's own limits.
+struct RotaryIndex {
+  char axis = 'a';  // 'a' (about X) or 'b' (about Y)
+  double from_deg = 0.0;
+  double to_deg = 0.0;
+  std::optional<double> feed_deg_per_min;  // G1: the programmed feed; none: G0, the axis's max
+  int source_line = 0;                     // 1-based line of the source; 0 if none
+};
+
 struct PathSegment {
   std::variant<Polyline, NurbsCurve> geometry;
   std::optional<double> feed_mm_per_min;  // programmed feed; none for rapids or when not given
@@ -33,6 +43,9 @@ struct PathSegment {
   bool stop_before = false;  // the machine must be at rest where this segment starts (an event
                              // that needs rest precedes it: M0/M1, M6, dwell, spindle change)
   CutterTool tool;           // the tool that cuts it (geometry/tool.hpp): a ball end by default
+  // Rotary indexes made at rest where this segment starts, in order, before it moves (stop_before
+  // is then set): the programmed A or B moves between the move before and this one.
+  std::vector<RotaryIndex> indexes_before;
 };
 
 // What a path made by `ncd chamfer` says about itself (its JSON's "input" and "checks"): the
@@ -56,6 +69,18 @@ struct Path {
   std::vector<PathSegment> segments;
   std::string source;                    // file name or stream name the path was read from
   std::optional<ChamferOrigin> chamfer;  // set for the JSON of `ncd chamfer`
+  // The rotary index axis the path turns ('a', 'b'; 0: none), where it stands at the start
+  // (degrees), and the indexes after the last segment (at rest at the path's end).
+  char rotary_axis = 0;
+  double rotary_start_deg = 0.0;
+  std::vector<RotaryIndex> indexes_at_end;
+  bool has_indexes() const {
+    if (!indexes_at_end.empty()) return true;
+    for (const PathSegment& s : segments) {
+      if (!s.indexes_before.empty()) return true;
+    }
+    return false;
+  }
 };
 
 }  // namespace ncd::toolpath

@@ -151,6 +151,19 @@ void BlockEncoder::push(const motion::Setpoint& sp) {
     emit_positioning(sp);
     return;
   }
+  if (sp.limit_id == motion::kLimitIdIndex) {  // a rotary index: X, Y, Z stand still
+    if (!index_open_) {
+      close_open();  // the blocks before end where the tool rests
+      index_open_ = true;
+      index_from_t_s_ = end_.t_s;
+    }
+    if (!sp.indexing) {  // landed: one block for the whole index, with the time it took
+      index_open_ = false;
+      index(settings_.rotary_axis, sp.rotary_deg, sp.t_s - index_from_t_s_);
+      anchor_.t_s = end_.t_s = sp.t_s;
+    }
+    return;
+  }
   const Vec3 step = sp.p - last_p_;
   bool turn = false;
   if (step.norm() > kTinyMoveMm) {

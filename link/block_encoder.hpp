@@ -19,6 +19,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -70,6 +71,12 @@ struct EncoderSettings {
   // adds its own). False (grbl): no G43 H; the coordinates hold the length the program's
   // interpreter applied, and the header says how the tool's length is set.
   bool length_offsets = true;
+  // The rotary index axis the setpoints may turn ('a', 'b'; 0: none; the machine file's
+  // [axis.a] or [axis.b], docs/planner.md §3g) and whether the controller takes its word: the
+  // dialect's (grbl: no), unless the machine file's [encoder] rotary_words says (grblHAL).
+  char rotary_axis = 0;
+  bool rotary_words = true;
+  std::optional<bool> rotary_words_wanted;
 };
 
 // The controller dialect's rules (gcode/dialect/dialect.hpp, the one place for them) as the
@@ -215,6 +222,13 @@ class BlockEncoder {
   // changed with the offset, not the tool).
   void set_offset(const Vec3& offset_mm);
   const Vec3& offset() const { return offset_; }
+  // A rotary index (docs/planner.md §3g): closes the open block, then "G0A90." (or B) as a block
+  // of its own, the tool at rest, taking duration_s (its planned time); nothing when the
+  // controller holds that angle already. push() writes it itself from the setpoints of an index
+  // (motion::kLimitIdIndex): at the period that lands it, with the time the periods took.
+  // Throws InputError (rotary_refusal) where the settings have no such axis or the dialect
+  // cannot write it.
+  void index(char axis, double to_deg, double duration_s = 0.0);
   // A block of words other than motion, e.g. "M3S3000", "G4P1.5", "M5", "M2"; N numbered.
   void words(const std::string& text, double duration_s = 0.0);
   // "(text)" when comments are on; parentheses in text become brackets.
@@ -323,7 +337,17 @@ class BlockEncoder {
   int queue_fill_ = 0;
   double tx_free_s_ = 0.0, exec_done_s_ = 0.0;
   bool prev_moving_ = false;
+  // Rotary indexes: the angle the controller holds (NaN: none written), and the index under way
+  // in push() (its periods are not written; the block comes at the landing).
+  double rotary_written_deg_ = std::numeric_limits<double>::quiet_NaN();
+  bool index_open_ = false;
+  double index_from_t_s_ = 0.0;
 };
+
+// Why the encoder cannot write an index of `axis` under these settings (empty: it can): no
+// rotary axis in the machine file, another one, or a dialect without it (grbl), each with the
+// way out.
+std::string rotary_refusal(const EncoderSettings& settings, char axis);
 
 // The stats as the reports print them (units in the names).
 nlohmann::ordered_json to_json(const EncoderStats& stats);

@@ -1,6 +1,7 @@
 // The block encoder's settings (docs/block-encoder.md): what a controller's dialect sets, the
 // rounding of a written coordinate, the names of the reasons a block closes, and the checks of
 // the settings with the words of each refusal.
+#include <cctype>
 #include <cmath>
 #include <string>
 
@@ -19,7 +20,30 @@ void apply_dialect(EncoderSettings& settings, Dialect dialect) {
   settings.comments = r.paren_comments;
   settings.path_blending = r.path_blending;
   settings.length_offsets = r.length_offsets;
+  settings.rotary_words = settings.rotary_words_wanted.value_or(r.rotary_axis);
   if (r.max_line_chars > 0) settings.max_comment_chars = static_cast<std::size_t>(r.max_line_chars);
+}
+
+std::string rotary_refusal(const EncoderSettings& s, char axis) {
+  const std::string w(1, static_cast<char>(std::toupper(axis)));
+  if (s.rotary_axis == 0) {
+    return "the program indexes " + w +
+           ", but the machine file declares no rotary axis; add an [axis." + std::string(1, axis) +
+           "] table";
+  }
+  if (s.rotary_axis != axis) {
+    return "the program indexes " + w + ", but the machine's rotary axis is " +
+           std::string(1, static_cast<char>(std::toupper(s.rotary_axis)));
+  }
+  if (!s.rotary_words) {
+    return "the program indexes " + w +
+           ", but the controller's dialect has no rotary axis (stock grbl 1.1 drives X, Y, Z "
+           "only and answers error:20 to an " +
+           w +
+           " word); a grblHAL built with that axis takes it: set rotary_words = true in the "
+           "machine file's [encoder] table";
+  }
+  return {};
 }
 
 double rounding_error_mm(int decimals) {

@@ -3,6 +3,7 @@
 // move, rapids, words and comments passed through, the program's % lines, each line checked
 // against the controller's line length and handed to the sink.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -102,6 +103,29 @@ void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm,
   if (!any) return;     // the controller stands there already (as far as it was told)
   g1_written_ = false;  // the next feed block says G1 again
   deliver_line(BlockClose::Rapid, std::max(0.0, t_s - from_t_s), settings_.numbers);
+}
+
+void BlockEncoder::index(char axis, double to_deg, double duration_s) {
+  if (finished_) throw std::logic_error("BlockEncoder::index after finish()");
+  if (const std::string why = rotary_refusal(settings_, axis); !why.empty()) throw InputError(why);
+  if (!std::isfinite(to_deg) || std::abs(to_deg) > 1e6) {
+    throw InputError("index to " + text::sig(to_deg) +
+                     " degrees: the block encoder needs a finite angle within 1e6 degrees");
+  }
+  close_open();
+  const double q = std::round(to_deg * scale_);  // degrees at the coordinates' decimals
+  if (q == rotary_written_deg_) return;
+  rotary_written_deg_ = q;
+  std::string& t = block_.text;
+  t.clear();
+  if (settings_.numbers) {
+    t.push_back('N');
+    append_number(t, next_number_);
+  }
+  t += "G0";
+  t.push_back(static_cast<char>(std::toupper(axis)));
+  append_fixed(t, static_cast<std::int64_t>(q), settings_.decimals);
+  deliver_line(BlockClose::Words, duration_s, settings_.numbers);
 }
 
 void BlockEncoder::words(const std::string& text, double duration_s) {

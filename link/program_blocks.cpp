@@ -2,6 +2,7 @@
 #include "link/program_blocks.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -49,6 +50,9 @@ std::string event_words(const toolpath::Event& event, int decimals) {
                                                      : "M60";
         } else if constexpr (std::is_same_v<T, EndEvent>) {
           return e.m == 30 ? "M30" : "M2";
+        } else if constexpr (std::is_same_v<T, RotaryIndexMove>) {
+          return "G0" + std::string(1, static_cast<char>(std::toupper(e.axis))) +
+                 number(e.to_deg, decimals);
         } else {
           return "";  // units, tool offset, path control, messages (comments)
         }
@@ -98,6 +102,14 @@ ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& enc
   if (encoder.settings().length_offsets) {
     if (auto missing = change_without_length_offset(program)) throw InputError(*missing);
   }
+  for (const Step& step : program.steps) {  // an index the controller cannot take: refused now
+    const auto* ev = std::get_if<Event>(&step.item);
+    const auto* ix = ev ? std::get_if<RotaryIndexMove>(ev) : nullptr;
+    if (!ix) continue;
+    if (const std::string why = rotary_refusal(encoder.settings(), ix->axis); !why.empty()) {
+      throw InputError(where(program, step.src) + ": " + why);
+    }
+  }
   // Where to_path() puts each step: an event at the start of a segment, a rapid as a segment
   // of its own. Their places on the walked path are that segment's start and end there.
   std::vector<std::size_t> place;
@@ -141,6 +153,10 @@ ProgramBlocks::ProgramBlocks(const toolpath::Program& program, BlockEncoder& enc
 }
 
 void ProgramBlocks::write_event(const toolpath::Event& e) {
+  if (const auto* ix = std::get_if<toolpath::RotaryIndexMove>(&e)) {
+    encoder_.index(ix->axis, ix->to_deg);
+    return;
+  }
   if (const auto* msg = std::get_if<toolpath::MessageEvent>(&e)) {
     encoder_.comment("MSG, " + msg->text);
     return;
@@ -285,6 +301,22 @@ void ProgramBlocks::push(const motion::Setpoint& sp) {
       continue;
     }
     if (m.s0_mm > sp.s_mm + kAtMm && !sp.done) break;  // ahead
+    // A rotary index: the encoder writes it from the periods that make it (BlockEncoder::push),
+    // at the one that lands it; the events after it wait for that, in the program's order.
+    if (m.kind == Kind::Event && std::holds_alternative<toolpath::RotaryIndexMove>(m.event)) {
+      if (!consumed) {
+        encoder_.push(sp);
+        pushed_s_mm_ = sp.s_mm;
+        pushed_t_s_ = sp.t_s;
+        consumed = true;
+      }
+      if (sp.limit_id != motion::kLimitIdIndex || sp.indexing) break;  // not landed yet
+      ++next_;
+      const bool another = next_ < marks_.size() && marks_[next_].kind == Kind::Event &&
+                           std::holds_alternative<toolpath::RotaryIndexMove>(marks_[next_].event);
+      if (another) break;  // the next index lands in periods still to come
+      continue;
+    }
     // The tool reached or passed the mark: close the blocks before it at its place.
     if (!consumed && std::abs(sp.s_mm - m.s0_mm) <= kAtMm) {
       encoder_.push(sp);

@@ -30,6 +30,7 @@
 //
 // No-progress watchdog: while the job runs (not held, not stopping, override above 0 %), its
 // arc length must advance by more than kProgressMm within the machine's stall_timeout_s.
+// A period of a rotary index (Setpoint::indexing) is progress too, of the rotary axis.
 // Otherwise the cycle ends in state Error with a message naming the position and the limit in
 // force. It guards against defects of the planner and is never expected to fire (docs/planner.md).
 #include "motion/cycle.hpp"
@@ -261,11 +262,12 @@ bool Cycle::run_period(CycleState& state) {
   } else if (!ring_.push(sp)) {
     ++stats_.setpoints_lost;
   }
-  const bool at_rest = sp.v_mm_per_s == 0.0 && sp.a_mm_per_s2 == 0.0;
+  // A rotary index is not at rest until it lands (a stop waits for it, as for any move).
+  const bool at_rest = sp.v_mm_per_s == 0.0 && sp.a_mm_per_s2 == 0.0 && !sp.indexing;
   if (sp.done) state = CycleState::Done;
   if (stopping_ && at_rest) state = CycleState::Stopped;
   if (state == CycleState::Running && !stopping_ && override_applied_ > 0.0 &&
-      sp.s_mm <= watch_s_mm_ + kProgressMm) {
+      sp.s_mm <= watch_s_mm_ + kProgressMm && !sp.indexing) {
     const auto& limits = job_->config().limits;
     if (static_cast<double>(++watch_periods_) * limits.period_s >= limits.stall_timeout_s) {
       stall_ = Stall{true, sp};  // worded by error(), outside the period

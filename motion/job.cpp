@@ -8,13 +8,21 @@
 // The planner plans one stretch at a time in its own arc length, from rest to rest exactly at
 // its end; Planner::restart then starts the next (no allocation). Setpoints carry the arc
 // length from the path start, and the walker walks the whole path.
+//
+// Rotary indexes (docs/planner.md §3g): each is made where the motion rests for it (the segment
+// after it has stop_before, so its start is a stop; or the path's start or end). There the job
+// emits the index's periods (rotary_index.hpp: X, Y, Z at rest, the rotary axis on its double-S
+// profile) before the planner's next step; the profiles are made at the start, so a period of
+// an index is a closed-form evaluation.
 #include "motion/job.hpp"
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -63,6 +71,49 @@ std::vector<double> segment_starts(const feed::PathWalker& w, std::size_t segmen
   std::vector<double> s;
   for (std::size_t k = 0; k <= segments; ++k) s.push_back(w.segment_start_mm(k));
   return s;
+}
+
+// The path's rotary indexes at their places on the walked path, each with its profile. Every
+// place must be where the motion rests (a stretch bound): an index anywhere else would turn the
+// part under a moving tool. Throws InputError where the machine has no rotary axis, or another.
+std::vector<IndexAt> plan_indexes(const toolpath::Path& path, const feed::PathWalker& w,
+                                  const std::vector<double>& bounds_mm,
+                                  const feed::MachineLimits& l) {
+  std::vector<IndexAt> out;
+  if (!path.has_indexes()) return out;
+  const feed::RotaryLimits& r = l.rotary;
+  const IndexLimits limits{r.max_feed_deg_per_min / 60.0, r.max_accel_deg_per_s2,
+                           r.max_jerk_deg_per_s3};
+  const auto add = [&](const toolpath::RotaryIndex& ix, double s_mm) {
+    const std::string axis(1, static_cast<char>(std::toupper(ix.axis)));
+    if (!r.present() || r.axis != ix.axis) {
+      throw InputError(
+          (path.source.empty() ? std::string() : path.source + ": ") + "line " +
+          std::to_string(ix.source_line) + " turns " + axis + ", but the machine file declares " +
+          (r.present() ? "the rotary axis " + std::string(1, r.axis) : "no rotary axis") +
+          "; add an [axis." + std::string(1, ix.axis) + "] table to the machine file");
+    }
+    IndexLimits lim = limits;
+    if (ix.feed_deg_per_min) {
+      lim.max_speed_deg_per_s = std::min(lim.max_speed_deg_per_s, *ix.feed_deg_per_min / 60.0);
+    }
+    if (ix.from_deg == ix.to_deg) return;
+    const double tol = 1e-6 * std::max(1.0, s_mm);
+    const bool at_rest = std::any_of(bounds_mm.begin(), bounds_mm.end(),
+                                     [&](double b) { return std::abs(b - s_mm) <= tol; });
+    if (!at_rest) {
+      throw std::logic_error("rotary index of line " + std::to_string(ix.source_line) + " at s = " +
+                             std::to_string(s_mm) + " mm, where the motion does not rest");
+    }
+    out.push_back({s_mm, IndexProfile(ix.from_deg, ix.to_deg, lim), ix.source_line});
+  };
+  for (std::size_t k = 0; k < path.segments.size(); ++k) {
+    for (const toolpath::RotaryIndex& ix : path.segments[k].indexes_before) {
+      add(ix, w.segment_start_mm(k));
+    }
+  }
+  for (const toolpath::RotaryIndex& ix : path.indexes_at_end) add(ix, w.length_mm());
+  return out;
 }
 
 // Every number of the path the job will read in its periods, checked at its start: a feed
@@ -188,6 +239,8 @@ const char* limit_name(std::uint8_t id) {
       return "hold";
     case kLimitIdOverlap:
       return "corner_overlap";
+    case kLimitIdIndex:
+      return "rotary_index";
     default:
       break;
   }
@@ -235,7 +288,10 @@ Job::Job(const toolpath::Path& path, const JobConfig& config)
     deep_within_mm_ = line_deep_within_mm(path_, segment_starts(walker_, path_.segments.size()),
                                           bounds_, l, line_deep_steps(overlap_max_));
   }
+  indexes_ = plan_indexes(path_, walker_, bounds_, config.limits);
+  rotary_deg_ = path_.rotary_start_deg;
   here_.sp.p = walker_.position();
+  here_.sp.rotary_deg = rotary_deg_;
 }
 
 bool Job::prepare() {
@@ -352,9 +408,42 @@ Setpoint Job::step() {
   return sp;
 }
 
-// One period of the planner and the walker.
+// One period of the rotary index under way: X, Y, Z at rest where the motion stopped, the rotary
+// axis on its profile; the last period lands it and ends the index.
+Setpoint Job::index_step() {
+  const IndexAt& ix = indexes_[next_index_];
+  index_t_s_ += config_.limits.period_s;
+  ++index_periods_;
+  const bool landed = index_t_s_ >= ix.profile.duration_s();
+  rotary_deg_ = landed ? ix.profile.to_deg() : ix.profile.position_deg(index_t_s_);
+  if (landed) {
+    indexing_ = false;
+    ++next_index_;
+  }
+  rest_ = false;  // the rest before the index was the planner's; no corner to decide here
+  Setpoint sp;
+  sp.t_s = planner_t_s_ + static_cast<double>(index_periods_) * config_.limits.period_s;
+  sp.p = walker_.position();
+  sp.s_mm = last_s_mm_;
+  sp.limit_id = kLimitIdIndex;
+  sp.segment = walker_.segment();
+  sp.rotary_deg = rotary_deg_;
+  sp.indexing = !landed;
+  sp.done = raw_done();
+  return sp;
+}
+
+// One period of the planner and the walker, or of an index where the motion rests for one.
 Setpoint Job::raw_step() {
+  if (!indexing_ && at_rest_ && next_index_ < indexes_.size() &&
+      indexes_[next_index_].s_mm <= last_s_mm_ + 1e-6 * std::max(1.0, last_s_mm_)) {
+    indexing_ = true;
+    index_t_s_ = 0.0;
+  }
+  if (indexing_) return index_step();
   const MotionSample m = planner_.step();
+  at_rest_ = m.done;
+  planner_t_s_ = m.t_s;
   const bool last = run_ + 2 == bounds_.size();
   const double s_mm = m.done ? bounds_[run_ + 1] : bounds_[run_] + m.s_mm;
   rest_ = m.done && !last;
@@ -366,7 +455,8 @@ Setpoint Job::raw_step() {
     }
   }
   Setpoint sp;
-  sp.t_s = m.t_s;
+  sp.t_s = m.t_s + static_cast<double>(index_periods_) * config_.limits.period_s;
+  sp.rotary_deg = rotary_deg_;
   sp.s_mm = s_mm;
   sp.v_mm_per_s = m.v_mm_per_s;
   sp.a_mm_per_s2 = m.a_mm_per_s2;
@@ -382,7 +472,7 @@ Setpoint Job::raw_step() {
   sp.iterations = w.iterations;
   sp.converged = w.converged;
   sp.segment = walker_.segment();
-  sp.done = m.done && last;
+  sp.done = m.done && last && next_index_ == indexes_.size();
   return sp;
 }
 

@@ -16,6 +16,7 @@
 #include "feed/polyline_fit.hpp"
 #include "motion/corner_overlap.hpp"
 #include "motion/planner.hpp"
+#include "motion/rotary_index.hpp"
 #include "motion/step_guard.hpp"
 
 namespace ncd::motion {
@@ -54,6 +55,11 @@ struct Setpoint {
   // of the programmed corner, off path() but for the last such setpoint; s sums the two moves'
   // progress, v is the speed, a and j the larger of the two moves' own.
   bool overlapped = false;
+  // The rotary index axis (docs/planner.md §3g), where the path has one: its position at the end
+  // of the period, machine degrees, and whether it is turning (an index: X, Y, Z stand still at
+  // p, v = 0, and the period is not at rest until the index has landed).
+  double rotary_deg = 0.0;
+  bool indexing = false;
 };
 
 // What passing sharp corners without their stops did (docs/planner.md §3b).
@@ -61,6 +67,16 @@ struct OverlapReport {
   std::size_t corners = 0;        // corners overlapped
   std::size_t periods_saved = 0;  // setpoints fewer than with their stops
   double max_deviation_mm = 0.0;  // farthest superposed setpoint from its corner's pieces
+};
+
+// The planner-side limit id of a period spent indexing the rotary axis (Setpoint::indexing).
+inline constexpr std::uint8_t kLimitIdIndex = 0xF8;
+
+// One rotary index of the path at the place the motion rests for it (docs/planner.md §3g).
+struct IndexAt {
+  double s_mm = 0.0;  // on path(): a stop, the start or the end
+  IndexProfile profile;
+  int source_line = 0;
 };
 
 // "roughness", …, "corner" for feed laws; "tangential_accel", "tangential_jerk", "path_end",
@@ -120,6 +136,10 @@ class Job {
   // Where each segment of the path given to the job starts on path(), mm, and its length last
   // (segments + 1 values; a segment that the fit split starts where its first piece starts).
   std::vector<double> segment_starts_mm() const;
+  // The rotary indexes in path order, each with its profile (empty without a rotary axis).
+  const std::vector<IndexAt>& indexes() const { return indexes_; }
+  // The rotary axis's position now (the last setpoint's), machine degrees.
+  double rotary_deg() const { return rotary_deg_; }
   // What the smoothing of dense polylines under G64 Q did (feed/polyline_fit.hpp); a
   // segment with fitted runs is split, fit_report().source_segment maps path() to the program's.
   const feed::FitReport& fit_report() const { return fit_; }
@@ -143,8 +163,12 @@ class Job {
     // progress, up to twice as much at a turn of more than 90°); < 0 elsewhere.
     double superposed_step_mm = -1.0;
   };
-  bool raw_done() const { return planner_.done() && run_ + 2 == bounds_.size(); }
-  bool feed_planner();  // the planner's look-ahead from the sampler
+  bool raw_done() const {
+    return planner_.done() && run_ + 2 == bounds_.size() && !indexing_ &&
+           next_index_ == indexes_.size();
+  }
+  Setpoint index_step();  // one period of the index under way
+  bool feed_planner();    // the planner's look-ahead from the sampler
   bool plan_failed(const LimitSample& sample, PushResult why, std::uint8_t law);
   std::string plan_fault_message() const;
   void fill_line();                 // planner steps into the line of setpoints, overlaps decided
@@ -200,6 +224,16 @@ class Job {
   bool rest_ = false;  // the last raw_step ended a stretch at rest (not the path's end)
   Pending here_;       // the last setpoint emitted
   OverlapReport overlap_;
+  // Rotary indexes (docs/planner.md §3g): made at rest, one period at a time, while the planner
+  // waits; its clock is behind the setpoints' by the periods spent indexing.
+  std::vector<IndexAt> indexes_;
+  std::size_t next_index_ = 0;
+  bool indexing_ = false;
+  bool at_rest_ = true;     // the last raw step left the motion at rest (or none was made)
+  double index_t_s_ = 0.0;  // time into the index under way
+  std::int64_t index_periods_ = 0;
+  double planner_t_s_ = 0.0;  // the planner's clock at its last step
+  double rotary_deg_ = 0.0;
 };
 
 }  // namespace ncd::motion

@@ -15,7 +15,8 @@ double RunStats::feed_error_rms_rel() const {
 }
 
 std::int64_t RunStats::limit_violations() const {
-  return violations_feed + violations_accel + violations_jerk + violations_chord;
+  return violations_feed + violations_accel + violations_jerk + violations_chord +
+         violations_rotary;
 }
 
 namespace {
@@ -41,7 +42,61 @@ void record_axes(RunStats& st, double T, const Vec3& p) {
   }
 }
 
+// The rotary axis's differences, as for X, Y, Z, and each against its limit. An index's time
+// counts its periods; an index is counted as it lands (the first period at rest after it).
+void record_rotary(RunStats& st, const feed::MachineLimits& l, const Setpoint& sp,
+                   bool was_indexing) {
+  if (!l.rotary.present()) return;
+  const double T = l.period_s, r = sp.rotary_deg;
+  const auto& q = st.last_rotary_deg;
+  if (!st.rotary_started) st.last_rotary_deg = {r, r, r};  // at rest where the first one stands
+  st.rotary_started = true;
+  const double v = std::abs(r - q[2]) / T;
+  const double a = std::abs(r - 2.0 * q[2] + q[1]) / (T * T);
+  const double j = std::abs(r - 3.0 * q[2] + 3.0 * q[1] - q[0]) / (T * T * T);
+  st.rotary_speed_max_deg_per_s = std::max(st.rotary_speed_max_deg_per_s, v);
+  st.rotary_accel_max_deg_per_s2 = std::max(st.rotary_accel_max_deg_per_s2, a);
+  st.rotary_jerk_max_deg_per_s3 = std::max(st.rotary_jerk_max_deg_per_s3, j);
+  const double k = 1.0 + kViolationRel;
+  if (v > l.rotary.max_feed_deg_per_min / 60.0 * k || a > l.rotary.max_accel_deg_per_s2 * k ||
+      j > l.rotary.max_jerk_deg_per_s3 * k) {
+    ++st.violations_rotary;
+  }
+  if (sp.indexing || was_indexing) st.index_time_s += T;
+  if (was_indexing && !sp.indexing) ++st.index_moves;
+  st.last_rotary_deg = {q[1], q[2], r};
+}
+
 }  // namespace
+
+std::string rotary_text(const RunStats& st, const feed::MachineLimits& l) {
+  if (!l.rotary.present()) return {};
+  const auto& r = l.rotary;
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "  rotary %c          %lld index moves in %.3f s; speed %.1f deg/min (limit %.6g), "
+                "accel %.1f deg/s2 (limit %.6g), jerk %.0f deg/s3 (limit %.6g); %lld violations\n",
+                static_cast<char>(r.axis - 'a' + 'A'), static_cast<long long>(st.index_moves),
+                st.index_time_s, st.rotary_speed_max_deg_per_s * 60.0, r.max_feed_deg_per_min,
+                st.rotary_accel_max_deg_per_s2, r.max_accel_deg_per_s2,
+                st.rotary_jerk_max_deg_per_s3, r.max_jerk_deg_per_s3,
+                static_cast<long long>(st.violations_rotary));
+  return line;
+}
+
+nlohmann::ordered_json rotary_json(const RunStats& st, const feed::MachineLimits& l) {
+  const auto& r = l.rotary;
+  return {{"axis", std::string(1, r.axis)},
+          {"index_moves", st.index_moves},
+          {"index_time_s", st.index_time_s},
+          {"speed_max_deg_per_min", st.rotary_speed_max_deg_per_s * 60.0},
+          {"speed_limit_deg_per_min", r.max_feed_deg_per_min},
+          {"accel_max_deg_per_s2", st.rotary_accel_max_deg_per_s2},
+          {"accel_limit_deg_per_s2", r.max_accel_deg_per_s2},
+          {"jerk_max_deg_per_s3", st.rotary_jerk_max_deg_per_s3},
+          {"jerk_limit_deg_per_s3", r.max_jerk_deg_per_s3},
+          {"violations", st.violations_rotary}};
+}
 
 std::array<AxisPeak, 3> axis_peaks(const RunStats& st, const feed::MachineLimits& l) {
   std::array<AxisPeak, 3> out{};
@@ -102,6 +157,8 @@ void record(RunStats& st, const JobConfig& config, const Setpoint& sp, double li
   const auto& l = config.limits;
   ++st.cycles;
   st.duration_s = sp.t_s;
+  record_rotary(st, l, sp, st.was_indexing);
+  st.was_indexing = sp.indexing;
   const double sum = st.travelled_mm + sp.travelled_mm;  // Neumaier summation
   st.travelled_carry_mm += std::abs(st.travelled_mm) >= std::abs(sp.travelled_mm)
                                ? (st.travelled_mm - sum) + sp.travelled_mm
@@ -144,7 +201,8 @@ std::string refusal(const RunStats& st, const JobConfig& config) {
     add(std::to_string(st.limit_violations()) + " limit violation(s) (feed " +
         std::to_string(st.violations_feed) + ", accel " + std::to_string(st.violations_accel) +
         ", jerk " + std::to_string(st.violations_jerk) + ", chord " +
-        std::to_string(st.violations_chord) + ")");
+        std::to_string(st.violations_chord) + ", rotary axis " +
+        std::to_string(st.violations_rotary) + ")");
   }
   const double drift_allowed_mm =
       kDriftToleranceMm + config.limits.feed_tolerance_rel * st.path_length_mm;

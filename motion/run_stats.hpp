@@ -55,6 +55,18 @@ struct RunStats {
   // |Δ³p_i|/T³ (docs/planner.md §3f).
   std::array<double, 3> axis_feed_max_mm_per_s{}, axis_accel_max_mm_per_s2{},
       axis_jerk_max_mm_per_s3{};
+  // The rotary index axis (docs/planner.md §3g): indexes made, the time spent in them, and the
+  // axis's peaks from the setpoints' differences (|Δr|/T, |Δ²r|/T², |Δ³r|/T³), degrees.
+  std::int64_t index_moves = 0;
+  double index_time_s = 0.0;
+  std::array<double, 3> last_rotary_deg{};
+  double rotary_speed_max_deg_per_s = 0.0, rotary_accel_max_deg_per_s2 = 0.0,
+         rotary_jerk_max_deg_per_s3 = 0.0;
+  std::int64_t violations_rotary = 0;
+  bool was_indexing = false;
+  // Set with last_rotary_deg by a caller that knows where the axis stands before the first
+  // period (the path's rotary_start_deg); else the first setpoint's position is taken.
+  bool rotary_started = false;  // periods where a rotary peak exceeds its limit
   double feed_max_mm_per_s = 0.0;
   double roughness_max_um = 0.0;
   std::int64_t violations_feed = 0, violations_accel = 0, violations_jerk = 0, violations_chord = 0;
@@ -82,6 +94,10 @@ std::array<AxisPeak, 3> axis_peaks(const RunStats& stats, const feed::MachineLim
 nlohmann::ordered_json axis_peaks_json(const RunStats& stats, const feed::MachineLimits& limits);
 // The replay's text lines for them ("" without per-axis limits in the machine file).
 std::string axis_peaks_text(const RunStats& stats, const feed::MachineLimits& limits);
+
+// The rotary axis's line of the replay report ("" without one), and its JSON ("rotary_axis").
+std::string rotary_text(const RunStats& stats, const feed::MachineLimits& limits);
+nlohmann::ordered_json rotary_json(const RunStats& stats, const feed::MachineLimits& limits);
 
 // Why a finished run must not reach a machine: any limit violation (feed, acceleration, jerk,
 // chord) or an arc-length drift beyond kDriftToleranceMm; empty when it may. The one

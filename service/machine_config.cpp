@@ -179,13 +179,17 @@ void parse_encoder(const toml::value& table, const std::string& name, comms::Enc
       if (!v.is_boolean()) throw InputError(where + " must be true or false");
       e.numbers_wanted = v.as_boolean();
       e.numbers = v.as_boolean();
+    } else if (key == "rotary_words") {
+      if (!v.is_boolean()) throw InputError(where + " must be true or false");
+      e.rotary_words_wanted = v.as_boolean();
+      e.rotary_words = v.as_boolean();
     } else if (key == "max_setpoints_per_block") {
       e.max_setpoints_per_block = static_cast<std::size_t>(as_int_in(v, where, 2, 1 << 20));
     } else {
       throw InputError("unknown key " + where +
                        "; [encoder] takes chord_tolerance_mm, feed_band, link_margin, decimals, "
                        "feed_decimals, time_tolerance_s, number_start, number_step, numbers, "
-                       "max_setpoints_per_block, max_block_s");
+                       "max_setpoints_per_block, max_block_s, rotary_words");
     }
   }
 }
@@ -346,17 +350,61 @@ void parse_tools(const toml::value& table, const std::string& name,
   }
 }
 
+// [axis.a] or [axis.b] (docs/planner.md §3g): the rotary index axis; the table's presence
+// declares it, its keys (each with a default) bound its index moves.
+void parse_rotary(const std::string& axis, const toml::value& value, const std::string& name,
+                  feed::RotaryLimits& r) {
+  const std::string table_name = "axis." + axis;
+  if (!value.is_table()) {
+    throw InputError(name + ": " + table_name + " must be a table: [" + table_name + "]");
+  }
+  if (r.present()) {
+    throw InputError(name +
+                     ": [axis.a] and [axis.b] are both given, but ncd drives one rotary index "
+                     "axis; keep the table of the axis the machine has (a: about X, b: about Y)");
+  }
+  r.axis = axis[0];
+  for (const auto& entry : value.as_table()) {
+    const std::string& key = entry.first;
+    const toml::value& v = entry.second;
+    const std::string where = name + ": " + table_name + "." + key;
+    const auto in_range = [&](const ranges::Range& range) {
+      const double x = as_real(v, where);
+      checked_range(x, range.lo, range.hi, where, range.unit,
+                    "give the rotary axis's limit in that range, or leave the key out for its "
+                    "default (config/machine.example.toml)");
+      return x;
+    };
+    if (key == "max_feed_deg_per_min")
+      r.max_feed_deg_per_min = in_range(ranges::kRotaryFeedDegPerMin);
+    else if (key == "max_accel_deg_per_s2")
+      r.max_accel_deg_per_s2 = in_range(ranges::kRotaryAccelDegPerS2);
+    else if (key == "max_jerk_deg_per_s3")
+      r.max_jerk_deg_per_s3 = in_range(ranges::kRotaryJerkDegPerS3);
+    else {
+      throw InputError("unknown key " + where + "; [" + table_name +
+                       "] takes max_feed_deg_per_min, max_accel_deg_per_s2, max_jerk_deg_per_s3");
+    }
+  }
+}
+
 // [axis.x], [axis.y], [axis.z] (docs/planner.md §3f): each axis's own limits, in the ranges of
-// the path's; a key left out leaves the axis bounded by the path limit only.
-void parse_axes(const toml::value& table, const std::string& name,
-                std::array<feed::AxisLimits, 3>& axes) {
+// the path's; a key left out leaves the axis bounded by the path limit only. [axis.a] and
+// [axis.b]: the rotary index axis (parse_rotary).
+void parse_axes(const toml::value& table, const std::string& name, feed::MachineLimits& limits) {
   static constexpr const char* kNames[3] = {"x", "y", "z"};
+  std::array<feed::AxisLimits, 3>& axes = limits.axes;
   for (const auto& [axis, value] : table.as_table()) {
+    if (axis == "a" || axis == "b") {
+      parse_rotary(axis, value, name, limits.rotary);
+      continue;
+    }
     std::size_t i = 0;
     while (i < 3 && axis != kNames[i]) ++i;
     if (i == 3) {
       throw InputError("unknown table " + name + ": [axis." + axis +
-                       "]; the machine file takes [axis.x], [axis.y] and [axis.z]");
+                       "]; the machine file takes [axis.x], [axis.y], [axis.z] and one rotary "
+                       "index axis, [axis.a] (about X) or [axis.b] (about Y)");
     }
     const std::string table_name = "axis." + axis;
     if (!value.is_table()) {
@@ -466,8 +514,8 @@ bool parse_table(const std::string& key, const toml::value& value, const std::st
     table("a table: [envelope]");
     parse_envelope(value, name, c.envelope);
   } else if (key == "axis") {
-    table("tables: [axis.x], [axis.y], [axis.z]");
-    parse_axes(value, name, c.limits.axes);
+    table("tables: [axis.x], [axis.y], [axis.z], [axis.a] or [axis.b]");
+    parse_axes(value, name, c.limits);
   } else if (key == "tool") {
     table("a table: [tool]");
     parse_tool(value, name, c.tool);
@@ -499,7 +547,9 @@ void apply_jerk_by_axes(MachineConfig& c, const std::string& name) {
 void finish_config(MachineConfig& c, const std::string& name) {
   c.encoder.line = c.link.line;
   c.encoder.rx_buffer_bytes = c.link.rx_buffer_bytes;
-  c.program.machine_tools = {c.tool.number};  // the tool the programs ncd writes change to
+  c.program.machine_tools = {c.tool.number};     // the tool the programs ncd writes change to
+  c.program.rotary_axis = c.limits.rotary.axis;  // the A or B words the programs may hold
+  c.encoder.rotary_axis = c.limits.rotary.axis;
   check_ranges(c, name);
   try {
     feed::validate(c.limits);
@@ -539,7 +589,7 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
           "feed_tolerance_rel, blend_tolerance_mm, stall_timeout_s, jerk_bound, fit_dense_runs and "
           "the tables "
           "[cutting], [link], [encoder], [envelope], [program], [tool], [tools.N], [axis.x], "
-          "[axis.y], [axis.z]");
+          "[axis.y], [axis.z], [axis.a] or [axis.b]");
     }
   }
   if (jerk_by_axes) apply_jerk_by_axes(c, name);
@@ -616,6 +666,13 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
                          {"max_jerk_mm_per_s3", limit(ax.max_jerk_mm_per_s3)}};
     }
     j["axis"] = axes;
+  }
+  if (c.limits.rotary.present()) {  // only when declared: without it the JSON is as before
+    const feed::RotaryLimits& r = c.limits.rotary;
+    j["rotary_axis"] = {{"axis", std::string(1, r.axis)},
+                        {"max_feed_deg_per_min", r.max_feed_deg_per_min},
+                        {"max_accel_deg_per_s2", r.max_accel_deg_per_s2},
+                        {"max_jerk_deg_per_s3", r.max_jerk_deg_per_s3}};
   }
   j["cutting"] = {{"ball_radius_mm", c.cutting.ball_radius_mm},
                   {"pick_feed_mm", c.cutting.pick_feed_mm},

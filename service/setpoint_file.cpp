@@ -10,11 +10,14 @@
 
 namespace ncd::app {
 
-SetpointSink::SetpointSink(const std::string& path) {
+SetpointSink::SetpointSink(const std::string& path, char rotary_axis) {
   if (path.empty()) return;
   file_ = std::make_unique<StreamedFile>(path, "--setpoints", 1 << 20);
-  static constexpr char kHeader[] = "t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit\n";
-  file_->write(kHeader, sizeof kHeader - 1);
+  rotary_ = rotary_axis != 0;
+  std::string header = "t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit";
+  if (rotary_) header += std::string(",") + rotary_axis + "_deg";
+  header += '\n';
+  file_->write(header.data(), header.size());
 }
 
 void SetpointSink::write(const motion::Setpoint& sp) {
@@ -33,6 +36,12 @@ void SetpointSink::write(const motion::Setpoint& sp) {
   put(sp.v_mm_per_s * 60.0, 4);
   const char* name = motion::limit_name(sp.limit_id);
   while (*name) *p++ = *name++;
+  if (rotary_) {
+    *p++ = ',';
+    p = std::to_chars(p, end, sp.rotary_deg == 0.0 ? 0.0 : sp.rotary_deg, std::chars_format::fixed,
+                      6)
+            .ptr;
+  }
   *p++ = '\n';
   file_->write(line, static_cast<std::size_t>(p - line));
 }

@@ -1,6 +1,6 @@
 // The setpoints file of `ncd replay` and of service jobs: CSV, one row per period
-// (t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit), written as it comes into a temporary file that is
-// renamed when the run succeeds, so a failed run leaves nothing behind.
+// (t_s,x_mm,y_mm,z_mm,feed_mm_per_min,limit[,a_deg|b_deg]), written as it comes into a temporary
+// file that is renamed when the run succeeds, so a failed run leaves nothing behind.
 #pragma once
 
 #include <memory>
@@ -14,8 +14,9 @@ namespace ncd::app {
 
 class SetpointSink final : public service::SetpointSink {
  public:
-  // An empty path writes nothing. Throws InputError if the file cannot be created.
-  explicit SetpointSink(const std::string& path);
+  // An empty path writes nothing. Throws InputError if the file cannot be created. With a
+  // rotary axis ('a', 'b'; docs/planner.md §3g) each row ends with its position, a_deg or b_deg.
+  explicit SetpointSink(const std::string& path, char rotary_axis = 0);
   SetpointSink(const SetpointSink&) = delete;
   SetpointSink& operator=(const SetpointSink&) = delete;
 
@@ -24,6 +25,7 @@ class SetpointSink final : public service::SetpointSink {
 
  private:
   std::unique_ptr<StreamedFile> file_;  // null when nothing is recorded
+  bool rotary_ = false;
 };
 
 }  // namespace ncd::app

@@ -53,6 +53,8 @@ struct SimRead {
   std::optional<int> motion;  // 0, 1 or 80 given in this block
   bool dwell = false, g64 = false, g43 = false;
   std::optional<double> h_word;
+  char rotary_letter = 0;  // A or B given
+  double rotary_deg = 0.0;
 };
 
 std::optional<SimFailure> read_sim_g(const SimWord& w, SimRead& st) {
@@ -148,6 +150,16 @@ std::optional<SimFailure> read_sim_word(const SimWord& w, SimRead& st) {
     case 'Z':
       st.axis[static_cast<std::size_t>(w.letter - 'X')] = w.value;
       break;
+    case 'A':
+    case 'B':
+      if (st.rotary_letter != 0 || (st.next.rotary_axis != 0 && st.next.rotary_axis != w.letter)) {
+        return SimFailure{kErrUnsupported, std::string("the word ") + w.letter +
+                                               ": this controller has one rotary axis, " +
+                                               (st.next.rotary_axis ? st.next.rotary_axis : 'A')};
+      }
+      st.rotary_letter = w.letter;
+      st.rotary_deg = w.value;
+      break;
     case 'F':
       if (w.value < 0.0)
         return SimFailure{kErrNegative, "F " + text::sig(w.value) + " is negative"};
@@ -179,7 +191,7 @@ std::optional<SimFailure> read_sim_word(const SimWord& w, SimRead& st) {
       break;
     default:
       return SimFailure{kErrUnsupported, std::string("the word ") + w.letter +
-                                             " is not supported: use N G X Y Z F S M T P H"};
+                                             " is not supported: use N G X Y Z A B F S M T P H"};
   }
   return std::nullopt;
 }
@@ -226,7 +238,26 @@ SimParse parse_sim_block(std::string_view text, SimModal& modal, double rapid_mm
   if (b.spindle) next.spindle = *b.spindle;
   if (b.program_end) next.spindle = 5;
   const bool has_axis = axis[0] || axis[1] || axis[2];
-  if (dwell) {
+  if (st.rotary_letter != 0) {  // an index: the rotary axis alone
+    if (dwell || has_axis) {
+      return fail(kErrUnsupported, std::string("the word ") + st.rotary_letter +
+                                       " with X, Y, Z or G4: this controller indexes its rotary "
+                                       "axis in a block of its own");
+    }
+    if (next.motion == 80) return fail(kErrUnsupported, "axis words after G80 (no motion mode)");
+    b.move = true;
+    b.g = next.motion;
+    b.to = modal.position;
+    b.rotary_axis = st.rotary_letter;
+    b.rotary_to_deg = st.rotary_deg;
+    if (b.g == 1 && next.feed_mm_per_min <= 0.0) {
+      return fail(kErrUndefinedFeed, "G1 without a feed: give F in deg/min");
+    }
+    b.feed_mm_per_min = b.g == 1 ? next.feed_mm_per_min : rapid_mm_per_min;
+    b.duration_s = std::abs(st.rotary_deg - modal.rotary_deg) / (b.feed_mm_per_min / 60.0);
+    next.rotary_axis = st.rotary_letter;
+    next.rotary_deg = st.rotary_deg;
+  } else if (dwell) {
     if (motion || has_axis) return fail(kErrModalGroup, "G4 with a motion in the same block");
     if (!p_word) return fail(kErrMissingValue, "G4 needs P, the dwell in seconds");
     b.duration_s = *p_word;

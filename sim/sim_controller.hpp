@@ -145,6 +145,10 @@ struct SimModal {
   int motion = 0;                                 // 0 (G0), 1 (G1) or 80 (G80: none)
   double feed_mm_per_min = 0.0;                   // 0: not yet set
   int spindle = 5;                                // 3, 4 (turning) or 5 (stopped)
+  // The rotary index axis ('A' or 'B', the first of the two a block names; 0: none yet) and its
+  // angle, degrees (0 at power-up, as LinuxCNC's and ncd's interpreters start).
+  char rotary_axis = 0;
+  double rotary_deg = 0.0;
 };
 
 struct SimBlock {
@@ -168,6 +172,10 @@ struct SimBlock {
   bool feed_move = false;             // G1 G2 G3: the spindle must turn (not probes)
   bool probe_must_touch = false;      // grbl G38.2/G38.4: no contact in a simulation, ALARM:5
   double path_mm = 0.0;               // length of the move (arcs: the helix)
+  // An index of the rotary axis (A or B alone, X, Y, Z standing still): its axis and end angle;
+  // it turns at the feed (degrees per minute) or, for G0, at the rapid rate taken as deg/min.
+  char rotary_axis = 0;
+  std::optional<double> rotary_to_deg;
 };
 
 struct SimParse {
@@ -188,8 +196,10 @@ struct SimMove {
   double feed_mm_per_min = 0.0;
   int g = 1;
   std::optional<long> n;
-  double t_s = 0.0;  // when the move ended, seconds since the controller started
-  long seq = 0;      // the block (1-based, blocks accepted), as in SimExecuted and SimEvent
+  double t_s = 0.0;      // when the move ended, seconds since the controller started
+  long seq = 0;          // the block (1-based, blocks accepted), as in SimExecuted and SimEvent
+  char rotary_axis = 0;  // an index: 'A' or 'B'
+  std::optional<double> rotary_deg;  // and the angle it ended at, degrees
 };
 
 struct SimAlarm {

@@ -125,8 +125,8 @@ void SimController::Impl::finish(double t) {
   if (current.move) {
     log.path_length_mm += current.path_mm > 0.0 ? current.path_mm : distance(position, current.to);
     position = current.to;
-    log.moves.push_back(
-        {current.to, current.feed_mm_per_min, current.g, current.n, t, current_seq});
+    log.moves.push_back({current.to, current.feed_mm_per_min, current.g, current.n, t, current_seq,
+                         current.rotary_axis, current.rotary_to_deg});
   }
   if (current.program_end) end_executed(t);
 }

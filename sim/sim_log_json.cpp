@@ -12,7 +12,8 @@ Json optional_json(const std::optional<long>& v) {
   return v ? Json(*v) : Json(nullptr);
 }
 
-// The moves executed, each with its end point, feed, G code, N and time.
+// The moves executed, each with its end point, feed, G code, N and time; an index of the
+// rotary axis with its axis and angle too.
 Json moves_json(const SimLog& l) {
   Json moves = Json::array();
   for (const SimMove& m : l.moves) {
@@ -22,6 +23,10 @@ Json moves_json(const SimLog& l) {
                      {"n", optional_json(m.n)},
                      {"t_s", m.t_s},
                      {"seq", m.seq}});
+    if (m.rotary_deg) {  // an index: the axis and the angle it ended at (feed: deg/min)
+      moves.back()["rotary_axis"] = std::string(1, m.rotary_axis);
+      moves.back()["rotary_deg"] = *m.rotary_deg;
+    }
   }
   return moves;
 }

@@ -44,13 +44,14 @@ const char* to_string(Dialect d) {
 
 const DialectRules& rules(Dialect d) {
   // Fields: percent, N, EOB, line length, ( ) comments, ; comments, expressions, O-words,
-  // M6, G64, G43 H.
-  static const DialectRules iso{true, true, "\n", 0, true, false, false, false, true, true, true};
-  static const DialectRules grbl{false, false, "\n",  kGrblKeptChars, true, true,
-                                 false, false, false, false,          false};
+  // M6, G64, G43 H, a rotary axis word.
+  static const DialectRules iso{true,  true,  "\n", 0,    true, false,
+                                false, false, true, true, true, true};
+  static const DialectRules grbl{false, false, "\n",  kGrblKeptChars, true,  true,
+                                 false, false, false, false,          false, false};
   // LinuxCNC reads N numbers but needs none; `%` framing keeps rs274 from warning.
   static const DialectRules linuxcnc{true, false, "\n", 0,    true, true,
-                                     true, true,  true, true, true};
+                                     true, true,  true, true, true, true};
   switch (d) {
     case Dialect::iso:
       return iso;

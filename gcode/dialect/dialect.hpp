@@ -40,6 +40,9 @@ struct DialectRules {
   // G43 H n: the controller adds tool n's length from its own tool table (grbl has no table,
   // only G43.1 Z<length>, and loses it at reset).
   bool length_offsets = true;
+  // A fourth, rotary axis word (A or B) on the controller: stock grbl 1.1 has three axes
+  // (grblHAL built with A or B has four: the machine file's [encoder] rotary_words = true).
+  bool rotary_axis = true;
 };
 const DialectRules& rules(Dialect dialect);
 

@@ -50,12 +50,7 @@ void Interpreter::check_block(const Block& b) {
     }
     slot = c;
   }
-  for (const char c : {'a', 'b', 'c', 'u', 'v', 'w'}) {
-    if (b.has(c) && b.v(c) != 0.0) {
-      fail(std::string(1, static_cast<char>(std::toupper(c))) + text::sig(b.v(c)) +
-           ": axes other than X, Y, Z are not supported; ncd drives three axes: remove the word");
-    }
-  }
+  check_rotary_words(b);
   if (b.has('e')) fail("E word is not supported (it belongs to G76/M66); remove it");
   if (b.has('d') && !b.has_g(410) && !b.has_g(420) && !b.has_g(411) && !b.has_g(421)) {
     fail("D" + text::sig(b.v('d')) +
@@ -398,6 +393,7 @@ void Interpreter::set_distance_and_retract_modes(const Block& b) {
 // 19. non-modal codes (G10, G28, G30, G92 …); true when they took the block's axis words.
 bool Interpreter::execute_non_modal(const Block& b, int nonmodal) {
   bool axes_used = b.has_g(431);
+  if (nonmodal >= 0) refuse_rotary_with(b, nonmodal);
   if (nonmodal == 100 || nonmodal == 280 || nonmodal == 300 || nonmodal == 281 || nonmodal == 301 ||
       (nonmodal >= 920 && nonmodal <= 923)) {
     refuse_with_comp("use " + g_name(nonmodal));
@@ -444,7 +440,7 @@ bool Interpreter::execute_non_modal(const Block& b, int nonmodal) {
 // 20. motion: the block's motion word, or the modal motion for bare axis words.
 void Interpreter::execute_motion(Block& b, int motion_word, bool axes_used) {
   const bool g53 = b.has_g(530);
-  const bool axis_words = b.has_xyz_or_polar();
+  const bool axis_words = b.has_xyz_or_polar() || rotary_word(b);
   if (motion_word >= 0) {
     if (motion_word == 800) {
       if (axis_words && !axes_used)

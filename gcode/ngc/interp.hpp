@@ -268,6 +268,14 @@ class Interpreter {
   void check_polar(const Block& b, int motion, int nonmodal) const;
   void motion(Block& b, int code, bool g53);
   void require_feed(const Block& b, const char* what);
+  // ---- rotary.cpp: the rotary index axis (docs/ngc-interpreter.md, "Rotary index axis") -------
+  bool rotary_word(const Block& b) const;
+  double rot_offset_deg() const;
+  double rotary_target_deg(const Block& b, bool g53) const;
+  bool index_rotary(const Block& b, int code, bool g53, const Vec3& xyz_target);
+  void refuse_rotary_with(const Block& b, int code);
+  void check_rotary_words(const Block& b) const;
+  void check_rotary_home(int base) const;
   void arc(Block& b, int code);
 
   // ---- cycles.cpp: canned cycles (LinuxCNC's convert_cycle_xy and its plane variants) -----------
@@ -364,6 +372,10 @@ class Interpreter {
   bool diameter_mode_ = false;             // G7: X words are diameters (G8, radius: default)
   bool arc_not_allowed_ = false;           // right after G40 ended a compensated path
   std::optional<Vec3> start_override_mm_;  // where the tool stands after G40
+  // The rotary index axis (opt_.rotary_axis): where it stands, machine degrees (0 at the start,
+  // as rs274), and whether an absolute word has set it (an incremental index needs that).
+  double rot_deg_ = 0.0;
+  bool rot_known_ = false;
 };
 
 }  // namespace ncd::toolpath::ngc

@@ -31,6 +31,7 @@ Program Interpreter::run(const std::string& text, const std::string& name) {
   f.text = text;
   split_lines(f);
   program_.files.push_back(name);
+  program_.rotary_axis = opt_.rotary_axis;
   scan_subs(0);
   coord_sys_ = std::clamp(static_cast<int>(std::lround(params_[5220])), 1, 9);
   g92_ = params_[5210] != 0.0 ? Vec3(param_len(5211), param_len(5212), param_len(5213))

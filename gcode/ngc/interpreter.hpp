@@ -34,6 +34,9 @@ struct InterpretOptions {
   // the machine is taken to stand at its origin but no axis is known until the program moves it
   // there, and a feed move before that is refused.
   std::optional<Vec3> start_machine_mm;
+  // The machine's rotary index axis (the machine file's [axis.a] or [axis.b]): 'a', 'b', or 0
+  // for none. Its words are degrees; a program that turns another axis is refused.
+  char rotary_axis = 0;
 };
 
 // Interprets a whole program; `name` (a file name) prefixes every error message and becomes

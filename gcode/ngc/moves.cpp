@@ -181,12 +181,18 @@ void Interpreter::motion(Block& b, int code, bool g53) {
         "the move just after turning cutter compensation off (G40) must be straight, not an arc "
         "(as in LinuxCNC); program a G1 exit move first");
   }
+  if (code != 0 && code != 10) refuse_rotary_with(b, code);
   switch (code) {
     case 0:
     case 10: {
       arc_not_allowed_ = false;
       if (code == 10) require_feed(b, "G1");
       const Vec3 t = target(b, g53);
+      motion_mode_ = code;
+      if (index_rotary(b, code, g53, t)) {  // the part turns, X, Y, Z stand still
+        settle_known();
+        return;
+      }
       line_to(t, code == 0);
       motion_mode_ = code;
       return;

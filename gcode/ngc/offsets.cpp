@@ -37,6 +37,7 @@ void Interpreter::g10(const Block& b) {
 // (or a work offset at the part) a rapid there runs into the part.
 void Interpreter::home(const Block& b, int base) {
   const bool any = b.has('x') || b.has('y') || b.has('z');
+  if (!any) check_rotary_home(base);
   for (int a = 0; a < 3; ++a) {
     if ((any && !b.has(static_cast<char>('x' + a))) ||
         param_given_[static_cast<std::size_t>(base + a)]) {

@@ -23,6 +23,10 @@
 // runs it. WalkedPathRs274.Summary walks the samples again and prints the counts and the reasons
 // (in the Release suite; under ASan the walks of the tests above are enough).
 //
+// The rotary index axis (docs/planner.md §3g): a sample that turns A or B (kRotaryAxis) gets a
+// machine file declaring that axis; its setpoints' rotary column, at the periods outside an
+// index, must take rs274's A or B values in the order rs274 moves to them (4 decimals).
+//
 // The start: rs274 starts at machine 0,0,0; ncd is given `--start 0,0,0` (kStartFlag; false
 // gives it a zero-length `G53 G0 X0 Y0 Z0` line in a temporary copy of the program instead,
 // after a leading %).
@@ -75,6 +79,10 @@ constexpr const char* kToolTable =
     "T15 P15 Z-1.5042 D0.55\nT20 P20 Z2 D1\n";
 constexpr const char* kVarFile =
     "5161 1.0\n5162 2.0\n5163 3.0\n5181 -1.0\n5182 -2.0\n5183 0.5\n5220 1.0\n";
+
+// LinuxCNC's samples that turn a rotary axis, and which: b-index indexes B between moves (it
+// walks); daisy turns A with X, Y, Z on every line (refused: ncd only indexes).
+const std::map<std::string, char> kRotaryAxis = {{"b-index.ngc", 'b'}, {"daisy.ngc", 'a'}};
 
 std::vector<fs::path> programs() {
   std::vector<fs::path> out;
@@ -149,7 +157,8 @@ double distance(const V3& p, const Piece& c) {
 
 struct Canonical {
   std::vector<Piece> pieces;
-  std::string not_comparable;  // why the path cannot be compared, if so
+  std::vector<double> a_deg, b_deg;  // each straight move's A and B, as printed
+  std::string not_comparable;        // why the path cannot be compared, if so
 };
 
 std::vector<double> numbers(const std::string& args) {
@@ -251,6 +260,10 @@ Canonical canonical_path(const std::string& text) {
     const double slack = std::sqrt(3.0) * (5e-5 * unit + 5e-7) + 1e-6;
     m.slack_mm = slack;
     m.tolerance_mm = (exact ? 0.0 : std::max(p_mm, q_mm)) + slack;
+    if (line_move && v.size() >= 6) {
+      c.a_deg.push_back(v[3]);
+      c.b_deg.push_back(v[4]);
+    }
     if (line_move && v.size() >= 3) {
       m.end = machine({v[0], v[1], v[2]});
       m.length_mm = norm(m.end - m.start);
@@ -409,7 +422,7 @@ const std::map<std::string, std::string> kSubroutineCalls = {
 class Workspace {
  public:
   // `caller`: the text of a program that calls `program` (a subroutine file), run instead.
-  explicit Workspace(const fs::path& program, const std::string& caller = {})
+  explicit Workspace(const fs::path& program, const std::string& caller = {}, char rotary = 0)
       : program_(program), subs_(program.parent_path()) {
     dir_ = fs::temp_directory_path() /
            ("ncd_walked_" + std::to_string(getpid()) + "_" + program.stem().string());
@@ -425,6 +438,8 @@ class Workspace {
         << "[program]\nmachine_units = \"inch\"\ntool_table = \"" << (dir_ / "tool.tbl").string()
         << "\"\nparameter_file = \"" << (dir_ / "ncd.var").string() << "\"\nsubroutine_path = [\""
         << subs_.string() << "\"]\n";
+    if (rotary != 0)
+      std::ofstream(dir_ / "machine.toml", std::ios::app) << "[axis." << rotary << "]\n";
   }
   ~Workspace() {
     std::error_code ec;
@@ -505,7 +520,7 @@ std::string first_line(const std::string& s) {
   return s.substr(0, s.find('\n'));
 }
 
-std::vector<V3> read_setpoints(const fs::path& csv) {
+std::vector<V3> read_setpoints(const fs::path& csv, std::vector<double>* rotary_at_rest = nullptr) {
   std::vector<V3> sp{{0.0, 0.0, 0.0}};  // the start, where the first period begins
   std::istringstream in(slurp(csv));
   std::string l;
@@ -514,15 +529,34 @@ std::vector<V3> read_setpoints(const fs::path& csv) {
     V3 p{};
     double t = 0.0;
     if (std::sscanf(l.c_str(), "%lf,%lf,%lf,%lf", &t, &p[0], &p[1], &p[2]) == 4) sp.push_back(p);
+    // The rotary column (last) of the periods outside an index.
+    const std::size_t comma = l.rfind(',');
+    if (rotary_at_rest && l.find(",rotary_index,") == std::string::npos &&
+        comma != std::string::npos) {
+      rotary_at_rest->push_back(std::atof(l.c_str() + comma + 1));
+    }
   }
   return sp;
+}
+
+// Consecutive repeats out (within the 4 decimals rs274 prints).
+std::vector<double> distinct_in_order(const std::vector<double>& v) {
+  std::vector<double> out;
+  for (const double x : v) {
+    if (out.empty() || std::abs(out.back() - x) > 6e-5) out.push_back(x);
+  }
+  return out;
 }
 
 Outcome walk_and_compare(const fs::path& program) {
   const auto call = program.parent_path() == kSamples
                         ? kSubroutineCalls.find(program.filename().string())
                         : kSubroutineCalls.end();
-  Workspace run(program, call != kSubroutineCalls.end() ? call->second : std::string());
+  const auto rotary = program.parent_path() == kSamples
+                          ? kRotaryAxis.find(program.filename().string())
+                          : kRotaryAxis.end();
+  const char axis = rotary != kRotaryAxis.end() ? rotary->second : 0;
+  Workspace run(program, call != kSubroutineCalls.end() ? call->second : std::string(), axis);
   std::string why;
   const std::optional<std::string> canon = run.rs274(why);
   if (!canon) return {Kind::rs274_refuses, why};
@@ -536,7 +570,8 @@ Outcome walk_and_compare(const fs::path& program) {
               err);
   if (status == 2) return {Kind::refused, first_line(err)};
   if (status != 0) return {Kind::differs, "ncd replay exit " + std::to_string(status) + ": " + err};
-  const std::vector<V3> sp = read_setpoints(csv);
+  std::vector<double> rotary_at_rest;
+  const std::vector<V3> sp = read_setpoints(csv, axis != 0 ? &rotary_at_rest : nullptr);
   if (path.pieces.empty()) {  // rs274 moves nowhere: neither may ncd
     const bool still =
         std::all_of(sp.begin(), sp.end(), [](const V3& p) { return norm(p) < 1e-6; });
@@ -546,6 +581,23 @@ Outcome walk_and_compare(const fs::path& program) {
   Verdict v;
   check_setpoints(path.pieces, sp, v);
   check_end_points(path.pieces, sp, v);
+  if (axis != 0) {                     // the rotary axis rests at rs274's angles, in its order
+    std::vector<double> want = {0.0};  // both start at 0
+    for (const double x : axis == 'a' ? path.a_deg : path.b_deg) want.push_back(x);
+    want = distinct_in_order(want);
+    const std::vector<double> have = distinct_in_order(rotary_at_rest);
+    bool same = want.size() == have.size();
+    for (std::size_t i = 0; same && i < want.size(); ++i)
+      same = std::abs(want[i] - have[i]) <= 6e-5;
+    if (!same) {
+      std::ostringstream r;
+      r << "the rotary axis rests at";
+      for (const double x : have) r << " " << x;
+      r << ", rs274 at";
+      for (const double x : want) r << " " << x;
+      v.breaches.push_back(r.str());
+    }
+  }
   std::ostringstream s;
   if (call != kSubroutineCalls.end()) s << "a subroutine file, run through a caller: ";
   s << path.pieces.size() << " moves, " << sp.size() << " setpoints, farthest " << v.worst_mm

@@ -269,7 +269,9 @@ TEST(GcodeReader, RejectsUnsupportedAndMalformedInputWithLineNumbers) {
                "test.ngc:4:", "entry move is not longer than the tool radius");
   expect_error(start + "G33 Z-1 K1\n", "test.ngc:4:", "G33 (spindle-synchronised motion");
   expect_error(start + "G38.2 Z-1\n", "test.ngc:4:", "G38.2 (probing)");
-  expect_error(start + "G1 A1\n", "test.ngc:4:", "A1: axes other than X, Y, Z");
+  expect_error(
+      start + "G1 A1\n", "test.ngc:4:",
+      "A1: the machine has no A axis (rotary about X); if it has one, declare it with an [axis.a]");
   expect_error(start + "M101\n", "test.ngc:4:", "M101 (user M code)");
   expect_error(start + "G86 R1 Z-1\n", "test.ngc:4:", "G86 (tapping/boring cycle");
   expect_error(start + "T1 M6\n", "test.ngc:4:", "tool T1 is not in the tool table");
