@@ -84,8 +84,8 @@ TEST(AxisLimitsConfig, BadValuesNameTheTableTheKeyTheValueTheRangeAndAWayOut) {
              {"axis.z.max_feed_mm_per_min", "nan"});
   expect_all(error_of("[axis.z]\nmax_feed_mm_per_min = \"fast\"\n"),
              {"axis.z.max_feed_mm_per_min must be a number"});
-  expect_all(error_of("[axis.a]\nmax_feed_mm_per_min = 100\n"),
-             {"[axis.a]", "[axis.x], [axis.y] and [axis.z]"});
+  expect_all(error_of("[axis.w]\nmax_feed_mm_per_min = 100\n"),
+             {"[axis.w]", "[axis.x], [axis.y], [axis.z] and one rotary"});
   expect_all(error_of("[axis.z]\nmax_speed = 100\n"),
              {"unknown key m.toml: axis.z.max_speed", "max_feed_mm_per_min, max_accel_mm_per_s2"});
   expect_all(error_of("axis = 5\n"), {"m.toml: axis", "[axis.x]"});

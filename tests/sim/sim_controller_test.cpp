@@ -357,6 +357,25 @@ TEST(SimBlockParse, WordsModalStateAndTimes) {
   EXPECT_EQ(parse_sim_block("(only a comment)", m, 5000).error, 0);
 }
 
+// The rotary index axis (docs/cmd-sim-controller.md): A alone on a G0 turns it at the rapid rate
+// read as deg/min, X, Y, Z staying; the modal angle follows; the other axis is then refused.
+TEST(SimBlockParse, RotaryIndexAloneOnItsBlock) {
+  SimModal m;
+  m.position = {1.0, 2.0, 3.0};
+  const SimParse p = parse_sim_block("G0 A90", m, 3600);
+  ASSERT_EQ(p.error, 0) << p.message;
+  EXPECT_TRUE(p.block.move);
+  EXPECT_EQ(p.block.to, (std::array<double, 3>{1.0, 2.0, 3.0}));
+  EXPECT_EQ(p.block.rotary_axis, 'A');
+  EXPECT_EQ(p.block.rotary_to_deg, 90.0);
+  EXPECT_DOUBLE_EQ(p.block.duration_s, 90.0 / 60.0);  // 90 degrees at 3600 deg/min
+  EXPECT_EQ(m.rotary_deg, 90.0);
+  const SimParse back = parse_sim_block("G1 A45 F900", m, 3600);
+  ASSERT_EQ(back.error, 0) << back.message;
+  EXPECT_DOUBLE_EQ(back.block.duration_s, 45.0 / 15.0);  // 45 degrees at 900 deg/min
+  EXPECT_EQ(parse_sim_block("G0 B10", m, 3600).error, kErrUnsupported);
+}
+
 TEST(SimBlockParse, GrblErrorCodes) {
   const std::vector<std::pair<std::string, int>> cases = {{"G1 X1", kErrUndefinedFeed},
                                                           {"G91 X1", kErrUnsupported},
@@ -372,7 +391,9 @@ TEST(SimBlockParse, GrblErrorCodes) {
                                                           {"#1=2", kErrExpectedLetter},
                                                           {"G4", kErrMissingValue},
                                                           {"N123456789 G0 X1", kErrBadLineNumber},
-                                                          {"G0 A1", kErrUnsupported},
+                                                          {"G0 C1", kErrUnsupported},
+                                                          {"G0 X1 A1", kErrUnsupported},
+                                                          {"G0 A1 B1", kErrUnsupported},
                                                           {"G5.2 X1", kErrUnsupported},
                                                           {"P5", kErrUnsupported}};
   for (const auto& [text, code] : cases) {
