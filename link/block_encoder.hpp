@@ -73,10 +73,9 @@ struct EncoderSettings {
   bool length_offsets = true;
   // The rotary index axis the setpoints may turn ('a', 'b'; 0: none; the machine file's
   // [axis.a] or [axis.b], docs/planner.md §3g) and whether the controller takes its word: the
-  // dialect's (grbl: no), unless the machine file's [encoder] rotary_words says (grblHAL).
+  // dialect's (iso, linuxcnc: yes; grbl: no).
   char rotary_axis = 0;
   bool rotary_words = true;
-  std::optional<bool> rotary_words_wanted;
 };
 
 // The controller dialect's rules (gcode/dialect/dialect.hpp, the one place for them) as the

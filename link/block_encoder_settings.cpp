@@ -20,7 +20,7 @@ void apply_dialect(EncoderSettings& settings, Dialect dialect) {
   settings.comments = r.paren_comments;
   settings.path_blending = r.path_blending;
   settings.length_offsets = r.length_offsets;
-  settings.rotary_words = settings.rotary_words_wanted.value_or(r.rotary_axis);
+  settings.rotary_words = r.rotary_axis;
   if (r.max_line_chars > 0) settings.max_comment_chars = static_cast<std::size_t>(r.max_line_chars);
 }
 
@@ -40,8 +40,8 @@ std::string rotary_refusal(const EncoderSettings& s, char axis) {
            ", but the controller's dialect has no rotary axis (stock grbl 1.1 drives X, Y, Z "
            "only and answers error:20 to an " +
            w +
-           " word); a grblHAL built with that axis takes it: set rotary_words = true in the "
-           "machine file's [encoder] table";
+           " word); stream it to a controller of the linuxcnc or iso dialect ([link] dialect); "
+           "ncd does not drive a grblHAL's fourth axis";
   }
   return {};
 }

@@ -179,17 +179,13 @@ void parse_encoder(const toml::value& table, const std::string& name, comms::Enc
       if (!v.is_boolean()) throw InputError(where + " must be true or false");
       e.numbers_wanted = v.as_boolean();
       e.numbers = v.as_boolean();
-    } else if (key == "rotary_words") {
-      if (!v.is_boolean()) throw InputError(where + " must be true or false");
-      e.rotary_words_wanted = v.as_boolean();
-      e.rotary_words = v.as_boolean();
     } else if (key == "max_setpoints_per_block") {
       e.max_setpoints_per_block = static_cast<std::size_t>(as_int_in(v, where, 2, 1 << 20));
     } else {
       throw InputError("unknown key " + where +
                        "; [encoder] takes chord_tolerance_mm, feed_band, link_margin, decimals, "
                        "feed_decimals, time_tolerance_s, number_start, number_step, numbers, "
-                       "max_setpoints_per_block, max_block_s, rotary_words");
+                       "max_setpoints_per_block, max_block_s");
     }
   }
 }

@@ -41,7 +41,7 @@ struct DialectRules {
   // only G43.1 Z<length>, and loses it at reset).
   bool length_offsets = true;
   // A fourth, rotary axis word (A or B) on the controller: stock grbl 1.1 has three axes
-  // (grblHAL built with A or B has four: the machine file's [encoder] rotary_words = true).
+  // (a grblHAL built with A or B has four; ncd does not drive it).
   bool rotary_axis = true;
 };
 const DialectRules& rules(Dialect dialect);
