@@ -48,18 +48,21 @@ toolpath::ProgramPoint programmed_point(const ChamferArgs& a) {
   return m.tool.programmed_point;
 }
 
+// `ncd chamfer --part FILE`: every hole of a part (app/chamfer_part.cpp).
+int run_part(const ChamferArgs& a) {
+  PartArgs p;
+  p.part = a.part;
+  p.machine = a.machine;
+  p.point = a.point;
+  if (a.format_option->count() > 0) p.format = a.format;
+  p.output = a.output;
+  p.plot = a.plot;
+  p.quiet = a.quiet;
+  return run_chamfer_part(p);
+}
+
 int run_chamfer(const ChamferArgs& a) {
-  if (!a.part.empty()) {
-    PartArgs p;
-    p.part = a.part;
-    p.machine = a.machine;
-    p.point = a.point;
-    if (a.format_option->count() > 0) p.format = a.format;
-    p.output = a.output;
-    p.plot = a.plot;
-    p.quiet = a.quiet;
-    return run_chamfer_part(p);
-  }
+  if (!a.part.empty()) return run_part(a);
   for (const CLI::Option* o : a.hole_required) {
     if (o->count() == 0) {
       throw InputError(o->get_name() +

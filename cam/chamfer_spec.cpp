@@ -275,6 +275,48 @@ std::string to_string(Side side) {
   return side == Side::Upper ? "upper" : "lower";
 }
 
+namespace {
+
+// The cutter's own limits: the rod and the non-knife cap within the hole, the tool axis.
+void validate_tool(const ChamferSpec& s) {
+  if (s.rod_radius_mm) {
+    require_positive("rod radius R_od (--rod-radius)", *s.rod_radius_mm);
+    if (*s.rod_radius_mm >= s.drill_radius_mm) {
+      throw InputError("rod radius R_od = " + text::sig(*s.rod_radius_mm) +
+                       " mm must be smaller than the drill radius r = " +
+                       text::sig(s.drill_radius_mm) + " mm, or the rod cannot enter the hole");
+    }
+  }
+  if (s.non_knife_angle_rad) {
+    const double two_beta = *s.non_knife_angle_rad;
+    if (!std::isfinite(two_beta) || two_beta <= 0.0 || two_beta >= kPi) {
+      throw InputError("non-knife angle 2β = " + fmt_deg(two_beta) +
+                       " must lie in (0°, 180°) (--non-knife-angle, degrees)");
+    }
+    if (s.ball_radius_mm * std::sin(0.5 * two_beta) >= s.drill_radius_mm) {
+      throw InputError("non-knife cap radius R_B sin β = " +
+                       text::sig(s.ball_radius_mm * std::sin(0.5 * two_beta)) +
+                       " mm reaches the drill radius r = " + text::sig(s.drill_radius_mm) + " mm");
+    }
+  }
+  if (s.tool_axis) {
+    const Vec3& a = *s.tool_axis;
+    if (!a.allFinite() || std::abs(a.norm() - 1.0) > 1e-9) {
+      throw InputError("the tool axis (" + text::sig(a.x()) + ", " + text::sig(a.y()) + ", " +
+                       text::sig(a.z()) + ") must be a finite unit vector in the drill frame");
+    }
+    if (s.edge == Edge::Inner && std::hypot(a.x(), a.y()) > 1e-12) {
+      throw InputError(
+          "an inner edge needs the tool along the drill axis (the rod check and the "
+          "approach through the hole assume it), but the tool axis is " +
+          fmt_deg(std::acos(std::min(1.0, std::abs(a.z())))) +
+          " from it; cut the hole with its drill axis vertical");
+    }
+  }
+}
+
+}  // namespace
+
 void validate(const ChamferSpec& s) {
   require_positive("pipe radius (--pipe-radius) " + text::sig(s.pipe_radius_mm) + " mm",
                    s.pipe_radius_mm);
@@ -336,40 +378,7 @@ void validate(const ChamferSpec& s) {
         " mm must be smaller than the drill radius r = " + text::sig(s.drill_radius_mm) +
         " mm to reach an inner edge through the hole; use a smaller --ball-radius");
   }
-  if (s.rod_radius_mm) {
-    require_positive("rod radius R_od (--rod-radius)", *s.rod_radius_mm);
-    if (*s.rod_radius_mm >= s.drill_radius_mm) {
-      throw InputError("rod radius R_od = " + text::sig(*s.rod_radius_mm) +
-                       " mm must be smaller than the drill radius r = " +
-                       text::sig(s.drill_radius_mm) + " mm, or the rod cannot enter the hole");
-    }
-  }
-  if (s.non_knife_angle_rad) {
-    const double two_beta = *s.non_knife_angle_rad;
-    if (!std::isfinite(two_beta) || two_beta <= 0.0 || two_beta >= kPi) {
-      throw InputError("non-knife angle 2β = " + fmt_deg(two_beta) +
-                       " must lie in (0°, 180°) (--non-knife-angle, degrees)");
-    }
-    if (s.ball_radius_mm * std::sin(0.5 * two_beta) >= s.drill_radius_mm) {
-      throw InputError("non-knife cap radius R_B sin β = " +
-                       text::sig(s.ball_radius_mm * std::sin(0.5 * two_beta)) +
-                       " mm reaches the drill radius r = " + text::sig(s.drill_radius_mm) + " mm");
-    }
-  }
-  if (s.tool_axis) {
-    const Vec3& a = *s.tool_axis;
-    if (!a.allFinite() || std::abs(a.norm() - 1.0) > 1e-9) {
-      throw InputError("the tool axis (" + text::sig(a.x()) + ", " + text::sig(a.y()) + ", " +
-                       text::sig(a.z()) + ") must be a finite unit vector in the drill frame");
-    }
-    if (s.edge == Edge::Inner && std::hypot(a.x(), a.y()) > 1e-12) {
-      throw InputError(
-          "an inner edge needs the tool along the drill axis (the rod check and the "
-          "approach through the hole assume it), but the tool axis is " +
-          fmt_deg(std::acos(std::min(1.0, std::abs(a.z())))) +
-          " from it; cut the hole with its drill axis vertical");
-    }
-  }
+  validate_tool(s);
   if (!paper_geometry) {
     check_pierces(s, pipe_surface(s, s.pipe_radius_mm), to_string(s.edge));
   }
