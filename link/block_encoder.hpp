@@ -282,6 +282,8 @@ class BlockEncoder {
   void emit_positioning(const motion::Setpoint& sp);
   // Closes the open block at its last setpoint (or drops a tail within the rounding).
   void close_open();
+  // The open block's text cleared to its N word (where numbered) and G0.
+  std::string& begin_rapid_block();
   // Hands a non-feed line in block_.text to the sink with its stats.
   void deliver_line(BlockClose kind, double duration_s, bool numbered);
   void check_line_length(const std::string& text) const;

@@ -59,6 +59,17 @@ void BlockEncoder::deliver_line(BlockClose kind, double duration_s, bool numbere
   sink_(b);
 }
 
+std::string& BlockEncoder::begin_rapid_block() {
+  std::string& t = block_.text;
+  t.clear();
+  if (settings_.numbers) {
+    t.push_back('N');
+    append_number(t, next_number_);
+  }
+  t += "G0";
+  return t;
+}
+
 void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm,
                          const std::array<bool, 3>& axes) {
   if (finished_) throw std::logic_error("BlockEncoder::rapid after finish()");
@@ -71,13 +82,7 @@ void BlockEncoder::rapid(const Vec3& end, double t_s, double s_mm,
   close_open();
   std::int64_t q[3];
   quantize(end, q);
-  std::string& t = block_.text;
-  t.clear();
-  if (settings_.numbers) {
-    t.push_back('N');
-    append_number(t, next_number_);
-  }
-  t += "G0";
+  std::string& t = begin_rapid_block();
   bool any = false;
   for (int a = 0; a < 3; ++a) {
     if (!axes[static_cast<std::size_t>(a)]) continue;
@@ -116,13 +121,7 @@ void BlockEncoder::index(char axis, double to_deg, double duration_s) {
   const double q = std::round(to_deg * scale_);  // degrees at the coordinates' decimals
   if (q == rotary_written_deg_) return;
   rotary_written_deg_ = q;
-  std::string& t = block_.text;
-  t.clear();
-  if (settings_.numbers) {
-    t.push_back('N');
-    append_number(t, next_number_);
-  }
-  t += "G0";
+  std::string& t = begin_rapid_block();
   t.push_back(static_cast<char>(std::toupper(axis)));
   append_fixed(t, static_cast<std::int64_t>(q), settings_.decimals);
   deliver_line(BlockClose::Words, duration_s, settings_.numbers);
