@@ -1255,9 +1255,19 @@ TEST(SimController, GrblResetDuringTheHoldAlarmsAfterItDoesNot) {
   for (int i = 0; i < 200; ++i) ASSERT_TRUE(run.step(*clock, 0.001));
   // `!` and 0x18 at once, as ncd did: the reset comes while the move decelerates.
   EXPECT_EQ(ask(std::string("!") + kGrblReset, "ALARM"), "ALARM:3");
-  peer.pump();
-  EXPECT_NE(std::find(peer.replies.begin(), peer.replies.end(), "[MSG:'$H'|'$X' to unlock]"),
-            peer.replies.end());
+  // The message follows ALARM:3 on the wire: wait for it (a loaded machine delivers it later).
+  const auto saw = [&](const std::string& line) {
+    const auto t0 = Clock::now();
+    while (since(t0) < 10.0) {
+      peer.pump();
+      if (std::find(peer.replies.begin(), peer.replies.end(), line) != peer.replies.end()) {
+        return true;
+      }
+      std::this_thread::sleep_for(1ms);
+    }
+    return false;
+  };
+  EXPECT_TRUE(saw("[MSG:'$H'|'$X' to unlock]"));
   EXPECT_EQ(wait_state("Alarm").substr(0, 7), "<Alarm|");
   EXPECT_EQ(ask("G1 X1 F600\n", "error"), "error:9");  // locked
   EXPECT_EQ(ask("$X\n", "[MSG"), "[MSG:Caution: Unlocked]");
