@@ -40,9 +40,9 @@ using ncd::fleet::MqttConfig;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-const std::string kRoot = "ncd/cell1/tls/";
+const std::string kTlsRoot = "ncd/cell1/tls/";
 
-using Host = ncd::test::BridgeHost;
+using TlsHost = ncd::test::BridgeHost;
 
 class FleetTls : public ::testing::Test {
  protected:
@@ -126,7 +126,7 @@ class FleetTls : public ::testing::Test {
     MqttConfig c;
     c.broker = scheme + "://127.0.0.1:" + std::to_string(port_);
     c.client_id = "ncd-cell1-tls";
-    c.topic_root = kRoot;
+    c.topic_root = kTlsRoot;
     c.status_hz = 20.0;
     c.reconnect_min_s = 0.1;
     c.reconnect_max_s = 0.4;
@@ -140,7 +140,7 @@ class FleetTls : public ::testing::Test {
 };
 
 TEST_F(FleetTls, WithTheBrokersCaTheBridgeConnectsAndItsStatusArrives) {
-  Host host(config("ssl", "ca.pem"));
+  TlsHost host(config("ssl", "ca.pem"));
   ASSERT_TRUE(host.wait_connected(true, 20.0)) << log();
   // A subscriber of the test over TLS, checking the broker's certificate against the same CA.
   mqtt::async_client watcher("ssl://127.0.0.1:" + std::to_string(port_), "watch-tls",
@@ -152,12 +152,12 @@ TEST_F(FleetTls, WithTheBrokersCaTheBridgeConnectsAndItsStatusArrives) {
                  .finalize();
   auto opts = mqtt::connect_options_builder().clean_session(true).ssl(ssl).finalize();
   ASSERT_TRUE(watcher.connect(opts)->wait_for(10s)) << log();
-  ASSERT_TRUE(watcher.subscribe(kRoot + "status", 0)->wait_for(10s));
+  ASSERT_TRUE(watcher.subscribe(kTlsRoot + "status", 0)->wait_for(10s));
   int status = 0;
   const auto end = std::chrono::steady_clock::now() + 20s;
   while (status < 3 && std::chrono::steady_clock::now() < end) {
     mqtt::const_message_ptr m;
-    if (watcher.try_consume_message_for(&m, 100ms) && m && m->get_topic() == kRoot + "status") {
+    if (watcher.try_consume_message_for(&m, 100ms) && m && m->get_topic() == kTlsRoot + "status") {
       EXPECT_EQ(json::parse(m->to_string())["state"], "idle");
       ++status;
     }
@@ -169,17 +169,17 @@ TEST_F(FleetTls, WithTheBrokersCaTheBridgeConnectsAndItsStatusArrives) {
 
 TEST_F(FleetTls, WithAnotherCaOrPlainTcpTheBridgeNeverConnects) {
   {
-    Host host(config("ssl", "other-ca.pem"));  // the broker's certificate is not trusted
+    TlsHost host(config("ssl", "other-ca.pem"));  // the broker's certificate is not trusted
     EXPECT_FALSE(host.wait_connected(true, 3.0));
     EXPECT_EQ(host.bridge().counters().connects, 0u);
   }
   {
-    Host host(config("tcp", ""));  // plain MQTT on the TLS port
+    TlsHost host(config("tcp", ""));  // plain MQTT on the TLS port
     EXPECT_FALSE(host.wait_connected(true, 3.0));
     EXPECT_EQ(host.bridge().counters().connects, 0u);
   }
   // The broker is still there for the right client: the refusals were the certificate's.
-  Host good(config("ssl", "ca.pem"));
+  TlsHost good(config("ssl", "ca.pem"));
   EXPECT_TRUE(good.wait_connected(true, 20.0)) << log();
 }
 
@@ -195,7 +195,7 @@ class FleetTlsClientCert : public FleetTls {
 };
 
 TEST_F(FleetTlsClientCert, WithACertificateOfTheBrokersCaTheBridgeConnectsAndPublishes) {
-  Host host(with_cert("m1"));
+  TlsHost host(with_cert("m1"));
   ASSERT_TRUE(host.wait_connected(true, 20.0)) << log();
   // A subscriber of the test, with the same client certificate (the broker asks everyone).
   mqtt::async_client watcher("ssl://127.0.0.1:" + std::to_string(port_), "watch-cert",
@@ -209,7 +209,7 @@ TEST_F(FleetTlsClientCert, WithACertificateOfTheBrokersCaTheBridgeConnectsAndPub
                  .finalize();
   auto opts = mqtt::connect_options_builder().clean_session(true).ssl(ssl).finalize();
   ASSERT_TRUE(watcher.connect(opts)->wait_for(10s)) << log();
-  ASSERT_TRUE(watcher.subscribe(kRoot + "#", 1)->wait_for(10s));
+  ASSERT_TRUE(watcher.subscribe(kTlsRoot + "#", 1)->wait_for(10s));
   ASSERT_TRUE(host.bridge().push_event(json{{"kind", "job"}, {"text", "started"}}));
   int status = 0;
   bool event = false;
@@ -217,10 +217,10 @@ TEST_F(FleetTlsClientCert, WithACertificateOfTheBrokersCaTheBridgeConnectsAndPub
   while ((status < 3 || !event) && std::chrono::steady_clock::now() < end) {
     mqtt::const_message_ptr m;
     if (!watcher.try_consume_message_for(&m, 100ms) || !m) continue;
-    if (m->get_topic() == kRoot + "status") {
+    if (m->get_topic() == kTlsRoot + "status") {
       EXPECT_EQ(json::parse(m->to_string())["state"], "idle");
       ++status;
-    } else if (m->get_topic() == kRoot + "events") {
+    } else if (m->get_topic() == kTlsRoot + "events") {
       EXPECT_EQ(json::parse(m->to_string())["text"], "started");
       event = true;
     }
@@ -235,7 +235,7 @@ TEST_F(FleetTlsClientCert, WithACertificateOfTheBrokersCaTheBridgeConnectsAndPub
 TEST_F(FleetTlsClientCert, WithoutACertificateOrWithAnotherCasTheBrokerRefusesAndTheBridgeGoesOn) {
   for (const std::string name : {"", "rogue"}) {
     SCOPED_TRACE(name.empty() ? "no client certificate" : "a certificate of another CA");
-    Host host(name.empty() ? config("ssl", "ca.pem") : with_cert(name));
+    TlsHost host(name.empty() ? config("ssl", "ca.pem") : with_cert(name));
     // Refused, and tried again with backoff (0.1 s doubled up to 0.4 s): at least two failed
     // attempts, none connected.
     const auto end = std::chrono::steady_clock::now() + 30s;
@@ -258,7 +258,7 @@ TEST_F(FleetTlsClientCert, WithoutACertificateOrWithAnotherCasTheBrokerRefusesAn
   }
   // The broker said why (OpenSSL's words in its log), and it still takes the right client.
   EXPECT_NE(log().find("certificate"), std::string::npos) << log();
-  Host good(with_cert("m1"));
+  TlsHost good(with_cert("m1"));
   EXPECT_TRUE(good.wait_connected(true, 20.0)) << log();
 }
 

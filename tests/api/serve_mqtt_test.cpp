@@ -30,7 +30,7 @@ using ncd::test::Watcher;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-const std::string kRoot = "ncd/cell1/m1/";
+const std::string kServeRoot = "ncd/cell1/m1/";
 const std::string kToken = "t0k-serve";
 
 // A line client on the control socket (Unix).
@@ -99,8 +99,8 @@ class ServeFleet : public ::testing::Test {
     std::ofstream(dir_ / "serve.toml")
         << "clock = \"wall\"\nrealtime = false\ntoken = \"" << kToken << "\"\n[mqtt]\n"
         << "broker = \"" << broker_->url() << "\"\nusername = \"" << ncd::test::kMachine.name
-        << "\"\npassword = \"" << ncd::test::kMachine.password << "\"\ntopic_root = \"" << kRoot
-        << "\"\nstatus_hz = 10\nreconnect_min_s = 0.1\nreconnect_max_s = 0.5\n";
+        << "\"\npassword = \"" << ncd::test::kMachine.password << "\"\ntopic_root = \""
+        << kServeRoot << "\"\nstatus_hz = 10\nreconnect_min_s = 0.1\nreconnect_max_s = 0.5\n";
     pid_ = fork();
     if (pid_ == 0) {
       const std::string err = (dir_ / "serve.err").string();
@@ -150,10 +150,10 @@ const char* kLongCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0
 
 TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
   Watcher ops(broker_->url(), "ops-serve", ncd::test::kOperator,
-              {kRoot + "reply", kRoot + "state", kRoot + "online"});
+              {kServeRoot + "reply", kServeRoot + "state", kServeRoot + "online"});
   launch();
-  const json online =
-      wait_message(ops, kRoot + "online", [](const json& p) { return p.value("online", false); });
+  const json online = wait_message(ops, kServeRoot + "online",
+                                   [](const json& p) { return p.value("online", false); });
   ASSERT_EQ(online.value("online", false), true) << serve_log();
   std::ofstream(dir_ / "long.json") << kLongCubic;
   SocketClient c(socket_);
@@ -161,42 +161,43 @@ TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
   ASSERT_TRUE(r.value("ok", false)) << r.dump();
   ASSERT_TRUE(c.request({{"cmd", "start"}}).value("ok", false));
   wait_state(c, "running");
-  EXPECT_FALSE(wait_message(ops, kRoot + "state", [](const json& p) {
+  EXPECT_FALSE(wait_message(ops, kServeRoot + "state", [](const json& p) {
                  return p["state"] == "running";
                }).is_null());
 
-  ops.publish(kRoot + "cmd", {{"cmd", "hold"}, {"token", kToken}, {"id", "h1"}});
-  const json held =
-      wait_message(ops, kRoot + "reply", [](const json& p) { return p.value("id", "") == "h1"; });
+  ops.publish(kServeRoot + "cmd", {{"cmd", "hold"}, {"token", kToken}, {"id", "h1"}});
+  const json held = wait_message(ops, kServeRoot + "reply",
+                                 [](const json& p) { return p.value("id", "") == "h1"; });
   ASSERT_TRUE(held.value("ok", false)) << held.dump();
   wait_state(c, "holding");  // seen on the socket
-  EXPECT_FALSE(wait_message(ops, kRoot + "state", [](const json& p) {
+  EXPECT_FALSE(wait_message(ops, kServeRoot + "state", [](const json& p) {
                  return p["state"] == "holding";
                }).is_null());
   // At rest under the hold, the status on MQTT carries the socket's feed limit (mm/min).
-  Watcher screen(broker_->url(), "screen-serve", ncd::test::kOperator, {kRoot + "status"});
-  const json at_rest = wait_message(screen, kRoot + "status", [](const json& p) {
+  Watcher screen(broker_->url(), "screen-serve", ncd::test::kOperator, {kServeRoot + "status"});
+  const json at_rest = wait_message(screen, kServeRoot + "status", [](const json& p) {
     return p["state"] == "holding" && p["feed_mm_per_min"] == 0.0 &&
            p["feed_limit_mm_per_min"].is_number();
   });
-  ASSERT_FALSE(at_rest.is_null()) << "no status at rest under the hold on " << kRoot << "status";
+  ASSERT_FALSE(at_rest.is_null()) << "no status at rest under the hold on " << kServeRoot
+                                  << "status";
   const json socket_status = c.request({{"cmd", "status"}});
   EXPECT_EQ(at_rest["feed_limit_mm_per_min"], socket_status["feed_limit_mm_per_min"])
       << socket_status.dump();
   EXPECT_GT(at_rest["feed_limit_mm_per_min"].get<double>(), 0.0);
 
   // The socket's token check: a wrong token is refused and changes nothing.
-  ops.publish(kRoot + "cmd", {{"cmd", "resume"}, {"token", "wrong"}, {"id", "r1"}});
-  const json refused =
-      wait_message(ops, kRoot + "reply", [](const json& p) { return p.value("id", "") == "r1"; });
+  ops.publish(kServeRoot + "cmd", {{"cmd", "resume"}, {"token", "wrong"}, {"id", "r1"}});
+  const json refused = wait_message(ops, kServeRoot + "reply",
+                                    [](const json& p) { return p.value("id", "") == "r1"; });
   EXPECT_EQ(refused.value("ok", true), false) << refused.dump();
   EXPECT_NE(refused.value("error", "").find("token"), std::string::npos) << refused.dump();
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(c.request({{"cmd", "status"}})["state"], "holding");
 
-  ops.publish(kRoot + "cmd", {{"cmd", "stop"}, {"token", kToken}, {"id", "s1"}});
-  const json stopped =
-      wait_message(ops, kRoot + "reply", [](const json& p) { return p.value("id", "") == "s1"; });
+  ops.publish(kServeRoot + "cmd", {{"cmd", "stop"}, {"token", kToken}, {"id", "s1"}});
+  const json stopped = wait_message(ops, kServeRoot + "reply",
+                                    [](const json& p) { return p.value("id", "") == "s1"; });
   EXPECT_TRUE(stopped.value("ok", false)) << stopped.dump();
 
   // SIGTERM: the service says it goes offline (retained), then exits 0.
@@ -205,7 +206,7 @@ TEST_F(ServeFleet, ACommandOverMqttHoldsTheRunningJob) {
   ::waitpid(pid_, &status, 0);
   pid_ = -1;
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << serve_log();
-  Watcher late(broker_->url(), "ops-late", ncd::test::kOperator, {kRoot + "online"});
+  Watcher late(broker_->url(), "ops-late", ncd::test::kOperator, {kServeRoot + "online"});
   const auto m = late.next(10);
   ASSERT_TRUE(m);
   EXPECT_TRUE(m->is_retained());
@@ -223,12 +224,12 @@ const char* kMediumCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5
 // event whose holder is the operator.
 TEST_F(ServeFleet, AJobsEventsArriveInOrderWithConsecutiveSeq) {
   Watcher ops(broker_->url(), "ops-events", ncd::test::kOperator,
-              {kRoot + "events", kRoot + "reply", kRoot + "online"});
+              {kServeRoot + "events", kServeRoot + "reply", kServeRoot + "online"});
   launch();
-  ASSERT_EQ(
-      wait_message(ops, kRoot + "online", [](const json& p) { return p.value("online", false); })
-          .value("online", false),
-      true)
+  ASSERT_EQ(wait_message(ops, kServeRoot + "online",
+                         [](const json& p) { return p.value("online", false); })
+                .value("online", false),
+            true)
       << serve_log();
   const std::string file = (dir_ / "medium.json").string();
   std::ofstream(file) << kMediumCubic;
@@ -247,15 +248,15 @@ TEST_F(ServeFleet, AJobsEventsArriveInOrderWithConsecutiveSeq) {
     auto m = ops.next(0.2);
     if (!m) continue;
     const json e = json::parse(m->to_string());
-    if (m->get_topic() == kRoot + "reply" && e.value("id", "") == "h1") hold_reply = e;
-    if (m->get_topic() != kRoot + "events") continue;
+    if (m->get_topic() == kServeRoot + "reply" && e.value("id", "") == "h1") hold_reply = e;
+    if (m->get_topic() != kServeRoot + "events") continue;
     const std::uint64_t seq = e.at("seq").get<std::uint64_t>();
     if (seq <= last_seq) continue;  // a repeat (at least once)
     EXPECT_EQ(seq, last_seq + 1) << "a gap before " << e.dump();
     last_seq = seq;
     events.push_back(e);
     if (e["kind"] == "state" && e["state"] == "running" && !hold_sent) {
-      ops.publish(kRoot + "cmd", {{"cmd", "hold"}, {"token", kToken}, {"id", "h1"}});
+      ops.publish(kServeRoot + "cmd", {{"cmd", "hold"}, {"token", kToken}, {"id", "h1"}});
       hold_sent = true;
     }
     if (e["kind"] == "state" && e["state"] == "holding" && !resume_sent) {
@@ -302,19 +303,19 @@ TEST_F(ServeFleet, AJobsEventsArriveInOrderWithConsecutiveSeq) {
 }
 
 TEST_F(ServeFleet, TheLastWillMarksAKilledServiceOffline) {
-  Watcher ops(broker_->url(), "ops-will", ncd::test::kOperator, {kRoot + "online"});
+  Watcher ops(broker_->url(), "ops-will", ncd::test::kOperator, {kServeRoot + "online"});
   launch();
-  ASSERT_EQ(
-      wait_message(ops, kRoot + "online", [](const json& p) { return p.value("online", false); })
-          .value("online", false),
-      true)
+  ASSERT_EQ(wait_message(ops, kServeRoot + "online",
+                         [](const json& p) { return p.value("online", false); })
+                .value("online", false),
+            true)
       << serve_log();
   ::kill(pid_, SIGKILL);  // no DISCONNECT: the broker publishes the will
   ::waitpid(pid_, nullptr, 0);
   pid_ = -1;
-  const json will = wait_message(ops, kRoot + "online", [](const json&) { return true; });
+  const json will = wait_message(ops, kServeRoot + "online", [](const json&) { return true; });
   EXPECT_EQ(will, json({{"online", false}}));
-  Watcher late(broker_->url(), "ops-late", ncd::test::kOperator, {kRoot + "online"});
+  Watcher late(broker_->url(), "ops-late", ncd::test::kOperator, {kServeRoot + "online"});
   const auto m = late.next(10);
   ASSERT_TRUE(m);
   EXPECT_TRUE(m->is_retained());  // a screen that comes later sees it too
@@ -359,7 +360,7 @@ TEST(ServeFleetNoBroker, ServesWithoutTheBrokerAndStopsCleanlyWhileConnecting) {
   std::ofstream(dir / "serve.toml")
       << "clock = \"simulated\"\nrealtime = false\ntoken = \"" << kToken
       << "\"\n[mqtt]\nbroker = \"tcp://127.0.0.1:" << silent.port() << "\"\ntopic_root = \""
-      << kRoot << "\"\n";
+      << kServeRoot << "\"\n";
   const std::string socket = (dir / "ncd.sock").string();
   const pid_t pid = fork();
   if (pid == 0) {

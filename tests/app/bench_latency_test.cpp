@@ -272,11 +272,11 @@ void expect_ncd_contract(const nlohmann::json& j, int seconds) {
 }
 
 TEST_F(BenchLatencyCli, OneSecondWithoutCyclictest) {
-  const std::string json = (dir_ / "latency.json").string();
+  const std::string json_out = (dir_ / "latency.json").string();
   const CmdResult r =
-      ncd("bench latency --seconds 1 --period-ms 4 --json " + json + " --no-cyclictest");
+      ncd("bench latency --seconds 1 --period-ms 4 --json " + json_out + " --no-cyclictest");
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  const auto j = nlohmann::json::parse(slurp(json));
+  const auto j = nlohmann::json::parse(slurp(json_out));
   expect_ncd_contract(j, 1);
   EXPECT_FALSE(j["stress"].get<bool>());
   EXPECT_TRUE(j["cyclictest"].is_null());
@@ -287,10 +287,11 @@ TEST_F(BenchLatencyCli, OneSecondWithoutCyclictest) {
 }
 
 TEST_F(BenchLatencyCli, OneSecondUnderStress) {
-  const std::string json = (dir_ / "latency.json").string();
-  const CmdResult r = ncd("bench latency --seconds 1 --json " + json + " --no-cyclictest --stress");
+  const std::string json_out = (dir_ / "latency.json").string();
+  const CmdResult r =
+      ncd("bench latency --seconds 1 --json " + json_out + " --no-cyclictest --stress");
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  const auto j = nlohmann::json::parse(slurp(json));
+  const auto j = nlohmann::json::parse(slurp(json_out));
   expect_ncd_contract(j, 1);
   EXPECT_TRUE(j["stress"].get<bool>());
   EXPECT_NE(j["stress_note"].get<std::string>().find("busy thread on CPU"), std::string::npos);
@@ -309,10 +310,10 @@ TEST_F(BenchLatencyCli, OneSecondBesideCyclictest) {
   if (!on_path("cyclictest")) {
     GTEST_SKIP() << "cyclictest is not installed (Debian package rt-tests)";
   }
-  const std::string json = (dir_ / "latency.json").string();
-  const CmdResult r = ncd("bench latency --seconds 1 --period-ms 4 --json " + json);
+  const std::string json_out = (dir_ / "latency.json").string();
+  const CmdResult r = ncd("bench latency --seconds 1 --period-ms 4 --json " + json_out);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
-  const auto j = nlohmann::json::parse(slurp(json));
+  const auto j = nlohmann::json::parse(slurp(json_out));
   expect_ncd_contract(j, 1);
   if (j["cyclictest"].is_null()) {
     // rt-tests 2.40 refuses to run without the right to real-time scheduling.

@@ -56,13 +56,13 @@ TEST_F(BenchServiceIoCli, OneRoundMeasuresBothPhasesAndTheObserversDeliverAtThei
     GTEST_SKIP() << "mosquitto is not installed (apt-get install mosquitto); the bench needs a "
                     "real broker";
   }
-  const std::string json = (dir_ / "bench.json").string();
-  const CmdResult r =
-      ncd("bench latency --with-service-io --seconds 1 --rounds 1 --status-hz 50 --json " + json);
+  const std::string json_out = (dir_ / "bench.json").string();
+  const CmdResult r = ncd(
+      "bench latency --with-service-io --seconds 1 --rounds 1 --status-hz 50 --json " + json_out);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("p99 with / without"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("load average before"), std::string::npos) << r.out;
-  const nlohmann::json j = nlohmann::json::parse(slurp(json));
+  const nlohmann::json j = nlohmann::json::parse(slurp(json_out));
   EXPECT_EQ(j["mode"], "with_service_io");
   EXPECT_EQ(j["rounds"], 1);
   EXPECT_EQ(j["broker"]["started_by_bench"], true);

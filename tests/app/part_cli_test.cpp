@@ -28,7 +28,7 @@ namespace fs = std::filesystem;
 namespace tp = ncd::toolpath;
 
 const std::string kManifold = std::string(NCD_SOURCE_DIR) + "/examples/manifold.toml";
-const double kPrintMm = std::sqrt(3.0) * 5e-5 + 1e-6;  // 4 decimals on three axes
+const double kPartPrintMm = std::sqrt(3.0) * 5e-5 + 1e-6;  // 4 decimals on three axes
 
 struct Move {
   std::array<double, 5> end{};  // X Y Z A B
@@ -175,7 +175,7 @@ TEST_F(PartCli, ManifoldIsReadByRs274AndIndexesOnlyAboveTheClearance) {
   }
   std::cout << "[ manifold ] " << feeds << " feeds, " << indexes
             << " indexes; worst cutter location from its canonical feed " << worst << " mm\n";
-  EXPECT_LE(worst, kPrintMm);
+  EXPECT_LE(worst, kPartPrintMm);
   const std::string svg = slurp(dir_ / "m.svg");
   EXPECT_NE(svg.find("<svg"), std::string::npos);
   EXPECT_NE(svg.find("(hole 8)"), std::string::npos);
@@ -269,10 +269,10 @@ TEST_F(PartCli, ReportedAirTimeIsTheProgramsOwnAirMoves) {
   if (!fs::exists(ncd::test::kRs274)) GTEST_SKIP() << "rs274 not installed";
   const std::string program = (dir_ / "manifold.ngc").string();
   ASSERT_EQ(ncd("chamfer --part " + kManifold + " -q -o " + program).status, 0);
-  const auto json = ncd("chamfer --part " + kManifold + " -q --format json");
-  const std::size_t k = json.out.find("\"air_time_ordered_s\": ");
-  ASSERT_NE(k, std::string::npos) << json.out;
-  const double reported = std::stod(json.out.substr(k + 22));
+  const auto json_out = ncd("chamfer --part " + kManifold + " -q --format json");
+  const std::size_t k = json_out.out.find("\"air_time_ordered_s\": ");
+  ASSERT_NE(k, std::string::npos) << json_out.out;
+  const double reported = std::stod(json_out.out.substr(k + 22));
   bool program_end = false;
   std::string log;
   const std::vector<Move> moves =

@@ -23,7 +23,7 @@ using ncd::test::CmdResult;
 using ncd::test::slurp;
 namespace fs = std::filesystem;
 
-const std::string kChamfer =
+const std::string kReplayChamfer =
     "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --rod-radius 1.8 "
     "--non-knife-angle 93 -q";
 const std::string kMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
@@ -33,7 +33,7 @@ class Replay : public Cli {
   // The experiment-3 chamfer JSON, written by `ncd chamfer` itself.
   std::string chamfer_json() {
     const std::string path = (dir_ / "exp3.json").string();
-    EXPECT_EQ(ncd(kChamfer + " -o " + path).status, 0);
+    EXPECT_EQ(ncd(kReplayChamfer + " -o " + path).status, 0);
     return path;
   }
   // `ncd replay PATH --machine MACHINE --report`: what it printed, and the report (null unless
@@ -59,10 +59,10 @@ TEST_F(Replay, HelpNamesTheOutputs) {
 }
 
 TEST_F(Replay, ReportAndSetpointsOfTheChamfer) {
-  const std::string json = chamfer_json();
+  const std::string json_out = chamfer_json();
   const fs::path csv = dir_ / "sp.csv", report = dir_ / "r.json", plot = dir_ / "p.svg";
   const CmdResult r =
-      ncd("replay " + json + " --machine " + kMachine + " --setpoints " + csv.string() +
+      ncd("replay " + json_out + " --machine " + kMachine + " --setpoints " + csv.string() +
           " --report " + report.string() + " --plot " + plot.string());
   ASSERT_EQ(r.status, 0) << r.err;
   const auto j = nlohmann::json::parse(slurp(report));
@@ -102,12 +102,12 @@ TEST_F(Replay, ReportAndSetpointsOfTheChamfer) {
 }
 
 TEST_F(Replay, SameInputsGiveByteIdenticalOutputs) {
-  const std::string json = chamfer_json();
+  const std::string json_out = chamfer_json();
   std::string csv[2], svg[2];
   nlohmann::json rep[2];
   for (int i = 0; i < 2; ++i) {
     const std::string n = std::to_string(i);
-    ASSERT_EQ(ncd("replay " + json + " --machine " + kMachine + " -q --setpoints " +
+    ASSERT_EQ(ncd("replay " + json_out + " --machine " + kMachine + " -q --setpoints " +
                   (dir_ / ("s" + n)).string() + " --plot " + (dir_ / ("p" + n)).string() +
                   " --report " + (dir_ / ("r" + n)).string())
                   .status,
@@ -133,7 +133,7 @@ TEST_F(Replay, NurbsJsonAndGcodeInputs) {
   EXPECT_LE(j["feed_error"]["max_rel"].get<double>(), 1e-9);
   // The chamfer's own NC program, with its approach and retract, replays too.
   const std::string ngc = (dir_ / "exp3.ngc").string();
-  ASSERT_EQ(ncd(kChamfer + " --format ngc -o " + ngc).status, 0);
+  ASSERT_EQ(ncd(kReplayChamfer + " --format ngc -o " + ngc).status, 0);
   r = ncd("replay " + ngc + " --machine " + kMachine + " -q --report " +
           (dir_ / "g.json").string());
   ASSERT_EQ(r.status, 0) << r.err;
@@ -370,11 +370,11 @@ TEST_F(Replay, NurbsWithARepeatedFirstPointIsWalked) {
 
 // --blocks: the program a DNC link would carry, within the machine file's [link] budget.
 TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
-  const std::string json = chamfer_json();
+  const std::string json_out = chamfer_json();
   const fs::path ngc = dir_ / "exp3.ngc", report = dir_ / "r.json", plot = dir_ / "p.svg";
   const CmdResult r =
-      ncd("replay " + json + " --machine " + kMachine + " --blocks " + ngc.string() + " --report " +
-          report.string() + " --plot " + plot.string());
+      ncd("replay " + json_out + " --machine " + kMachine + " --blocks " + ngc.string() +
+          " --report " + report.string() + " --plot " + plot.string());
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* text : {"blocks", "link", "chord error", "underruns", "feed lowered"}) {
     EXPECT_NE(r.err.find(text), std::string::npos) << text << "\n" << r.err;
@@ -480,7 +480,7 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
   EXPECT_LE(read_back_mm, written_mm + 1e-6);
   EXPECT_GE(read_back_mm, written_mm - saved_max_mm - 1e-6);
   // Deterministic: the same inputs, the same program.
-  ASSERT_EQ(ncd("replay " + json + " --machine " + kMachine + " -q --blocks " +
+  ASSERT_EQ(ncd("replay " + json_out + " --machine " + kMachine + " -q --blocks " +
                 (dir_ / "again.ngc").string())
                 .status,
             0);
@@ -488,14 +488,14 @@ TEST_F(Replay, BlocksOfTheChamferFitTheLinkAndReadBack) {
 }
 
 TEST_F(Replay, ASlowLinkInTheMachineFileLowersTheFeedAndSaysWhere) {
-  const std::string json = chamfer_json();
+  const std::string json_out = chamfer_json();
   std::string machine = slurp(kMachine);
   const std::size_t at = machine.find("baud = 19200");
   ASSERT_NE(at, std::string::npos);
   machine.replace(at, 12, "baud = 1200");
   const std::string m = write("slow.toml", machine);
   const fs::path ngc = dir_ / "slow.ngc", report = dir_ / "r.json";
-  const CmdResult r = ncd("replay " + json + " --machine " + m + " --blocks " + ngc.string() +
+  const CmdResult r = ncd("replay " + json_out + " --machine " + m + " --blocks " + ngc.string() +
                           " --report " + report.string());
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.err.find("1200 7E2"), std::string::npos) << r.err;
@@ -509,7 +509,7 @@ TEST_F(Replay, ASlowLinkInTheMachineFileLowersTheFeedAndSaysWhere) {
   EXPECT_NE(range["reason"].get<std::string>().find("1200 7E2"), std::string::npos);
   EXPECT_EQ(b["queue_model"]["underruns"].get<int>(), 0);
   // A looser tolerance from the command line: longer blocks, fewer lowered.
-  ASSERT_EQ(ncd("replay " + json + " --machine " + m + " -q --chord-tolerance 0.02 --blocks " +
+  ASSERT_EQ(ncd("replay " + json_out + " --machine " + m + " -q --chord-tolerance 0.02 --blocks " +
                 ngc.string() + " --report " + report.string())
                 .status,
             0);

@@ -21,7 +21,7 @@ using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 
 const std::string kPaper = "robot --cylinder-radius 30 --hole-radius 15";
-const double kPi = 3.14159265358979323846;
+const double kRobotPi = 3.14159265358979323846;
 
 Vec3 vec(const nlohmann::json& j) {
   return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
@@ -29,7 +29,7 @@ Vec3 vec(const nlohmann::json& j) {
 
 // R = Rz(r) Ry(p) Rx(w) from Eigen's angle-axis products, independently of the library.
 Mat3 from_wpr_deg(const nlohmann::json& wpr) {
-  const double k = kPi / 180.0;
+  const double k = kRobotPi / 180.0;
   return (Eigen::AngleAxisd(k * wpr[2].get<double>(), Vec3::UnitZ()) *
           Eigen::AngleAxisd(k * wpr[1].get<double>(), Vec3::UnitY()) *
           Eigen::AngleAxisd(k * wpr[0].get<double>(), Vec3::UnitX()))

@@ -13,7 +13,7 @@
 namespace ncd::app {
 namespace {
 
-std::string error_of(const std::string& toml) {
+std::string rotary_error_of(const std::string& toml) {
   try {
     (void)parse_machine_config(toml, "m.toml");
   } catch (const InputError& e) {
@@ -22,7 +22,7 @@ std::string error_of(const std::string& toml) {
   return "no error";
 }
 
-void expect_all(const std::string& what, const std::vector<std::string>& parts) {
+void rotary_expect_all(const std::string& what, const std::vector<std::string>& parts) {
   for (const std::string& p : parts)
     EXPECT_NE(what.find(p), std::string::npos) << "'" << p << "' in: " << what;
 }
@@ -54,19 +54,22 @@ TEST(RotaryAxisConfig, TheTableDeclaresTheAxisWithDefaults) {
 }
 
 TEST(RotaryAxisConfig, BadValuesAreRefusedNamingKeyValueRangeAndWayOut) {
-  expect_all(
-      error_of("[axis.a]\nmax_feed_deg_per_min = 0\n"),
+  rotary_expect_all(
+      rotary_error_of("[axis.a]\nmax_feed_deg_per_min = 0\n"),
       {"m.toml", "axis.a.max_feed_deg_per_min", "0", "360000", "deg/min", "leave the key out"});
-  expect_all(error_of("[axis.b]\nmax_accel_deg_per_s2 = 2e6\n"),
-             {"axis.b.max_accel_deg_per_s2", "deg/s^2"});
-  expect_all(error_of("[axis.a]\nmax_jerk_deg_per_s3 = -5\n"), {"axis.a.max_jerk_deg_per_s3"});
-  expect_all(error_of("[axis.a]\nmax_feed_deg_per_min = \"fast\"\n"),
-             {"axis.a.max_feed_deg_per_min", "must be a number"});
-  expect_all(error_of("[axis.a]\nmax_feed_mm_per_min = 100\n"),
-             {"unknown key", "axis.a.max_feed_mm_per_min", "max_feed_deg_per_min"});
-  expect_all(error_of("[axis.a]\n[axis.b]\n"), {"[axis.a] and [axis.b]", "one rotary index axis"});
-  expect_all(error_of("[axis.c]\n"), {"[axis.c]", "[axis.a] (about X) or [axis.b] (about Y)"});
-  expect_all(error_of("[axis]\na = 3\n"), {"axis.a must be a table"});
+  rotary_expect_all(rotary_error_of("[axis.b]\nmax_accel_deg_per_s2 = 2e6\n"),
+                    {"axis.b.max_accel_deg_per_s2", "deg/s^2"});
+  rotary_expect_all(rotary_error_of("[axis.a]\nmax_jerk_deg_per_s3 = -5\n"),
+                    {"axis.a.max_jerk_deg_per_s3"});
+  rotary_expect_all(rotary_error_of("[axis.a]\nmax_feed_deg_per_min = \"fast\"\n"),
+                    {"axis.a.max_feed_deg_per_min", "must be a number"});
+  rotary_expect_all(rotary_error_of("[axis.a]\nmax_feed_mm_per_min = 100\n"),
+                    {"unknown key", "axis.a.max_feed_mm_per_min", "max_feed_deg_per_min"});
+  rotary_expect_all(rotary_error_of("[axis.a]\n[axis.b]\n"),
+                    {"[axis.a] and [axis.b]", "one rotary index axis"});
+  rotary_expect_all(rotary_error_of("[axis.c]\n"),
+                    {"[axis.c]", "[axis.a] (about X) or [axis.b] (about Y)"});
+  rotary_expect_all(rotary_error_of("[axis]\na = 3\n"), {"axis.a must be a table"});
 }
 
 }  // namespace

@@ -23,7 +23,7 @@ namespace {
 using nlohmann::json;
 
 // Two holes on a pipe along X, turned 90° between them: index at Z20 with the spindle off.
-constexpr const char* kProgram =
+constexpr const char* kRotaryProgram =
     "G21 G90 G17\n"
     "G0 X0 Y0 Z20\n"
     "G0 A90\n"
@@ -57,7 +57,7 @@ class RotaryStream : public ServeFixture {
   std::string log_;
 };
 
-std::vector<std::string> lines_of(const std::string& text) {
+std::vector<std::string> rotary_lines_of(const std::string& text) {
   std::vector<std::string> out;
   std::istringstream in(text);
   for (std::string l; std::getline(in, l);) out.push_back(l);
@@ -66,12 +66,12 @@ std::vector<std::string> lines_of(const std::string& text) {
 
 TEST_F(RotaryStream, IndexesReachTheControllerAtRestWithTheSpindleOff) {
   const std::string m = machine("");
-  const std::string prog = write("p.ngc", kProgram);
+  const std::string prog = write("p.ngc", kRotaryProgram);
   const std::string blocks = (dir_ / "out.ngc").string();
   CmdResult r = ncd("replay " + prog + " --machine " + m + " --start 0,0,50 -q --blocks " + blocks);
   ASSERT_EQ(r.status, 0) << r.err;
   // The written program: each index a block of its own, between the M5 and the M3 around it.
-  const std::vector<std::string> lines = lines_of(slurp(blocks));
+  const std::vector<std::string> lines = rotary_lines_of(slurp(blocks));
   std::vector<std::string> order;  // M3 / M5 / A… in the order written
   for (const std::string& l : lines) {
     if (l.find("M3") != std::string::npos) order.push_back("M3");
@@ -90,7 +90,7 @@ TEST_F(RotaryStream, IndexesReachTheControllerAtRestWithTheSpindleOff) {
                             rs274_command(dir_, "-g out.ngc canon.txt") + " > rs.log 2>&1";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << slurp(dir_ / "rs.log");
     std::vector<double> angles;
-    for (const std::string& l : lines_of(slurp(dir_ / "canon.txt"))) {
+    for (const std::string& l : rotary_lines_of(slurp(dir_ / "canon.txt"))) {
       if (l.find("STRAIGHT_TRAVERSE(") == std::string::npos) continue;
       double v[6] = {};
       if (std::sscanf(l.c_str() + l.find('(') + 1, "%lf, %lf, %lf, %lf, %lf, %lf", &v[0], &v[1],
@@ -136,7 +136,7 @@ TEST_F(RotaryStream, GrblRefusesTheIndexNamingTheLineAndTheWayOut) {
   const std::string grbl =
       "baud = 115200\nframe = \"8N1\"\nflow = \"none\"\nprotocol = \"ack\"\npercent = false\n"
       "dialect = \"grbl\"\n";
-  const std::string prog = write("p.ngc", kProgram);
+  const std::string prog = write("p.ngc", kRotaryProgram);
   const std::string blocks = (dir_ / "out.ngc").string();
   CmdResult r = ncd("replay " + prog + " --machine " + machine(grbl) +
                     " --start 0,0,50 -q --blocks " + blocks);

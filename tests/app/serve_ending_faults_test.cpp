@@ -65,7 +65,7 @@ double chamfer_clearance_mm() {
   return toolpath::default_safe_z_mm(s);
 }
 
-std::string machine_text(bool grbl, double xoff_timeout_s = 5.0) {
+std::string faults_machine_text(bool grbl, double xoff_timeout_s = 5.0) {
   std::string link =
       grbl ? "baud = 115200\nframe = \"8N1\"\nflow = \"none\"\nprotocol = \"ack\"\neob = \"lf\"\n"
              "percent = false\ndialect = \"grbl\"\nrx_buffer_bytes = 128\n"
@@ -82,7 +82,7 @@ std::string machine_text(bool grbl, double xoff_timeout_s = 5.0) {
 }
 
 // The end of the controller's log, for the report: its last blocks, moves and events.
-std::string log_tail(const comms::SimLog& log) {
+std::string faults_log_tail(const comms::SimLog& log) {
   std::string out = "executed:";
   const std::size_t e = log.executed.size();
   for (std::size_t i = e > 8 ? e - 8 : 0; i < e; ++i) out += " " + log.executed[i].text;
@@ -126,7 +126,8 @@ class ServedEnding : public test::Cli, public ::testing::WithParamInterface<bool
 
   app::ServiceConfig config(bool grbl, double xoff_timeout_s = 5.0) {
     app::ServiceConfig c;
-    c.machine = app::load_machine_config(write("machine.toml", machine_text(grbl, xoff_timeout_s)));
+    c.machine =
+        app::load_machine_config(write("machine.toml", faults_machine_text(grbl, xoff_timeout_s)));
     c.clock = motion::ClockKind::Simulated;
     c.realtime = false;
     return c;
@@ -258,7 +259,7 @@ TEST_P(ServedEnding, AJobErrorMidCutEndsWithTheInBoreRetract) {
   std::printf(
       "[ measured ] %s job error: stopped at (%.3f, %.3f, %.3f); ending %s; %s; log tail %s\n",
       grbl ? "grbl" : "iso", stop[0], stop[1], stop[2], json(st.ending.blocks).dump().c_str(),
-      st.ending.note.c_str(), log_tail(log).c_str());
+      st.ending.note.c_str(), faults_log_tail(log).c_str());
 }
 
 TEST_P(ServedEnding, ABlockTheDialectRefusesMidProgramEndsTheJobSafely) {
@@ -302,7 +303,7 @@ TEST_P(ServedEnding, ABlockTheDialectRefusesMidProgramEndsTheJobSafely) {
   std::printf(
       "[ measured ] %s refused block: stopped at (%.3f, %.3f, %.3f); ending %s; log tail %s\n",
       grbl ? "grbl" : "iso", stop[0], stop[1], stop[2], json(st.ending.blocks).dump().c_str(),
-      log_tail(log).c_str());
+      faults_log_tail(log).c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(Dialects, ServedEnding, ::testing::Values(false, true),
@@ -341,7 +342,7 @@ TEST_F(ServedEnding, ALostDripLinkSaysTheEndingCouldNotBeSent) {
   ASSERT_FALSE(log.events.empty());
   EXPECT_EQ(log.events.back().kind, "dwell");
   std::printf("[ measured ] lost drip link: %s; log tail %s\n", st.error.c_str(),
-              log_tail(log).c_str());
+              faults_log_tail(log).c_str());
 }
 
 TEST_F(ServedEnding, AStopWhileTheAckLinkIsDownSaysSoAndTheEndingIsNotSent) {
@@ -422,7 +423,7 @@ TEST_F(ServedEnding, ARestartedJobEndsWithSpindleStopAndProgramEnd) {
   EXPECT_NEAR(log.moves.back().p[1], 0.0, 1e-3);
   EXPECT_EQ(st.ending.blocks.size(), 3u) << json(st.ending.blocks).dump();
   std::printf("[ measured ] restarted job: ending %s; log tail %s\n",
-              json(st.ending.blocks).dump().c_str(), log_tail(log).c_str());
+              json(st.ending.blocks).dump().c_str(), faults_log_tail(log).c_str());
 }
 
 // An operator hold longer than the link's hold timeout (xoff_timeout_s, 8 s here: above the

@@ -26,7 +26,7 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-using Client = ncd::test::ServeClient;
+using HardeningClient = ncd::test::ServeClient;
 
 const char* kCubic = R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1],
   "points": [[0,0,0],[10,25,0],[30,-10,2],[45,30,4],[60,0,3],[80,20,0],[100,0,0]]},
@@ -38,7 +38,7 @@ TEST_F(ServeHardening, EveryRequestShapeThatCrashedOrHungItIsAnErrorReply) {
   const std::string cubic = write("cubic.json", kCubic);
   const std::string file_port = write("hole.json", "{}");
   launch("simulated");
-  Client c(socket_);
+  HardeningClient c(socket_);
   // Ports that are no serial port: refused at submit, so `start` can never abort the service.
   expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}, {"port", "/dev/full"}}),
                "not a serial port", "/dev/full");
@@ -83,7 +83,7 @@ TEST_F(ServeHardening, ThousandsOfRandomAndMutatedLinesAreAllAnswered) {
   std::mt19937_64 rng(seed);
   const std::string cubic = write("cubic.json", kCubic);
   launch("simulated");
-  Client c(socket_);
+  HardeningClient c(socket_);
   const std::vector<json> valid = {
       {{"cmd", "status"}},
       {{"cmd", "start"}},
@@ -198,7 +198,7 @@ TEST_F(ServeHardening, ThousandsOfRandomAndMutatedLinesAreAllAnswered) {
 TEST_F(ServeHardening, StopEndsTheJobAsStoppedWithWhyAndWhere) {
   const std::string cubic = write("cubic.json", kCubic);
   launch("wall");  // a 3 s job in real time, so that the stop arrives while it moves
-  Client c(socket_);
+  HardeningClient c(socket_);
   ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", cubic}}}})["ok"].get<bool>());
   ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
   json s;
@@ -230,7 +230,7 @@ TEST_F(ServeHardening, PositionBeforeTheFirstPeriodIsThePathsStartAndTimeLeftHol
       write("line.json",
             R"({"polyline":{"points":[[10,20,5],[60,20,5],[60,70,5]]},"feed_mm_per_min":2000})");
   launch("wall");
-  Client c(socket_);
+  HardeningClient c(socket_);
   ASSERT_TRUE(c.request({{"cmd", "submit"}, {"job", {{"path", line}}}})["ok"].get<bool>());
   ASSERT_TRUE(c.request({{"cmd", "start"}})["ok"].get<bool>());
   json s = c.request({{"cmd", "status"}});
@@ -281,7 +281,7 @@ TEST_F(ServeHardening, ChamferJobsRefuseFailedChecksAndAnotherTool) {
             0);
   const std::string machine5 = write("m5.toml", "[cutting]\nball_radius_mm = 5.0\n");
   launch("simulated", "machine = \"" + machine5 + "\"\n");
-  Client c(socket_);
+  HardeningClient c(socket_);
   expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", big}}}}), "interference",
                "big.json");
   const auto chamfer_job = [](double ball_radius_mm) {
@@ -315,7 +315,7 @@ TEST_F(ServeHardening, InterferenceAllowedIsStatedAndAJobWithTheChamfersToolRuns
           .status,
       0);
   launch("simulated");  // the documented defaults: a chamfer brings its own ball radius
-  Client c(socket_);
+  HardeningClient c(socket_);
   expect_error(c.request({{"cmd", "submit"}, {"job", {{"path", big}}}}), "allow_interference",
                "big.json");
   const json r =
@@ -335,7 +335,7 @@ TEST_F(ServeHardening, AHeavyWeightNurbsIsRefusedAtSubmit) {
           "weights": [1,0.7071067811865476,1576461,0.7071067811865476,1],
           "points": [[0,20,0],[-20,20,0],[-20,0,0],[-20,-20,0],[0,-20,0]]}})");
   launch("simulated");
-  Client c(socket_);
+  HardeningClient c(socket_);
   expect_error(c.request({{"cmd", "submit"},
                           {"job", {{"path", crawl}}},
                           {"setpoints", (dir_ / "crawl.csv").string()}}),
@@ -366,7 +366,7 @@ TEST_F(ServeHardening, LiveLimitActionsAreCheckedInTheConfig) {
   launch("simulated",
          "[live_limits]\nfeed = \"report\"\naccel = \"report\"\njerk = \"report\"\n"
          "chord = \"report\"\n");
-  Client c(socket_);
+  HardeningClient c(socket_);
   const json s = c.request({{"cmd", "status"}});
   EXPECT_TRUE(s["ok"].get<bool>()) << s.dump();
   EXPECT_EQ(s["live_limit_violations"]["accel"], 0);

@@ -39,7 +39,7 @@ const char* kChamferFlags =
     "--pipe-radius 10 --drill-radius 2 --ball-radius 0.5 --width 0.2 --feed 600 --edge inner "
     "--side upper";
 
-toolpath::ChamferSpec chamfer_spec() {
+toolpath::ChamferSpec whole_job_chamfer_spec() {
   toolpath::ChamferSpec s;
   s.pipe_radius_mm = 10.0;
   s.drill_radius_mm = 2.0;
@@ -48,7 +48,7 @@ toolpath::ChamferSpec chamfer_spec() {
   return s;
 }
 
-json chamfer_request(const std::string& port) {
+json whole_job_chamfer_request(const std::string& port) {
   return {{"cmd", "submit"},
           {"job",
            {{"pipe-radius", 10},
@@ -61,7 +61,7 @@ json chamfer_request(const std::string& port) {
           {"port", port}};
 }
 
-std::string machine_text(bool grbl) {
+std::string whole_job_machine_text(bool grbl) {
   std::string link =
       grbl ? "baud = 115200\nframe = \"8N1\"\nflow = \"none\"\nprotocol = \"ack\"\neob = \"lf\"\n"
              "percent = false\ndialect = \"grbl\"\nrx_buffer_bytes = 128\n"
@@ -85,7 +85,7 @@ std::vector<std::string> blocks(const std::vector<std::string>& lines) {
   return out;
 }
 
-std::vector<std::string> lines_of(const std::string& text) {
+std::vector<std::string> whole_job_lines_of(const std::string& text) {
   std::vector<std::string> out;
   std::istringstream in(text);
   for (std::string line; std::getline(in, line);) out.push_back(line);
@@ -103,7 +103,7 @@ class ServedWholeJob : public ncd::test::Cli, public ::testing::WithParamInterfa
 
 TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   const bool grbl = GetParam();
-  const std::string machine_file = write("machine.toml", machine_text(grbl));
+  const std::string machine_file = write("machine.toml", whole_job_machine_text(grbl));
   const std::string port = (dir_ / "cnc").string();
 
   // What `ncd replay --blocks` writes for the same chamfer and machine.
@@ -115,7 +115,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   r = ncd("replay " + chamfer_json + " --machine " + machine_file + " -q --blocks " +
           replay_blocks);
   ASSERT_EQ(r.status, 0) << r.err;
-  const std::vector<std::string> want = blocks(lines_of(test::slurp(replay_blocks)));
+  const std::vector<std::string> want = blocks(whole_job_lines_of(test::slurp(replay_blocks)));
 
   app::ServiceConfig config;
   config.machine = app::load_machine_config(machine_file);
@@ -137,7 +137,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   }
   ctl_.start(c);
 
-  app::SubmittedJob job = app::submitted_job(chamfer_request(port), config);
+  app::SubmittedJob job = app::submitted_job(whole_job_chamfer_request(port), config);
   ASSERT_TRUE(job.spec.program) << "the service walks the whole program";
   ASSERT_TRUE(job.spec.link);
   // The controller's holds timed on its own clock, whatever the load on the test's thread.
@@ -255,7 +255,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
 
   // The approach: from where the controller stands (the origin) straight up to the clearance
   // plane, across at it, then down; every move before the first feed a rapid.
-  const double clear_mm = toolpath::default_safe_z_mm(chamfer_spec());
+  const double clear_mm = toolpath::default_safe_z_mm(whole_job_chamfer_spec());
   const auto before = static_cast<std::size_t>(first_feed - log.moves.begin());
   ASSERT_GE(before, 2u);
   std::array<double, 3> at{0.0, 0.0, 0.0};

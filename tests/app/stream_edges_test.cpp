@@ -51,7 +51,7 @@ class StreamEdges : public SimControllerCli {
 };
 
 // Slow numbered moves (0.1 s each at F600), framed by a start and an end without N.
-std::string slow_program(int moves) {
+std::string edge_slow_program(int moves) {
   std::string text = "G21 G90 G94\nG0 Z5\nS1000 M3\nG0 X0 Y0\nG1 Z-1 F600\n";
   for (int i = 1; i <= moves; ++i) {
     text += "N" + std::to_string(i * 10) + " G1 X" + std::to_string(i) + " Y" +
@@ -74,7 +74,7 @@ std::vector<std::string> numbered(const nlohmann::json& log) {
 // --resume, refuses with the same command; run as printed, it completes the job and every
 // numbered block ran exactly once, in order.
 TEST_F(StreamEdges, DripCtrlCAdvisesOneCommandThatCompletesTheJob) {
-  const std::string prog = write("slow.ngc", slow_program(60));
+  const std::string prog = write("slow.ngc", edge_slow_program(60));
   const std::string journal = prog + ".journal";
   auto cnc = controller("--baud 9600 --dialect iso");
   std::string out;
@@ -158,7 +158,7 @@ TEST_F(StreamEdges, NothingAnsweredWarnsAndExitsFour) {
 // (0, 1]. Once for a whole transfer and once for one stopped at once at 300 baud, where the
 // first characters written (ahead of the wire) used to be counted as carried.
 TEST_F(StreamEdges, LinkUseIsAFractionOfTheLine) {
-  const std::string prog = write("slow.ngc", slow_program(30));
+  const std::string prog = write("slow.ngc", edge_slow_program(30));
   for (const int baud : {9600, 300}) {
     SCOPED_TRACE(baud);
     auto cnc = controller("--baud " + std::to_string(baud));

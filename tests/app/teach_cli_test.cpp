@@ -22,7 +22,7 @@ using ncd::test::CmdResult;
 using ncd::test::slurp;
 namespace fs = std::filesystem;
 
-const std::string kExamples = std::string(NCD_SOURCE_DIR) + "/examples/";
+const std::string kTeachExamples = std::string(NCD_SOURCE_DIR) + "/examples/";
 const std::string kPaperFrame = "'47.45,111.55,236.60;229.17,327.47,274.28;-17.55,327.77,316.35'";
 const std::string kTool = " --tool-diameter 10 --depth 0.2 --feed 300 --spindle 2000";
 
@@ -53,7 +53,7 @@ TEST_F(TeachCli, HelpNamesEveryFlag) {
 }
 
 TEST_F(TeachCli, PapersExampleGivesThePapersLinesAndReplays) {
-  const CmdResult r = teach(kExamples + "teach-burr.txt --frame-points " + kExamples +
+  const CmdResult r = teach(kTeachExamples + "teach-burr.txt --frame-points " + kTeachExamples +
                             "teach-burr-frame.txt" + kTool + " --truncate");
   ASSERT_EQ(r.status, 0) << r.err;
   const std::string text = slurp(program());
@@ -73,7 +73,8 @@ TEST_F(TeachCli, PapersExampleGivesThePapersLinesAndReplays) {
 }
 
 TEST_F(TeachCli, ProgramStreamsAsItIs) {
-  ASSERT_EQ(teach(kExamples + "teach-burr.txt --frame-points " + kPaperFrame + kTool).status, 0);
+  ASSERT_EQ(teach(kTeachExamples + "teach-burr.txt --frame-points " + kPaperFrame + kTool).status,
+            0);
   // The test plays the controller on the master side of the project's raw pty pair, which holds
   // its slave open, so the small program waits in the terminal's buffer until it is read.
   ncd::comms::Pty pty((dir_ / "cnc").string());
@@ -100,8 +101,8 @@ TEST_F(TeachCli, CsvAndInlineFrameGiveTheSameProgramAsTheExample) {
                                 "dp3,76.49,125.79,235.45\ndp4,83.01,127.46,235.11\n"
                                 "dp5,87.55,128.68,235.07\ndp6,92.32,130.68,234.88\n");
   const CmdResult a = ncd("teach " + csv + " --frame-points " + kPaperFrame + kTool + " -q");
-  const CmdResult b = ncd("teach " + kExamples + "teach-burr.txt --frame-points " + kExamples +
-                          "teach-burr-frame.txt" + kTool + " -q");
+  const CmdResult b = ncd("teach " + kTeachExamples + "teach-burr.txt --frame-points " +
+                          kTeachExamples + "teach-burr-frame.txt" + kTool + " -q");
   ASSERT_EQ(a.status, 0) << a.err;
   ASSERT_EQ(b.status, 0) << b.err;
   EXPECT_EQ(a.out, b.out);  // standard output without -o
@@ -134,7 +135,7 @@ TEST_F(TeachCli, ClosedLoopInATiltedPlaneReplays) {
 }
 
 TEST_F(TeachCli, InvalidInputExitsTwoAndLeavesTheOldFileAlone) {
-  const std::string ok = kExamples + "teach-burr.txt";
+  const std::string ok = kTeachExamples + "teach-burr.txt";
   const std::string frame = " --frame-points " + kPaperFrame;
   const std::string two = write("two.txt", "dp1 66.15 124.57 236.76\ndp2 70.98 125.20 236.12\n");
   const std::string dup = write("dup.txt",
@@ -178,7 +179,7 @@ TEST_F(TeachCli, InvalidInputExitsTwoAndLeavesTheOldFileAlone) {
 }
 
 TEST_F(TeachCli, InvalidInputWritesNoFile) {
-  const CmdResult r = teach(kExamples + "teach-burr.txt --frame-points " + kPaperFrame +
+  const CmdResult r = teach(kTeachExamples + "teach-burr.txt --frame-points " + kPaperFrame +
                             " --tool-diameter 10 --depth 6 --feed 300 --spindle 2000");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("ncd: error: "), std::string::npos) << r.err;

@@ -64,7 +64,7 @@ M2
 
 // [cutting] such that the law would cap nothing at F508 with its own ball (r 5 mm, 4 teeth:
 // 8000 sqrt(2 r R - R^2) = 1131 mm/min), but caps a ball of r 3.175 mm with 2 teeth.
-const char* kMachine = R"([cutting]
+const char* kToolKindsMachine = R"([cutting]
 ball_radius_mm = 5.0
 pick_feed_mm = 0.0
 teeth = 4
@@ -104,7 +104,7 @@ class ToolKinds : public Cli {
     std::string csv;
   };
   Run replay(const std::string& program_text, const std::string& table_text,
-             const std::string& machine_text = kMachine) {
+             const std::string& machine_text = kToolKindsMachine) {
     const std::string program = write("p.ngc", program_text);
     const std::string table = write("tool.tbl", table_text);
     const std::string machine = write("m.toml", machine_text);
@@ -275,7 +275,8 @@ TEST_F(ToolKinds, EachMoveNamesItsTool) {
 
 // The machine file's [tools.N] declares the same as the table's comment.
 TEST_F(ToolKinds, MachineFileDeclaresAKind) {
-  const std::string machine = std::string(kMachine) + "\n[tools.1]\nkind = \"flat\"\nteeth = 3\n";
+  const std::string machine =
+      std::string(kToolKindsMachine) + "\n[tools.1]\nkind = \"flat\"\nteeth = 3\n";
   const Run run = replay(kPocket, "T1 P1 D6.35 Z10\n", machine);
   ASSERT_EQ(run.r.status, 0) << run.r.err;
   EXPECT_EQ(run.report["tools"][0]["kind"], "flat");
@@ -294,7 +295,7 @@ TEST_F(ToolKinds, UnknownKindInTheTableNamesValueKindsAndLine) {
 }
 
 TEST_F(ToolKinds, UnknownKindInTheMachineFileNamesKeyValueAndKinds) {
-  const std::string machine = std::string(kMachine) + "\n[tools.1]\nkind = \"endmill\"\n";
+  const std::string machine = std::string(kToolKindsMachine) + "\n[tools.1]\nkind = \"endmill\"\n";
   const Run run = replay(kPocket, "T1 P1 D6.35 Z10\n", machine);
   EXPECT_EQ(run.r.status, 2);
   for (const char* part : {"m.toml", "tools.1.kind", "endmill", "ball, flat, bull_nose, drill"}) {
@@ -303,7 +304,7 @@ TEST_F(ToolKinds, UnknownKindInTheMachineFileNamesKeyValueAndKinds) {
 }
 
 TEST_F(ToolKinds, TableAndMachineFileThatDisagreeAreRefused) {
-  const std::string machine = std::string(kMachine) + "\n[tools.1]\nkind = \"ball\"\n";
+  const std::string machine = std::string(kToolKindsMachine) + "\n[tools.1]\nkind = \"ball\"\n";
   const Run run = replay(kPocket, "T1 P1 D6.35 Z10 ;kind=flat\n", machine);
   EXPECT_EQ(run.r.status, 2);
   for (const char* part : {"T1", "tool.tbl:1", "[tools.1]", "flat", "ball"}) {

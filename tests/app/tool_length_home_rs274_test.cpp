@@ -30,7 +30,7 @@ using ncd::test::CmdResult;
 using ncd::test::slurp;
 namespace fs = std::filesystem;
 
-const std::string kMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
+const std::string kTlhMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
 const std::string kGeometry =
     "--pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01";
 constexpr double kLength1Mm = 75.5, kLength2Mm = 42.25;  // tools 1 (and 4) and 2
@@ -284,7 +284,7 @@ class ToolLengthHome : public Cli {
   // [program] table; the dialect replaced by `dialect`.
   std::string machine(const std::string& extra, const std::string& program = "",
                       const std::string& dialect = "iso") {
-    std::string text = slurp(kMachine);
+    std::string text = slurp(kTlhMachine);
     const std::string key = "programmed_point = \"tip\"";
     const std::size_t at = text.find(key);
     EXPECT_NE(at, std::string::npos);
@@ -315,14 +315,14 @@ class ToolLengthHome : public Cli {
 // table (iso): G43 H4 before the first move, so rs274 drives the tip by tool 4's 75.5 mm.
 TEST_F(ToolLengthHome, ChamferProgramAndItsBlocksTakeTheToolLengthBeforeTheFirstMove) {
   const std::string m = machine("number = 4");
-  const std::string ngc = (dir_ / "c.ngc").string(), json = (dir_ / "c.json").string();
+  const std::string ngc = (dir_ / "c.ngc").string(), json_path = (dir_ / "c.json").string();
   ASSERT_EQ(ncd("chamfer " + kGeometry + " --machine " + m + " -q --format ngc -o " + ngc).status,
             0);
   EXPECT_NE(slurp(ngc).find("\nT4 M6\nG43 H4\n"), std::string::npos) << slurp(ngc);
   expect_length_first(ngc, kLength1Mm, "chamfer program (iso, tool 4)");
-  ASSERT_EQ(ncd("chamfer " + kGeometry + " --machine " + m + " -q -o " + json).status, 0);
+  ASSERT_EQ(ncd("chamfer " + kGeometry + " --machine " + m + " -q -o " + json_path).status, 0);
   const std::string blocks = (dir_ / "b.ngc").string();
-  const CmdResult r = ncd("replay " + json + " --machine " + m + " -q --blocks " + blocks);
+  const CmdResult r = ncd("replay " + json_path + " --machine " + m + " -q --blocks " + blocks);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(slurp(blocks).find("T4M6\nN3G43H4\n"), std::string::npos) << slurp(blocks);
   expect_length_first(blocks, kLength1Mm, "blocks of the chamfer (iso, tool 4)");
@@ -332,12 +332,12 @@ TEST_F(ToolLengthHome, ChamferProgramAndItsBlocksTakeTheToolLengthBeforeTheFirst
 // the length is set.
 TEST_F(ToolLengthHome, ForGrblTheHeaderSaysHowTheLengthIsSet) {
   const std::string m = machine("number = 4", "", "grbl");
-  const std::string ngc = (dir_ / "c.ngc").string(), json = (dir_ / "c.json").string();
+  const std::string ngc = (dir_ / "c.ngc").string(), json_path = (dir_ / "c.json").string();
   ASSERT_EQ(ncd("chamfer " + kGeometry + " --machine " + m + " -q --format ngc -o " + ngc).status,
             0);
-  ASSERT_EQ(ncd("chamfer " + kGeometry + " --machine " + m + " -q -o " + json).status, 0);
+  ASSERT_EQ(ncd("chamfer " + kGeometry + " --machine " + m + " -q -o " + json_path).status, 0);
   const std::string blocks = (dir_ / "b.ngc").string();
-  ASSERT_EQ(ncd("replay " + json + " --machine " + m + " -q --blocks " + blocks).status, 0);
+  ASSERT_EQ(ncd("replay " + json_path + " --machine " + m + " -q --blocks " + blocks).status, 0);
   for (const std::string& text : {slurp(ngc), slurp(blocks)}) {
     EXPECT_EQ(code_of(text).find("G43"), std::string::npos) << text;
     EXPECT_NE(comments_of(text).find("tool length: no tool table; set work Z0 at tool 4's tip or "

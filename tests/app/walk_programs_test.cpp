@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/app/cli_fixture.hpp"
 #include "tests/common/sanitized.hpp"
 
 namespace {
@@ -41,19 +42,14 @@ std::vector<fs::path> programs() {
   return out;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using ncd::test::slurp;
 
 constexpr const char* kToolTable =
     "T1 P1 Z75.5 D0.25\nT2 P2 Z-0.25 D0.5\nT3 P3 Z28.575 D0.125\nT4 P4 Z19.05 D0.375\n"
     "T5 P5 Z50 D0.1\nT7 P7 Z60 D0.2\nT10 P10 Z100 D0.3\nT20 P20 Z50.8 D1\n";
 constexpr const char* kVarFile = "5161 1.0\n5162 2.0\n5163 30.0\n5181 -1.0\n5182 -2.0\n5183 25.0\n";
 
-struct Replay {
+struct WalkReplay {
   int status = -1;  // exit status; -1 on a signal
   std::string err;
   std::string setpoints;
@@ -81,7 +77,7 @@ class WalkProgram : public ::testing::TestWithParam<fs::path> {
     fs::remove_all(dir_, ec);
   }
 
-  Replay replay(const std::string& mode, int k) {
+  WalkReplay replay(const std::string& mode, int k) {
     const fs::path sp = dir_ / ("sp_" + mode + std::to_string(k) + ".csv");
     const fs::path err = dir_ / "stderr";
     const std::string cmd = "cd '" + dir_.string() + "' && " + std::string(NCD_EXE) + " replay '" +
@@ -89,7 +85,7 @@ class WalkProgram : public ::testing::TestWithParam<fs::path> {
                             (mode == "path" ? " --path-only" : "") + " --setpoints '" +
                             sp.string() + "' 2>'" + err.string() + "' >/dev/null";
     const int raw = std::system(cmd.c_str());
-    Replay r;
+    WalkReplay r;
     r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
     r.err = slurp(err);
     if (r.status == 0) r.setpoints = slurp(sp);
@@ -102,7 +98,7 @@ class WalkProgram : public ::testing::TestWithParam<fs::path> {
 TEST_P(WalkProgram, IsWalkedOrRefusedWithAMessageNeverCrashes) {
   const std::string file = GetParam().filename().string();
   for (const std::string mode : {"whole", "path"}) {
-    const Replay a = replay(mode, 0);
+    const WalkReplay a = replay(mode, 0);
     ASSERT_TRUE(a.status == 0 || a.status == 2)
         << file << " (" << mode << "): exit " << a.status << "\n"
         << a.err;
@@ -127,7 +123,7 @@ TEST_P(WalkProgram, IsWalkedOrRefusedWithAMessageNeverCrashes) {
       continue;
     }
     if (ncd::test::kSanitized) continue;  // determinism is the Release suite's check
-    const Replay b = replay(mode, 1);
+    const WalkReplay b = replay(mode, 1);
     ASSERT_EQ(b.status, 0) << file << " (" << mode << "), second run:\n" << b.err;
     EXPECT_TRUE(a.setpoints == b.setpoints)
         << file << " (" << mode << "): two replays gave different setpoints";

@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/app/cli_fixture.hpp"
 #include "tests/common/rs274.hpp"
 #include "tests/common/sanitized.hpp"
 
@@ -61,7 +62,7 @@ using V3 = std::array<double, 3>;
 // true: `ncd replay --start 0,0,0` on the program; false: the G53 G0 line in a copy (see top).
 constexpr bool kStartFlag = true;
 
-const fs::path kSamples = "/usr/share/linuxcnc/ncfiles";
+const fs::path kWalkedSamples = "/usr/share/linuxcnc/ncfiles";
 constexpr double kBlendToleranceMm = 0.01;  // the machine file's default blend_tolerance_mm
 // Inches: rs274's machine units (the table's lengths and diameters, the parameter file). Every
 // tool a sample names is here, with a diameter its cutter compensation can work with (rs274
@@ -73,20 +74,20 @@ constexpr double kBlendToleranceMm = 0.01;  // the machine file's default blend_
 //   T6 its 1/4-20 tap, T15 its oversize 1/2" end mill (D0.55), lengths from that list;
 //   T3, T5, T10, T20 LinuxCNC's sim table's and tests/ngc's.
 // The lengths are sensible, not the samples' own (few state one): rs274 and ncd get the same.
-constexpr const char* kToolTable =
+constexpr const char* kWalkedToolTable =
     "T1 P1 Z0.5 D0.0625\nT2 P2 Z-0.25 D0.1\nT3 P3 Z1.125 D0.125\nT4 P4 Z0.75 D0.25\n"
     "T5 P5 Z0 D0.1\nT6 P6 Z-0.1833 D0.25\nT7 P7 Z0.2 D0.1\nT9 P9 Z0.1 D0.1\nT10 P10 Z0.3 D0.3\n"
     "T15 P15 Z-1.5042 D0.55\nT20 P20 Z2 D1\n";
-constexpr const char* kVarFile =
+constexpr const char* kWalkedVarFile =
     "5161 1.0\n5162 2.0\n5163 3.0\n5181 -1.0\n5182 -2.0\n5183 0.5\n5220 1.0\n";
 
 // LinuxCNC's samples that turn a rotary axis, and which: b-index indexes B between moves (it
 // walks); daisy turns A with X, Y, Z on every line (refused: ncd only indexes).
 const std::map<std::string, char> kRotaryAxis = {{"b-index.ngc", 'b'}, {"daisy.ngc", 'a'}};
 
-std::vector<fs::path> programs() {
+std::vector<fs::path> walked_programs() {
   std::vector<fs::path> out;
-  for (const fs::path& dir : {fs::path(NCD_SOURCE_DIR) / "tests" / "ngc", kSamples}) {
+  for (const fs::path& dir : {fs::path(NCD_SOURCE_DIR) / "tests" / "ngc", kWalkedSamples}) {
     std::error_code ec;
     for (const auto& e : fs::directory_iterator(dir, ec)) {
       if (e.path().extension() == ".ngc") out.push_back(e.path());
@@ -96,12 +97,7 @@ std::vector<fs::path> programs() {
   return out;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using ncd::test::slurp;
 
 V3 operator-(const V3& a, const V3& b) {
   return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
@@ -155,7 +151,7 @@ double distance(const V3& p, const Piece& c) {
   return c.arc ? arc_distance(p, c) : segment_distance(p, c.start, c.end);
 }
 
-struct Canonical {
+struct WalkedCanonical {
   std::vector<Piece> pieces;
   std::vector<double> a_deg, b_deg;  // each straight move's A and B, as printed
   std::string not_comparable;        // why the path cannot be compared, if so
@@ -195,8 +191,8 @@ void set_sweep(Piece& m, int turns) {
 }
 
 // rs274's canonical moves as a path from machine 0,0,0, with the P of each move.
-Canonical canonical_path(const std::string& text) {
-  Canonical c;
+WalkedCanonical canonical_path(const std::string& text) {
+  WalkedCanonical c;
   V3 at{0.0, 0.0, 0.0}, offset{0.0, 0.0, 0.0}, g5x{0.0, 0.0, 0.0}, g92{0.0, 0.0, 0.0};
   double unit = 1.0, p_mm = kBlendToleranceMm, q_mm = 0.0, rotation_rad = 0.0;
   // A point rs274 prints (program coordinates) in machine mm, as LinuxCNC's canon places it:
@@ -432,7 +428,7 @@ class Workspace {
       program_ = dir_ / ("call_" + program.filename().string());
       std::ofstream(program_) << caller;
     }
-    std::ofstream(dir_ / "tool.tbl") << kToolTable;
+    std::ofstream(dir_ / "tool.tbl") << kWalkedToolTable;
     std::ofstream(dir_ / "rs274.ini") << "[RS274NGC]\nSUBROUTINE_PATH = " << subs_.string() << "\n";
     std::ofstream(dir_ / "machine.toml")
         << "[program]\nmachine_units = \"inch\"\ntool_table = \"" << (dir_ / "tool.tbl").string()
@@ -450,7 +446,7 @@ class Workspace {
 
   // rs274's canonical output, or nullopt with the reason when it refuses the program.
   std::optional<std::string> rs274(std::string& why) {
-    std::ofstream(dir_ / "rs.var") << kVarFile;
+    std::ofstream(dir_ / "rs.var") << kWalkedVarFile;
     const fs::path out = dir_ / "canon.txt", log = dir_ / "rs274.log";
     const std::string cmd =
         "cd '" + program_.parent_path().string() + "' && " +
@@ -499,7 +495,7 @@ class Workspace {
 
   // `ncd <args>` in the program's folder; exit status, standard error.
   int ncd(const std::string& args, std::string& err) {
-    std::ofstream(dir_ / "ncd.var") << kVarFile;
+    std::ofstream(dir_ / "ncd.var") << kWalkedVarFile;
     const fs::path e = dir_ / "ncd.err";
     const std::string cmd = "cd '" + program_.parent_path().string() + "' && " +
                             std::string(NCD_EXE) + " " + args + " >/dev/null 2>'" + e.string() +
@@ -549,10 +545,10 @@ std::vector<double> distinct_in_order(const std::vector<double>& v) {
 }
 
 Outcome walk_and_compare(const fs::path& program) {
-  const auto call = program.parent_path() == kSamples
+  const auto call = program.parent_path() == kWalkedSamples
                         ? kSubroutineCalls.find(program.filename().string())
                         : kSubroutineCalls.end();
-  const auto rotary = program.parent_path() == kSamples
+  const auto rotary = program.parent_path() == kWalkedSamples
                           ? kRotaryAxis.find(program.filename().string())
                           : kRotaryAxis.end();
   const char axis = rotary != kRotaryAxis.end() ? rotary->second : 0;
@@ -560,7 +556,7 @@ Outcome walk_and_compare(const fs::path& program) {
   std::string why;
   const std::optional<std::string> canon = run.rs274(why);
   if (!canon) return {Kind::rs274_refuses, why};
-  const Canonical path = canonical_path(*canon);
+  const WalkedCanonical path = canonical_path(*canon);
   if (!path.not_comparable.empty()) return {Kind::not_comparable, path.not_comparable};
   const fs::path csv = run.dir() / "sp.csv";
   std::string err;
@@ -638,8 +634,8 @@ TEST_P(WalkedPath, IsRs274sPathWithinP) {
                         "not comparable"};
   std::printf("[walked path] %s: %s: %s\n", file.c_str(), kind[static_cast<int>(o.kind)],
               o.detail.c_str());
-  const auto known = GetParam().parent_path() == kSamples ? kInterpreterDifferences.find(file)
-                                                          : kInterpreterDifferences.end();
+  const auto known = GetParam().parent_path() == kWalkedSamples ? kInterpreterDifferences.find(file)
+                                                                : kInterpreterDifferences.end();
   if (known != kInterpreterDifferences.end()) {
     EXPECT_EQ(o.kind, Kind::differs)
         << file << " no longer differs (" << known->second.reason << "): remove it from the list";
@@ -653,21 +649,22 @@ TEST_P(WalkedPath, IsRs274sPathWithinP) {
         << "the refusal names no program: " << o.detail;
   }
   // tests/ngc holds our own programs: each one rs274 reads and ncd accepts is compared.
-  if (GetParam().parent_path() != kSamples && o.kind == Kind::refused) {
+  if (GetParam().parent_path() != kWalkedSamples && o.kind == Kind::refused) {
     std::printf("[walked path] %s (ours) is refused by ncd\n", file.c_str());
   }
 }
 
-std::string test_name(const ::testing::TestParamInfo<fs::path>& info) {
-  std::string n =
-      (info.param.parent_path() == kSamples ? "linuxcnc_" : "ngc_") + info.param.stem().string();
+std::string walked_test_name(const ::testing::TestParamInfo<fs::path>& info) {
+  std::string n = (info.param.parent_path() == kWalkedSamples ? "linuxcnc_" : "ngc_") +
+                  info.param.stem().string();
   for (char& c : n) {
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   }
   return n;
 }
 
-INSTANTIATE_TEST_SUITE_P(EveryProgram, WalkedPath, ::testing::ValuesIn(programs()), test_name);
+INSTANTIATE_TEST_SUITE_P(EveryProgram, WalkedPath, ::testing::ValuesIn(walked_programs()),
+                         walked_test_name);
 
 // The counts: LinuxCNC's samples by what becomes of them, with the reasons (each walk again,
 // as its own test does: the tests above may run in processes of their own).
@@ -678,8 +675,8 @@ TEST(WalkedPathRs274, Summary) {
   std::map<Kind, std::size_t> count;
   std::map<std::string, std::vector<std::string>> reasons;
   std::size_t samples = 0;
-  for (const fs::path& p : programs()) {
-    if (p.parent_path() != kSamples) continue;
+  for (const fs::path& p : walked_programs()) {
+    if (p.parent_path() != kWalkedSamples) continue;
     ++samples;
     const std::string file = p.filename().string();
     Outcome o = walk_and_compare(p);
@@ -700,7 +697,7 @@ TEST(WalkedPathRs274, Summary) {
     }
     reasons[reason].push_back(file);
   }
-  if (samples == 0) GTEST_SKIP() << kSamples << " has no programs (linuxcnc-uspace)";
+  if (samples == 0) GTEST_SKIP() << kWalkedSamples << " has no programs (linuxcnc-uspace)";
   std::printf(
       "LinuxCNC samples: %zu; walk and match rs274: %zu; differ: %zu; refused by ncd: "
       "%zu; rs274 refuses: %zu; not comparable: %zu\n",

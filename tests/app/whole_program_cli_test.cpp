@@ -20,10 +20,10 @@ using ncd::test::Cli;
 using ncd::test::CmdResult;
 using ncd::test::slurp;
 
-const std::string kChamfer =
+const std::string kWholeChamfer =
     "chamfer --pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01 "
     "--rod-radius 1.8 --non-knife-angle 93 --edge inner --side upper -q";
-const std::string kMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
+const std::string kWholeMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
 constexpr double kBallRadiusMm = 3.0;
 constexpr double kEncoderChordMm = 0.002;  // config/chamfer-exp3.toml [encoder]
 
@@ -57,7 +57,7 @@ class WholeProgram : public Cli {
  protected:
   // The exp3 machine file with another [tool] programmed_point.
   std::string machine_with_point(const std::string& point) {
-    std::string text = slurp(kMachine);
+    std::string text = slurp(kWholeMachine);
     const std::string key = "programmed_point = \"tip\"";
     const std::size_t at = text.find(key);
     EXPECT_NE(at, std::string::npos);
@@ -66,20 +66,20 @@ class WholeProgram : public Cli {
   }
   // The chamfer's NGC program and the replayed blocks, for the machine file `machine`.
   std::pair<ProgramZ, ProgramZ> programs(const std::string& machine) {
-    const std::string ngc = (dir_ / "exp3.ngc").string(), json = (dir_ / "exp3.json").string(),
+    const std::string ngc = (dir_ / "exp3.ngc").string(), json_out = (dir_ / "exp3.json").string(),
                       blocks = (dir_ / "exp3-dnc.ngc").string();
-    CmdResult r = ncd(kChamfer + " --format ngc --machine " + machine + " -o " + ngc);
+    CmdResult r = ncd(kWholeChamfer + " --format ngc --machine " + machine + " -o " + ngc);
     EXPECT_EQ(r.status, 0) << r.err;
-    r = ncd(kChamfer + " --format json -o " + json);
+    r = ncd(kWholeChamfer + " --format json -o " + json_out);
     EXPECT_EQ(r.status, 0) << r.err;
-    r = ncd("replay " + json + " --machine " + machine + " --blocks " + blocks + " -q");
+    r = ncd("replay " + json_out + " --machine " + machine + " --blocks " + blocks + " -q");
     EXPECT_EQ(r.status, 0) << r.err;
     return {read_program(slurp(ngc)), read_program(slurp(blocks))};
   }
 };
 
 TEST_F(WholeProgram, StreamedLowestTipZEqualsTheChamferProgramsTip) {
-  const auto [ngc, blocks] = programs(kMachine);
+  const auto [ngc, blocks] = programs(kWholeMachine);
   ASSERT_TRUE(ngc.tip) << "the chamfer program states the tip (the machine file's default)";
   ASSERT_TRUE(blocks.tip) << "the blocks state the same point in their header";
   ASSERT_TRUE(std::isfinite(ngc.lowest) && std::isfinite(blocks.lowest));
@@ -97,14 +97,14 @@ TEST_F(WholeProgram, CentreInTheMachineFileMovesBothProgramsToTheCentre) {
   ASSERT_TRUE(blocks.centre);
   EXPECT_NEAR(blocks.lowest, ngc.lowest, kEncoderChordMm);
   // The same cut as the tip programs, R_B higher.
-  const auto [ngc_tip, blocks_tip] = programs(kMachine);
+  const auto [ngc_tip, blocks_tip] = programs(kWholeMachine);
   EXPECT_NEAR(ngc.lowest - kBallRadiusMm, ngc_tip.lowest, 1e-4);
   EXPECT_NEAR(blocks.lowest - kBallRadiusMm, blocks_tip.lowest, kEncoderChordMm);
 }
 
 TEST_F(WholeProgram, ContradictingProgramPointIsRefused) {
   const std::string machine = machine_with_point("centre");
-  const CmdResult r = ncd(kChamfer + " --format ngc --program-point tip --machine " + machine);
+  const CmdResult r = ncd(kWholeChamfer + " --format ngc --program-point tip --machine " + machine);
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("programmed_point is centre"), std::string::npos) << r.err;
   EXPECT_TRUE(r.out.empty());
@@ -112,7 +112,7 @@ TEST_F(WholeProgram, ContradictingProgramPointIsRefused) {
 
 TEST_F(WholeProgram, UnknownProgrammedPointNamesTheValue) {
   const std::string machine = machine_with_point("flute");
-  const CmdResult r = ncd(kChamfer + " --format ngc --machine " + machine);
+  const CmdResult r = ncd(kWholeChamfer + " --format ngc --machine " + machine);
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("tool.programmed_point = \"flute\""), std::string::npos) << r.err;
 }

@@ -32,31 +32,31 @@ namespace fs = std::filesystem;
 using ncd::test::kRs274;
 // A point written or printed with 4 decimals is within half a unit of the last digit on each
 // axis: √3 · 5e-5 mm in space (plus 1e-6 for the arithmetic).
-const double kPrintMm = std::sqrt(3.0) * 5e-5 + 1e-6;
-constexpr double kChordMm = 0.002;  // config/chamfer-exp3.toml [encoder]
-const std::string kMachine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
-const std::string kGeometry =
+const double kPrint4Mm = std::sqrt(3.0) * 5e-5 + 1e-6;
+constexpr double kExp3ChordMm = 0.002;  // config/chamfer-exp3.toml [encoder]
+const std::string kExp3Machine = std::string(NCD_SOURCE_DIR) + "/config/chamfer-exp3.toml";
+const std::string kExp3Geometry =
     "--pipe-radius 18 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01 "
     "--rod-radius 1.8 --non-knife-angle 93";
 
-struct P3 {
+struct Pt3 {
   double x, y, z;
 };
-double dist(const P3& a, const P3& b) {
+double pt_dist(const Pt3& a, const Pt3& b) {
   return std::hypot(a.x - b.x, a.y - b.y, a.z - b.z);
 }
-double dist_to_segment(const P3& p, const P3& a, const P3& b) {
-  const P3 ab{b.x - a.x, b.y - a.y, b.z - a.z};
+double pt_dist_to_segment(const Pt3& p, const Pt3& a, const Pt3& b) {
+  const Pt3 ab{b.x - a.x, b.y - a.y, b.z - a.z};
   const double l2 = ab.x * ab.x + ab.y * ab.y + ab.z * ab.z;
   double t = l2 > 0 ? ((p.x - a.x) * ab.x + (p.y - a.y) * ab.y + (p.z - a.z) * ab.z) / l2 : 0.0;
   t = std::clamp(t, 0.0, 1.0);
-  return dist(p, {a.x + t * ab.x, a.y + t * ab.y, a.z + t * ab.z});
+  return pt_dist(p, {a.x + t * ab.x, a.y + t * ab.y, a.z + t * ab.z});
 }
 
-struct Canonical {
+struct ProgramCanonical {
   int status = -1;
   std::string out, log;
-  std::vector<P3> moves;     // STRAIGHT_TRAVERSE / STRAIGHT_FEED end points, in order
+  std::vector<Pt3> moves;    // STRAIGHT_TRAVERSE / STRAIGHT_FEED end points, in order
   std::vector<bool> feed;    // true for STRAIGHT_FEED
   bool program_end = false;  // PROGRAM_END seen
 };
@@ -68,13 +68,13 @@ class Rs274 : public Cli {
     if (!fs::exists(kRs274)) GTEST_SKIP() << kRs274 << " not installed (linuxcnc-uspace)";
   }
   // rs274 -g on `file`; `options` go before -g (e.g. "-t TOOL_TABLE").
-  Canonical canonical(const std::string& file, const std::string& options = "") {
+  ProgramCanonical canonical(const std::string& file, const std::string& options = "") {
     const fs::path out = dir_ / "canon.out", log = dir_ / "canon.log";
     const std::string cmd =
         ncd::test::rs274_command(dir_, options + " -g " + file + " " + out.string()) + " >" +
         log.string() + " 2>&1";
     const int raw = std::system(cmd.c_str());
-    Canonical c;
+    ProgramCanonical c;
     c.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
     c.out = slurp(out);
     c.log = slurp(log);
@@ -84,20 +84,20 @@ class Rs274 : public Cli {
     c.program_end = m.program_end;
     return c;
   }
-  static void expect_clean(const Canonical& c, const std::string& what) {
+  static void expect_clean(const ProgramCanonical& c, const std::string& what) {
     EXPECT_EQ(c.status, 0) << what << "\n" << c.log;
     EXPECT_EQ(ncd::test::rs274_complaint(c.log), "") << what << ": " << c.log;
     EXPECT_EQ(ncd::test::rs274_complaint(c.out), "") << what;
     EXPECT_TRUE(c.program_end) << what << ": no PROGRAM_END";
   }
   // The setpoints CSV of a replay: x, y, z of each row.
-  static std::vector<P3> setpoints(const std::string& csv) {
-    std::vector<P3> pts;
+  static std::vector<Pt3> setpoints(const std::string& csv) {
+    std::vector<Pt3> pts;
     std::istringstream in(csv);
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {
-      P3 p{};
+      Pt3 p{};
       double t = 0;
       if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &t, &p.x, &p.y, &p.z) == 4) pts.push_back(p);
     }
@@ -107,37 +107,37 @@ class Rs274 : public Cli {
   // canonical end point (after the first, the rise from wherever the tool stands) from the
   // setpoint polyline.
   double blocks_deviation(const std::string& path, const std::string& what,
-                          const std::string& machine = kMachine) {
+                          const std::string& machine = kExp3Machine) {
     const std::string blocks = (dir_ / "b.ngc").string(), csv = (dir_ / "sp.csv").string();
     const CmdResult r = ncd("replay " + path + " --machine " + machine + " -q --blocks " + blocks +
                             " --setpoints " + csv);
     EXPECT_EQ(r.status, 0) << r.err;
-    const Canonical c = canonical(blocks);
+    const ProgramCanonical c = canonical(blocks);
     expect_clean(c, what);
-    const std::vector<P3> sp = setpoints(slurp(csv));
+    const std::vector<Pt3> sp = setpoints(slurp(csv));
     EXPECT_GT(sp.size(), 10u);
     EXPECT_GT(c.moves.size(), 3u) << what;
     double worst = 0.0;
     for (std::size_t i = 1; i < c.moves.size(); ++i) {
       double d = std::numeric_limits<double>::infinity();
       for (std::size_t k = 0; k + 1 < sp.size(); ++k) {
-        d = std::min(d, dist_to_segment(c.moves[i], sp[k], sp[k + 1]));
+        d = std::min(d, pt_dist_to_segment(c.moves[i], sp[k], sp[k + 1]));
       }
       worst = std::max(worst, d);
     }
     std::printf(
         "rs274 %-28s %3zu canonical moves, max distance from the planned setpoints "
         "%.5f mm (tolerance %.5f)\n",
-        what.c_str(), c.moves.size(), worst, kChordMm + kPrintMm);
-    EXPECT_LE(worst, kChordMm + kPrintMm) << what;
+        what.c_str(), c.moves.size(), worst, kExp3ChordMm + kPrint4Mm);
+    EXPECT_LE(worst, kExp3ChordMm + kPrint4Mm) << what;
     return worst;
   }
 };
 
 TEST_F(Rs274, BlocksOfTheExp3ChamferParseAndFollowThePlan) {
-  const std::string json = (dir_ / "exp3.json").string();
-  ASSERT_EQ(ncd("chamfer " + kGeometry + " -q -o " + json).status, 0);
-  blocks_deviation(json, "blocks of the exp3 chamfer");
+  const std::string json_out = (dir_ / "exp3.json").string();
+  ASSERT_EQ(ncd("chamfer " + kExp3Geometry + " -q -o " + json_out).status, 0);
+  blocks_deviation(json_out, "blocks of the exp3 chamfer");
 }
 
 TEST_F(Rs274, BlocksOfANurbsParseAndFollowThePlan) {
@@ -185,41 +185,41 @@ TEST_F(Rs274, ChamferProgramsOfEveryEdgeAndSideParseAndHoldTheLoop) {
       const std::string geometry =
           std::string(edge) == "outer"
               ? "--pipe-radius 21 --drill-radius 13 --ball-radius 3 --width 0.7 --tolerance 0.01"
-              : kGeometry;
+              : kExp3Geometry;
       const std::string args = "chamfer " + geometry + " --edge " + edge + " --side " + side +
-                               " --machine " + kMachine + " -q";
-      const std::string ngc = (dir_ / "c.ngc").string(), json = (dir_ / "c.json").string();
+                               " --machine " + kExp3Machine + " -q";
+      const std::string ngc = (dir_ / "c.ngc").string(), json_out = (dir_ / "c.json").string();
       const CmdResult g = ncd(args + " --format ngc -o " + ngc);
       ASSERT_EQ(g.status, 0) << what << "\n" << g.err;
-      ASSERT_EQ(ncd(args + " --format json -o " + json).status, 0);
-      const Canonical c = canonical(ngc);
+      ASSERT_EQ(ncd(args + " --format json -o " + json_out).status, 0);
+      const ProgramCanonical c = canonical(ngc);
       expect_clean(c, what);
-      const auto doc = nlohmann::json::parse(slurp(json));
+      const auto doc = nlohmann::json::parse(slurp(json_out));
       const bool lower = std::string(side) == "lower";
       double worst = 0.0;
       std::size_t n = 0;
       for (const auto& pt : doc["points"]) {
         const auto cl = pt["cl"];
-        P3 q{cl[0].get<double>(), cl[1].get<double>(), cl[2].get<double>()};
+        Pt3 q{cl[0].get<double>(), cl[1].get<double>(), cl[2].get<double>()};
         if (lower) q = {-q.x, q.y, -q.z};  // turned over (docs/chamfer.md)
         q.z -= 3.0;                        // the tip, as the machine file says
         double d = std::numeric_limits<double>::infinity();
         for (std::size_t i = 0; i < c.moves.size(); ++i) {
-          if (c.feed[i]) d = std::min(d, dist(q, c.moves[i]));
+          if (c.feed[i]) d = std::min(d, pt_dist(q, c.moves[i]));
         }
         worst = std::max(worst, d);
         ++n;
       }
       std::printf("rs274 %-28s %3zu canonical moves, %zu loop points, max distance %.6f mm\n",
                   what.c_str(), c.moves.size(), n, worst);
-      EXPECT_LE(worst, kPrintMm) << what;
+      EXPECT_LE(worst, kPrint4Mm) << what;
     }
   }
 }
 
 // The exp3 machine with a grbl 1.1 controller on its link ([link] dialect = "grbl").
 std::string grbl_machine_text() {
-  std::string text = slurp(kMachine);
+  std::string text = slurp(kExp3Machine);
   const std::string from = "dialect = \"iso\"";
   const std::size_t at = text.find(from);
   EXPECT_NE(at, std::string::npos) << "config/chamfer-exp3.toml names no iso dialect";
@@ -232,9 +232,9 @@ std::string grbl_machine_text() {
 // what ncd planned.
 TEST_F(Rs274, ProgramsForAGrblMachineAreWhatGrblTakesAndFollowThePlan) {
   const std::string machine = write("grbl.toml", grbl_machine_text());
-  const std::string json = (dir_ / "exp3.json").string();
-  ASSERT_EQ(ncd("chamfer " + kGeometry + " -q -o " + json).status, 0);
-  blocks_deviation(json, "grbl blocks of exp3", machine);
+  const std::string json_out = (dir_ / "exp3.json").string();
+  ASSERT_EQ(ncd("chamfer " + kExp3Geometry + " -q -o " + json_out).status, 0);
+  blocks_deviation(json_out, "grbl blocks of exp3", machine);
   const std::string blocks = slurp(dir_ / "b.ngc");
   EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::grbl, blocks).has_value());
   EXPECT_EQ(blocks.find('%'), std::string::npos);
@@ -244,20 +244,21 @@ TEST_F(Rs274, ProgramsForAGrblMachineAreWhatGrblTakesAndFollowThePlan) {
   EXPECT_NE(blocks.find("M3S3000"), std::string::npos);
   const std::string ngc = (dir_ / "c.ngc").string();
   const CmdResult g =
-      ncd("chamfer " + kGeometry + " --machine " + machine + " -q --format ngc -o " + ngc);
+      ncd("chamfer " + kExp3Geometry + " --machine " + machine + " -q --format ngc -o " + ngc);
   ASSERT_EQ(g.status, 0) << g.err;
   const std::string text = slurp(ngc);
   EXPECT_FALSE(ncd::comms::check_program(ncd::comms::Dialect::grbl, text).has_value());
   EXPECT_EQ(text.find("\nG64"), std::string::npos);
   EXPECT_EQ(text.find('%'), std::string::npos);
-  const Canonical c = canonical(ngc);
+  const ProgramCanonical c = canonical(ngc);
   EXPECT_EQ(c.status, 0) << c.log;
   EXPECT_TRUE(c.program_end);
   // The same program for the iso machine keeps its G64 P and its % lines; both are accepted by
   // the iso rules.
   const std::string iso = (dir_ / "iso.ngc").string();
   ASSERT_EQ(
-      ncd("chamfer " + kGeometry + " --machine " + kMachine + " -q --format ngc -o " + iso).status,
+      ncd("chamfer " + kExp3Geometry + " --machine " + kExp3Machine + " -q --format ngc -o " + iso)
+          .status,
       0);
   const std::string iso_text = slurp(iso);
   EXPECT_NE(iso_text.find("G64 P"), std::string::npos);
@@ -283,7 +284,7 @@ TEST_F(Rs274, BlocksTheDialectCannotTakeAreRefusedAndNothingIsWritten) {
 // The exp3 machine with its tool numbered 4 and a 1.5 s spin-up ([tool] number,
 // spindle_dwell_s), for the dialect `dialect`.
 std::string tool_machine_text(const std::string& dialect) {
-  std::string text = dialect == "grbl" ? grbl_machine_text() : slurp(kMachine);
+  std::string text = dialect == "grbl" ? grbl_machine_text() : slurp(kExp3Machine);
   const std::string key = "programmed_point = \"tip\"";
   const std::size_t at = text.find(key);
   EXPECT_NE(at, std::string::npos) << "config/chamfer-exp3.toml has no [tool] programmed_point";
@@ -294,7 +295,7 @@ std::string tool_machine_text(const std::string& dialect) {
 }
 
 // Where `what` first appears in rs274's canonical output; npos if nowhere.
-std::size_t at(const Canonical& c, const std::string& what) {
+std::size_t at(const ProgramCanonical& c, const std::string& what) {
   return c.out.find(what);
 }
 
@@ -310,10 +311,10 @@ TEST_F(Rs274, ChamferProgramChangesTheToolAndWaitsForTheSpindleAsTheBlocksDo) {
     const std::string machine = write(dialect + ".toml", tool_machine_text(dialect));
     const std::string ngc = (dir_ / "c.ngc").string();
     const CmdResult g =
-        ncd("chamfer " + kGeometry + " --machine " + machine + " -q --format ngc -o " + ngc);
+        ncd("chamfer " + kExp3Geometry + " --machine " + machine + " -q --format ngc -o " + ngc);
     ASSERT_EQ(g.status, 0) << g.err;
     const std::string text = slurp(ngc);
-    const Canonical c = canonical(ngc, "-t " + table);
+    const ProgramCanonical c = canonical(ngc, "-t " + table);
     expect_clean(c, "chamfer program for tool 4 (" + dialect + ")");
     const std::size_t spindle = at(c, "START_SPINDLE_CLOCKWISE"), dwell = at(c, "DWELL(1.5000)"),
                       feed = at(c, "STRAIGHT_FEED(");
@@ -323,9 +324,10 @@ TEST_F(Rs274, ChamferProgramChangesTheToolAndWaitsForTheSpindleAsTheBlocksDo) {
     EXPECT_LT(spindle, dwell);
     EXPECT_LT(dwell, feed);
     // The blocks of the same chamfer for the same machine: the same events in the same order.
-    const std::string json = (dir_ / "c.json").string(), blocks = (dir_ / "b.ngc").string();
-    ASSERT_EQ(ncd("chamfer " + kGeometry + " -q -o " + json).status, 0);
-    const CmdResult r = ncd("replay " + json + " --machine " + machine + " -q --blocks " + blocks);
+    const std::string json_out = (dir_ / "c.json").string(), blocks = (dir_ / "b.ngc").string();
+    ASSERT_EQ(ncd("chamfer " + kExp3Geometry + " -q -o " + json_out).status, 0);
+    const CmdResult r =
+        ncd("replay " + json_out + " --machine " + machine + " -q --blocks " + blocks);
     ASSERT_EQ(r.status, 0) << r.err;
     const std::string b = slurp(blocks);
     std::smatch first_g1;

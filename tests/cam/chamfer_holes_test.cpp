@@ -24,7 +24,7 @@ namespace {
 
 // ---------------------------------------------------------------- the part, described here
 
-struct Part {
+struct HolePart {
   double edge_radius_mm, other_radius_mm;  // at the origin, pipe frame
   double slope;                            // tan ψ
   double drill_radius_mm;
@@ -35,8 +35,8 @@ Vec3 drill_direction(double tau, double phi) {
   return {std::sin(tau) * std::sin(phi), std::sin(tau) * std::cos(phi), std::cos(tau)};
 }
 
-Part part_of(const ChamferSpec& s) {
-  Part p;
+HolePart part_of(const ChamferSpec& s) {
+  HolePart p;
   p.edge_radius_mm = s.pipe_radius_mm;
   const double t = s.pipe_thickness_mm.value_or(0.0) / std::cos(s.pipe_half_angle_rad);
   p.other_radius_mm = s.edge == Edge::Inner ? s.pipe_radius_mm + t : s.pipe_radius_mm - t;
@@ -49,18 +49,18 @@ Part part_of(const ChamferSpec& s) {
 }
 
 // Signed radial excess over a pipe surface of radius `radius` at y = 0 (> 0 outside).
-double pipe_excess(const Part& p, const Vec3& x, double radius) {
+double pipe_excess(const HolePart& p, const Vec3& x, double radius) {
   return std::hypot(x.x(), x.z()) - (radius + p.slope * x.y());
 }
 
-double drill_excess(const Part& p, const Vec3& x) {
+double drill_excess(const HolePart& p, const Vec3& x) {
   const Vec3 w = x - p.drill_point;
   return (w - w.dot(p.drill_dir) * p.drill_dir).norm() - p.drill_radius_mm;
 }
 
 // How deep x lies inside the wall's material (between the two surfaces, outside the hole);
 // ≤ 0 outside. Radial excesses overestimate the normal depth on a cone: conservative.
-double material_depth(const Part& p, const Vec3& x) {
+double hole_material_depth(const HolePart& p, const Vec3& x) {
   const double outer = std::max(p.edge_radius_mm, p.other_radius_mm);
   const double inner = std::min(p.edge_radius_mm, p.other_radius_mm);
   return std::min({-pipe_excess(p, x, outer), pipe_excess(p, x, inner), drill_excess(p, x)});
@@ -68,7 +68,7 @@ double material_depth(const Part& p, const Vec3& x) {
 
 // The drill frame as the spec documents it, built here: z = d, y = part of +Y normal to d,
 // x = y × z, origin on the drill axis nearest the pipe axis.
-Vec3 generator_point(const Part& p, double theta, double z) {
+Vec3 generator_point(const HolePart& p, double theta, double z) {
   const Vec3 y0(0.0, 1.0, 0.0);
   const Vec3 yd = (y0 - y0.dot(p.drill_dir) * p.drill_dir).normalized();
   const Vec3 xd = yd.cross(p.drill_dir);
@@ -123,7 +123,7 @@ std::string describe(const ChamferSpec& s) {
 
 // ---------------------------------------------------------------- the closed form recovered
 
-ChamferSpec experiment(int n, Edge edge, Side side) {
+ChamferSpec hole_experiment(int n, Edge edge, Side side) {
   ChamferSpec s;
   s.pipe_radius_mm = edge == Edge::Inner ? 18.0 : 21.0;
   s.drill_radius_mm = 13.0;
@@ -141,9 +141,9 @@ ChamferSpec experiment(int n, Edge edge, Side side) {
 TEST(ChamferHoles, NumericalEdgeEqualsEq4) {
   for (const Edge edge : {Edge::Inner, Edge::Outer}) {
     for (const Side side : {Side::Upper, Side::Lower}) {
-      ChamferSpec closed = experiment(3, edge, side);
+      ChamferSpec closed = hole_experiment(3, edge, side);
       closed.edge_curve = EdgeCurve::ClosedForm;
-      const ChamferModel mc(closed), mn(experiment(3, edge, side));
+      const ChamferModel mc(closed), mn(hole_experiment(3, edge, side));
       double worst = 0.0;
       for (int i = 0; i <= 3600; ++i) {
         const double th = 2.0 * kPi * i / 3600;
@@ -168,10 +168,10 @@ TEST(ChamferHoles, EveryDownstreamFigureEqualsTheClosedFormPath) {
   for (const int n : {1, 2, 3}) {
     for (const Edge edge : {Edge::Inner, Edge::Outer}) {
       for (const Side side : {Side::Upper, Side::Lower}) {
-        ChamferSpec closed = experiment(n, edge, side);
+        ChamferSpec closed = hole_experiment(n, edge, side);
         closed.edge_curve = EdgeCurve::ClosedForm;
         const ChamferPath pc = generate_chamfer(closed);
-        const ChamferPath pn = generate_chamfer(experiment(n, edge, side));
+        const ChamferPath pn = generate_chamfer(hole_experiment(n, edge, side));
         const std::string what =
             "exp " + std::to_string(n) + " " + to_string(edge) + " " + to_string(side);
         ASSERT_EQ(pn.points.size(), pc.points.size()) << what;
@@ -207,11 +207,11 @@ TEST(ChamferHoles, TiltAcrossThePipeThroughItsAxisIsTheRadialHole) {
   // τ about the pipe axis (φ = 90°) with e = 0 is the paper's hole, the pipe turned about Y;
   // the azimuth alone is irrelevant without tilt.
   for (const auto& [tau, phi] : {std::pair{30.0, 90.0}, std::pair{0.0, 123.0}}) {
-    ChamferSpec s = experiment(3, Edge::Inner, Side::Upper);
+    ChamferSpec s = hole_experiment(3, Edge::Inner, Side::Upper);
     s.drill_tilt_rad = deg_to_rad(tau);
     s.drill_azimuth_rad = deg_to_rad(phi);
     const ChamferPath a = generate_chamfer(s),
-                      b = generate_chamfer(experiment(3, Edge::Inner, Side::Upper));
+                      b = generate_chamfer(hole_experiment(3, Edge::Inner, Side::Upper));
     ASSERT_EQ(a.points.size(), b.points.size());
     for (std::size_t i = 0; i < a.points.size(); ++i) {
       EXPECT_NEAR((a.points[i].cl - b.points[i].cl).norm(), 0.0, 1e-10);
@@ -220,7 +220,7 @@ TEST(ChamferHoles, TiltAcrossThePipeThroughItsAxisIsTheRadialHole) {
 }
 
 TEST(ChamferHoles, NegativeEccentricityMirrorsPositive) {
-  ChamferSpec s = experiment(1, Edge::Inner, Side::Upper);
+  ChamferSpec s = hole_experiment(1, Edge::Inner, Side::Upper);
   s.drill_tilt_rad = deg_to_rad(30.0);
   s.pipe_half_angle_rad = deg_to_rad(4.0);
   s.eccentricity_mm = 2.5;
@@ -243,7 +243,7 @@ TEST(ChamferHoles, DrillFrameIsTheDocumentedOne) {
     const auto s = random_hole(rng);
     if (!s) continue;
     ++checked;
-    const Part part = part_of(*s);
+    const HolePart part = part_of(*s);
     const DrillPlacement pl = drill_placement(*s);
     EXPECT_NEAR((pl.z - part.drill_dir).norm(), 0.0, 1e-15);
     EXPECT_NEAR((pl.origin - part.drill_point).norm(), 0.0, 1e-13);
@@ -273,7 +273,7 @@ TEST(ChamferHoles, IdentitiesOverRandomInclinedEccentricConeHoles) {
     }
     ++cases;
     const ChamferSpec& s = *spec;
-    const Part part = part_of(s);
+    const HolePart part = part_of(s);
     const ChamferModel m(s);
     const DrillPlacement& pl = m.placement();
     for (int k = 0; k < 16; ++k) {
@@ -522,7 +522,7 @@ TEST(ChamferHoles, AlgorithmOneFromAnyHintFindsTheSameAlpha) {
 // The edge by brute force: for each θ, bisection along the generator between the point most
 // inside the pipe (golden section: the radial excess is convex along a line) and one outside,
 // on this file's radial excess.
-Vec3 brute_edge_point(const Part& p, double radius, double theta, bool upper) {
+Vec3 brute_edge_point(const HolePart& p, double radius, double theta, bool upper) {
   const auto excess = [&](double z) {
     return pipe_excess(p, generator_point(p, theta, z), radius);
   };
@@ -572,7 +572,7 @@ TEST(ChamferHoles, EqualArcsFromTheSpeedSeriesEqualTheQuadratureOnes) {
 TEST(ChamferHoles, NearlyGrazingDrillFallsBackToQuadrature) {
   // r + e = 17.9999 against R = 18: the edge nearly touches the pipe's silhouette, |C'| has a
   // singularity 1e-3 rad off the real axis, and no series of 4096 samples resolves it.
-  ChamferSpec s = experiment(3, Edge::Inner, Side::Upper);
+  ChamferSpec s = hole_experiment(3, Edge::Inner, Side::Upper);
   s.eccentricity_mm = 4.9999;
   s.rod_radius_mm.reset();
   s.non_knife_angle_rad.reset();
@@ -621,7 +621,7 @@ TEST(ChamferHoles, BruteForceIntersectionGivesTheSameCurveAndLength) {
     if (!spec) continue;
     ++cases;
     const ChamferSpec& s = *spec;
-    const Part part = part_of(s);
+    const HolePart part = part_of(s);
     const ChamferModel m(s);
     const int n = 1 << 14;
     std::vector<Vec3> pts(n);
@@ -658,7 +658,7 @@ TEST(ChamferHoles, BruteForceIntersectionGivesTheSameCurveAndLength) {
 // R_od, from the ball up to well above the part) at every cutter location, in the pipe frame,
 // and returns the deepest any lies inside the part's material.
 double deepest_cap_or_rod(const ChamferSpec& s, const ChamferPath& path, const DrillPlacement& pl) {
-  const Part part = part_of(s);
+  const HolePart part = part_of(s);
   const double beta = 0.5 * *s.non_knife_angle_rad, rb = s.ball_radius_mm, rod = *s.rod_radius_mm;
   const double up = s.side == Side::Upper ? 1.0 : -1.0;  // the tool axis, part turned over below
   const Vec3 z(0.0, 0.0, up), x(1.0, 0.0, 0.0), y(0.0, up, 0.0);
@@ -671,7 +671,7 @@ double deepest_cap_or_rod(const ChamferSpec& s, const ChamferPath& path, const D
         const double az = 2.0 * kPi * j / 24;
         const Vec3 v =
             std::cos(polar) * z + std::sin(polar) * (std::cos(az) * x + std::sin(az) * y);
-        deepest = std::max(deepest, material_depth(part, pl.to_pipe(p.cl + rb * v)));
+        deepest = std::max(deepest, hole_material_depth(part, pl.to_pipe(p.cl + rb * v)));
       }
     }
     const double h0 = std::sqrt(std::max(0.0, rb * rb - rod * rod));
@@ -680,7 +680,7 @@ double deepest_cap_or_rod(const ChamferSpec& s, const ChamferPath& path, const D
       for (int j = 0; j < 24; ++j) {
         const double az = 2.0 * kPi * j / 24;
         const Vec3 q = p.cl + h * z + rod * (std::cos(az) * x + std::sin(az) * y);
-        deepest = std::max(deepest, material_depth(part, pl.to_pipe(q)));
+        deepest = std::max(deepest, hole_material_depth(part, pl.to_pipe(q)));
       }
     }
   }
@@ -723,7 +723,7 @@ TEST(ChamferHoles, PointCloudsSeeTheInterferenceOfExperiment2) {
   // The paper's experiment 2 (α = 1, 2β = 93°) scars the chamfer: the clouds must see it, and
   // Algorithm 1 (experiment 3) must clear it; also for an inclined, eccentric cone hole.
   for (const bool inclined : {false, true}) {
-    ChamferSpec s = experiment(2, Edge::Inner, Side::Upper);
+    ChamferSpec s = hole_experiment(2, Edge::Inner, Side::Upper);
     s.pipe_thickness_mm = 3.0;
     if (inclined) {
       s.drill_tilt_rad = deg_to_rad(20.0);
@@ -765,7 +765,7 @@ TEST(ChamferHoles, FailedChecksAreRefusedWithTheirThetaRange) {
   EXPECT_NE(why.find("θ ∈ ["), std::string::npos) << why;
   EXPECT_EQ(why.find("global"), std::string::npos) << why;
   EXPECT_TRUE(
-      interference_reasons(generate_chamfer(experiment(3, Edge::Inner, Side::Upper))).empty());
+      interference_reasons(generate_chamfer(hole_experiment(3, Edge::Inner, Side::Upper))).empty());
 }
 
 // ---------------------------------------------------------------- refusals
@@ -780,7 +780,7 @@ void expect_error(const ChamferSpec& s, const std::string& fragment) {
 }
 
 TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
-  ChamferSpec s = experiment(1, Edge::Inner, Side::Upper);
+  ChamferSpec s = hole_experiment(1, Edge::Inner, Side::Upper);
   s.eccentricity_mm = 5.5;  // r + e = 18.5 > R_I = 18: the generator at θ = 0 misses
   expect_error(s, "does not pierce the inner pipe surface (radius 18 mm");
   expect_error(s, "θ = 0°");
@@ -794,13 +794,13 @@ TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
   s.eccentricity_mm = 4.0;
   s.pipe_thickness_mm = 3.0;  // fine inside; the outer surface (21 mm) is pierced too
   EXPECT_NO_THROW((void)generate_chamfer(s));
-  s = experiment(1, Edge::Outer, Side::Upper);
+  s = hole_experiment(1, Edge::Outer, Side::Upper);
   s.eccentricity_mm = 4.0;
   s.pipe_thickness_mm = 3.0;  // inner surface 18 mm: 13 + 4 < 18 still pierced
   EXPECT_NO_THROW((void)ChamferModel(s));
   s.pipe_thickness_mm = 4.5;  // inner 16.5 mm < 17: missed
   expect_error(s, "does not pierce the inner pipe surface (radius 16.5 mm");
-  s = experiment(1, Edge::Inner, Side::Upper);
+  s = hole_experiment(1, Edge::Inner, Side::Upper);
   s.drill_tilt_rad = deg_to_rad(90.0);
   expect_error(s, "drill tilt τ = 90° must lie in [0°, 90°)");
   s.drill_tilt_rad = deg_to_rad(60.0);  // along the cylinder: still pierced
@@ -813,15 +813,15 @@ TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
   EXPECT_NO_THROW((void)ChamferModel(s));
   s.eccentricity_mm = 5.5;
   expect_error(s, "does not pierce");
-  s = experiment(1, Edge::Inner, Side::Upper);
+  s = hole_experiment(1, Edge::Inner, Side::Upper);
   s.pipe_half_angle_rad = deg_to_rad(70.0);
   expect_error(s, "half-angle ψ = 70° must lie in");
   s.pipe_half_angle_rad = std::nan("");
   expect_error(s, "--pipe-half-angle-deg");
-  s = experiment(1, Edge::Outer, Side::Upper);
+  s = hole_experiment(1, Edge::Outer, Side::Upper);
   s.pipe_thickness_mm = 25.0;
   expect_error(s, "leaves no bore");
-  s = experiment(1, Edge::Outer, Side::Upper);  // a wide drill near a steep cone's apex
+  s = hole_experiment(1, Edge::Outer, Side::Upper);  // a wide drill near a steep cone's apex
   s.pipe_radius_mm = 16.0;
   s.drill_radius_mm = 17.0;
   s.ball_radius_mm = 1.0;
@@ -832,7 +832,7 @@ TEST(ChamferHoles, DrillsThatDoNotPierceAreRefusedWithTheirValues) {
   expect_error(s,
                "meets the outer pipe surface (radius 16 mm at the reference point, half-angle "
                "-42°) beyond the cone's apex at θ = 59°");
-  s = experiment(1, Edge::Inner, Side::Upper);
+  s = hole_experiment(1, Edge::Inner, Side::Upper);
   s.eccentricity_mm = 1.0;
   s.edge_curve = EdgeCurve::ClosedForm;
   expect_error(s, "closed-form edge curve (eq. 4) holds only");
@@ -846,7 +846,7 @@ struct GeneratorMeets {
   double least_rho_mm;  // +inf where it misses
 };
 
-GeneratorMeets generator_meets(const Part& p, double radius, double theta) {
+GeneratorMeets generator_meets(const HolePart& p, double radius, double theta) {
   const Vec3 p0 = generator_point(p, theta, 0.0), &d = p.drill_dir;
   const double k = p.slope, rho0 = radius + k * p0.y();
   const double a = d.x() * d.x() + d.z() * d.z() - k * k * d.y() * d.y();
@@ -890,7 +890,7 @@ TEST(ChamferHoles, PiercingRefusalsAgreeWithADenseScanOfTheWall) {
     s.edge = u(rng) < 0.5 ? Edge::Inner : Edge::Outer;
     if (u(rng) < 0.5) s.pipe_thickness_mm = s.pipe_radius_mm * 0.2 * u(rng);
     s.ball_radius_mm = 0.05 * s.drill_radius_mm;
-    const Part part = part_of(s);
+    const HolePart part = part_of(s);
     const Vec3& d = part.drill_dir;
     if (!(d.x() * d.x() + d.z() * d.z() - part.slope * part.slope * d.y() * d.y() > 1e-6)) continue;
     if (s.pipe_half_angle_rad == 0.0 && s.drill_radius_mm >= s.pipe_radius_mm) continue;
@@ -941,7 +941,7 @@ TEST(ChamferHoles, PiercingRefusalsAgreeWithADenseScanOfTheWall) {
 }
 
 TEST(ChamferHoles, PipeFrameIsRefusedForATiltedDrillAndIsAShiftOtherwise) {
-  ChamferSpec s = experiment(3, Edge::Inner, Side::Upper);
+  ChamferSpec s = hole_experiment(3, Edge::Inner, Side::Upper);
   s.eccentricity_mm = 2.0;
   NgcOptions o;
   o.safe_z_mm = default_safe_z_mm(s);

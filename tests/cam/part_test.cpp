@@ -304,7 +304,7 @@ TEST(Part, RapidDescentsNeverEnterThePart) {
 
 // ---------------------------------------------------------------- the tool axis
 
-ChamferSpec random_spec(std::mt19937_64& rng) {
+ChamferSpec random_part_hole_spec(std::mt19937_64& rng) {
   ChamferSpec s;
   s.pipe_radius_mm = uniform(rng, 15.0, 30.0);
   s.drill_radius_mm = uniform(rng, 3.0, 0.5 * s.pipe_radius_mm);
@@ -323,7 +323,7 @@ ChamferSpec random_spec(std::mt19937_64& rng) {
 TEST(PartToolAxis, TheDrillAxisAsToolAxisChangesNothing) {
   std::mt19937_64 rng(test::seed());
   for (int i = 0; i < 40; ++i) {
-    const ChamferSpec s = random_spec(rng);
+    const ChamferSpec s = random_part_hole_spec(rng);
     ChamferSpec t = s;
     t.tool_axis = Vec3(0.0, 0.0, s.side == Side::Upper ? 1.0 : -1.0);
     const ChamferPath a = generate_chamfer(s), b = generate_chamfer(t);

@@ -27,7 +27,7 @@ RobotSpec paper_experiment() {
 }
 
 // A random valid spec: radii from 1 to 500 mm, r/R up to 0.95, any start, 8 to 400 points.
-RobotSpec random_spec(std::mt19937_64& rng) {
+RobotSpec random_robot_spec(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   RobotSpec s;
   s.cylinder_radius_mm = 1.0 + 499.0 * u(rng);
@@ -81,7 +81,7 @@ double max_abs(const Mat3& m) {
 TEST(RobotEdge, PointsLieOnBothTheCylinderAndTheHoleWall) {
   std::mt19937_64 rng(ncd::test::seed());
   for (int trial = 0; trial < 200; ++trial) {
-    const RobotSpec s = random_spec(rng);
+    const RobotSpec s = random_robot_spec(rng);
     const RobotPath path = generate_robot_path(s);
     for (const auto& p : path.poses) {
       const Vec3& e = p.edge_mm;
@@ -112,7 +112,7 @@ TEST(RobotEdge, PointsAreTheEqualDivisionOfTheHoleCircleTravelledClockwise) {
 TEST(RobotEdge, DAndTfAre45DegreesToTheHoleWallAndTheFlankPlane) {
   std::mt19937_64 rng(ncd::test::seed());
   for (int trial = 0; trial < 200; ++trial) {
-    const RobotSpec s = random_spec(rng);
+    const RobotSpec s = random_robot_spec(rng);
     const RobotPath path = generate_robot_path(s);
     for (const auto& p : path.poses) {
       const Vec3 wall = hole_wall_normal_out(p.edge_mm);
@@ -143,7 +143,7 @@ TEST(RobotEdge, DAndTfAre45DegreesToTheHoleWallAndTheFlankPlane) {
 TEST(RobotEdge, AnglesToTheCylinderSurfaceDepartFrom45ByTheEdgeAngle) {
   std::mt19937_64 rng(ncd::test::seed());
   for (int trial = 0; trial < 200; ++trial) {
-    const RobotSpec s = random_spec(rng);
+    const RobotSpec s = random_robot_spec(rng);
     const RobotPath path = generate_robot_path(s);
     double lo = kPi, hi = -kPi;
     for (const auto& p : path.poses) {
@@ -195,7 +195,7 @@ TEST(RobotEdge, TcpIsTheDepthOfEachPassPlusTheBarRadiusAlongTf) {
 TEST(RobotFrames, OrthonormalRightHandedWithTgNormalToDForEveryRule) {
   std::mt19937_64 rng(ncd::test::seed());
   for (int trial = 0; trial < 100; ++trial) {
-    RobotSpec s = random_spec(rng);
+    RobotSpec s = random_robot_spec(rng);
     for (TgRule rule : {TgRule::Paper, TgRule::MinChange, TgRule::Naive}) {
       s.rule = rule;
       const RobotPath path = generate_robot_path(s);
@@ -336,7 +336,7 @@ TEST(RobotAttitude, PaperRuleTurnsTgByMinusMStepAboutD) {
 TEST(RobotAttitude, MinChangeNeverWorseThanNaiveOrPaperStepByStep) {
   std::mt19937_64 rng(ncd::test::seed());
   for (int trial = 0; trial < 200; ++trial) {
-    const RobotSpec s = random_spec(rng);
+    const RobotSpec s = random_robot_spec(rng);
     const RobotPath base = generate_robot_path(s);
     std::vector<ToolPose> naive = base.poses, paper = base.poses, mc = base.poses;
     const double step = 2.0 * kPi / s.points;

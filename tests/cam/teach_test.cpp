@@ -75,7 +75,7 @@ std::string motion_lines(const std::string& program) {
 }
 
 // A random rotation from a uniformly random unit quaternion.
-Eigen::Matrix3d random_rotation(std::mt19937_64& rng) {
+Eigen::Matrix3d random_rotation_matrix(std::mt19937_64& rng) {
   std::normal_distribution<double> g(0.0, 1.0);
   return Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized().toRotationMatrix();
 }
@@ -169,7 +169,7 @@ TEST(Teach, FrameIsOrthonormalRightHandedAndRecoversPlantedCoordinates) {
   std::mt19937_64 rng(ncd::test::seed());
   std::uniform_real_distribution<double> u(-500.0, 500.0);
   for (int trial = 0; trial < 500; ++trial) {
-    const Eigen::Matrix3d r = random_rotation(rng);
+    const Eigen::Matrix3d r = random_rotation_matrix(rng);
     const Vec3 p1(u(rng), u(rng), u(rng));
     const auto fp = frame_points_for(r, p1, rng);
     const TeachFrame f = make_frame(fp, "random");
@@ -306,13 +306,13 @@ TEST(Teach, RigidMotionOfPartAndFrameGivesTheSameProgram) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 200; ++trial) {
     const auto q = random_path(rng, 3 + static_cast<std::size_t>(30.0 * u(rng)));
-    const Eigen::Matrix3d r = random_rotation(rng);
+    const Eigen::Matrix3d r = random_rotation_matrix(rng);
     const Vec3 p1(-300.0 + 600.0 * u(rng), -300.0 + 600.0 * u(rng), -300.0 + 600.0 * u(rng));
     const auto fp = frame_points_for(r, p1, rng);
     std::vector<Vec3> world;
     for (const Vec3& p : q) world.push_back(p1 + r * p);
     // The same part moved: rotation m, translation t applied to the points and the frame.
-    const Eigen::Matrix3d m = random_rotation(rng);
+    const Eigen::Matrix3d m = random_rotation_matrix(rng);
     const Vec3 t(-300.0 + 600.0 * u(rng), -300.0 + 600.0 * u(rng), -300.0 + 600.0 * u(rng));
     std::vector<Vec3> moved;
     for (const Vec3& p : world) moved.push_back(m * p + t);

@@ -45,7 +45,7 @@ struct Result {
   bool ended = false;
 };
 
-Result walk(const toolpath::NurbsCurve& curve, StepMode mode) {
+Result walk_nurbs_case(const toolpath::NurbsCurve& curve, StepMode mode) {
   WalkerConfig config;
   config.mode = mode;
   CurveWalker walker(curve, config);
@@ -71,8 +71,8 @@ Result walk(const toolpath::NurbsCurve& curve, StepMode mode) {
 
 TEST(CurveWalkerOnNurbs, CorrectionHoldsTheFeedOnTheFig11Path) {
   const toolpath::NurbsCurve curve = fig11_path();
-  const Result corrected = walk(curve, StepMode::Corrected);
-  const Result taylor = walk(curve, StepMode::TaylorOnly);
+  const Result corrected = walk_nurbs_case(curve, StepMode::Corrected);
+  const Result taylor = walk_nurbs_case(curve, StepMode::TaylorOnly);
   std::cout << "Fig. 11 NURBS, length " << reference_arc_mm(curve, 0.0, 1.0) << " mm: corrected "
             << corrected.max_error_rel << " (drift " << corrected.drift_mm << " mm), Taylor only "
             << taylor.max_error_rel << " (drift " << taylor.drift_mm << " mm)\n";

@@ -168,8 +168,8 @@ TEST(PathIo, AnythingElseIsGcode) {
             (std::vector<Vec3>{{0, 0, 5}, {0, 0, 0}, {10, 0, 0}}));
 }
 
-void expect_error(const std::string& name, const std::string& text,
-                  const std::vector<std::string>& needles) {
+void expect_path_error(const std::string& name, const std::string& text,
+                       const std::vector<std::string>& needles) {
   const std::string file = temp_file(name, text);
   try {
     read_path_file(file);
@@ -182,39 +182,41 @@ void expect_error(const std::string& name, const std::string& text,
 }
 
 TEST(PathIo, ErrorsNameTheFileTheKeyAndTheWayOut) {
-  expect_error("bad1.json", R"({"points": [{"cl": [0, 0, 0], "e": [1, 0, 0]}, {"cl": [1, 0, 0]}]})",
-               {"\"points[1].e\" is missing"});
-  expect_error(
+  expect_path_error("bad1.json",
+                    R"({"points": [{"cl": [0, 0, 0], "e": [1, 0, 0]}, {"cl": [1, 0, 0]}]})",
+                    {"\"points[1].e\" is missing"});
+  expect_path_error(
       "bad2.json",
       R"({"points": [{"cl": [0, 0, "x"], "e": [1, 0, 0]}, {"cl": [1, 0, 0], "e": [1, 0, 0]}]})",
       {"\"points[0].cl[2]\"", "not a number"});
-  expect_error("bad3.json", R"({"points": [{"cl": [0, 0], "e": [1, 0, 0]}]})",
-               {"\"points[0].cl\"", "[x, y, z]"});
-  expect_error("bad4.json",
-               R"({"input": {"feed_mm_per_min": -3}, "points": [{"cl": [0, 0, 0], "e": [1, 0, 0]},
+  expect_path_error("bad3.json", R"({"points": [{"cl": [0, 0], "e": [1, 0, 0]}]})",
+                    {"\"points[0].cl\"", "[x, y, z]"});
+  expect_path_error(
+      "bad4.json",
+      R"({"input": {"feed_mm_per_min": -3}, "points": [{"cl": [0, 0, 0], "e": [1, 0, 0]},
                   {"cl": [1, 0, 0], "e": [1, 0, 0]}]})",
-               {"\"input.feed_mm_per_min\"", "-3", "greater than 0"});
-  expect_error("bad5.json", R"({"points": [{"cl": [0, 0, 0], "e": [1, 0, 0]}]})",
-               {"\"points\" has 1 point"});
-  expect_error("bad6.json", R"({"nurbs": {"degree": 2, "knots": [0, 0, 0, 0.5, 1, 1],
+      {"\"input.feed_mm_per_min\"", "-3", "greater than 0"});
+  expect_path_error("bad5.json", R"({"points": [{"cl": [0, 0, 0], "e": [1, 0, 0]}]})",
+                    {"\"points\" has 1 point"});
+  expect_path_error("bad6.json", R"({"nurbs": {"degree": 2, "knots": [0, 0, 0, 0.5, 1, 1],
                "points": [[0, 0, 0], [1, 1, 0], [2, 0, 0]]}})",
-               {"\"nurbs\" is invalid", "knot[3] = 0.5", "clamped"});
-  expect_error("bad7.json", R"({"nurbs": {"degree": 2.5, "knots": [], "points": []}})",
-               {"\"nurbs.degree\"", "2.5"});
-  expect_error("bad8.json", R"({"nurbs": {"degree": 1, "knots": [0, 0, 1, 1],
+                    {"\"nurbs\" is invalid", "knot[3] = 0.5", "clamped"});
+  expect_path_error("bad7.json", R"({"nurbs": {"degree": 2.5, "knots": [], "points": []}})",
+                    {"\"nurbs.degree\"", "2.5"});
+  expect_path_error("bad8.json", R"({"nurbs": {"degree": 1, "knots": [0, 0, 1, 1],
                "points": [[0, 0, 0], [1, 0, 0]], "weights": [1, 0]}})",
-               {"weight[1] = 0"});
-  expect_error("bad9.json", R"({"polyline": {"points": [[0, 0, 0], [0, 0, 0]]}})",
-               {"point[1] = (0, 0, 0) repeats point[0]"});
-  expect_error("bad10.json", R"({"polyline": {"points": [[0, 0, 0], [1, 0, 0]]}, "feed": 5})",
-               {"\"feed\" is not a known key", "feed_mm_per_min"});
-  expect_error("bad11.json", R"({"polyline": {"pts": []}})", {"\"polyline.pts\""});
-  expect_error("bad12.json", R"({"polyline": {"points": []}, "nurbs": {}})",
-               {"exactly one of \"nurbs\" and \"polyline\""});
-  expect_error("bad13.json", R"({"what": 1})", {"neither \"points\""});
-  expect_error("bad14.json", "{\"points\": [1, 2,", {"not valid JSON"});
-  expect_error("bad15.ngc", "G0 X0 Y0 Z0\nG2 X1 Y1 R0.1 F10\n", {":2:", "R0.1 is too small"});
-  expect_error("empty.ngc", " \n\n", {"the file is empty"});
+                    {"weight[1] = 0"});
+  expect_path_error("bad9.json", R"({"polyline": {"points": [[0, 0, 0], [0, 0, 0]]}})",
+                    {"point[1] = (0, 0, 0) repeats point[0]"});
+  expect_path_error("bad10.json", R"({"polyline": {"points": [[0, 0, 0], [1, 0, 0]]}, "feed": 5})",
+                    {"\"feed\" is not a known key", "feed_mm_per_min"});
+  expect_path_error("bad11.json", R"({"polyline": {"pts": []}})", {"\"polyline.pts\""});
+  expect_path_error("bad12.json", R"({"polyline": {"points": []}, "nurbs": {}})",
+                    {"exactly one of \"nurbs\" and \"polyline\""});
+  expect_path_error("bad13.json", R"({"what": 1})", {"neither \"points\""});
+  expect_path_error("bad14.json", "{\"points\": [1, 2,", {"not valid JSON"});
+  expect_path_error("bad15.ngc", "G0 X0 Y0 Z0\nG2 X1 Y1 R0.1 F10\n", {":2:", "R0.1 is too small"});
+  expect_path_error("empty.ngc", " \n\n", {"the file is empty"});
   try {
     read_path_file("/nonexistent/dir/path.json");
     ADD_FAILURE();
@@ -228,24 +230,27 @@ TEST(PathIo, ErrorsNameTheFileTheKeyAndTheWayOut) {
 // Issue 11's path reproducers: each an InputError naming the key (or the byte offset), never an
 // escaped nlohmann exception, a stack overflow or a path of zero length.
 TEST(PathIo, NumbersNestingAndZeroLengthAreInputErrors) {
-  expect_error("n1.json", R"({"nurbs":1e400})", {"n1.json: \"nurbs\" is out of range"});
-  expect_error("n2.json", R"({"polyline":{"points":[[0,0,0],[-1e999,0,0]]}})",
-               {"\"polyline.points[1][0]\" is out of range"});
-  expect_error("n3.json", R"({"polyline":{"points":)" + std::string(100000, '['),
-               {"n3.json: line 1, column 85 (byte offset 84)", "nesting deeper than 64"});
-  expect_error("n4.json",
-               R"({"nurbs":{"degree":2,"knots":[0,0,0,1,1,1],"points":[[1,2,3],[1,2,3],[1,2,3]]}})",
-               {"\"nurbs.points\" are all the same point", "zero length"});
-  expect_error("n5.json", R"({"nurbs": {"degree": 4.9, "knots": [], "points": []}})",
-               {"\"nurbs.degree\" = 4.9 is not a whole number", "from 1 to 7"});
-  expect_error("n6.json", R"({"nurbs": {"degree": 3e9, "knots": [], "points": []}})",
-               {"\"nurbs.degree\" = 3000000000 is out of range"});
-  expect_error("n7.json", R"({"polyline":{"points":[[0,0,0],[1,0,0]]},"feed_mm_per_min":0.0001})",
-               {"\"feed_mm_per_min\" = 0.0001 is outside the plausible range [0.1, 120000]"});
-  expect_error("n8.json", R"({"polyline":{"points":[[0,0,0],[1,0,0]]},"spindle_rpm":1e9})",
-               {"\"spindle_rpm\" = 1000000000 is outside the plausible range [1, 200000] rpm"});
-  expect_error("n9.json", R"({"polyline":{"points":[[0,0,0],[1e6,0,0]]}})",
-               {"\"polyline.points[1][0]\" = 1000000.0 is outside", "[-100000, 100000] mm"});
+  expect_path_error("n1.json", R"({"nurbs":1e400})", {"n1.json: \"nurbs\" is out of range"});
+  expect_path_error("n2.json", R"({"polyline":{"points":[[0,0,0],[-1e999,0,0]]}})",
+                    {"\"polyline.points[1][0]\" is out of range"});
+  expect_path_error("n3.json", R"({"polyline":{"points":)" + std::string(100000, '['),
+                    {"n3.json: line 1, column 85 (byte offset 84)", "nesting deeper than 64"});
+  expect_path_error(
+      "n4.json",
+      R"({"nurbs":{"degree":2,"knots":[0,0,0,1,1,1],"points":[[1,2,3],[1,2,3],[1,2,3]]}})",
+      {"\"nurbs.points\" are all the same point", "zero length"});
+  expect_path_error("n5.json", R"({"nurbs": {"degree": 4.9, "knots": [], "points": []}})",
+                    {"\"nurbs.degree\" = 4.9 is not a whole number", "from 1 to 7"});
+  expect_path_error("n6.json", R"({"nurbs": {"degree": 3e9, "knots": [], "points": []}})",
+                    {"\"nurbs.degree\" = 3000000000 is out of range"});
+  expect_path_error("n7.json",
+                    R"({"polyline":{"points":[[0,0,0],[1,0,0]]},"feed_mm_per_min":0.0001})",
+                    {"\"feed_mm_per_min\" = 0.0001 is outside the plausible range [0.1, 120000]"});
+  expect_path_error(
+      "n8.json", R"({"polyline":{"points":[[0,0,0],[1,0,0]]},"spindle_rpm":1e9})",
+      {"\"spindle_rpm\" = 1000000000 is outside the plausible range [1, 200000] rpm"});
+  expect_path_error("n9.json", R"({"polyline":{"points":[[0,0,0],[1e6,0,0]]}})",
+                    {"\"polyline.points[1][0]\" = 1000000.0 is outside", "[-100000, 100000] mm"});
   // A repeated end control point (zero parametric speed at that end) is a valid curve.
   const Path p = read_path_text(
       R"({"nurbs":{"degree":2,"knots":[0,0,0,1,1,1],"points":[[0,0,0],[0,0,0],[10,0,0]]}})",

@@ -21,12 +21,12 @@ namespace {
 namespace fs = std::filesystem;
 using namespace ncd;
 
-struct Case {
+struct PolarCase {
   const char* name;
   const char* program;
 };
 
-const Case kCases[] = {
+const PolarCase kCases[] = {
     {"x_with_polar", "G21 G90 G17\nG0 X1 Y1 Z1\nG1 X2 @3 ^10 F100\nM2\n"},
     {"xz_plane", "G21 G90 G18\nG0 X1 Y1 Z1\nG1 @3 ^10 F100\nM2\n"},
     {"radius_alone_at_origin", "G21 G90 G17\nG0 X0 Y0 Z1\nG1 @3 F100\nM2\n"},
@@ -36,7 +36,7 @@ const Case kCases[] = {
 TEST(PolarCoordinates, WhatRs274RefusesNcdRefusesOnTheSameLine) {
   if (!fs::exists(test::kRs274)) GTEST_SKIP() << test::kRs274 << " not installed";
   test::TempDir dir("ncd_polar_");
-  for (const Case& c : kCases) {
+  for (const PolarCase& c : kCases) {
     SCOPED_TRACE(c.name);
     std::ofstream(dir / "p.ngc") << c.program;
     const std::string cmd = "cd '" + dir.path().string() + "' && " +

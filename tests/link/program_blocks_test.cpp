@@ -19,7 +19,7 @@
 namespace ncd::comms {
 namespace {
 
-struct Encoded {
+struct ProgramEncoded {
   std::vector<std::string> lines;
   EncoderStats stats;
 };
@@ -42,12 +42,12 @@ toolpath::Program square_job(double dwell_s) {
   return toolpath::whole_job(path, f);
 }
 
-Encoded encode(const toolpath::Program& program, EncoderSettings s = {}) {
+ProgramEncoded encode_program(const toolpath::Program& program, EncoderSettings s = {}) {
   const toolpath::Path path = toolpath::to_path(program);
   motion::JobConfig cfg;
   cfg.cutting.pick_feed_mm = 0.0;
   motion::Job job(path, cfg);
-  Encoded run;
+  ProgramEncoded run;
   BlockEncoder enc(s, [&run](const EncodedBlock& b) { run.lines.push_back(b.text); });
   ProgramBlocks blocks(program, enc, job.segment_starts_mm());
   blocks.begin({"a header"});
@@ -74,7 +74,7 @@ std::size_t index_of(const std::vector<std::string>& lines, const std::string& p
 }
 
 TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
-  const Encoded r = encode(square_job(2.5));
+  const ProgramEncoded r = encode_program(square_job(2.5));
   ASSERT_GT(r.lines.size(), 10u);
   EXPECT_EQ(r.lines[0], "(a header)");
   EXPECT_EQ(r.lines[1], "N1G21G90G94G17G40G49G64P0.002");
@@ -117,7 +117,7 @@ TEST(ProgramBlocks, EventsAndRapidsComeOutAtTheirPlace) {
 }
 
 TEST(ProgramBlocks, NoDwellWhenNoneIsConfigured) {
-  const Encoded r = encode(square_job(0.0));
+  const ProgramEncoded r = encode_program(square_job(0.0));
   EXPECT_EQ(index_of(r.lines, "G4P"), r.lines.size());
   EXPECT_EQ(r.lines[5], "N5G0Z20.");
 }
@@ -127,7 +127,7 @@ TEST(ProgramBlocks, FramingKnobs) {
   s.numbers = false;
   s.comments = false;
   s.percent = true;
-  const Encoded r = encode(square_job(0.0), s);
+  const ProgramEncoded r = encode_program(square_job(0.0), s);
   EXPECT_EQ(r.lines.front(), "%");
   EXPECT_EQ(r.lines.back(), "%");
   EXPECT_EQ(r.lines[1], "G21G90G94G17G40G49G64P0.002");
@@ -142,7 +142,7 @@ TEST(ProgramBlocks, ALineLongerThanTheControllerTakesIsAnErrorNamingIt) {
   EncoderSettings s;
   s.max_line_chars = 12;
   try {
-    encode(square_job(0.0), s);
+    encode_program(square_job(0.0), s);
     FAIL() << "a 20-character line passed a 12-character limit";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("N1G21G90G94G17G40G49G64P0.002"), std::string::npos)

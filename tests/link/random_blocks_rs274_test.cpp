@@ -53,7 +53,7 @@ double distance_to_segment(const Vec3& p, const Vec3& a, const Vec3& b) {
 }
 
 // The machine of the Property suite: single pass, a roughness target that never binds.
-motion::JobConfig machine() {
+motion::JobConfig random_machine() {
   motion::JobConfig c;
   c.cutting.pick_feed_mm = 0.0;
   c.cutting.roughness_target_um = 1000.0;
@@ -69,7 +69,7 @@ TEST(RandomBlocksRs274, EveryProgramParsesAndEndsOnThePlannedSetpoints) {
   const int programs = test::sweep_cases(40);
   test::TempDir dir("ncd_random_rs274_");
   test::RandomProgram gen{std::mt19937_64(seed)};
-  const motion::JobConfig cfg = machine();
+  const motion::JobConfig cfg = random_machine();
   EncoderSettings enc;  // chord tolerance 2 µm, 3 decimals: the machine file's defaults
   // A point printed with 4 decimals is within half a unit of the last digit on each axis.
   const double tolerance_mm = enc.chord_tolerance_mm + std::sqrt(3.0) * 5e-5 + 1e-9;

@@ -50,16 +50,16 @@ double distance_to_program(const std::vector<Vec3>& pts, const Vec3& q) {
   return best;
 }
 
-struct Walk {
+struct BlendWalk {
   std::vector<Setpoint> sp;
   double duration_s = 0.0;
   std::size_t blended = 0;
   Path walked;
 };
 
-Walk run(const Path& path, const JobConfig& config = test::planner_machine()) {
+BlendWalk run(const Path& path, const JobConfig& config = test::planner_machine()) {
   Job job(path, config);
-  Walk r;
+  BlendWalk r;
   while (!job.done()) {
     job.prepare();
     r.sp.push_back(job.step());
@@ -229,7 +229,7 @@ TEST(Blend, GentleZigZagStaysWithinPAndBeatsExactStopAndTheSharpCorner) {
   const std::vector<Vec3> pts = zigzag(12, leg, phi);
   Path path;
   path.segments.push_back(move(pts, 60.0 * feed, p_mm));
-  const Walk g64 = run(path);
+  const BlendWalk g64 = run(path);
   EXPECT_EQ(g64.blended, 11U);
   double worst = 0.0;
   for (const auto& sp : g64.sp) worst = std::max(worst, distance_to_program(pts, sp.p));
@@ -252,10 +252,10 @@ TEST(Blend, GentleZigZagStaysWithinPAndBeatsExactStopAndTheSharpCorner) {
     if (i < 11) pieces.push_back({r_mm * phi, v_arc});
   }
   const double bound = phase_plane_s(pieces), estimate = scurve_pieces_s(pieces);
-  const Walk stop = run(with_mode(path, PathControl::exact_stop));
+  const BlendWalk stop = run(with_mode(path, PathControl::exact_stop));
   Path sharp = path;
   sharp.segments[0].blend_tolerance_mm = 0.0;  // G64 P0: no rounding
-  const Walk p0 = run(sharp);
+  const BlendWalk p0 = run(sharp);
   std::printf(
       "zig-zag 30 deg 10 mm, G64 P0.01: %.3f s (%zu corners, deviation %.5f mm, arc %.2f "
       "mm/s); phase-plane bound %.3f s (ratio %.3f), S-curve estimate %.3f s (ratio "
@@ -296,7 +296,7 @@ TEST(Blend, PlainG64TakesTheMachinesBlendTolerance) {
   for (const double tol_mm : {0.01, 0.05, 0.0}) {
     JobConfig c = test::planner_machine();
     c.limits.blend_tolerance_mm = tol_mm;
-    const Walk w = run(path, c);
+    const BlendWalk w = run(path, c);
     double dev = 0.0, kappa = 0.0, vertex = 0.0;
     sample_walked(w.walked, pts, dev, kappa, &vertex);
     for (const Setpoint& sp : w.sp) dev = std::max(dev, distance_to_program(pts, sp.p));
@@ -349,7 +349,7 @@ TEST(Blend, ExactModesAndP0HoldEveryEndPointExactly) {
     path.segments.push_back(move(pts, 3000.0, c.p_mm, c.mode));
     JobConfig config = test::planner_machine();
     config.limits.blend_tolerance_mm = c.machine_tolerance_mm;
-    const Walk w = run(path, config);
+    const BlendWalk w = run(path, config);
     double worst = 0.0;
     bool exact = true;
     for (std::size_t v = 1; v + 1 < pts.size(); ++v) {
@@ -371,12 +371,12 @@ TEST(Blend, LargeToleranceRoundsTheSquareFasterThanExactStop) {
   const std::vector<Vec3> pts{{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}};
   Path path;
   path.segments.push_back(move(pts, 6000.0, 0.5));
-  const Walk g64 = run(path);
+  const BlendWalk g64 = run(path);
   EXPECT_EQ(g64.blended, 3U);
   double worst = 0.0;
   for (const auto& sp : g64.sp) worst = std::max(worst, distance_to_program(pts, sp.p));
   EXPECT_LE(worst, 0.5 * (1.0 + 1e-9));
-  const Walk stop = run(with_mode(path, PathControl::exact_stop));
+  const BlendWalk stop = run(with_mode(path, PathControl::exact_stop));
   const double r_mm = arc_radius_mm(0.5 * M_PI, 0.5), tangent = r_mm;
   const double v_arc = arc_speed(r_mm, 100.0);
   std::vector<std::pair<double, double>> pieces;
@@ -401,8 +401,8 @@ TEST(Blend, SharpCornersWithASmallToleranceStopRatherThanCrawl) {
   const std::vector<Vec3> pts{{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}};
   Path path;
   path.segments.push_back(move(pts, 6000.0, 0.01));
-  const Walk g64 = run(path);
-  const Walk stop = run(with_mode(path, PathControl::exact_stop));
+  const BlendWalk g64 = run(path);
+  const BlendWalk stop = run(with_mode(path, PathControl::exact_stop));
   EXPECT_EQ(g64.blended, 0U);
   EXPECT_LE(g64.duration_s, stop.duration_s + 1e-9);
 }
@@ -410,7 +410,7 @@ TEST(Blend, SharpCornersWithASmallToleranceStopRatherThanCrawl) {
 TEST(Blend, ReversalAndExactPathAreNeverRounded) {
   Path rev;
   rev.segments.push_back(move({{0, 0, 0}, {10, 0, 0}, {3, 0.0, 0}}, 3000.0, 1.0));
-  const Walk r = run(rev);
+  const BlendWalk r = run(rev);
   EXPECT_EQ(r.blended, 0U);
   bool at_turn = false;
   for (const auto& sp : r.sp) {
@@ -420,7 +420,7 @@ TEST(Blend, ReversalAndExactPathAreNeverRounded) {
   const std::vector<Vec3> pts = zigzag(6, 10.0, 30.0 * M_PI / 180.0);
   Path g61;
   g61.segments.push_back(move(pts, 6000.0, 0.5, PathControl::exact_path));
-  const Walk e = run(g61);
+  const BlendWalk e = run(g61);
   EXPECT_EQ(e.blended, 0U);
   for (const auto& sp : e.sp) ASSERT_LE(distance_to_program(pts, sp.p), 1e-9);
 }

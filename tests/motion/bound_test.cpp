@@ -67,7 +67,7 @@ double ncd_duration_s(const Path& path, std::size_t* overlap_saved_periods = nul
 
 // A walk: its duration, what the fit did, and the largest distance of a setpoint from the
 // programmed polyline (nearest point on the pieces around its arc length).
-struct Walk {
+struct BoundWalk {
   double t_s = 0.0;
   double max_off_mm = 0.0;
   feed::FitReport fit;
@@ -75,12 +75,12 @@ struct Walk {
 
 // fit_dense_runs: the machine's default fit of dense runs under G64 P (docs/planner.md §3d);
 // false walks the programmed polyline itself ("raw") unless the program's G64 Q asks for a fit.
-Walk walk(const Path& path, bool fit_dense_runs = true) {
+BoundWalk bound_walk(const Path& path, bool fit_dense_runs = true) {
   motion::JobConfig machine = test::planner_machine();
   machine.limits.fit_dense_runs = fit_dense_runs;
   Job job(path, machine);
   const test::GeometryTable program = test::tabulate(path);
-  Walk w;
+  BoundWalk w;
   w.fit = job.fit_report();
   while (!job.done()) {
     job.prepare();
@@ -147,12 +147,12 @@ void row(const char* name, double ncd_s, double bound_s, const char* kind) {
 }
 
 TEST(Bound, DurationsAgainstTimeOptimalBounds) {
-  constexpr double kA = 1000.0, kJ = 20000.0;
+  constexpr double kAccel = 1000.0, kJerk = 20000.0;
   std::printf("| path | ncd s | bound s | bound | ratio |\n|---|---|---|---|---|\n");
   {
     Path p;
     p.segments.push_back(line({{0, 0, 0}, {50, 0, 0}}, 6000.0));
-    const double t = ncd_duration_s(p), b = test::scurve_time_s(50.0, 100.0, kA, kJ);
+    const double t = ncd_duration_s(p), b = test::scurve_time_s(50.0, 100.0, kAccel, kJerk);
     row("line 50 mm", t, b, "S-curve (jerk-limited)");
     EXPECT_LE(t, b + 0.004);  // whole periods: at most one more (0.652 s; the landing, §6)
     EXPECT_GE(t, b - 0.004);
@@ -162,7 +162,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     const double t = ncd_duration_s(p);
     // The circle's limit is constant (100 mm/s: chord 0.4 mm per period at R = 20, above it
     // the centripetal laws): the S-curve at that level is the jerk-limited optimum.
-    const double b = test::scurve_time_s(40.0 * M_PI, 100.0, kA, kJ);
+    const double b = test::scurve_time_s(40.0 * M_PI, 100.0, kAccel, kJerk);
     row("circle R20", t, b, "S-curve (jerk-limited)");
     EXPECT_LE(t, b + 0.004);  // 1.408 s
     const PhasePlane pp = phase_plane(std::get<NurbsCurve>(p.segments[0].geometry), 100.0);
@@ -205,7 +205,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
   const auto exact_stop = [&](const char* name, const Path& p, double v_mm_per_s,
                               const std::vector<double>& legs) {
     double b = 0.0;
-    for (const double d : legs) b += test::scurve_time_s(d, v_mm_per_s, kA, kJ);
+    for (const double d : legs) b += test::scurve_time_s(d, v_mm_per_s, kAccel, kJerk);
     // Under G64 the sharp corners are overlapped (docs/planner.md §3b): the exact-stop bound
     // less the periods the job reports saved there.
     std::size_t saved = 0;
@@ -246,7 +246,8 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     }
     double b = 0.0;
     for (int h = 0; h < 5; ++h) {
-      b += 2.0 * test::scurve_time_s(5.0, 100.0, kA, kJ) + test::scurve_time_s(5.0, 5.0, kA, kJ);
+      b += 2.0 * test::scurve_time_s(5.0, 100.0, kAccel, kJerk) +
+           test::scurve_time_s(5.0, 5.0, kAccel, kJerk);
     }
     std::size_t saved = 0;
     const double t = ncd_duration_s(p, &saved);
@@ -263,33 +264,35 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     const auto& pts = std::get<Polyline>(p.segments[0].geometry).points;
     double len = 0.0;
     for (std::size_t i = 0; i + 1 < pts.size(); ++i) len += (pts[i + 1] - pts[i]).norm();
-    const double t = ncd_duration_s(p), b = test::scurve_time_s(len, 5.0, kA, kJ);
+    const double t = ncd_duration_s(p), b = test::scurve_time_s(len, 5.0, kAccel, kJerk);
     row("chamfer (exp. 3, F300)", t, b, "S-curve at F (jerk-limited)");
     EXPECT_GE(t, b - 0.004);
   }
   // The dense CAM program (issue 13): walked raw (the machine's default fit off), and fitted
   // under G64 P0.01 Q0.01, at the same chord tolerance. Its limit is F3000 everywhere (R50: chord
   // 158 mm/s, centripetal 224 and 368 mm/s), so the S-curve at 50 mm/s is the jerk-limited optimum.
-  const double b = test::scurve_time_s(200.0, 50.0, kA, kJ);
+  const double b = test::scurve_time_s(200.0, 50.0, kAccel, kJerk);
   const auto dense_row = [&](const char* name, const Path& p) {
-    const Walk w = walk(p, /*fit_dense_runs=*/false);
+    const BoundWalk w = bound_walk(p, /*fit_dense_runs=*/false);
     row(name, w.t_s, b, "S-curve (jerk-limited)");
     return w;
   };
   dense_row("dense CAM exact, raw", test::dense_cam(20000, 0, std::nullopt));
-  const Walk raw4 = dense_row("dense CAM 4 dp, raw", test::dense_cam(20000, 4, std::nullopt));
-  const Walk raw3 = dense_row("dense CAM 3 dp, raw", test::dense_cam(20000, 3, std::nullopt));
-  const Walk fit4 = dense_row("dense CAM 4 dp, P Q0.01", test::dense_cam(20000, 4, 0.01));
-  const Walk fit3 = dense_row("dense CAM 3 dp, P Q0.01", test::dense_cam(20000, 3, 0.01));
+  const BoundWalk raw4 = dense_row("dense CAM 4 dp, raw", test::dense_cam(20000, 4, std::nullopt));
+  const BoundWalk raw3 = dense_row("dense CAM 3 dp, raw", test::dense_cam(20000, 3, std::nullopt));
+  const BoundWalk fit4 = dense_row("dense CAM 4 dp, P Q0.01", test::dense_cam(20000, 4, 0.01));
+  const BoundWalk fit3 = dense_row("dense CAM 3 dp, P Q0.01", test::dense_cam(20000, 3, 0.01));
   // The same programs without Q under the machine's default fit (within P − ε_c = 9 µm).
   const auto default_row = [&](const char* name, const Path& p) {
-    const Walk w = walk(p, /*fit_dense_runs=*/true);
+    const BoundWalk w = bound_walk(p, /*fit_dense_runs=*/true);
     row(name, w.t_s, b, "S-curve (jerk-limited)");
     return w;
   };
-  const Walk def4 = default_row("dense CAM 4 dp, P0.01", test::dense_cam(20000, 4, std::nullopt));
-  const Walk def3 = default_row("dense CAM 3 dp, P0.01", test::dense_cam(20000, 3, std::nullopt));
-  for (const Walk* w : {&def4, &def3}) {
+  const BoundWalk def4 =
+      default_row("dense CAM 4 dp, P0.01", test::dense_cam(20000, 4, std::nullopt));
+  const BoundWalk def3 =
+      default_row("dense CAM 3 dp, P0.01", test::dense_cam(20000, 3, std::nullopt));
+  for (const BoundWalk* w : {&def4, &def3}) {
     std::printf(
         "  default fit: %zu run(s), %zu spans, proven deviation %.5f mm, setpoints within "
         "%.5f mm of the programmed polyline\n",
@@ -299,7 +302,7 @@ TEST(Bound, DurationsAgainstTimeOptimalBounds) {
     EXPECT_LE(w->max_off_mm, 0.01);
     EXPECT_LE(w->t_s, 1.02 * b);
   }
-  for (const Walk* w : {&fit4, &fit3}) {
+  for (const BoundWalk* w : {&fit4, &fit3}) {
     std::printf(
         "  fitted: %zu run(s), %zu spans, proven deviation %.5f mm, setpoints within "
         "%.5f mm of the programmed polyline\n",
@@ -383,7 +386,7 @@ Path polyline_path(const std::vector<Vec3>& pts, toolpath::PathControl mode,
 // its jerk-vector limit: everywhere under "tangential" (√2 j_max), at the zig-zag's 150° turns
 // under "vector" (0.52 j_max there; the square's 90° corners would take √2 j_max and stop).
 TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {
-  constexpr double kA = 1000.0, kJ = 20000.0, kP = 0.01;
+  constexpr double kAccel = 1000.0, kJerk = 20000.0, kP = 0.01;
   std::printf(
       "| path | bound | ncd s | exact-stop bound s | ratio | jerk vector / j_max |\n"
       "|---|---|---|---|---|---|\n");
@@ -397,20 +400,20 @@ TEST(Bound, CornersUnderG64P001StayWithinPAndBeatExactStop) {
     for (const auto& c : cases) {
       double b = 0.0;
       for (std::size_t i = 0; i + 1 < c.pts.size(); ++i)
-        b += test::scurve_time_s(c.leg_mm, 100.0, kA, kJ);
+        b += test::scurve_time_s(c.leg_mm, 100.0, kAccel, kJerk);
       const Measured g61 =
           measure(polyline_path(c.pts, toolpath::PathControl::exact_stop), c.pts, bound);
       const Measured g64 =
           measure(polyline_path(c.pts, toolpath::PathControl::blend, kP), c.pts, bound);
       const char* bname = vector ? "vector" : "tangential";
       std::printf("| %s (G61.1) | %s | %.3f | %.3f | %.3f | %.3f |\n", c.name, bname,
-                  g61.duration_s, b, g61.duration_s / b, g61.jerk_vector / kJ);
+                  g61.duration_s, b, g61.duration_s / b, g61.jerk_vector / kJerk);
       std::printf("| %s (G64 P0.01) | %s | %.3f | %.3f | %.3f | %.3f |\n", c.name, bname,
-                  g64.duration_s, b, g64.duration_s / b, g64.jerk_vector / kJ);
+                  g64.duration_s, b, g64.duration_s / b, g64.jerk_vector / kJerk);
       std::printf("  max deviation %.5f mm (P %.3f), %zu corners overlapped, saved %.3f s\n",
                   g64.deviation_mm, kP, g64.corners, g61.duration_s - g64.duration_s);
       EXPECT_LE(g64.deviation_mm, kP * (1.0 + 1e-9));
-      EXPECT_LE(g64.jerk_vector, (vector ? 1.0 : std::sqrt(2.0)) * kJ * (1.0 + 1e-9));
+      EXPECT_LE(g64.jerk_vector, (vector ? 1.0 : std::sqrt(2.0)) * kJerk * (1.0 + 1e-9));
       const bool overlapped = !vector || c.leg_mm == 5.0;
       const double corners = static_cast<double>(c.pts.size() - 2);
       // At least one period saved per corner where the overlap is allowed.

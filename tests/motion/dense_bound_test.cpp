@@ -36,7 +36,7 @@ using toolpath::NurbsCurve;
 using toolpath::Path;
 using toolpath::Polyline;
 
-JobConfig machine(bool fit_dense_runs = true) {
+JobConfig dense_machine(bool fit_dense_runs = true) {
   JobConfig c = test::planner_machine();
   c.limits.fit_dense_runs = fit_dense_runs;
   return c;
@@ -61,12 +61,13 @@ void expect_within(const test::DenseWalk& w, double p_mm) {
 }
 
 TEST(DenseBound, SineUnderG64PNearTheShapesBound) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = dense_machine();
   const double bound =
       test::phase_plane_time_s(test::sine_limit(20000, cfg.limits), cfg.limits.max_accel_mm_per_s2,
                                cfg.limits.max_jerk_mm_per_s3);
   print_header();
-  const test::DenseWalk off = test::walk_dense(test::sine_program(20000, 4, 0.01), machine(false));
+  const test::DenseWalk off =
+      test::walk_dense(test::sine_program(20000, 4, 0.01), dense_machine(false));
   print_row("sine 4 dp, P0.01, fit off", off, bound);
   for (const double p : {0.01, 0.005, 0.002}) {
     const test::DenseWalk w = test::walk_dense(test::sine_program(20000, 4, p), cfg);
@@ -87,7 +88,7 @@ TEST(DenseBound, SineUnderG64PNearTheShapesBound) {
 }
 
 TEST(DenseBound, SurfaceRasterNearTheShapesBound) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = dense_machine();
   constexpr std::size_t kPasses = 9;
   const double p = 0.01;
   const double bound =
@@ -95,7 +96,7 @@ TEST(DenseBound, SurfaceRasterNearTheShapesBound) {
                                cfg.limits.max_accel_mm_per_s2, cfg.limits.max_jerk_mm_per_s3);
   print_header();
   const test::DenseWalk off =
-      test::walk_dense(test::surface_program(kPasses, 4, p), machine(false));
+      test::walk_dense(test::surface_program(kPasses, 4, p), dense_machine(false));
   print_row("surface raster 4 dp, P0.01, fit off", off, bound);
   const test::DenseWalk w = test::walk_dense(test::surface_program(kPasses, 4, p), cfg);
   print_row("surface raster 4 dp, G64 P0.01", w, bound);
@@ -110,12 +111,12 @@ TEST(DenseBound, SurfaceRasterNearTheShapesBound) {
 // post writes it (7 passes, 0.025 mm steps, 3 decimals, only the words that change), read by
 // ncd's interpreter, with its 5 mm retract: one run per pass, near the shape's bound, within P.
 TEST(DenseBound, SurfaceFinishExampleNearTheShapesBound) {
-  const JobConfig cfg = machine();
+  const JobConfig cfg = dense_machine();
   const double p = 0.01, bound = test::surface_finish_bound_s(cfg.limits);
   const Path path =
       toolpath::read_path_file(std::string(NCD_SOURCE_DIR) + "/examples/surface-finish.ngc");
   print_header();
-  const test::DenseWalk off = test::walk_dense(path, machine(false));
+  const test::DenseWalk off = test::walk_dense(path, dense_machine(false));
   print_row("surface-finish.ngc, fit off", off, bound);
   const test::DenseWalk w = test::walk_dense(path, cfg);
   print_row("surface-finish.ngc, G64 P0.01", w, bound);
@@ -129,7 +130,7 @@ TEST(DenseBound, SurfaceFinishExampleNearTheShapesBound) {
 TEST(DenseBound, LinuxCnc3dtestNearItsBound) {
   const std::string file = "/usr/share/linuxcnc/ncfiles/3dtest.ngc";
   if (!std::filesystem::exists(file)) GTEST_SKIP() << file << " is not installed";
-  const JobConfig cfg = machine();
+  const JobConfig cfg = dense_machine();
   const Path path = toolpath::read_path_file(file);
   const test::ShapeLimit lim = test::program_limit(path, cfg.limits);
   const double bound =

@@ -49,7 +49,7 @@ std::string kind(const Outcome& o) {
 }
 
 // A finding's reproducer walks to its end within every check.
-void expect_walked(const std::string& name) {
+void expect_finding_walked(const std::string& name) {
   const Outcome o = run_file(kCorpus / ("finding_" + name + ".ngc"));
   EXPECT_EQ(kind(o), "walked") << o.message;
 }
@@ -68,7 +68,7 @@ TEST(PipelineFuzz, AllocationsAreCounted) {
 // tolerance, as each joint was bounded on its own. The corner law now sums the turns of joints
 // around a segment shorter than the step (feed/limit_sampler.cpp).
 TEST(PipelineFuzz, TwoJointsAroundAShortArcInOnePeriodKeepTheChordTolerance) {
-  expect_walked("chord_two_joints_in_one_period");
+  expect_finding_walked("chord_two_joints_in_one_period");
 }
 
 // Finding: a G1 into a helix of 2.4 um radius (three turns, G20), chord tolerance 0.15 um, on a
@@ -78,7 +78,7 @@ TEST(PipelineFuzz, TwoJointsAroundAShortArcInOnePeriodKeepTheChordTolerance) {
 // deviated 0.199 um (0.319 um in the fuzzer's input, 2.1x the tolerance). The raise now stops at
 // the lowest limit the rest speed does not cover (feed/limit_sampler.cpp).
 TEST(PipelineFuzz, RestRaiseOnATinyHelixKeepsTheChordTolerance) {
-  expect_walked("rest_raise_on_a_tiny_helix");
+  expect_finding_walked("rest_raise_on_a_tiny_helix");
 }
 
 // Finding: a corner passed without its stop under the jerk-vector bound, at F1000: the overlap
@@ -86,7 +86,7 @@ TEST(PipelineFuzz, RestRaiseOnATinyHelixKeepsTheChordTolerance) {
 // at the period's end, |v_in d_in + v_out d_out|, which reached 16.6667436 mm/s against the F
 // word's 16.6666667. The rule now bounds the speed at every instant (motion/corner_overlap.cpp).
 TEST(PipelineFuzz, OverlapSpeedWithinTheLimitAtEveryInstant) {
-  expect_walked("overlap_speed_above_the_limit");
+  expect_finding_walked("overlap_speed_above_the_limit");
 }
 
 // Finding: a corner of 130 degrees passed without its stop at F149 (the machine's maximum):
@@ -95,7 +95,7 @@ TEST(PipelineFuzz, OverlapSpeedWithinTheLimitAtEveryInstant) {
 // hands the rule the superposed step |ds_in d_in + ds_out d_out| there (motion/job.cpp).
 // (Found on c983d4b; main's later corner blending may round that corner instead.)
 TEST(PipelineFuzz, OverlapStepRuleTakesTheSuperposedStep) {
-  expect_walked("overlap_step_rule_summed_progress");
+  expect_finding_walked("overlap_step_rule_summed_progress");
 }
 
 // Finding: a landing aimed 1e-12 of its stretch's length L short of the stretch end, then
@@ -104,7 +104,7 @@ TEST(PipelineFuzz, OverlapStepRuleTakesTheSuperposedStep) {
 // and a landing is taken only if its last jerks leave room for what the snap adds
 // (motion/planner.cpp, snap_fits).
 TEST(PipelineFuzz, LandingSnapKeepsTheJerkLimit) {
-  expect_walked("landing_snap_jerk");
+  expect_finding_walked("landing_snap_jerk");
 }
 
 TEST(PipelineFuzz, EverySeedIsWalkedOrRefusedNeverAViolation) {

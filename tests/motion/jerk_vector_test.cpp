@@ -48,7 +48,7 @@ std::vector<Vec3> square() {
   return {{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}};
 }
 
-std::vector<Vec3> zigzag() {  // 30° between legs of 5 mm (turns of 150°), as in bound_test
+std::vector<Vec3> jerk_zigzag() {  // 30° between legs of 5 mm (turns of 150°), as in bound_test
   std::vector<Vec3> pts{{0, 0, 0}};
   for (int i = 0; i < 8; ++i) {
     const double ang = (i % 2 ? -1.0 : 1.0) * (0.5 * M_PI - 15.0 * M_PI / 180.0);
@@ -68,18 +68,18 @@ std::vector<Vec3> gentle_zigzag() {
   return pts;
 }
 
-struct Walk {
+struct JerkWalk {
   std::vector<Setpoint> sp;
   double jerk_vector_max = 0.0;  // computed here
   RunStats stats;                // computed by RunStats (the replay report)
 };
 
-Walk run(const Path& path, feed::JerkBound bound = feed::JerkBound::tangential) {
+JerkWalk jerk_run(const Path& path, feed::JerkBound bound = feed::JerkBound::tangential) {
   JobConfig cfg = test::planner_machine();
   cfg.limits.jerk_bound = bound;
   const double t3 = std::pow(cfg.limits.period_s, 3);
   Job job(path, cfg);
-  Walk r;
+  JerkWalk r;
   while (!job.done()) {
     job.prepare();
     r.sp.push_back(job.step());
@@ -124,7 +124,7 @@ TEST(JerkVector, RunStatsThirdDifferenceIsExactOnCubicMotion) {
 TEST(JerkVector, CircleWithinTheFrenetDecompositionOfThePlannedMotion) {
   const JobConfig cfg = test::planner_machine();
   const double T = cfg.limits.period_s, t3 = T * T * T, kappa = 1.0 / 20.0;
-  const Walk r = run(toolpath::read_path_text(ncd::test::kCircleJson, "circle"));
+  const JerkWalk r = jerk_run(toolpath::read_path_text(ncd::test::kCircleJson, "circle"));
   double worst_ratio = 0.0;
   for (std::size_t k = 3; k < r.sp.size(); ++k) {
     const Vec3 d = r.sp[k].p - 3.0 * r.sp[k - 1].p + 3.0 * r.sp[k - 2].p - r.sp[k - 3].p;
@@ -161,15 +161,15 @@ TEST(JerkVector, TableOfTheBoundPaths) {
       {"square 10 mm (G64)", polyline(square(), PathControl::blend), false, true},
       {"square 10 mm (G61.1)", polyline(square(), PathControl::exact_stop), true, false},
       {"square 10 mm (G64 P0.01)", polyline(square(), PathControl::blend, 0.01), false, true},
-      {"zig-zag (G64)", polyline(zigzag(), PathControl::blend), false, true},
-      {"zig-zag (G64 P0.01)", polyline(zigzag(), PathControl::blend, 0.01), false, true},
+      {"zig-zag (G64)", polyline(jerk_zigzag(), PathControl::blend), false, true},
+      {"zig-zag (G64 P0.01)", polyline(jerk_zigzag(), PathControl::blend, 0.01), false, true},
       // Blended: the normal acceleration v²/R jumps at each end of an arc within one period
       // (a curvature jump), so the jerk vector is far above j_max there; measured, not bounded.
       {"gentle zig-zag (G64 P0.01)", polyline(gentle_zigzag(), PathControl::blend, 0.01), false,
        false},
   };
   for (const auto& c : cases) {
-    const Walk r = run(c.path);
+    const JerkWalk r = jerk_run(c.path);
     std::printf("| %-24s | %6.3f | %7.0f | %7.0f | %5.3f |\n", c.name, r.sp.back().t_s,
                 r.stats.jerk_max_mm_per_s3, r.jerk_vector_max, r.jerk_vector_max / j_max);
     EXPECT_LE(r.stats.jerk_max_mm_per_s3, j_max * (1.0 + 1e-9)) << c.name;
@@ -190,12 +190,12 @@ TEST(JerkVector, TableOfTheBoundPaths) {
 
 // A circle of radius 3 mm: v³κ² and 3 v a κ both large at the cap.
 Path small_circle() {
-  const std::string json = R"({"nurbs": {"degree": 2,
+  const std::string json_out = R"({"nurbs": {"degree": 2,
     "knots": [0,0,0,0.25,0.25,0.5,0.5,0.75,0.75,1,1,1],
     "points": [[3,0,0],[3,3,0],[0,3,0],[-3,3,0],[-3,0,0],[-3,-3,0],[0,-3,0],[3,-3,0],[3,0,0]],
     "weights": [1,0.7071067811865476,1,0.7071067811865476,1,0.7071067811865476,1,
                 0.7071067811865476,1]}})";
-  return toolpath::read_path_text(json, "circle R3");
+  return toolpath::read_path_text(json_out, "circle R3");
 }
 
 // Under jerk_bound = "vector" every third difference of the setpoints is within j_max, on the
@@ -217,13 +217,13 @@ TEST(JerkVector, VectorBoundHoldsOnEveryPathAndCostsLittle) {
       {"cubic", toolpath::read_path_text(ncd::test::kCubicJson, "cubic")},
       {"square 10 mm (G64)", polyline(square(), PathControl::blend)},
       {"square 10 mm (G64 P0.5)", polyline(square(), PathControl::blend, 0.5)},
-      {"zig-zag (G64 P0.01)", polyline(zigzag(), PathControl::blend, 0.01)},
+      {"zig-zag (G64 P0.01)", polyline(jerk_zigzag(), PathControl::blend, 0.01)},
       {"gentle zig-zag (G64 P0.01)", polyline(gentle_zigzag(), PathControl::blend, 0.01)},
       {"gentle zig-zag (G64 P0.5)", polyline(gentle_zigzag(), PathControl::blend, 0.5)},
   };
   for (const auto& c : cases) {
-    const Walk t = run(c.path, JerkBound::tangential);
-    const Walk v = run(c.path, JerkBound::vector);
+    const JerkWalk t = jerk_run(c.path, JerkBound::tangential);
+    const JerkWalk v = jerk_run(c.path, JerkBound::vector);
     std::printf("| %-26s | %6.3f | %5.3f | %6.3f | %5.3f |\n", c.name, t.sp.back().t_s,
                 t.jerk_vector_max / j_max, v.sp.back().t_s, v.jerk_vector_max / j_max);
     EXPECT_LE(v.jerk_vector_max, j_max * (1.0 + 1e-6)) << c.name;

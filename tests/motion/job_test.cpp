@@ -57,7 +57,7 @@ struct Outcome {
   std::int64_t knot_crossings = 0;
 };
 
-Outcome run(const toolpath::Path& path, const JobConfig& cfg) {
+Outcome job_run(const toolpath::Path& path, const JobConfig& cfg) {
   Job job(path, cfg);
   Outcome o;
   o.stats.path_length_mm = job.length_mm();
@@ -103,7 +103,7 @@ void expect_clean_run(const Outcome& o, const JobConfig& cfg, double end_mm_tole
 TEST(Job, CubicNurbsAcrossKnotsAndRamps) {
   const toolpath::Path path = toolpath::read_path_text(ncd::test::kCubicJson, "cubic");
   const JobConfig cfg = fast_machine();
-  const Outcome o = run(path, cfg);
+  const Outcome o = job_run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
   EXPECT_LE(o.ref_feed_error_max_rel, 1e-9);  // against the independent Simpson arc
   EXPECT_GE(o.knot_crossings, 3);
@@ -115,7 +115,7 @@ TEST(Job, CubicNurbsAcrossKnotsAndRamps) {
 TEST(Job, RationalCircleWithDoubleKnots) {
   const toolpath::Path path = toolpath::read_path_text(ncd::test::kCircleJson, "circle");
   const JobConfig cfg = fast_machine();
-  const Outcome o = run(path, cfg);
+  const Outcome o = job_run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
   EXPECT_LE(o.ref_feed_error_max_rel, 1e-9);
   EXPECT_NEAR(o.stats.path_length_mm, 2.0 * kPi * 20.0, 1e-9);  // closed form
@@ -133,7 +133,7 @@ TEST(Job, ChamferPathOfExperiment3) {
   cfg.cutting.teeth = 2;
   cfg.cutting.spindle_rpm = 3000.0;
   cfg.cutting.roughness_target_um = 0.05;  // f_t = sqrt(8 r R) → 208 mm/min, below F300
-  const Outcome o = run(path, cfg);
+  const Outcome o = job_run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
   EXPECT_LE(o.stats.roughness_max_um, 0.05 * (1.0 + 1e-6));
   EXPECT_GT(o.stats.cycles_by_limit[static_cast<std::size_t>(feed::FeedLimit::Roughness)], 0);
@@ -149,7 +149,7 @@ TEST(Job, ProgramFeedBindsOnTheChamfer) {
   cfg.cutting.pick_feed_mm = 0.0;
   cfg.cutting.spindle_rpm = 3000.0;
   cfg.cutting.roughness_target_um = 1.0;
-  const Outcome o = run(path, cfg);
+  const Outcome o = job_run(path, cfg);
   expect_clean_run(o, cfg, 1e-9);
   EXPECT_NEAR(o.stats.feed_max_mm_per_s * 60.0, 300.0, 1e-6);  // F300 of the chamfer JSON
 }

@@ -27,10 +27,10 @@ using toolpath::PathControl;
 using toolpath::PathSegment;
 using toolpath::Polyline;
 
-constexpr double kT = 0.004, kA = 1000.0, kJ = 20000.0, kVmax = 100.0;
+constexpr double kOverlapT = 0.004, kOverlapA = 1000.0, kOverlapJ = 20000.0, kVmax = 100.0;
 
-Path polyline(const std::vector<Vec3>& pts, std::optional<double> p_mm,
-              PathControl mode = PathControl::blend, double feed_mm_per_min = 6000.0) {
+Path overlap_polyline(const std::vector<Vec3>& pts, std::optional<double> p_mm,
+                      PathControl mode = PathControl::blend, double feed_mm_per_min = 6000.0) {
   Path path;
   PathSegment s;
   s.geometry = Polyline{pts, {}};
@@ -41,7 +41,7 @@ Path polyline(const std::vector<Vec3>& pts, std::optional<double> p_mm,
   return path;
 }
 
-std::vector<Setpoint> run(const Path& path, JerkBound bound = JerkBound::tangential) {
+std::vector<Setpoint> overlap_run(const Path& path, JerkBound bound = JerkBound::tangential) {
   JobConfig cfg = test::planner_machine();
   cfg.limits.jerk_bound = bound;
   Job job(path, cfg);
@@ -53,7 +53,7 @@ std::vector<Setpoint> run(const Path& path, JerkBound bound = JerkBound::tangent
   return out;
 }
 
-double distance_to_polyline(const std::vector<Vec3>& pts, const Vec3& q) {
+double overlap_distance_to_polyline(const std::vector<Vec3>& pts, const Vec3& q) {
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i + 1 < pts.size(); ++i)
     best = std::min(best, test::distance_to_segment(q, pts[i], pts[i + 1]));
@@ -64,12 +64,12 @@ double distance_to_polyline(const std::vector<Vec3>& pts, const Vec3& q) {
 // polyline (setpoints and chord midpoints), speed, acceleration vector and jerk vector.
 // Also the distance at which the programmed end point passed farthest from is passed: the
 // nearest chord between two setpoints, for each inner vertex.
-struct Measured {
+struct OverlapMeasured {
   double deviation_mm = 0.0, speed = 0.0, accel = 0.0, jerk = 0.0, vertex_mm = 0.0;
 };
 
-Measured measure(const std::vector<Vec3>& program, const std::vector<Setpoint>& sp) {
-  Measured m;
+OverlapMeasured overlap_measure(const std::vector<Vec3>& program, const std::vector<Setpoint>& sp) {
+  OverlapMeasured m;
   std::vector<Vec3> p{program.front()};
   for (const Setpoint& s : sp) p.push_back(s.p);
   for (std::size_t v = 1; v + 1 < program.size(); ++v) {
@@ -80,20 +80,22 @@ Measured measure(const std::vector<Vec3>& program, const std::vector<Setpoint>& 
     m.vertex_mm = std::max(m.vertex_mm, nearest);
   }
   for (std::size_t k = 1; k < p.size(); ++k) {
-    m.deviation_mm = std::max({m.deviation_mm, distance_to_polyline(program, p[k]),
-                               distance_to_polyline(program, 0.5 * (p[k] + p[k - 1]))});
-    m.speed = std::max(m.speed, (p[k] - p[k - 1]).norm() / kT);
-    if (k >= 2) m.accel = std::max(m.accel, (p[k] - 2.0 * p[k - 1] + p[k - 2]).norm() / (kT * kT));
+    m.deviation_mm = std::max({m.deviation_mm, overlap_distance_to_polyline(program, p[k]),
+                               overlap_distance_to_polyline(program, 0.5 * (p[k] + p[k - 1]))});
+    m.speed = std::max(m.speed, (p[k] - p[k - 1]).norm() / kOverlapT);
+    if (k >= 2)
+      m.accel =
+          std::max(m.accel, (p[k] - 2.0 * p[k - 1] + p[k - 2]).norm() / (kOverlapT * kOverlapT));
     if (k >= 3) {
-      m.jerk = std::max(
-          m.jerk, (p[k] - 3.0 * p[k - 1] + 3.0 * p[k - 2] - p[k - 3]).norm() / (kT * kT * kT));
+      m.jerk = std::max(m.jerk, (p[k] - 3.0 * p[k - 1] + 3.0 * p[k - 2] - p[k - 3]).norm() /
+                                    (kOverlapT * kOverlapT * kOverlapT));
     }
   }
   return m;
 }
 
 // The zig-zag of issue 13: legs of 5 mm, 30° between legs (150° turns).
-std::vector<Vec3> zigzag(double leg_mm = 5.0, double between_deg = 30.0, int legs = 8) {
+std::vector<Vec3> overlap_zigzag(double leg_mm = 5.0, double between_deg = 30.0, int legs = 8) {
   std::vector<Vec3> pts{{0, 0, 0}};
   const double half = 0.5 * between_deg * M_PI / 180.0;
   for (int i = 0; i < legs; ++i) {
@@ -158,27 +160,27 @@ TEST(Overlap, IsTheSharpRunWithEachCornersEndsAddedTogether) {
     const char* name;
     std::vector<Vec3> pts;
   } cases[] = {{"square 10 mm", {{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}}},
-               {"zig-zag 150 deg", zigzag()},
-               {"zig-zag 120 deg, 2 mm", zigzag(2.0, 60.0, 6)}};
+               {"zig-zag 150 deg", overlap_zigzag()},
+               {"zig-zag 120 deg, 2 mm", overlap_zigzag(2.0, 60.0, 6)}};
   for (const JerkBound bound : {JerkBound::tangential, JerkBound::vector}) {
     for (const auto& c : cases) {
-      const std::vector<Setpoint> sharp = run(polyline(c.pts, 0.0), bound);
-      const std::vector<Setpoint> over = run(polyline(c.pts, 0.01), bound);
+      const std::vector<Setpoint> sharp = overlap_run(overlap_polyline(c.pts, 0.0), bound);
+      const std::vector<Setpoint> over = overlap_run(overlap_polyline(c.pts, 0.01), bound);
       const std::vector<int> ms = superposition_of(c.pts, sharp, over);
       int saved = 0;
       std::string list;
       for (const int m : ms) saved += m, list += std::to_string(m) + " ";
-      const Measured g = measure(c.pts, over);
+      const OverlapMeasured g = overlap_measure(c.pts, over);
       std::printf("| %s | %s | %.3f | %.3f | %d | %s| %.5f | %.3f |\n", c.name,
                   bound == JerkBound::vector ? "vector" : "tangential", sharp.back().t_s,
-                  over.back().t_s, saved, list.c_str(), g.deviation_mm, g.jerk / kJ);
+                  over.back().t_s, saved, list.c_str(), g.deviation_mm, g.jerk / kOverlapJ);
       EXPECT_EQ(ms.size(), c.pts.size() - 2) << c.name << ": every corner a rest of the sharp run";
       EXPECT_EQ(sharp.size() - over.size(), static_cast<std::size_t>(saved)) << c.name;
       EXPECT_LE(g.deviation_mm, 0.01 * (1.0 + 1e-9)) << c.name;
       EXPECT_LE(g.vertex_mm, 0.01 * (1.0 + 1e-9)) << c.name << ": an end point passed beyond P";
       EXPECT_LE(g.speed, kVmax * (1.0 + 1e-9)) << c.name;
-      EXPECT_LE(g.accel, kA * (1.0 + 1e-9)) << c.name;
-      const double j_limit = bound == JerkBound::vector ? kJ : std::sqrt(2.0) * kJ;
+      EXPECT_LE(g.accel, kOverlapA * (1.0 + 1e-9)) << c.name;
+      const double j_limit = bound == JerkBound::vector ? kOverlapJ : std::sqrt(2.0) * kOverlapJ;
       EXPECT_LE(g.jerk, j_limit * (1.0 + 1e-9)) << c.name;
       EXPECT_TRUE(over.back().done);
       EXPECT_LE((over.back().p - c.pts.back()).norm(), 1e-9);
@@ -201,41 +203,42 @@ TEST(Overlap, ReversalsRapidsEventsAndExactModesKeepTheirStops) {
     return n;
   };
   {  // plunge and retract: a reversal
-    const std::vector<Setpoint> sp = run(polyline({{0, 0, 5}, {0, 0, 0}, {0, 0, 5}}, 0.1));
+    const std::vector<Setpoint> sp =
+        overlap_run(overlap_polyline({{0, 0, 5}, {0, 0, 0}, {0, 0, 5}}, 0.1));
     EXPECT_EQ(rests(sp), 1);
     EXPECT_EQ(overlapped(sp), 0);
   }
   for (const PathControl mode : {PathControl::exact_stop, PathControl::exact_path}) {
-    const std::vector<Setpoint> sp = run(polyline(square, 0.01, mode));
+    const std::vector<Setpoint> sp = overlap_run(overlap_polyline(square, 0.01, mode));
     EXPECT_EQ(rests(sp), 3);
     EXPECT_EQ(overlapped(sp), 0);
   }
   {  // G64 P0: sharp corners
-    const std::vector<Setpoint> sp = run(polyline(square, 0.0));
+    const std::vector<Setpoint> sp = overlap_run(overlap_polyline(square, 0.0));
     EXPECT_EQ(rests(sp), 3);
     EXPECT_EQ(overlapped(sp), 0);
   }
   {  // a rapid, then a cut; the cut, then an event before the next cut
-    Path path = polyline({{0, 0, 0}, {10, 0, 0}}, 0.01);
+    Path path = overlap_polyline({{0, 0, 0}, {10, 0, 0}}, 0.01);
     path.segments[0].rapid = true;
     path.segments[0].feed_mm_per_min.reset();
-    Path cut = polyline({{10, 0, 0}, {10, 10, 0}}, 0.01);
+    Path cut = overlap_polyline({{10, 0, 0}, {10, 10, 0}}, 0.01);
     path.segments.push_back(cut.segments[0]);
-    Path after = polyline({{10, 10, 0}, {0, 10, 0}}, 0.01);
+    Path after = overlap_polyline({{10, 10, 0}, {0, 10, 0}}, 0.01);
     after.segments[0].stop_before = true;
     path.segments.push_back(after.segments[0]);
-    const std::vector<Setpoint> sp = run(path);
+    const std::vector<Setpoint> sp = overlap_run(path);
     EXPECT_EQ(rests(sp), 2);
     EXPECT_EQ(overlapped(sp), 0);
   }
   {  // no sharp corner: no line of setpoints, no delay
-    Job job(polyline({{0, 0, 0}, {10, 0, 0}}, 0.01), test::planner_machine());
+    Job job(overlap_polyline({{0, 0, 0}, {10, 0, 0}}, 0.01), test::planner_machine());
     EXPECT_EQ(job.delay_periods(), 0U);
-    Job square_job(polyline(square, 0.01), test::planner_machine());
+    Job square_job(overlap_polyline(square, 0.01), test::planner_machine());
     EXPECT_GT(square_job.delay_periods(), 0U);
     std::printf("the square's line of setpoints: %zu periods (%.0f ms)\n",
                 square_job.delay_periods(),
-                1e3 * kT * static_cast<double>(square_job.delay_periods()));
+                1e3 * kOverlapT * static_cast<double>(square_job.delay_periods()));
   }
 }
 
@@ -244,10 +247,10 @@ TEST(Overlap, ReversalsRapidsEventsAndExactModesKeepTheirStops) {
 // and every limit holds on the setpoints.
 TEST(Overlap, HoldAroundAnOverlappedCornerKeepsEveryLimit) {
   std::mt19937_64 rng(test::seed());
-  const std::vector<Vec3> pts = zigzag(5.0, 30.0, 3);
-  const std::size_t sharp_periods = run(polyline(pts, 0.0)).size();
+  const std::vector<Vec3> pts = overlap_zigzag(5.0, 30.0, 3);
+  const std::size_t sharp_periods = overlap_run(overlap_polyline(pts, 0.0)).size();
   for (std::size_t at = 20; at < sharp_periods; at += 3) {
-    Job job(polyline(pts, 0.01), test::planner_machine());
+    Job job(overlap_polyline(pts, 0.01), test::planner_machine());
     std::vector<Setpoint> sp;
     const std::size_t resume = at + 40 + rng() % 80;
     while (!job.done() && sp.size() < 100000) {
@@ -259,12 +262,12 @@ TEST(Overlap, HoldAroundAnOverlappedCornerKeepsEveryLimit) {
     SCOPED_TRACE("hold at period " + std::to_string(at) + ", resume at " + std::to_string(resume));
     ASSERT_TRUE(job.done());
     EXPECT_LE((sp.back().p - pts.back()).norm(), 1e-9);
-    const Measured g = measure(pts, sp);
+    const OverlapMeasured g = overlap_measure(pts, sp);
     EXPECT_LE(g.deviation_mm, 0.01 * (1.0 + 1e-9));
     EXPECT_LE(g.vertex_mm, 0.01 * (1.0 + 1e-9));
     EXPECT_LE(g.speed, kVmax * (1.0 + 1e-9));
-    EXPECT_LE(g.accel, std::sqrt(2.0) * kA * (1.0 + 1e-9));
-    EXPECT_LE(g.jerk, std::sqrt(2.0) * kJ * (1.0 + 1e-9));
+    EXPECT_LE(g.accel, std::sqrt(2.0) * kOverlapA * (1.0 + 1e-9));
+    EXPECT_LE(g.jerk, std::sqrt(2.0) * kOverlapJ * (1.0 + 1e-9));
     for (const Setpoint& s : sp) EXPECT_EQ(s.fault, StepFault::None);
   }
 }
@@ -287,7 +290,7 @@ TEST(Overlap, FarFromAStopAHoldActsAtOnce) {
         {60, 0, 0},
         feed > 1000.0 ? Vec3(60, 10, 0) : Vec3(60 - 10 * std::cos(M_PI / 6), 5, 0)};
     const auto held = [&](std::optional<double> p_mm, std::size_t hold_at) {
-      Job job(polyline(pts, p_mm, PathControl::blend, feed), test::planner_machine());
+      Job job(overlap_polyline(pts, p_mm, PathControl::blend, feed), test::planner_machine());
       std::vector<Setpoint> sp;
       while (!job.done() && sp.size() < 100000) {
         if (sp.size() == hold_at) job.planner().hold();
@@ -310,12 +313,13 @@ TEST(Overlap, FarFromAStopAHoldActsAtOnce) {
       while (rest < sp.size() && k > hold_at && sp[k - 1].v_mm_per_s > sp[k].v_mm_per_s) --k;
       return static_cast<long>(k) - static_cast<long>(hold_at);
     };
-    const Job probe(polyline(pts, 0.01, PathControl::blend, feed), test::planner_machine());
-    const Job sharp_probe(polyline(pts, 0.0, PathControl::blend, feed), test::planner_machine());
+    const Job probe(overlap_polyline(pts, 0.01, PathControl::blend, feed), test::planner_machine());
+    const Job sharp_probe(overlap_polyline(pts, 0.0, PathControl::blend, feed),
+                          test::planner_machine());
     ASSERT_GT(probe.delay_periods(), 0U);
     ASSERT_EQ(sharp_probe.delay_periods(), 0U);
     const double deep_mm = probe.line_depth_within_mm();
-    EXPECT_NEAR(deep_mm, 37 * kT * std::min(kVmax, 2.0 * feed / 60.0), 1e-9);
+    EXPECT_NEAR(deep_mm, 37 * kOverlapT * std::min(kVmax, 2.0 * feed / 60.0), 1e-9);
     std::printf("F%.0f: the line is deep within %.2f mm of a stop (%zu periods at most)\n", feed,
                 deep_mm, probe.delay_periods());
     const std::vector<Setpoint> free = held(0.01, 1000000), free_sharp = held(0.0, 1000000);

@@ -147,12 +147,12 @@ toolpath::Path indexed_path(char axis) {
   return toolpath::to_path(toolpath::interpret_ngc(program, "ix.ngc", opt));
 }
 
-struct Walk {
+struct IndexWalk {
   std::vector<Setpoint> sp;
 };
 
-Walk walk(Job& job) {
-  Walk w;
+IndexWalk index_walk(Job& job) {
+  IndexWalk w;
   for (int n = 0; n < 200000 && !job.done(); ++n) {
     EXPECT_TRUE(job.prepare());
     w.sp.push_back(job.step());
@@ -169,7 +169,7 @@ TEST(RotaryIndexJob, IndexesAtRestWithinTheAxisLimitsAndLandOnTheirAngles) {
   ASSERT_EQ(job.indexes().size(), 3u);
   EXPECT_EQ(job.indexes()[0].s_mm, 0.0);              // before any motion
   EXPECT_EQ(job.indexes()[2].s_mm, job.length_mm());  // after the last
-  const Walk w = walk(job);
+  const IndexWalk w = index_walk(job);
   ASSERT_TRUE(job.done());
   const double T = cfg.limits.period_s;
   const auto& r = cfg.limits.rotary;

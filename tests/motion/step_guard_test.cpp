@@ -12,14 +12,14 @@
 namespace ncd::motion {
 namespace {
 
-constexpr double kT = 0.004;
+constexpr double kGuardT = 0.004;
 constexpr double kPi = 3.14159265358979323846;
 
 StepBounds bounds() {
   StepBounds b;
   b.max_feed_mm_per_s = 100.0;
   b.max_accel_mm_per_s2 = 1000.0;
-  b.period_s = kT;
+  b.period_s = kGuardT;
   return b;
 }
 
@@ -29,7 +29,7 @@ std::pair<StepFault, std::int64_t> accelerate(double a_mm_per_s2, int periods) {
   StepGuard g(bounds(), Vec3::Zero());
   double s_prev = 0.0;
   for (int k = 1; k <= periods; ++k) {
-    const double t = k * kT, s = 0.5 * a_mm_per_s2 * t * t;
+    const double t = k * kGuardT, s = 0.5 * a_mm_per_s2 * t * t;
     const StepFault f = g.check(t, s, s - s_prev, Vec3(s, 0, 0));
     if (f != StepFault::None) return {f, g.info().period};
     s_prev = s;
@@ -55,7 +55,8 @@ TEST(StepGuard, SpeedBoundIsTheMaximumFeedTimesTheOverride) {
     g.set_override(override_fraction);
     StepFault f = StepFault::None;
     for (int k = 1; k <= 10 && f == StepFault::None; ++k) {
-      f = g.check(k * kT, v_mm_per_s * k * kT, v_mm_per_s * kT, Vec3(v_mm_per_s * k * kT, 0, 0));
+      f = g.check(k * kGuardT, v_mm_per_s * k * kGuardT, v_mm_per_s * kGuardT,
+                  Vec3(v_mm_per_s * k * kGuardT, 0, 0));
     }
     return f;
   };
@@ -74,34 +75,35 @@ TEST(StepGuard, ChordsOfACircleWalkAndAJumpIsRefusedWhereItHappens) {
   int k = 1;
   for (; k <= 1000; ++k) {
     // Ramp to Δs within the acceleration bound, then cruise.
-    const double step = std::min(ds_mm, last_ds + 0.5 * 1000.0 * kT * kT);
+    const double step = std::min(ds_mm, last_ds + 0.5 * 1000.0 * kGuardT * kGuardT);
     s_total += step;
     const double phi = s_total / r_mm;
-    ASSERT_EQ(g.check(k * kT, s_total, step, Vec3(r_mm * std::cos(phi), r_mm * std::sin(phi), 0)),
-              StepFault::None)
+    ASSERT_EQ(
+        g.check(k * kGuardT, s_total, step, Vec3(r_mm * std::cos(phi), r_mm * std::sin(phi), 0)),
+        StepFault::None)
         << k;
     last_ds = step;
   }
   // The jump of issue 11: 28.1 mm in one period at a planned 0.0085 mm.
   const Vec3 to(-0.1305, -19.8713, 0.0);
-  EXPECT_EQ(g.check(k * kT, 9.0, ds_mm, to), StepFault::Walk);
+  EXPECT_EQ(g.check(k * kGuardT, 9.0, ds_mm, to), StepFault::Walk);
   const StepFaultInfo& info = g.info();
   EXPECT_EQ(info.period, k);
   EXPECT_NEAR(info.allowed, ds_mm * (1 + kStepMarginRel) + kStepSlackMm, 1e-15);
   EXPECT_NEAR(info.value, (to - info.from_mm).norm(), 1e-12);
   EXPECT_GT(info.value, 20.0);
   // Once refused, every later setpoint is refused too, even a harmless one.
-  EXPECT_EQ(g.check((k + 1) * kT, 9.0, 0.0, info.from_mm), StepFault::Walk);
+  EXPECT_EQ(g.check((k + 1) * kGuardT, 9.0, 0.0, info.from_mm), StepFault::Walk);
 }
 
 TEST(StepGuard, NotANumberIsRefused) {
   {
     StepGuard g(bounds(), Vec3::Zero());
-    EXPECT_EQ(g.check(kT, 0.001, 0.001, Vec3(std::nan(""), 0, 0)), StepFault::Walk);
+    EXPECT_EQ(g.check(kGuardT, 0.001, 0.001, Vec3(std::nan(""), 0, 0)), StepFault::Walk);
   }
   {
     StepGuard g(bounds(), Vec3::Zero());
-    EXPECT_EQ(g.check(kT, 0.001, std::nan(""), Vec3(0.001, 0, 0)), StepFault::Speed);
+    EXPECT_EQ(g.check(kGuardT, 0.001, std::nan(""), Vec3(0.001, 0, 0)), StepFault::Speed);
   }
 }
 

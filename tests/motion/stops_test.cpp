@@ -22,7 +22,7 @@ using toolpath::PathControl;
 using toolpath::PathSegment;
 using toolpath::Polyline;
 
-constexpr double kT = 0.004, kA = 1000.0, kJ = 20000.0;
+constexpr double kStopsT = 0.004, kStopsA = 1000.0, kStopsJ = 20000.0;
 
 PathSegment line_segment(std::vector<Vec3> points, double feed_mm_per_min,
                          PathControl mode = PathControl::blend) {
@@ -40,8 +40,8 @@ struct Motion {
 };
 
 // Runs a job to its end (at most max_periods) and records every setpoint.
-Motion run(const Path& path, const JobConfig& cfg = test::planner_machine(),
-           std::size_t max_periods = 2'000'000) {
+Motion stops_run(const Path& path, const JobConfig& cfg = test::planner_machine(),
+                 std::size_t max_periods = 2'000'000) {
   Job job(path, cfg);
   Motion r;
   while (!job.done() && r.sp.size() < max_periods) {
@@ -75,7 +75,7 @@ void expect_at_rest_at(const Motion& r, const Vec3& end) {
 // closed-form time-optimal S-curves, rounded up to whole periods.
 double exact_stop_bound_s(const std::vector<double>& lengths_mm, double v_mm_per_s) {
   double t = 0.0;
-  for (const double d : lengths_mm) t += test::scurve_time_s(d, v_mm_per_s, kA, kJ);
+  for (const double d : lengths_mm) t += test::scurve_time_s(d, v_mm_per_s, kStopsA, kStopsJ);
   return t;
 }
 
@@ -84,7 +84,7 @@ TEST(Stops, PlungeAndRetractStopsAtTheBottomAndFinishes) {
   Path path;
   path.segments.push_back(line_segment({{0, 0, 5}, {0, 0, 0}}, 300.0));
   path.segments.push_back(line_segment({{0, 0, 0}, {0, 0, 5}}, 300.0));
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {0, 0, 5});
   const auto at_rest = rests(r);
   ASSERT_FALSE(at_rest.empty());
@@ -94,21 +94,21 @@ TEST(Stops, PlungeAndRetractStopsAtTheBottomAndFinishes) {
   EXPECT_TRUE(bottom);
   const double bound = exact_stop_bound_s({5.0, 5.0}, 5.0);
   std::cout << "plunge/retract: " << r.duration_s << " s, bound " << bound << " s\n";
-  EXPECT_GE(r.duration_s, bound - 2 * kT);
-  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kT);
+  EXPECT_GE(r.duration_s, bound - 2 * kStopsT);
+  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kStopsT);
 }
 
 TEST(Stops, ReversalInsideOnePolyline) {
   Path path;
   path.segments.push_back(line_segment({{0, 0, 0}, {10, 0, 0}, {3, 0, 0}}, 3000.0));
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {3, 0, 0});
   bool at_turn = false;
   for (const std::size_t i : rests(r)) at_turn |= (r.sp[i].p - Vec3(10, 0, 0)).norm() < 1e-9;
   EXPECT_TRUE(at_turn);
   const double bound = exact_stop_bound_s({10.0, 7.0}, 50.0);
-  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kT);
-  EXPECT_GE(r.duration_s, bound - 2 * kT);
+  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kStopsT);
+  EXPECT_GE(r.duration_s, bound - 2 * kStopsT);
 }
 
 // The square: 10 × 10 mm at 6000 mm/min took 4.41 s, against 1.04 s for an exact
@@ -119,12 +119,12 @@ TEST(Stops, SquareCornersStopAndMatchTheExactStopBound) {
   path.segments.push_back(
       line_segment({{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}, {0, 0, 0}}, 6000.0));
   path.segments[0].blend_tolerance_mm = 0.0;
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {0, 0, 0});
   EXPECT_EQ(rests(r).size(), 3U);
   const double bound = exact_stop_bound_s({10, 10, 10, 10}, 100.0);
   std::cout << "square: " << r.duration_s << " s, exact-stop bound " << bound << " s\n";
-  EXPECT_GE(r.duration_s, bound - kT);
+  EXPECT_GE(r.duration_s, bound - kStopsT);
   EXPECT_LE(r.duration_s, 1.05 * bound);
 }
 
@@ -139,7 +139,7 @@ TEST(Stops, ZigZagCornersStop) {
   Path path;
   path.segments.push_back(line_segment(pts, 6000.0));
   path.segments[0].blend_tolerance_mm = 0.0;  // G64 P0 (overlap_test.cpp passes them within P)
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, pts.back());
   EXPECT_EQ(rests(r).size(), 7U);
   const double bound = exact_stop_bound_s(std::vector<double>(8, leg), 100.0);
@@ -155,7 +155,7 @@ TEST(Stops, GentleCornerIsBlendedUnderG64AndStoppedUnderG61) {
   for (const PathControl mode : {PathControl::blend, PathControl::exact_path}) {
     Path path;
     path.segments.push_back(line_segment(pts, 6000.0, mode));
-    const Motion r = run(path);
+    const Motion r = stops_run(path);
     expect_at_rest_at(r, pts.back());
     EXPECT_EQ(rests(r).size(), mode == PathControl::blend ? 0U : 1U);
   }
@@ -167,15 +167,15 @@ TEST(Stops, ExactStopEndsEveryMoveEvenWhenStraight) {
     path.segments.push_back(
         line_segment({{2.0 * i, 0, 0}, {2.0 * i + 2.0, 0, 0}}, 6000.0, PathControl::exact_stop));
   }
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {6, 0, 0});
   EXPECT_EQ(rests(r).size(), 2U);
   const double bound = exact_stop_bound_s({2, 2, 2}, 100.0);
-  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kT);
+  EXPECT_LE(r.duration_s, 1.05 * bound + 2 * kStopsT);
   // Straight under G64: no stop.
   Path blended = path;
   for (auto& s : blended.segments) s.path_control = PathControl::blend;
-  EXPECT_EQ(rests(run(blended)).size(), 0U);
+  EXPECT_EQ(rests(stops_run(blended)).size(), 0U);
 }
 
 TEST(Stops, StopBeforeAnEvent) {
@@ -183,7 +183,7 @@ TEST(Stops, StopBeforeAnEvent) {
   path.segments.push_back(line_segment({{0, 0, 0}, {4, 0, 0}}, 6000.0));
   path.segments.push_back(line_segment({{4, 0, 0}, {8, 0, 0}}, 6000.0));
   path.segments[1].stop_before = true;
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {8, 0, 0});
   const auto at_rest = rests(r);
   ASSERT_EQ(at_rest.size(), 1U);
@@ -195,7 +195,7 @@ TEST(Stops, ZeroLengthMoveIsAStop) {
   path.segments.push_back(line_segment({{0, 0, 0}, {3, 0, 0}, {3, 0, 0}, {6, 0, 0}}, 6000.0));
   path.segments.push_back(line_segment({{6, 0, 0}, {6, 0, 0}}, 6000.0));
   path.segments.push_back(line_segment({{6, 0, 0}, {6, 1e-3, 0}}, 6000.0));  // a 1 µm move
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {6, 1e-3, 0});
   const auto at_rest = rests(r);
   ASSERT_EQ(at_rest.size(), 2U);
@@ -210,7 +210,7 @@ TEST(Stops, PathOfLengthZeroEndsAtOnce) {
   Path path;
   path.segments.push_back(line_segment({{1, 2, 3}, {1, 2, 3}}, 4800.0));
   path.segments.push_back(line_segment({{1, 2, 3}, {1, 2, 3}}, 5000.0));
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, {1, 2, 3});
   EXPECT_LE(r.sp.size(), 3U);
 }
@@ -236,7 +236,7 @@ TEST(Stops, JointIntoANurbsWithARepeatedFirstPointIsAStop) {
                             1.054813254742849, 1.182959955725484});
   nurbs.feed_mm_per_min = 1758.0660368489998;
   path.segments.push_back(nurbs);
-  const Motion r = run(path, test::planner_machine(), 100'000);
+  const Motion r = stops_run(path, test::planner_machine(), 100'000);
   expect_at_rest_at(r, {-19.073612407750691, -10.419599862055808, 1.4608671514717062});
   const auto at_rest = rests(r);
   ASSERT_EQ(at_rest.size(), 1U);
@@ -283,7 +283,7 @@ TEST(Stops, CornerAfterANearlyReversingSpanStopsAtTheKnot) {
     path.segments.push_back(seg);
     JobConfig cfg = test::planner_machine();
     cfg.limits.jerk_bound = bound;
-    const Motion r = run(path, cfg, 100'000);
+    const Motion r = stops_run(path, cfg, 100'000);
     expect_at_rest_at(r, pts.back());
     const auto at_rest = rests(r);
     ASSERT_EQ(at_rest.size(), 1U);
@@ -310,16 +310,17 @@ TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {
     path.segments.push_back(up);
     at = over;
   }
-  const Motion r = run(path);
+  const Motion r = stops_run(path);
   expect_at_rest_at(r, at);
   double bound = 0.0;
   for (int h = 0; h < 5; ++h) {
-    bound += test::scurve_time_s(5.0, 100.0, kA, kJ) + test::scurve_time_s(5.0, 5.0, kA, kJ) +
-             test::scurve_time_s(5.0, 100.0, kA, kJ);
+    bound += test::scurve_time_s(5.0, 100.0, kStopsA, kStopsJ) +
+             test::scurve_time_s(5.0, 5.0, kStopsA, kStopsJ) +
+             test::scurve_time_s(5.0, 100.0, kStopsA, kStopsJ);
   }
   // The bottom of each hole, a reversal, stops. The corners at the rapids keep their stops too
   // (a rapid is never overlapped, docs/planner.md §3b): nothing is saved here.
-  const double saved_s = static_cast<double>(r.overlap_saved) * kT;
+  const double saved_s = static_cast<double>(r.overlap_saved) * kStopsT;
   std::cout << "drilling: " << r.duration_s << " s, exact-stop bound " << bound << " s, " << saved_s
             << " s saved at the corners\n";
   for (int h = 0; h < 5; ++h) {
@@ -330,7 +331,7 @@ TEST(Stops, DrillingProgramFinishesWithinTheExactStopBound) {
     EXPECT_TRUE(stopped) << "hole " << h;
   }
   EXPECT_EQ(r.overlap_saved, 0U);
-  EXPECT_GE(r.duration_s, bound - kT);
+  EXPECT_GE(r.duration_s, bound - kStopsT);
   EXPECT_LE(r.duration_s, 1.05 * bound);
 }
 
@@ -369,7 +370,7 @@ TEST(Stops, WatchdogStopsAJobThatDoesNotAdvance) {
   EXPECT_EQ(cycle.status().state, CycleState::Error);
   EXPECT_NE(cycle.error().find("no progress for 0.1"), std::string::npos) << cycle.error();
   EXPECT_NE(cycle.error().find("program"), std::string::npos) << cycle.error();
-  EXPECT_LE(cycle.status().t_s, 0.1 + 2 * kT);
+  EXPECT_LE(cycle.status().t_s, 0.1 + 2 * kStopsT);
 }
 
 TEST(Stops, WatchdogDoesNotFireAtStops) {

@@ -55,7 +55,7 @@ class JobStateSink final : public service::SetpointSink {
 };
 
 // The old replay loop: prepare, step, then the job's limit and roughness at the new position.
-std::vector<Seen> reference(const toolpath::Path& path, const motion::JobConfig& cfg) {
+std::vector<Seen> owner_reference(const toolpath::Path& path, const motion::JobConfig& cfg) {
   motion::Job job(path, cfg);
   std::vector<Seen> out;
   for (;;) {
@@ -100,7 +100,7 @@ TEST(ServiceOwnerThread, TheSinkSeesTheReferenceSetpointsWithTheJobAsEachLeftIt)
     int polls = 0;
     while (s.poll()) ++polls;
     EXPECT_EQ(s.state(), State::Done);
-    const std::vector<Seen> ref = reference(*path, motion::JobConfig{});
+    const std::vector<Seen> ref = owner_reference(*path, motion::JobConfig{});
     ASSERT_EQ(got.size(), ref.size());
     EXPECT_GE(polls, static_cast<int>(ref.size() / 7) - 1);  // at most 7 periods a poll
     for (std::size_t k = 0; k < ref.size(); ++k) {

@@ -32,8 +32,8 @@ std::shared_ptr<const toolpath::Path> cubic() {
       toolpath::read_path_text(ncd::test::kCubicJson, "cubic.json"));
 }
 
-service::JobSpec job_of(std::shared_ptr<const toolpath::Path> path,
-                        std::vector<motion::Setpoint>& out, bool& committed) {
+service::JobSpec service_job_of(std::shared_ptr<const toolpath::Path> path,
+                                std::vector<motion::Setpoint>& out, bool& committed) {
   service::JobSpec j;
   j.name = "cubic";
   j.path = std::move(path);
@@ -51,7 +51,8 @@ service::ServiceOptions simulated(std::size_t ring = 8192) {
 }
 
 // The reference: the job stepped here, every setpoint up to the end.
-std::vector<motion::Setpoint> reference(const toolpath::Path& path, const motion::JobConfig& c) {
+std::vector<motion::Setpoint> service_reference(const toolpath::Path& path,
+                                                const motion::JobConfig& c) {
   motion::Job job(path, c);
   std::vector<motion::Setpoint> out;
   for (;;) {
@@ -85,14 +86,14 @@ TEST(ServiceStates, AJobRunsFromIdleToDoneAndEmitsTheReferenceSetpoints) {
   std::vector<motion::Setpoint> got;
   bool committed = false;
   auto path = cubic();
-  s.submit(job_of(path, got, committed));
+  s.submit(service_job_of(path, got, committed));
   EXPECT_EQ(s.state(), State::Ready);
   s.start();
   EXPECT_EQ(s.state(), State::Running);
   run_out(s);
   EXPECT_EQ(s.state(), State::Done);
   EXPECT_TRUE(committed);
-  const std::vector<motion::Setpoint> ref = reference(*path, motion::JobConfig{});
+  const std::vector<motion::Setpoint> ref = service_reference(*path, motion::JobConfig{});
   ASSERT_EQ(got.size(), ref.size());
   for (std::size_t k = 0; k < ref.size(); ++k) {
     ASSERT_EQ(got[k].p, ref[k].p) << "setpoint " << k;
@@ -130,7 +131,7 @@ TEST(ServiceStates, APollDrainsAtMostARingsWorthWhateverTheSinksSpeed) {
   std::vector<motion::Setpoint> got;
   bool committed = false;
   auto path = cubic();
-  service::JobSpec j = job_of(path, got, committed);
+  service::JobSpec j = service_job_of(path, got, committed);
   struct SlowSink : test::CaptureSink {
     using test::CaptureSink::CaptureSink;
     void write(const motion::Setpoint& sp) override {
@@ -151,7 +152,7 @@ TEST(ServiceStates, APollDrainsAtMostARingsWorthWhateverTheSinksSpeed) {
   EXPECT_EQ(s.state(), State::Done);
   // The sink was the slower: most polls stopped at the bound, with the ring refilled behind.
   EXPECT_GT(full, got.size() / kRing / 2) << got.size() << " setpoints";
-  EXPECT_EQ(got.size(), reference(*path, motion::JobConfig{}).size());
+  EXPECT_EQ(got.size(), service_reference(*path, motion::JobConfig{}).size());
 }
 
 TEST(ServiceStates, CommandsInTheWrongStateAreRefusedNamingIt) {
@@ -171,9 +172,9 @@ TEST(ServiceStates, CommandsInTheWrongStateAreRefusedNamingIt) {
   refused([&] { s.set_override(250); }, "outside 0..200");  // a preset is checked too
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(cubic(), got, committed));
+  s.submit(service_job_of(cubic(), got, committed));
   s.start();
-  refused([&] { s.submit(job_of(cubic(), got, committed)); }, "a job is running");
+  refused([&] { s.submit(service_job_of(cubic(), got, committed)); }, "a job is running");
   refused([&] { s.set_override(250); }, "outside 0..200");
   refused([&] { s.set_override(-1); }, "outside 0..200");
   s.hold(HoldHolder::Operator);
@@ -193,7 +194,7 @@ TEST(ServiceStates, AnOperatorHoldComesToRestOnThePathAndResumesWithinTheLimits)
   service::Service s(simulated(64));
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(cubic(), got, committed));
+  s.submit(service_job_of(cubic(), got, committed));
   s.start();
   while (got.size() < 100) s.poll();
   s.hold(HoldHolder::Operator);
@@ -229,7 +230,7 @@ TEST(ServiceStates, StopEndsAsStoppedWithWhyAndWhereAndCommitsTheSetpoints) {
   service::Service s(simulated(64));
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(cubic(), got, committed));
+  s.submit(service_job_of(cubic(), got, committed));
   s.start();
   while (got.size() < 50) s.poll();
   s.stop("the operator pressed stop");
@@ -244,7 +245,7 @@ TEST(ServiceStates, StopEndsAsStoppedWithWhyAndWhereAndCommitsTheSetpoints) {
   EXPECT_LT(st.stopped->s_mm, st.stopped->length_mm);
   // A new job may follow.
   std::vector<motion::Setpoint> again;
-  s.submit(job_of(cubic(), again, committed));
+  s.submit(service_job_of(cubic(), again, committed));
   EXPECT_EQ(s.state(), State::Ready);
 }
 
@@ -255,8 +256,10 @@ TEST(ServiceStates, StopEndsAsStoppedWithWhyAndWhereAndCommitsTheSetpoints) {
 // first's). Cruising in the middle of the first side at F600 (10 mm/s, far below the machine's
 // limits) the program's F binds; held at rest, the hold.
 TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
-  const char* kSquare = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X20 F600\nG1 Y20 F480\nG1 X0 F600\nM2\n";
-  auto path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kSquare, "square.ngc"));
+  const char* kSquareProgram =
+      "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X20 F600\nG1 Y20 F480\nG1 X0 F600\nM2\n";
+  auto path =
+      std::make_shared<toolpath::Path>(toolpath::read_path_text(kSquareProgram, "square.ngc"));
   // The cycle on this thread, one period per poll: the status is read after every setpoint. (On
   // the cycle thread a poll drains whatever the thread has made, so how many setpoints a side
   // gets checked at depends on the scheduler: CI once saw 64 polls on a side of 500 periods.)
@@ -266,7 +269,7 @@ TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
   service::Service s(o);
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(path, got, committed));
+  s.submit(service_job_of(path, got, committed));
   EXPECT_EQ(s.status().line, 0);  // no setpoint yet
   EXPECT_EQ(s.status().binding_limit, "");
   s.start();
@@ -322,12 +325,12 @@ TEST(ServiceStatus, TheProgramLineAndTheBindingLimitFollowTheSetpoints) {
 // 1e-6 (the planner's curve is the smaller of two nodes, each the minimum over the two 0.2 mm
 // intervals it bounds, so within 0.6 mm of a joint it may take the other side's value).
 TEST(ServiceStatus, TheFeedLimitIsTheLawsValueAtThePositionAndTheFeedNeverExceedsIt) {
-  const char* kProgram = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 F3000\nG3 X10 Y4 I0 J2\nG1 X0\nM2\n";
-  auto path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kProgram, "loop.ngc"));
+  const char* kLoopProgram = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 F3000\nG3 X10 Y4 I0 J2\nG1 X0\nM2\n";
+  auto path = std::make_shared<toolpath::Path>(toolpath::read_path_text(kLoopProgram, "loop.ngc"));
   service::Service s(simulated(64));
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(path, got, committed));
+  s.submit(service_job_of(path, got, committed));
   EXPECT_EQ(s.status().feed_limit_mm_per_min, 0.0);  // no setpoint yet
   const motion::JobConfig c;                         // the job's limits (job_of's defaults)
   const feed::MachineLimits& m = c.limits;
@@ -383,7 +386,7 @@ TEST(ServiceEvents, ALaggingSubscriberLosesEventsCountedNeverBlocksTheLoop) {
   auto fast = s.subscribe(1024);
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(cubic(), got, committed));
+  s.submit(service_job_of(cubic(), got, committed));
   s.start();
   run_out(s);
   const auto all = drain(*fast);
@@ -397,7 +400,7 @@ TEST(ServiceEvents, ALaggingSubscriberLosesEventsCountedNeverBlocksTheLoop) {
   // A closed subscriber is forgotten.
   fast->close();
   slow->close();
-  s.submit(job_of(cubic(), got, committed));
+  s.submit(service_job_of(cubic(), got, committed));
   EXPECT_EQ(s.status().events_dropped, 0u);
 }
 
@@ -435,7 +438,7 @@ TEST(ServiceStatus, TheLiveLatenessHistogramGrowsAndEndsAsTheCyclesOwn) {
   EXPECT_EQ(s.cycle_stats(), nullptr);
   std::vector<motion::Setpoint> out;
   bool committed = false;
-  s.submit(job_of(cubic(), out, committed));
+  s.submit(service_job_of(cubic(), out, committed));
   s.start();
   EXPECT_EQ(s.cycle_stats(), nullptr);  // the cycle runs
   motion::Cycle::LatenessBins last{};
@@ -464,7 +467,7 @@ TEST(ServiceStatus, OnTheSimulatedClockEveryWakeUpIsOnTime) {
   service::Service s(simulated());
   std::vector<motion::Setpoint> out;
   bool committed = false;
-  s.submit(job_of(cubic(), out, committed));
+  s.submit(service_job_of(cubic(), out, committed));
   s.start();
   run_out(s);
   const service::Status st = s.status();
@@ -484,7 +487,7 @@ TEST(ServiceStates, AnOverridePresetBeforeStartAppliesFromTheFirstPeriod) {
   EXPECT_EQ(s.status().override_percent, 40.0);
   std::vector<motion::Setpoint> got;
   bool committed = false;
-  s.submit(job_of(cubic(), got, committed));
+  s.submit(service_job_of(cubic(), got, committed));
   s.set_override(50);  // ready: replaces the preset
   EXPECT_EQ(s.status().override_percent, 50.0);
   const std::vector<service::Event> events = drain(*feed);
@@ -506,7 +509,7 @@ TEST(ServiceStates, AnOverridePresetBeforeStartAppliesFromTheFirstPeriod) {
     want.push_back(half.step());
     if (want.back().done || want.size() > 1000000) break;
   }
-  const std::vector<motion::Setpoint> full = reference(*cubic(), motion::JobConfig{});
+  const std::vector<motion::Setpoint> full = service_reference(*cubic(), motion::JobConfig{});
   ASSERT_EQ(got.size(), want.size());
   EXPECT_GT(want.size(), full.size() + full.size() / 2);  // half the feed: far longer
   for (std::size_t k = 0; k < got.size(); ++k) {
@@ -515,7 +518,7 @@ TEST(ServiceStates, AnOverridePresetBeforeStartAppliesFromTheFirstPeriod) {
   }
   // The next job, with no preset, runs at 100 %: the reference's setpoints.
   std::vector<motion::Setpoint> again;
-  s.submit(job_of(cubic(), again, committed));
+  s.submit(service_job_of(cubic(), again, committed));
   s.start();
   run_out(s);
   ASSERT_EQ(again.size(), full.size());

@@ -1458,9 +1458,9 @@ TEST(SimGrblDialect, WholeProgramOkOnEveryLineWithTimedEvents) {
   EXPECT_EQ(std::count_if(log.events.begin(), log.events.end(),
                           [](const SimEvent& e) { return e.kind == "spindle_stop"; }),
             1);
-  const auto json = to_json(log);
-  EXPECT_EQ(json["events"].size(), log.events.size());
-  EXPECT_EQ(json["settings"]["dialect"], "grbl");
+  const auto json_out = to_json(log);
+  EXPECT_EQ(json_out["events"].size(), log.events.size());
+  EXPECT_EQ(json_out["settings"]["dialect"], "grbl");
   std::printf("grbl program: %zu lines ok, %zu events, end at %.4f s (simulated)\n", answers.size(),
               log.events.size(), end->t_s);
 }

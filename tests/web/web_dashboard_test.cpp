@@ -738,7 +738,7 @@ class BrowserPage : public WebDashboard {
   std::optional<WebDriver> page_;
 };
 
-double unix_now_s() {
+double dashboard_unix_now_s() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
@@ -760,7 +760,7 @@ TEST_F(BrowserPage, EventsShowTheirWallClockAndMotionTimes) {
   WebDriver& page = open();
   WsClient ws(port_);  // an independent reader of the same events
   const std::string program = write("slow.ngc", kProgram);
-  const double submit_unix_s = unix_now_s();
+  const double submit_unix_s = dashboard_unix_now_s();
   page.type("#program-file", program);
   page.click("#submit-file");
   ASSERT_TRUE(page.wait_text("state", "ready")) << page.text("message");
@@ -774,11 +774,11 @@ TEST_F(BrowserPage, EventsShowTheirWallClockAndMotionTimes) {
     std::this_thread::sleep_for(50ms);
   }
   const double t_before_s = sock.request({{"cmd", "status"}})["t_s"].get<double>();
-  const double hold_unix_s = unix_now_s();
+  const double hold_unix_s = dashboard_unix_now_s();
   page.click("#hold");
   ASSERT_TRUE(page.wait_text("state", "holding")) << page.text("message");
   const double t_after_s = sock.request({{"cmd", "status"}})["t_s"].get<double>();
-  const double after_unix_s = unix_now_s();
+  const double after_unix_s = dashboard_unix_now_s();
   json hold;
   for (int i = 0; i < 200 && hold.is_null(); ++i) {
     ws.next(0.1);
