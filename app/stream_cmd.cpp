@@ -286,6 +286,7 @@ nlohmann::json report_json(const comms::SenderReport& r, const comms::LineSettin
       {"program_sha256", r.program_sha256},
       {"duration_s", r.duration_s},
       {"link_use", r.link_use},
+      {"scheduling", r.scheduling},
       {"xoff_count", r.xoff_count},
       {"xoff_total_s", r.xoff_total_s},
       {"xoff_longest_s", r.xoff_longest_s},
@@ -642,6 +643,7 @@ int run_stream(const StreamArgs& given) {
   if (!quiet) print_start(a, line, program, first_block, preamble);
   catch_stop_signals();
   const comms::SenderReport r = sender.run(g_stop);
+  if (!quiet) std::cerr << "ncd stream: the sending thread ran at " << r.scheduling << "\n";
 
   if (!a.report.empty()) {
     write_output(a.report, report_json(r, line, a.program, program, journal_path).dump(2) + "\n");

@@ -95,6 +95,7 @@
 #include "link/dnc_sender.hpp"
 
 #include "link/dnc_session.hpp"
+#include "link/thread_priority.hpp"
 
 #include <filesystem>
 #include <fstream>
@@ -604,10 +605,13 @@ void DncSender::end_with(EndingFn ending) {
 }
 
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
+  const FifoPriority priority(settings_.fifo_priority);
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_,
                   reports_, halt_request_, end_requested_, ending_, source_held_);
   session.on_executed(on_executed_);
-  return session.run(stop);
+  SenderReport report = session.run(stop);
+  report.scheduling = priority.description();
+  return report;
 }
 
 std::optional<Violation> check_program_file(const std::string& path, Dialect dialect) {

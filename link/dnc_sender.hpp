@@ -54,6 +54,10 @@ struct SenderSettings {
   // Negative: max_queued_chars + 0.25 s of line.
   int resend_window_chars = -1;
   double pacing_fraction = 0.98;  // drip: pace at this fraction of the line's capacity
+  // The sending thread runs at SCHED_FIFO this priority while run() runs, so that a loaded host
+  // does not delay its answer to a DC3 past the controller's headroom (link/thread_priority.hpp);
+  // 0: normal scheduling. Refused, it runs on at normal priority and the report says so.
+  int fifo_priority = 60;
   // drip: the controller's maker documents that it discards a block whose N it already has;
   // only then are blocks resent after a lost link (else the job stops as interrupted).
   bool controller_skips_repeated_n = false;
@@ -231,6 +235,7 @@ struct SenderReport {
   int max_queued_estimate = 0;  // largest characters ahead of the wire, model or kernel
   int max_unacked_bytes = 0;    // ack: largest sum of unanswered lines
   std::string program_sha256;   // of the blocks, each ended by one LF
+  std::string scheduling;       // the sending thread's: "SCHED_FIFO 60", or why it was normal
   EndingReport ending;          // ack: end_with()
 };
 

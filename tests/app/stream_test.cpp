@@ -702,7 +702,15 @@ TEST_F(Stream, KilledSenderResumesFromItsJournal) {
   {
     Process sender({NCD_EXE, "stream", prog, "--port", link_, "--baud", "9600", "--frame", "7E2"},
                    (dir_ / "s1.out").string(), (dir_ / "s1.err").string());
-    std::this_thread::sleep_for(std::chrono::milliseconds(3000));
+    // Killed once its journal confirms more than 55 blocks (about 3 s at 9600 baud; a loaded
+    // host starts the sender later, so the journal is asked rather than the clock).
+    std::int64_t confirmed = 0;
+    for (int i = 0; i < 3000 && confirmed <= 55 && sender.running(); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      const auto j = comms::TransferJournal::read(prog + ".journal");
+      if (j) confirmed = j->confirmed;
+    }
+    ASSERT_GT(confirmed, 55) << slurp(dir_ / "s1.err");
     ASSERT_TRUE(sender.running()) << slurp(dir_ / "s1.err");
     sender.signal(SIGKILL);
     sender.wait(5.0);
