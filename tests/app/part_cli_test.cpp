@@ -358,8 +358,9 @@ TEST_F(PartCli, CheckCountsTheIndexMovesAsTheReplayWalksThem) {
   for (std::string line; std::getline(in, line);) {
     if (line.rfind("G0 A", 0) == 0) {
       const double a = std::stod(line.substr(4));
-      if (a != at) {  // the first hole at A0 does not turn
-        want += double_s_s(a - at, 60.0, 1800.0, 36000.0);  // examples/machine-rotary.toml
+      // The first hole, at A0, does not turn; the limits are examples/machine-rotary.toml's.
+      if (a != at) {
+        want += double_s_s(a - at, 60.0, 1800.0, 36000.0);
         ++turns;
       }
       at = a;
