@@ -4,9 +4,13 @@
 // refused with the hole and the key named, and nothing is submitted.
 #include <gtest/gtest.h>
 
+#include <boost/asio/io_context.hpp>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
+#include "api/intake.hpp"
+#include "service/machine_config.hpp"
 #include "tests/app/serve_fixture.hpp"
 #include "tests/common/test_paths.hpp"
 
@@ -79,6 +83,32 @@ TEST_F(ServePart, BadPartIsRefusedNamingTheHoleAndKeyAndNothingIsSubmitted) {
   EXPECT_EQ(s["setpoints"], 0) << s.dump();
   expect_error(c.request({{"cmd", "start"}}), "nothing to start", "a start after the refusals");
   EXPECT_EQ(terminate(), 0);
+}
+
+// What the dashboard lists of a part's job (docs/web-dashboard.md, "The programmed path and the
+// listing"): the program `ncd chamfer --part --machine` writes, line for line, under the part
+// file's name. The request handler the socket, the page and MQTT share, in process.
+TEST_F(ServePart, ThePagesListingIsTheProgramChamferPartWrites) {
+  const auto r = ncd("chamfer --part " + kManifold + " --machine " + kRotary + " -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  boost::asio::io_context io;
+  ncd::app::ServiceConfig config;
+  config.machine = ncd::app::load_machine_config(kRotary);
+  config.clock = ncd::motion::ClockKind::Simulated;
+  config.realtime = false;
+  ncd::app::Intake intake(io, config);
+  const json reply =
+      intake.handle({{"cmd", "submit"}, {"job", {{"part", kManifold}}}, {"start_mm", {0, 0, 50}}});
+  ASSERT_TRUE(reply["ok"].get<bool>()) << reply.dump();
+  const auto view = intake.program_view();
+  ASSERT_TRUE(view);
+  EXPECT_EQ((*view)["listing_file"], kManifold);
+  std::vector<std::string> want;
+  std::istringstream in(r.out);
+  for (std::string line; std::getline(in, line);) want.push_back(line);
+  ASSERT_TRUE((*view)["listing"].is_array()) << view->dump().substr(0, 400);
+  EXPECT_EQ((*view)["listing"].get<std::vector<std::string>>(), want);
+  EXPECT_GT(want.size(), 900u);
 }
 
 }  // namespace
