@@ -30,6 +30,10 @@ Program Interpreter::run(const std::string& text, const std::string& name) {
   f.name = name;
   f.text = text;
   split_lines(f);
+  // One step per line, what most lines of a long program make (a few make more, comments and
+  // blank lines none): the steps are not moved again and again while the program grows, and
+  // the unused end of the reservation is never touched (address space, not memory).
+  program_.steps.reserve(f.lines.size());
   program_.files.push_back(name);
   program_.rotary_axis = opt_.rotary_axis;
   scan_subs(0);
