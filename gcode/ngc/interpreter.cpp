@@ -17,6 +17,12 @@
 // canonical commands carry), the stored parameters and the tool table are in machine units.
 // Control flow (O-words) works on the file's lines held in memory: a false `if`, a finished
 // loop or a `break` scans forward to the line with the same label and the wanted keyword.
+//
+// Speed (docs/ngc-interpreter.md, "Speed"): long programs are mostly lines such as G1 X.. Y..
+// without a comment. Such a line is normalised in one pass over its characters (the lexer runs
+// only on lines with a comment, o_words.cpp), the check that each word has a code to read it
+// looks further only when the line holds I, J, K, R, P, Q or L (execute.cpp), and the steps are
+// reserved one per line (run), so the program's vector is filled in place, not moved as it grows.
 #include "gcode/ngc/interp.hpp"
 #include "gcode/ngc/tool_table.hpp"
 
