@@ -16,19 +16,21 @@
 // What is real and what is simulated. Real: the `ncd` executable for chamfer and replay, the
 // pseudo-terminal and every byte on it, the sender's code (its loop, its wire model, DC1/DC3, the
 // NAK of an alarm) and the controller's (reception, receive buffer, DC1/DC3, the linuxcnc
-// dialect's check, the spindle interlock, the executor). Simulated: the controller's time. It is
-// a ManualClock the test moves on (tests/common/paced_controller.hpp), only once the sender has
-// read everything the controller wrote (a DC3 is seen before time moves on), and never behind
-// the wall clock: kStepS at a step while the controller's buffer holds at least its low-water
-// mark, kSlowStepS while it holds less, so that the sender, paced by the wall clock, keeps
-// ahead of the execution (the run prints its underruns: 0). In its time the controller reads the
-// line no faster than the baud rate (10 472 characters/s at 115 200 7E2), executes each block for
-// its length at its feed (G0 at the rapid rate, A at its rate in deg/min) and logs when it did; the
-// sender times the controller's holds on the same clock (hold_clock). The sender paces its writes
-// by its wire model on the wall clock, which runs slower than the controller's: in the controller's
-// time it writes more slowly than the line could carry, never faster, so the line is never credited
-// with more than its baud rate. The 92 s of motion take a few seconds here (the test prints the
-// controller's time, the wall time and the CPU time).
+// dialect's check, the spindle interlock, the executor). Simulated: time, for both ends. The
+// controller's clock is a ManualClock the test moves on (tests/common/paced_controller.hpp),
+// only once the sender has read everything the controller wrote (a DC3 is seen before time
+// moves on) and once the controller's loop has run at the time before; in that time the
+// controller reads the line no faster than the baud rate (10 472 characters/s at 115 200 7E2),
+// executes each block for its length at its feed (G0 at the rapid rate, A at its rate in
+// deg/min) and logs when it did. The sender's wire model runs on the same clock
+// (SenderSettings::wire_clock: it writes at most 16 characters ahead of what the line can have
+// carried in the controller's time, at 98 % of the baud rate), and so does its timing of the
+// controller's holds (hold_clock). Only the sender's loop runs on the wall clock (a pass every
+// millisecond or so), which bounds how fast it can write in the controller's time: so the test
+// moves the clock on kStepS at a step while the controller's buffer holds at least its
+// low-water mark and kSlowStepS while it holds less, and the sender keeps ahead of the
+// execution (the run prints its underruns: 0). The 92 s of motion take a few seconds here (the
+// test prints the controller's time, the wall time and the CPU time).
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 
@@ -185,6 +187,7 @@ class PartSim : public ncd::test::Cli {
     comms::SenderSettings s;
     s.line = c.line;
     s.hold_clock = ctl.clock();  // the controller's holds timed on its own clock
+    s.wire_clock = ctl.clock();  // and the line's carriage: its DC3 always in reach
     comms::ProgramFile source(program);
     comms::DncSender sender(s, source);
     std::atomic<bool> stop{false}, sender_done{false};
