@@ -17,6 +17,7 @@
 #include <iostream>
 #include <utility>
 
+#include "cam/part.hpp"
 #include "core/error.hpp"
 #include "core/input_file.hpp"
 #include "core/json_input.hpp"
@@ -26,6 +27,7 @@
 #include "service/chamfer_job.hpp"
 #include "service/job_checks.hpp"
 #include "service/link_options.hpp"
+#include "service/part_job.hpp"
 #include "service/restart.hpp"
 #include "service/setpoint_file.hpp"
 #include "service/whole_run.hpp"
@@ -151,9 +153,45 @@ bool allow_interference_of(const json& job) {
 // parameters.
 struct JobPath {
   std::shared_ptr<toolpath::Path> path;
-  std::string file;  // the path job's file; empty for a chamfer made from parameters
-  std::string name;  // the job's name: the file, or "chamfer"
+  std::string file;          // the path job's file; empty for a chamfer made from parameters
+  std::string name;          // the job's name: the file, or "chamfer"
+  std::string part_program;  // a part's job: the program `ncd chamfer --part` writes for it
 };
+
+// A part's job ({"part": FILE} or {"part_toml": TEXT}, docs/service.md "Jobs"): the program
+// `ncd chamfer --part FILE --machine` writes for the service's machine (service/part_job.hpp).
+JobPath part_job_path(const json& job, const ServiceConfig& config) {
+  for (const auto& [key, value] : job.items()) {
+    if (key != "part" && key != "part_toml") {
+      throw InputError("unknown key \"job\".\"" + key +
+                       "\" in a part job; it takes \"part\" (a part file) or \"part_toml\" "
+                       "(its text)");
+    }
+  }
+  if (job.contains("part") && job.contains("part_toml")) {
+    throw InputError(
+        "a part job takes \"part\" (a part file) or \"part_toml\" (its text), "
+        "not both");
+  }
+  JobPath out;
+  toolpath::Part part;
+  if (job.contains("part")) {
+    if (!job["part"].is_string()) throw InputError("\"job\".\"part\" must be a file name");
+    out.name = job["part"].get<std::string>();
+    part = toolpath::load_part(out.name);
+  } else {
+    if (!job["part_toml"].is_string()) {
+      throw InputError("\"job\".\"part_toml\" must be the part file's TOML text");
+    }
+    out.name = "part_toml";
+    part = toolpath::parse_part(job["part_toml"].get<std::string>(), out.name);
+  }
+  service::PartMachine machine;
+  machine.machine = &config.machine;
+  machine.name = config.machine.source;
+  out.part_program = toolpath::part_program_text(service::plan_part_for(part, machine));
+  return out;
+}
 
 JobPath job_path(const json& job, const ServiceConfig& config,
                  const toolpath::InterpretOptions& program) {
@@ -169,6 +207,8 @@ JobPath job_path(const json& job, const ServiceConfig& config,
     out.file = job["path"].get<std::string>();
     out.path = std::make_shared<toolpath::Path>(toolpath::read_path_file(out.file, program));
     out.name = out.file;
+  } else if (job.contains("part") || job.contains("part_toml")) {
+    out = part_job_path(job, config);
   } else {
     service::ChamferJob cj = chamfer_job(job);
     cj.point = config.machine.tool.programmed_point;  // as `ncd chamfer --machine` writes it
@@ -207,7 +247,9 @@ std::string setpoints_of(const json& req) {
 void restart_at_line(const json& req, const json& job, const std::string& file,
                      const MachineConfig& machine, service::JobSpec& spec) {
   if (!job.contains("path")) {
-    throw InputError("\"restart_from\" needs a job {\"path\": FILE} of an NC program");
+    throw InputError(
+        "\"restart_from\" needs a job {\"path\": FILE} of an NC program (a part's: "
+        "write it with `ncd chamfer --part FILE -o PROGRAM` and submit that)");
   }
   const int line =
       static_cast<int>(json_integer(req["restart_from"], 1, 100000000, "\"restart_from\""));
@@ -336,7 +378,8 @@ JobStart job_start(const json& req, const ServiceConfig& config, const std::stri
 
 SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   if (!req.contains("job") || !req["job"].is_object()) {
-    throw InputError("submit needs \"job\": {\"path\": FILE} or a chamfer specification");
+    throw InputError(
+        "submit needs \"job\": {\"path\": FILE}, {\"part\": FILE} or a chamfer specification");
   }
   const json& job = req["job"];
   const bool allow_interference = allow_interference_of(job);
@@ -347,11 +390,20 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   // Where the job starts: the controller's position, else the request's, else the machine
   // file's [program] start_mm; every reading of the program below starts there.
   MachineConfig machine = config.machine;
-  // A chamfer made from parameters starts at its clearance plane: only a path file asks.
-  out.start = job_start(req, config, job.contains("path") ? out.port : std::string());
-  out.start.applies = job.contains("path");
+  // A chamfer made from parameters starts at its clearance plane: only an NC program or a path
+  // file (a part's job is an NC program) asks.
+  const bool program = job.contains("path") || job.contains("part") || job.contains("part_toml");
+  out.start = job_start(req, config, program ? out.port : std::string());
+  out.start.applies = program;
   machine.program.start_machine_mm = out.start.at_mm;
   JobPath source = job_path(job, config, machine.program);
+  std::optional<WholeRun> part_run;
+  if (!source.part_program.empty()) {
+    part_run = whole_ngc_run("ncd serve", source.name, source.part_program, machine);
+    source.path = std::make_shared<toolpath::Path>(part_run->path);
+    out.program_text = source.part_program;
+    out.program_name = source.name;
+  }
   std::shared_ptr<toolpath::Path> path = std::move(source.path);
   spec.name = source.name;
   const std::string setpoints = setpoints_of(req);
@@ -361,7 +413,8 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
       accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
   const bool restart = req.contains("restart_from");
   if (!restart) {
-    WholeRun whole = whole_run("ncd serve", source.file, *path, machine);
+    WholeRun whole =
+        part_run ? std::move(*part_run) : whole_run("ncd serve", source.file, *path, machine);
     path = std::make_shared<toolpath::Path>(std::move(whole.path));
     spec.program = std::make_shared<const toolpath::Program>(std::move(whole.program));
     spec.header = std::move(whole.header);
@@ -384,7 +437,8 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
     throw InputError("\"clearance_z_mm\" goes with \"restart_from\"");
   }
   if (!out.port.empty()) spec.link = link_spec(config, out.port);
-  spec.sink = std::make_unique<SetpointSink>(setpoints);
+  // As `ncd replay` writes them: with the rotary axis's column where the machine has one.
+  spec.sink = std::make_unique<SetpointSink>(setpoints, machine.limits.rotary.axis);
   if (chamfer.interference_allowed) out.warning = chamfer.note;
   return out;
 }
@@ -431,7 +485,8 @@ json Intake::submit(const json& req) {
   const std::string name = job.spec.name;
   const auto file = req["job"].find("path");
   auto view = std::make_shared<const json>(app::program_view(
-      name, *job.spec.path, file != req["job"].end() ? file->get<std::string>() : std::string()));
+      name, *job.spec.path, file != req["job"].end() ? file->get<std::string>() : job.program_name,
+      job.program_text));
   core_.submit(std::move(job.spec));
   program_view_ = std::move(view);
   port_ = job.port;

@@ -60,6 +60,9 @@ struct SubmittedJob {
   std::string port;     // the DNC port; empty: no streaming
   std::string warning;  // a failed chamfer run anyway ("allow_interference"); empty otherwise
   JobStart start;       // where the job starts and why
+  // A part's job: the program `ncd chamfer --part` writes for it, and the name it goes by.
+  std::string program_text;
+  std::string program_name;
 };
 SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& config);
 
@@ -71,8 +74,9 @@ SubmittedJob submitted_job(const nlohmann::json& request, const ServiceConfig& c
 inline constexpr std::size_t kMaxListingLines = 50000;
 inline constexpr std::size_t kMaxListingBytes = std::size_t{4} << 20;
 nlohmann::json path_preview(const toolpath::Path& path);
+// `text`: the program made in memory (a part's), listed under the name `file`.
 nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
-                            const std::string& file);
+                            const std::string& file, const std::string& text = "");
 
 // The one request handler of `ncd serve`: the control socket, the web dashboard and MQTT all
 // hand their requests to handle() and read status() (it was app::Service, beside the library's

@@ -3,6 +3,7 @@
 // most HttpLimits::kMaxPreviewPoints points, every k-th kept and each segment's last), and the
 // text of an NC program, line by line, bounded.
 #include <fstream>
+#include <sstream>
 #include <variant>
 
 #include "api/intake.hpp"
@@ -62,13 +63,10 @@ nlohmann::json path_preview(const toolpath::Path& path) {
           {"programmed_feed_max_mm_per_min", feed_max}};
 }
 
-nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
-                            const std::string& file) {
-  nlohmann::json view = path_preview(path);
-  view["job"] = job;
-  view["listing"] = nullptr;
-  if (file.empty()) return view;
-  std::ifstream in(file, std::ios::binary);
+namespace {
+
+// The listing of a program read from `in` (the file `file`, or a program made in memory).
+nlohmann::json listed_view(nlohmann::json view, std::istream& in, const std::string& file) {
   nlohmann::json lines = nlohmann::json::array();
   std::size_t bytes = 0;
   bool truncated = false;
@@ -93,6 +91,22 @@ nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
   view["listing_file"] = file;
   if (truncated) view["listing_truncated"] = true;
   return view;
+}
+
+}  // namespace
+
+nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
+                            const std::string& file, const std::string& text) {
+  nlohmann::json view = path_preview(path);
+  view["job"] = job;
+  view["listing"] = nullptr;
+  if (!text.empty()) {
+    std::istringstream in(text);
+    return listed_view(std::move(view), in, file);
+  }
+  if (file.empty()) return view;
+  std::ifstream in(file, std::ios::binary);
+  return listed_view(std::move(view), in, file);
 }
 
 }  // namespace ncd::app

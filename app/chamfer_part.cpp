@@ -8,98 +8,48 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "core/error.hpp"
 #include "core/number_text.hpp"
 #include "core/output_file.hpp"
-#include "gcode/dialect/dialect.hpp"
 #include "service/machine_config.hpp"
+#include "service/part_job.hpp"
 
 namespace ncd::app {
 
-toolpath::AirModel air_model(const std::string& machine_file, const toolpath::Part& part) {
-  toolpath::AirModel m;
-  feed::MachineLimits limits;
-  if (!machine_file.empty()) limits = load_machine_config(machine_file).limits;
-  const struct { const feed::MachineLimits& limits; } c{limits};
-  m.rapid_mm_per_s = c.limits.max_feed_mm_per_min / 60.0;
-  m.rapid_accel_mm_per_s2 = c.limits.max_accel_mm_per_s2;
-  for (std::size_t i = 0; i < 3; ++i) {
-    const auto& ax = c.limits.axes[i];
-    if (std::isfinite(ax.max_feed_mm_per_min)) m.axis_mm_per_s[i] = ax.max_feed_mm_per_min / 60.0;
-    if (std::isfinite(ax.max_accel_mm_per_s2)) m.axis_accel_mm_per_s2[i] = ax.max_accel_mm_per_s2;
-  }
-  // The index under the machine file's [axis.a] or [axis.b] where it has one, else [rotary].
-  m.index_deg_per_s = (c.limits.rotary.present() ? c.limits.rotary.max_feed_deg_per_min
-                                                 : part.rotary.max_feed_deg_per_min) /
-                      60.0;
-  m.index_accel_deg_per_s2 = c.limits.rotary.present() ? c.limits.rotary.max_accel_deg_per_s2
-                                                       : part.rotary.max_accel_deg_per_s2;
-  return m;
-}
-
 namespace {
 
-toolpath::NgcOptions writer_options(const PartArgs& a, const toolpath::Part& part) {
-  toolpath::NgcOptions o;
-  const auto parse = [](const std::string& p) {
-    return p == "centre" ? toolpath::ProgramPoint::Centre : toolpath::ProgramPoint::Tip;
-  };
-  o.point = parse(a.point.value_or("tip"));
-  if (a.machine.empty()) return o;
-  const MachineConfig m = load_machine_config(a.machine);
-  if (a.point && parse(*a.point) != m.tool.programmed_point) {
-    throw InputError("--program-point " + *a.point + " contradicts the machine file " + a.machine +
-                     ", whose [tool] programmed_point is " +
-                     (m.tool.programmed_point == toolpath::ProgramPoint::Tip ? "tip" : "centre") +
-                     "; drop --program-point or change the machine file");
+// The machine file and --program-point as the planner's machine (service/part_job.hpp).
+struct LoadedMachine {
+  std::optional<MachineConfig> config;
+  service::PartMachine part_machine(const PartArgs& a) const {
+    service::PartMachine m;
+    if (config) m.machine = &*config;
+    m.name = a.machine;
+    if (a.point) {
+      m.point = *a.point == "centre" ? toolpath::ProgramPoint::Centre : toolpath::ProgramPoint::Tip;
+      m.point_text = *a.point;
+    }
+    return m;
   }
-  o.point = m.tool.programmed_point;
-  if (m.has("tool.number") && m.tool.number != part.tool.number) {
-    throw InputError("the part file " + part.source + " cuts with tool " +
-                     std::to_string(part.tool.number) + " (tool.number) but the machine file " +
-                     a.machine + " says [tool] number = " + std::to_string(m.tool.number) +
-                     "; make them agree");
-  }
-  if (m.link.dialect) {
-    const auto r = comms::rules(*m.link.dialect);
-    o.path_blending = r.path_blending;
-    o.percent = r.percent_framing;
-    o.tool_change = r.tool_change;
-    o.length_offset = r.length_offsets;
-  }
-  return o;
-}
+};
 
 }  // namespace
-
-// The rotary axis: the machine file's [axis.a] or [axis.b] where it has one (the part file's
-// [rotary] axis, if given, must agree), else the part file's.
-toolpath::Part with_machine_axis(toolpath::Part part, const std::string& machine_file) {
-  if (machine_file.empty()) return part;
-  const feed::RotaryLimits r = load_machine_config(machine_file).limits.rotary;
-  if (!r.present()) return part;
-  const toolpath::RotaryAxis axis =
-      r.axis == 'a' ? toolpath::RotaryAxis::A : toolpath::RotaryAxis::B;
-  if (part.rotary.axis_given && part.rotary.axis != axis) {
-    throw InputError("the part file " + part.source + " lies on the " +
-                     toolpath::to_string(part.rotary.axis) +
-                     " axis ([rotary] axis) but the machine file " + machine_file + " has [axis." +
-                     std::string(1, r.axis) + "]; make them agree or leave [rotary] axis out");
-  }
-  part.rotary.axis = axis;
-  return part;
-}
 
 int run_chamfer_part(const PartArgs& a) {
   if (a.format != "ngc" && a.format != "json") {
     throw InputError("--format " + a.format +
                      " is not one of a part's formats; use ngc (the program) or json (the report)");
   }
-  const toolpath::Part part = with_machine_axis(toolpath::load_part(a.part), a.machine);
-  const toolpath::NgcOptions options = writer_options(a, part);
-  const toolpath::AirModel air = air_model(a.machine, part);
+  const toolpath::Part file_part = toolpath::load_part(a.part);
+  LoadedMachine loaded;
+  if (!a.machine.empty()) loaded.config = load_machine_config(a.machine);
+  const service::PartMachine machine = loaded.part_machine(a);
+  const toolpath::Part part = service::with_machine_axis(file_part, machine);
+  const toolpath::NgcOptions options = service::part_writer_options(machine, part);
+  const toolpath::AirModel air = service::part_air_model(machine, part);
   check_output(a.output, "-o");
   check_output(a.plot, "--plot");
   const auto t0 = std::chrono::steady_clock::now();

@@ -21,10 +21,6 @@ struct PartArgs {
 
 int run_chamfer_part(const PartArgs& args);
 
-// The time model of the air moves from the machine file's limits (the path's rapid rate and
-// acceleration, [axis.x..z]) and the part's [rotary].
-toolpath::AirModel air_model(const std::string& machine_file, const toolpath::Part& part);
-
 nlohmann::ordered_json part_json(const toolpath::PartProgram& program, double elapsed_ms);
 std::string part_summary(const toolpath::PartProgram& program, double elapsed_ms);
 // The pipe unrolled (station across, angle around up), each hole's edge and its number in the

@@ -3,7 +3,9 @@
 // a line, each with its source file:line, in the program's units) and a summary in mm: extents
 // per axis (machine coordinates, arcs and NURBS sampled), cut and rapid lengths, an estimate of
 // the time (each move at its feed, capped at the machine's maximum feed; rapids at the
-// machine's maximum feed; dwells), the tools, spindle speeds and feeds. --json for tools.
+// machine's maximum feed; dwells; each index of the rotary axis the double S the planner turns it
+// by, motion/rotary_index.hpp, under the machine file's [axis.a] or [axis.b]), the tools,
+// spindle speeds and feeds. --json for tools.
 // Rapids made before X, Y and Z are all known (the machine comes from wherever it stands)
 // count with their end point only.
 // --save-parameters writes the parameter file back after a program read whole, as LinuxCNC's
@@ -29,6 +31,7 @@
 #include "core/output_file.hpp"
 #include "gcode/ngc/interpreter.hpp"
 #include "gcode/program.hpp"
+#include "motion/rotary_index.hpp"
 #include "service/machine_config.hpp"
 
 namespace ncd::app {
@@ -99,6 +102,8 @@ struct Summary {
   Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
   double cut_mm = 0.0, rapid_mm = 0.0, time_s = 0.0, dwell_s = 0.0;
   std::size_t moves = 0, events = 0;
+  std::size_t indexes = 0;  // rotary index moves (a turn of A or B alone)
+  double index_deg = 0.0, index_s = 0.0;
   std::set<int> tools;
   std::set<double> spindle_rpm;
   double feed_min = std::numeric_limits<double>::infinity(), feed_max = 0.0;
@@ -179,6 +184,21 @@ Summary summarise(const Program& p, const MachineConfig& machine) {
       s.time_s += d->seconds;
     }
     if (const auto* t = std::get_if<toolpath::ToolChangeEvent>(&e)) s.tools.insert(t->tool);
+    if (const auto* r = std::get_if<toolpath::RotaryIndexMove>(&e)) {
+      if (r->from_deg == r->to_deg) continue;
+      // As the planner turns it (motion/job.cpp): rest to rest, a G1's feed capping the speed.
+      const feed::RotaryLimits& lim = machine.limits.rotary;
+      motion::IndexLimits il{lim.max_feed_deg_per_min / 60.0, lim.max_accel_deg_per_s2,
+                             lim.max_jerk_deg_per_s3};
+      if (!r->rapid && r->feed_deg_per_min > 0.0) {
+        il.max_speed_deg_per_s = std::min(il.max_speed_deg_per_s, r->feed_deg_per_min / 60.0);
+      }
+      const double t = motion::IndexProfile(r->from_deg, r->to_deg, il).duration_s();
+      ++s.indexes;
+      s.index_deg += std::abs(r->to_deg - r->from_deg);
+      s.index_s += t;
+      s.time_s += t;
+    }
   }
   return s;
 }
@@ -223,6 +243,9 @@ int run_check(const CheckArgs& a) {
     sum["cut_length_mm"] = s.cut_mm;
     sum["rapid_length_mm"] = s.rapid_mm;
     sum["dwell_s"] = s.dwell_s;
+    sum["index_moves"] = s.indexes;
+    sum["index_deg"] = s.index_deg;
+    sum["index_time_s"] = s.index_s;
     sum["estimated_time_s"] = s.time_s;
     sum["rapid_rate_mm_per_min"] = machine.limits.max_feed_mm_per_min;
     sum["feed_capped_at_machine_maximum"] = s.capped;
@@ -249,6 +272,16 @@ int run_check(const CheckArgs& a) {
             << text::fixed(machine.limits.max_feed_mm_per_min, 0)
             << " mm/min, rapids at that rate, " << text::fixed(s.dwell_s, 1) << " s of dwell)"
             << (s.capped ? "; some feeds were capped" : "") << "\n";
+  if (s.indexes > 0) {
+    const char axis = static_cast<char>(machine.limits.rotary.axis - 'a' + 'A');
+    std::cout << "  rotary " << axis << " " << s.indexes << " index moves, "
+              << text::fixed(s.index_deg, 1) << " deg, " << text::fixed(s.index_s, 3)
+              << " s of the estimate (rest to rest, double S at [axis."
+              << machine.limits.rotary.axis << "]'s "
+              << text::fixed(machine.limits.rotary.max_feed_deg_per_min, 0) << " deg/min, "
+              << text::fixed(machine.limits.rotary.max_accel_deg_per_s2, 0) << " deg/s2, "
+              << text::fixed(machine.limits.rotary.max_jerk_deg_per_s3, 0) << " deg/s3)\n";
+  }
   std::cout << "  tools";
   if (s.tools.empty()) std::cout << " none";
   for (int t : s.tools) std::cout << " T" << t;

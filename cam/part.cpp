@@ -22,7 +22,8 @@
 // tool axis (ChamferSpec::tool_axis; the cutter locations do not depend on it), its inner edge
 // refused (the rod check and the approach down the drill axis assume the rod along that axis).
 // The written rotary word is the machine's A (B) = sense · α, each hole's taken the shortest way
-// from the previous one (continuous, not wrapped), starting from 0.
+// from the previous one (continuous, not wrapped), starting from [rotary] start_deg (0 unless
+// given), where the axis stands when the program starts.
 //
 // Clearance. The pipe is a body of revolution about the rotary axis: at every index it lies
 // within its largest outer radius of the axis. The clearance plane is that radius plus a margin
@@ -37,19 +38,21 @@
 // trapezoid (the machine's rapid rate and acceleration) and each axis's own (its distance on that
 // axis under the axis's limits); the index under the rotary axis's rate and acceleration. The
 // descent, the cut and the rise of each hole do not depend on the order. The start is the first
-// index from 0 (the tool's place is unknown). Holes are ordered by nearest neighbour, then 2-opt
-// (reversing any stretch of the order that shortens it); the file's order is improved by 2-opt too,
-// and the shortest is taken, so the order is never longer than the file's. The nearest neighbour is
-// started from every hole in turn (n tours; the first index from A0 counts in each), which costs n
-// times one and keeps 2-opt out of most of its traps.
+// index from start_deg (the tool's place is unknown). Holes are ordered by nearest neighbour, then
+// 2-opt (reversing any stretch of the order that shortens it); the file's order is improved by
+// 2-opt too, and the shortest is taken, so the order is never longer than the file's. The nearest
+// neighbour is started from every hole in turn (n tours; the first index from the start counts in
+// each), which costs n times one and keeps 2-opt out of most of its traps.
 #include "cam/part.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <toml.hpp>
+#include <tuple>
 
 #include "cam/chamfer_detail.hpp"
 #include "cam/whole_program.hpp"
@@ -220,9 +223,17 @@ void parse_rotary(const toml::value& v, const Reader& r, PartRotary& t) {
       t.max_feed_deg_per_min = positive(value, w, "give the rotary axis's rapid rate");
     } else if (key == "max_accel_deg_per_s2") {
       t.max_accel_deg_per_s2 = positive(value, w, "give the rotary axis's acceleration");
+    } else if (key == "start_deg") {
+      t.start_deg = finite(value, w);
+      if (std::abs(t.start_deg) > PartLimits::kMaxStartDeg) {
+        throw InputError(w + " = " + text::sig(t.start_deg) + " is beyond ±" +
+                         text::sig(PartLimits::kMaxStartDeg) +
+                         " deg; give where the rotary axis stands at the start, in degrees");
+      }
     } else {
       throw InputError("unknown key " + w +
-                       "; [rotary] takes axis, sense, max_feed_deg_per_min, max_accel_deg_per_s2");
+                       "; [rotary] takes axis, sense, max_feed_deg_per_min, max_accel_deg_per_s2, "
+                       "start_deg");
     }
   }
 }
@@ -598,7 +609,146 @@ void check_hole_path(const Part& part, std::size_t index, const HoleSetup& s,
   }
 }
 
+// The closest approach of segments p0p1 and q0q1 (Ericson, Real-Time Collision Detection,
+// 5.1.9): the parameters clamped to [0, 1] in turn.
+double part_segment_distance(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
+  const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  double s = 0.0, t = 0.0;
+  if (a <= 1e-300 && e <= 1e-300) return r.norm();
+  if (a <= 1e-300) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = d1.dot(r);
+    if (e <= 1e-300) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = d1.dot(d2), denom = a * e - b * b;
+      s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1.0) {
+        t = 1.0;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  return ((p0 + s * d1) - (q0 + t * d2)).norm();
+}
+
+// A hole's chamfered edge and drilled hole in part coordinates, for the overlap check.
+struct PartEdgeRing {
+  std::vector<Vec3> edge;  // closed loop (the last point joins the first)
+  Vec3 centre;             // of the edge's bounding sphere
+  double radius = 0.0;
+  Vec3 axis_point, axis;  // the drill axis: its point nearest the pipe axis, unit direction
+  double drill_radius_mm = 0.0;
+  double side = 1.0;  // the sign of (edge − axis_point)·axis: the wall the edge is on
+  double width_mm = 0.0;
+};
+
+PartEdgeRing edge_ring(const HoleCut& h) {
+  PartEdgeRing g;
+  g.edge = edge_in_part(h, PartLimits::kOverlapSagMm);
+  g.centre = Vec3::Zero();
+  for (const Vec3& p : g.edge) g.centre += p;
+  g.centre /= static_cast<double>(g.edge.size());
+  for (const Vec3& p : g.edge) g.radius = std::max(g.radius, (p - g.centre).norm());
+  const DrillPlacement place = drill_placement(h.setup.spec);
+  g.axis_point = h.setup.pipe_to_part(place.origin);
+  g.axis = (h.setup.pipe_to_part(place.to_pipe(Vec3(0, 0, 1))) - g.axis_point).normalized();
+  g.drill_radius_mm = h.setup.spec.drill_radius_mm;
+  g.side = (g.centre - g.axis_point).dot(g.axis) >= 0.0 ? 1.0 : -1.0;
+  g.width_mm = h.setup.spec.width_mm;
+  return g;
+}
+
+// The first point of `b`'s edge inside `a`'s drilled hole (nearer a's drill axis than its radius,
+// on the wall a's edge is on), if any.
+std::optional<Vec3> edge_inside_hole(const PartEdgeRing& a, const PartEdgeRing& b) {
+  for (const Vec3& p : b.edge) {
+    const Vec3 w = p - a.axis_point;
+    const double along = w.dot(a.axis);
+    if (along * a.side > 0.0 && (w - along * a.axis).norm() < a.drill_radius_mm) return p;
+  }
+  return std::nullopt;
+}
+
+double ring_distance_mm(const PartEdgeRing& a, const PartEdgeRing& b, double stop_below) {
+  double best = kInf;
+  const std::size_t na = a.edge.size(), nb = b.edge.size();
+  for (std::size_t i = 0; i < na; ++i) {
+    const Vec3& p0 = a.edge[i];
+    const Vec3& p1 = a.edge[(i + 1) % na];
+    for (std::size_t j = 0; j < nb; ++j) {
+      best = std::min(best, part_segment_distance(p0, p1, b.edge[j], b.edge[(j + 1) % nb]));
+    }
+    if (best < stop_below) return best;
+  }
+  return best;
+}
+
+// Overlapping holes (docs/part.md, "Overlapping holes"): refused naming both.
+void check_overlaps(const Part& part, const std::vector<HoleCut>& cuts) {
+  std::vector<PartEdgeRing> rings;
+  rings.reserve(cuts.size());
+  for (const HoleCut& h : cuts) rings.push_back(edge_ring(h));
+  const auto refuse = [&](std::size_t i, std::size_t j, const std::string& how) {
+    throw InputError(part.source + ": " + hole_label(part, i) + " and " + hole_label(part, j) +
+                     " overlap: " + how +
+                     "; move one of them (position_mm, angle_deg), narrow the chamfers "
+                     "(width_mm) or leave one out. No program written");
+  };
+  for (std::size_t i = 0; i < cuts.size(); ++i) {
+    for (std::size_t j = i + 1; j < cuts.size(); ++j) {
+      const PartEdgeRing &a = rings[i], &b = rings[j];
+      const double limit = a.width_mm + b.width_mm;
+      for (const auto& [x, y, xi, yi] : {std::tuple{&a, &b, i, j}, std::tuple{&b, &a, j, i}}) {
+        if (const auto p = edge_inside_hole(*x, *y)) {
+          refuse(i, j,
+                 "the edge of " + hole_label(part, yi) + " enters the drilled hole of " +
+                     hole_label(part, xi) + " (at station " + text::fixed(p->x(), 3) +
+                     " mm, nearer its drill axis than its radius " + text::sig(x->drill_radius_mm) +
+                     " mm)");
+        }
+      }
+      if ((a.centre - b.centre).norm() - a.radius - b.radius > limit) continue;
+      // Stops at the first approach within the limit; then the closest, for the message.
+      if (ring_distance_mm(a, b, limit) <= limit) {
+        const double d = ring_distance_mm(a, b, 0.0);
+        refuse(i, j,
+               "their edges come within " + text::fixed(d, 3) +
+                   " mm of each other, not more than the sum of their chamfer widths " +
+                   text::sig(limit) + " mm (" + text::sig(a.width_mm) + " + " +
+                   text::sig(b.width_mm) + ")");
+      }
+    }
+  }
+}
+
 }  // namespace
+
+std::vector<Vec3> edge_in_part(const HoleCut& h, double sag_mm) {
+  const ChamferModel model(h.setup.spec);
+  // The chord of a step Δθ leaves the curve by at most max|C''| Δθ² / 8: the largest second
+  // derivative over 64 samples, with half again for what falls between them.
+  double c2 = 0.0;
+  for (int k = 0; k < 64; ++k)
+    c2 = std::max(c2, model.second_derivative(2.0 * kPi * k / 64).norm());
+  const double step = std::sqrt(8.0 * sag_mm / (1.5 * c2));
+  const std::size_t n =
+      std::clamp<std::size_t>(static_cast<std::size_t>(std::ceil(2.0 * kPi / step)), 64, 100000);
+  const DrillPlacement place = drill_placement(h.setup.spec);
+  std::vector<Vec3> out;
+  out.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double theta = 2.0 * kPi * static_cast<double>(k) / static_cast<double>(n);
+    out.push_back(h.setup.pipe_to_part(place.to_pipe(model.point(theta))));
+  }
+  return out;
+}
 
 PartProgram plan_part(const Part& part, const AirModel& air, NgcOptions o) {
   PartProgram prog;
@@ -644,6 +794,7 @@ PartProgram plan_part(const Part& part, const AirModel& air, NgcOptions o) {
     }
     h.over = Vec3(entry.x(), entry.y(), prog.clearance_z_mm);
   }
+  check_overlaps(part, cuts);
 
   AirCosts costs;
   costs.from_start.resize(n);
@@ -651,7 +802,7 @@ PartProgram plan_part(const Part& part, const AirModel& air, NgcOptions o) {
   const double sense = part.rotary.sense;
   for (std::size_t i = 0; i < n; ++i) {
     const double ai = sense * rad_to_deg(cuts[i].setup.index_rad);
-    costs.from_start[i] = index_time_s(air, shortest_turn_deg(0.0, ai));
+    costs.from_start[i] = index_time_s(air, shortest_turn_deg(part.rotary.start_deg, ai));
     for (std::size_t j = 0; j < n; ++j) {
       if (i == j) continue;
       const double aj = sense * rad_to_deg(cuts[j].setup.index_rad);
@@ -664,7 +815,7 @@ PartProgram plan_part(const Part& part, const AirModel& air, NgcOptions o) {
   prog.order = order_holes(costs);
   prog.air_ordered_s = costs.tour_s(prog.order);
   prog.air_file_order_s = costs.tour_s(file);
-  double a = 0.0;
+  double a = part.rotary.start_deg;
   for (const std::size_t i : prog.order) {
     HoleCut h = cuts[i];
     a += shortest_turn_deg(a, sense * rad_to_deg(h.setup.index_rad));
@@ -699,6 +850,8 @@ void write_header(std::ostream& g, const PartProgram& prog) {
     << (p.rotary.axis == RotaryAxis::A ? "Y0 Z0" : "X0 Z0") << " on the centreline; at " << ax
     << "0 the hole angle 0 points up; " << ax << "+ turns the part "
     << (p.rotary.sense > 0 ? "right-handed" : "left-handed") << " about +" << along << ")\n";
+  g << "(the " << ax << " axis stands at " << ax << text::fixed(p.rotary.start_deg, 4)
+    << " at the start: the first index leaves from there)\n";
   g << "(tool: ball radius " << text::fixed(p.tool.ball_radius_mm, 4) << " mm, rod "
     << (p.tool.rod_radius_mm ? text::fixed(*p.tool.rod_radius_mm, 4) + " mm" : "not given")
     << ", non-knife angle "

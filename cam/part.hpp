@@ -57,6 +57,10 @@ struct PartRotary {
   double sense = 1.0;
   double max_feed_deg_per_min = 3600.0;  // the index's rate and acceleration, for the time model
   double max_accel_deg_per_s2 = 1800.0;
+  // Where the rotary axis stands when the program starts (machine A or B, degrees, as the
+  // controller reads it): the order's first index and the program's first rotary word leave
+  // from here.
+  double start_deg = 0.0;
 };
 
 // [[hole]]: one drilled hole and the edge to chamfer.
@@ -86,6 +90,9 @@ struct Part {
 struct PartLimits {
   static constexpr std::size_t kMaxHoles = 200;
   static constexpr double kMaxLengthMm = 10000.0;
+  static constexpr double kMaxStartDeg = 36000.0;  // [rotary] start_deg: 100 turns either way
+  // The overlap check's edges: chords within this of the curve (docs/part.md).
+  static constexpr double kOverlapSagMm = 5e-4;
 };
 
 // Reads a part file (TOML); throws InputError naming the file, the hole (index and name), the
@@ -131,7 +138,8 @@ double index_time_s(const AirModel& model, double delta_deg);
 // The shortest turn from a to b (degrees), in [−180, 180).
 double shortest_turn_deg(double from_deg, double to_deg);
 
-// Air times between holes: from[i] the start's cost to hole i (the first index from A0), and
+// Air times between holes: from[i] the start's cost to hole i (the first index from [rotary]
+// start_deg), and
 // between[i][j] from hole i's retract to hole j's approach, symmetric.
 struct AirCosts {
   std::vector<double> from_start;
@@ -153,6 +161,11 @@ struct HoleCut {
                              // inner edge, over the first point for an outer one)
 };
 
+// A hole's chamfered edge in part coordinates (s, v, w): the edge curve (ChamferModel::point)
+// at equal steps of θ, fine enough that each chord leaves the curve by at most sag_mm; the
+// loop not closed.
+std::vector<Vec3> edge_in_part(const HoleCut& cut, double sag_mm);
+
 struct PartProgram {
   Part part;
   NgcOptions options;  // point, feed, spindle, tool, dialect choices of the writer
@@ -165,8 +178,9 @@ struct PartProgram {
   double cut_length_mm = 0.0;
 };
 
-// Every hole computed alone and checked (an interference refused naming the hole), placed,
-// ordered; the options' tool, feed and spindle are taken from the part.
+// Every hole computed alone and checked (an interference refused naming the hole), two holes
+// whose chamfers meet refused naming both (docs/part.md, "Overlapping holes"), placed, ordered; the
+// options' tool, feed and spindle are taken from the part.
 PartProgram plan_part(const Part& part, const AirModel& air, NgcOptions options);
 // The RS-274/NGC program (LinuxCNC dialect with an A or B axis).
 std::string part_program_text(const PartProgram& program);

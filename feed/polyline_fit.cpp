@@ -45,7 +45,11 @@
 //      every point of C is within (d_a + d_b + M1 Δu) / 2 of the polyline.
 //    - polyline → curve: the polyline is sampled at steps δ ≤ 0.2 Q along each piece (vertices
 //      included); e = the distance to the nearest curve sample (an upper bound of the distance
-//      to C); between two samples every point is within (e_a + e_b + δ) / 2 of C.
+//      to C); between two samples every point is within (e_a + e_b + δ) / 2 of C. The search
+//      for that sample steps over samples the triangle inequality rules out (their chords to
+//      one at distance d add up to less than d − the best so far): the same minimum, faster.
+//    Each refit moves every control point (one least-squares system), so every round proves
+//    the whole run again; most of the work is the first round's, whose curve is far off.
 //    The largest of these bounds is the proven deviation. Spans where a bound exceeds Q get a
 //    knot in their middle and the run is refitted (up to 16 rounds, spans not below Q wide).
 //    A curve whose parametric speed |C'| falls below 0.5 of its mean at a sample (the mean is
@@ -90,6 +94,7 @@ constexpr int kMaxRounds = 16;
 constexpr int kMaxSplitDepth = 12;
 constexpr double kSampleStepPerQ = 0.2;   // Δu M1 ≤ 0.2 Q and δ ≤ 0.2 Q
 constexpr double kRoundingMm = 1e-12;     // added to every bound for the rounding of the distances
+constexpr double kSkipMarginMm = 1e-9;    // the rounding of the chord sums, many times over
 constexpr double kReversalRad = kPi / 2;  // a vertex turning more is always a corner
 constexpr double kMinSpeed = 0.5;         // smallest |C'| accepted, over the mean |C'|
 
@@ -316,10 +321,19 @@ Check check(const NurbsCurve& c, const std::vector<double>& breaks, const Run& r
       d_prev = d;
     }
   }
+  // along[i]: the length of the chords from the first curve sample to sample i.
+  std::vector<double> along(cs.size(), 0.0);
   double curve_mm = 0.0;
-  for (std::size_t i = 1; i < cs.size(); ++i) curve_mm += (cs[i].p - cs[i - 1].p).norm();
+  for (std::size_t i = 1; i < cs.size(); ++i) {
+    curve_mm += (cs[i].p - cs[i - 1].p).norm();
+    along[i] = curve_mm;
+  }
   out.mean_speed = curve_mm / (breaks.back() - breaks.front());
-  // Polyline → curve: distance to the nearest curve sample around the parameter.
+  // Polyline → curve: distance to the nearest curve sample around the parameter. A sample whose
+  // chords to one at distance d add up to at most d − best (less a margin for the rounding of
+  // the sums) is no nearer than best (triangle inequality): the scan steps over it, which leaves
+  // the minimum, its span and where the scan stops as they were (it stops at the first sample
+  // too far in parameter, and parameters only grow away from y's).
   std::size_t i0 = 0;
   const auto to_curve = [&](const Vec3& y, double t, std::size_t& span) {
     while (i0 + 1 < cs.size() && cs[i0 + 1].u <= t) ++i0;
@@ -328,10 +342,14 @@ Check check(const NurbsCurve& c, const std::vector<double>& breaks, const Run& r
     for (std::size_t i = i0 + 1; i < cs.size() && cs[i].u - t <= best + tol; ++i) {
       const double d = (y - cs[i].p).norm();
       if (d < best) best = d, span = cs[i].span;
+      const double reach = along[i] + (d - best - kSkipMarginMm);
+      while (i + 1 < cs.size() && along[i + 1] <= reach) ++i;
     }
     for (std::size_t i = i0; i-- > 0 && t - cs[i].u <= best + tol;) {
       const double d = (y - cs[i].p).norm();
       if (d < best) best = d, span = cs[i].span;
+      const double reach = along[i] - (d - best - kSkipMarginMm);
+      while (i > 0 && along[i - 1] >= reach) --i;
     }
     return best;
   };

@@ -473,31 +473,40 @@ void write_line_move(std::string& line, const Motion& m, const LineMove& g) {
 
 }  // namespace
 
+// The dense G1 lines of long programs are written into one text buffer, handed to the stream
+// 64 KB at a time (a write per line costs the stream's locking each time); every other step
+// goes through the stream after the buffer, in order.
 void write_canonical(std::ostream& out, const Program& program) {
-  std::string line;
+  std::string text;
+  const auto write_text = [&] {
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    text.clear();
+  };
+  static const std::string unknown_file = "?";
   for (const Step& step : program.steps) {
     const std::size_t f = static_cast<std::size_t>(step.src.file);
+    const std::string& file = f < program.files.size() ? program.files[f] : unknown_file;
     const auto* m = std::get_if<Motion>(&step.item);
     const auto* straight = m ? std::get_if<LineMove>(&m->geometry) : nullptr;
     if (straight && !m->rapid && m->spindle == SpindleDir::off && m->tool == 0 && m->start_known &&
         m->feed_mode == FeedMode::per_minute) {
-      // The dense G1 of CAM programs: one buffer per line, the same text as below.
-      line.clear();
-      line += f < program.files.size() ? program.files[f] : std::string("?");
-      line += ':';
-      line += std::to_string(step.src.line);
-      line += ' ';
-      write_line_move(line, *m, *straight);
-      line += " F";
-      text::append_trimmed(line, m->feed, 6, 1);
-      line += ' ';
-      line += units_name(m->units);
-      line += '\n';
-      out.write(line.data(), static_cast<std::streamsize>(line.size()));
+      // The same text as below.
+      text += file;
+      text += ':';
+      char number[16];
+      text.append(number, std::to_chars(number, number + sizeof number, step.src.line).ptr);
+      text += ' ';
+      write_line_move(text, *m, *straight);
+      text += " F";
+      text::append_trimmed(text, m->feed, 6, 1);
+      text += ' ';
+      text += units_name(m->units);
+      text += '\n';
+      if (text.size() >= 65536) write_text();
       continue;
     }
-    out << (f < program.files.size() ? program.files[f] : std::string("?")) << ':' << step.src.line
-        << ' ';
+    write_text();
+    out << file << ':' << step.src.line << ' ';
     if (m) {
       std::visit(
           [&](const auto& g) {
@@ -572,6 +581,7 @@ void write_canonical(std::ostream& out, const Program& program) {
         std::get<Event>(step.item));
     out << '\n';
   }
+  write_text();
 }
 
 }  // namespace ncd::toolpath

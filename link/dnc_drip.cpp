@@ -14,9 +14,9 @@ double Session::delivered() const {
 }
 
 void Session::advance_model() {
-  const auto now = Clock::now();
-  const double dt = std::chrono::duration<double>(now - last_tick_).count();
-  last_tick_ = now;
+  const double now = wire_now_s();
+  const double dt = now - last_tick_s_;
+  last_tick_s_ = now;
   model_delivered_ = std::min(static_cast<double>(conn_written_),
                               model_delivered_ + dt * cps_ * s_.pacing_fraction);
   outq_ = link_->output_queue();

@@ -157,7 +157,7 @@ Session::Session(const SenderSettings& s, BlockSource& source, const DncSender::
 
 SenderReport Session::run(const std::atomic<bool>& stop) {
   t0_ = Clock::now();
-  last_tick_ = t0_;
+  last_tick_s_ = wire_now_s();
   next_progress_s_ = s_.progress_period_s;
   while (true) {
     const bool halt = halt_request_.load() || (s_.halt_on_stop && stop.load());
@@ -410,7 +410,7 @@ bool Session::reopen(const std::atomic<bool>& stop) {
   while (!stop.load(std::memory_order_relaxed)) {
     try {
       link_ = std::make_unique<SerialLink>(s_.line);
-      last_tick_ = Clock::now();
+      last_tick_s_ = wire_now_s();
       if (opened_once_) {
         emit(SenderEvent::Kind::Reopened, resume_point(),
              "reopened " + s_.line.device + " after " + fixed(now_s() - start, 1) + " s");

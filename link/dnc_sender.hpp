@@ -48,6 +48,13 @@ struct SenderSettings {
   // the test's thread.
   std::shared_ptr<const SimClock> hold_clock;
   double reconnect_max_s = 30.0;  // give up reopening a lost port after this long (hold_clock)
+  // drip: the clock the wire model runs on (how much the line has carried since a byte was
+  // written); null: the wall clock. A test whose simulated controller runs on a ManualClock
+  // gives it here too, so that the sender never credits the line with more than the
+  // controller's time lets it carry, however the machine's load delays the controller's thread
+  // (on the wall clock a delayed controller leaves the bytes the model counts as carried in the
+  // kernel, beyond the reach of its DC3).
+  std::shared_ptr<const SimClock> wire_clock;
   double progress_period_s = 1.0;
   // drip: after a lost link, blocks within this many characters before the first block the
   // wire model cannot vouch for are sent again; the controller discards repeated N numbers.

@@ -107,6 +107,7 @@ class Session {
 
   double now_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
   double hold_now_s() const { return s_.hold_clock ? s_.hold_clock->now_s() : now_s(); }
+  double wire_now_s() const { return s_.wire_clock ? s_.wire_clock->now_s() : now_s(); }
   bool over() const { return !report_.failure.empty(); }
   bool status_known() const { return s_.status_hz > 0.0 && status_.supported; }
 
@@ -294,7 +295,8 @@ class Session {
   std::int64_t journaled_ = -1;
   double journal_at_s_ = -1.0;
   double next_progress_s_ = 1.0;
-  Clock::time_point t0_, last_tick_;
+  Clock::time_point t0_;
+  double last_tick_s_ = 0.0;  // wire_now_s() at the wire model's last advance
   Sha256 sha_;
   DialectState dialect_state_;
   SenderReport report_;

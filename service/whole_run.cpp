@@ -51,6 +51,16 @@ void check_generated_tool(const MachineConfig& m) {
 
 }  // namespace
 
+WholeRun whole_ngc_run(const std::string& who, const std::string& name, const std::string& text,
+                       const MachineConfig& m) {
+  WholeRun w;
+  w.program = toolpath::interpret_ngc(text, name, m.program);
+  w.header.push_back(who + " of " + name + " (programmed point: as in that program)");
+  w.path = toolpath::to_path(w.program);
+  if (!w.path.segments.empty()) w.retract = toolpath::program_retract(w.program, w.path);
+  return w;
+}
+
 WholeRun whole_run(const std::string& who, const std::string& file, const toolpath::Path& input,
                    const MachineConfig& m, bool path_only) {
   WholeRun w;
@@ -73,10 +83,7 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
   const bool tip = m.tool.programmed_point == toolpath::ProgramPoint::Tip;
   const double r_mm = m.cutting.ball_radius_mm;
   if (ngc) {
-    w.program = toolpath::interpret_ngc(text, file, m.program);
-    w.header.push_back(who + " of " + file + " (programmed point: as in that program)");
-    w.path = toolpath::to_path(w.program);
-    if (!w.path.segments.empty()) w.retract = toolpath::program_retract(w.program, w.path);
+    w = whole_ngc_run(who, file, text, m);
   } else {
     check_generated_tool(m);
     toolpath::JobFrame f;

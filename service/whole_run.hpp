@@ -39,4 +39,9 @@ struct WholeRun {
 WholeRun whole_run(const std::string& who, const std::string& file, const toolpath::Path& input,
                    const MachineConfig& machine, bool path_only = false);
 
+// The same for RS-274/NGC text already in memory (a part's program, service/part_job.hpp);
+// `name` stands for the file in the header and in messages.
+WholeRun whole_ngc_run(const std::string& who, const std::string& name, const std::string& text,
+                       const MachineConfig& machine);
+
 }  // namespace ncd::app

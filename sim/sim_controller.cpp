@@ -99,16 +99,13 @@
 // sim_receive_buffer.cpp 2 and 4; sim_grbl.cpp the grbl of 3 (planner, serial ring, `$` lines,
 // status reports, feed hold, cycle start) and the resets of both protocols; sim_executor.cpp 5;
 // sim_block.cpp the reading of a block; sim_faults.cpp the faults on a timer (storms, holds,
-// noise); sim_config.cpp the settings' checks; sim_log_json.cpp the log as JSON.
+// noise); sim_config.cpp the settings' checks; sim_log_json.cpp the log as JSON; sim_port the
+// pseudo-terminal and the loop's wake-up (SimPort): every read, write, flush and wait on them,
+// so the model in the other files decides when and how many bytes to take and what to send,
+// and never touches a descriptor.
 #include "sim/sim_controller.hpp"
 
-#include <fcntl.h>
-#include <poll.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
-#include <system_error>
 
 #include "sim/sim_impl.hpp"
 
@@ -129,20 +126,14 @@ SimController::Impl::Impl(SimControllerConfig c)
       xon_at(*cfg.xon_at),
       max_block(max_block_chars(cfg)),
       rng(cfg.seed),
-      pty(cfg.line.device) {
-  if (::pipe2(wake.data(), O_NONBLOCK | O_CLOEXEC) != 0) {
-    throw std::system_error(errno, std::generic_category(), "pipe2");
-  }
+      port(cfg.line.device) {
   log.config = cfg;
   // The injected clock's zero is taken here, not in run(): a caller that advances the clock
   // right after construction must not race the thread that starts run().
   if (cfg.clock) clock_t0 = cfg.clock->now_s();
 }
 
-SimController::Impl::~Impl() {
-  ::close(wake[0]);
-  ::close(wake[1]);
-}
+SimController::Impl::~Impl() = default;
 
 double SimController::Impl::now_s() const {
   if (cfg.clock) return cfg.clock->now_s() - clock_t0;
@@ -154,7 +145,7 @@ void SimController::Impl::event(const std::string& text) {
 }
 
 void SimController::Impl::link_event(double t, const std::string& what) {
-  log.link_events.push_back({t, what, pty.device()});
+  log.link_events.push_back({t, what, port.device()});
 }
 
 void SimController::Impl::run() {
@@ -171,7 +162,7 @@ void SimController::Impl::run() {
     if (down_until && t >= *down_until) restore_link(t);
     if (booting_until && t >= *booting_until) boot_done();
     if (cycle_start_request.exchange(false)) cycle_start(t);
-    if (pty.is_open()) on_slave_events(t);
+    if (port.is_open()) on_slave_events(t);
     receive(t, readable);
     flow(t);  // DC3 when the fill reached high water, before a block starting now frees room
     execute(t);
@@ -180,31 +171,8 @@ void SimController::Impl::run() {
     publish();  // before the bytes go out, so a sender reading them sees this state
     flush_out();
 
-    std::array<pollfd, 3> fds{};
-    fds[0] = {wake[0], POLLIN, 0};
-    nfds_t nfds = 1;
-    if (pty.is_open()) {
-      short ev = 0;
-      if (rx_idle) ev |= POLLIN;
-      if (!out.empty()) ev |= POLLOUT;
-      fds[1] = {pty.watch_fd(), POLLIN, 0};
-      fds[2] = {pty.master(), ev, 0};
-      nfds = 3;
-    }
     t = now_s();
-    const double wait = timeout(t);
-    timespec ts{};
-    ts.tv_sec = static_cast<time_t>(wait);
-    ts.tv_nsec = static_cast<long>((wait - static_cast<double>(ts.tv_sec)) * 1e9);
-    readable = false;
-    if (::ppoll(fds.data(), nfds, &ts, nullptr) > 0) {
-      if (fds[0].revents & POLLIN) {
-        std::array<char, 64> drain{};
-        while (::read(wake[0], drain.data(), drain.size()) > 0) {
-        }
-      }
-      readable = nfds == 3 && (fds[2].revents & POLLIN) != 0;
-    }
+    readable = port.wait(timeout(t), rx_idle, !out.empty());
   }
   finalize(now_s());
 }
@@ -212,8 +180,8 @@ void SimController::Impl::run() {
 // Seconds until something is due, at most kLoopPeriodS.
 double SimController::Impl::timeout(double t) const {
   double due = t + kLoopPeriodS;
-  if (pty.is_open() && !rx_idle) due = std::min(due, credit_t + (1.0 - credit) / cps);
-  if (pty.is_open() && rx_idle && !backlog.empty()) due = t;
+  if (port.is_open() && !rx_idle) due = std::min(due, credit_t + (1.0 - credit) / cps);
+  if (port.is_open() && rx_idle && !backlog.empty()) due = t;
   if (busy && !held) due = std::min(due, busy_end);
   if (booting_until) due = std::min(due, *booting_until);
   const double prime_t = log.last_byte_t_s + cfg.prime_idle_s;
@@ -249,7 +217,7 @@ void SimController::Impl::finalize(double t) {
     log.bytes_per_s = static_cast<double>(log.bytes_received) / log.reception_s;
     log.link_use = log.bytes_per_s / cps;
   }
-  pty.close();
+  port.close();
   publish();
 }
 
@@ -280,7 +248,7 @@ const SimControllerConfig& SimController::config() const {
 }
 
 std::string SimController::device() const {
-  return impl_->pty.device();
+  return impl_->port.device();
 }
 
 void SimController::run() {
@@ -289,14 +257,12 @@ void SimController::run() {
 
 void SimController::request_stop() noexcept {
   impl_->stop.store(true);
-  const char c = 's';
-  [[maybe_unused]] const ssize_t n = ::write(impl_->wake[1], &c, 1);
+  impl_->port.wake();
 }
 
 void SimController::cycle_start() noexcept {
   impl_->cycle_start_request.store(true);
-  const char c = 'c';
-  [[maybe_unused]] const ssize_t n = ::write(impl_->wake[1], &c, 1);
+  impl_->port.wake();
 }
 
 SimProgress SimController::progress() const noexcept {

@@ -21,7 +21,7 @@ double SimController::Impl::uniform(double lo, double hi) {
 void SimController::Impl::faults(double t) {
   const SimFaults& f = cfg.faults;
   if (hold_until && t >= *hold_until) hold_until.reset();
-  if (f.xoff_storm && pty.is_open()) {
+  if (f.xoff_storm && port.is_open()) {
     if (storm_until && t >= *storm_until) {
       storm_until.reset();
       next_storm = t + uniform(0.05, 0.5);

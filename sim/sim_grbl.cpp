@@ -349,7 +349,7 @@ void SimController::Impl::reset(double t, const std::string& cause) {
 void SimController::Impl::boot_done() {
   booting_until.reset();
   // A banner sent while the port is closed, or before a sender opened it, is lost.
-  if (!pty.is_open() || open_count == 0) ++log.banners_lost;
+  if (!port.is_open() || open_count == 0) ++log.banners_lost;
   send(std::string("\r\n") + kGrblBanner + "\r\n");
   if (grbl_locked) send("[MSG:'$H'|'$X' to unlock]\r\n");
   ++log.banners_sent;

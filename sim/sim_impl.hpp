@@ -13,9 +13,9 @@
 #include <string>
 #include <string_view>
 
-#include "link/pty.hpp"
 #include "link/sha256.hpp"
 #include "sim/sim_controller.hpp"
+#include "sim/sim_port.hpp"
 
 namespace ncd::comms {
 
@@ -118,8 +118,7 @@ struct SimController::Impl {
   const double cps;
   const int xoff_at, xon_at, max_block;
   std::mt19937_64 rng;
-  Pty pty;
-  std::array<int, 2> wake{-1, -1};
+  SimPort port;  // the pty and the loop's wake-up: every byte in and out goes through it
   std::atomic<bool> stop{false};
   std::atomic<bool> cycle_start_request{false};
   Clock::time_point t0 = Clock::now();

@@ -3,13 +3,7 @@
 
 #include "sim/sim_impl.hpp"
 
-#include <fcntl.h>
-#include <sys/ioctl.h>
-#include <termios.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 
 #include "core/number_text.hpp"
 
@@ -25,7 +19,7 @@ constexpr double kLateFlowS = 0.002;
 
 // Queues bytes for the sender (dropped while the link is down).
 void SimController::Impl::send(std::string_view bytes) {
-  if (pty.is_open()) out.append(bytes);
+  if (port.is_open()) out.append(bytes);
 }
 
 void SimController::Impl::send_flow(bool xoff) {
@@ -40,21 +34,24 @@ void SimController::Impl::reply(const Line& line, std::string_view text) {
 }
 
 void SimController::Impl::flush_out() {
-  if (out.empty() || !pty.is_open()) return;
-  const ssize_t n = ::write(pty.master(), out.data(), out.size());
-  if (n > 0) {
-    out.erase(0, static_cast<std::size_t>(n));
-    bytes_sent += static_cast<std::uint64_t>(n);
-    if (xoff_at_out) {
-      if (*xoff_at_out < static_cast<std::size_t>(n)) {
-        xoff_written(now_s());
-      } else {
-        *xoff_at_out -= static_cast<std::size_t>(n);
-      }
-    }
-  } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
+  if (out.empty() || !port.is_open()) return;
+  const std::optional<std::size_t> written = port.write(out);
+  if (!written) {  // the pty failed: what waited is lost
     out.clear();
     xoff_at_out.reset();
+    return;
+  }
+  const std::size_t n = *written;
+  if (n > 0) {
+    out.erase(0, n);
+    bytes_sent += n;
+    if (xoff_at_out) {
+      if (*xoff_at_out < n) {
+        xoff_written(now_s());
+      } else {
+        *xoff_at_out -= n;
+      }
+    }
   }
 }
 
@@ -75,9 +72,7 @@ void SimController::Impl::xoff_written(double t) {
 // have carried meanwhile: a sender writing faster than the line gets no pass for the excess)
 // obey DC3 until they have all been read.
 void SimController::Impl::hold_late_written(double late_s) {
-  int in_kernel = 0;
-  if (::ioctl(pty.master(), FIONREAD, &in_kernel) != 0) in_kernel = 0;
-  const std::size_t waiting = backlog.size() + static_cast<std::size_t>(in_kernel);
+  const std::size_t waiting = backlog.size() + port.waiting();
   const auto could_send = static_cast<std::size_t>(late_s * cps) + 1;
   late_written_end = std::max(late_written_end, taken + std::min(waiting, could_send));
   ++log.xoff_late;
@@ -85,7 +80,7 @@ void SimController::Impl::hold_late_written(double late_s) {
 
 // The flow control at t: DC3 at high water (and in storms and holds), DC1 at low water.
 void SimController::Impl::flow(double t) {
-  if (!xon_xoff || !pty.is_open() || alarmed) return;
+  if (!xon_xoff || !port.is_open() || alarmed) return;
   if (!fill_xoff && fill >= xoff_at) fill_xoff = true;
   if (fill_xoff && fill <= xon_at) fill_xoff = false;
   const bool want = fill_xoff || storm_until.has_value() || hold_until.has_value();
@@ -99,7 +94,7 @@ void SimController::Impl::flow(double t) {
 }
 
 void SimController::Impl::on_slave_events(double t) {
-  for (const Pty::SlaveEvent ev : pty.take_slave_events()) {
+  for (const Pty::SlaveEvent ev : port.take_slave_events()) {
     if (ev == Pty::SlaveEvent::Opened) {
       if (open_count++ == 0) sender_connected(t);
     } else if (open_count > 0 && --open_count == 0) {
@@ -111,7 +106,7 @@ void SimController::Impl::on_slave_events(double t) {
 void SimController::Impl::sender_connected(double t) {
   ++log.sender_connects;
   link_event(t, "sender_connected");
-  ::tcflush(pty.held_slave(), TCIFLUSH);  // nothing stale for the new sender
+  port.flush_input();  // nothing stale for the new sender
   out.clear();
   xoff_at_out.reset();
   if (xon_xoff) send_flow(told_xoff);
@@ -121,16 +116,16 @@ void SimController::Impl::sender_connected(double t) {
 void SimController::Impl::sender_disconnected(double t) {
   ++log.sender_disconnects;
   link_event(t, "sender_disconnected");
-  ::tcflush(pty.held_slave(), TCIFLUSH);
+  port.flush_input();
   out.clear();
   xoff_at_out.reset();
   ++reply_epoch;
   // What it wrote is in the kernel; read it all now (a read, unlike FIONREAD, also waits for
   // the pty's flip buffer), so that the new sender's bytes, which follow, are told apart.
   for (;;) {
-    const ssize_t n = ::read(pty.master(), buf.data(), buf.size());
-    if (n <= 0) break;
-    backlog.append(buf.data(), static_cast<std::size_t>(n));
+    const std::size_t n = port.read(buf.data(), buf.size());
+    if (n == 0) break;
+    backlog.append(buf.data(), n);
   }
   marker = taken + backlog.size();
   if (backlog.empty()) apply_marker();
@@ -156,7 +151,7 @@ void SimController::Impl::discard_partial() {
 void SimController::Impl::drop_link(double t) {
   drop_pending = false;
   link_event(t, "down");
-  pty.close();
+  port.close();
   ++log.link_drops;
   event("link down after " + std::to_string(log.blocks_received) + " blocks (fault injection); " +
         cfg.line.device + " back in " + text::sig(cfg.faults.down_s) + " s");
@@ -174,13 +169,13 @@ void SimController::Impl::drop_link(double t) {
 
 void SimController::Impl::restore_link(double t) {
   down_until.reset();
-  pty.open();
+  port.open();
   link_event(t, "up");
-  event(cfg.line.device + " -> " + pty.device() + " again");
+  event(cfg.line.device + " -> " + port.device() + " again");
 }
 
 void SimController::Impl::receive(double t, bool readable) {
-  if (!pty.is_open()) return;
+  if (!port.is_open()) return;
   if (marker && taken >= *marker) apply_marker();
   if (told_xoff && taken < late_written_end) {  // held as the sender would have held it
     credit = 0.0;
@@ -210,10 +205,7 @@ void SimController::Impl::receive(double t, bool readable) {
     std::copy_n(backlog.begin(), got, buf.begin());
     backlog.erase(0, got);
   }
-  if (got < want) {
-    const ssize_t n = ::read(pty.master(), buf.data() + got, want - got);
-    got += n > 0 ? static_cast<std::size_t>(n) : 0;
-  }
+  if (got < want) got += port.read(buf.data() + got, want - got);
   credit -= static_cast<double>(got);
   taken += got;
   for (std::size_t i = 0; i < got && !drop_pending; ++i) {

@@ -64,6 +64,10 @@ void Interpreter::check_words_used(const Block& b, int motion_word, int nonmodal
   const bool axes = b.has_xyz_or_polar();
   const int mm = motion_word >= 0 ? motion_word : (axes && nonmodal < 0 ? motion_mode_ : -1);
   if (b.has_polar()) check_polar(b, mm, nonmodal);
+  // The words below are read by a few codes only; most lines (G1 X Y) carry none of them.
+  constexpr auto bit = [](char c) { return 1u << (c - 'a'); };
+  if ((b.mask & (bit('i') | bit('j') | bit('k') | bit('r') | bit('p') | bit('q') | bit('l'))) == 0)
+    return;
   const bool arc = mm == 20 || mm == 30;
   const bool cyc = mm == 730 || mm == 810 || mm == 820 || mm == 830 || mm == 850 || mm == 890;
   const bool nurbs = mm == 52;

@@ -7,6 +7,7 @@ namespace ncd::toolpath::ngc {
 
 void Interpreter::split_lines(SourceFile& f) {
   std::string_view t(f.text);
+  f.lines.reserve(static_cast<std::size_t>(std::count(t.begin(), t.end(), '\n')) + 1);
   std::size_t at = 0;
   while (at < t.size()) {
     std::size_t nl = t.find('\n', at);

@@ -17,6 +17,12 @@
 // canonical commands carry), the stored parameters and the tool table are in machine units.
 // Control flow (O-words) works on the file's lines held in memory: a false `if`, a finished
 // loop or a `break` scans forward to the line with the same label and the wanted keyword.
+//
+// Speed (docs/ngc-interpreter.md, "Speed"): long programs are mostly lines such as G1 X.. Y..
+// without a comment. Such a line is normalised in one pass over its characters (the lexer runs
+// only on lines with a comment, o_words.cpp), the check that each word has a code to read it
+// looks further only when the line holds I, J, K, R, P, Q or L (execute.cpp), and the steps are
+// reserved one per line (run), so the program's vector is filled in place, not moved as it grows.
 #include "gcode/ngc/interp.hpp"
 #include "gcode/ngc/tool_table.hpp"
 
@@ -30,6 +36,10 @@ Program Interpreter::run(const std::string& text, const std::string& name) {
   f.name = name;
   f.text = text;
   split_lines(f);
+  // One step per line, what most lines of a long program make (a few make more, comments and
+  // blank lines none): the steps are not moved again and again while the program grows, and
+  // the unused end of the reservation is never touched (address space, not memory).
+  program_.steps.reserve(f.lines.size());
   program_.files.push_back(name);
   program_.rotary_axis = opt_.rotary_axis;
   scan_subs(0);

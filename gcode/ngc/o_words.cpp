@@ -9,7 +9,26 @@ namespace ncd::toolpath::ngc {
 // refuses a comment without its ')' and a '(' inside a comment.
 void Interpreter::normalise(std::string_view line, std::string& out, std::string* comment,
                             bool* has_comment) {
-  out.clear();
+  const auto blank = [](char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+  };
+  const auto lower = [](char c) {
+    return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c;
+  };
+  // Without '(' or ';' a line has no comment, and the lexer's tokens would cover every
+  // character but the blanks: the same text in one pass (most lines of long programs).
+  out.resize(line.size());
+  std::size_t n = 0;
+  bool commented = false;
+  for (const char c : line) {
+    if (c == '(' || c == ';') {
+      commented = true;
+      break;
+    }
+    if (!blank(c)) out[n++] = lower(c);
+  }
+  out.resize(commented ? 0 : n);
+  if (!commented) return;
   gcode::Lexer lex(line);
   for (gcode::Token t = lex.next(); t.kind != gcode::Token::Kind::End; t = lex.next()) {
     if (t.kind == gcode::Token::Kind::Comment) {
@@ -23,9 +42,7 @@ void Interpreter::normalise(std::string_view line, std::string& out, std::string
       continue;
     }
     for (std::size_t i = t.at; i < t.end; ++i) {
-      const char c = line[i];
-      if (c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f') continue;
-      out.push_back(c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c);
+      if (!blank(line[i])) out.push_back(lower(line[i]));
     }
   }
 }

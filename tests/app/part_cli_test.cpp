@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -312,6 +314,81 @@ TEST_F(PartCli, ReplayWalksTheManifoldWithItsIndexes) {
   EXPECT_NE(report.find("limit violations 0"), std::string::npos) << report;
   EXPECT_NE(report.find("7 index moves"), std::string::npos) << report;
   EXPECT_NE(report.find("; 0 violations"), std::string::npos) << report;
+}
+
+// The double S of one index from rest to rest (Biagiotti and Melchiorri 2008, §3.4, zero end
+// speeds), written here from the book: its duration for a turn of h degrees.
+double double_s_s(double h, double v, double a, double j) {
+  h = std::abs(h);
+  double tj = 0.0, ta = 0.0;
+  if (v * j >= a * a) {
+    tj = a / j, ta = tj + v / a;
+  } else {
+    tj = std::sqrt(v / j), ta = 2.0 * tj;
+  }
+  if (h >= v * ta) return h / v + ta;  // cruise h/v − Ta between the two phases
+  if (h >= 2.0 * a * a * a / (j * j)) {
+    tj = a / j;
+    ta = tj / 2.0 + std::sqrt(tj * tj / 4.0 + h / a);
+  } else {
+    tj = std::cbrt(h / (2.0 * j));
+    ta = 2.0 * tj;
+  }
+  return 2.0 * ta;
+}
+
+// `ncd check` counts the indexes of the manifold's program in its time estimate: each the
+// double S of its turn under [axis.a] (computed here from the program's A words), adding up to
+// what `ncd replay` walks for them within two 4 ms periods an index (the replay counts whole
+// periods, and the one that ends the index); and the estimate is the same program's without
+// its A words plus that time.
+TEST_F(PartCli, CheckCountsTheIndexMovesAsTheReplayWalksThem) {
+  const std::string machine = std::string(NCD_SOURCE_DIR) + "/examples/machine-rotary.toml";
+  const std::string program = (dir_ / "manifold.ngc").string();
+  ASSERT_EQ(
+      ncd("chamfer --part " + kManifold + " --machine " + machine + " -q -o " + program).status, 0);
+  const auto check = ncd("check " + program + " --machine " + machine + " --json --summary -q");
+  ASSERT_EQ(check.status, 0) << check.err;
+  const auto sum = nlohmann::json::parse(check.out)["summary"];
+  // The A words, from 0.
+  std::istringstream in(slurp(program));
+  double at = 0.0, want = 0.0;
+  int turns = 0;
+  std::string without;  // the program without its A words
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("G0 A", 0) == 0) {
+      const double a = std::stod(line.substr(4));
+      // The first hole, at A0, does not turn; the limits are examples/machine-rotary.toml's.
+      if (a != at) {
+        want += double_s_s(a - at, 60.0, 1800.0, 36000.0);
+        ++turns;
+      }
+      at = a;
+      continue;
+    }
+    without += line + "\n";
+  }
+  ASSERT_EQ(turns, 7);
+  EXPECT_EQ(sum["index_moves"], 7);
+  EXPECT_NEAR(sum["index_time_s"].get<double>(), want, 1e-9);
+  const auto bare =
+      ncd("check " + write("bare.ngc", without) + " --machine " + machine + " --json --summary -q");
+  ASSERT_EQ(bare.status, 0) << bare.err;
+  const auto bare_sum = nlohmann::json::parse(bare.out)["summary"];
+  EXPECT_EQ(bare_sum["index_moves"], 0);
+  EXPECT_NEAR(sum["estimated_time_s"].get<double>(),
+              bare_sum["estimated_time_s"].get<double>() + want, 1e-9);
+  // What the replay walks for them.
+  const auto r = ncd("replay " + program + " --machine " + machine + " --start 0,0,50");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string report = r.out + r.err;
+  const std::size_t k = report.find("7 index moves in ");
+  ASSERT_NE(k, std::string::npos) << report;
+  const double walked = std::stod(report.substr(k + 17));
+  std::cout << "[ indexes  ] ncd check " << sum["index_time_s"].get<double>() << " s, the replay "
+            << walked << " s, of an estimate of " << sum["estimated_time_s"].get<double>()
+            << " s\n";
+  EXPECT_NEAR(sum["index_time_s"].get<double>(), walked, 7 * 2 * 0.004);
 }
 
 TEST_F(PartCli, JsonReportsTheOrderedAirTimeAgainstTheFilesOrder) {
