@@ -4,10 +4,7 @@
 // cycle-start button: it resumes a program stopped by M0 (on the grbl link `~` does the same).
 // The link path and the line come from the flags, else from the [link] of --machine FILE (its
 // device is where the pty is linked), else the defaults (service/link_options.hpp).
-#include <sched.h>
 #include <signal.h>
-#include <cerrno>
-#include <cstring>
 
 #include <atomic>
 #include <cstdio>
@@ -21,22 +18,13 @@
 #include "core/error.hpp"
 #include "core/number_text.hpp"
 #include "core/output_file.hpp"
+#include "link/thread_priority.hpp"
 #include "service/link_options.hpp"
 #include "service/machine_config.hpp"
 #include "sim/sim_controller.hpp"
 
 namespace ncd::app {
 namespace {
-
-// A controller's serial reception is hard real time: ask for SCHED_FIFO (below the cycle's 80),
-// so a loaded host does not starve the simulated UART while the sender's wire model runs on.
-std::string realtime_reception() {
-  sched_param p{};
-  p.sched_priority = 70;
-  if (sched_setscheduler(0, SCHED_FIFO, &p) == 0) return "reception at SCHED_FIFO 70";
-  return std::string("reception at normal priority (SCHED_FIFO refused: ") + std::strerror(errno) +
-         ")";
-}
 
 struct SimArgs {
   std::string link, log;
@@ -178,6 +166,10 @@ int run_sim_controller(const SimArgs& a) {
   }
 
   StopSignals signals;
+  // A controller's serial reception is hard real time: SCHED_FIFO for the whole run, so that a
+  // loaded host does not starve the simulated UART while the sender's wire model runs on.
+  const comms::FifoPriority reception(cfg.fifo_priority);
+  cfg.fifo_priority = 0;  // held here, for the banner to say it
   comms::SimController sim(cfg);
   const comms::SimControllerConfig& c = sim.config();
   std::cout << "ncd sim-controller: " << c.line.device << " -> " << sim.device() << ", "
@@ -188,7 +180,7 @@ int run_sim_controller(const SimArgs& a) {
   } else {
     std::cout << ", planner " << c.planner_blocks << " blocks";
   }
-  std::cout << ", seed " << c.seed << "; " << realtime_reception() << std::endl;
+  std::cout << ", seed " << c.seed << "; reception at " << reception.description() << std::endl;
   signals.attach(sim);
   sim.run();
   signals.detach();

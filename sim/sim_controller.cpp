@@ -107,6 +107,7 @@
 
 #include <algorithm>
 
+#include "link/thread_priority.hpp"
 #include "sim/sim_impl.hpp"
 
 namespace ncd::comms {
@@ -252,6 +253,7 @@ std::string SimController::device() const {
 }
 
 void SimController::run() {
+  const FifoPriority reception(impl_->cfg.fifo_priority);
   impl_->run();
 }
 

@@ -71,9 +71,13 @@ struct SimControllerConfig {
   double prime_idle_s = 0.5;         // execution starts after this long without a character
   double underrun_grace_s = 0.002;   // dry spells shorter than this are timer jitter, not counted
   bool exit_at_end = false;          // run() returns once the program end has been executed
-  double exit_quiet_s = 0.2;         // ... and the line has been quiet this long
-  double alarm_linger_s = 1.0;       // with exit_at_end: run() returns this long after an alarm
-  std::uint64_t seed = 0;            // for the storm and noise faults
+  // run() runs at SCHED_FIFO this priority (a UART's reception is hard real time; above the
+  // DNC sender's 60, below the cycle's 80), back to the thread's former scheduling after; 0:
+  // normal scheduling. Refused, it runs at normal priority (link/thread_priority.hpp).
+  int fifo_priority = 70;
+  double exit_quiet_s = 0.2;    // ... and the line has been quiet this long
+  double alarm_linger_s = 1.0;  // with exit_at_end: run() returns this long after an alarm
+  std::uint64_t seed = 0;       // for the storm and noise faults
   // Drip: discard a block whose N is not above the last accepted N (a controller documented to
   // skip repeated sequence numbers). Off, a repeated block is executed again, as most do.
   bool skip_duplicate_n = false;

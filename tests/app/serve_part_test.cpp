@@ -19,15 +19,16 @@ namespace {
 using ncd::test::slurp;
 using nlohmann::json;
 
-const std::string kManifold = std::string(NCD_SOURCE_DIR) + "/examples/manifold.toml";
+const std::string kServedManifold = std::string(NCD_SOURCE_DIR) + "/examples/manifold.toml";
 const std::string kRotary = std::string(NCD_SOURCE_DIR) + "/examples/machine-rotary.toml";
 
 class ServePart : public ncd::test::ServeFixture {};
 
 TEST_F(ServePart, PartJobWalksTheProgramChamferPartWrites) {
   const std::string program = (dir_ / "manifold.ngc").string();
-  ASSERT_EQ(
-      ncd("chamfer --part " + kManifold + " --machine " + kRotary + " -q -o " + program).status, 0);
+  ASSERT_EQ(ncd("chamfer --part " + kServedManifold + " --machine " + kRotary + " -q -o " + program)
+                .status,
+            0);
   const auto replay = ncd("replay " + program + " --machine " + kRotary +
                           " --start 0,0,50 -q --setpoints " + (dir_ / "replay.csv").string());
   ASSERT_EQ(replay.status, 0) << replay.err;
@@ -36,7 +37,8 @@ TEST_F(ServePart, PartJobWalksTheProgramChamferPartWrites) {
   for (const bool by_text : {false, true}) {
     SCOPED_TRACE(by_text ? "part_toml" : "part");
     const std::string csv = (dir_ / (by_text ? "serve-text.csv" : "serve-file.csv")).string();
-    const json job = by_text ? json{{"part_toml", slurp(kManifold)}} : json{{"part", kManifold}};
+    const json job =
+        by_text ? json{{"part_toml", slurp(kServedManifold)}} : json{{"part", kServedManifold}};
     json r =
         c.request({{"cmd", "submit"}, {"job", job}, {"start_mm", {0, 0, 50}}, {"setpoints", csv}});
     ASSERT_TRUE(r["ok"].get<bool>()) << r.dump();
@@ -54,7 +56,7 @@ TEST_F(ServePart, PartJobWalksTheProgramChamferPartWrites) {
 TEST_F(ServePart, BadPartIsRefusedNamingTheHoleAndKeyAndNothingIsSubmitted) {
   launch("simulated", "machine = \"" + kRotary + "\"\n");
   ncd::test::ServeClient c(socket_);
-  std::string text = slurp(kManifold);
+  std::string text = slurp(kServedManifold);
   // An unknown key in hole 7.
   std::string bad = text;
   const std::string tilt = "tilt_deg = 30.0\nazimuth_deg = 0.0\nedge = \"outer\"";
@@ -73,9 +75,10 @@ TEST_F(ServePart, BadPartIsRefusedNamingTheHoleAndKeyAndNothingIsSubmitted) {
   // A part file that does not exist; both keys; a key of another job.
   expect_error(c.request({{"cmd", "submit"}, {"job", {{"part", "/nonexistent/part.toml"}}}}),
                "/nonexistent/part.toml", "a missing file");
-  expect_error(c.request({{"cmd", "submit"}, {"job", {{"part", kManifold}, {"part_toml", text}}}}),
-               "not both", "both keys");
-  expect_error(c.request({{"cmd", "submit"}, {"job", {{"part", kManifold}, {"feed", 100}}}}),
+  expect_error(
+      c.request({{"cmd", "submit"}, {"job", {{"part", kServedManifold}, {"part_toml", text}}}}),
+      "not both", "both keys");
+  expect_error(c.request({{"cmd", "submit"}, {"job", {{"part", kServedManifold}, {"feed", 100}}}}),
                "\"feed\"", "a key of another job");
   const json s = c.request({{"cmd", "status"}});
   EXPECT_EQ(s["state"], "idle") << s.dump();
@@ -89,7 +92,7 @@ TEST_F(ServePart, BadPartIsRefusedNamingTheHoleAndKeyAndNothingIsSubmitted) {
 // listing"): the program `ncd chamfer --part --machine` writes, line for line, under the part
 // file's name. The request handler the socket, the page and MQTT share, in process.
 TEST_F(ServePart, ThePagesListingIsTheProgramChamferPartWrites) {
-  const auto r = ncd("chamfer --part " + kManifold + " --machine " + kRotary + " -q");
+  const auto r = ncd("chamfer --part " + kServedManifold + " --machine " + kRotary + " -q");
   ASSERT_EQ(r.status, 0) << r.err;
   boost::asio::io_context io;
   ncd::app::ServiceConfig config;
@@ -97,12 +100,12 @@ TEST_F(ServePart, ThePagesListingIsTheProgramChamferPartWrites) {
   config.clock = ncd::motion::ClockKind::Simulated;
   config.realtime = false;
   ncd::app::Intake intake(io, config);
-  const json reply =
-      intake.handle({{"cmd", "submit"}, {"job", {{"part", kManifold}}}, {"start_mm", {0, 0, 50}}});
+  const json reply = intake.handle(
+      {{"cmd", "submit"}, {"job", {{"part", kServedManifold}}}, {"start_mm", {0, 0, 50}}});
   ASSERT_TRUE(reply["ok"].get<bool>()) << reply.dump();
   const auto view = intake.program_view();
   ASSERT_TRUE(view);
-  EXPECT_EQ((*view)["listing_file"], kManifold);
+  EXPECT_EQ((*view)["listing_file"], kServedManifold);
   std::vector<std::string> want;
   std::istringstream in(r.out);
   for (std::string line; std::getline(in, line);) want.push_back(line);
