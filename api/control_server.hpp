@@ -44,7 +44,7 @@ class ControlHandler {
   virtual nlohmann::json handle(const nlohmann::json& request) = 0;
   // One status snapshot, sent as a line to each subscriber at its rate.
   virtual nlohmann::json status() = 0;
-  // The submitted job's programmed path and listing for the dashboard (app::program_view); the
+  // The submitted job's programmed path and listing for the dashboard (api::program_view); the
   // same object until the next submit; null when there is none.
   virtual std::shared_ptr<const nlohmann::json> program_view() { return nullptr; }
 };

@@ -5,7 +5,7 @@
 
 #include "api/intake.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 EventFeed::EventFeed(boost::asio::io_context& io, std::shared_ptr<service::Subscription> feed,
                      double period_s)
@@ -57,4 +57,4 @@ void EventFeed::arm() {
   });
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::api

@@ -1,6 +1,6 @@
 // The service's observer events to `ncd serve`'s observers (docs/service.md, "Observers"): one
 // subscription to the service library's event feed, drained on the io_context by a timer every
-// period_s, each event turned into JSON (app::to_json(Event), units in the names) and handed to
+// period_s, each event turned into JSON (api::to_json(Event), units in the names) and handed to
 // every sink in order: the MQTT bridge's push_event (docs/fleet-mqtt.md) and the web dashboard
 // (docs/web-dashboard.md). The service's loop writes the feed on the same io_context thread,
 // never waiting: a feed that is not drained fills and drops (counted, "events_dropped" in the
@@ -16,7 +16,7 @@
 
 #include "service/events.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 class EventFeed {
  public:
@@ -38,7 +38,7 @@ class EventFeed {
   // Drains once more, then stops the timer. Idempotent.
   void close();
 
-  // An event as the observers see it: app::to_json(Event) with the service's own sequence
+  // An event as the observers see it: api::to_json(Event) with the service's own sequence
   // number as "service_seq" ("seq" is the bridge's, docs/fleet-mqtt.md).
   static nlohmann::json to_observer_json(const service::Event& event);
 
@@ -52,4 +52,4 @@ class EventFeed {
   bool closed_ = false;
 };
 
-}  // namespace ncd::app
+}  // namespace ncd::api

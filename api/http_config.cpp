@@ -9,7 +9,7 @@
 #include "api/control_server.hpp"
 #include "core/error.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 HttpConfig parse_http_config(const toml::value& table, const std::string& where) {
   HttpConfig h;
@@ -75,4 +75,4 @@ HttpConfig parse_http_config(const toml::value& table, const std::string& where)
   return h;
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::api

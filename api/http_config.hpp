@@ -8,7 +8,7 @@
 #include <string>
 #include <toml.hpp>
 
-namespace ncd::app {
+namespace ncd::api {
 
 // No table, or no listen: no web server.
 struct HttpConfig {
@@ -32,4 +32,4 @@ struct HttpLimits {
 // naming the key, the value, the limit and a way out.
 HttpConfig parse_http_config(const toml::value& table, const std::string& where);
 
-}  // namespace ncd::app
+}  // namespace ncd::api

@@ -32,7 +32,7 @@
 #include "service/setpoint_file.hpp"
 #include "service/whole_run.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 namespace {
 
 using nlohmann::json;
@@ -245,7 +245,7 @@ std::string setpoints_of(const json& req) {
 // restarted job: straight up to the highest Z of the whole program, or the restart's
 // clearance if that is higher.
 void restart_at_line(const json& req, const json& job, const std::string& file,
-                     const MachineConfig& machine, service::JobSpec& spec) {
+                     const service::MachineConfig& machine, service::JobSpec& spec) {
   if (!job.contains("path")) {
     throw InputError(
         "\"restart_from\" needs a job {\"path\": FILE} of an NC program (a part's: "
@@ -278,7 +278,7 @@ void restart_at_line(const json& req, const json& job, const std::string& file,
 // The link of a job that streams to `port`, from the machine file's [link] and [encoder].
 service::LinkSpec link_spec(const ServiceConfig& config, const std::string& port) {
   service::LinkSpec link;
-  const LinkConfig& lc = config.machine.link;
+  const service::LinkConfig& lc = config.machine.link;
   link.encoder = config.machine.encoder;
   // The controller's dialect, as `ncd replay --blocks` and `ncd stream` apply it: the
   // encoder's framing, and every block checked by the sender before it is written.
@@ -386,10 +386,10 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   SubmittedJob out;
   service::JobSpec& spec = out.spec;
   out.port = port_of(req, config);
-  if (!out.port.empty()) require_serial_port(out.port, "\"port\"");
+  if (!out.port.empty()) service::require_serial_port(out.port, "\"port\"");
   // Where the job starts: the controller's position, else the request's, else the machine
   // file's [program] start_mm; every reading of the program below starts there.
-  MachineConfig machine = config.machine;
+  service::MachineConfig machine = config.machine;
   // A chamfer made from parameters starts at its clearance plane: only an NC program or a path
   // file (a part's job is an NC program) asks.
   const bool program = job.contains("path") || job.contains("part") || job.contains("part_toml");
@@ -397,9 +397,9 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   out.start.applies = program;
   machine.program.start_machine_mm = out.start.at_mm;
   JobPath source = job_path(job, config, machine.program);
-  std::optional<WholeRun> part_run;
+  std::optional<service::WholeRun> part_run;
   if (!source.part_program.empty()) {
-    part_run = whole_ngc_run("ncd serve", source.name, source.part_program, machine);
+    part_run = service::whole_ngc_run("ncd serve", source.name, source.part_program, machine);
     source.path = std::make_shared<toolpath::Path>(part_run->path);
     out.program_text = source.part_program;
     out.program_name = source.name;
@@ -409,19 +409,20 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   const std::string setpoints = setpoints_of(req);
   // Before any motion, as `ncd replay` does: the chamfer's checks and tool, then the whole
   // program around the job (docs/whole-program.md), its envelope, the size of the run.
-  const ChamferAcceptance chamfer =
-      accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
+  const service::ChamferAcceptance chamfer =
+      service::accept_chamfer(*path, machine, allow_interference, "\"allow_interference\": true");
   const bool restart = req.contains("restart_from");
   if (!restart) {
-    WholeRun whole =
-        part_run ? std::move(*part_run) : whole_run("ncd serve", source.file, *path, machine);
+    service::WholeRun whole = part_run
+                                  ? std::move(*part_run)
+                                  : service::whole_run("ncd serve", source.file, *path, machine);
     path = std::make_shared<toolpath::Path>(std::move(whole.path));
     spec.program = std::make_shared<const toolpath::Program>(std::move(whole.program));
     spec.header = std::move(whole.header);
     spec.retract = std::move(whole.retract);
   }
-  check_envelope(*path, machine);
-  check_estimate(estimate_run(*path, machine), !setpoints.empty());
+  service::check_envelope(*path, machine);
+  service::check_estimate(service::estimate_run(*path, machine), !setpoints.empty());
   spec.path = std::move(path);
   spec.motion.limits = machine.limits;
   spec.motion.cutting = machine.cutting;
@@ -438,7 +439,7 @@ SubmittedJob submitted_job(const json& req, const ServiceConfig& config) {
   }
   if (!out.port.empty()) spec.link = link_spec(config, out.port);
   // As `ncd replay` writes them: with the rotary axis's column where the machine has one.
-  spec.sink = std::make_unique<SetpointSink>(setpoints, machine.limits.rotary.axis);
+  spec.sink = std::make_unique<service::SetpointFileSink>(setpoints, machine.limits.rotary.axis);
   if (chamfer.interference_allowed) out.warning = chamfer.note;
   return out;
 }
@@ -484,7 +485,7 @@ json Intake::submit(const json& req) {
   if (!job.warning.empty()) std::cerr << "ncd serve: " << job.warning << "\n";
   const std::string name = job.spec.name;
   const auto file = req["job"].find("path");
-  auto view = std::make_shared<const json>(app::program_view(
+  auto view = std::make_shared<const json>(api::program_view(
       name, *job.spec.path, file != req["job"].end() ? file->get<std::string>() : job.program_name,
       job.program_text));
   core_.submit(std::move(job.spec));
@@ -538,7 +539,7 @@ json Intake::handle(const json& req) {
   if (cmd == "start") {
     // The port may have gone since submit.
     if (core_.state() == service::State::Ready && !port_.empty()) {
-      require_serial_port(port_, "\"port\"");
+      service::require_serial_port(port_, "\"port\"");
       if (controller_start_mm_) check_still_there();
     }
     const std::string realtime = core_.start();
@@ -818,4 +819,4 @@ void Intake::abort_transfer() {
   if (!loop_armed_) run_loop();
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::api

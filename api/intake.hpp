@@ -20,7 +20,7 @@
 #include "link/dnc_sender.hpp"
 #include "service/service.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 // Where a job starts (docs/service.md, "Where a job starts"). A job that streams to a controller
 // that reports its position (grbl: `?` answered with `<Idle|MPos:…|WCO:…>`, or WPos) starts
@@ -124,4 +124,4 @@ nlohmann::json to_json(const service::EndingStatus& ending);
 // One observer event as JSON (field names with units).
 nlohmann::json to_json(const service::Event& event);
 
-}  // namespace ncd::app
+}  // namespace ncd::api

@@ -42,7 +42,7 @@
 #include "api/control_server.hpp"
 #include "core/error.hpp"
 
-namespace ncd::fleet {
+namespace ncd::api {
 
 using nlohmann::json;
 namespace {
@@ -570,4 +570,4 @@ bool MqttBridge::connected() const {
   return core_->up.load();
 }
 
-}  // namespace ncd::fleet
+}  // namespace ncd::api

@@ -25,7 +25,7 @@
 
 #include "api/mqtt_config.hpp"
 
-namespace ncd::fleet {
+namespace ncd::api {
 
 struct BridgeCounters {
   std::uint64_t events_pushed = 0;     // push_event() calls
@@ -79,4 +79,4 @@ class MqttBridge {
   std::shared_ptr<Core> core_;
 };
 
-}  // namespace ncd::fleet
+}  // namespace ncd::api

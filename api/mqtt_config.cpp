@@ -18,14 +18,14 @@
 
 #include "core/error.hpp"
 
-namespace ncd::fleet {
+namespace ncd::api {
 namespace {
 
-const char* kKeys =
+const char* kMqttKeys =
     "broker, client_id, username, password, ca_file, cert_file, key_file, topic_root, "
     "status_hz, queue_bound, reconnect_min_s, reconnect_max_s, page_url";
 
-std::string need_string(const toml::value& v, const std::string& where) {
+std::string need_mqtt_string(const toml::value& v, const std::string& where) {
   if (!v.is_string()) {
     throw InputError(where + " must be a string, not " + toml::format(v) + "; quote it");
   }
@@ -99,7 +99,7 @@ std::string host_name() {
 
 // A link a browser may follow: http:// or https://, printable, no spaces or quotes, bounded.
 std::string need_page_url(const toml::value& v, const std::string& at) {
-  const std::string url = need_string(v, at);
+  const std::string url = need_mqtt_string(v, at);
   const bool scheme = url.rfind("http://", 0) == 0 || url.rfind("https://", 0) == 0;
   const bool printable = std::all_of(url.begin(), url.end(), [](char ch) {
     return ch > ' ' && ch < 0x7f && ch != '"' && ch != '\\' && ch != '<' && ch != '>';
@@ -137,28 +137,28 @@ std::string reachable_page_url(const std::string& url) {
 
 MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where) {
   if (!table.is_table()) {
-    throw InputError(where + " must be a table ([mqtt] with keys " + std::string(kKeys) + ")");
+    throw InputError(where + " must be a table ([mqtt] with keys " + std::string(kMqttKeys) + ")");
   }
   MqttConfig c;
   bool have_max = false;
   for (const auto& [key, v] : table.as_table()) {
     const std::string at = where + "." + key;
     if (key == "broker") {
-      c.broker = need_string(v, at);
+      c.broker = need_mqtt_string(v, at);
     } else if (key == "client_id") {
-      c.client_id = need_string(v, at);
+      c.client_id = need_mqtt_string(v, at);
     } else if (key == "username") {
-      c.username = need_string(v, at);
+      c.username = need_mqtt_string(v, at);
     } else if (key == "password") {
-      c.password = need_string(v, at);
+      c.password = need_mqtt_string(v, at);
     } else if (key == "ca_file") {
-      c.ca_file = need_string(v, at);
+      c.ca_file = need_mqtt_string(v, at);
     } else if (key == "cert_file") {
-      c.cert_file = need_string(v, at);
+      c.cert_file = need_mqtt_string(v, at);
     } else if (key == "key_file") {
-      c.key_file = need_string(v, at);
+      c.key_file = need_mqtt_string(v, at);
     } else if (key == "topic_root") {
-      c.topic_root = need_string(v, at);
+      c.topic_root = need_mqtt_string(v, at);
     } else if (key == "status_hz") {
       c.status_hz = need_number(v, at, kMinStatusHz, kMaxStatusHz, "Hz");
     } else if (key == "queue_bound") {
@@ -177,7 +177,7 @@ MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where)
     } else if (key == "page_url") {
       c.page_url = need_page_url(v, at);
     } else {
-      throw InputError("unknown key " + at + "; [mqtt] takes " + kKeys);
+      throw InputError("unknown key " + at + "; [mqtt] takes " + kMqttKeys);
     }
   }
   if (c.broker.empty()) {
@@ -235,4 +235,4 @@ MqttConfig parse_mqtt_config(const toml::value& table, const std::string& where)
   return c;
 }
 
-}  // namespace ncd::fleet
+}  // namespace ncd::api

@@ -7,7 +7,7 @@
 #include <string>
 #include <toml.hpp>
 
-namespace ncd::fleet {
+namespace ncd::api {
 
 struct MqttConfig {
   std::string broker;     // tcp://HOST:PORT, mqtt://, ssl:// or mqtts:// (TLS)
@@ -44,4 +44,4 @@ std::string default_topic_root();
 // replaced by this host's name ("http://0.0.0.0:8080/" → "http://cell1-m1:8080/").
 std::string reachable_page_url(const std::string& url);
 
-}  // namespace ncd::fleet
+}  // namespace ncd::api

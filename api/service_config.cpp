@@ -11,7 +11,7 @@
 #include "core/error.hpp"
 #include "core/toml_text.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 std::string default_listen() {
   for (const char* var : {"RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"}) {
@@ -95,13 +95,13 @@ ServiceConfig parse_service_config(const std::string& text, const std::string& p
     } else if (key == "http") {
       c.http = parse_http_config(v, at);
     } else if (key == "mqtt") {
-      c.mqtt = fleet::parse_mqtt_config(v, at);
+      c.mqtt = api::parse_mqtt_config(v, at);
     } else {
       throw InputError("unknown key " + at + "; the service config takes " + kKeys);
     }
   }
-  if (!c.machine_file.empty()) c.machine = load_machine_config(c.machine_file);
+  if (!c.machine_file.empty()) c.machine = service::load_machine_config(c.machine_file);
   return c;
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::api

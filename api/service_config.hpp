@@ -13,7 +13,7 @@
 #include "service/live_limits.hpp"
 #include "service/machine_config.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 // The default control endpoint: unix:DIR/ncd.sock in the runtime directory, DIR =
 // $RUNTIME_DIRECTORY (systemd's RuntimeDirectory=), else $XDG_RUNTIME_DIR, else /tmp. The socket
@@ -32,12 +32,12 @@ struct ServiceConfig {
   std::string listen = default_listen();  // TCP on loopback by config; elsewhere a token
   std::optional<std::string> token;       // required on every request when set
   std::string machine_file;               // machine TOML; empty: the documented defaults
-  MachineConfig machine;                  // loaded from machine_file
+  service::MachineConfig machine;         // loaded from machine_file
   motion::ClockKind clock = motion::ClockKind::Wall;  // "simulated": run jobs without sleeping
   bool realtime = true;                               // ask for SCHED_FIFO and locked memory
   LiveLimitActions live_limits;
-  HttpConfig http;                        // [http]: the web dashboard (docs/web-dashboard.md)
-  std::optional<fleet::MqttConfig> mqtt;  // [mqtt]: the fleet's broker (docs/fleet-mqtt.md)
+  HttpConfig http;                 // [http]: the web dashboard (docs/web-dashboard.md)
+  std::optional<MqttConfig> mqtt;  // [mqtt]: the fleet's broker (docs/fleet-mqtt.md)
   std::string source = "defaults";
 };
 
@@ -46,4 +46,4 @@ ServiceConfig load_service_config(const std::string& path);
 // The same on TOML text already in memory; `name` stands for the file in messages.
 ServiceConfig parse_service_config(const std::string& text, const std::string& name);
 
-}  // namespace ncd::app
+}  // namespace ncd::api

@@ -11,7 +11,7 @@
 #include "core/error.hpp"
 #include "gcode/path_io.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 nlohmann::json path_preview(const std::string& file, const toolpath::InterpretOptions& ngc) {
   return path_preview(toolpath::read_path_file(file, ngc));
@@ -109,4 +109,4 @@ nlohmann::json program_view(const std::string& job, const toolpath::Path& path,
   return listed_view(std::move(view), in, file);
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::api

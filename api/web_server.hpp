@@ -17,7 +17,7 @@
 #include "api/intake.hpp"
 #include "gcode/ngc/interpreter.hpp"
 
-namespace ncd::app {
+namespace ncd::api {
 
 // The programmed path of a path file as a polyline for the page: {"points": [[x,y,z], ...]},
 // NURBS sampled, at most HttpLimits::kMaxPreviewPoints points. Throws InputError.
@@ -50,4 +50,4 @@ class WebServer {
   std::uint16_t port_ = 0;
 };
 
-}  // namespace ncd::app
+}  // namespace ncd::api

@@ -305,7 +305,7 @@ class MqttCounter {
 };
 
 // The ControlHandler the web server serves: the service library's status as `ncd serve` sends it
-// (app::to_json); requests other than status are refused (the bench drives the job itself).
+// (api::to_json); requests other than status are refused (the bench drives the job itself).
 class StatusOnly : public comms::ControlHandler {
  public:
   explicit StatusOnly(service::Service& core) : core_(core) {}
@@ -313,7 +313,7 @@ class StatusOnly : public comms::ControlHandler {
     if (request.value("cmd", "") == "status") return status();
     throw InputError("the bench's service takes status requests only");
   }
-  nlohmann::json status() override { return to_json(core_.status()); }
+  nlohmann::json status() override { return api::to_json(core_.status()); }
 
  private:
   service::Service& core_;
@@ -374,9 +374,9 @@ struct Observers {
 
   asio::io_context& io;
   std::unique_ptr<StatusOnly> handler;
-  std::unique_ptr<fleet::MqttBridge> bridge;
-  std::unique_ptr<WebServer> web;
-  std::unique_ptr<EventFeed> feed;
+  std::unique_ptr<api::MqttBridge> bridge;
+  std::unique_ptr<api::WebServer> web;
+  std::unique_ptr<api::EventFeed> feed;
   std::unique_ptr<WsReader> reader;
   std::string reader_error;
 };
@@ -386,7 +386,7 @@ struct PhaseResult {
   motion::CycleStats stats;
   double job_s = 0.0;  // from start to the end of the stop ramp
   ReceivedCount ws, mqtt;
-  fleet::BridgeCounters bridge;
+  api::BridgeCounters bridge;
   std::string ws_error;
 };
 
@@ -437,10 +437,11 @@ void check_args(const ServiceIoBenchArgs& a) {
     throw InputError("--period-ms " + std::to_string(a.period_ms) +
                      " is outside 0.01..1000 ms; give the cycle's period in milliseconds");
   }
-  if (!(a.status_hz >= HttpLimits::kMinStatusHz && a.status_hz <= HttpLimits::kMaxStatusHz)) {
+  if (!(a.status_hz >= api::HttpLimits::kMinStatusHz &&
+        a.status_hz <= api::HttpLimits::kMaxStatusHz)) {
     throw InputError("--status-hz " + std::to_string(a.status_hz) + " is outside " +
-                     format_us(HttpLimits::kMinStatusHz) + ".." +
-                     format_us(HttpLimits::kMaxStatusHz) +
+                     format_us(api::HttpLimits::kMinStatusHz) + ".." +
+                     format_us(api::HttpLimits::kMaxStatusHz) +
                      " (the dashboard's status rates); give the rate of the page and of MQTT");
   }
 }
@@ -523,23 +524,24 @@ void start_observers(ServiceOnIo& s, const MqttCounter& watcher, const PhaseSetu
                      Observers& obs) {
   on_io(s.io, [&] {
     obs.handler = std::make_unique<StatusOnly>(s.core);
-    fleet::MqttConfig mc;
+    api::MqttConfig mc;
     mc.broker = p.broker;
     mc.client_id = "ncd-bench-" + std::to_string(::getpid());
     mc.topic_root = p.root;
     mc.status_hz = p.status_hz;
     StatusOnly& h = *obs.handler;
-    obs.bridge = std::make_unique<fleet::MqttBridge>(
+    obs.bridge = std::make_unique<api::MqttBridge>(
         s.io, mc, [&h] { return h.status(); },
         [&h](const nlohmann::json& req) { return h.handle(req); });
     obs.bridge->start();
-    HttpConfig hc;
+    api::HttpConfig hc;
     hc.listen = "tcp:127.0.0.1:0";
     hc.status_hz = p.status_hz;
-    obs.web = std::make_unique<WebServer>(s.io, hc, h, std::nullopt, toolpath::InterpretOptions{});
-    obs.feed = std::make_unique<EventFeed>(s.io, s.core.subscribe(EventFeed::kCapacity));
-    fleet::MqttBridge& b = *obs.bridge;
-    WebServer& w = *obs.web;
+    obs.web =
+        std::make_unique<api::WebServer>(s.io, hc, h, std::nullopt, toolpath::InterpretOptions{});
+    obs.feed = std::make_unique<api::EventFeed>(s.io, s.core.subscribe(api::EventFeed::kCapacity));
+    api::MqttBridge& b = *obs.bridge;
+    api::WebServer& w = *obs.web;
     obs.feed->add_sink([&b](const nlohmann::json& e) { b.push_event(e); });
     obs.feed->add_sink([&w](const nlohmann::json& e) { w.push_event(e); });
     obs.feed->start();

@@ -37,7 +37,7 @@ toolpath::ProgramPoint programmed_point(const ChamferArgs& a) {
     return p == "centre" ? toolpath::ProgramPoint::Centre : toolpath::ProgramPoint::Tip;
   };
   if (a.machine.empty()) return parse(a.point.value_or("tip"));
-  const MachineConfig m = load_machine_config(a.machine);
+  const service::MachineConfig m = service::load_machine_config(a.machine);
   if (a.point && parse(*a.point) != m.tool.programmed_point) {
     throw InputError("--program-point " + *a.point + " contradicts the machine file " + a.machine +
                      ", whose [tool] programmed_point is " +
@@ -97,7 +97,7 @@ int run_chamfer(const ChamferArgs& a) {
   // blocks writes them (docs/whole-program.md).
   std::optional<comms::Dialect> dialect;
   if (!a.machine.empty()) {
-    const MachineConfig m = load_machine_config(a.machine);
+    const service::MachineConfig m = service::load_machine_config(a.machine);
     dialect = m.link.dialect;
     ngc.tool = m.tool.number;
     ngc.spindle_dwell_s = m.tool.spindle_dwell_s;

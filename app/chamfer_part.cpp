@@ -23,7 +23,7 @@ namespace {
 
 // The machine file and --program-point as the planner's machine (service/part_job.hpp).
 struct LoadedMachine {
-  std::optional<MachineConfig> config;
+  std::optional<service::MachineConfig> config;
   service::PartMachine part_machine(const PartArgs& a) const {
     service::PartMachine m;
     if (config) m.machine = &*config;
@@ -45,7 +45,7 @@ int run_chamfer_part(const PartArgs& a) {
   }
   const toolpath::Part file_part = toolpath::load_part(a.part);
   LoadedMachine loaded;
-  if (!a.machine.empty()) loaded.config = load_machine_config(a.machine);
+  if (!a.machine.empty()) loaded.config = service::load_machine_config(a.machine);
   const service::PartMachine machine = loaded.part_machine(a);
   const toolpath::Part part = service::with_machine_axis(file_part, machine);
   const toolpath::NgcOptions options = service::part_writer_options(machine, part);

@@ -51,7 +51,7 @@ struct CheckArgs {
 // With --machine: where the values the reading and the estimate use came from, to stderr (a
 // line per origin, then each flag that overrode the file's value): the flag, the machine file,
 // or the default.
-void print_sources(const CheckArgs& a, const MachineConfig& m,
+void print_sources(const CheckArgs& a, const service::MachineConfig& m,
                    const toolpath::InterpretOptions& o) {
   std::vector<std::string> file, flags, defaults, overrides;
   const auto one = [&](const std::string& key, const std::string& value, const std::string& flag,
@@ -148,7 +148,7 @@ void sample(const Motion& m, Summary& s) {
   add(toolpath::motion_end(m));
 }
 
-Summary summarise(const Program& p, const MachineConfig& machine) {
+Summary summarise(const Program& p, const service::MachineConfig& machine) {
   Summary s;
   const double rapid_mm_per_min = machine.limits.max_feed_mm_per_min;
   for (const toolpath::Step& st : p.steps) {
@@ -204,11 +204,11 @@ Summary summarise(const Program& p, const MachineConfig& machine) {
 }
 
 int run_check(const CheckArgs& a) {
-  MachineConfig machine;
-  if (!a.machine.empty()) machine = load_machine_config(a.machine);
+  service::MachineConfig machine;
+  if (!a.machine.empty()) machine = service::load_machine_config(a.machine);
   toolpath::InterpretOptions opt = machine.program;
   if (!a.tool_table.empty()) opt.tool_table = a.tool_table;
-  if (!a.start.empty()) opt.start_machine_mm = parse_position_mm(a.start, "--start");
+  if (!a.start.empty()) opt.start_machine_mm = service::parse_position_mm(a.start, "--start");
   if (!a.parameter_file.empty()) opt.parameter_file = a.parameter_file;
   if (!a.machine.empty() && !a.quiet) print_sources(a, machine, opt);
   if (a.save_parameters) {

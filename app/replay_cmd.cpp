@@ -121,7 +121,7 @@ struct ReplayRecord {
   motion::RunStats st;
   PlotBuckets plot;
   double lookahead_ns = 0.0;  // sampling the limit curve for the planner, in total
-  SetpointSink* file = nullptr;
+  service::SetpointFileSink* file = nullptr;
   comms::ProgramBlocks* blocks = nullptr;  // --blocks; null without
   std::unique_ptr<motion::ToolUse> tools;  // the tool of each move, the law's caps
   bool quiet = false;
@@ -152,7 +152,7 @@ class ReplayRecorder final : public service::SetpointSink {
       throw LimitError(
           "the motion did not finish within 100 h of simulated time, though it was "
           "estimated at most " +
-          std::to_string(kMaxRunS / 3600.0) + " h: the walk crawls; nothing was written");
+          std::to_string(service::kMaxRunS / 3600.0) + " h: the walk crawls; nothing was written");
     }
     if (r_.quiet || (++r_.n & 1023) != 0) return;  // the clock read every 1024 periods
     const auto now = std::chrono::steady_clock::now();
@@ -168,8 +168,8 @@ class ReplayRecorder final : public service::SetpointSink {
   ReplayRecord& r_;
 };
 
-Figure replay_figure(const PlotBuckets& plot, const PlotBuckets* blocks, const MachineConfig& m,
-                     const std::string& source) {
+Figure replay_figure(const PlotBuckets& plot, const PlotBuckets* blocks,
+                     const service::MachineConfig& m, const std::string& source) {
   Series feed{"feed (max/min per bucket)", {}, {}, "#1f77b4"};
   Series limit{"feed limit at the position", {}, {}, "#d62728", true};
   Series rough{"predicted R_max", {}, {}, "#9467bd"};
@@ -214,7 +214,7 @@ Figure replay_figure(const PlotBuckets& plot, const PlotBuckets* blocks, const M
   return fig;
 }
 
-nlohmann::ordered_json report_json(const motion::RunStats& st, const MachineConfig& m,
+nlohmann::ordered_json report_json(const motion::RunStats& st, const service::MachineConfig& m,
                                    const std::string& source, const motion::Job& job,
                                    double lookahead_ns) {
   nlohmann::ordered_json j;
@@ -314,10 +314,10 @@ void print_blocks(const comms::EncoderStats& b, const std::string& file) {
 // What replay walks, read and checked before any motion: the machine, the path, the chamfer's
 // checks and tool, the whole program around the path, its envelope and the size of the run.
 struct ReplayInput {
-  MachineConfig machine;  // the documented defaults unless --machine
+  service::MachineConfig machine;  // the documented defaults unless --machine
   toolpath::Path path;
-  ChamferAcceptance chamfer;
-  WholeRun whole;
+  service::ChamferAcceptance chamfer;
+  service::WholeRun whole;
 };
 
 ReplayInput read_input(const ReplayArgs& a) {
@@ -326,17 +326,19 @@ ReplayInput read_input(const ReplayArgs& a) {
   check_output(a.setpoints, "--setpoints");
   check_output(a.blocks, "--blocks");
   ReplayInput in;
-  if (!a.machine.empty()) in.machine = load_machine_config(a.machine);
+  if (!a.machine.empty()) in.machine = service::load_machine_config(a.machine);
   if (a.chord_tolerance_mm) in.machine.encoder.chord_tolerance_mm = *a.chord_tolerance_mm;
-  if (!a.start.empty()) in.machine.program.start_machine_mm = parse_position_mm(a.start, "--start");
+  if (!a.start.empty())
+    in.machine.program.start_machine_mm = service::parse_position_mm(a.start, "--start");
   if (!a.tool_table.empty()) in.machine.program.tool_table = a.tool_table;
   in.path = toolpath::read_path_file(a.path, in.machine.program);
   // Before any motion: the chamfer's checks and tool, the envelope, the size of the run.
-  in.chamfer = accept_chamfer(in.path, in.machine, a.allow_interference, "--allow-interference");
+  in.chamfer =
+      service::accept_chamfer(in.path, in.machine, a.allow_interference, "--allow-interference");
   if (!in.chamfer.note.empty()) std::cerr << "replay: " << in.chamfer.note << "\n";
-  in.whole = whole_run("ncd replay", a.path, in.path, in.machine, a.path_only);
-  check_envelope(in.whole.path, in.machine);
-  check_estimate(estimate_run(in.whole.path, in.machine), !a.setpoints.empty());
+  in.whole = service::whole_run("ncd replay", a.path, in.path, in.machine, a.path_only);
+  service::check_envelope(in.whole.path, in.machine);
+  service::check_estimate(service::estimate_run(in.whole.path, in.machine), !a.setpoints.empty());
   return in;
 }
 
@@ -362,7 +364,7 @@ struct BlockOutput {
   // Checks the encoder's settings (the dialect applied to them, in the machine too), opens the
   // program and starts its blocks with the whole program's header; before the walk starts.
   void open(const ReplayArgs& a, ReplayInput& in, const service::Service& svc) {
-    MachineConfig& machine = in.machine;
+    service::MachineConfig& machine = in.machine;
     dialect = machine.link.dialect;
     try {
       comms::validate(machine.encoder);
@@ -463,9 +465,10 @@ void write_report_and_plot(const ReplayArgs& a, const ReplayInput& in, const mot
 }
 
 // The summary on standard error.
-void print_summary(const ReplayArgs& a, const MachineConfig& machine, const std::string& source,
-                   const motion::Job& job, const motion::RunStats& st, double wall_s,
-                   const comms::BlockEncoder* encoder, const motion::ToolUse* tools) {
+void print_summary(const ReplayArgs& a, const service::MachineConfig& machine,
+                   const std::string& source, const motion::Job& job, const motion::RunStats& st,
+                   double wall_s, const comms::BlockEncoder* encoder,
+                   const motion::ToolUse* tools) {
   std::fprintf(stderr,
                "replay: %s\n  path length       %.4f mm in %lld periods of %.4g s = %.3f s\n"
                "  feed              max %.1f mm/min; roughness max %.3f um (target %.3f um)\n"
@@ -516,7 +519,7 @@ int run_replay(const ReplayArgs& a) {
   rec.cfg.limits = in.machine.limits;
   rec.cfg.cutting = in.machine.cutting;
   rec.quiet = a.quiet;
-  SetpointSink sink(a.setpoints, in.machine.limits.rotary.axis);
+  service::SetpointFileSink sink(a.setpoints, in.machine.limits.rotary.axis);
   rec.file = &sink;
   BlockOutput out;  // --blocks; checked before the walk starts
   service::Service svc(replay_service_options());

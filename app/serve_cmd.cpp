@@ -27,14 +27,14 @@ struct ServeArgs {
 
 int run_serve(const ServeArgs& a) {
   // One parse: the service's keys, the dashboard's [http], the fleet's [mqtt].
-  ServiceConfig cfg;
-  if (!a.config.empty()) cfg = load_service_config(a.config);
+  api::ServiceConfig cfg;
+  if (!a.config.empty()) cfg = api::load_service_config(a.config);
   if (!a.listen.empty()) cfg.listen = a.listen;
   boost::asio::io_context io;
   // Registered before the socket exists, so a signal sent as soon as it appears is queued for
   // the handler below, never met by the default action (which would skip the safe ending).
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
-  Intake service(io, cfg);
+  api::Intake service(io, cfg);
   comms::ServerOptions options;
   options.token = cfg.token;
   comms::ListenAddress address = comms::ListenAddress::parse(cfg.listen);
@@ -44,31 +44,30 @@ int run_serve(const ServeArgs& a) {
             << " (machine: " << cfg.machine.source
             << ", clock: " << (cfg.clock == motion::ClockKind::Wall ? "wall" : "simulated") << ")"
             << std::endl;
-  std::unique_ptr<WebServer> web;
+  std::unique_ptr<api::WebServer> web;
   if (cfg.http.listen) {
-    web = std::make_unique<WebServer>(io, cfg.http, service, cfg.token, cfg.machine.program);
+    web = std::make_unique<api::WebServer>(io, cfg.http, service, cfg.token, cfg.machine.program);
     std::cerr << "ncd serve: dashboard on " << web->url() << std::endl;
   }
-  std::unique_ptr<fleet::MqttBridge> bridge;
+  std::unique_ptr<api::MqttBridge> bridge;
   if (cfg.mqtt) {
     // The machine's page, for the cell page's link (docs/fleet-mqtt.md, "Topics").
-    if (cfg.mqtt->page_url.empty() && web)
-      cfg.mqtt->page_url = fleet::reachable_page_url(web->url());
-    bridge = std::make_unique<fleet::MqttBridge>(
+    if (cfg.mqtt->page_url.empty() && web) cfg.mqtt->page_url = api::reachable_page_url(web->url());
+    bridge = std::make_unique<api::MqttBridge>(
         io, *cfg.mqtt, [&service] { return service.status(); },
         [&service](const nlohmann::json& request) { return service.handle(request); }, cfg.token);
     bridge->start();
   }
   // The service's events to the observers, drained on this io_context (api/event_feed.hpp).
-  std::unique_ptr<EventFeed> feed;
+  std::unique_ptr<api::EventFeed> feed;
   if (bridge || web) {
-    feed = std::make_unique<EventFeed>(io, service.subscribe(EventFeed::kCapacity));
+    feed = std::make_unique<api::EventFeed>(io, service.subscribe(api::EventFeed::kCapacity));
     if (bridge) {
-      fleet::MqttBridge& b = *bridge;
+      api::MqttBridge& b = *bridge;
       feed->add_sink([&b](const nlohmann::json& event) { b.push_event(event); });
     }
     if (web) {
-      WebServer& w = *web;
+      api::WebServer& w = *web;
       feed->add_sink([&w](const nlohmann::json& event) { w.push_event(event); });
     }
     feed->start();

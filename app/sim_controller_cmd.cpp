@@ -28,7 +28,7 @@ namespace {
 
 struct SimArgs {
   std::string link, log;
-  LinkFlags flags;
+  service::LinkFlags flags;
   int buffer = 0;   // 0: 256 (drip) or 128 (ack, grbl)
   int xoff_at = 0;  // 0: default
   int xon_at = -1;  // -1: default
@@ -106,10 +106,10 @@ class StopSignals {
 // file's [link] (--machine; its device is where the simulated controller's port appears), else
 // the default (service/link_options.hpp). Prints where each value came from.
 void choose_link(const SimArgs& a, comms::SimControllerConfig& cfg) {
-  std::optional<MachineConfig> machine;
-  if (!a.flags.machine.empty()) machine = load_machine_config(a.flags.machine);
-  LinkSources src(a.flags, machine ? &*machine : nullptr);
-  const LinkConfig file = machine ? machine->link : LinkConfig{};
+  std::optional<service::MachineConfig> machine;
+  if (!a.flags.machine.empty()) machine = service::load_machine_config(a.flags.machine);
+  service::LinkSources src(a.flags, machine ? &*machine : nullptr);
+  const service::LinkConfig file = machine ? machine->link : service::LinkConfig{};
   const std::string link = src.pick<std::string>(
       "--link", "device", a.link, file.line.device,
       [](const std::string& v) { return v.empty() ? std::string("none") : v; });
@@ -217,7 +217,7 @@ void register_sim_controller(CLI::App& app, Runner& run) {
   c->add_option("--link", a->link,
                 "path of the symbolic link to the pty's slave, e.g. /tmp/cnc0 (default: the "
                 "machine file's [link] device)");
-  add_link_flags(*c, a->flags);
+  service::add_link_flags(*c, a->flags);
   c->add_option("--buffer", a->buffer,
                 "receive buffer, bytes (64 … 1048576; default 256, or grbl's 128 with "
                 "--protocol ack)");
@@ -288,7 +288,7 @@ void register_sim_controller(CLI::App& app, Runner& run) {
   c->add_option("--alarm-after-blocks", f.alarm_after_blocks,
                 "fault: after N blocks raise an alarm (drip: DC3 NAK; ack: ALARM:9) and stop");
   c->callback([a, c, &run] {
-    note_given_flags(*c, a->flags, {"--link", "--buffer"});
+    service::note_given_flags(*c, a->flags, {"--link", "--buffer"});
     run = [a] { return run_sim_controller(*a); };
   });
 }

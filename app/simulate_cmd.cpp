@@ -79,7 +79,7 @@ struct Setup {
 Setup setup_of(const SimulateArgs& a) {
   Setup s;
   if (!a.machine.empty()) {
-    const MachineConfig m = load_machine_config(a.machine);
+    const service::MachineConfig m = service::load_machine_config(a.machine);
     s.tool.radius_mm = m.cutting.ball_radius_mm;
     s.tool.teeth = m.cutting.teeth;
     s.tool.spindle_rpm = m.cutting.spindle_rpm;

@@ -42,7 +42,7 @@ extern "C" void on_stop_signal(int /*signal*/) {
 
 struct StreamArgs {
   std::string program, port, journal, report;
-  LinkFlags link;
+  service::LinkFlags link;
   int max_queued_chars = 16;
   int rx_buffer_bytes = 128;
   double xoff_timeout_s = 5.0;
@@ -568,10 +568,10 @@ void print_unfinished(const StreamArgs& a, const comms::SenderReport& r, bool ac
 // [link] (--machine), else the default (service/link_options.hpp). Sets them in `a`; returns
 // the line and prints where each value came from unless --quiet.
 comms::LineSettings choose_link(StreamArgs& a) {
-  std::optional<MachineConfig> machine;
-  if (!a.link.machine.empty()) machine = load_machine_config(a.link.machine);
-  LinkSources src(a.link, machine ? &*machine : nullptr);
-  const LinkConfig file = machine ? machine->link : LinkConfig{};
+  std::optional<service::MachineConfig> machine;
+  if (!a.link.machine.empty()) machine = service::load_machine_config(a.link.machine);
+  service::LinkSources src(a.link, machine ? &*machine : nullptr);
+  const service::LinkConfig file = machine ? machine->link : service::LinkConfig{};
   const auto word = [](const std::string& v) { return v.empty() ? std::string("none") : v; };
   const auto number = [](const int& v) { return std::to_string(v); };
   const auto seconds = [](const double& v) { return text::sig(v) + " s"; };
@@ -614,7 +614,8 @@ int run_stream(const StreamArgs& given) {
   const CheckedProgram checked = check_program(a, line);
   const comms::ProgramSummary& program = checked.summary;
   const std::vector<std::string> preamble = restart_preamble(a, checked.dialect);
-  require_serial_port(a.port, a.port_from);  // a file or a missing port: exit 2 now, no retries
+  service::require_serial_port(a.port,
+                               a.port_from);  // a file or a missing port: exit 2 now, no retries
 
   // The journal: resume where a previous transfer of the same program stopped.
   const std::string journal_path =
@@ -673,7 +674,7 @@ void register_stream(CLI::App& app, Runner& run) {
   c->add_option("--port", a->port,
                 "serial device, e.g. /dev/ttyS0 or a sim-controller link (default: the machine "
                 "file's [link] device)");
-  add_link_flags(*c, a->link);
+  service::add_link_flags(*c, a->link);
   c->add_option("--max-queued", a->max_queued_chars,
                 "drip: characters allowed ahead of the wire, i.e. how far the sender runs on "
                 "after a DC3")
@@ -724,7 +725,7 @@ void register_stream(CLI::App& app, Runner& run) {
               "only then are blocks resent after a lost link");
   c->add_flag("-q,--quiet", a->quiet, "no progress lines");
   c->callback([a, c, &run] {
-    note_given_flags(
+    service::note_given_flags(
         *c, a->link,
         {"--port", "--rx-buffer", "--max-queued", "--xoff-timeout", "--reconnect-max"});
     run = [a] { return run_stream(*a); };

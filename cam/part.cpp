@@ -358,7 +358,7 @@ double PartPipe::max_outer_radius_mm() const {
 }
 
 Part parse_part(const std::string& text, const std::string& name) {
-  const toml::value root = app::parse_toml_text(text, name, "part file");
+  const toml::value root = ncd::parse_toml_text(text, name, "part file");
   Part p;
   p.source = name;
   const Reader r{name};

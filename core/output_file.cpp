@@ -22,7 +22,7 @@
 
 #include "core/error.hpp"
 
-namespace ncd::app {
+namespace ncd {
 namespace {
 
 namespace fs = std::filesystem;
@@ -243,4 +243,4 @@ void write_output(const std::string& path, const std::string& text, const std::s
   file.commit();
 }
 
-}  // namespace ncd::app
+}  // namespace ncd

@@ -17,7 +17,7 @@
 #include <cstdio>
 #include <string>
 
-namespace ncd::app {
+namespace ncd {
 
 // Writes text to path by the rule above; `what` names the flag in messages ("-o").
 void write_output(const std::string& path, const std::string& text, const std::string& what = "-o");
@@ -55,4 +55,4 @@ class StreamedFile {
   int write_errno_ = 0;  // the first failed write's errno
 };
 
-}  // namespace ncd::app
+}  // namespace ncd

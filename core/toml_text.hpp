@@ -12,7 +12,7 @@
 #include "core/error.hpp"
 #include "core/text_guard.hpp"
 
-namespace ncd::app {
+namespace ncd {
 
 // Parses TOML text; `name` is the file, `kind` the format ("machine file", "service config").
 // Throws InputError naming the file and where.
@@ -28,4 +28,4 @@ inline toml::value parse_toml_text(const std::string& text, const std::string& n
   }
 }
 
-}  // namespace ncd::app
+}  // namespace ncd

@@ -9,7 +9,7 @@
 #include "core/error.hpp"
 #include "core/number_text.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 namespace {
 
 constexpr double kBallRadiusMatchMm = 1e-9;
@@ -174,4 +174,4 @@ void check_estimate(const RunEstimate& r, bool with_setpoints) {
   }
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::service

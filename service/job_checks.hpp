@@ -9,7 +9,7 @@
 #include "geometry/path.hpp"
 #include "service/machine_config.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
 // What a consumer must state when it runs a chamfer whose checks failed.
 struct ChamferAcceptance {
@@ -49,4 +49,4 @@ RunEstimate estimate_run(const toolpath::Path& path, const MachineConfig& machin
 // than kMaxRunS, or (with_setpoints) its setpoints file would exceed kMaxSetpointBytes.
 void check_estimate(const RunEstimate& estimate, bool with_setpoints);
 
-}  // namespace ncd::app
+}  // namespace ncd::service

@@ -12,7 +12,7 @@
 #include "core/error.hpp"
 #include "service/machine_config.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
 void add_link_flags(CLI::App& sub, LinkFlags& flags) {
   sub.add_option("--baud", flags.baud, "line speed in baud (300 … 115200)")->capture_default_str();
@@ -209,4 +209,4 @@ void require_serial_port(const std::string& device, const std::string& what) {
   }
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::service

@@ -20,7 +20,7 @@
 #include "gcode/dialect/dialect.hpp"
 #include "link/line_settings.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
 struct LinkFlags {
   int baud = 19200;
@@ -99,4 +99,4 @@ std::optional<comms::Dialect> dialect_of(const LinkFlags& flags);
 // `what` (the flag or key that gave it).
 void require_serial_port(const std::string& device, const std::string& what);
 
-}  // namespace ncd::app
+}  // namespace ncd::service

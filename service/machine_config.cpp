@@ -18,7 +18,7 @@
 #include "core/input_ranges.hpp"
 #include "core/toml_text.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 namespace {
 
 double as_real(const toml::value& v, const std::string& where) {
@@ -732,4 +732,4 @@ nlohmann::ordered_json to_json(const MachineConfig& c) {
   return j;
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::service

@@ -18,7 +18,7 @@
 #include "link/block_encoder.hpp"
 #include "link/line_settings.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
 // [link]: the machine's DNC port and how the sender treats it.
 struct LinkConfig {
@@ -91,4 +91,4 @@ MachineConfig parse_machine_config(const std::string& text, const std::string& n
 // Echo of every field, units in the names, for reports.
 nlohmann::ordered_json to_json(const MachineConfig& config);
 
-}  // namespace ncd::app
+}  // namespace ncd::service

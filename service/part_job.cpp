@@ -49,7 +49,7 @@ toolpath::NgcOptions part_writer_options(const PartMachine& pm, const toolpath::
   toolpath::NgcOptions o;
   o.point = pm.point.value_or(toolpath::ProgramPoint::Tip);
   if (!pm.machine) return o;
-  const app::MachineConfig& m = *pm.machine;
+  const MachineConfig& m = *pm.machine;
   if (pm.point && *pm.point != m.tool.programmed_point) {
     throw InputError("--program-point " + pm.point_text + " contradicts the machine file " +
                      pm.name + ", whose [tool] programmed_point is " +

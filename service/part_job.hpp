@@ -15,7 +15,7 @@ namespace ncd::service {
 // The machine a part is planned for: none (the documented defaults, no dialect, the programmed
 // point of `point` or the tip), or a machine file's. `name` names it in messages.
 struct PartMachine {
-  const app::MachineConfig* machine = nullptr;
+  const MachineConfig* machine = nullptr;
   std::string name;
   std::optional<toolpath::ProgramPoint> point;  // `--program-point`; must agree with the machine's
   std::string point_text;                       // how it was given, for the message

@@ -8,9 +8,9 @@
 
 #include "core/error.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
-SetpointSink::SetpointSink(const std::string& path, char rotary_axis) {
+SetpointFileSink::SetpointFileSink(const std::string& path, char rotary_axis) {
   if (path.empty()) return;
   file_ = std::make_unique<StreamedFile>(path, "--setpoints", 1 << 20);
   rotary_ = rotary_axis != 0;
@@ -20,7 +20,7 @@ SetpointSink::SetpointSink(const std::string& path, char rotary_axis) {
   file_->write(header.data(), header.size());
 }
 
-void SetpointSink::write(const motion::Setpoint& sp) {
+void SetpointFileSink::write(const motion::Setpoint& sp) {
   if (!file_) return;
   char line[160];
   char* p = line;
@@ -46,8 +46,8 @@ void SetpointSink::write(const motion::Setpoint& sp) {
   file_->write(line, static_cast<std::size_t>(p - line));
 }
 
-void SetpointSink::commit() {
+void SetpointFileSink::commit() {
   if (file_) file_->commit();
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::service

@@ -10,15 +10,15 @@
 #include "motion/job.hpp"
 #include "service/service.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
-class SetpointSink final : public service::SetpointSink {
+class SetpointFileSink final : public service::SetpointSink {
  public:
   // An empty path writes nothing. Throws InputError if the file cannot be created. With a
   // rotary axis ('a', 'b'; docs/planner.md §3g) each row ends with its position, a_deg or b_deg.
-  explicit SetpointSink(const std::string& path, char rotary_axis = 0);
-  SetpointSink(const SetpointSink&) = delete;
-  SetpointSink& operator=(const SetpointSink&) = delete;
+  explicit SetpointFileSink(const std::string& path, char rotary_axis = 0);
+  SetpointFileSink(const SetpointFileSink&) = delete;
+  SetpointFileSink& operator=(const SetpointFileSink&) = delete;
 
   void write(const motion::Setpoint& sp) override;  // one row, fixed decimals, no allocation
   void commit() override;                           // flush and rename; throws on failure
@@ -28,4 +28,4 @@ class SetpointSink final : public service::SetpointSink {
   bool rotary_ = false;
 };
 
-}  // namespace ncd::app
+}  // namespace ncd::service

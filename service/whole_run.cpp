@@ -10,7 +10,7 @@
 #include "gcode/ngc/interpreter.hpp"
 #include "gcode/ngc/tool_table.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 namespace {
 
 // The path's own motions as a program without events.
@@ -160,4 +160,4 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
   return w;
 }
 
-}  // namespace ncd::app
+}  // namespace ncd::service

@@ -19,7 +19,7 @@
 #include "geometry/path.hpp"
 #include "service/machine_config.hpp"
 
-namespace ncd::app {
+namespace ncd::service {
 
 struct WholeRun {
   toolpath::Program program;        // the events and motions, in order
@@ -44,4 +44,4 @@ WholeRun whole_run(const std::string& who, const std::string& file, const toolpa
 WholeRun whole_ngc_run(const std::string& who, const std::string& name, const std::string& text,
                        const MachineConfig& machine);
 
-}  // namespace ncd::app
+}  // namespace ncd::service

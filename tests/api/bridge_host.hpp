@@ -20,10 +20,10 @@ namespace ncd::test {
 
 class BridgeHost {
  public:
-  explicit BridgeHost(const fleet::MqttConfig& cfg, std::optional<std::string> token = {})
+  explicit BridgeHost(const api::MqttConfig& cfg, std::optional<std::string> token = {})
       : guard_(boost::asio::make_work_guard(io_)) {
     using nlohmann::json;
-    bridge_ = std::make_unique<fleet::MqttBridge>(
+    bridge_ = std::make_unique<api::MqttBridge>(
         io_, cfg,
         [this] {
           const int n = ++status_calls;
@@ -49,7 +49,7 @@ class BridgeHost {
   BridgeHost(const BridgeHost&) = delete;
   BridgeHost& operator=(const BridgeHost&) = delete;
 
-  fleet::MqttBridge& bridge() { return *bridge_; }
+  api::MqttBridge& bridge() { return *bridge_; }
   // Whether the bridge's connection is `up` within timeout_s.
   bool wait_connected(bool up, double timeout_s = 20) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
@@ -66,7 +66,7 @@ class BridgeHost {
  private:
   boost::asio::io_context io_;
   boost::asio::executor_work_guard<boost::asio::io_context::executor_type> guard_;
-  std::unique_ptr<fleet::MqttBridge> bridge_;
+  std::unique_ptr<api::MqttBridge> bridge_;
   std::thread thread_;
 };
 

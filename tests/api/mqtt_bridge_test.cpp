@@ -25,8 +25,8 @@
 namespace {
 
 using namespace std::chrono_literals;
-using ncd::fleet::MqttBridge;
-using ncd::fleet::MqttConfig;
+using ncd::api::MqttBridge;
+using ncd::api::MqttConfig;
 using ncd::test::Broker;
 using ncd::test::BrokerUser;
 using ncd::test::Watcher;

@@ -19,8 +19,8 @@
 namespace {
 
 using ncd::InputError;
-using ncd::fleet::MqttConfig;
-using ncd::fleet::parse_mqtt_config;
+using ncd::api::MqttConfig;
+using ncd::api::parse_mqtt_config;
 
 MqttConfig parse(const std::string& body) {
   std::istringstream in("[mqtt]\n" + body);
@@ -206,9 +206,9 @@ TEST(MqttConfig, ThePageUrlIsALinkOrRefusedAndAWildcardHostBecomesTheHostName) {
   std::array<char, 256> host{};
   ASSERT_EQ(::gethostname(host.data(), host.size() - 1), 0);
   const std::string name = host.data();
-  EXPECT_EQ(ncd::fleet::reachable_page_url("http://0.0.0.0:8080/"), "http://" + name + ":8080/");
-  EXPECT_EQ(ncd::fleet::reachable_page_url("https://[::]:8443/"), "https://" + name + ":8443/");
-  EXPECT_EQ(ncd::fleet::reachable_page_url("http://127.0.0.1:8080/"), "http://127.0.0.1:8080/");
+  EXPECT_EQ(ncd::api::reachable_page_url("http://0.0.0.0:8080/"), "http://" + name + ":8080/");
+  EXPECT_EQ(ncd::api::reachable_page_url("https://[::]:8443/"), "https://" + name + ":8443/");
+  EXPECT_EQ(ncd::api::reachable_page_url("http://127.0.0.1:8080/"), "http://127.0.0.1:8080/");
 }
 
 }  // namespace

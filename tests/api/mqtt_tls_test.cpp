@@ -35,8 +35,8 @@
 namespace {
 
 using namespace std::chrono_literals;
-using ncd::fleet::MqttBridge;
-using ncd::fleet::MqttConfig;
+using ncd::api::MqttBridge;
+using ncd::api::MqttConfig;
 using nlohmann::json;
 namespace fs = std::filesystem;
 

@@ -19,7 +19,7 @@ namespace {
 
 std::string error_of(const std::string& toml) {
   try {
-    (void)parse_machine_config(toml, "m.toml");
+    (void)service::parse_machine_config(toml, "m.toml");
   } catch (const InputError& e) {
     return e.what();
   }
@@ -32,7 +32,7 @@ void expect_all(const std::string& what, std::vector<std::string> parts) {
 }
 
 TEST(AxisLimitsConfig, TablesAreReadAndKeysLeftOutAreNoLimit) {
-  const MachineConfig c = parse_machine_config(
+  const service::MachineConfig c = service::parse_machine_config(
       "max_feed_mm_per_min = 6000\n[axis.z]\nmax_feed_mm_per_min = 1500\nmax_accel_mm_per_s2 = "
       "250\nmax_jerk_mm_per_s3 = 4000\n[axis.x]\nmax_accel_mm_per_s2 = 600\n",
       "m.toml");
@@ -49,7 +49,8 @@ TEST(AxisLimitsConfig, TablesAreReadAndKeysLeftOutAreNoLimit) {
   EXPECT_TRUE(j["axis"]["x"]["max_feed_mm_per_min"].is_null());
   EXPECT_TRUE(j["axis"]["y"]["max_jerk_mm_per_s3"].is_null());
   // Without tables: no key, the JSON as it was.
-  const MachineConfig none = parse_machine_config("max_feed_mm_per_min = 6000\n", "m.toml");
+  const service::MachineConfig none =
+      service::parse_machine_config("max_feed_mm_per_min = 6000\n", "m.toml");
   EXPECT_FALSE(none.limits.has_axis_limits());
   EXPECT_FALSE(to_json(none).contains("axis"));
 }
@@ -58,7 +59,7 @@ TEST(AxisLimitsConfig, TablesAreReadAndKeysLeftOutAreNoLimit) {
 // with_axis_jerk; its law is held by AxisLimits.TheVectorBoundAtTheSmallestAxisJerk... in
 // test_motion), and without an axis jerk it is an error naming the way out.
 TEST(AxisLimitsConfig, JerkBoundAxesBoundsTheVectorByTheSmallestAxisJerk) {
-  const MachineConfig c = parse_machine_config(
+  const service::MachineConfig c = service::parse_machine_config(
       "max_jerk_mm_per_s3 = 20000\njerk_bound = \"axes\"\n[axis.z]\nmax_jerk_mm_per_s3 = "
       "4000\n[axis.x]\nmax_jerk_mm_per_s3 = 9000\n",
       "m.toml");

@@ -11,13 +11,15 @@ namespace ncd::app {
 namespace {
 
 TEST(LinkDialect, ReadFromTheMachineFile) {
-  const MachineConfig none = parse_machine_config("[link]\nbaud = 19200\n", "m.toml");
+  const service::MachineConfig none =
+      service::parse_machine_config("[link]\nbaud = 19200\n", "m.toml");
   EXPECT_FALSE(none.link.dialect);
-  const MachineConfig grbl = parse_machine_config("[link]\ndialect = \"grbl\"\n", "m.toml");
+  const service::MachineConfig grbl =
+      service::parse_machine_config("[link]\ndialect = \"grbl\"\n", "m.toml");
   ASSERT_TRUE(grbl.link.dialect);
   EXPECT_EQ(*grbl.link.dialect, comms::Dialect::grbl);
   try {
-    (void)parse_machine_config("[link]\ndialect = \"fanuc\"\n", "m.toml");
+    (void)service::parse_machine_config("[link]\ndialect = \"fanuc\"\n", "m.toml");
     FAIL() << "no error";
   } catch (const InputError& e) {
     const std::string what = e.what();

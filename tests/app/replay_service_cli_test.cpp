@@ -36,7 +36,7 @@ TEST_F(ReplayOnService, SetpointsAndReportAreThoseOfTheDirectJobLoop) {
         ncd("replay -q --path-only " + file + " --setpoints " + csv + " --report " + report);
     ASSERT_EQ(r.status, 0) << r.err;
     // The reference: replay's old loop, on the documented defaults (no --machine).
-    const app::MachineConfig m;
+    const service::MachineConfig m;
     const toolpath::Path path = toolpath::read_path_file(file, m.program);
     motion::JobConfig cfg;
     cfg.limits = m.limits;
@@ -46,7 +46,7 @@ TEST_F(ReplayOnService, SetpointsAndReportAreThoseOfTheDirectJobLoop) {
     st.path_length_mm = job.length_mm();
     const std::string ref_csv = (dir_ / "ref.csv").string();
     {
-      app::SetpointSink ref(ref_csv);
+      service::SetpointFileSink ref(ref_csv);
       for (;;) {
         job.prepare();
         const motion::Setpoint sp = job.step();

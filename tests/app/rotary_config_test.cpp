@@ -15,7 +15,7 @@ namespace {
 
 std::string rotary_error_of(const std::string& toml) {
   try {
-    (void)parse_machine_config(toml, "m.toml");
+    (void)service::parse_machine_config(toml, "m.toml");
   } catch (const InputError& e) {
     return e.what();
   }
@@ -28,18 +28,19 @@ void rotary_expect_all(const std::string& what, const std::vector<std::string>& 
 }
 
 TEST(RotaryAxisConfig, TheTableDeclaresTheAxisWithDefaults) {
-  const MachineConfig none = parse_machine_config("max_feed_mm_per_min = 6000\n", "m.toml");
+  const service::MachineConfig none =
+      service::parse_machine_config("max_feed_mm_per_min = 6000\n", "m.toml");
   EXPECT_FALSE(none.limits.rotary.present());
   EXPECT_EQ(none.program.rotary_axis, 0);
   EXPECT_FALSE(to_json(none).contains("rotary_axis"));
 
-  const MachineConfig a = parse_machine_config("[axis.a]\n", "m.toml");
+  const service::MachineConfig a = service::parse_machine_config("[axis.a]\n", "m.toml");
   EXPECT_EQ(a.limits.rotary.axis, 'a');
   EXPECT_EQ(a.program.rotary_axis, 'a');
   EXPECT_EQ(a.limits.rotary.max_feed_deg_per_min, feed::RotaryLimits{}.max_feed_deg_per_min);
   EXPECT_FALSE(a.limits.has_axis_limits());  // X, Y, Z keep no limits of their own
 
-  const MachineConfig b = parse_machine_config(
+  const service::MachineConfig b = service::parse_machine_config(
       "[axis.b]\nmax_feed_deg_per_min = 7200\nmax_accel_deg_per_s2 = 900\nmax_jerk_deg_per_s3 = "
       "9000\n",
       "m.toml");

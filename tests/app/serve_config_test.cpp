@@ -13,8 +13,8 @@
 namespace {
 
 using ncd::InputError;
-using ncd::app::parse_service_config;
-using ncd::app::ServiceConfig;
+using ncd::api::parse_service_config;
+using ncd::api::ServiceConfig;
 
 std::string refusal(const std::string& text) {
   try {

@@ -1,5 +1,5 @@
 // The ways a streamed job ends other than a stop (docs/service.md, "Ending early"), through the
-// service's own request mapping (app::submitted_job) and the service library, live to the
+// service's own request mapping (api::submitted_job) and the service library, live to the
 // simulated controller on a real pseudo-terminal in simulated time (tests/common/
 // paced_controller.hpp, as serve_whole_job_test.cpp does):
 //   - a job error mid-cut (the setpoints file fails): the same safe ending as a stop;
@@ -124,16 +124,16 @@ class ServedEnding : public test::Cli, public ::testing::WithParamInterface<bool
     Cli::TearDown();
   }
 
-  app::ServiceConfig config(bool grbl, double xoff_timeout_s = 5.0) {
-    app::ServiceConfig c;
-    c.machine =
-        app::load_machine_config(write("machine.toml", faults_machine_text(grbl, xoff_timeout_s)));
+  api::ServiceConfig config(bool grbl, double xoff_timeout_s = 5.0) {
+    api::ServiceConfig c;
+    c.machine = service::load_machine_config(
+        write("machine.toml", faults_machine_text(grbl, xoff_timeout_s)));
     c.clock = motion::ClockKind::Simulated;
     c.realtime = false;
     return c;
   }
 
-  void start_controller(const app::ServiceConfig& config, const comms::SimFaults& faults = {}) {
+  void start_controller(const api::ServiceConfig& config, const comms::SimFaults& faults = {}) {
     comms::SimControllerConfig c;
     c.line = config.machine.link.line;
     c.line.device = port();
@@ -227,9 +227,9 @@ class ServedEnding : public test::Cli, public ::testing::WithParamInterface<bool
 
 TEST_P(ServedEnding, AJobErrorMidCutEndsWithTheInBoreRetract) {
   const bool grbl = GetParam();
-  const app::ServiceConfig config = this->config(grbl);
+  const api::ServiceConfig config = this->config(grbl);
   start_controller(config);
-  app::SubmittedJob job = app::submitted_job(chamfer_request(port()), config);
+  api::SubmittedJob job = api::submitted_job(chamfer_request(port()), config);
   ASSERT_TRUE(job.spec.retract && job.spec.retract->axis_xy);
   job.spec.link->sender.hold_clock = ctl_.clock();
   job.spec.sink = std::make_unique<FailingSink>();
@@ -275,9 +275,9 @@ TEST_P(ServedEnding, ABlockTheDialectRefusesMidProgramEndsTheJobSafely) {
                                     "G21 G90 G17\nS3000 M3\nG0 Z10\nG0 X0 Y0\n"
                                     "G1 Z-1 F300\nG1 X20\nG1 Y20\n" +
                                         refused + "\nG1 X0\nG1 Y0\nG0 Z10\nM5\nM2\n");
-  const app::ServiceConfig config = this->config(grbl);
+  const api::ServiceConfig config = this->config(grbl);
   start_controller(config);
-  app::SubmittedJob job = app::submitted_job(
+  api::SubmittedJob job = api::submitted_job(
       {{"cmd", "submit"}, {"job", {{"path", program}}}, {"port", port()}}, config);
   ASSERT_TRUE(job.spec.retract);
   EXPECT_NEAR(job.spec.retract->clearance_z_mm, 10.0, 1e-12);
@@ -312,12 +312,12 @@ INSTANTIATE_TEST_SUITE_P(Dialects, ServedEnding, ::testing::Values(false, true),
                          });
 
 TEST_F(ServedEnding, ALostDripLinkSaysTheEndingCouldNotBeSent) {
-  const app::ServiceConfig config = this->config(false);
+  const api::ServiceConfig config = this->config(false);
   comms::SimFaults f;
   f.drop_link_after_blocks = 25;  // mid-job, the spindle turning
   f.down_s = 5.0;
   start_controller(config, f);
-  app::SubmittedJob job = app::submitted_job(chamfer_request(port()), config);
+  api::SubmittedJob job = api::submitted_job(chamfer_request(port()), config);
   job.spec.link->sender.hold_clock = ctl_.clock();
   auto s = service();
   s->submit(std::move(job.spec));
@@ -332,7 +332,7 @@ TEST_F(ServedEnding, ALostDripLinkSaysTheEndingCouldNotBeSent) {
     EXPECT_NE(text.find("at the machine: stop the motion"), std::string::npos) << text;
     EXPECT_NE(text.find("back to the drill axis"), std::string::npos) << text;
   }
-  const json status = app::to_json(st);
+  const json status = api::to_json(st);
   EXPECT_EQ(status["ending"]["state"], "not_sent") << status.dump();
   EXPECT_NE(status["job_error"].get<std::string>().find("could NOT be sent"), std::string::npos);
   // The controller got no ending: its spindle still turns (what the operator is told to stop).
@@ -346,7 +346,7 @@ TEST_F(ServedEnding, ALostDripLinkSaysTheEndingCouldNotBeSent) {
 }
 
 TEST_F(ServedEnding, AStopWhileTheAckLinkIsDownSaysSoAndTheEndingIsNotSent) {
-  app::ServiceConfig config = this->config(true);
+  api::ServiceConfig config = this->config(true);
   // The sender tries to reopen for 10 s of the controller's time (the hold clock), long beside
   // what one step of a loaded test thread catches up: the test sees the link down.
   config.machine.link.reconnect_max_s = 10.0;
@@ -354,7 +354,7 @@ TEST_F(ServedEnding, AStopWhileTheAckLinkIsDownSaysSoAndTheEndingIsNotSent) {
   f.drop_link_after_blocks = 25;
   f.down_s = 30.0;  // longer than reconnect_max_s: the sender gives up
   start_controller(config, f);
-  app::SubmittedJob job = app::submitted_job(chamfer_request(port()), config);
+  api::SubmittedJob job = api::submitted_job(chamfer_request(port()), config);
   job.spec.link->sender.hold_clock = ctl_.clock();
   auto s = service();
   s->submit(std::move(job.spec));
@@ -393,9 +393,9 @@ TEST_F(ServedEnding, ARestartedJobEndsWithSpindleStopAndProgramEnd) {
       write("prog.ngc",
             "G21 G90 G17\nS3000 M3\nG0 Z10\nG0 X0 Y0\nG1 Z-1 F300\nG1 X20\nG1 Y20\nG1 X0\n"
             "G1 Y0\nG0 Z10\nM5\nM2\n");
-  const app::ServiceConfig config = this->config(false);
+  const api::ServiceConfig config = this->config(false);
   start_controller(config);
-  app::SubmittedJob job = app::submitted_job(
+  api::SubmittedJob job = api::submitted_job(
       {{"cmd", "submit"}, {"job", {{"path", program}}}, {"port", port()}, {"restart_from", 7}},
       config);
   ASSERT_TRUE(job.spec.restart);
@@ -433,9 +433,9 @@ TEST_F(ServedEnding, ARestartedJobEndsWithSpindleStopAndProgramEnd) {
 // underrun at the sender (the tool is at rest), and the job completes after the resume.
 TEST_P(ServedEnding, AnOperatorHoldLongerThanTheLinkTimeoutIsNoFault) {
   const bool grbl = GetParam();
-  const app::ServiceConfig config = this->config(grbl, 8.0);
+  const api::ServiceConfig config = this->config(grbl, 8.0);
   start_controller(config);
-  app::SubmittedJob job = app::submitted_job(chamfer_request(port()), config);
+  api::SubmittedJob job = api::submitted_job(chamfer_request(port()), config);
   job.spec.link->sender.hold_clock = ctl_.clock();
   auto s = service();
   auto events = s->subscribe(1024);

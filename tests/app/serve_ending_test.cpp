@@ -103,7 +103,7 @@ class ServeEnding : public test::ServeFixture, public ::testing::WithParamInterf
     stop_controller();
     ServeFixture::TearDown();
   }
-  void start_controller(const app::MachineConfig& m, const std::string& port) {
+  void start_controller(const service::MachineConfig& m, const std::string& port) {
     comms::SimControllerConfig c;
     c.line = m.link.line;
     c.line.device = port;
@@ -148,7 +148,7 @@ class ServeEnding : public test::ServeFixture, public ::testing::WithParamInterf
 TEST_P(ServeEnding, StoppedInTheBoreTheControllerRetractsByTheDrillAxisAndEnds) {
   const Case k = GetParam();
   const std::string machine_file = write("machine.toml", machine_text(k.grbl));
-  const app::MachineConfig machine = app::load_machine_config(machine_file);
+  const service::MachineConfig machine = service::load_machine_config(machine_file);
   const std::string port = (dir_ / "cnc").string();
   start_controller(machine, port);
   launch("wall", "machine = \"" + machine_file + "\"\n");

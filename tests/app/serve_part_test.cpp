@@ -95,11 +95,11 @@ TEST_F(ServePart, ThePagesListingIsTheProgramChamferPartWrites) {
   const auto r = ncd("chamfer --part " + kServedManifold + " --machine " + kRotary + " -q");
   ASSERT_EQ(r.status, 0) << r.err;
   boost::asio::io_context io;
-  ncd::app::ServiceConfig config;
-  config.machine = ncd::app::load_machine_config(kRotary);
+  ncd::api::ServiceConfig config;
+  config.machine = ncd::service::load_machine_config(kRotary);
   config.clock = ncd::motion::ClockKind::Simulated;
   config.realtime = false;
-  ncd::app::Intake intake(io, config);
+  ncd::api::Intake intake(io, config);
   const json reply = intake.handle(
       {{"cmd", "submit"}, {"job", {{"part", kServedManifold}}}, {"start_mm", {0, 0, 50}}});
   ASSERT_TRUE(reply["ok"].get<bool>()) << reply.dump();

@@ -1,6 +1,6 @@
 // A chamfer job submitted to the service is the whole program `ncd replay` makes for it
 // (docs/whole-program.md, docs/service.md "Jobs"), streamed live with its events at their place.
-// The job goes through the service's own request mapping (app::submitted_job, what `ncd serve`
+// The job goes through the service's own request mapping (api::submitted_job, what `ncd serve`
 // does with a submit) into the service library, which streams it live to the simulated
 // controller in process: the controller in simulated time (tests/common/paced_controller.hpp),
 // the cycle on the simulated clock with a 64-setpoint ring drained only once the sender has
@@ -117,8 +117,8 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   ASSERT_EQ(r.status, 0) << r.err;
   const std::vector<std::string> want = blocks(whole_job_lines_of(test::slurp(replay_blocks)));
 
-  app::ServiceConfig config;
-  config.machine = app::load_machine_config(machine_file);
+  api::ServiceConfig config;
+  config.machine = service::load_machine_config(machine_file);
   config.clock = motion::ClockKind::Simulated;
   config.realtime = false;
   comms::SimControllerConfig c;
@@ -137,7 +137,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   }
   ctl_.start(c);
 
-  app::SubmittedJob job = app::submitted_job(whole_job_chamfer_request(port), config);
+  api::SubmittedJob job = api::submitted_job(whole_job_chamfer_request(port), config);
   ASSERT_TRUE(job.spec.program) << "the service walks the whole program";
   ASSERT_TRUE(job.spec.link);
   // The controller's holds timed on its own clock, whatever the load on the test's thread.
@@ -153,7 +153,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   });
   s.submit(std::move(job.spec));
   s.start();
-  // The link's live counters in the socket's status (app::to_json), read during the transfer:
+  // The link's live counters in the socket's status (api::to_json), read during the transfer:
   // each counter only grows, the controller's buffer stays within its limit.
   const char* kGrowing[] = {"bytes_written", "blocks_taken",    "blocks_written",
                             "blocks_acked",  "blocks_executed", "xoff_count",
@@ -163,7 +163,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   for (int k = 0; k < 100000 && (s.busy() || !ctl_.done()); ++k) {
     const service::Status st = s.status();
     if (st.link) {
-      const json now = app::to_json(st)["stream"];
+      const json now = api::to_json(st)["stream"];
       for (const char* key : kGrowing) {
         if (!prev.is_null() && now[key].is_number() && prev[key].is_number()) {
           ASSERT_GE(now[key].get<std::int64_t>(), prev[key].get<std::int64_t>())
@@ -176,7 +176,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
           << now.dump();
       if (!st.link->done) {
         ++polled_live;
-        if (mid.is_null() && now["blocks_written"].get<int>() >= 20) mid = app::to_json(st);
+        if (mid.is_null() && now["blocks_written"].get<int>() >= 20) mid = api::to_json(st);
       }
       prev = now;
     }
@@ -208,7 +208,7 @@ TEST_P(ServedWholeJob, ChamferJobRunsAsTheWholeProgramReplayWrites) {
   EXPECT_EQ(end.xoff_count, log.xoff_sent);
   EXPECT_EQ(end.bytes_written, static_cast<std::int64_t>(log.bytes_received))
       << log_json.dump().substr(0, 600);
-  EXPECT_EQ(app::to_json(st)["stream"]["bytes_written"], end.bytes_written);
+  EXPECT_EQ(api::to_json(st)["stream"]["bytes_written"], end.bytes_written);
   if (grbl) {
     EXPECT_EQ(end.blocks_acked, report.blocks_queued);
     EXPECT_EQ(end.blocks_acked, log.blocks_received);

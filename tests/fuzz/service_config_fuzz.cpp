@@ -6,6 +6,6 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text = ncd::fuzz::text_of(data, size);
   ncd::fuzz::expect_input_error_or_value(
-      [&] { (void)ncd::app::parse_service_config(text, "fuzz.toml"); });
+      [&] { (void)ncd::api::parse_service_config(text, "fuzz.toml"); });
   return 0;
 }
