@@ -605,7 +605,11 @@ void DncSender::end_with(EndingFn ending) {
 }
 
 SenderReport DncSender::run(const std::atomic<bool>& stop) {
-  const FifoPriority priority(settings_.fifo_priority);
+  // Real-time scheduling only where the line's time is the wall clock's: on a simulated clock
+  // nothing is late, and a thread that polls for a clock another thread moves must not take the
+  // CPU from it.
+  const bool wall = !settings_.hold_clock && !settings_.wire_clock;
+  const FifoPriority priority(wall ? settings_.fifo_priority : 0);
   Session session(settings_, source_, on_event_, on_hold_, journal_, first_block_, counters_,
                   reports_, halt_request_, end_requested_, ending_, source_held_);
   session.on_executed(on_executed_);

@@ -63,7 +63,8 @@ struct SenderSettings {
   double pacing_fraction = 0.98;  // drip: pace at this fraction of the line's capacity
   // The sending thread runs at SCHED_FIFO this priority while run() runs, so that a loaded host
   // does not delay its answer to a DC3 past the controller's headroom (link/thread_priority.hpp);
-  // 0: normal scheduling. Refused, it runs on at normal priority and the report says so.
+  // 0: normal scheduling. Refused, it runs on at normal priority and the report says so. Not
+  // asked for when hold_clock or wire_clock is set (the line's time is simulated).
   int fifo_priority = 60;
   // drip: the controller's maker documents that it discards a block whose N it already has;
   // only then are blocks resent after a lost link (else the job stops as interrupted).

@@ -73,7 +73,8 @@ struct SimControllerConfig {
   bool exit_at_end = false;          // run() returns once the program end has been executed
   // run() runs at SCHED_FIFO this priority (a UART's reception is hard real time; above the
   // DNC sender's 60, below the cycle's 80), back to the thread's former scheduling after; 0:
-  // normal scheduling. Refused, it runs at normal priority (link/thread_priority.hpp).
+  // normal scheduling. Refused, it runs at normal priority (link/thread_priority.hpp). Not
+  // asked for on a simulated clock (`clock` set).
   int fifo_priority = 70;
   double exit_quiet_s = 0.2;    // ... and the line has been quiet this long
   double alarm_linger_s = 1.0;  // with exit_at_end: run() returns this long after an alarm
