@@ -574,8 +574,8 @@ bool LimitSampler::needs_rest_refinement(std::size_t segment, double u) const {
   return limit_on_curve(segment, u).feed_mm_per_s < rest_speed_mm_per_s(2.0 * rest_first_mm());
 }
 
-// The u in [u0, u_hi] at arc length arc_mm from u0 (bisection; [u0, u_hi] holds no knot, so
-// the 10-point rule is exact to rounding); u_hi if the arc to it is shorter.
+// The u in [u0, u_hi] at arc length arc_mm from u0 (bisection; [u0, u_hi] holds no knot, and
+// gauss_arc_mm checks the 10-point rule where |C'| varies); u_hi if the arc to it is shorter.
 double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi,
                               double arc_mm) const {
   const auto arc = [&c, u0](double u) { return gauss_arc_mm(c, u0, u); };
