@@ -101,6 +101,8 @@ constexpr double kFineStep = 0.005;
 // period held the arc's speed two periods longer at each corner (gentle zig-zag under G64
 // P0.01: 3.040 s; a quarter: 2.960 s, and a tenth the same; docs/planner.md §3a).
 constexpr double kGuardPeriods = 0.25;
+// A curve interval longer than this many spacings is cut back (curve_interval).
+constexpr double kOverlong = 1.25;
 
 }  // namespace
 
@@ -289,8 +291,18 @@ void LimitSampler::curve_interval(const toolpath::NurbsCurve& c, Interval& iv) {
   RestEnds rest{};
   refine_towards_rest_start(c, u1, rest);
   refine_near_dips(c, u1);
-  const bool end_rest = refine_towards_rest_end(c, u1, rest);
-  const double arc = gauss_arc_mm(c, u_, u1);
+  bool end_rest = refine_towards_rest_end(c, u1, rest);
+  double arc = gauss_arc_mm(c, u_, u1);
+  // The step is sized by |C'(u_)|: where |C'| grows fast past u_ (a curve leaving a point of
+  // high curvature slowly), the interval came out several spacings long, all of it at the limit
+  // of its slow end. Rescaled until it is at most kOverlong spacings (|C'| growing, a rescaled
+  // step is shorter still); its end is then no knot and no rest.
+  const double spacing_mm = fine_ ? 0.5 * config_.spacing_mm : config_.spacing_mm;
+  while (arc > kOverlong * spacing_mm) {
+    u1 = u_ + (u1 - u_) * (spacing_mm / arc);
+    arc = gauss_arc_mm(c, u_, u1);
+    end_rest = false;
+  }
   const std::vector<double>& knots = breakpoints_[segment_];
   const bool open_end = (knot_ < knots.size() && u1 == knots[knot_] &&
                          std::isfinite(knot_edges_[segment_][knot_].v_mm_per_s)) ||
