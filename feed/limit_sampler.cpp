@@ -15,9 +15,10 @@
 // minimum").
 //
 // Intervals are at most `spacing_mm` long (0.2 mm: two per period at 100 mm/s and 4 ms; half
-// that on a curve after an interval whose limit is below the cap and changing), with a node on
-// every knot and vertex. The minimum over a curve interval: five samples, then
-// Brent's method around the lowest (the minimum may sit just inside an end).
+// that on a curve after an interval whose limit is below the cap and changing; a curve step
+// that came out longer than 1.25 spacings is cut back), with a node on every knot and vertex. The
+// minimum over a curve interval: five samples, then Brent's method around the lowest (the minimum
+// may sit just inside an end).
 //
 // What is limited (docs/planner.md §§1–3): on curves, feed_limit() at each point (roughness
 // law with α = asin(t_z), chord error, centripetal acceleration and jerk, machine maximum); on
