@@ -169,5 +169,43 @@ TEST(LimitSamplerInterval, NodesStandAtTheArcLengthOfTheirKnots) {
               checked, worst_mm, static_cast<unsigned long long>(seed));
 }
 
+// No curve interval is much longer than the spacing: the step Δu = spacing / |C'(u)| is cut
+// back where it comes out longer than 1.25 spacings (docs/planner.md §2, "Overlong steps"). The
+// curve leaves its start slowly (its first two control points 0.7 mm apart, at 5.7 mm/s by the
+// centripetal jerk law there) and |C'| grows fast: its first interval was 0.6 mm long, held at
+// the start's speed (curve 6 of Bound.RandomSmoothCurvesNearTheJerkCountingBound, seed
+// 1821406016). Also the random B-splines (seed printed).
+TEST(LimitSamplerInterval, NoCurveIntervalIsLongerThanItsStep) {
+  const auto longest_mm = [](const toolpath::Path& path) {
+    const PathWalker walker(path, WalkerConfig{});
+    LimitSampler sampler(path, {walker.segment_start_mm(0), walker.segment_start_mm(1)},
+                         MachineLimits{}, CuttingParams{}, SamplerConfig{});
+    double last = 0.0, longest = 0.0;
+    LimitNode node;
+    while (sampler.next(node)) longest = std::max(longest, node.s_mm - last), last = node.s_mm;
+    return longest;
+  };
+  const double limit_mm = 1.25 * SamplerConfig{}.spacing_mm * (1.0 + 1e-9);
+  const double slow_start = longest_mm(toolpath::read_path_text(
+      R"({"nurbs": {"degree": 3, "knots": [0,0,0,0,0.25,0.5,0.75,1,1,1,1], "points": [
+      [11.832882919537564,-22.462779847662652,0.18678614138348104],
+      [12.35861286477272,-22.040850734965669,0.27488629174018042],
+      [42.257596074467784,-16.035016817893343,0.60866711939725038],
+      [60.510352467199702,-13.713795378419535,-2.5387062404820977],
+      [75.331086799251196,-8.7091273143824175,1.4075091837777411],
+      [87.720911206091372,5.3104621816203572,-1.5783035362446778],
+      [108.65312426017175,23.72896157715558,-2.1997455524773972]]}})",
+      "slow start"));
+  EXPECT_LE(slow_start, limit_mm);
+  const std::uint64_t seed = test::seed();
+  std::mt19937_64 rng(seed);
+  double worst = 0.0;
+  for (int trial = 0; trial < 12; ++trial)
+    worst = std::max(worst, longest_mm(random_bspline_path(rng)));
+  EXPECT_LE(worst, limit_mm) << "seed " << seed;
+  std::printf("[ longest  ] %.4f mm on the slow start, %.4f mm on the random curves (seed %llu)\n",
+              slow_start, worst, static_cast<unsigned long long>(seed));
+}
+
 }  // namespace
 }  // namespace ncd::feed
