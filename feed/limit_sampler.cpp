@@ -15,9 +15,10 @@
 // minimum").
 //
 // Intervals are at most `spacing_mm` long (0.2 mm: two per period at 100 mm/s and 4 ms; half
-// that on a curve after an interval whose limit is below the cap and changing), with a node on
-// every knot and vertex. The minimum over a curve interval: five samples, then
-// Brent's method around the lowest (the minimum may sit just inside an end).
+// that on a curve after an interval whose limit is below the cap and changing; a curve step
+// that came out longer than 1.25 spacings is cut back), with a node on every knot and vertex. The
+// minimum over a curve interval: five samples, then Brent's method around the lowest (the minimum
+// may sit just inside an end).
 //
 // What is limited (docs/planner.md §§1–3): on curves, feed_limit() at each point (roughness
 // law with α = asin(t_z), chord error, centripetal acceleration and jerk, machine maximum); on
@@ -101,6 +102,8 @@ constexpr double kFineStep = 0.005;
 // period held the arc's speed two periods longer at each corner (gentle zig-zag under G64
 // P0.01: 3.040 s; a quarter: 2.960 s, and a tenth the same; docs/planner.md §3a).
 constexpr double kGuardPeriods = 0.25;
+// A curve interval longer than this many spacings is cut back (curve_interval).
+constexpr double kOverlong = 1.25;
 
 }  // namespace
 
@@ -289,8 +292,18 @@ void LimitSampler::curve_interval(const toolpath::NurbsCurve& c, Interval& iv) {
   RestEnds rest{};
   refine_towards_rest_start(c, u1, rest);
   refine_near_dips(c, u1);
-  const bool end_rest = refine_towards_rest_end(c, u1, rest);
-  const double arc = gauss_arc_mm(c, u_, u1);
+  bool end_rest = refine_towards_rest_end(c, u1, rest);
+  double arc = gauss_arc_mm(c, u_, u1);
+  // The step is sized by |C'(u_)|: where |C'| grows fast past u_ (a curve leaving a point of
+  // high curvature slowly), the interval came out several spacings long, all of it at the limit
+  // of its slow end. Rescaled until it is at most kOverlong spacings (|C'| growing, a rescaled
+  // step is shorter still); its end is then no knot and no rest.
+  const double spacing_mm = fine_ ? 0.5 * config_.spacing_mm : config_.spacing_mm;
+  while (arc > kOverlong * spacing_mm) {
+    u1 = u_ + (u1 - u_) * (spacing_mm / arc);
+    arc = gauss_arc_mm(c, u_, u1);
+    end_rest = false;
+  }
   const std::vector<double>& knots = breakpoints_[segment_];
   const bool open_end = (knot_ < knots.size() && u1 == knots[knot_] &&
                          std::isfinite(knot_edges_[segment_][knot_].v_mm_per_s)) ||
@@ -574,8 +587,8 @@ bool LimitSampler::needs_rest_refinement(std::size_t segment, double u) const {
   return limit_on_curve(segment, u).feed_mm_per_s < rest_speed_mm_per_s(2.0 * rest_first_mm());
 }
 
-// The u in [u0, u_hi] at arc length arc_mm from u0 (bisection; [u0, u_hi] holds no knot, so
-// the 10-point rule is exact to rounding); u_hi if the arc to it is shorter.
+// The u in [u0, u_hi] at arc length arc_mm from u0 (bisection; [u0, u_hi] holds no knot, and
+// gauss_arc_mm checks the 10-point rule where |C'| varies); u_hi if the arc to it is shorter.
 double LimitSampler::u_at_arc(const toolpath::NurbsCurve& c, double u0, double u_hi,
                               double arc_mm) const {
   const auto arc = [&c, u0](double u) { return gauss_arc_mm(c, u0, u); };
