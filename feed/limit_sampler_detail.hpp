@@ -63,28 +63,12 @@ inline Vec3 unit_or_zero(const Vec3& v) {
   return n > 0.0 ? Vec3(v / n) : Vec3::Zero();
 }
 
-// Adaptive 10-point Gauss–Legendre on [a, b] given the one-panel value `whole`: one panel
-// against two halves until they agree to 1e-12 (relative), at most 8 halvings deep (as the
-// walker's arc_length_mm, path_walker.cpp).
-inline double adaptive_arc_mm(const toolpath::NurbsCurve& c, double a, double b, double whole,
-                              int depth) {
-  std::size_t span = 0;
-  const auto speed = [&c, &span](double w) { return c.derivative(w, span).norm(); };
-  const double m = 0.5 * (a + b);
-  const double left = GaussLegendre10::integrate(speed, a, m);
-  const double right = GaussLegendre10::integrate(speed, m, b);
-  if (depth >= 8 || std::abs(left + right - whole) <= 1e-12 * std::abs(left + right)) {
-    return left + right;
-  }
-  return adaptive_arc_mm(c, a, m, left, depth + 1) + adaptive_arc_mm(c, m, b, right, depth + 1);
-}
-
 // Above this ratio of the largest to the smallest |C'| at the 10 nodes, the one-panel rule is
-// checked against halves (adaptive_arc_mm). |C'|² is a polynomial on a span; where |C'| varies
-// by less than this, its complex zeros lie far enough from [a, b] for the 10-point rule to be
-// exact to rounding. Near a near-cusp it is not: an interval of 0.16 mm over a dip of |C'| to
-// a fifth of its value came out 2.4e-4 mm long, and every node after it stood that far from
-// its point of the curve (docs/planner.md §2, "Arc length of an interval").
+// checked against halves (GaussLegendre10::adaptive, as the walker's arc_length_mm). |C'|² is a
+// polynomial on a span; where |C'| varies by less than this, its complex zeros lie far enough from
+// [a, b] for the 10-point rule to be exact to rounding. Near a near-cusp it is not: an interval of
+// 0.16 mm over a dip of |C'| to a fifth of its value came out 2.4e-4 mm long, and every node after
+// it stood that far from its point of the curve (docs/planner.md §2, "Arc length of an interval").
 inline constexpr double kArcSmoothRatio = 1.1;
 
 // The arc length of c over [a, b] (the sampler's intervals hold no knot): the 10-point rule,
@@ -99,7 +83,9 @@ inline double gauss_arc_mm(const toolpath::NurbsCurve& c, double a, double b) {
         return v;
       },
       a, b);
-  return hi > kArcSmoothRatio * lo ? adaptive_arc_mm(c, a, b, whole, 0) : whole;
+  if (hi <= kArcSmoothRatio * lo) return whole;
+  const auto speed = [&c, &span](double w) { return c.derivative(w, span).norm(); };
+  return GaussLegendre10::adaptive(speed, a, b, whole);
 }
 
 // The parametric speed |C'| = |d1| vanishes to rounding: below 1e-9 of the curve's size (its

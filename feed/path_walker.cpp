@@ -36,21 +36,6 @@ double distance_to_chord(const Vec3& q, const Vec3& a, const Vec3& b) {
   return len > 0.0 ? (q - a).cross(chord).norm() / len : (q - a).norm();
 }
 
-// Adaptive Gauss–Legendre on [a, b]: one panel against two halves until they agree to 1e-12
-// (relative), at most 8 halvings deep. Tighter is noise: a span of Δu = 3e-4 near u = 0.05
-// resolves u only to 2e-14 of its width, so |P'| itself carries ~1e-14 relative rounding.
-double adaptive_length(const toolpath::ParametricCurve& c, double a, double b, double whole,
-                       int depth) {
-  const auto speed = [&c](double u) { return c.derivative(u).norm(); };
-  const double m = 0.5 * (a + b);
-  const double left = GaussLegendre10::integrate(speed, a, m);
-  const double right = GaussLegendre10::integrate(speed, m, b);
-  if (depth >= 8 || std::abs(left + right - whole) <= 1e-12 * std::abs(left + right)) {
-    return left + right;
-  }
-  return adaptive_length(c, a, m, left, depth + 1) + adaptive_length(c, m, b, right, depth + 1);
-}
-
 }  // namespace
 
 double arc_length_mm(const toolpath::ParametricCurve& curve, double u0, double u1) {
@@ -62,7 +47,7 @@ double arc_length_mm(const toolpath::ParametricCurve& curve, double u0, double u
   double total = 0.0;
   for (int k = 0; k < kPanels; ++k) {
     const double a = u0 + k * h, b = k + 1 == kPanels ? u1 : a + h;
-    total += adaptive_length(curve, a, b, GaussLegendre10::integrate(speed, a, b), 0);
+    total += GaussLegendre10::adaptive(speed, a, b, GaussLegendre10::integrate(speed, a, b));
   }
   return total;
 }
