@@ -187,12 +187,10 @@ Summary summarise(const Program& p, const service::MachineConfig& machine) {
     if (const auto* r = std::get_if<toolpath::RotaryIndexMove>(&e)) {
       if (r->from_deg == r->to_deg) continue;
       // As the planner turns it (motion/job.cpp): rest to rest, a G1's feed capping the speed.
-      const feed::RotaryLimits& lim = machine.limits.rotary;
-      motion::IndexLimits il{lim.max_feed_deg_per_min / 60.0, lim.max_accel_deg_per_s2,
-                             lim.max_jerk_deg_per_s3};
-      if (!r->rapid && r->feed_deg_per_min > 0.0) {
-        il.max_speed_deg_per_s = std::min(il.max_speed_deg_per_s, r->feed_deg_per_min / 60.0);
-      }
+      const std::optional<double> feed = !r->rapid && r->feed_deg_per_min > 0.0
+                                             ? std::optional<double>(r->feed_deg_per_min)
+                                             : std::nullopt;
+      const motion::IndexLimits il = motion::index_limits(machine.limits.rotary, feed);
       const double t = motion::IndexProfile(r->from_deg, r->to_deg, il).duration_s();
       ++s.indexes;
       s.index_deg += std::abs(r->to_deg - r->from_deg);

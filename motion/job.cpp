@@ -82,8 +82,6 @@ std::vector<IndexAt> plan_indexes(const toolpath::Path& path, const feed::PathWa
   std::vector<IndexAt> out;
   if (!path.has_indexes()) return out;
   const feed::RotaryLimits& r = l.rotary;
-  const IndexLimits limits{r.max_feed_deg_per_min / 60.0, r.max_accel_deg_per_s2,
-                           r.max_jerk_deg_per_s3};
   const auto add = [&](const toolpath::RotaryIndex& ix, double s_mm) {
     const std::string axis(1, static_cast<char>(std::toupper(ix.axis)));
     if (!r.present() || r.axis != ix.axis) {
@@ -93,11 +91,8 @@ std::vector<IndexAt> plan_indexes(const toolpath::Path& path, const feed::PathWa
           (r.present() ? "the rotary axis " + std::string(1, r.axis) : "no rotary axis") +
           "; add an [axis." + std::string(1, ix.axis) + "] table to the machine file");
     }
-    IndexLimits lim = limits;
-    if (ix.feed_deg_per_min) {
-      lim.max_speed_deg_per_s = std::min(lim.max_speed_deg_per_s, *ix.feed_deg_per_min / 60.0);
-    }
     if (ix.from_deg == ix.to_deg) return;
+    const IndexLimits lim = index_limits(r, ix.feed_deg_per_min);
     const double tol = 1e-6 * std::max(1.0, s_mm);
     const bool at_rest = std::any_of(bounds_mm.begin(), bounds_mm.end(),
                                      [&](double b) { return std::abs(b - s_mm) <= tol; });

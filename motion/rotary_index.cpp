@@ -1,9 +1,18 @@
 // The double-S index profile (rotary_index.hpp explains it).
 #include "motion/rotary_index.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace ncd::motion {
+
+IndexLimits index_limits(const feed::RotaryLimits& axis, std::optional<double> feed_deg_per_min) {
+  IndexLimits l{axis.max_feed_deg_per_min / 60.0, axis.max_accel_deg_per_s2,
+                axis.max_jerk_deg_per_s3};
+  if (feed_deg_per_min)
+    l.max_speed_deg_per_s = std::min(l.max_speed_deg_per_s, *feed_deg_per_min / 60.0);
+  return l;
+}
 
 IndexProfile::IndexProfile(double from_deg, double to_deg, const IndexLimits& limits)
     : from_(from_deg), to_(to_deg) {

@@ -18,6 +18,10 @@
 // no allocation, no iteration; the cycle calls it once a period.
 #pragma once
 
+#include <optional>
+
+#include "feed/feed_limits.hpp"
+
 namespace ncd::motion {
 
 struct IndexLimits {
@@ -25,6 +29,11 @@ struct IndexLimits {
   double max_accel_deg_per_s2 = 1800.0;
   double max_jerk_deg_per_s3 = 36000.0;
 };
+
+// The limits an index turns under: the machine's rotary axis ([axis.a] or [axis.b]), its speed
+// capped by a G1's feed where the index has one (none: a rapid). The planner (job.cpp) and the
+// estimate of `ncd check` both take them from here.
+IndexLimits index_limits(const feed::RotaryLimits& axis, std::optional<double> feed_deg_per_min);
 
 class IndexProfile {
  public:
