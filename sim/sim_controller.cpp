@@ -269,6 +269,10 @@ void SimController::cycle_start() noexcept {
   impl_->port.wake();
 }
 
+void SimController::wake() noexcept {
+  impl_->port.wake();
+}
+
 SimProgress SimController::progress() const noexcept {
   SimProgress p;
   p.program_end_executed = impl_->live_end_executed.load(std::memory_order_acquire);

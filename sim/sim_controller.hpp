@@ -351,6 +351,10 @@ class SimController {
   // The cycle-start button: resumes a program stopped by M0 (and M1 with optional_stop), as `~`
   // does on the grbl link. Async-signal-safe; callable from any thread.
   void cycle_start() noexcept;
+  // Runs the loop now instead of at its next wait's end (at most kLoopPeriodS of wall time): for
+  // a test that has moved the controller's ManualClock on (tests/common/paced_controller.hpp).
+  // Async-signal-safe; callable from any thread.
+  void wake() noexcept;
   SimProgress progress() const noexcept;
   // What the run did; complete once run() has returned.
   const SimLog& log() const;

@@ -104,6 +104,7 @@ class PacedController {
       std::this_thread::sleep_for(100us);
     }
     clock_->advance(dt_s);
+    sim_->wake();  // else the loop sees the new time only when its wait (1 ms of wall time) ends
     const double target = now_s();
     while (!done_ && sim_->progress().t_s < target - 1e-12) {
       ASSERT_LT(std::chrono::steady_clock::now(), until) << "the controller's loop is stuck";
