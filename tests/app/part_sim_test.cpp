@@ -26,11 +26,14 @@
 // (SenderSettings::wire_clock: it writes at most 16 characters ahead of what the line can have
 // carried in the controller's time, at 98 % of the baud rate), and so does its timing of the
 // controller's holds (hold_clock). Only the sender's loop runs on the wall clock (a pass every
-// millisecond or so), which bounds how fast it can write in the controller's time: so the test
-// moves the clock on kStepS at a step while the controller's buffer holds at least its
-// low-water mark and kSlowStepS while it holds less, and the sender keeps ahead of the
-// execution (the run prints its underruns: 0). The 92 s of motion take a few seconds here (the
-// test prints the controller's time, the wall time and the CPU time).
+// millisecond or so, 16 characters at most each), which bounds how fast it can write in the
+// controller's time: so the test moves the clock on kStepS at a step while the controller's
+// buffer holds at least its low-water mark and kSlowStepS while it holds less, and after each
+// step waits for the sender to write (wait_for_a_write), so that the sender keeps ahead of the
+// execution however the machine's load delays its thread (the run prints its underruns: 0).
+// Without that wait CI's loaded machine starved the controller: 40 underruns, no DC3. The 92 s of
+// motion take a few seconds here (the test prints the controller's time, the wall time and the CPU
+// time).
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 
@@ -68,6 +71,8 @@ constexpr double kClearanceMm = 30.0 + 10.0;
 // millisecond of wall time, in which the sender writes some 6 characters): kStepS while the
 // controller's buffer holds at least its low-water mark, kSlowStepS while it holds less.
 constexpr double kStepS = 0.02, kSlowStepS = 0.002;
+// The longest wall time a step waits for the sender to write (wait_for_a_write).
+constexpr double kSenderWaitS = 2.0;
 
 double cpu_seconds() {
   rusage u{};
@@ -152,7 +157,31 @@ struct PartSimRun {
   comms::SenderReport report;
   double controller_s = 0.0, wall_s = 0.0, cpu_s = 0.0;
   long steps = 0;
+  long sender_waits_over = 0;  // steps after which the sender wrote nothing within kSenderWaitS
 };
+
+// After a step of the controller's time: waits until the sender has written since `before`
+// (the line has carried what it had ahead, so it has room), or needs not (the controller holds
+// the line, all the program's `blocks` are written, the sender is done), for up to kSenderWaitS of
+// wall time. The sender writes at most its 16 characters ahead of the line at a pass of its loop,
+// so without this wait a step quicker than its pass (the test's thread outrunning the sender's on
+// a loaded machine) starves the controller in its time, and the flow control under test is
+// never reached. False when the wait ran out (counted and printed; the run goes on).
+bool wait_for_a_write(const comms::DncSender& sender, const comms::SenderCounts& before,
+                      std::int64_t blocks, const std::atomic<bool>& sender_done) {
+  const auto until = std::chrono::steady_clock::now() +
+                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                         std::chrono::duration<double>(kSenderWaitS));
+  while (!sender_done.load()) {
+    const comms::SenderCounts now = sender.counters().load();
+    if (now.bytes_written > before.bytes_written || now.xoff_held || now.blocks_written >= blocks) {
+      return true;
+    }
+    if (std::chrono::steady_clock::now() > until) return false;
+    std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  return true;
+}
 
 class PartSim : public ncd::test::Cli {
  protected:
@@ -190,6 +219,7 @@ class PartSim : public ncd::test::Cli {
     s.wire_clock = ctl.clock();  // and the line's carriage: its DC3 always in reach
     comms::ProgramFile source(program);
     comms::DncSender sender(s, source);
+    const auto blocks = static_cast<std::int64_t>(part_sim_blocks(program).size());
     std::atomic<bool> stop{false}, sender_done{false};
     PartSimRun run;
     ctl.while_sender_reads([&sender_done] { return !sender_done.load(); });
@@ -213,8 +243,14 @@ class PartSim : public ncd::test::Cli {
       // Faster while the controller's buffer holds what it will run for a while, slower once
       // it holds less: the sender, paced by the wall clock, keeps ahead of the execution.
       const bool fed = ctl.sim().progress().buffer_fill >= *c.xon_at;
+      const comms::SenderCounts before = sender.counters().load();
       ctl.step(fed ? kStepS : kSlowStepS);
       ++run.steps;
+      // After an alarm the controller reads no more: the sender has nothing to wait for.
+      if (ctl.sim().progress().alarms == 0 &&
+          !wait_for_a_write(sender, before, blocks, sender_done)) {
+        ++run.sender_waits_over;
+      }
     }
     EXPECT_TRUE(ctl.done() && sender_done.load()) << "not done after " << wall() << " s";
     stop = true;
@@ -249,7 +285,8 @@ TEST_F(PartSim, ManifoldRunsWholeOnTheSimulatedControllerWithEveryIndexAboveTheC
             << log.execution_end_t_s << " s), wall " << run.wall_s << " s, CPU " << run.cpu_s
             << " s (this process), " << run.steps << " steps; DC3 " << log.xoff_sent
             << ", largest fill " << log.max_buffer_fill << " of " << log.config.buffer_bytes
-            << ", underruns " << log.underruns << " (" << log.dwell_s << " s dwelt)\n";
+            << ", underruns " << log.underruns << " (" << log.dwell_s
+            << " s dwelt); steps the sender did not write after: " << run.sender_waits_over << "\n";
 
   EXPECT_TRUE(run.report.completed) << run.report.failure;
   EXPECT_TRUE(log.alarms.empty()) << log_json["alarms"].dump();
