@@ -360,7 +360,11 @@ TEST(NurbsCurve, RejectsInvalidInputNamingTheValue) {
   expect_error([&] { NurbsCurve(0, {0, 1, 2, 3, 4}, four); }, "degree = 0");
   expect_error([&] { NurbsCurve(8, std::vector<double>(21, 0.0), std::vector<Vec3>(12)); },
                "degree = 8");
-  expect_error([&] { NurbsCurve(3, {0, 0, 0, 1, 1, 1}, {Vec3(), Vec3()}); }, "has 2 control");
+  expect_error(
+      [&] {
+        NurbsCurve(3, {0, 0, 0, 1, 1, 1}, {Vec3::Zero(), Vec3::Zero()});
+      },
+      "has 2 control");
   expect_error([&] { NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1}, four); }, "has 7 knots");
   // Interior knot 0.5 three times at degree 2.
   expect_error(
@@ -384,7 +388,7 @@ TEST(NurbsCurve, RejectsInvalidInputNamingTheValue) {
   expect_error([&] { NurbsCurve(3, k3, four, {1, 1, 1}); }, "3 weights");
   expect_error(
       [&] {
-        NurbsCurve(3, k3, {Vec3(), Vec3(HUGE_VAL, 0, 0), Vec3(), Vec3()});
+        NurbsCurve(3, k3, {Vec3::Zero(), Vec3(HUGE_VAL, 0, 0), Vec3::Zero(), Vec3::Zero()});
       },
       "point[1] = (inf");
   // Multiplicity equal to the degree is allowed (C0 corner).
