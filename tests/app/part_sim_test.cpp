@@ -67,9 +67,9 @@ const std::string kRotaryMachine = std::string(NCD_SOURCE_DIR) + "/examples/mach
 // [pipe] outer_radius_mm (a cylinder) + [cut] clearance_margin_mm of examples/manifold.toml, for
 // the ball's tip (the machine file's programmed point).
 constexpr double kClearanceMm = 30.0 + 10.0;
-// The controller's time moved on at each step of the test (a step takes about half a
-// millisecond of wall time, in which the sender writes some 6 characters): kStepS while the
-// controller's buffer holds at least its low-water mark, kSlowStepS while it holds less.
+// The controller's time moved on at each step of the test (a step then waits for a pass of the
+// sender's loop, which writes up to 16 characters): kStepS while the controller's buffer holds
+// at least its low-water mark, kSlowStepS while it holds less.
 constexpr double kStepS = 0.02, kSlowStepS = 0.002;
 // The longest wall time a step waits for the sender to write (wait_for_a_write).
 constexpr double kSenderWaitS = 2.0;
