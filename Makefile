@@ -43,23 +43,7 @@ demo: deps-build
 
 # The fuzz corpus (scripts/fuzz.sh corpus 2000, what `make test-fuzz` runs alone) is a part of the
 # sanitizer suite: the tests Fuzz.<name>Corpus of the debug tree (tests/fuzz/CMakeLists.txt).
-#
-# While the release suite runs, the sanitizer tree builds beside it at the lowest priority
-# (SCHED_IDLE where chrt may set it, and nice 19: it takes only the CPU the suite leaves idle,
-# about a core of the two, and the suite's tests run as they would alone); its output is printed
-# when it ends. Then the
-# sanitizer suite. `make test-release test-debug` runs the phases one after the other.
-test: format-check release
-	@cmake --preset debug >/dev/null
-	@mkdir -p build; log=build/debug-build.log; \
-	idle=$$(chrt --idle 0 true 2>/dev/null && echo chrt --idle 0); \
-	$$idle nice -n 19 cmake --build --preset debug -j $(JOBS) >$$log 2>&1 & build=$$!; \
-	echo "make test: the sanitizer tree builds beside the release suite (its output: $$log)"; \
-	ctest --preset release $(call ctest_jobs,release); suite=$$?; \
-	wait $$build; built=$$?; \
-	echo "make test: the sanitizer tree's build, run beside the release suite:"; cat $$log; \
-	if [ $$suite -ne 0 ]; then exit $$suite; fi; if [ $$built -ne 0 ]; then exit $$built; fi
-	ctest --preset debug $(call ctest_jobs,debug)
+test: format-check test-release test-debug
 
 # The tests that wait (streaming at a baud rate, servers, a browser) run beside the ones that
 # compute: ctest -j 4×JOBS with the resource file build/<tree>/tests/cpus.json, four slots a core,
