@@ -34,24 +34,33 @@ std::string record_text(std::int64_t confirmed, std::int64_t sent_bound, bool co
 
 }  // namespace
 
+// The journal is made whole beside its path (header and first record, synced) and renamed
+// over it: a reader, or a resume after the sender was killed at any instant, finds the old
+// journal or the new one, never a truncated one. The descriptor stays on the renamed file.
 TransferJournal::TransferJournal(const std::string& path, const JournalState& start)
     : path_(path), state_(start) {
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const std::string temp = path + ".tmp" + std::to_string(::getpid());
+  fd_ = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd_ < 0) {
-    throw std::runtime_error("cannot create the transfer journal " + path + ": " +
-                             std::strerror(errno));
+    throw std::runtime_error("cannot create the transfer journal " + path + " (as " + temp +
+                             "): " + std::strerror(errno));
   }
   const nlohmann::json header{{"journal", kMagic},
                               {"program_sha256", start.program_sha256},
                               {"settings", start.settings},
                               {"blocks", start.blocks}};
   const std::string head = header.dump() + "\n";
-  if (::write(fd_, head.data(), head.size()) != static_cast<ssize_t>(head.size())) {
-    throw std::runtime_error("cannot write the transfer journal " + path + ": " +
-                             std::strerror(errno));
-  }
   record_offset_ = static_cast<long>(head.size());
-  write_record();
+  const std::string first =
+      head + record_text(state_.confirmed, state_.sent_bound, state_.complete);
+  if (::write(fd_, first.data(), first.size()) != static_cast<ssize_t>(first.size()) ||
+      ::fdatasync(fd_) != 0 || ::rename(temp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(fd_);
+    fd_ = -1;
+    ::unlink(temp.c_str());
+    throw std::runtime_error("cannot write the transfer journal " + path + ": " + why);
+  }
 }
 
 TransferJournal::~TransferJournal() {

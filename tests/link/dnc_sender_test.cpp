@@ -93,6 +93,50 @@ TEST(TransferJournal, RecordsTheResumePointInPlace) {
   EXPECT_FALSE(TransferJournal::read(p.string()));
 }
 
+// A journal being made again (a resume starts a new one at the same path) is never seen half
+// written: a reader polling it, as Stream.KilledSenderResumesFromItsJournal does and as a
+// resume after a kill at any instant would, reads the old journal or the new one. Before the
+// journal was made beside its path and renamed, CI's end-to-end run read it truncated.
+TEST(TransferJournal, AReaderNeverSeesItHalfMade) {
+  const fs::path p = temp("journal_race");
+  JournalState s;
+  s.program_sha256 = "cd";
+  s.settings = "9600 7E2 xonxoff drip LF";
+  s.blocks = 500;
+  { TransferJournal first(p.string(), s); }
+  std::atomic<bool> done{false};
+  std::thread maker([&] {
+    for (int k = 0; k < 300; ++k) {
+      JournalState next = s;
+      next.confirmed = k;
+      TransferJournal j(p.string(), next);
+      j.confirm(k + 1);
+    }
+    done = true;
+  });
+  long reads = 0;
+  std::string half_made;
+  while (!done.load() && half_made.empty()) {
+    try {
+      const auto r = TransferJournal::read(p.string());
+      if (!r || r->blocks != 500) half_made = "no journal, or another one";
+      ++reads;
+    } catch (const InputError& e) {
+      half_made = e.what();  // "not usable (truncated)"
+    }
+  }
+  maker.join();
+  EXPECT_EQ(half_made, "") << "after " << reads << " reads";
+  std::printf("[ measured ] %ld reads beside 300 journals made anew\n", reads);
+  EXPECT_GT(reads, 0);
+  int leftovers = 0;
+  for (const auto& e : fs::directory_iterator(p.parent_path())) {
+    leftovers += e.path().filename().string().rfind(p.filename().string() + ".tmp", 0) == 0;
+  }
+  EXPECT_EQ(leftovers, 0);  // no temporary left beside it
+  fs::remove(p);
+}
+
 // The bound on the blocks written: always past the block about to be written (read back after
 // each call, as a sender killed right after the write would leave it), raised by a margin so
 // that the record is rewritten once per kSentMargin blocks; a journal from before the bound
