@@ -67,12 +67,18 @@ fs::path temp(const std::string& name) {
   return fs::temp_directory_path() / ("ncd_sender_" + std::to_string(getpid()) + "_" + name);
 }
 
+JournalState journal_state(const std::string& sha, const std::string& settings,
+                           std::int64_t blocks) {
+  JournalState s;
+  s.program_sha256 = sha;
+  s.settings = settings;
+  s.blocks = blocks;
+  return s;
+}
+
 TEST(TransferJournal, RecordsTheResumePointInPlace) {
   const fs::path p = temp("journal");
-  JournalState s;
-  s.program_sha256 = "ab";
-  s.settings = "19200 7E2 xonxoff drip LF";
-  s.blocks = 1000;
+  const JournalState s = journal_state("ab", "19200 7E2 xonxoff drip LF", 1000);
   {
     TransferJournal j(p.string(), s);
     const auto size0 = fs::file_size(p);
@@ -99,10 +105,7 @@ TEST(TransferJournal, RecordsTheResumePointInPlace) {
 // journal was made beside its path and renamed, CI's end-to-end run read it truncated.
 TEST(TransferJournal, AReaderNeverSeesItHalfMade) {
   const fs::path p = temp("journal_race");
-  JournalState s;
-  s.program_sha256 = "cd";
-  s.settings = "9600 7E2 xonxoff drip LF";
-  s.blocks = 500;
+  const JournalState s = journal_state("cd", "9600 7E2 xonxoff drip LF", 500);
   { TransferJournal first(p.string(), s); }
   std::atomic<bool> done{false};
   std::thread maker([&] {
